@@ -1,1 +1,14 @@
-//! placeholder
+//! `igi-brdf`: isotropic Lafortune BRDFs for the igi toolkit.
+//!
+//! - [`Lafortune`] / [`LafortuneRef`]: the model `rho_d/pi + sum rho_l max(0, Cxy(ux vx + uy vy) + Cz uz vz)^N`
+//!   in the local shading frame ([`Frame`], z = normal), with evaluation, importance sampling
+//!   (cosine + cosine-power lobes, mixture pdf for MIS) and directional albedo.
+//! - Directions are unit vectors pointing away from the surface; values are linear RGB, f32.
+
+pub mod error;
+pub mod frame;
+pub mod lafortune;
+
+pub use error::BrdfError;
+pub use frame::Frame;
+pub use lafortune::{luminance, BsdfSample, Lafortune, LafortuneRef, Lobe};
