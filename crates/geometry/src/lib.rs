@@ -1,1 +1,50 @@
-//! placeholder
+//! `igi-geometry`: meshes for the igi toolkit.
+//!
+//! - [`TriMesh`], the indexed triangle mesh every crate shares, with [`read_mesh`] (PLY ASCII
+//!   and binary of either byte order, OBJ), [`write_ply`] (binary little endian) and
+//!   [`write_obj`]; writes are atomic (temp file + rename).
+//! - [`procedural`]: the embedded default site (terrain, steps, columns, wall, architrave) at any
+//!   tessellation density.
+//!
+//! Conventions: world Z up, metres; UVs as in OBJ ((0,0) bottom-left, v up); colours linear RGB
+//! in [0, 1].
+
+mod atomic;
+pub mod error;
+pub mod mesh;
+pub mod obj;
+pub mod ply;
+pub mod procedural;
+
+pub use error::GeometryError;
+pub use mesh::TriMesh;
+pub use obj::{read_obj, write_obj};
+pub use ply::{read_ply, write_ply};
+
+use std::path::Path;
+
+/// Read a `.ply` or `.obj` mesh (chosen by extension, case-insensitive) and validate it.
+pub fn read_mesh(path: &Path) -> Result<TriMesh, GeometryError> {
+    match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+        Some("ply") => read_ply(path),
+        Some("obj") => read_obj(path),
+        _ => Err(GeometryError::UnknownFormat { path: path.to_path_buf() }),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn unknown_extension_is_refused_by_name() {
+        let e = read_mesh(Path::new("/tmp/site.stl")).unwrap_err().to_string();
+        assert!(e.contains("site.stl") && e.contains("unknown mesh format"), "{e}");
+    }
+
+    #[test]
+    fn missing_file_names_the_file() {
+        let e = read_mesh(Path::new("/nonexistent/x.ply")).unwrap_err().to_string();
+        assert!(e.contains("/nonexistent/x.ply"), "{e}");
+    }
+}

@@ -1,0 +1,229 @@
+//! Wavefront OBJ reading and writing.
+
+use crate::atomic::write_atomic_with;
+use crate::error::GeometryError;
+use crate::mesh::TriMesh;
+use std::collections::HashMap;
+use std::io::{BufRead, BufReader, Write};
+use std::path::Path;
+
+/// Read an OBJ file: `v x y z [r g b]`, `vt u v`, `vn x y z`, `f` with corners `a`, `a/b`,
+/// `a//c`, `a/b/c` (1-based, negative = relative to the end). Polygons are fan-triangulated.
+/// Corners with distinct (position, uv, normal) triples become distinct vertices ("unwelded");
+/// a file whose faces use positions only keeps its vertex order.
+pub fn read_obj(path: &Path) -> Result<TriMesh, GeometryError> {
+    let f = std::fs::File::open(path).map_err(|e| GeometryError::io(path, e))?;
+    let r = BufReader::with_capacity(1 << 20, f);
+    let mut pos: Vec<[f32; 3]> = Vec::new();
+    let mut col: Vec<[f32; 3]> = Vec::new();
+    let mut tex: Vec<[f32; 2]> = Vec::new();
+    let mut nrm: Vec<[f32; 3]> = Vec::new();
+    // corners as (v, vt, vn) 0-based, u32::MAX = absent
+    let mut faces: Vec<[[u32; 3]; 3]> = Vec::new();
+    let mut any_vt = false;
+    let mut any_vn = false;
+    let mut corners: Vec<[u32; 3]> = Vec::with_capacity(8);
+    for (ln, line) in r.lines().enumerate() {
+        let line = line.map_err(|e| GeometryError::io(path, e))?;
+        let ln = ln + 1;
+        let bad = |m: &str| GeometryError::format(path, format!("line {ln}: {m}"));
+        let line = line.split('#').next().unwrap_or("");
+        let mut it = line.split_whitespace();
+        let Some(key) = it.next() else { continue };
+        let nums = |it: std::str::SplitWhitespace, min: usize| -> Result<Vec<f32>, GeometryError> {
+            let v: Result<Vec<f32>, _> = it.map(|t| t.parse::<f32>()).collect();
+            let v = v.map_err(|_| bad(&format!("`{}` has a value that is not a number", line.trim())))?;
+            if v.len() < min {
+                return Err(bad(&format!("`{key}` needs {min} numbers")));
+            }
+            Ok(v)
+        };
+        match key {
+            "v" => {
+                let v = nums(it, 3)?;
+                pos.push([v[0], v[1], v[2]]);
+                if v.len() >= 6 {
+                    col.push([v[3], v[4], v[5]]);
+                }
+            }
+            "vt" => {
+                let v = nums(it, 1)?;
+                tex.push([v[0], v.get(1).copied().unwrap_or(0.0)]);
+            }
+            "vn" => {
+                let v = nums(it, 3)?;
+                nrm.push([v[0], v[1], v[2]]);
+            }
+            "f" => {
+                corners.clear();
+                for tok in it {
+                    let mut parts = tok.split('/');
+                    let mut idx = [u32::MAX; 3];
+                    let lens = [pos.len(), tex.len(), nrm.len()];
+                    for (k, slot) in idx.iter_mut().enumerate() {
+                        match parts.next() {
+                            None | Some("") if k > 0 => {}
+                            None | Some("") => return Err(bad(&format!("face corner `{tok}` has no vertex index"))),
+                            Some(s) => {
+                                let i: i64 = s.parse().map_err(|_| bad(&format!("bad face index `{s}`")))?;
+                                let n = lens[k] as i64;
+                                let j = if i > 0 { i - 1 } else { n + i };
+                                if i == 0 || j < 0 || j >= n {
+                                    let what = ["vertex", "texture coordinate", "normal"][k];
+                                    return Err(bad(&format!(
+                                        "face {what} index {i} out of range ({n} defined so far)"
+                                    )));
+                                }
+                                *slot = j as u32;
+                            }
+                        }
+                    }
+                    any_vt |= idx[1] != u32::MAX;
+                    any_vn |= idx[2] != u32::MAX;
+                    corners.push(idx);
+                }
+                if corners.len() < 3 {
+                    return Err(bad("face with fewer than 3 corners"));
+                }
+                for j in 1..corners.len() - 1 {
+                    faces.push([corners[0], corners[j], corners[j + 1]]);
+                }
+            }
+            _ => {} // o, g, s, usemtl, mtllib, l, p...: not geometry we keep
+        }
+    }
+    let colors_ok = !col.is_empty() && col.len() == pos.len();
+    let mut mesh = TriMesh::default();
+    if !any_vt && !any_vn {
+        mesh.positions = pos;
+        mesh.colors = colors_ok.then_some(col);
+        mesh.indices = faces.iter().map(|f| [f[0][0], f[1][0], f[2][0]]).collect();
+    } else {
+        let mut map: HashMap<[u32; 3], u32> = HashMap::new();
+        let mut uvs = Vec::new();
+        let mut nv = Vec::new();
+        let mut cv = Vec::new();
+        for f in &faces {
+            let mut tri = [0u32; 3];
+            for (k, c) in f.iter().enumerate() {
+                tri[k] = *map.entry(*c).or_insert_with(|| {
+                    let id = mesh.positions.len() as u32;
+                    mesh.positions.push(pos[c[0] as usize]);
+                    if colors_ok {
+                        cv.push(col[c[0] as usize]);
+                    }
+                    uvs.push(if c[1] == u32::MAX { [0.0, 0.0] } else { tex[c[1] as usize] });
+                    nv.push(if c[2] == u32::MAX { [0.0, 0.0, 0.0] } else { nrm[c[2] as usize] });
+                    id
+                });
+            }
+            mesh.indices.push(tri);
+        }
+        mesh.uvs = any_vt.then_some(uvs);
+        mesh.normals = any_vn.then_some(nv);
+        mesh.colors = colors_ok.then_some(cv);
+    }
+    mesh.validate().map_err(|e| e.in_file(path))?;
+    Ok(mesh)
+}
+
+/// Write an OBJ file (atomically): `v` (with r g b when the mesh has colours), `vt`, `vn`,
+/// and faces `a/a/a` since attributes are per vertex.
+pub fn write_obj(path: &Path, mesh: &TriMesh) -> Result<(), GeometryError> {
+    mesh.validate().map_err(|e| e.in_file(path))?;
+    write_atomic_with(path, |w| {
+        writeln!(w, "# written by igi-geometry")?;
+        for (i, p) in mesh.positions.iter().enumerate() {
+            match &mesh.colors {
+                Some(c) => {
+                    let c = c[i];
+                    writeln!(w, "v {} {} {} {} {} {}", p[0], p[1], p[2], c[0], c[1], c[2])?
+                }
+                None => writeln!(w, "v {} {} {}", p[0], p[1], p[2])?,
+            }
+        }
+        if let Some(t) = &mesh.uvs {
+            for t in t {
+                writeln!(w, "vt {} {}", t[0], t[1])?;
+            }
+        }
+        if let Some(n) = &mesh.normals {
+            for n in n {
+                writeln!(w, "vn {} {} {}", n[0], n[1], n[2])?;
+            }
+        }
+        let (has_t, has_n) = (mesh.uvs.is_some(), mesh.normals.is_some());
+        for t in &mesh.indices {
+            let [a, b, c] = t.map(|i| i + 1);
+            match (has_t, has_n) {
+                (false, false) => writeln!(w, "f {a} {b} {c}")?,
+                (true, false) => writeln!(w, "f {a}/{a} {b}/{b} {c}/{c}")?,
+                (false, true) => writeln!(w, "f {a}//{a} {b}//{b} {c}//{c}")?,
+                (true, true) => writeln!(w, "f {a}/{a}/{a} {b}/{b}/{b} {c}/{c}/{c}")?,
+            }
+        }
+        Ok(())
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn write(dir: &Path, name: &str, s: &str) -> std::path::PathBuf {
+        let p = dir.join(name);
+        std::fs::write(&p, s).unwrap();
+        p
+    }
+
+    #[test]
+    fn all_corner_forms_and_negative_indices_unweld() {
+        let d = tempfile::tempdir().unwrap();
+        let s = "# cube corner\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvn 0 0 1\n\
+o x\ng y\nusemtl m\nf 1/1/1 2/2/1 3/3/1 4/4/1\nf -4/1 -2/3 -1/2\n";
+        let p = write(d.path(), "a.obj", s);
+        let m = read_obj(&p).unwrap();
+        // first quad: 4 unique corners; second triangle: (1,1,-) new, (3,3,-) new, (4,2,-) new
+        assert_eq!(m.positions.len(), 7);
+        assert_eq!(m.indices, vec![[0, 1, 2], [0, 2, 3], [4, 5, 6]]);
+        assert_eq!(m.uvs.as_ref().unwrap()[6], [1.0, 0.0]);
+        assert_eq!(m.positions[6], [0.0, 1.0, 0.0]);
+        assert_eq!(m.normals.as_ref().unwrap()[0], [0.0, 0.0, 1.0]);
+        let s = "v 0 0 0 1 0 0\nv 1 0 0 0 1 0\nv 0 1 0 0 0 1\nvn 0 0 1\nf 1//1 2//1 3//1\nf 3 2 1\n";
+        let m = read_obj(&write(d.path(), "b.obj", s)).unwrap();
+        assert_eq!(m.indices.len(), 2);
+        assert!(m.uvs.is_none());
+        assert_eq!(m.colors.as_ref().unwrap()[2], [0.0, 0.0, 1.0]);
+        let s = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 5 5 5\nf 1 2 3\n";
+        let m = read_obj(&write(d.path(), "c.obj", s)).unwrap();
+        assert_eq!(m.positions.len(), 4, "position-only files keep their vertices");
+    }
+
+    #[test]
+    fn bad_obj_is_reported_with_file_and_line() {
+        let d = tempfile::tempdir().unwrap();
+        let e = read_obj(&write(d.path(), "r.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n")).unwrap_err().to_string();
+        assert!(e.contains("r.obj") && e.contains("line 4") && e.contains("index 4 out of range"), "{e}");
+        let e = read_obj(&write(d.path(), "n.obj", "v 0 x 0\n")).unwrap_err().to_string();
+        assert!(e.contains("n.obj") && e.contains("line 1"), "{e}");
+        let e = read_obj(&write(d.path(), "e.obj", "# nothing\n")).unwrap_err().to_string();
+        assert!(e.contains("e.obj") && e.contains("empty"), "{e}");
+        let e = read_obj(&write(d.path(), "z.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n")).unwrap_err().to_string();
+        assert!(e.contains("index 0"), "{e}");
+    }
+
+    #[test]
+    fn write_read_round_trip() {
+        let d = tempfile::tempdir().unwrap();
+        let m = TriMesh {
+            positions: vec![[0.1, 0.2, 0.3], [1.5, -2.25, 1e-7], [3.0, 1.0, -4.0]],
+            normals: Some(vec![[0.0, 0.0, 1.0], [0.6, 0.8, 0.0], [1.0, 0.0, 0.0]]),
+            uvs: Some(vec![[0.0, 1.0], [0.3, 0.7], [1.0, 0.0]]),
+            colors: None,
+            indices: vec![[0, 1, 2]],
+        };
+        let p = d.path().join("r.obj");
+        write_obj(&p, &m).unwrap();
+        assert_eq!(read_obj(&p).unwrap(), m, "f32 Display round-trips exactly");
+    }
+}
