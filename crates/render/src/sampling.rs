@@ -1,0 +1,352 @@
+//! Random numbers and sampling distributions for the path tracer.
+//!
+//! - [`Rng`]: PCG32 (O'Neill), one stream per pixel / query, seeded by [`hash2`]`(seed, index)`
+//!   so results do not depend on thread scheduling. No global RNG anywhere.
+//! - [`Distribution1D`] / [`Distribution2D`]: piecewise-constant densities on [0, 1) and
+//!   [0, 1)^2 (marginal over rows, conditional over columns), as in pbrt-v4.
+//! - [`sample_cone`]: uniform directions in a cone, accurate for tiny cones (the sun).
+//! - [`power_heuristic`]: MIS weight (beta = 2).
+
+use glam::{Vec2, Vec3};
+
+/// SplitMix64 finaliser: a strong 64-bit mixing function.
+#[inline]
+pub fn mix64(mut z: u64) -> u64 {
+    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// Hash of (seed, index), used to seed one independent stream per pixel or query.
+#[inline]
+pub fn hash2(seed: u64, index: u64) -> u64 {
+    mix64(mix64(seed) ^ index.wrapping_mul(0xD6E8_FEB8_6659_FD93))
+}
+
+/// PCG32 (XSH-RR) generator.
+#[derive(Clone, Debug)]
+pub struct Rng {
+    state: u64,
+    inc: u64,
+}
+
+impl Rng {
+    /// A generator for stream `index` of run `seed`.
+    pub fn new(seed: u64, index: u64) -> Self {
+        let h = hash2(seed, index);
+        let mut r = Rng { state: 0, inc: (mix64(h ^ 0xA5A5_A5A5) << 1) | 1 };
+        r.next_u32();
+        r.state = r.state.wrapping_add(h);
+        r.next_u32();
+        r
+    }
+
+    #[inline]
+    pub fn next_u32(&mut self) -> u32 {
+        let old = self.state;
+        self.state = old.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(self.inc);
+        let xorshifted = (((old >> 18) ^ old) >> 27) as u32;
+        let rot = (old >> 59) as u32;
+        xorshifted.rotate_right(rot)
+    }
+
+    /// Uniform in [0, 1) (24 random bits, never returns 1.0).
+    #[inline]
+    pub fn uniform(&mut self) -> f32 {
+        (self.next_u32() >> 8) as f32 * (1.0 / 16_777_216.0)
+    }
+
+    #[inline]
+    pub fn uniform2(&mut self) -> Vec2 {
+        let a = self.uniform();
+        Vec2::new(a, self.uniform())
+    }
+}
+
+/// Piecewise-constant density on [0, 1) with `n` equal cells.
+#[derive(Clone, Debug)]
+pub struct Distribution1D {
+    func: Vec<f32>,
+    /// cdf[0] = 0, cdf[n] = 1 (length n + 1).
+    cdf: Vec<f32>,
+    /// Integral of `func` over [0, 1] (= mean of func).
+    integral: f64,
+}
+
+impl Distribution1D {
+    /// `func` must be non-negative and finite (negative or NaN values count as zero).
+    /// If it sums to zero the density is uniform.
+    pub fn new(func: &[f32]) -> Self {
+        let n = func.len().max(1);
+        let func: Vec<f32> = if func.is_empty() {
+            vec![0.0]
+        } else {
+            func.iter().map(|&f| if f.is_finite() && f > 0.0 { f } else { 0.0 }).collect()
+        };
+        let mut acc = vec![0f64; n + 1];
+        for i in 0..n {
+            acc[i + 1] = acc[i] + func[i] as f64 / n as f64;
+        }
+        let integral = acc[n];
+        let cdf: Vec<f32> = if integral > 0.0 {
+            acc.iter().map(|&c| (c / integral) as f32).collect()
+        } else {
+            (0..=n).map(|i| i as f32 / n as f32).collect()
+        };
+        let mut cdf = cdf;
+        cdf[n] = 1.0;
+        Distribution1D { func, cdf, integral }
+    }
+
+    pub fn len(&self) -> usize {
+        self.func.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.func.is_empty()
+    }
+
+    /// Integral of the unnormalised function over [0, 1].
+    pub fn integral(&self) -> f64 {
+        self.integral
+    }
+
+    /// Density (w.r.t. x in [0,1)) of cell `i`.
+    #[inline]
+    pub fn pdf_cell(&self, i: usize) -> f32 {
+        if self.integral > 0.0 {
+            (self.func[i] as f64 / self.integral) as f32
+        } else {
+            1.0
+        }
+    }
+
+    /// Samples x in [0, 1); returns (x, pdf(x), cell index).
+    #[inline]
+    pub fn sample(&self, u: f32) -> (f32, f32, usize) {
+        let n = self.func.len();
+        // Largest i with cdf[i] <= u, restricted to cells of non-zero probability.
+        let mut i = self.cdf.partition_point(|&c| c <= u).saturating_sub(1).min(n - 1);
+        while i > 0 && self.cdf[i + 1] <= self.cdf[i] {
+            i -= 1; // skip zero-probability cells (can only happen at u == cdf[i])
+        }
+        while i + 1 < n && self.cdf[i + 1] <= self.cdf[i] {
+            i += 1;
+        }
+        let width = self.cdf[i + 1] - self.cdf[i];
+        let du = if width > 0.0 { ((u - self.cdf[i]) / width).clamp(0.0, 1.0) } else { 0.5 };
+        let x = ((i as f32 + du) / n as f32).min(1.0 - f32::EPSILON * 0.5);
+        (x, self.pdf_cell(i), i)
+    }
+}
+
+/// Piecewise-constant density on [0, 1)^2 over a `w x h` grid (row index = v, column = u).
+#[derive(Clone, Debug)]
+pub struct Distribution2D {
+    conditional: Vec<Distribution1D>,
+    marginal: Distribution1D,
+    w: usize,
+    h: usize,
+}
+
+impl Distribution2D {
+    /// `func[row * w + col]`, row-major.
+    pub fn new(func: &[f32], w: usize, h: usize) -> Self {
+        assert_eq!(func.len(), w * h, "Distribution2D: func has the wrong size");
+        let conditional: Vec<Distribution1D> =
+            (0..h).map(|r| Distribution1D::new(&func[r * w..(r + 1) * w])).collect();
+        let row_int: Vec<f32> = conditional.iter().map(|c| c.integral() as f32).collect();
+        let marginal = Distribution1D::new(&row_int);
+        Distribution2D { conditional, marginal, w, h }
+    }
+
+    /// Integral of the unnormalised function over the unit square.
+    pub fn integral(&self) -> f64 {
+        self.marginal.integral()
+    }
+
+    /// Samples (u, v); returns ((u, v), pdf w.r.t. du dv).
+    #[inline]
+    pub fn sample(&self, s: Vec2) -> (Vec2, f32) {
+        let (v, pdf_v, row) = self.marginal.sample(s.y);
+        let (u, pdf_u, _) = self.conditional[row].sample(s.x);
+        (Vec2::new(u, v), pdf_v * pdf_u)
+    }
+
+    /// Density w.r.t. du dv at (u, v).
+    #[inline]
+    pub fn pdf(&self, uv: Vec2) -> f32 {
+        let col = ((uv.x * self.w as f32) as usize).min(self.w - 1);
+        let row = ((uv.y * self.h as f32) as usize).min(self.h - 1);
+        self.marginal.pdf_cell(row) * self.conditional[row].pdf_cell(col)
+    }
+
+    pub fn width(&self) -> usize {
+        self.w
+    }
+
+    pub fn height(&self) -> usize {
+        self.h
+    }
+}
+
+/// Orthonormal basis (s, t) completing the unit vector `n` (Duff et al. 2017).
+#[inline]
+pub fn basis(n: Vec3) -> (Vec3, Vec3) {
+    let sign = 1f32.copysign(n.z);
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    (
+        Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
+        Vec3::new(b, sign + n.y * n.y * a, -n.y),
+    )
+}
+
+/// Uniform direction inside the cone around unit `axis` whose solid angle is
+/// 2 pi * `one_minus_cos_max`. Works from 1 - cos(theta) directly so that cones a fraction of a
+/// degree wide (the sun) keep full precision in f32. The pdf is 1 / (2 pi one_minus_cos_max).
+#[inline]
+pub fn sample_cone(axis: Vec3, one_minus_cos_max: f32, u: Vec2) -> Vec3 {
+    let omc = u.x * one_minus_cos_max; // 1 - cos(theta), uniform
+    let sin2 = (omc * (2.0 - omc)).max(0.0);
+    let sin_t = sin2.sqrt();
+    let cos_t = 1.0 - omc;
+    let phi = 2.0 * std::f32::consts::PI * u.y;
+    let (s, t) = basis(axis);
+    (s * (sin_t * phi.cos()) + t * (sin_t * phi.sin()) + axis * cos_t).normalize()
+}
+
+/// Power heuristic (beta = 2) weight of strategy `a` against `b`, with one sample each.
+#[inline]
+pub fn power_heuristic(pdf_a: f32, pdf_b: f32) -> f32 {
+    let a = pdf_a * pdf_a;
+    let b = pdf_b * pdf_b;
+    if a + b > 0.0 && a.is_finite() {
+        a / (a + b)
+    } else if !a.is_finite() {
+        1.0
+    } else {
+        0.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rng_is_deterministic_and_uniform() {
+        let mut a = Rng::new(7, 3);
+        let mut b = Rng::new(7, 3);
+        let mut c = Rng::new(7, 4);
+        let xs: Vec<f32> = (0..10_000).map(|_| a.uniform()).collect();
+        let ys: Vec<f32> = (0..10_000).map(|_| b.uniform()).collect();
+        let zs: Vec<f32> = (0..10_000).map(|_| c.uniform()).collect();
+        assert_eq!(xs, ys);
+        assert_ne!(xs, zs);
+        let mean = xs.iter().map(|&x| x as f64).sum::<f64>() / 1e4;
+        let var = xs.iter().map(|&x| (x as f64 - mean).powi(2)).sum::<f64>() / 1e4;
+        assert!((mean - 0.5).abs() < 0.01, "{mean}");
+        assert!((var - 1.0 / 12.0).abs() < 0.003, "{var}");
+        assert!(xs.iter().all(|&x| (0.0..1.0).contains(&x)));
+    }
+
+    #[test]
+    fn distribution1d_samples_follow_the_function() {
+        let f = [0.0, 1.0, 3.0, 0.0, 4.0];
+        let d = Distribution1D::new(&f);
+        assert!((d.integral() - 8.0 / 5.0).abs() < 1e-9);
+        let mut counts = [0usize; 5];
+        let mut rng = Rng::new(1, 0);
+        let n = 80_000;
+        for _ in 0..n {
+            let (x, pdf, i) = d.sample(rng.uniform());
+            assert!((0.0..1.0).contains(&x));
+            assert_eq!(i, (x * 5.0) as usize);
+            assert!((pdf - f[i] / 1.6).abs() < 1e-5);
+            counts[i] += 1;
+        }
+        assert_eq!(counts[0], 0);
+        assert_eq!(counts[3], 0);
+        for i in [1, 2, 4] {
+            let expect = n as f64 * f[i] as f64 / 8.0;
+            assert!((counts[i] as f64 - expect).abs() < 4.0 * expect.sqrt(), "{i} {counts:?}");
+        }
+        // Edge values of u.
+        let (x0, _, i0) = d.sample(0.0);
+        assert_eq!(i0, 1);
+        assert!((x0 - 0.2).abs() < 1e-6);
+        let (x1, _, i1) = d.sample(0.999_999_9);
+        assert_eq!(i1, 4);
+        assert!(x1 < 1.0);
+        // All-zero function: uniform.
+        let z = Distribution1D::new(&[0.0, 0.0]);
+        assert_eq!(z.pdf_cell(1), 1.0);
+    }
+
+    #[test]
+    fn distribution2d_pdf_integrates_to_one() {
+        let (w, h) = (7, 5);
+        let f: Vec<f32> = (0..w * h).map(|i| ((i * 37) % 11) as f32).collect();
+        let d = Distribution2D::new(&f, w, h);
+        let mut total = 0.0f64;
+        for r in 0..h {
+            for c in 0..w {
+                let uv = Vec2::new((c as f32 + 0.5) / w as f32, (r as f32 + 0.5) / h as f32);
+                let p = d.pdf(uv) as f64;
+                total += p / (w * h) as f64;
+                let expect = f[r * w + c] as f64 / d.integral();
+                assert!((p - expect).abs() < 1e-4 * expect.max(1.0), "{p} vs {expect}");
+            }
+        }
+        assert!((total - 1.0).abs() < 1e-5, "{total}");
+        let mut rng = Rng::new(2, 0);
+        for _ in 0..1000 {
+            let (uv, pdf) = d.sample(rng.uniform2());
+            assert!((pdf - d.pdf(uv)).abs() < 1e-4 * pdf.max(1.0));
+            assert!(pdf > 0.0);
+        }
+    }
+
+    #[test]
+    fn cone_samples_are_uniform_inside_a_tiny_cone() {
+        let axis = Vec3::new(0.3, -0.5, 0.8).normalize();
+        let half = (0.53f64 / 2.0).to_radians();
+        let omc = (2.0 * (half / 2.0).sin().powi(2)) as f32;
+        let mut rng = Rng::new(3, 0);
+        let n = 40_000;
+        let mut inner = 0;
+        for _ in 0..n {
+            let d = sample_cone(axis, omc, rng.uniform2());
+            assert!((d.length() - 1.0).abs() < 1e-5);
+            let ang = d.cross(axis).length().asin() as f64;
+            assert!(ang <= half * 1.0001, "{ang} > {half}");
+            // Uniform in solid angle: P(angle < half / sqrt 2) = (1 - cos(h/sqrt2)) / (1 - cos h) ~ 1/2.
+            if ang < half / 2f64.sqrt() {
+                inner += 1;
+            }
+        }
+        let p = (1.0 - (half / 2f64.sqrt()).cos()) / (1.0 - half.cos());
+        let expect = p * n as f64;
+        assert!((inner as f64 - expect).abs() < 4.0 * (expect * (1.0 - p)).sqrt(), "{inner} vs {expect}");
+    }
+
+    #[test]
+    fn power_heuristic_limits() {
+        assert_eq!(power_heuristic(1.0, 0.0), 1.0);
+        assert_eq!(power_heuristic(0.0, 1.0), 0.0);
+        assert!((power_heuristic(1.0, 1.0) - 0.5).abs() < 1e-7);
+        assert_eq!(power_heuristic(f32::INFINITY, 1.0), 1.0);
+        assert_eq!(power_heuristic(0.0, 0.0), 0.0);
+    }
+
+    #[test]
+    fn basis_is_orthonormal() {
+        for n in [Vec3::Z, -Vec3::Z, Vec3::X, Vec3::new(0.1, 0.2, -0.9).normalize()] {
+            let (s, t) = basis(n);
+            assert!(s.dot(t).abs() < 1e-6 && s.dot(n).abs() < 1e-6 && t.dot(n).abs() < 1e-6);
+            assert!((s.length() - 1.0).abs() < 1e-6 && (t.length() - 1.0).abs() < 1e-6);
+        }
+    }
+}
