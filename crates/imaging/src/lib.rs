@@ -1,1 +1,33 @@
-//! placeholder
+//! # igi-imaging
+//!
+//! Shared camera and HDR code at the bottom of the igi dependency graph:
+//!
+//! * [`HdrImage`]: linear `f32` RGB image with a validity mask (row 0 at the top).
+//! * [`io`]: atomic file writing, [`read_image`] (EXR, Radiance HDR, PNG/JPEG/TIFF),
+//!   [`write_exr`], [`write_hdr`], [`write_png_tonemapped`].
+//! * [`latlong`]: the lat-long (equirectangular) mapping of FORMATS.md (world Z up).
+//! * [`camera`]: OpenCV pinhole camera with (k1, k2, p1, p2, k3) distortion, typed poses
+//!   ([`WorldToCamera`], [`CameraToWorld`]), JSON load/save, projection, pixel rays and
+//!   image undistortion.
+//! * [`hdr`]: merging exposure brackets (linear sensors, or LDR via Debevec & Malik 1997
+//!   response recovery), EXIF exposure times.
+//! * [`radiometry`]: lens falloff (vignetting) polynomial fit and 3x3 colour matrices.
+//! * [`cv`]: OpenCV-backed calibration, PnP, homography and ArUco detection (cargo feature
+//!   `opencv`; without it the same functions return [`ImagingError::NoOpenCv`]).
+//!
+//! Conventions: linear radiance, pixel centres at integer coordinates (the centre of the
+//! top-left pixel is (0, 0)), camera x right, y down, z forward, `x_cam = R x_world + t`.
+
+pub mod camera;
+pub mod cv;
+mod error;
+pub mod hdr;
+mod image;
+pub mod io;
+pub mod latlong;
+pub mod radiometry;
+
+pub use camera::{Camera, CameraToWorld, Distortion, Intrinsics, WorldToCamera};
+pub use error::ImagingError;
+pub use image::HdrImage;
+pub use io::{read_image, write_exr, write_hdr, write_png_tonemapped};

@@ -1,0 +1,560 @@
+//! OpenCV pinhole camera: intrinsics, (k1, k2, p1, p2, k3) distortion, typed poses, JSON I/O.
+//!
+//! Convention (FORMATS.md): camera x right, y down, z forward; `x_cam = R x_world + t`;
+//! pixel centres at integer coordinates, the top-left pixel centre at (0, 0).
+
+use crate::{io::write_atomic, HdrImage, ImagingError};
+use glam::{DMat3, DVec2, DVec3};
+use rayon::prelude::*;
+use std::path::Path;
+
+/// OpenCV radial/tangential distortion coefficients.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Distortion {
+    pub k1: f64,
+    pub k2: f64,
+    pub p1: f64,
+    pub p2: f64,
+    pub k3: f64,
+}
+
+impl Distortion {
+    pub fn is_zero(&self) -> bool {
+        self.k1 == 0.0 && self.k2 == 0.0 && self.p1 == 0.0 && self.p2 == 0.0 && self.k3 == 0.0
+    }
+
+    pub fn to_array(&self) -> [f64; 5] {
+        [self.k1, self.k2, self.p1, self.p2, self.k3]
+    }
+
+    pub fn from_array(a: [f64; 5]) -> Self {
+        Distortion { k1: a[0], k2: a[1], p1: a[2], p2: a[3], k3: a[4] }
+    }
+
+    /// Distort a normalised image point (x/z, y/z) with the OpenCV model.
+    pub fn distort(&self, p: DVec2) -> DVec2 {
+        let (x, y) = (p.x, p.y);
+        let r2 = x * x + y * y;
+        let radial = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3));
+        DVec2::new(
+            x * radial + 2.0 * self.p1 * x * y + self.p2 * (r2 + 2.0 * x * x),
+            y * radial + self.p1 * (r2 + 2.0 * y * y) + 2.0 * self.p2 * x * y,
+        )
+    }
+
+    /// Jacobian of [`Self::distort`] as (d/dx, d/dy) columns.
+    fn jacobian(&self, p: DVec2) -> (DVec2, DVec2) {
+        let (x, y) = (p.x, p.y);
+        let r2 = x * x + y * y;
+        let radial = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3));
+        let dr = 2.0 * self.k1 + r2 * (4.0 * self.k2 + 6.0 * self.k3 * r2);
+        let a = radial + dr * x * x + 2.0 * self.p1 * y + 6.0 * self.p2 * x;
+        let b = dr * x * y + 2.0 * self.p1 * x + 2.0 * self.p2 * y;
+        let d = radial + dr * y * y + 6.0 * self.p1 * y + 2.0 * self.p2 * x;
+        (DVec2::new(a, b), DVec2::new(b, d))
+    }
+
+    /// Invert [`Self::distort`]: the undistorted normalised point whose distortion is `pd`.
+    /// Damped Newton iteration from `pd`, to a residual below 1e-10 (or `None` if it does
+    /// not converge, e.g. outside the region where the model is invertible).
+    pub fn undistort(&self, pd: DVec2) -> Option<DVec2> {
+        if self.is_zero() {
+            return Some(pd);
+        }
+        if !pd.is_finite() {
+            return None;
+        }
+        let mut p = pd;
+        let mut res = self.distort(p) - pd;
+        for _ in 0..200 {
+            let err = res.length();
+            if err < 1e-10 {
+                return Some(p);
+            }
+            let (c0, c1) = self.jacobian(p);
+            let det = c0.x * c1.y - c1.x * c0.y;
+            if !det.is_finite() || det.abs() < 1e-300 {
+                return None;
+            }
+            // solve J dp = -res
+            let dp = DVec2::new(c1.y * -res.x - c1.x * -res.y, -c0.y * -res.x + c0.x * -res.y) / det;
+            let mut step = 1.0;
+            loop {
+                let q = p + dp * step;
+                let r = self.distort(q) - pd;
+                if r.length() < err || step < 1e-6 {
+                    p = q;
+                    res = r;
+                    break;
+                }
+                step *= 0.5;
+            }
+        }
+        (res.length() < 1e-10).then_some(p)
+    }
+}
+
+/// Pinhole intrinsics (no skew) and distortion.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Intrinsics {
+    pub fx: f64,
+    pub fy: f64,
+    pub cx: f64,
+    pub cy: f64,
+    pub dist: Distortion,
+}
+
+impl Intrinsics {
+    /// Normalised (undistorted) point -> pixel.
+    pub fn to_pixel(&self, xn: DVec2) -> DVec2 {
+        let d = self.dist.distort(xn);
+        DVec2::new(self.fx * d.x + self.cx, self.fy * d.y + self.cy)
+    }
+
+    /// Pixel -> undistorted normalised point (None if undistortion fails).
+    pub fn to_normalized(&self, px: DVec2) -> Option<DVec2> {
+        self.dist.undistort(DVec2::new((px.x - self.cx) / self.fx, (px.y - self.cy) / self.fy))
+    }
+
+    pub fn k_matrix(&self) -> [[f64; 3]; 3] {
+        [[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]]
+    }
+}
+
+/// World-to-camera rigid transform: `x_cam = r * x_world + t`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WorldToCamera {
+    pub r: DMat3,
+    pub t: DVec3,
+}
+
+/// Camera-to-world rigid transform: `x_world = r * x_cam + t`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraToWorld {
+    pub r: DMat3,
+    pub t: DVec3,
+}
+
+impl WorldToCamera {
+    pub fn identity() -> Self {
+        WorldToCamera { r: DMat3::IDENTITY, t: DVec3::ZERO }
+    }
+    pub fn apply(&self, p_world: DVec3) -> DVec3 {
+        self.r * p_world + self.t
+    }
+    pub fn inverse(&self) -> CameraToWorld {
+        let rt = self.r.transpose();
+        CameraToWorld { r: rt, t: -(rt * self.t) }
+    }
+}
+
+impl CameraToWorld {
+    pub fn apply(&self, p_cam: DVec3) -> DVec3 {
+        self.r * p_cam + self.t
+    }
+    pub fn inverse(&self) -> WorldToCamera {
+        let rt = self.r.transpose();
+        WorldToCamera { r: rt, t: -(rt * self.t) }
+    }
+}
+
+/// A calibrated camera with its pose.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Camera {
+    pub width: u32,
+    pub height: u32,
+    pub intrinsics: Intrinsics,
+    pub pose: WorldToCamera,
+}
+
+#[derive(serde::Serialize, serde::Deserialize)]
+#[allow(non_snake_case)]
+struct CameraJson {
+    width: serde_json::Value,
+    height: serde_json::Value,
+    K: serde_json::Value,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    dist: Option<serde_json::Value>,
+    R: serde_json::Value,
+    t: serde_json::Value,
+}
+
+fn json_numbers(v: &serde_json::Value, what: &str) -> Result<Vec<f64>, String> {
+    let arr = v.as_array().ok_or_else(|| format!("{what} must be an array of numbers"))?;
+    arr.iter()
+        .map(|x| x.as_f64().ok_or_else(|| format!("{what} contains a non-number: {x}")))
+        .collect()
+}
+
+fn json_matrix3(v: &serde_json::Value, what: &str) -> Result<DMat3, String> {
+    let rows = v.as_array().ok_or_else(|| format!("{what} must be a 3x3 array of rows"))?;
+    if rows.len() != 3 {
+        return Err(format!("{what} must have 3 rows, found {}", rows.len()));
+    }
+    let mut m = [[0.0; 3]; 3];
+    for (i, r) in rows.iter().enumerate() {
+        let r = json_numbers(r, what)?;
+        if r.len() != 3 {
+            return Err(format!("{what} row {i} must have 3 entries, found {}", r.len()));
+        }
+        m[i] = [r[0], r[1], r[2]];
+    }
+    if m.iter().flatten().any(|x| !x.is_finite()) {
+        return Err(format!("{what} has a non-finite entry"));
+    }
+    Ok(DMat3::from_cols_array_2d(&m).transpose())
+}
+
+fn rows_of(m: &DMat3) -> [[f64; 3]; 3] {
+    m.transpose().to_cols_array_2d()
+}
+
+/// Check that `r` is a rotation: |R^T R - I| <= 1e-6 elementwise and det within 1e-6 of +1.
+pub fn check_rotation(r: &DMat3) -> Result<(), String> {
+    if !r.is_finite() {
+        return Err("R has a NaN or infinite entry".into());
+    }
+    let e = r.transpose() * *r - DMat3::IDENTITY;
+    let max = e.to_cols_array().iter().fold(0.0f64, |a, x| a.max(x.abs()));
+    if max > 1e-6 {
+        return Err(format!("R is not orthonormal: max |R^T R - I| = {max:.3e} > 1e-6"));
+    }
+    let det = r.determinant();
+    if (det - 1.0).abs() > 1e-6 {
+        return Err(format!("R is not a rotation: det(R) = {det:.6} (must be +1)"));
+    }
+    Ok(())
+}
+
+impl Camera {
+    /// Camera without distortion and identity pose.
+    pub fn pinhole(width: u32, height: u32, fx: f64, fy: f64, cx: f64, cy: f64) -> Self {
+        Camera {
+            width,
+            height,
+            intrinsics: Intrinsics { fx, fy, cx, cy, dist: Distortion::default() },
+            pose: WorldToCamera::identity(),
+        }
+    }
+
+    /// Parse and validate a camera from FORMATS.md JSON text; `path` is used in errors.
+    pub fn from_json_str(text: &str, path: &Path) -> Result<Camera, ImagingError> {
+        let err = |msg: String| ImagingError::Camera { path: path.to_path_buf(), msg };
+        let j: CameraJson = serde_json::from_str(text).map_err(|e| err(e.to_string()))?;
+        let dim = |v: &serde_json::Value, what: &str| -> Result<u32, ImagingError> {
+            v.as_u64()
+                .filter(|&x| x > 0 && x <= u32::MAX as u64)
+                .map(|x| x as u32)
+                .ok_or_else(|| err(format!("{what} must be a positive integer, found {v}")))
+        };
+        let width = dim(&j.width, "width")?;
+        let height = dim(&j.height, "height")?;
+        let k = json_matrix3(&j.K, "K").map_err(err)?;
+        let kr = rows_of(&k);
+        if kr[0][1] != 0.0 || kr[1][0] != 0.0 || kr[2] != [0.0, 0.0, 1.0] {
+            return Err(err(format!(
+                "K must be [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] (no skew), found {kr:?}"
+            )));
+        }
+        let (fx, fy, cx, cy) = (kr[0][0], kr[1][1], kr[0][2], kr[1][2]);
+        if !(fx > 0.0 && fy > 0.0) {
+            return Err(err(format!("focal lengths must be positive, found fx={fx}, fy={fy}")));
+        }
+        let dist = match &j.dist {
+            None | Some(serde_json::Value::Null) => Distortion::default(),
+            Some(v) => {
+                let d = json_numbers(v, "dist").map_err(err)?;
+                if !(d.len() == 4 || d.len() == 5) {
+                    return Err(err(format!("dist must have 5 entries [k1, k2, p1, p2, k3] (or 4), found {}", d.len())));
+                }
+                if d.iter().any(|x| !x.is_finite()) {
+                    return Err(err("dist has a non-finite entry".into()));
+                }
+                Distortion { k1: d[0], k2: d[1], p1: d[2], p2: d[3], k3: d.get(4).copied().unwrap_or(0.0) }
+            }
+        };
+        let r = json_matrix3(&j.R, "R").map_err(err)?;
+        check_rotation(&r).map_err(err)?;
+        let t = json_numbers(&j.t, "t").map_err(err)?;
+        if t.len() != 3 {
+            return Err(err(format!("t must have 3 entries, found {}", t.len())));
+        }
+        if t.iter().any(|x| !x.is_finite()) {
+            return Err(err("t has a non-finite entry".into()));
+        }
+        Ok(Camera {
+            width,
+            height,
+            intrinsics: Intrinsics { fx, fy, cx, cy, dist },
+            pose: WorldToCamera { r, t: DVec3::new(t[0], t[1], t[2]) },
+        })
+    }
+
+    /// Load and validate a camera JSON file (FORMATS.md).
+    pub fn load(path: &Path) -> Result<Camera, ImagingError> {
+        let text = std::fs::read_to_string(path).map_err(|e| ImagingError::io(path, e))?;
+        Self::from_json_str(&text, path)
+    }
+
+    /// JSON text in the FORMATS.md layout (`dist` omitted when zero).
+    pub fn to_json_string(&self) -> String {
+        let i = &self.intrinsics;
+        let j = CameraJson {
+            width: self.width.into(),
+            height: self.height.into(),
+            K: serde_json::json!(i.k_matrix()),
+            dist: (!i.dist.is_zero()).then(|| serde_json::json!(i.dist.to_array())),
+            R: serde_json::json!(rows_of(&self.pose.r)),
+            t: serde_json::json!(self.pose.t.to_array()),
+        };
+        serde_json::to_string_pretty(&j).expect("camera serialises")
+    }
+
+    /// Save as JSON, atomically.
+    pub fn save(&self, path: &Path) -> Result<(), ImagingError> {
+        let text = self.to_json_string();
+        write_atomic(path, |tmp| std::fs::write(tmp, text.as_bytes()).map_err(|e| ImagingError::io(path, e)))
+    }
+
+    /// Pixel coordinates of a world point (distortion applied); `None` behind the camera.
+    pub fn project(&self, p_world: DVec3) -> Option<DVec2> {
+        let pc = self.pose.apply(p_world);
+        if !(pc.z > 0.0) {
+            return None;
+        }
+        Some(self.intrinsics.to_pixel(DVec2::new(pc.x / pc.z, pc.y / pc.z)))
+    }
+
+    /// World-space ray (origin = camera centre, unit direction) through pixel (u, v).
+    /// If undistortion fails to converge (far outside the valid lens field) the
+    /// distorted normalised point is used.
+    pub fn pixel_ray(&self, u: f64, v: f64) -> (DVec3, DVec3) {
+        let i = &self.intrinsics;
+        let pd = DVec2::new((u - i.cx) / i.fx, (v - i.cy) / i.fy);
+        let xn = i.dist.undistort(pd).unwrap_or(pd);
+        let dir_cam = DVec3::new(xn.x, xn.y, 1.0).normalize();
+        let c2w = self.pose.inverse();
+        (c2w.t, (c2w.r * dir_cam).normalize())
+    }
+
+    /// Camera centre in world coordinates (`-R^T t`).
+    pub fn center_world(&self) -> DVec3 {
+        self.pose.inverse().t
+    }
+
+    /// The same camera without lens distortion.
+    pub fn without_distortion(&self) -> Camera {
+        let mut c = self.clone();
+        c.intrinsics.dist = Distortion::default();
+        c
+    }
+}
+
+/// Remove lens distortion from `img` taken with `cam`: the output has the same size and
+/// K and no distortion. Each output pixel is the bilinear sample of the input at the
+/// distorted position; pixels that map outside the input (or onto invalid pixels) are
+/// black and marked invalid. Returns the image and the output camera.
+pub fn undistort_image(img: &HdrImage, cam: &Camera) -> Result<(HdrImage, Camera), ImagingError> {
+    if img.width != cam.width as usize || img.height != cam.height as usize {
+        return Err(ImagingError::InvalidInput(format!(
+            "image is {}x{} but the camera is {}x{}",
+            img.width, img.height, cam.width, cam.height
+        )));
+    }
+    let i = cam.intrinsics;
+    let mut out = HdrImage::new(img.width, img.height);
+    let w = img.width;
+    out.pixels
+        .par_chunks_mut(w)
+        .zip(out.valid.par_chunks_mut(w))
+        .enumerate()
+        .for_each(|(y, (prow, vrow))| {
+            for x in 0..w {
+                let xn = DVec2::new((x as f64 - i.cx) / i.fx, (y as f64 - i.cy) / i.fy);
+                let src = i.to_pixel(xn);
+                match img.bilinear(src.x as f32, src.y as f32) {
+                    Some(v) => prow[x] = v,
+                    None => {
+                        prow[x] = [0.0; 3];
+                        vrow[x] = false;
+                    }
+                }
+            }
+        });
+    Ok((out, cam.without_distortion()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    fn test_camera() -> Camera {
+        let r = DMat3::from_rotation_z(0.3) * DMat3::from_rotation_x(-1.2) * DMat3::from_rotation_y(0.1);
+        Camera {
+            width: 640,
+            height: 480,
+            intrinsics: Intrinsics {
+                fx: 500.0,
+                fy: 510.0,
+                cx: 320.5,
+                cy: 239.0,
+                dist: Distortion { k1: -0.2, k2: 0.05, p1: 0.001, p2: -0.0005, k3: 0.0 },
+            },
+            pose: WorldToCamera { r, t: DVec3::new(0.1, -0.2, 3.0) },
+        }
+    }
+
+    #[test]
+    fn distort_matches_opencv_formula_by_hand() {
+        let d = Distortion { k1: 0.1, k2: 0.01, p1: 0.001, p2: 0.002, k3: 0.001 };
+        let p = d.distort(DVec2::new(0.5, -0.25));
+        // r2 = 0.3125; radial = 1 + 0.03125 + 0.0009765625 + 0.000030517578125
+        let radial = 1.032_257_080_078_125;
+        let xd = 0.5 * radial + 2.0 * 0.001 * 0.5 * -0.25 + 0.002 * (0.3125 + 0.5);
+        let yd = -0.25 * radial + 0.001 * (0.3125 + 0.125) + 2.0 * 0.002 * 0.5 * -0.25;
+        assert!((p.x - xd).abs() < 1e-15 && (p.y - yd).abs() < 1e-15);
+    }
+
+    #[test]
+    fn undistort_round_trip_moderate_and_strong() {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(7);
+        let cases = [
+            Distortion { k1: -0.2, k2: 0.05, p1: 0.001, p2: -0.0005, k3: 0.0 },
+            // strong barrel (fisheye-like) distortion
+            Distortion { k1: -0.45, k2: 0.25, p1: 0.004, p2: -0.003, k3: -0.06 },
+            // strong pincushion
+            Distortion { k1: 0.6, k2: 0.4, p1: -0.01, p2: 0.01, k3: 0.2 },
+        ];
+        let f = 800.0;
+        for d in cases {
+            let mut worst = 0.0f64;
+            for _ in 0..2000 {
+                let p = DVec2::new(rng.gen_range(-0.7..0.7), rng.gen_range(-0.5..0.5));
+                let pd = d.distort(p);
+                let back = d.undistort(pd).expect("converges");
+                worst = worst.max((back - p).length() * f);
+                // residual in the distorted domain is below 1e-10
+                assert!((d.distort(back) - pd).length() < 1e-10);
+            }
+            assert!(worst < 1e-4, "{d:?}: worst round trip {worst} px");
+        }
+    }
+
+    #[test]
+    fn project_pixel_ray_round_trip() {
+        let cam = test_camera();
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
+        for _ in 0..500 {
+            let (u, v) = (rng.gen_range(0.0..639.0), rng.gen_range(0.0..479.0));
+            let (o, d) = cam.pixel_ray(u, v);
+            assert!((d.length() - 1.0).abs() < 1e-12);
+            let p = o + d * rng.gen_range(0.5..20.0);
+            let px = cam.project(p).unwrap();
+            assert!((px - DVec2::new(u, v)).length() < 1e-6, "{u} {v} -> {px}");
+        }
+        // behind the camera
+        let c = cam.center_world();
+        let fwd = cam.pose.inverse().r * DVec3::Z;
+        assert!(cam.project(c - fwd).is_none());
+        // principal point maps to the optical axis
+        let mut nd = cam.without_distortion();
+        nd.intrinsics.cx = 320.0;
+        let (o, d) = nd.pixel_ray(320.0, 239.0);
+        assert!((o - c).length() < 1e-12 && (d - fwd).length() < 1e-12);
+    }
+
+    #[test]
+    fn pose_inverse_round_trip() {
+        let cam = test_camera();
+        let p = DVec3::new(1.0, 2.0, -0.5);
+        let c2w = cam.pose.inverse();
+        assert!((c2w.apply(cam.pose.apply(p)) - p).length() < 1e-12);
+        let back = c2w.inverse();
+        assert!((back.t - cam.pose.t).length() < 1e-12);
+        assert!(back.r.abs_diff_eq(cam.pose.r, 1e-12));
+    }
+
+    #[test]
+    fn json_round_trip_and_optional_dist() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("cam.json");
+        let cam = test_camera();
+        cam.save(&p).unwrap();
+        let back = Camera::load(&p).unwrap();
+        // serde_json parses floats to within 1 ulp
+        assert!(back.pose.r.abs_diff_eq(cam.pose.r, 1e-15) && back.pose.t.abs_diff_eq(cam.pose.t, 1e-15));
+        assert_eq!(back.intrinsics, cam.intrinsics);
+        assert_eq!((back.width, back.height), (640, 480));
+        let text = r#"{"width": 4, "height": 3, "K": [[2,0,1.5],[0,2,1],[0,0,1]],
+                       "R": [[1,0,0],[0,1,0],[0,0,1]], "t": [0,0,0]}"#;
+        let c = Camera::from_json_str(text, &p).unwrap();
+        assert!(c.intrinsics.dist.is_zero());
+        assert_eq!(c.project(DVec3::new(0.0, 0.0, 1.0)), Some(DVec2::new(1.5, 1.0)));
+    }
+
+    #[test]
+    fn json_rejects_bad_rotation_shapes_and_values() {
+        let p = Path::new("/some/cam.json");
+        let base = |r: &str, extra: &str| {
+            format!(r#"{{"width": 4, "height": 3, "K": [[2,0,1.5],[0,2,1],[0,0,1]], "R": {r}, "t": [0,0,0]{extra}}}"#)
+        };
+        let check = |text: String, needle: &str| {
+            let e = Camera::from_json_str(&text, p).unwrap_err().to_string();
+            assert!(e.contains("/some/cam.json") && e.contains(needle), "{e} (wanted {needle})");
+        };
+        check(base("[[1,0,0],[0,1,0],[0,0,1.001]]", ""), "not orthonormal");
+        check(base("[[1,0,0],[0,1,0],[0,0,-1]]", ""), "det(R)");
+        check(base("[[1,0,0],[0,1,0]]", ""), "3 rows");
+        check(base("[[1,0,0],[0,1],[0,0,1]]", ""), "row 1");
+        check(base("[[1,0,0],[0,1,0],[0,0,null]]", ""), "non-number");
+        check(base("[[1,0,0],[0,1,0],[0,0,1]]", r#", "dist": [0.1, 0.2]"#), "dist");
+        check(base("[[1,0,0],[0,1,0],[0,0,1]]", "").replace("\"t\": [0,0,0]", "\"t\": [0,0]"), "t must have 3");
+        check(base("[[1,0,0],[0,1,0],[0,0,1]]", "").replace("\"width\": 4", "\"width\": -4"), "width");
+        check("{ not json".into(), "invalid camera file");
+        // 1e-7 perturbation is accepted (within tolerance)
+        assert!(Camera::from_json_str(&base("[[1,0,0],[0,1,0],[0,0,1.0000001]]", ""), p).is_ok());
+    }
+
+    #[test]
+    fn undistort_image_straightens_synthetic_distorted_image() {
+        // Render a smooth pattern seen through a distorted camera; undistorting it must give
+        // the pattern as seen by the distortion-free camera.
+        let mut cam = Camera::pinhole(160, 120, 120.0, 120.0, 79.5, 59.5);
+        cam.intrinsics.dist = Distortion { k1: 0.2, k2: 0.02, p1: 0.002, p2: -0.001, k3: 0.0 };
+        let pattern = |xn: DVec2| -> [f32; 3] {
+            [(1.0 + (3.0 * xn.x).sin() * (2.0 * xn.y).cos()) as f32, (xn.x + 2.0) as f32, (xn.y * xn.y) as f32]
+        };
+        let mut distorted = HdrImage::new(160, 120);
+        for y in 0..120 {
+            for x in 0..160 {
+                let xn = cam.intrinsics.to_normalized(DVec2::new(x as f64, y as f64)).unwrap();
+                distorted.set(x, y, pattern(xn));
+            }
+        }
+        let (und, ocam) = undistort_image(&distorted, &cam).unwrap();
+        assert!(ocam.intrinsics.dist.is_zero());
+        assert_eq!(ocam.intrinsics.fx, 120.0);
+        let mut max_err = 0.0f32;
+        let mut n = 0;
+        for y in 0..120 {
+            for x in 0..160 {
+                if !und.is_valid(x, y) {
+                    continue;
+                }
+                n += 1;
+                let xn = DVec2::new((x as f64 - 79.5) / 120.0, (y as f64 - 59.5) / 120.0);
+                let t = pattern(xn);
+                let g = und.get(x, y);
+                for c in 0..3 {
+                    max_err = max_err.max((t[c] - g[c]).abs());
+                }
+            }
+        }
+        assert!(n > 120 * 160 / 2, "{n}");
+        // bilinear interpolation error of a smooth pattern with ~0.03 /px gradient
+        assert!(max_err < 5e-3, "max err {max_err}");
+        // pincushion distortion: corners of the undistorted image fall outside the input
+        assert!(!und.is_valid(0, 0));
+    }
+}

@@ -1,0 +1,32 @@
+use std::path::PathBuf;
+
+/// Errors of the imaging crate. Every variant that concerns a file names it.
+#[derive(Debug, thiserror::Error)]
+pub enum ImagingError {
+    #[error("{}: {source}", path.display())]
+    Io { path: PathBuf, source: std::io::Error },
+    #[error("{}: unknown image format (extension {ext:?}); supported: .exr .hdr .png .jpg .jpeg .tif .tiff", path.display())]
+    UnknownFormat { path: PathBuf, ext: String },
+    #[error("{}: cannot decode image: {msg}", path.display())]
+    Decode { path: PathBuf, msg: String },
+    #[error("{}: cannot encode image: {msg}", path.display())]
+    Encode { path: PathBuf, msg: String },
+    #[error("{}: bad image data: {msg}", path.display())]
+    BadPixels { path: PathBuf, msg: String },
+    #[error("{}: invalid camera file: {msg}", path.display())]
+    Camera { path: PathBuf, msg: String },
+    #[error("{}: exif: {msg}", path.display())]
+    Exif { path: PathBuf, msg: String },
+    #[error("invalid input: {0}")]
+    InvalidInput(String),
+    #[error("built without opencv: rebuild with --features opencv")]
+    NoOpenCv,
+    #[error("opencv: {0}")]
+    OpenCv(String),
+}
+
+impl ImagingError {
+    pub(crate) fn io(path: &std::path::Path, source: std::io::Error) -> Self {
+        ImagingError::Io { path: path.to_path_buf(), source }
+    }
+}

@@ -1,0 +1,389 @@
+//! Image file I/O and atomic writing.
+
+use crate::{HdrImage, ImagingError};
+use std::path::{Path, PathBuf};
+
+/// Write a file atomically: `write` receives a temporary path in the same folder as `path`;
+/// on success the temporary file is renamed to `path`, on error it is removed.
+pub fn write_atomic(
+    path: &Path,
+    write: impl FnOnce(&Path) -> Result<(), ImagingError>,
+) -> Result<(), ImagingError> {
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let name = path
+        .file_name()
+        .ok_or_else(|| ImagingError::InvalidInput(format!("{}: not a file path", path.display())))?
+        .to_string_lossy()
+        .into_owned();
+    if !dir.is_dir() {
+        return Err(ImagingError::io(
+            path,
+            std::io::Error::new(std::io::ErrorKind::NotFound, "output folder does not exist"),
+        ));
+    }
+    // Keep the extension last so extension-sniffing writers still work.
+    static COUNTER: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let n = COUNTER.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let tmp = dir.join(format!(".{}.tmp{}-{}.{}", name, std::process::id(), n, ext_of(path)));
+    let result = write(&tmp);
+    match result {
+        Ok(()) => std::fs::rename(&tmp, path).map_err(|e| {
+            let _ = std::fs::remove_file(&tmp);
+            ImagingError::io(path, e)
+        }),
+        Err(e) => {
+            let _ = std::fs::remove_file(&tmp);
+            Err(e)
+        }
+    }
+}
+
+fn ext_of(path: &Path) -> String {
+    path.extension().map(|e| e.to_string_lossy().to_lowercase()).unwrap_or_default()
+}
+
+/// Read an image as linear `f32` RGB. EXR (RGB, RGBA, B/G/R in any order, half or float, any
+/// compression; a channel named `valid` becomes the mask; a luminance-only `Y` image is
+/// replicated), Radiance `.hdr`, and PNG/JPEG/TIFF (8/16-bit scaled to [0, 1] as stored, no
+/// sRGB decoding). NaN or infinite values are rejected with an error naming the file.
+pub fn read_image(path: &Path) -> Result<HdrImage, ImagingError> {
+    let ext = ext_of(path);
+    match ext.as_str() {
+        "exr" | "hdr" | "png" | "jpg" | "jpeg" | "tif" | "tiff" => {}
+        _ => return Err(ImagingError::UnknownFormat { path: path.to_path_buf(), ext }),
+    }
+    if !path.exists() {
+        return Err(ImagingError::io(
+            path,
+            std::io::Error::new(std::io::ErrorKind::NotFound, "file not found"),
+        ));
+    }
+    let img = if ext == "exr" { read_exr(path)? } else { read_with_image_crate(path)? };
+    check_finite(path, &img)?;
+    Ok(img)
+}
+
+fn check_finite(path: &Path, img: &HdrImage) -> Result<(), ImagingError> {
+    let mut bad = 0usize;
+    let mut first = None;
+    for (i, p) in img.pixels.iter().enumerate() {
+        if !p.iter().all(|c| c.is_finite()) {
+            bad += 1;
+            if first.is_none() {
+                first = Some((i % img.width.max(1), i / img.width.max(1), *p));
+            }
+        }
+    }
+    if let Some((x, y, v)) = first {
+        return Err(ImagingError::BadPixels {
+            path: path.to_path_buf(),
+            msg: format!("{bad} pixel(s) with NaN or infinite values, first at (x={x}, y={y}) = {v:?}"),
+        });
+    }
+    Ok(())
+}
+
+fn read_with_image_crate(path: &Path) -> Result<HdrImage, ImagingError> {
+    let dec = |e: ::image::ImageError| ImagingError::Decode { path: path.to_path_buf(), msg: e.to_string() };
+    let reader = ::image::ImageReader::open(path)
+        .map_err(|e| ImagingError::io(path, e))?
+        .with_guessed_format()
+        .map_err(|e| ImagingError::io(path, e))?;
+    let dynimg = reader.decode().map_err(dec)?;
+    let rgb = dynimg.into_rgb32f();
+    let (w, h) = (rgb.width() as usize, rgb.height() as usize);
+    let mut out = HdrImage::new(w, h);
+    for (i, p) in rgb.pixels().enumerate() {
+        out.pixels[i] = p.0;
+    }
+    Ok(out)
+}
+
+fn read_exr(path: &Path) -> Result<HdrImage, ImagingError> {
+    use exr::prelude::*;
+    let dec = |msg: String| ImagingError::Decode { path: path.to_path_buf(), msg };
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .all_layers()
+        .all_attributes()
+        .from_file(path)
+        .map_err(|e| dec(e.to_string()))?;
+    let base = |name: &str| -> String {
+        name.rsplit('.').next().unwrap_or(name).to_ascii_lowercase()
+    };
+    for layer in &image.layer_data {
+        let chans = &layer.channel_data.list;
+        let find = |n: &str| chans.iter().find(|c| base(&c.name.to_string()) == n);
+        let (r, g, b) = match (find("r"), find("g"), find("b"), find("y")) {
+            (Some(r), Some(g), Some(b), _) => (r, g, b),
+            (_, _, _, Some(y)) => (y, y, y),
+            _ => continue,
+        };
+        let (w, h) = (layer.size.width(), layer.size.height());
+        let n = w * h;
+        let mut out = HdrImage::new(w, h);
+        for (c, ch) in [r, g, b].into_iter().enumerate() {
+            if ch.sample_data.len() != n {
+                return Err(dec(format!("channel {} has {} samples, expected {}", ch.name, ch.sample_data.len(), n)));
+            }
+            for (i, v) in ch.sample_data.values_as_f32().enumerate() {
+                out.pixels[i][c] = v;
+            }
+        }
+        if let Some(m) = find("valid") {
+            if m.sample_data.len() == n {
+                for (i, v) in m.sample_data.values_as_f32().enumerate() {
+                    out.valid[i] = v > 0.5;
+                }
+            }
+        }
+        return Ok(out);
+    }
+    let names: Vec<String> = image
+        .layer_data
+        .iter()
+        .flat_map(|l| l.channel_data.list.iter().map(|c| c.name.to_string()))
+        .collect();
+    Err(dec(format!("no R,G,B or Y channels found (channels: {names:?})")))
+}
+
+fn check_dims(path: &Path, img: &HdrImage) -> Result<(), ImagingError> {
+    if img.width == 0 || img.height == 0 || img.pixels.len() != img.width * img.height || img.valid.len() != img.pixels.len() {
+        return Err(ImagingError::Encode {
+            path: path.to_path_buf(),
+            msg: format!(
+                "inconsistent image: {}x{} with {} pixels and {} mask entries",
+                img.width, img.height, img.pixels.len(), img.valid.len()
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// Write a linear `f32` RGB OpenEXR file (ZIP compression), atomically. If any pixel is invalid an
+/// extra channel `valid` (0/1) carries the mask. Non-finite values are refused.
+pub fn write_exr(path: &Path, img: &HdrImage) -> Result<(), ImagingError> {
+    use exr::prelude::*;
+    check_dims(path, img)?;
+    check_finite(path, img)?;
+    let mut list: Vec<AnyChannel<FlatSamples>> = (0..3)
+        .map(|c| {
+            let name = ["R", "G", "B"][c];
+            AnyChannel::new(name, FlatSamples::F32(img.pixels.iter().map(|p| p[c]).collect()))
+        })
+        .collect();
+    if img.valid.iter().any(|v| !v) {
+        list.push(AnyChannel::new(
+            "valid",
+            FlatSamples::F32(img.valid.iter().map(|&v| if v { 1.0 } else { 0.0 }).collect()),
+        ));
+    }
+    let layer = Layer::new(
+        (img.width, img.height),
+        LayerAttributes::default(),
+        Encoding::SMALL_LOSSLESS,
+        AnyChannels::sort(SmallVec::from_vec(list)),
+    );
+    let image = Image::from_layer(layer);
+    write_atomic(path, |tmp| {
+        image
+            .write()
+            .to_file(tmp)
+            .map_err(|e| ImagingError::Encode { path: path.to_path_buf(), msg: e.to_string() })
+    })
+}
+
+/// Write a Radiance RGBE `.hdr` file, atomically. Negative values are clamped to 0.
+pub fn write_hdr(path: &Path, img: &HdrImage) -> Result<(), ImagingError> {
+    check_dims(path, img)?;
+    check_finite(path, img)?;
+    let data: Vec<::image::Rgb<f32>> =
+        img.pixels.iter().map(|p| ::image::Rgb([p[0].max(0.0), p[1].max(0.0), p[2].max(0.0)])).collect();
+    write_atomic(path, |tmp| {
+        let f = std::fs::File::create(tmp).map_err(|e| ImagingError::io(path, e))?;
+        let w = std::io::BufWriter::new(f);
+        ::image::codecs::hdr::HdrEncoder::new(w)
+            .encode(&data, img.width, img.height)
+            .map_err(|e| ImagingError::Encode { path: path.to_path_buf(), msg: e.to_string() })
+    })
+}
+
+/// sRGB transfer function (linear [0,1] -> encoded [0,1]).
+pub fn linear_to_srgb(x: f32) -> f32 {
+    let x = x.clamp(0.0, 1.0);
+    if x <= 0.003_130_8 {
+        12.92 * x
+    } else {
+        1.055 * x.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// Inverse sRGB transfer function (encoded [0,1] -> linear).
+pub fn srgb_to_linear(x: f32) -> f32 {
+    let x = x.clamp(0.0, 1.0);
+    if x <= 0.040_45 {
+        x / 12.92
+    } else {
+        ((x + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// Write an 8-bit sRGB PNG preview: pixel * `exposure`, clipped to [0, 1], sRGB-encoded.
+pub fn write_png_tonemapped(path: &Path, img: &HdrImage, exposure: f32) -> Result<(), ImagingError> {
+    check_dims(path, img)?;
+    if !exposure.is_finite() {
+        return Err(ImagingError::InvalidInput(format!("{}: exposure {exposure} is not finite", path.display())));
+    }
+    let mut buf = Vec::with_capacity(img.pixels.len() * 3);
+    for p in &img.pixels {
+        for c in p {
+            let v = if c.is_finite() { c * exposure } else { 0.0 };
+            buf.push((linear_to_srgb(v) * 255.0 + 0.5) as u8);
+        }
+    }
+    write_atomic(path, |tmp| {
+        ::image::save_buffer_with_format(
+            tmp,
+            &buf,
+            img.width as u32,
+            img.height as u32,
+            ::image::ExtendedColorType::Rgb8,
+            ::image::ImageFormat::Png,
+        )
+        .map_err(|e| ImagingError::Encode { path: path.to_path_buf(), msg: e.to_string() })
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data");
+
+    fn test_image() -> HdrImage {
+        let mut im = HdrImage::new(5, 3);
+        for y in 0..3 {
+            for x in 0..5 {
+                im.set(x, y, [x as f32 * 0.5, y as f32 * 100.0 + 0.25, 1e-3 * (x + y) as f32]);
+            }
+        }
+        im
+    }
+
+    #[test]
+    fn exr_round_trip_with_mask() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("a.exr");
+        let mut im = test_image();
+        write_exr(&p, &im).unwrap();
+        let back = read_image(&p).unwrap();
+        assert_eq!(back, im);
+        im.valid[7] = false;
+        im.pixels[7] = [0.0; 3];
+        write_exr(&p, &im).unwrap();
+        let back = read_image(&p).unwrap();
+        assert_eq!(back, im);
+        // no temp files left
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn hdr_round_trip_within_rgbe_precision() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("a.hdr");
+        let im = test_image();
+        write_hdr(&p, &im).unwrap();
+        let back = read_image(&p).unwrap();
+        for (a, b) in im.pixels.iter().zip(&back.pixels) {
+            let m = a.iter().cloned().fold(0.0f32, f32::max);
+            for c in 0..3 {
+                // RGBE: 8-bit mantissa relative to the largest channel
+                assert!((a[c] - b[c]).abs() <= m * 1.0 / 128.0 + 1e-6, "{a:?} vs {b:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn png_preview_is_srgb_encoded() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("a.png");
+        let mut im = HdrImage::new(2, 1);
+        im.set(0, 0, [0.5, 0.0, 10.0]);
+        im.set(1, 0, [0.002, 1.0, -1.0]);
+        write_png_tonemapped(&p, &im, 1.0).unwrap();
+        let back = read_image(&p).unwrap();
+        assert!((back.get(0, 0)[0] - 188.0 / 255.0).abs() < 1e-6); // sRGB(0.5) = 0.7354 -> 188
+        assert_eq!(back.get(0, 0)[2], 1.0);
+        assert_eq!(back.get(1, 0)[2], 0.0);
+        assert!((back.get(1, 0)[0] - 7.0 / 255.0).abs() < 1e-6); // 12.92*0.002*255 = 6.6 -> 7
+        assert!((srgb_to_linear(linear_to_srgb(0.3)) - 0.3).abs() < 1e-6);
+    }
+
+    #[test]
+    fn errors_name_file_and_problem() {
+        let e = read_image(Path::new("/nonexistent/x.exr")).unwrap_err().to_string();
+        assert!(e.contains("/nonexistent/x.exr") && e.contains("not found"), "{e}");
+        let e = read_image(Path::new("/tmp/foo.bmpx")).unwrap_err().to_string();
+        assert!(e.contains("foo.bmpx") && e.contains("unknown image format"), "{e}");
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("garbage.png");
+        std::fs::write(&p, b"not a png").unwrap();
+        let e = read_image(&p).unwrap_err().to_string();
+        assert!(e.contains("garbage.png"), "{e}");
+    }
+
+    #[test]
+    fn nan_in_exr_is_rejected() {
+        use exr::prelude::*;
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("nan.exr");
+        write_rgb_file(&p, 4, 4, |x, y| if (x, y) == (2, 1) { (f32::NAN, 0.0, 0.0) } else { (1.0, 1.0, 1.0) }).unwrap();
+        let e = read_image(&p).unwrap_err().to_string();
+        assert!(e.contains("nan.exr") && e.contains("NaN") && e.contains("x=2, y=1"), "{e}");
+        // and we refuse to write such data, leaving nothing behind
+        let mut im = HdrImage::new(2, 2);
+        im.pixels[0][1] = f32::INFINITY;
+        let q = dir.path().join("out.exr");
+        assert!(write_exr(&q, &im).is_err());
+        assert!(!q.exists());
+    }
+
+    #[test]
+    fn write_atomic_cleans_up_on_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("x.txt");
+        let r = write_atomic(&p, |tmp| {
+            std::fs::write(tmp, "partial").unwrap();
+            Err(ImagingError::InvalidInput("boom".into()))
+        });
+        assert!(r.is_err());
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+        write_atomic(&p, |tmp| std::fs::write(tmp, "ok").map_err(|e| ImagingError::io(tmp, e))).unwrap();
+        assert_eq!(std::fs::read_to_string(&p).unwrap(), "ok");
+    }
+
+    #[test]
+    fn reads_real_bgr_half_piz_exr_and_rgbe_probe() {
+        let exr = Path::new(DATA).join("light_probes/pbrt_v2/grace_latlong.exr");
+        if !exr.exists() {
+            eprintln!("skipping: {} absent", exr.display());
+            return;
+        }
+        let im = read_image(&exr).unwrap();
+        assert_eq!((im.width, im.height), (1024, 512));
+        let mean: f64 = im.pixels.iter().map(|p| (p[0] + p[1] + p[2]) as f64 / 3.0).sum::<f64>() / im.pixels.len() as f64;
+        assert!(mean > 0.01 && mean < 100.0, "mean {mean}");
+        assert!(im.pixels.iter().all(|p| p.iter().all(|c| *c >= 0.0)));
+        // Grace cathedral is warm (tungsten-lit): R channel mean exceeds B: checks channel order
+        let (r, b): (f64, f64) = im.pixels.iter().fold((0.0, 0.0), |a, p| (a.0 + p[0] as f64, a.1 + p[2] as f64));
+        assert!(r > b * 1.1, "r {r} b {b}");
+        let hdr = Path::new(DATA).join("light_probes/probulator_latlong_256x128/grace.hdr");
+        let im2 = read_image(&hdr).unwrap();
+        assert_eq!((im2.width, im2.height), (256, 128));
+    }
+}
