@@ -1,13 +1,20 @@
 //! `igi-render`: the Monte-Carlo path tracer behind `igi render` and the inverse solver.
 //!
 //! - [`embree`]: every Embree call (triangle scene, closest hit, occlusion, ray streams).
+//! - [`lighting`]: lat-long environment (importance-sampled) and the sun disk; lighting TOML loader.
+//! - [`scene`]: meshes + Lafortune materials + Embree; scene TOML loader; surface points.
 //! - [`sampling`]: per-pixel PCG streams, piecewise-constant 1D/2D distributions, cone sampling, MIS.
 //!
 //! Conventions: world Z up, metres; linear f32 RGB radiance; directions are unit vectors.
 //! See `docs/RENDER.md` for the lighting model, MIS and lookup rules.
 
 pub mod embree;
+pub mod lighting;
 pub mod sampling;
+pub mod scene;
+
+pub use lighting::{Environment, Lighting, Sun};
+pub use scene::{Albedo, Material, Object, Scene, SurfacePoint, Texture};
 
 use std::path::PathBuf;
 

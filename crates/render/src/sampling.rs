@@ -8,6 +8,7 @@
 //! - [`power_heuristic`]: MIS weight (beta = 2).
 
 use glam::{Vec2, Vec3};
+use igi_brdf::Frame;
 
 /// SplitMix64 finaliser: a strong 64-bit mixing function.
 #[inline]
@@ -191,18 +192,6 @@ impl Distribution2D {
     }
 }
 
-/// Orthonormal basis (s, t) completing the unit vector `n` (Duff et al. 2017).
-#[inline]
-pub fn basis(n: Vec3) -> (Vec3, Vec3) {
-    let sign = 1f32.copysign(n.z);
-    let a = -1.0 / (sign + n.z);
-    let b = n.x * n.y * a;
-    (
-        Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
-        Vec3::new(b, sign + n.y * n.y * a, -n.y),
-    )
-}
-
 /// Uniform direction inside the cone around unit `axis` whose solid angle is
 /// 2 pi * `one_minus_cos_max`. Works from 1 - cos(theta) directly so that cones a fraction of a
 /// degree wide (the sun) keep full precision in f32. The pdf is 1 / (2 pi one_minus_cos_max).
@@ -213,8 +202,7 @@ pub fn sample_cone(axis: Vec3, one_minus_cos_max: f32, u: Vec2) -> Vec3 {
     let sin_t = sin2.sqrt();
     let cos_t = 1.0 - omc;
     let phi = 2.0 * std::f32::consts::PI * u.y;
-    let (s, t) = basis(axis);
-    (s * (sin_t * phi.cos()) + t * (sin_t * phi.sin()) + axis * cos_t).normalize()
+    Frame::from_normal(axis).to_world(Vec3::new(sin_t * phi.cos(), sin_t * phi.sin(), cos_t)).normalize()
 }
 
 /// Power heuristic (beta = 2) weight of strategy `a` against `b`, with one sample each.
@@ -339,14 +327,5 @@ mod tests {
         assert!((power_heuristic(1.0, 1.0) - 0.5).abs() < 1e-7);
         assert_eq!(power_heuristic(f32::INFINITY, 1.0), 1.0);
         assert_eq!(power_heuristic(0.0, 0.0), 0.0);
-    }
-
-    #[test]
-    fn basis_is_orthonormal() {
-        for n in [Vec3::Z, -Vec3::Z, Vec3::X, Vec3::new(0.1, 0.2, -0.9).normalize()] {
-            let (s, t) = basis(n);
-            assert!(s.dot(t).abs() < 1e-6 && s.dot(n).abs() < 1e-6 && t.dot(n).abs() < 1e-6);
-            assert!((s.length() - 1.0).abs() < 1e-6 && (t.length() - 1.0).abs() < 1e-6);
-        }
     }
 }

@@ -1,0 +1,453 @@
+//! Renderable scene: triangle meshes with materials, the Embree accelerator, and the scene
+//! file loader (FORMATS.md "Scene file (TOML)").
+//!
+//! Materials are Lafortune BRDFs: a diffuse albedo (constant or a texture) plus constant lobes
+//! per object. Texture lookup rule: FORMATS.md UV convention (texel row i, column j centred at
+//! ((j + 0.5) / W, 1 - (i + 0.5) / H)), **bilinear with clamp-to-edge** (UVs outside [0, 1] are
+//! clamped, and the outer half texel repeats the edge texel).
+//!
+//! Shading normal: interpolated vertex normals when the mesh has them (flipped to the side of
+//! the geometric normal), else the geometric normal. The geometric normal offsets ray origins.
+//! Zero-area (or non-finite) triangles are dropped at load and counted.
+
+use crate::embree::{Hit, RtScene};
+use crate::lighting::Lighting;
+use crate::RenderError;
+use glam::{Vec2, Vec3};
+use igi_brdf::{LafortuneRef, Lobe};
+use igi_geometry::TriMesh;
+use igi_imaging::HdrImage;
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+/// An RGB texture for per-texel parameters (linear values).
+#[derive(Clone, Debug)]
+pub struct Texture {
+    pub width: usize,
+    pub height: usize,
+    /// Row-major, row 0 at the top (v = 1).
+    pub texels: Vec<Vec3>,
+}
+
+impl Texture {
+    pub fn from_image(img: &HdrImage) -> Self {
+        Texture {
+            width: img.width,
+            height: img.height,
+            texels: img.pixels.iter().map(|p| Vec3::from_array(*p)).collect(),
+        }
+    }
+
+    /// Bilinear lookup with clamp-to-edge, FORMATS.md UV convention.
+    #[inline]
+    pub fn lookup(&self, uv: Vec2) -> Vec3 {
+        let (w, h) = (self.width, self.height);
+        let u = if uv.x.is_finite() { uv.x.clamp(0.0, 1.0) } else { 0.5 };
+        let v = if uv.y.is_finite() { uv.y.clamp(0.0, 1.0) } else { 0.5 };
+        let x = (u * w as f32 - 0.5).clamp(0.0, (w - 1) as f32);
+        let y = ((1.0 - v) * h as f32 - 0.5).clamp(0.0, (h - 1) as f32);
+        let (x0, y0) = (x.floor() as usize, y.floor() as usize);
+        let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
+        let (fx, fy) = (x - x0 as f32, y - y0 as f32);
+        let t = |r: usize, c: usize| self.texels[r * w + c];
+        let top = t(y0, x0) * (1.0 - fx) + t(y0, x1) * fx;
+        let bot = t(y1, x0) * (1.0 - fx) + t(y1, x1) * fx;
+        top * (1.0 - fy) + bot * fy
+    }
+}
+
+/// Diffuse albedo of an object.
+#[derive(Clone, Debug)]
+pub enum Albedo {
+    Constant(Vec3),
+    Texture(Texture),
+}
+
+/// Material of an object: Lafortune with per-texel (or constant) `rho_d` and constant lobes.
+#[derive(Clone, Debug)]
+pub struct Material {
+    pub albedo: Albedo,
+    pub lobes: Vec<Lobe>,
+}
+
+impl Material {
+    pub fn lambertian(rho_d: Vec3) -> Self {
+        Material { albedo: Albedo::Constant(rho_d), lobes: Vec::new() }
+    }
+
+    /// The BRDF at texture coordinate `uv`.
+    #[inline]
+    pub fn brdf_at(&self, uv: Vec2) -> LafortuneRef<'_> {
+        let rho_d = match &self.albedo {
+            Albedo::Constant(c) => *c,
+            Albedo::Texture(t) => t.lookup(uv),
+        };
+        LafortuneRef { rho_d, lobes: &self.lobes }
+    }
+}
+
+/// One object: a mesh (degenerate triangles removed) and its material.
+#[derive(Clone, Debug)]
+pub struct Object {
+    pub name: String,
+    pub positions: Vec<Vec3>,
+    pub normals: Option<Vec<Vec3>>,
+    pub uvs: Option<Vec<Vec2>>,
+    /// Kept triangles; Embree's primitive id indexes this list.
+    pub triangles: Vec<[u32; 3]>,
+    pub material: Material,
+}
+
+/// A point on a surface of the scene, as the queries of the solver take it.
+#[derive(Clone, Copy, Debug)]
+pub struct SurfacePoint {
+    pub position: Vec3,
+    /// Unit geometric normal (winding order: (v1 - v0) x (v2 - v0)).
+    pub ng: Vec3,
+    /// Unit shading normal, on the same side as `ng`.
+    pub ns: Vec3,
+    /// Texture coordinates (0 when the mesh has none).
+    pub uv: Vec2,
+    /// Object index.
+    pub object: u32,
+    /// Triangle index within the object's kept triangles.
+    pub prim: u32,
+}
+
+/// Triangle meshes with materials and the Embree accelerator.
+pub struct Scene {
+    pub objects: Vec<Object>,
+    rt: RtScene,
+    /// Number of zero-area or non-finite triangles dropped at load.
+    pub skipped_triangles: usize,
+}
+
+impl Scene {
+    /// Builds a scene from meshes and materials. Triangles with zero area or non-finite
+    /// corners are dropped (counted in `skipped_triangles`); indices out of range are an error.
+    pub fn new(objects: Vec<(String, TriMesh, Material)>) -> Result<Self, RenderError> {
+        let mut out = Vec::with_capacity(objects.len());
+        let mut skipped = 0usize;
+        for (name, mesh, material) in objects {
+            let nv = mesh.positions.len();
+            if let Some(n) = &mesh.normals {
+                if n.len() != nv {
+                    return Err(RenderError::Invalid(format!("{name}: {} normals for {nv} vertices", n.len())));
+                }
+            }
+            if let Some(t) = &mesh.uvs {
+                if t.len() != nv {
+                    return Err(RenderError::Invalid(format!("{name}: {} UVs for {nv} vertices", t.len())));
+                }
+            }
+            if matches!(material.albedo, Albedo::Texture(_)) && mesh.uvs.is_none() {
+                return Err(RenderError::Invalid(format!("{name}: an albedo texture needs UVs, and the mesh has none")));
+            }
+            let positions: Vec<Vec3> = mesh.positions.iter().map(|p| Vec3::from_array(*p)).collect();
+            let mut triangles = Vec::with_capacity(mesh.indices.len());
+            for (k, tri) in mesh.indices.iter().enumerate() {
+                if tri.iter().any(|&i| i as usize >= nv) {
+                    return Err(RenderError::Invalid(format!(
+                        "{name}: triangle {k} has vertex index {tri:?} out of range ({nv} vertices)"
+                    )));
+                }
+                let [a, b, c] = tri.map(|i| positions[i as usize]);
+                let cross = (b - a).cross(c - a);
+                if !(a.is_finite() && b.is_finite() && c.is_finite()) || !(cross.length_squared() > 0.0) || !cross.is_finite() {
+                    skipped += 1;
+                    continue;
+                }
+                triangles.push(*tri);
+            }
+            let normals = mesh.normals.as_ref().map(|n| {
+                n.iter()
+                    .map(|v| {
+                        let v = Vec3::from_array(*v);
+                        if v.is_finite() && v.length_squared() > 0.0 {
+                            v.normalize()
+                        } else {
+                            Vec3::ZERO
+                        }
+                    })
+                    .collect()
+            });
+            let uvs = mesh.uvs.as_ref().map(|t| t.iter().map(|v| Vec2::from_array(*v)).collect());
+            out.push(Object { name, positions, normals, uvs, triangles, material });
+        }
+        let pos_arrays: Vec<Vec<[f32; 3]>> = out.iter().map(|o| o.positions.iter().map(|p| p.to_array()).collect()).collect();
+        let meshes: Vec<(&[[f32; 3]], &[[u32; 3]])> =
+            out.iter().zip(&pos_arrays).map(|(o, p)| (p.as_slice(), o.triangles.as_slice())).collect();
+        let rt = RtScene::new(&meshes)?;
+        if skipped > 0 {
+            tracing::info!("skipped {skipped} degenerate triangles");
+        }
+        Ok(Scene { objects: out, rt, skipped_triangles: skipped })
+    }
+
+    /// The Embree accelerator (for benchmarks and low-level queries).
+    pub fn rt(&self) -> &RtScene {
+        &self.rt
+    }
+
+    /// Total number of kept triangles.
+    pub fn triangle_count(&self) -> usize {
+        self.objects.iter().map(|o| o.triangles.len()).sum()
+    }
+
+    /// Closest surface hit along a ray.
+    #[inline]
+    pub fn intersect(&self, origin: Vec3, dir: Vec3) -> Option<Hit> {
+        self.rt.intersect(origin, dir, 0.0, f32::INFINITY)
+    }
+
+    /// Whether the segment `origin + t dir`, t in (0, tfar), is blocked.
+    #[inline]
+    pub fn occluded(&self, origin: Vec3, dir: Vec3, tfar: f32) -> bool {
+        self.rt.occluded(origin, dir, 0.0, tfar)
+    }
+
+    /// The surface point of a hit.
+    #[inline]
+    pub fn surface_point(&self, hit: &Hit) -> SurfacePoint {
+        self.point_on(hit.geom, hit.prim, hit.bary)
+    }
+
+    /// The surface point at barycentrics `bary` (b1, b2) of triangle `prim` of object `object`.
+    #[inline]
+    pub fn point_on(&self, object: u32, prim: u32, bary: Vec2) -> SurfacePoint {
+        let o = &self.objects[object as usize];
+        let [i0, i1, i2] = o.triangles[prim as usize].map(|i| i as usize);
+        let (b1, b2) = (bary.x, bary.y);
+        let b0 = 1.0 - b1 - b2;
+        let (p0, p1, p2) = (o.positions[i0], o.positions[i1], o.positions[i2]);
+        let position = p0 * b0 + p1 * b1 + p2 * b2;
+        let ng = (p1 - p0).cross(p2 - p0).normalize();
+        let ns = match &o.normals {
+            Some(n) => {
+                let s = n[i0] * b0 + n[i1] * b1 + n[i2] * b2;
+                if s.length_squared() > 1e-12 {
+                    let s = s.normalize();
+                    if s.dot(ng) < 0.0 {
+                        -s
+                    } else {
+                        s
+                    }
+                } else {
+                    ng
+                }
+            }
+            None => ng,
+        };
+        let uv = match &o.uvs {
+            Some(t) => t[i0] * b0 + t[i1] * b1 + t[i2] * b2,
+            None => Vec2::ZERO,
+        };
+        SurfacePoint { position, ng, ns, uv, object, prim }
+    }
+
+    /// The first surface point along a ray, if any (for the solver: where a texel's ray lands).
+    pub fn trace_point(&self, origin: Vec3, dir: Vec3) -> Option<SurfacePoint> {
+        self.intersect(origin, dir.normalize()).map(|h| self.surface_point(&h))
+    }
+
+    /// Loads a scene file and the lighting file it names. Relative paths are relative to the
+    /// scene file's folder.
+    pub fn load(path: &Path) -> Result<(Scene, Lighting), RenderError> {
+        let file_err = |msg: String| RenderError::File { path: path.to_path_buf(), msg };
+        if path.is_dir() {
+            return Err(file_err("is a directory, not a scene file (re-lighting a solve result is not supported yet)".into()));
+        }
+        let text = std::fs::read_to_string(path).map_err(|e| file_err(format!("cannot read scene file: {e}")))?;
+        let f: SceneFile = toml::from_str(&text).map_err(|e| file_err(format!("not a valid scene file: {e}")))?;
+        let dir = path.parent().unwrap_or(Path::new("."));
+        let lighting = match &f.lighting {
+            Some(l) => Lighting::load(&dir.join(l))?,
+            None => Lighting::default(),
+        };
+        if f.object.is_empty() {
+            return Err(file_err("no [[object]] in the scene".into()));
+        }
+        let mut objects = Vec::with_capacity(f.object.len());
+        for (k, o) in f.object.iter().enumerate() {
+            let mesh_path = dir.join(&o.mesh);
+            let mesh = igi_geometry::read_mesh(&mesh_path)
+                .map_err(|e| file_err(format!("object {k}: mesh {}: {e}", mesh_path.display())))?;
+            let albedo = match &o.albedo {
+                AlbedoSpec::Constant(c) => {
+                    let c = Vec3::from_array(*c);
+                    if !c.is_finite() || c.min_element() < 0.0 {
+                        return Err(file_err(format!("object {k}: albedo {c:?} must be finite and >= 0")));
+                    }
+                    Albedo::Constant(c)
+                }
+                AlbedoSpec::Texture(t) => {
+                    let tp = dir.join(t);
+                    let img = igi_imaging::read_image(&tp)
+                        .map_err(|e| file_err(format!("object {k}: albedo texture {}: {e}", tp.display())))?;
+                    if img.pixels.iter().any(|p| p.iter().any(|c| !c.is_finite() || *c < 0.0)) {
+                        return Err(file_err(format!(
+                            "object {k}: albedo texture {} has negative or non-finite texels",
+                            tp.display()
+                        )));
+                    }
+                    Albedo::Texture(Texture::from_image(&img))
+                }
+            };
+            for (li, l) in o.lobes.iter().enumerate() {
+                let ok = l.rho.is_finite() && l.rho.min_element() >= 0.0 && l.cxy.is_finite() && l.cz.is_finite() && l.n.is_finite() && l.n >= 0.0;
+                if !ok {
+                    return Err(file_err(format!("object {k}: lobe {li} {l:?} has invalid parameters")));
+                }
+            }
+            let material = Material { albedo, lobes: o.lobes.clone() };
+            objects.push((mesh_path.display().to_string(), mesh, material));
+        }
+        let scene = Scene::new(objects).map_err(|e| file_err(e.to_string()))?;
+        Ok((scene, lighting))
+    }
+}
+
+#[derive(Deserialize)]
+struct SceneFile {
+    lighting: Option<PathBuf>,
+    #[serde(default)]
+    object: Vec<ObjectSpec>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ObjectSpec {
+    mesh: PathBuf,
+    albedo: AlbedoSpec,
+    #[serde(default)]
+    lobes: Vec<Lobe>,
+}
+
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum AlbedoSpec {
+    Constant([f32; 3]),
+    Texture(PathBuf),
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    pub(crate) fn quad_mesh(z: f32, half: f32) -> TriMesh {
+        TriMesh {
+            positions: vec![[-half, -half, z], [half, -half, z], [half, half, z], [-half, half, z]],
+            normals: None,
+            uvs: Some(vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]),
+            colors: None,
+            indices: vec![[0, 1, 2], [0, 2, 3]],
+        }
+    }
+
+    #[test]
+    fn texture_lookup_follows_formats_uv_convention() {
+        // 2 x 2 texture: top row (v = 1) red, green; bottom row blue, white.
+        let t = Texture {
+            width: 2,
+            height: 2,
+            texels: vec![Vec3::X, Vec3::Y, Vec3::Z, Vec3::ONE],
+        };
+        // Texel (row 0, col 0) centre: (0.25, 0.75).
+        assert!(t.lookup(Vec2::new(0.25, 0.75)).abs_diff_eq(Vec3::X, 1e-6));
+        assert!(t.lookup(Vec2::new(0.75, 0.75)).abs_diff_eq(Vec3::Y, 1e-6));
+        assert!(t.lookup(Vec2::new(0.25, 0.25)).abs_diff_eq(Vec3::Z, 1e-6));
+        // Clamp to edge: the corner and beyond repeat the corner texel.
+        assert!(t.lookup(Vec2::new(0.0, 1.0)).abs_diff_eq(Vec3::X, 1e-6));
+        assert!(t.lookup(Vec2::new(-3.0, 7.0)).abs_diff_eq(Vec3::X, 1e-6));
+        // Centre: average of all four.
+        assert!(t.lookup(Vec2::new(0.5, 0.5)).abs_diff_eq(Vec3::new(0.5, 0.5, 0.5), 1e-6));
+        assert!(t.lookup(Vec2::new(f32::NAN, 0.5)).is_finite());
+    }
+
+    #[test]
+    fn degenerate_and_duplicate_triangles_are_handled() {
+        let mut m = quad_mesh(0.0, 1.0);
+        m.positions.push([5.0, 5.0, 0.0]);
+        m.positions.push([f32::NAN, 0.0, 0.0]);
+        m.uvs.as_mut().unwrap().extend([[0.0, 0.0], [0.0, 0.0]]);
+        m.indices.push([0, 0, 1]); // repeated vertex
+        m.indices.push([0, 1, 4]); // a valid triangle that uses the extra vertex: kept
+        m.indices.push([1, 2, 5]); // NaN corner
+        m.indices.push([0, 1, 2]); // duplicate
+        let s = Scene::new(vec![("m".into(), m, Material::lambertian(Vec3::splat(0.5)))]).unwrap();
+        assert_eq!(s.skipped_triangles, 2);
+        assert_eq!(s.triangle_count(), 4);
+        let h = s.intersect(Vec3::new(0.3, 0.2, 1.0), -Vec3::Z).unwrap();
+        let sp = s.surface_point(&h);
+        assert!(sp.position.abs_diff_eq(Vec3::new(0.3, 0.2, 0.0), 1e-5));
+        assert!(sp.ng.abs_diff_eq(Vec3::Z, 1e-6) && sp.ns.abs_diff_eq(Vec3::Z, 1e-6));
+        assert!(sp.uv.abs_diff_eq(Vec2::new(0.65, 0.6), 1e-5));
+        // Index out of range is a clear error.
+        let mut bad = quad_mesh(0.0, 1.0);
+        bad.indices.push([0, 1, 9]);
+        let e = Scene::new(vec![("bad.ply".into(), bad, Material::lambertian(Vec3::ONE))]).err().unwrap().to_string();
+        assert!(e.contains("bad.ply") && e.contains("out of range"), "{e}");
+    }
+
+    #[test]
+    fn interpolated_shading_normals_face_the_geometric_side() {
+        let mut m = quad_mesh(0.0, 1.0);
+        let tilt = Vec3::new(0.3, 0.0, -1.0).normalize(); // points below: must be flipped
+        m.normals = Some(vec![tilt.to_array(); 4]);
+        let s = Scene::new(vec![("m".into(), m, Material::lambertian(Vec3::ONE))]).unwrap();
+        let sp = s.trace_point(Vec3::new(0.0, 0.0, 1.0), -Vec3::Z).unwrap();
+        assert!(sp.ns.abs_diff_eq(-tilt, 1e-6), "{:?}", sp.ns);
+    }
+
+    #[test]
+    fn scene_file_loads_with_relative_paths_and_reports_errors() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::create_dir_all(dir.path().join("geometry")).unwrap();
+        std::fs::create_dir_all(dir.path().join("lighting")).unwrap();
+        igi_geometry::write_ply(&dir.path().join("geometry/ground.ply"), &quad_mesh(0.0, 2.0)).unwrap();
+        let mut tex = HdrImage::new(2, 2);
+        tex.set(0, 0, [0.9, 0.1, 0.1]);
+        igi_imaging::write_exr(&dir.path().join("geometry/tex.exr"), &tex).unwrap();
+        std::fs::write(
+            dir.path().join("lighting/noon.toml"),
+            "[sun]\ndirection = [0, 0, 1]\nradiance = [1000, 1000, 1000]\n",
+        )
+        .unwrap();
+        let p = dir.path().join("scene.toml");
+        std::fs::write(
+            &p,
+            r#"lighting = "lighting/noon.toml"
+[[object]]
+mesh = "geometry/ground.ply"
+albedo = [0.2, 0.3, 0.4]
+[[object]]
+mesh = "geometry/ground.ply"
+albedo = "geometry/tex.exr"
+lobes = [ { rho = [0.1, 0.1, 0.1], cxy = -0.9, cz = 1.0, n = 30.0 } ]
+"#,
+        )
+        .unwrap();
+        let (s, l) = Scene::load(&p).unwrap();
+        assert_eq!(s.objects.len(), 2);
+        assert!(l.sun.is_some() && l.environment.is_none());
+        assert!(matches!(s.objects[0].material.albedo, Albedo::Constant(c) if c == Vec3::new(0.2, 0.3, 0.4)));
+        assert_eq!(s.objects[1].material.lobes.len(), 1);
+        assert_eq!(s.objects[1].material.lobes[0].n, 30.0);
+        match &s.objects[1].material.albedo {
+            Albedo::Texture(t) => assert!(t.lookup(Vec2::new(0.0, 1.0)).abs_diff_eq(Vec3::new(0.9, 0.1, 0.1), 1e-6)),
+            _ => panic!("expected a texture"),
+        }
+        // Errors name the scene file and the problem.
+        std::fs::write(&p, "[[object]]\nmesh = \"geometry/none.ply\"\nalbedo = [1, 1, 1]\n").unwrap();
+        let e = Scene::load(&p).err().unwrap().to_string();
+        assert!(e.contains("scene.toml") && e.contains("none.ply"), "{e}");
+        std::fs::write(&p, "[[object]]\nmesh = \"geometry/ground.ply\"\nalbedo = [1, -1, 1]\n").unwrap();
+        let e = Scene::load(&p).err().unwrap().to_string();
+        assert!(e.contains("scene.toml") && e.contains("albedo"), "{e}");
+        std::fs::write(&p, "lighting = 3\n").unwrap();
+        let e = Scene::load(&p).err().unwrap().to_string();
+        assert!(e.contains("scene.toml") && e.contains("not a valid scene file"), "{e}");
+        let e = Scene::load(dir.path()).err().unwrap().to_string();
+        assert!(e.contains("not a scene file"), "{e}");
+    }
+}
