@@ -12,3 +12,6 @@ pub mod lafortune;
 pub use error::BrdfError;
 pub use frame::Frame;
 pub use lafortune::{luminance, BsdfSample, Lafortune, LafortuneRef, Lobe};
+
+#[cfg(test)]
+mod lafortune_tests;
