@@ -7,11 +7,15 @@
 
 pub mod error;
 pub mod frame;
+pub mod fit;
 pub mod lafortune;
+pub mod samples;
 
 pub use error::BrdfError;
 pub use frame::Frame;
+pub use fit::{fit_material, FitOptions, FitReport, LobeStderr, Stderr};
 pub use lafortune::{luminance, BsdfSample, Lafortune, LafortuneRef, Lobe};
+pub use samples::{read_pairs, read_samples, BrdfSample, PairRow, PairTable};
 
 #[cfg(test)]
 mod lafortune_tests;

@@ -1,0 +1,639 @@
+//! Fitting a Lafortune BRDF (Lambertian + retroreflective lobe + specular lobe) to samples with
+//! Levenberg-Marquardt, in the stages of Debevec et al. 2004 (3.2.2): `rho_d` first, then each lobe
+//! on its own, then everything together.
+//!
+//! Parameterisation (constraints by construction, no bounds needed):
+//! - colours `rho = exp(x)` per channel (positive; dark and bright materials alike);
+//! - retroreflective lobe `Cxy = exp(a) > 0`, specular lobe `Cxy = -exp(a) < 0`;
+//! - `Cz = 1` for both lobes: a lobe's value `rho (Cxy(..) + Cz(..))^N` is unchanged by scaling
+//!   `(Cxy, Cz)` by `k` and `rho` by `k^-N`, so a free `Cz` would be a direction of zero curvature
+//!   (singular `J^T J`, infinite standard errors). Fixing `Cz = 1` removes exactly that redundancy
+//!   and keeps every lobe shape (`Cz > 0`);
+//! - `N = 1 + exp(m)`, clamped to `N <= max_n`.
+//!
+//! Residuals are relative: `(model - data) / (data + floor)` per channel with
+//! `floor = rel_floor * mean(data)` of that channel and material, so dark materials fit as well as
+//! bright ones and samples near zero do not dominate. The model is evaluated in f64 (a twin of
+//! [`crate::Lobe::eval`] for the optimiser's finite differences; the sharp lobes need the precision).
+//! Standard errors: `sqrt(diag((J^T J)^-1) sigma^2)`, `sigma^2 = sum r^2 / (m - p)`, with the
+//! pseudo-inverse regularised so an unconstrained parameter gets a large, finite error.
+
+use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
+use nalgebra::{storage::Owned, DMatrix, DVector, Dyn};
+use serde::{Deserialize, Serialize};
+
+use crate::{BrdfError, BrdfSample, Lafortune, Lobe};
+use glam::Vec3;
+
+/// Options of [`fit_material`].
+#[derive(Clone, Debug)]
+pub struct FitOptions {
+    /// Largest lobe exponent.
+    pub max_n: f64,
+    /// Relative-residual floor as a fraction of the channel's mean value.
+    pub rel_floor: f64,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        FitOptions { max_n: 2.0e4, rel_floor: 0.05 }
+    }
+}
+
+/// Standard errors in the units of the fitted parameters (`cz` is fixed, so it has none).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LobeStderr {
+    pub rho: [f64; 3],
+    pub cxy: f64,
+    pub n: f64,
+}
+
+/// Standard errors of a fit, laid out like the material.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Stderr {
+    pub rho_d: [f64; 3],
+    pub lobes: Vec<LobeStderr>,
+}
+
+/// The result of fitting one material.
+#[derive(Clone, Debug)]
+pub struct FitReport {
+    pub material: String,
+    /// Lobes in order: retroreflective, specular.
+    pub brdf: Lafortune,
+    /// RMS of the relative (weighted) residuals over all samples and channels.
+    pub rms: f64,
+    /// RMS of `model - data` in the file's units (pi times the BRDF).
+    pub rms_abs: f64,
+    pub stderr: Stderr,
+    pub samples: usize,
+    /// How the final Levenberg-Marquardt stage ended.
+    pub termination: String,
+}
+
+const NP: usize = 13;
+// parameter layout
+const LD: usize = 0; // rho_d log colour (3)
+const RR: usize = 3; // retro log colour (3)
+const RA: usize = 6; // retro log cxy
+const RM: usize = 7; // retro log(n - 1)
+const SR: usize = 8; // specular log colour (3)
+const SA: usize = 11; // specular log -cxy
+const SM: usize = 12; // specular log(n - 1)
+
+#[derive(Clone, Copy)]
+struct LobeF64 {
+    rho: [f64; 3],
+    cxy: f64,
+    n: f64,
+}
+
+/// f64 lobe shape `max(0, cxy (l.x v.x + l.y v.y) + l.z v.z)^n` (Cz = 1).
+#[inline]
+fn shape(cxy: f64, n: f64, l: &[f64; 3], v: &[f64; 3]) -> f64 {
+    let d = cxy * (l[0] * v[0] + l[1] * v[1]) + l[2] * v[2];
+    if d <= 0.0 {
+        0.0
+    } else {
+        (n * d.ln()).min(300.0).exp()
+    }
+}
+
+struct Model {
+    max_n: f64,
+}
+
+impl Model {
+    fn lobes(&self, p: &[f64]) -> (  [f64; 3], LobeF64, LobeF64) {
+        let col = |i: usize| [p[i].clamp(-40.0, 20.0).exp(), p[i + 1].clamp(-40.0, 20.0).exp(), p[i + 2].clamp(-40.0, 20.0).exp()];
+        let nmax = (self.max_n - 1.0).ln();
+        let retro = LobeF64 { rho: col(RR), cxy: p[RA].clamp(-6.0, 3.0).exp(), n: 1.0 + p[RM].clamp(-12.0, nmax).exp() };
+        let spec = LobeF64 { rho: col(SR), cxy: -p[SA].clamp(-6.0, 3.0).exp(), n: 1.0 + p[SM].clamp(-12.0, nmax).exp() };
+        (col(LD), retro, spec)
+    }
+
+    /// pi * f per channel.
+    fn value(&self, p: &[f64], l: &[f64; 3], v: &[f64; 3]) -> [f64; 3] {
+        let (d, r, s) = self.lobes(p);
+        let gr = std::f64::consts::PI * shape(r.cxy, r.n, l, v);
+        let gs = std::f64::consts::PI * shape(s.cxy, s.n, l, v);
+        [0, 1, 2].map(|c| d[c] + r.rho[c] * gr + s.rho[c] * gs)
+    }
+
+    fn to_lafortune(&self, p: &[f64]) -> Lafortune {
+        let (d, r, s) = self.lobes(p);
+        let v = |c: [f64; 3]| Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32);
+        Lafortune {
+            rho_d: v(d),
+            lobes: vec![
+                Lobe { rho: v(r.rho), cxy: r.cxy as f32, cz: 1.0, n: r.n as f32 },
+                Lobe { rho: v(s.rho), cxy: s.cxy as f32, cz: 1.0, n: s.n as f32 },
+            ],
+        }
+    }
+}
+
+struct Data {
+    light: Vec<[f64; 3]>,
+    view: Vec<[f64; 3]>,
+    value: Vec<[f64; 3]>,
+    /// 1 / (data + floor) per sample and channel
+    weight: Vec<[f64; 3]>,
+}
+
+struct Problem<'a> {
+    model: &'a Model,
+    data: &'a Data,
+    p: [f64; NP],
+    free: Vec<usize>,
+}
+
+impl Problem<'_> {
+    fn residuals_at(&self, p: &[f64]) -> DVector<f64> {
+        let m = self.data.light.len();
+        let mut r = DVector::zeros(3 * m);
+        for i in 0..m {
+            let f = self.model.value(p, &self.data.light[i], &self.data.view[i]);
+            for c in 0..3 {
+                r[3 * i + c] = (f[c] - self.data.value[i][c]) * self.data.weight[i][c];
+            }
+        }
+        r
+    }
+    fn cost(&self) -> f64 {
+        self.residuals_at(&self.p).norm_squared()
+    }
+    fn jacobian_at(&self, p: &[f64; NP], free: &[usize]) -> DMatrix<f64> {
+        let m = 3 * self.data.light.len();
+        let mut j = DMatrix::zeros(m, free.len());
+        for (k, &i) in free.iter().enumerate() {
+            let h = 1e-6 * (1.0 + p[i].abs());
+            let mut a = *p;
+            let mut b = *p;
+            a[i] += h;
+            b[i] -= h;
+            let col = (self.residuals_at(&a) - self.residuals_at(&b)) / (2.0 * h);
+            j.set_column(k, &col);
+        }
+        j
+    }
+}
+
+impl LeastSquaresProblem<f64, Dyn, Dyn> for Problem<'_> {
+    type ResidualStorage = Owned<f64, Dyn>;
+    type JacobianStorage = Owned<f64, Dyn, Dyn>;
+    type ParameterStorage = Owned<f64, Dyn>;
+
+    fn set_params(&mut self, x: &DVector<f64>) {
+        for (k, &i) in self.free.iter().enumerate() {
+            self.p[i] = x[k];
+        }
+    }
+    fn params(&self) -> DVector<f64> {
+        DVector::from_iterator(self.free.len(), self.free.iter().map(|&i| self.p[i]))
+    }
+    fn residuals(&self) -> Option<DVector<f64>> {
+        let r = self.residuals_at(&self.p);
+        r.iter().all(|x| x.is_finite()).then_some(r)
+    }
+    fn jacobian(&self) -> Option<DMatrix<f64>> {
+        let j = self.jacobian_at(&self.p, &self.free);
+        j.iter().all(|x| x.is_finite()).then_some(j)
+    }
+}
+
+/// Run LM over `free` from `p`; returns the new parameters, the cost and the termination text.
+fn lm(model: &Model, data: &Data, p: [f64; NP], free: &[usize]) -> ([f64; NP], f64, String) {
+    let prob = Problem { model, data, p, free: free.to_vec() };
+    let start_cost = prob.cost();
+    let (prob, report) = LevenbergMarquardt::new().with_patience(200).minimize(prob);
+    let cost = prob.cost();
+    if cost.is_finite() && cost <= start_cost {
+        (prob.p, cost, format!("{:?}", report.termination))
+    } else {
+        (p, start_cost, format!("{:?} (step rejected)", report.termination))
+    }
+}
+
+/// Colour of the lobe at `ci` (log colour index) that best explains the data left over by the
+/// rest of the model, in the weighted least-squares sense (the colour enters linearly).
+fn linear_colour(model: &Model, data: &Data, p: &mut [f64; NP], ci: usize) {
+    for c in 0..3 {
+        p[ci + c] = -40.0;
+    }
+    let mut probe = *p;
+    for c in 0..3 {
+        probe[ci + c] = 0.0; // unit colour
+    }
+    for c in 0..3 {
+        let (mut num, mut den) = (0.0, 0.0);
+        for i in 0..data.light.len() {
+            let base = model.value(p, &data.light[i], &data.view[i])[c];
+            let g = model.value(&probe, &data.light[i], &data.view[i])[c] - base;
+            let w2 = data.weight[i][c] * data.weight[i][c];
+            num += w2 * g * (data.value[i][c] - base);
+            den += w2 * g * g;
+        }
+        let rho = if den > 0.0 { (num / den).max(1e-12) } else { 1e-12 };
+        p[ci + c] = rho.ln().max(-40.0);
+    }
+}
+
+/// Best of several starting exponents for one lobe fitted alone.
+fn fit_lobe(model: &Model, data: &Data, p: [f64; NP], colour: usize, a: usize, m: usize, starts: &[f64]) -> [f64; NP] {
+    let mut best = (p, f64::INFINITY);
+    for &n0 in starts {
+        if n0 > model.max_n {
+            continue;
+        }
+        let mut q = p;
+        q[a] = 0.0;
+        q[m] = (n0 - 1.0).max(1e-3).ln();
+        linear_colour(model, data, &mut q, colour);
+        let free = [colour, colour + 1, colour + 2, a, m];
+        let (q, cost, _) = lm(model, data, q, &free);
+        if cost < best.1 {
+            best = (q, cost);
+        }
+    }
+    best.0
+}
+
+fn percentile(mut v: Vec<f64>, q: f64) -> f64 {
+    v.sort_by(|a, b| a.partial_cmp(b).unwrap_or(std::cmp::Ordering::Equal));
+    let i = ((v.len() - 1) as f64 * q).round() as usize;
+    v[i]
+}
+
+/// Fit Lambertian + retroreflective + specular lobes to one material's samples.
+pub fn fit_material(material: &str, samples: &[BrdfSample], opts: &FitOptions) -> Result<FitReport, BrdfError> {
+    let fail = |msg: String| BrdfError::Fit { material: material.to_string(), msg };
+    if samples.len() < 5 {
+        return Err(fail(format!(
+            "{} samples are too few for the {NP}-parameter model (need at least 5, i.e. 15 values)",
+            samples.len()
+        )));
+    }
+    for (i, s) in samples.iter().enumerate() {
+        if !(s.light.is_finite() && s.view.is_finite() && s.value.is_finite()) || s.value.min_element() < 0.0 {
+            return Err(fail(format!("sample {i} has non-finite or negative values")));
+        }
+        if s.light.z <= 0.0 || s.view.z <= 0.0 {
+            return Err(fail(format!("sample {i} has a direction below the surface")));
+        }
+    }
+    let d3 = |v: Vec3| [v.x as f64, v.y as f64, v.z as f64];
+    let value: Vec<[f64; 3]> = samples.iter().map(|s| d3(s.value)).collect();
+    let mean: [f64; 3] = [0, 1, 2].map(|c| value.iter().map(|v| v[c]).sum::<f64>() / value.len() as f64);
+    let floor = mean.map(|m| opts.rel_floor * m + 1e-12);
+    let data = Data {
+        light: samples.iter().map(|s| d3(s.light.normalize())).collect(),
+        view: samples.iter().map(|s| d3(s.view.normalize())).collect(),
+        weight: value.iter().map(|v| [0, 1, 2].map(|c| 1.0 / (v[c] + floor[c]))).collect(),
+        value,
+    };
+    let model = Model { max_n: opts.max_n };
+
+    // Stage 1: rho_d from the lower part of the data (pi f = rho_d where no lobe reaches).
+    let mut p0 = [0.0; NP];
+    for c in 0..3 {
+        let q = percentile(data.value.iter().map(|v| v[c]).collect(), 0.3);
+        p0[LD + c] = q.max(1e-12).ln();
+    }
+    for c in 0..3 {
+        p0[RR + c] = -40.0;
+        p0[SR + c] = -40.0;
+    }
+    p0[RM] = 1.0f64.ln();
+    p0[SM] = 9.0f64.ln();
+    let retro_starts = [2.0, 8.0, 30.0, 150.0];
+    let spec_starts = [3.0, 15.0, 60.0, 300.0, 1500.0, 8000.0, 2.0e4];
+    let all: Vec<usize> = (0..NP).collect();
+
+    // Stages 2-3 in the paper's order (retro, then specular), and the other order as a second
+    // candidate; stage 4: all parameters jointly. Keep the better joint fit.
+    let mut best: Option<([f64; NP], f64, String)> = None;
+    for order in [[0, 1], [1, 0]] {
+        let mut p = p0;
+        for which in order {
+            p = if which == 0 {
+                fit_lobe(&model, &data, p, RR, RA, RM, &retro_starts)
+            } else {
+                fit_lobe(&model, &data, p, SR, SA, SM, &spec_starts)
+            };
+        }
+        let (p, cost, term) = lm(&model, &data, p, &all);
+        if best.as_ref().is_none_or(|b| cost < b.1) {
+            best = Some((p, cost, term));
+        }
+    }
+    let (p, cost, termination) = best.expect("two candidates");
+    if !cost.is_finite() || p.iter().any(|x| !x.is_finite()) {
+        return Err(fail("the optimiser produced non-finite values".into()));
+    }
+
+    // Statistics.
+    let prob = Problem { model: &model, data: &data, p, free: all.clone() };
+    let r = prob.residuals_at(&p);
+    let m = r.len();
+    let rms = (r.norm_squared() / m as f64).sqrt();
+    let mut abs2 = 0.0;
+    for i in 0..data.light.len() {
+        let f = model.value(&p, &data.light[i], &data.view[i]);
+        for c in 0..3 {
+            abs2 += (f[c] - data.value[i][c]).powi(2);
+        }
+    }
+    let rms_abs = (abs2 / m as f64).sqrt();
+    let sigma2 = r.norm_squared() / (m.saturating_sub(NP)).max(1) as f64;
+    let j = prob.jacobian_at(&p, &all);
+    let jtj = j.transpose() * &j;
+    let svd = jtj.svd(true, true);
+    let (u, vt) = (svd.u.expect("u"), svd.v_t.expect("v_t"));
+    let smax = svd.singular_values.max().max(1e-300);
+    let mut cov = DMatrix::zeros(NP, NP);
+    for k in 0..NP {
+        let s = svd.singular_values[k].max(smax * 1e-14).max(1e-300);
+        cov += (u.column(k) * vt.row(k)) / s;
+    }
+    let se: Vec<f64> = (0..NP).map(|i| (cov[(i, i)].abs() * sigma2).sqrt().min(1e30)).collect();
+    let (d, re, sp) = model.lobes(&p);
+    let cap = |x: f64| if x.is_finite() { x.min(1e30) } else { 1e30 };
+    let stderr = Stderr {
+        rho_d: [0, 1, 2].map(|c| cap(d[c] * se[LD + c])),
+        lobes: vec![
+            LobeStderr { rho: [0, 1, 2].map(|c| cap(re.rho[c] * se[RR + c])), cxy: cap(re.cxy.abs() * se[RA]), n: cap((re.n - 1.0) * se[RM]) },
+            LobeStderr { rho: [0, 1, 2].map(|c| cap(sp.rho[c] * se[SR + c])), cxy: cap(sp.cxy.abs() * se[SA]), n: cap((sp.n - 1.0) * se[SM]) },
+        ],
+    };
+    let brdf = model.to_lafortune(&p);
+    if !brdf.rho_d.is_finite() || brdf.lobes.iter().any(|l| !l.rho.is_finite() || !l.n.is_finite()) {
+        return Err(fail("the fitted parameters overflow f32".into()));
+    }
+    Ok(FitReport { material: material.to_string(), brdf, rms, rms_abs, stderr, samples: samples.len(), termination })
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+    use rand_distr_free::normal;
+
+    /// Box-Muller standard normal (keeps the crate free of rand_distr).
+    mod rand_distr_free {
+        use rand::Rng;
+        pub fn normal(rng: &mut impl Rng) -> f32 {
+            let u1: f32 = rng.gen_range(1e-7f32..1.0);
+            let u2: f32 = rng.gen();
+            (-2.0 * u1.ln()).sqrt() * (std::f32::consts::TAU * u2).cos()
+        }
+    }
+
+    pub fn dir(theta_deg: f32, phi_deg: f32) -> Vec3 {
+        let (t, p) = (theta_deg.to_radians(), phi_deg.to_radians());
+        Vec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos())
+    }
+
+    /// The paper's capture: light at 0, 30, 50, 75 degrees in one plane, views every 8 degrees
+    /// across the plane of incidence, plus a few out-of-plane views.
+    pub fn paper_pairs() -> Vec<(Vec3, Vec3)> {
+        let mut v = Vec::new();
+        for lt in [0.0f32, 30.0, 50.0, 75.0] {
+            for k in 0..21 {
+                let vt = -80.0 + 8.0 * k as f32;
+                v.push((dir(lt, 180.0), dir(vt.abs(), if vt < 0.0 { 180.0 } else { 0.0 })));
+            }
+            for vt in [20.0, 45.0, 70.0] {
+                v.push((dir(lt, 180.0), dir(vt, 60.0)));
+            }
+        }
+        v
+    }
+
+    pub fn random_pairs(n: usize, seed: u64) -> Vec<(Vec3, Vec3)> {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+        (0..n)
+            .map(|_| {
+                let a = dir(rng.gen_range(0.0..85.0), rng.gen_range(0.0..360.0));
+                let b = dir(rng.gen_range(0.0..85.0), rng.gen_range(0.0..360.0));
+                (a, b)
+            })
+            .collect()
+    }
+
+    /// Pairs near the mirror configuration (within `spread` degrees), for sharp lobes.
+    pub fn mirror_pairs(n: usize, spread: f32, seed: u64) -> Vec<(Vec3, Vec3)> {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+        (0..n)
+            .map(|_| {
+                let t = rng.gen_range(10.0..70.0);
+                let p = rng.gen_range(0.0..360.0);
+                let l = dir(t, p);
+                let v = dir(t + rng.gen_range(-spread..spread), p + 180.0 + rng.gen_range(-spread..spread));
+                (l, v)
+            })
+            .collect()
+    }
+
+    pub fn synth(m: &Lafortune, name: &str, pairs: &[(Vec3, Vec3)], noise: f32, seed: u64) -> Vec<BrdfSample> {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+        pairs
+            .iter()
+            .map(|&(l, v)| {
+                let f = m.as_ref().eval(l, v) * std::f32::consts::PI;
+                let n = Vec3::new(normal(&mut rng), normal(&mut rng), normal(&mut rng));
+                BrdfSample { material: name.into(), light: l, view: v, value: (f * (Vec3::ONE + noise * n)).max(Vec3::ZERO) }
+            })
+            .collect()
+    }
+
+    /// Max relative error of the fitted model against the truth over `pairs`, relative to
+    /// (true value + 5% of the mean true value) as in the residuals.
+    pub fn heldout_rel(truth: &Lafortune, fit: &Lafortune, pairs: &[(Vec3, Vec3)]) -> (f32, f32) {
+        let t: Vec<Vec3> = pairs.iter().map(|&(l, v)| truth.as_ref().eval(l, v)).collect();
+        let f: Vec<Vec3> = pairs.iter().map(|&(l, v)| fit.as_ref().eval(l, v)).collect();
+        let mean = t.iter().copied().sum::<Vec3>() / t.len() as f32;
+        let (mut mx, mut s2) = (0.0f32, 0.0f32);
+        for (a, b) in t.iter().zip(&f) {
+            let e = (*b - *a).abs() / (*a + 0.05 * mean);
+            mx = mx.max(e.max_element());
+            s2 += e.length_squared();
+        }
+        (mx, (s2 / (3 * t.len()) as f32).sqrt())
+    }
+
+    fn truth() -> Lafortune {
+        Lafortune {
+            rho_d: Vec3::new(0.3, 0.25, 0.2),
+            lobes: vec![
+                Lobe { rho: Vec3::new(0.08, 0.07, 0.06), cxy: 0.8, cz: 1.0, n: 4.0 },
+                Lobe { rho: Vec3::new(2.0, 2.2, 2.4), cxy: -1.0, cz: 1.0, n: 60.0 },
+            ],
+        }
+    }
+
+    fn rel(a: f32, b: f32) -> f32 {
+        (a - b).abs() / b.abs()
+    }
+
+    #[test]
+    fn recovers_known_parameters_from_exact_data() {
+        let t = truth();
+        let mut pairs = paper_pairs();
+        pairs.extend(random_pairs(150, 1));
+        let s = synth(&t, "m", &pairs, 0.0, 0);
+        let r = fit_material("m", &s, &FitOptions::default()).unwrap();
+        let b = &r.brdf;
+        assert!(r.rms < 1e-3, "rms {}", r.rms);
+        for c in 0..3 {
+            assert!(rel(b.rho_d[c], t.rho_d[c]) < 0.01, "{b:?}");
+            assert!(rel(b.lobes[0].rho[c], t.lobes[0].rho[c]) < 0.03, "{b:?}");
+            assert!(rel(b.lobes[1].rho[c], t.lobes[1].rho[c]) < 0.02, "{b:?}");
+        }
+        assert!(rel(b.lobes[0].cxy, 0.8) < 0.02 && rel(b.lobes[0].n, 4.0) < 0.03, "{b:?}");
+        assert!(rel(b.lobes[1].cxy, -1.0) < 0.01 && rel(b.lobes[1].n, 60.0) < 0.01, "{b:?}");
+        // standard errors of exact data are tiny
+        assert!(r.stderr.lobes[1].n < 0.1, "{:?}", r.stderr);
+    }
+
+    #[test]
+    fn cz_not_one_is_recovered_as_an_equivalent_lobe() {
+        // (cxy, cz) = (-0.95, 0.9) equals (cxy/cz, 1) with rho * 0.9^n.
+        let t = Lafortune {
+            rho_d: Vec3::splat(0.2),
+            lobes: vec![Lobe { rho: Vec3::splat(3.0), cxy: -0.95, cz: 0.9, n: 40.0 }],
+        };
+        let mut pairs = paper_pairs();
+        pairs.extend(random_pairs(150, 2));
+        let r = fit_material("m", &synth(&t, "m", &pairs, 0.0, 0), &FitOptions::default()).unwrap();
+        let spec = r.brdf.lobes[1];
+        assert!(rel(spec.cxy, -0.95 / 0.9) < 0.01, "{spec:?}");
+        assert!(rel(spec.n, 40.0) < 0.01, "{spec:?}");
+        assert!(rel(spec.rho.x, 3.0 * 0.9f32.powf(40.0)) < 0.03, "{spec:?}");
+        let (mx, _) = heldout_rel(&t, &r.brdf, &random_pairs(500, 99));
+        assert!(mx < 0.02, "held-out max relative error {mx}");
+    }
+
+    #[test]
+    fn stiff_exponent_1e4_is_recovered() {
+        let n = 1.0e4f32;
+        let t = Lafortune {
+            rho_d: Vec3::splat(0.05),
+            lobes: vec![Lobe { rho: Vec3::splat(0.5 * (n + 2.0) / std::f32::consts::TAU), cxy: -1.0, cz: 1.0, n }],
+        };
+        let mut pairs = random_pairs(120, 3);
+        pairs.extend(mirror_pairs(60, 1.5, 4));
+        let r = fit_material("m", &synth(&t, "m", &pairs, 0.0, 0), &FitOptions::default()).unwrap();
+        let spec = r.brdf.lobes[1];
+        assert!(rel(spec.n, n) < 0.05, "{spec:?} rms {}", r.rms);
+        assert!(rel(spec.cxy, -1.0) < 0.001, "{spec:?}");
+        assert!(rel(r.brdf.rho_d.x, 0.05) < 0.01, "{:?}", r.brdf);
+        let (mx, _) = heldout_rel(&t, &r.brdf, &mirror_pairs(300, 1.5, 5));
+        assert!(mx < 0.05, "held-out max relative error near the peak {mx}");
+    }
+
+    #[test]
+    fn grazing_samples_beyond_85_degrees_fit() {
+        let t = truth();
+        let mut pairs = paper_pairs();
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(6);
+        for _ in 0..60 {
+            pairs.push((dir(rng.gen_range(85.0..89.5), rng.gen_range(0.0..360.0)), dir(rng.gen_range(85.0..89.5), rng.gen_range(0.0..360.0))));
+        }
+        let s = synth(&t, "m", &pairs, 0.0, 0);
+        let r = fit_material("m", &s, &FitOptions::default()).unwrap();
+        assert!(r.rms < 2e-3, "rms {}", r.rms);
+        let mut graze = Vec::new();
+        for _ in 0..200 {
+            graze.push((dir(rng.gen_range(85.0..89.5), rng.gen_range(0.0..360.0)), dir(rng.gen_range(85.0..89.5), rng.gen_range(0.0..360.0))));
+        }
+        let (mx, _) = heldout_rel(&t, &r.brdf, &graze);
+        assert!(mx < 0.02, "grazing held-out max relative error {mx}");
+    }
+
+    #[test]
+    fn near_zero_reflectance_fits_relatively() {
+        let mut t = truth();
+        t.rho_d *= 1e-4;
+        for l in &mut t.lobes {
+            l.rho *= 1e-4;
+        }
+        let mut pairs = paper_pairs();
+        pairs.extend(random_pairs(100, 7));
+        let r = fit_material("dark", &synth(&t, "dark", &pairs, 0.0, 0), &FitOptions::default()).unwrap();
+        assert!(r.rms < 2e-3, "rms {}", r.rms);
+        assert!(rel(r.brdf.rho_d.y, t.rho_d.y) < 0.01, "{:?}", r.brdf);
+        assert!(rel(r.brdf.lobes[1].n, 60.0) < 0.02, "{:?}", r.brdf);
+        // and a material that is black in one channel
+        let mut t2 = truth();
+        t2.rho_d.z = 0.0;
+        t2.lobes[0].rho.z = 0.0;
+        t2.lobes[1].rho.z = 0.0;
+        let r2 = fit_material("m", &synth(&t2, "m", &pairs, 0.0, 0), &FitOptions::default()).unwrap();
+        assert!(r2.brdf.rho_d.z < 1e-6 && r2.brdf.lobes[1].rho.z < 1e-6, "{:?}", r2.brdf);
+        assert!(rel(r2.brdf.rho_d.x, 0.3) < 0.01);
+    }
+
+    #[test]
+    fn five_percent_noise() {
+        let t = truth();
+        let mut pairs = paper_pairs();
+        pairs.extend(random_pairs(200, 8));
+        let r = fit_material("m", &synth(&t, "m", &pairs, 0.05, 9), &FitOptions::default()).unwrap();
+        assert!(r.rms > 0.03 && r.rms < 0.06, "rms {} should be about the noise level", r.rms);
+        for c in 0..3 {
+            assert!(rel(r.brdf.rho_d[c], t.rho_d[c]) < 0.03, "{:?}", r.brdf);
+        }
+        assert!(rel(r.brdf.lobes[1].n, 60.0) < 0.15, "{:?}", r.brdf);
+        // the standard error is consistent with the actual error (within 4 sigma)
+        let err = (r.brdf.lobes[1].n - 60.0).abs() as f64;
+        assert!(err < 4.0 * r.stderr.lobes[1].n + 1e-9, "n error {err}, stderr {}", r.stderr.lobes[1].n);
+        let (_, rms) = heldout_rel(&t, &r.brdf, &random_pairs(500, 10));
+        assert!(rms < 0.03, "held-out relative rms {rms}");
+    }
+
+    #[test]
+    fn ten_samples_converge_without_nan() {
+        let t = truth();
+        let pairs: Vec<_> = paper_pairs().into_iter().step_by(9).take(10).collect();
+        assert_eq!(pairs.len(), 10);
+        let r = fit_material("m", &synth(&t, "m", &pairs, 0.0, 0), &FitOptions::default()).unwrap();
+        let b = &r.brdf;
+        assert!(b.rho_d.is_finite() && b.lobes.iter().all(|l| l.rho.is_finite() && l.n.is_finite() && l.n <= 2.0e4));
+        assert!(r.rms < 0.02, "10 samples, 13 parameters: data fitted, rms {}", r.rms);
+        assert!(rel(b.rho_d.x, 0.3) < 0.1, "{b:?}");
+    }
+
+    #[test]
+    fn unconstrained_lobe_gets_large_stderr_not_wild_values() {
+        // Lambertian data with 2% noise: no lobe is supported by the data.
+        let t = Lafortune::lambertian(Vec3::new(0.4, 0.5, 0.6));
+        let mut pairs = paper_pairs();
+        pairs.extend(random_pairs(100, 11));
+        let r = fit_material("m", &synth(&t, "m", &pairs, 0.02, 12), &FitOptions::default()).unwrap();
+        for c in 0..3 {
+            assert!(rel(r.brdf.rho_d[c], t.rho_d[c]) < 0.02, "{:?}", r.brdf);
+        }
+        let (mx, _) = heldout_rel(&t, &r.brdf, &random_pairs(500, 13));
+        assert!(mx < 0.05, "predictions stay sane: max relative error {mx}");
+        assert!(r.brdf.is_energy_conserving(), "{:?}", r.brdf);
+        // at least one parameter of each lobe is undetermined: its standard error dwarfs its value
+        for (l, e) in r.brdf.lobes.iter().zip(&r.stderr.lobes) {
+            let big = e.n > (l.n as f64) || e.cxy > l.cxy.abs() as f64 || e.rho.iter().zip(l.rho.to_array()).any(|(s, v)| *s > v as f64);
+            assert!(big, "lobe {l:?} stderr {e:?}");
+            assert!(l.n >= 1.0 && l.n <= 2.0e4 && l.cxy.abs() < 30.0, "{l:?}");
+        }
+    }
+
+    #[test]
+    fn clear_errors() {
+        let t = truth();
+        let s = synth(&t, "m", &paper_pairs()[..4], 0.0, 0);
+        let e = fit_material("m", &s, &FitOptions::default()).unwrap_err().to_string();
+        assert!(e.contains("`m`") && e.contains("4 samples are too few"), "{e}");
+        let mut s = synth(&t, "m", &paper_pairs(), 0.0, 0);
+        s[3].value.y = f32::NAN;
+        let e = fit_material("m", &s, &FitOptions::default()).unwrap_err().to_string();
+        assert!(e.contains("sample 3 has non-finite"), "{e}");
+    }
+}
