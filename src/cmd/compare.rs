@@ -1,5 +1,51 @@
-//! `igi compare` (filled in by the render work).
-use crate::report::Ctx;
+//! `igi compare`: RMSE, relative mean difference and PSNR of image A against reference B.
+use crate::report::{print_json, Ctx};
+use anyhow::Context;
+use igi_render::{compare_images, difference_image};
+use std::path::PathBuf;
+
 #[derive(clap::Args, Debug)]
-pub struct CompareArgs {}
-pub fn run(_a: CompareArgs, _ctx: &Ctx) -> anyhow::Result<()> { anyhow::bail!("todo") }
+pub struct CompareArgs {
+    /// The image to judge.
+    pub a: PathBuf,
+    /// The reference (PSNR peak = max of B).
+    pub b: PathBuf,
+    /// Print the metrics as JSON.
+    #[arg(long)]
+    pub json: bool,
+    /// Write a false-colour picture of |A - B| (PNG).
+    #[arg(long)]
+    pub diff: Option<PathBuf>,
+    /// Per-pixel standard error of A (EXR), to report the RMSE that noise explains.
+    #[arg(long)]
+    pub stderr_a: Option<PathBuf>,
+    /// Per-pixel standard error of B.
+    #[arg(long)]
+    pub stderr_b: Option<PathBuf>,
+}
+
+pub fn run(a: CompareArgs, _ctx: &Ctx) -> anyhow::Result<()> {
+    let read = |p: &PathBuf| igi_imaging::read_image(p).with_context(|| format!("reading {}", p.display()));
+    let ia = read(&a.a)?;
+    let ib = read(&a.b)?;
+    let sa = a.stderr_a.as_ref().map(read).transpose()?;
+    let sb = a.stderr_b.as_ref().map(read).transpose()?;
+    let c = compare_images(&ia, &ib, sa.as_ref(), sb.as_ref())
+        .with_context(|| format!("comparing {} with {}", a.a.display(), a.b.display()))?;
+    if let Some(d) = &a.diff {
+        let img = difference_image(&ia, &ib, None)?;
+        igi_imaging::write_png_tonemapped(d, &img, 1.0)?;
+    }
+    if a.json {
+        print_json(&c)?;
+    } else {
+        println!("pixels compared          {}", c.pixels);
+        println!("RMSE                     {:.6e}", c.rmse);
+        if let Some(n) = c.noise_rmse {
+            println!("RMSE explained by noise  {:.6e}  (ratio {:.3})", n, c.rmse / n);
+        }
+        println!("relative mean difference {:+.4}%  (mean A {:.6e}, mean B {:.6e})", 100.0 * c.relative_mean_difference, c.mean_a, c.mean_b);
+        println!("PSNR (peak = max of B)   {:.2} dB", c.psnr_db);
+    }
+    Ok(())
+}

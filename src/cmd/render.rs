@@ -1,5 +1,101 @@
-//! `igi render` (filled in by the render work).
+//! `igi render`: path-trace a scene file through a camera.
 use crate::report::Ctx;
+use anyhow::{bail, Context};
+use igi_render::{render_image, Lighting, RenderOptions, Scene};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
 #[derive(clap::Args, Debug)]
-pub struct RenderArgs {}
-pub fn run(_a: RenderArgs, _ctx: &Ctx) -> anyhow::Result<()> { anyhow::bail!("todo") }
+pub struct RenderArgs {
+    /// Scene file (TOML, FORMATS.md). A solve result folder is not supported yet.
+    pub input: PathBuf,
+    /// Camera file (JSON, OpenCV model).
+    #[arg(long)]
+    pub camera: PathBuf,
+    /// Samples per pixel.
+    #[arg(long, default_value_t = 64)]
+    pub spp: u32,
+    /// Random seed (same seed, same image).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Indirect bounces after direct lighting (Mitsuba max_depth = K + 2).
+    #[arg(long, default_value_t = 2)]
+    pub indirect: u32,
+    /// Use this lighting file instead of the one the scene names.
+    #[arg(long)]
+    pub lighting: Option<PathBuf>,
+    /// Also write the per-pixel standard error of the mean (EXR).
+    #[arg(long)]
+    pub stderr: Option<PathBuf>,
+    /// Russian roulette on long paths.
+    #[arg(long)]
+    pub rr: bool,
+    /// Output image: .exr (f32), .hdr (RGBE) or .png (sRGB preview).
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
+fn write_any(path: &Path, img: &igi_imaging::HdrImage) -> anyhow::Result<()> {
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    match ext.as_deref() {
+        Some("exr") => igi_imaging::write_exr(path, img)?,
+        Some("hdr") => igi_imaging::write_hdr(path, img)?,
+        Some("png") => igi_imaging::write_png_tonemapped(path, img, 1.0)?,
+        _ => bail!("{}: unknown output format (use .exr, .hdr or .png)", path.display()),
+    }
+    Ok(())
+}
+
+pub fn run(a: RenderArgs, ctx: &Ctx) -> anyhow::Result<()> {
+    if a.input.is_dir() {
+        bail!(
+            "{}: is a directory, not a scene file (re-lighting a solve result folder is not supported yet)",
+            a.input.display()
+        );
+    }
+    if a.spp == 0 {
+        bail!("--spp must be at least 1");
+    }
+    let t0 = Instant::now();
+    let (scene, scene_lighting) = Scene::load(&a.input)?;
+    let lighting = match &a.lighting {
+        Some(p) => Lighting::load(p)?,
+        None => scene_lighting,
+    };
+    let camera = igi_imaging::Camera::load(&a.camera)?;
+    let load_s = t0.elapsed().as_secs_f64();
+    tracing::info!(
+        "scene {}: {} objects, {} triangles ({} degenerate skipped), loaded in {:.2} s",
+        a.input.display(),
+        scene.objects.len(),
+        scene.triangle_count(),
+        scene.skipped_triangles,
+        load_s
+    );
+    let opts = RenderOptions { spp: a.spp, seed: a.seed, indirect: a.indirect, russian_roulette: a.rr };
+    let pb = ctx.progress(camera.height as u64, "render");
+    let t1 = Instant::now();
+    let out = render_image(&scene, &lighting, &camera, &opts, &|n| pb.inc(n))
+        .with_context(|| format!("rendering {}", a.input.display()))?;
+    pb.finish_and_clear();
+    let secs = t1.elapsed().as_secs_f64();
+    if out.bad_samples > 0 {
+        tracing::warn!("{} samples were NaN/infinite and were dropped", out.bad_samples);
+    }
+    write_any(&a.output, &out.mean)?;
+    if let Some(se) = &a.stderr {
+        write_any(se, &out.stderr)?;
+    }
+    println!(
+        "wrote {} ({} x {}, {} spp, K = {}) in {:.2} s: {:.2} M rays/s, {:.2} M samples/s",
+        a.output.display(),
+        camera.width,
+        camera.height,
+        a.spp,
+        a.indirect,
+        secs,
+        out.rays as f64 / secs / 1e6,
+        (camera.width as f64 * camera.height as f64 * a.spp as f64) / secs / 1e6
+    );
+    Ok(())
+}

@@ -3,16 +3,22 @@
 //! - [`embree`]: every Embree call (triangle scene, closest hit, occlusion, ray streams).
 //! - [`lighting`]: lat-long environment (importance-sampled) and the sun disk; lighting TOML loader.
 //! - [`scene`]: meshes + Lafortune materials + Embree; scene TOML loader; surface points.
+//! - [`integrator`]: the path tracer (NEE + MIS), image rendering and the batched solver queries.
+//! - [`compare`]: RMSE / relative mean / PSNR / noise-explained RMSE between two images.
 //! - [`sampling`]: per-pixel PCG streams, piecewise-constant 1D/2D distributions, cone sampling, MIS.
 //!
 //! Conventions: world Z up, metres; linear f32 RGB radiance; directions are unit vectors.
 //! See `docs/RENDER.md` for the lighting model, MIS and lookup rules.
 
+pub mod compare;
 pub mod embree;
+pub mod integrator;
 pub mod lighting;
 pub mod sampling;
 pub mod scene;
 
+pub use compare::{compare_images, difference_image, Comparison};
+pub use integrator::{irradiance, radiance_toward, render_image, Estimate, PathTracer, RenderOptions, RenderOutput};
 pub use lighting::{Environment, Lighting, Sun};
 pub use scene::{Albedo, Material, Object, Scene, SurfacePoint, Texture};
 
@@ -28,3 +34,6 @@ pub enum RenderError {
     #[error("{0}")]
     Invalid(String),
 }
+
+#[cfg(test)]
+mod integrator_tests;

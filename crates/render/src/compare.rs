@@ -1,0 +1,163 @@
+//! Image comparison metrics shared by `igi compare`, the Mitsuba reference test and the
+//! benchmarks: RMSE, relative mean difference, PSNR, and the RMSE that Monte-Carlo noise alone
+//! explains when per-pixel standard errors are known.
+
+use crate::RenderError;
+use igi_imaging::HdrImage;
+use serde::Serialize;
+
+/// Metrics of image `a` against reference `b` over pixels valid in both (all channels).
+#[derive(Clone, Copy, Debug, Serialize, PartialEq)]
+pub struct Comparison {
+    pub width: usize,
+    pub height: usize,
+    /// Pixels compared (valid in both images).
+    pub pixels: usize,
+    /// sqrt(mean((a - b)^2)) over pixels and channels.
+    pub rmse: f64,
+    /// (mean(a) - mean(b)) / mean(b).
+    pub relative_mean_difference: f64,
+    pub mean_a: f64,
+    pub mean_b: f64,
+    /// 20 log10(max(b) / rmse) (infinite when the images are equal).
+    pub psnr_db: f64,
+    /// sqrt(mean(se_a^2 + se_b^2)) when standard-error images were given.
+    pub noise_rmse: Option<f64>,
+}
+
+fn check_size(what: &str, img: &HdrImage, w: usize, h: usize) -> Result<(), RenderError> {
+    if img.width != w || img.height != h {
+        return Err(RenderError::Invalid(format!(
+            "{what} is {} x {}, but the images are {w} x {h}",
+            img.width, img.height
+        )));
+    }
+    Ok(())
+}
+
+/// Compares `a` with the reference `b`; `se_a` / `se_b` are optional standard-error images.
+pub fn compare_images(
+    a: &HdrImage,
+    b: &HdrImage,
+    se_a: Option<&HdrImage>,
+    se_b: Option<&HdrImage>,
+) -> Result<Comparison, RenderError> {
+    let (w, h) = (b.width, b.height);
+    check_size("image A", a, w, h)?;
+    if let Some(s) = se_a {
+        check_size("standard-error image of A", s, w, h)?;
+    }
+    if let Some(s) = se_b {
+        check_size("standard-error image of B", s, w, h)?;
+    }
+    let (mut se2, mut sa, mut sb, mut noise, mut n) = (0f64, 0f64, 0f64, 0f64, 0usize);
+    let mut peak = 0f64;
+    for i in 0..w * h {
+        if !(a.valid[i] && b.valid[i]) {
+            continue;
+        }
+        n += 1;
+        for c in 0..3 {
+            let (x, y) = (a.pixels[i][c] as f64, b.pixels[i][c] as f64);
+            se2 += (x - y) * (x - y);
+            sa += x;
+            sb += y;
+            peak = peak.max(y);
+            let ea = se_a.map_or(0.0, |s| s.pixels[i][c] as f64);
+            let eb = se_b.map_or(0.0, |s| s.pixels[i][c] as f64);
+            noise += ea * ea + eb * eb;
+        }
+    }
+    if n == 0 {
+        return Err(RenderError::Invalid("no pixel is valid in both images".into()));
+    }
+    let m = (3 * n) as f64;
+    let rmse = (se2 / m).sqrt();
+    let (mean_a, mean_b) = (sa / m, sb / m);
+    Ok(Comparison {
+        width: w,
+        height: h,
+        pixels: n,
+        rmse,
+        relative_mean_difference: if mean_b != 0.0 { (mean_a - mean_b) / mean_b } else { f64::NAN },
+        mean_a,
+        mean_b,
+        psnr_db: if rmse > 0.0 { 20.0 * (peak / rmse).log10() } else { f64::INFINITY },
+        noise_rmse: if se_a.is_some() || se_b.is_some() { Some((noise / m).sqrt()) } else { None },
+    })
+}
+
+/// A false-colour picture of |a - b| (mean over channels), black -> blue -> red -> yellow ->
+/// white, scaled so that `max_abs` (or the largest difference when `None`) is white. Returned
+/// as linear RGB, ready for `write_png_tonemapped(.., 1.0)`.
+pub fn difference_image(a: &HdrImage, b: &HdrImage, max_abs: Option<f32>) -> Result<HdrImage, RenderError> {
+    check_size("image A", a, b.width, b.height)?;
+    let diffs: Vec<f32> = a
+        .pixels
+        .iter()
+        .zip(&b.pixels)
+        .map(|(x, y)| ((x[0] - y[0]).abs() + (x[1] - y[1]).abs() + (x[2] - y[2]).abs()) / 3.0)
+        .map(|d| if d.is_finite() { d } else { 0.0 })
+        .collect();
+    let scale = max_abs.unwrap_or_else(|| diffs.iter().cloned().fold(0.0, f32::max));
+    let mut out = HdrImage::new(b.width, b.height);
+    const STOPS: [[f32; 3]; 5] = [[0.0, 0.0, 0.0], [0.1, 0.1, 0.9], [0.9, 0.1, 0.1], [1.0, 0.9, 0.1], [1.0, 1.0, 1.0]];
+    for (i, d) in diffs.iter().enumerate() {
+        let t = if scale > 0.0 { (d / scale).clamp(0.0, 1.0) } else { 0.0 } * 4.0;
+        let k = (t.floor() as usize).min(3);
+        let f = t - k as f32;
+        let srgb: [f32; 3] = std::array::from_fn(|c| STOPS[k][c] * (1.0 - f) + STOPS[k + 1][c] * f);
+        out.pixels[i] = srgb.map(igi_imaging::io::srgb_to_linear);
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn img(w: usize, h: usize, f: impl Fn(usize) -> [f32; 3]) -> HdrImage {
+        let mut m = HdrImage::new(w, h);
+        for i in 0..w * h {
+            m.pixels[i] = f(i);
+        }
+        m
+    }
+
+    #[test]
+    fn metrics_on_known_images() {
+        let b = img(4, 2, |i| [i as f32, i as f32, i as f32]); // max 7, mean 3.5
+        let a = img(4, 2, |i| [i as f32 + 0.5, i as f32 - 0.5, i as f32 + 0.5]);
+        let c = compare_images(&a, &b, None, None).unwrap();
+        assert!((c.rmse - 0.5).abs() < 1e-12);
+        assert!((c.mean_b - 3.5).abs() < 1e-12);
+        assert!((c.relative_mean_difference - (0.5 / 3.0) / 3.5).abs() < 1e-12);
+        assert!((c.psnr_db - 20.0 * (7.0f64 / 0.5).log10()).abs() < 1e-9);
+        assert_eq!(c.noise_rmse, None);
+        let se = img(4, 2, |_| [0.3, 0.3, 0.3]);
+        let c = compare_images(&a, &b, Some(&se), Some(&se)).unwrap();
+        assert!((c.noise_rmse.unwrap() - (0.18f64).sqrt()).abs() < 1e-6);
+        let same = compare_images(&b, &b, None, None).unwrap();
+        assert_eq!(same.rmse, 0.0);
+        assert!(same.psnr_db.is_infinite());
+        // Invalid pixels are skipped.
+        let mut a2 = a.clone();
+        a2.pixels[0] = [100.0; 3];
+        a2.valid[0] = false;
+        let c2 = compare_images(&a2, &b, None, None).unwrap();
+        assert_eq!(c2.pixels, 7);
+        assert!((c2.rmse - 0.5).abs() < 1e-12);
+        let small = img(2, 2, |_| [0.0; 3]);
+        assert!(compare_images(&small, &b, None, None).unwrap_err().to_string().contains("2 x 2"));
+    }
+
+    #[test]
+    fn difference_image_maps_zero_to_black_and_max_to_white() {
+        let b = img(3, 1, |_| [1.0; 3]);
+        let a = img(3, 1, |i| [1.0 + i as f32; 3]);
+        let d = difference_image(&a, &b, None).unwrap();
+        assert_eq!(d.pixels[0], [0.0; 3]);
+        assert!(d.pixels[2].iter().all(|&c| (c - 1.0).abs() < 1e-5));
+        assert!(d.pixels[1].iter().all(|c| c.is_finite()));
+    }
+}

@@ -1,0 +1,370 @@
+//! The path tracer: next-event estimation toward the sun and the environment with MIS (power
+//! heuristic) against BSDF sampling, `K` indirect bounces after direct lighting, optional
+//! Russian roulette, rayon over tiles / query points, one PCG stream per pixel or query.
+//!
+//! Path length convention (Mitsuba's `max_depth = K + 2`): the camera ray hits vertex x1; each
+//! of x1 .. x_{K+1} gets direct light (a sun sample, an environment sample, and the BSDF-sampled
+//! ray that escapes to the sky); the path continues by BSDF sampling from x1 .. x_K.
+
+use crate::lighting::Lighting;
+use crate::sampling::{power_heuristic, Rng};
+use crate::scene::{Scene, SurfacePoint};
+use crate::RenderError;
+use glam::{DVec3, Vec2, Vec3};
+use igi_brdf::{Frame, LafortuneRef};
+use igi_imaging::{Camera, HdrImage};
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// Options of a render or a query batch.
+#[derive(Clone, Copy, Debug)]
+pub struct RenderOptions {
+    /// Samples per pixel (or per query point).
+    pub spp: u32,
+    pub seed: u64,
+    /// Indirect bounces after direct lighting (K; Mitsuba max_depth = K + 2).
+    pub indirect: u32,
+    /// Russian roulette from the third vertex on (unbiased; shortens long paths).
+    pub russian_roulette: bool,
+}
+
+impl Default for RenderOptions {
+    fn default() -> Self {
+        RenderOptions { spp: 16, seed: 0, indirect: 2, russian_roulette: false }
+    }
+}
+
+/// A Monte-Carlo estimate: the mean and its standard error (per channel).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Estimate {
+    pub mean: Vec3,
+    pub stderr: Vec3,
+}
+
+/// Running mean and variance (Welford) in f64.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Accumulator {
+    n: u64,
+    mean: DVec3,
+    m2: DVec3,
+}
+
+impl Accumulator {
+    #[inline]
+    pub fn add(&mut self, x: Vec3) {
+        let x = x.as_dvec3();
+        self.n += 1;
+        let d = x - self.mean;
+        self.mean += d / self.n as f64;
+        self.m2 += d * (x - self.mean);
+    }
+
+    pub fn estimate(&self) -> Estimate {
+        if self.n == 0 {
+            return Estimate::default();
+        }
+        let var = if self.n > 1 { (self.m2 / (self.n - 1) as f64).max(DVec3::ZERO) } else { DVec3::ZERO };
+        Estimate { mean: self.mean.as_vec3(), stderr: (var / self.n as f64).map(f64::sqrt).as_vec3() }
+    }
+}
+
+/// Counters gathered during a render.
+#[derive(Debug, Default)]
+pub struct Stats {
+    /// Rays traced (closest-hit and shadow rays).
+    pub rays: AtomicU64,
+    /// Samples that came out NaN or infinite and were dropped (should stay 0).
+    pub bad_samples: AtomicU64,
+}
+
+/// Result of [`render_image`].
+pub struct RenderOutput {
+    pub mean: HdrImage,
+    pub stderr: HdrImage,
+    pub rays: u64,
+    pub bad_samples: u64,
+}
+
+#[inline]
+fn offset_origin(p: Vec3, n: Vec3) -> Vec3 {
+    let scale = 1.0 + p.abs().max_element();
+    p + n * (3e-5 * scale)
+}
+
+/// The path tracer bound to a scene and a lighting.
+pub struct PathTracer<'a> {
+    pub scene: &'a Scene,
+    pub lighting: &'a Lighting,
+    /// Number of vertices that receive direct light: K + 1.
+    max_vertices: u32,
+    rr: bool,
+}
+
+impl<'a> PathTracer<'a> {
+    pub fn new(scene: &'a Scene, lighting: &'a Lighting, opts: &RenderOptions) -> Self {
+        PathTracer { scene, lighting, max_vertices: opts.indirect.saturating_add(1), rr: opts.russian_roulette }
+    }
+
+    /// Radiance arriving at `origin` along `-dir` (a camera ray). Rays that leave the scene
+    /// see the environment and the sun disk.
+    #[inline]
+    pub fn li(&self, origin: Vec3, dir: Vec3, rng: &mut Rng, rays: &mut u64) -> Vec3 {
+        *rays += 1;
+        match self.scene.intersect(origin, dir) {
+            None => self.lighting.escaped(dir),
+            Some(h) => {
+                let sp = self.scene.surface_point(&h);
+                self.lo(&sp, -dir, None, rng, rays)
+            }
+        }
+    }
+
+    /// Radiance leaving surface point `sp` in direction `wo` (unit, world). Surfaces emit
+    /// nothing. `first_brdf` overrides the material at `sp` only (used by [`irradiance`]).
+    pub fn lo(&self, sp: &SurfacePoint, wo: Vec3, first_brdf: Option<LafortuneRef<'_>>, rng: &mut Rng, rays: &mut u64) -> Vec3 {
+        let mut l = Vec3::ZERO;
+        let mut beta = Vec3::ONE;
+        let mut sp = *sp;
+        let mut wo = wo;
+        let mut vertex = 1u32;
+        let env = self.lighting.environment.as_ref().filter(|e| e.is_nonzero());
+        let sun = self.lighting.sun.as_ref();
+        loop {
+            // Two-sided surfaces: orient the normals toward the outgoing direction.
+            let ng = if sp.ng.dot(wo) < 0.0 { -sp.ng } else { sp.ng };
+            let ns = if sp.ns.dot(ng) < 0.0 { -sp.ns } else { sp.ns };
+            let frame = Frame::from_normal(ns);
+            let wo_l = frame.to_local(wo);
+            let brdf = match (vertex, first_brdf) {
+                (1, Some(b)) => b,
+                _ => self.scene.objects[sp.object as usize].material.brdf_at(sp.uv),
+            };
+            let origin = offset_origin(sp.position, ng);
+
+            // Next-event estimation: one sample of the sun and one of the environment.
+            if let Some(sun) = sun {
+                let ls = sun.sample(rng.uniform2());
+                if ls.wi.dot(ng) > 0.0 {
+                    let wi_l = frame.to_local(ls.wi);
+                    let (f, pdf_b) = brdf.eval_pdf(wo_l, wi_l);
+                    if f != Vec3::ZERO {
+                        *rays += 1;
+                        if !self.scene.occluded(origin, ls.wi, f32::INFINITY) {
+                            let w = power_heuristic(ls.pdf, pdf_b);
+                            l += beta * f * ls.radiance * (wi_l.z * w / ls.pdf);
+                        }
+                    }
+                }
+            }
+            if let Some(env) = env {
+                if let Some(ls) = env.sample(rng.uniform2()) {
+                    if ls.wi.dot(ng) > 0.0 && ls.radiance != Vec3::ZERO {
+                        let wi_l = frame.to_local(ls.wi);
+                        let (f, pdf_b) = brdf.eval_pdf(wo_l, wi_l);
+                        if f != Vec3::ZERO {
+                            *rays += 1;
+                            if !self.scene.occluded(origin, ls.wi, f32::INFINITY) {
+                                let w = power_heuristic(ls.pdf, pdf_b);
+                                l += beta * f * ls.radiance * (wi_l.z * w / ls.pdf);
+                            }
+                        }
+                    }
+                }
+            }
+
+            // BSDF sampling: the MIS partner of the light samples and the path continuation.
+            let u_sel = rng.uniform();
+            let u = rng.uniform2();
+            let Some(bs) = brdf.sample(wo_l, u_sel, u) else { break };
+            let wi = frame.to_world(bs.wi);
+            if !(bs.pdf > 0.0) || wi.dot(ng) <= 0.0 || !wi.is_finite() {
+                break;
+            }
+            beta *= bs.value * (bs.wi.z / bs.pdf);
+            if !beta.is_finite() || beta == Vec3::ZERO {
+                break;
+            }
+            *rays += 1;
+            match self.scene.intersect(origin, wi) {
+                None => {
+                    let mut le = Vec3::ZERO;
+                    if let Some(sun) = sun {
+                        if sun.contains(wi) {
+                            le += sun.radiance * power_heuristic(bs.pdf, sun.pdf(wi));
+                        }
+                    }
+                    if let Some(env) = env {
+                        le += env.eval(wi) * power_heuristic(bs.pdf, env.pdf(wi));
+                    }
+                    l += beta * le;
+                    break;
+                }
+                Some(h) => {
+                    if vertex >= self.max_vertices {
+                        break;
+                    }
+                    if self.rr && vertex >= 2 {
+                        let q = beta.max_element().min(0.95);
+                        if rng.uniform() >= q {
+                            break;
+                        }
+                        beta /= q;
+                    }
+                    sp = self.scene.surface_point(&h);
+                    wo = -wi;
+                    vertex += 1;
+                }
+            }
+        }
+        l
+    }
+}
+
+/// Renders an image through `camera` (OpenCV model with distortion, via `Camera::pixel_ray`).
+/// Pixel (x, y) averages `spp` rays through points uniform in [x - 0.5, x + 0.5] x
+/// [y - 0.5, y + 0.5] (box filter). Returns the mean and the per-pixel standard error.
+/// `progress(n)` is called with the number of pixel rows finished since the last call.
+pub fn render_image(
+    scene: &Scene,
+    lighting: &Lighting,
+    camera: &Camera,
+    opts: &RenderOptions,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<RenderOutput, RenderError> {
+    if opts.spp == 0 {
+        return Err(RenderError::Invalid("spp must be at least 1".into()));
+    }
+    let (w, h) = (camera.width as usize, camera.height as usize);
+    if w == 0 || h == 0 {
+        return Err(RenderError::Invalid(format!("camera image size {w} x {h} is empty")));
+    }
+    let pt = PathTracer::new(scene, lighting, opts);
+    let stats = Stats::default();
+    let rows: Vec<(Vec<[f32; 3]>, Vec<[f32; 3]>)> = (0..h)
+        .into_par_iter()
+        .map(|y| {
+            let mut mean_row = Vec::with_capacity(w);
+            let mut se_row = Vec::with_capacity(w);
+            let mut rays = 0u64;
+            let mut bad = 0u64;
+            for x in 0..w {
+                let mut rng = Rng::new(opts.seed, (y * w + x) as u64);
+                let mut acc = Accumulator::default();
+                for _ in 0..opts.spp {
+                    let jitter = rng.uniform2();
+                    let (o, d) = camera.pixel_ray(x as f64 - 0.5 + jitter.x as f64, y as f64 - 0.5 + jitter.y as f64);
+                    let (o, d) = (o.as_vec3(), d.as_vec3());
+                    let mut v = if o.is_finite() && d.is_finite() && d != Vec3::ZERO {
+                        pt.li(o, d, &mut rng, &mut rays)
+                    } else {
+                        Vec3::ZERO
+                    };
+                    if !v.is_finite() {
+                        bad += 1;
+                        v = Vec3::ZERO;
+                    }
+                    acc.add(v);
+                }
+                let e = acc.estimate();
+                mean_row.push(e.mean.to_array());
+                se_row.push(e.stderr.to_array());
+            }
+            stats.rays.fetch_add(rays, Ordering::Relaxed);
+            stats.bad_samples.fetch_add(bad, Ordering::Relaxed);
+            progress(1);
+            (mean_row, se_row)
+        })
+        .collect();
+    let mut mean = HdrImage::new(w, h);
+    let mut stderr = HdrImage::new(w, h);
+    for (y, (m, s)) in rows.into_iter().enumerate() {
+        mean.pixels[y * w..(y + 1) * w].copy_from_slice(&m);
+        stderr.pixels[y * w..(y + 1) * w].copy_from_slice(&s);
+    }
+    Ok(RenderOutput {
+        mean,
+        stderr,
+        rays: stats.rays.load(Ordering::Relaxed),
+        bad_samples: stats.bad_samples.load(Ordering::Relaxed),
+    })
+}
+
+/// Radiance leaving each surface point toward a world position (`targets[i]`, e.g. a camera
+/// centre), under `lighting`. Points are independent (rayon); point i uses stream
+/// `hash(seed, i)`.
+pub fn radiance_toward(
+    scene: &Scene,
+    lighting: &Lighting,
+    points: &[SurfacePoint],
+    targets: &[Vec3],
+    opts: &RenderOptions,
+) -> Result<Vec<Estimate>, RenderError> {
+    if points.len() != targets.len() {
+        return Err(RenderError::Invalid(format!("{} points but {} targets", points.len(), targets.len())));
+    }
+    if opts.spp == 0 {
+        return Err(RenderError::Invalid("spp must be at least 1".into()));
+    }
+    let pt = PathTracer::new(scene, lighting, opts);
+    Ok(points
+        .par_iter()
+        .zip(targets.par_iter())
+        .enumerate()
+        .map(|(i, (sp, target))| {
+            let wo = (*target - sp.position).normalize_or_zero();
+            if wo == Vec3::ZERO {
+                return Estimate::default();
+            }
+            let mut rng = Rng::new(opts.seed, i as u64);
+            let mut acc = Accumulator::default();
+            let mut rays = 0;
+            for _ in 0..opts.spp {
+                let v = pt.lo(sp, wo, None, &mut rng, &mut rays);
+                acc.add(if v.is_finite() { v } else { Vec3::ZERO });
+            }
+            acc.estimate()
+        })
+        .collect())
+}
+
+/// Irradiance (W/m^2-like units: radiance times sr) arriving at each point on the side of
+/// `normals[i]`, including interreflections up to the same path length as a render (the
+/// point acts as a white Lambertian receiver: E = pi * L_out).
+pub fn irradiance(
+    scene: &Scene,
+    lighting: &Lighting,
+    points: &[Vec3],
+    normals: &[Vec3],
+    opts: &RenderOptions,
+) -> Result<Vec<Estimate>, RenderError> {
+    if points.len() != normals.len() {
+        return Err(RenderError::Invalid(format!("{} points but {} normals", points.len(), normals.len())));
+    }
+    if opts.spp == 0 {
+        return Err(RenderError::Invalid("spp must be at least 1".into()));
+    }
+    let pt = PathTracer::new(scene, lighting, opts);
+    let white = LafortuneRef { rho_d: Vec3::ONE, lobes: &[] };
+    let pi = std::f32::consts::PI;
+    Ok(points
+        .par_iter()
+        .zip(normals.par_iter())
+        .enumerate()
+        .map(|(i, (p, n))| {
+            let n = n.normalize_or_zero();
+            if n == Vec3::ZERO || !p.is_finite() {
+                return Estimate::default();
+            }
+            // object/prim/uv are unused at the first vertex (its BRDF is overridden).
+            let sp = SurfacePoint { position: *p, ng: n, ns: n, uv: Vec2::ZERO, object: 0, prim: 0 };
+            let mut rng = Rng::new(opts.seed, i as u64);
+            let mut acc = Accumulator::default();
+            let mut rays = 0;
+            for _ in 0..opts.spp {
+                let v = pt.lo(&sp, n, Some(white), &mut rng, &mut rays) * pi;
+                acc.add(if v.is_finite() { v } else { Vec3::ZERO });
+            }
+            acc.estimate()
+        })
+        .collect())
+}
