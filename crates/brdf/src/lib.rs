@@ -5,16 +5,20 @@
 //!   (cosine + cosine-power lobes, mixture pdf for MIS) and directional albedo.
 //! - Directions are unit vectors pointing away from the surface; values are linear RGB, f32.
 
+pub mod basis;
 pub mod error;
 pub mod frame;
 pub mod fit;
 pub mod lafortune;
+pub mod materials;
 pub mod samples;
 
+pub use basis::Basis;
 pub use error::BrdfError;
 pub use frame::Frame;
 pub use fit::{fit_material, FitOptions, FitReport, LobeStderr, Stderr};
 pub use lafortune::{luminance, BsdfSample, Lafortune, LafortuneRef, Lobe};
+pub use materials::{MaterialEntry, MaterialsFile};
 pub use samples::{read_pairs, read_samples, BrdfSample, PairRow, PairTable};
 
 #[cfg(test)]
