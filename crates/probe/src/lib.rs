@@ -1,0 +1,36 @@
+//! # igi-probe
+//!
+//! Natural illumination from one photograph of the lighting-capture board (Debevec et al.
+//! 2004, section 3.3): a mirrored steel sphere (the sky), a shiny black sphere (a sharp,
+//! unsaturated image of the sun) and a diffuse grey sphere (the sun's intensity, indirectly).
+//!
+//! * [`board`]: the FORMATS.md board file and the spheres' calibration (diffuse paint
+//!   reflectance, the mirror's complex index, the black coat's index).
+//! * [`fresnel`]: conductor and dielectric Fresnel reflectance; a Levenberg-Marquardt fit of a
+//!   complex index from reflectance-versus-angle samples.
+//! * [`sphere`]: a sphere seen by a calibrated camera: ray hits, the surface point that
+//!   reflects a given direction (exact for a camera at finite distance), the outline.
+//! * [`envmap`]: lat-long lookups, the 512x512 upper-hemisphere layout, hole filling, and the
+//!   diffuse convolution of a map by direct integration (no spherical-harmonic truncation).
+//! * [`pipeline`]: [`process`]: unwarp the mirror (and black) sphere into lat-long and
+//!   hemisphere maps divided by the sphere's reflectance, with a validity mask (saturation,
+//!   camera reflection, blind directions); decide whether the sun is visible; if so, its
+//!   direction from the sub-pixel centre of the black sphere's spot, reflected, and its
+//!   radiance from the per-channel least squares `D' + a D* = D` over the diffuse sphere;
+//!   the 2 % check of the final lighting against the diffuse sphere.
+//! * [`synth`]: a forward renderer of board photographs from a known sky, for tests and benches.
+//!
+//! All radiance is linear `f32`; directions are in igi's world frame (Z up), obtained from the
+//! camera pose (board centres are given in the camera frame).
+
+pub mod board;
+mod error;
+pub mod envmap;
+pub mod fresnel;
+pub mod pipeline;
+pub mod sphere;
+pub mod synth;
+
+pub use board::{Board, BoardSphere, SphereKind};
+pub use error::ProbeError;
+pub use pipeline::{process, Diagnostics, ProbeOptions, ProbeResult, SunEstimate};

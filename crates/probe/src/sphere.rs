@@ -1,0 +1,217 @@
+//! One board sphere as seen by the calibrated camera: ray hits, the point that reflects a
+//! given direction, the image outline.
+
+use crate::board::{BoardSphere, SphereKind};
+use crate::ProbeError;
+use glam::{DVec2, DVec3};
+use igi_imaging::Camera;
+
+/// A sphere in world coordinates together with the camera that photographs it.
+#[derive(Clone, Debug)]
+pub struct SphereView<'a> {
+    pub camera: &'a Camera,
+    pub kind: SphereKind,
+    /// Centre in world coordinates.
+    pub center: DVec3,
+    pub radius: f64,
+    /// Camera centre in world coordinates.
+    pub eye: DVec3,
+}
+
+/// Where a reflected direction comes from on the sphere.
+#[derive(Clone, Copy, Debug)]
+pub struct ReflectionPoint {
+    pub point: DVec3,
+    pub normal: DVec3,
+    /// Cosine of the incidence angle (normal . direction to the eye).
+    pub cos_i: f64,
+    /// Pixel coordinates of the point.
+    pub pixel: DVec2,
+}
+
+impl<'a> SphereView<'a> {
+    /// `s` is given in the camera frame (as in the board file).
+    pub fn new(camera: &'a Camera, kind: SphereKind, s: &BoardSphere) -> Self {
+        let c2w = camera.pose.inverse();
+        SphereView { camera, kind, center: c2w.apply(s.center_cam), radius: s.radius, eye: camera.center_world() }
+    }
+
+    /// Unit vector from the sphere's centre toward the camera.
+    pub fn to_eye(&self) -> DVec3 {
+        (self.eye - self.center).normalize()
+    }
+
+    /// Nearest hit of the ray `o + t d` (unit `d`) with the sphere, `t > 0`.
+    pub fn intersect(&self, o: DVec3, d: DVec3) -> Option<DVec3> {
+        let oc = o - self.center;
+        let b = oc.dot(d);
+        let c = oc.length_squared() - self.radius * self.radius;
+        let disc = b * b - c;
+        if disc < 0.0 {
+            return None;
+        }
+        let sq = disc.sqrt();
+        let t = if -b - sq > 0.0 { -b - sq } else { -b + sq };
+        (t > 0.0).then(|| o + t * d)
+    }
+
+    /// Surface point, normal and incidence of the camera ray through pixel (u, v), if it hits.
+    pub fn hit_pixel(&self, u: f64, v: f64) -> Option<(DVec3, DVec3, DVec3)> {
+        let (o, d) = self.camera.pixel_ray(u, v);
+        let p = self.intersect(o, d)?;
+        let n = (p - self.center) / self.radius;
+        Some((p, n, d))
+    }
+
+    /// The point whose mirror reflection of the camera ray leaves along unit direction `w`
+    /// (the half vector of `w` and the direction to the eye, solved by fixed-point iteration,
+    /// exact for a camera at finite distance). `None` in the blind spot straight behind.
+    pub fn reflection_point(&self, w: DVec3) -> Option<ReflectionPoint> {
+        let mut v = self.to_eye();
+        let mut n = DVec3::ZERO;
+        for _ in 0..40 {
+            let h = w + v;
+            let len = h.length();
+            if len < 1e-9 {
+                return None;
+            }
+            let n_new = h / len;
+            let p = self.center + self.radius * n_new;
+            v = (self.eye - p).normalize();
+            let done = n_new.distance_squared(n) < 1e-24;
+            n = n_new;
+            if done {
+                break;
+            }
+        }
+        let point = self.center + self.radius * n;
+        let cos_i = n.dot(v);
+        if !(cos_i > 0.0) {
+            return None;
+        }
+        let pixel = self.camera.project(point)?;
+        Some(ReflectionPoint { point, normal: n, cos_i, pixel })
+    }
+
+    /// Apparent radius in pixels (mean focal length times the angular radius).
+    pub fn pixel_radius(&self) -> f64 {
+        let d = self.center.distance(self.eye);
+        let f = (self.camera.intrinsics.fx * self.camera.intrinsics.fy).sqrt();
+        f * (self.radius / d).asin().tan()
+    }
+
+    /// Points of the sphere's outline (the contour circle seen from the eye) in pixels.
+    pub fn outline(&self, n: usize) -> Vec<DVec2> {
+        let axis = self.center - self.eye;
+        let d = axis.length();
+        let a = axis / d;
+        let rc = self.radius * (d * d - self.radius * self.radius).sqrt() / d;
+        let cc = self.center - a * (self.radius * self.radius / d);
+        let e1 = a.any_orthonormal_vector();
+        let e2 = a.cross(e1);
+        (0..n)
+            .filter_map(|i| {
+                let t = i as f64 / n as f64 * std::f64::consts::TAU;
+                self.camera.project(cc + rc * (t.cos() * e1 + t.sin() * e2))
+            })
+            .collect()
+    }
+
+    /// Pixel bounding box (x0, y0, x1, y1) of the outline, clamped to the image (inclusive).
+    pub fn pixel_bbox(&self) -> (usize, usize, usize, usize) {
+        let pts = self.outline(128);
+        let (w, h) = (self.camera.width as f64, self.camera.height as f64);
+        let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
+        for p in pts {
+            x0 = x0.min(p.x);
+            y0 = y0.min(p.y);
+            x1 = x1.max(p.x);
+            y1 = y1.max(p.y);
+        }
+        let cl = |v: f64, m: f64| v.clamp(0.0, m - 1.0) as usize;
+        (cl(x0.floor() - 1.0, w), cl(y0.floor() - 1.0, h), cl(x1.ceil() + 1.0, w), cl(y1.ceil() + 1.0, h))
+    }
+
+    /// Error if the sphere does not lie fully inside the image; its apparent radius otherwise.
+    pub fn check_in_image(&self) -> Result<f64, ProbeError> {
+        let kind = self.kind.name().to_string();
+        if self.center.distance(self.eye) <= self.radius * 1.0001 {
+            return Err(ProbeError::BadSphere { kind, center: self.center.to_array(), radius: self.radius });
+        }
+        let pts = self.outline(256);
+        if pts.len() < 256 {
+            return Err(ProbeError::BadSphere { kind, center: self.center.to_array(), radius: self.radius });
+        }
+        let (w, h) = (self.camera.width, self.camera.height);
+        for p in pts {
+            if !(p.x >= -0.5 && p.y >= -0.5 && p.x <= w as f64 - 0.5 && p.y <= h as f64 - 0.5) {
+                return Err(ProbeError::OutsideImage { kind, width: w, height: h, x: p.x, y: p.y });
+            }
+        }
+        Ok(self.pixel_radius())
+    }
+}
+
+/// Mirror reflection of `d` about unit normal `n`: `d - 2 (d . n) n`.
+pub fn reflect(d: DVec3, n: DVec3) -> DVec3 {
+    d - 2.0 * d.dot(n) * n
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DMat3;
+    use igi_imaging::WorldToCamera;
+
+    fn camera() -> Camera {
+        let mut c = Camera::pinhole(256, 256, 400.0, 400.0, 127.5, 127.5);
+        // camera x right = world -Y, y down = world -Z, z forward = world +X, centre at (1, 2, 3)
+        let r = DMat3::from_cols_array_2d(&[[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]]).transpose();
+        let eye = DVec3::new(1.0, 2.0, 3.0);
+        c.pose = WorldToCamera { r, t: -(r * eye) };
+        c
+    }
+
+    #[test]
+    fn reflection_point_inverts_ray_tracing() {
+        let cam = camera();
+        let s = BoardSphere { center_cam: DVec3::new(-0.1, 0.05, 0.6), radius: 0.07 };
+        let view = SphereView::new(&cam, SphereKind::Mirror, &s);
+        // world centre = eye + R^T c_cam
+        let want = DVec3::new(1.0 + 0.6, 2.0 + 0.1, 3.0 - 0.05);
+        assert!(view.center.distance(want) < 1e-12);
+        let mut checked = 0;
+        for y in (60..200).step_by(7) {
+            for x in (0..130).step_by(7) {
+                let Some((_, n, d)) = view.hit_pixel(x as f64, y as f64) else { continue };
+                if n.dot(-d) < 0.2 {
+                    continue;
+                }
+                let w = reflect(d, n);
+                let rp = view.reflection_point(w).expect("visible direction");
+                assert!(rp.pixel.distance(DVec2::new(x as f64, y as f64)) < 1e-6, "{x} {y} -> {:?}", rp.pixel);
+                assert!((rp.cos_i - n.dot(-d)).abs() < 1e-9);
+                checked += 1;
+            }
+        }
+        assert!(checked > 50);
+        // the direction straight behind the sphere is blind
+        assert!(view.reflection_point(-view.to_eye()).is_none());
+    }
+
+    #[test]
+    fn outline_and_image_checks() {
+        let cam = camera();
+        let s = BoardSphere { center_cam: DVec3::new(0.0, 0.0, 0.6), radius: 0.07 };
+        let v = SphereView::new(&cam, SphereKind::Diffuse, &s);
+        let r = v.check_in_image().unwrap();
+        // on axis: f tan(asin(r/d))
+        assert!((r - 400.0 * (0.07f64 / 0.6).asin().tan()).abs() < 1e-9);
+        for p in v.outline(64) {
+            assert!((p.distance(DVec2::new(127.5, 127.5)) - r).abs() < 1e-6);
+        }
+        let off = BoardSphere { center_cam: DVec3::new(0.35, 0.0, 0.6), radius: 0.07 };
+        let e = SphereView::new(&cam, SphereKind::Black, &off).check_in_image().unwrap_err().to_string();
+        assert!(e.contains("black sphere is partly outside the 256x256 image"), "{e}");
+    }
+}
