@@ -3,7 +3,7 @@
 # Debian/Ubuntu: Embree 3 (ray tracing), OpenCV with contrib (calibration, PnP, ArUco) and
 # clang/libclang (the opencv crate generates its bindings with libclang).
 set -euo pipefail
-pkgs=(libembree-dev libopencv-dev clang libclang-dev pkg-config)
+pkgs=(libembree-dev libopencv-dev clang libclang-dev pkg-config fonts-dejavu-core)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
