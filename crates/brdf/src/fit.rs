@@ -71,7 +71,7 @@ pub struct FitReport {
     pub termination: String,
 }
 
-const NP: usize = 13;
+pub(crate) const NP: usize = 13;
 // parameter layout
 const LD: usize = 0; // rho_d log colour (3)
 const RR: usize = 3; // retro log colour (3)
@@ -99,8 +99,8 @@ fn shape(cxy: f64, n: f64, l: &[f64; 3], v: &[f64; 3]) -> f64 {
     }
 }
 
-struct Model {
-    max_n: f64,
+pub(crate) struct Model {
+    pub(crate) max_n: f64,
 }
 
 impl Model {
@@ -113,14 +113,14 @@ impl Model {
     }
 
     /// pi * f per channel.
-    fn value(&self, p: &[f64], l: &[f64; 3], v: &[f64; 3]) -> [f64; 3] {
+    pub(crate) fn value(&self, p: &[f64], l: &[f64; 3], v: &[f64; 3]) -> [f64; 3] {
         let (d, r, s) = self.lobes(p);
         let gr = std::f64::consts::PI * shape(r.cxy, r.n, l, v);
         let gs = std::f64::consts::PI * shape(s.cxy, s.n, l, v);
         [0, 1, 2].map(|c| d[c] + r.rho[c] * gr + s.rho[c] * gs)
     }
 
-    fn to_lafortune(&self, p: &[f64]) -> Lafortune {
+    pub(crate) fn to_lafortune(&self, p: &[f64]) -> Lafortune {
         let (d, r, s) = self.lobes(p);
         let v = |c: [f64; 3]| Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32);
         Lafortune {
@@ -133,23 +133,42 @@ impl Model {
     }
 }
 
-struct Data {
-    light: Vec<[f64; 3]>,
-    view: Vec<[f64; 3]>,
-    value: Vec<[f64; 3]>,
+pub(crate) struct Data {
+    pub(crate) light: Vec<[f64; 3]>,
+    pub(crate) view: Vec<[f64; 3]>,
+    pub(crate) value: Vec<[f64; 3]>,
     /// 1 / (data + floor) per sample and channel
-    weight: Vec<[f64; 3]>,
+    pub(crate) weight: Vec<[f64; 3]>,
 }
 
-struct Problem<'a> {
-    model: &'a Model,
-    data: &'a Data,
-    p: [f64; NP],
-    free: Vec<usize>,
+impl Data {
+    pub(crate) fn new(light: Vec<[f64; 3]>, view: Vec<[f64; 3]>, value: Vec<[f64; 3]>, floor: [f64; 3]) -> Self {
+        let weight = value.iter().map(|v| [0, 1, 2].map(|c| 1.0 / (v[c] + floor[c]))).collect();
+        Data { light, view, value, weight }
+    }
+
+    /// Sum of squared weighted residuals of the parameters `p`.
+    pub(crate) fn cost(&self, model: &Model, p: &[f64; NP]) -> f64 {
+        let mut s = 0.0;
+        for i in 0..self.light.len() {
+            let f = model.value(p, &self.light[i], &self.view[i]);
+            for c in 0..3 {
+                s += ((f[c] - self.value[i][c]) * self.weight[i][c]).powi(2);
+            }
+        }
+        s
+    }
+}
+
+pub(crate) struct Problem<'a> {
+    pub(crate) model: &'a Model,
+    pub(crate) data: &'a Data,
+    pub(crate) p: [f64; NP],
+    pub(crate) free: Vec<usize>,
 }
 
 impl Problem<'_> {
-    fn residuals_at(&self, p: &[f64]) -> DVector<f64> {
+    pub(crate) fn residuals_at(&self, p: &[f64]) -> DVector<f64> {
         let m = self.data.light.len();
         let mut r = DVector::zeros(3 * m);
         for i in 0..m {
@@ -163,7 +182,7 @@ impl Problem<'_> {
     fn cost(&self) -> f64 {
         self.residuals_at(&self.p).norm_squared()
     }
-    fn jacobian_at(&self, p: &[f64; NP], free: &[usize]) -> DMatrix<f64> {
+    pub(crate) fn jacobian_at(&self, p: &[f64; NP], free: &[usize]) -> DMatrix<f64> {
         let m = 3 * self.data.light.len();
         let mut j = DMatrix::zeros(m, free.len());
         for (k, &i) in free.iter().enumerate() {
@@ -265,35 +284,8 @@ fn percentile(mut v: Vec<f64>, q: f64) -> f64 {
     v[i]
 }
 
-/// Fit Lambertian + retroreflective + specular lobes to one material's samples.
-pub fn fit_material(material: &str, samples: &[BrdfSample], opts: &FitOptions) -> Result<FitReport, BrdfError> {
-    let fail = |msg: String| BrdfError::Fit { material: material.to_string(), msg };
-    if samples.len() < 5 {
-        return Err(fail(format!(
-            "{} samples are too few for the {NP}-parameter model (need at least 5, i.e. 15 values)",
-            samples.len()
-        )));
-    }
-    for (i, s) in samples.iter().enumerate() {
-        if !(s.light.is_finite() && s.view.is_finite() && s.value.is_finite()) || s.value.min_element() < 0.0 {
-            return Err(fail(format!("sample {i} has non-finite or negative values")));
-        }
-        if s.light.z <= 0.0 || s.view.z <= 0.0 {
-            return Err(fail(format!("sample {i} has a direction below the surface")));
-        }
-    }
-    let d3 = |v: Vec3| [v.x as f64, v.y as f64, v.z as f64];
-    let value: Vec<[f64; 3]> = samples.iter().map(|s| d3(s.value)).collect();
-    let mean: [f64; 3] = [0, 1, 2].map(|c| value.iter().map(|v| v[c]).sum::<f64>() / value.len() as f64);
-    let floor = mean.map(|m| opts.rel_floor * m + 1e-12);
-    let data = Data {
-        light: samples.iter().map(|s| d3(s.light.normalize())).collect(),
-        view: samples.iter().map(|s| d3(s.view.normalize())).collect(),
-        weight: value.iter().map(|v| [0, 1, 2].map(|c| 1.0 / (v[c] + floor[c]))).collect(),
-        value,
-    };
-    let model = Model { max_n: opts.max_n };
-
+/// The staged fit of Debevec et al. on prepared data: returns parameters, cost, termination.
+pub(crate) fn fit_data(model: &Model, data: &Data) -> ([f64; NP], f64, String) {
     // Stage 1: rho_d from the lower part of the data (pi f = rho_d where no lobe reaches).
     let mut p0 = [0.0; NP];
     for c in 0..3 {
@@ -317,20 +309,59 @@ pub fn fit_material(material: &str, samples: &[BrdfSample], opts: &FitOptions) -
         let mut p = p0;
         for which in order {
             p = if which == 0 {
-                fit_lobe(&model, &data, p, RR, RA, RM, &retro_starts)
+                fit_lobe(model, data, p, RR, RA, RM, &retro_starts)
             } else {
-                fit_lobe(&model, &data, p, SR, SA, SM, &spec_starts)
+                fit_lobe(model, data, p, SR, SA, SM, &spec_starts)
             };
         }
-        let (p, cost, term) = lm(&model, &data, p, &all);
+        let (p, cost, term) = lm(model, data, p, &all);
         if best.as_ref().is_none_or(|b| cost < b.1) {
             best = Some((p, cost, term));
         }
     }
-    let (p, cost, termination) = best.expect("two candidates");
+    best.expect("two candidates")
+}
+
+/// Joint LM over all parameters from `p` (warm start).
+pub(crate) fn refine(model: &Model, data: &Data, p: [f64; NP]) -> ([f64; NP], f64) {
+    let all: Vec<usize> = (0..NP).collect();
+    let (p, cost, _) = lm(model, data, p, &all);
+    (p, cost)
+}
+
+/// Fit Lambertian + retroreflective + specular lobes to one material's samples.
+pub fn fit_material(material: &str, samples: &[BrdfSample], opts: &FitOptions) -> Result<FitReport, BrdfError> {
+    let fail = |msg: String| BrdfError::Fit { material: material.to_string(), msg };
+    if samples.len() < 5 {
+        return Err(fail(format!(
+            "{} samples are too few for the {NP}-parameter model (need at least 5, i.e. 15 values)",
+            samples.len()
+        )));
+    }
+    for (i, s) in samples.iter().enumerate() {
+        if !(s.light.is_finite() && s.view.is_finite() && s.value.is_finite()) || s.value.min_element() < 0.0 {
+            return Err(fail(format!("sample {i} has non-finite or negative values")));
+        }
+        if s.light.z <= 0.0 || s.view.z <= 0.0 {
+            return Err(fail(format!("sample {i} has a direction below the surface")));
+        }
+    }
+    let d3 = |v: Vec3| [v.x as f64, v.y as f64, v.z as f64];
+    let value: Vec<[f64; 3]> = samples.iter().map(|s| d3(s.value)).collect();
+    let mean: [f64; 3] = [0, 1, 2].map(|c| value.iter().map(|v| v[c]).sum::<f64>() / value.len() as f64);
+    let floor = mean.map(|m| opts.rel_floor * m + 1e-12);
+    let data = Data::new(
+        samples.iter().map(|s| d3(s.light.normalize())).collect(),
+        samples.iter().map(|s| d3(s.view.normalize())).collect(),
+        value,
+        floor,
+    );
+    let model = Model { max_n: opts.max_n };
+    let (p, cost, termination) = fit_data(&model, &data);
     if !cost.is_finite() || p.iter().any(|x| !x.is_finite()) {
         return Err(fail("the optimiser produced non-finite values".into()));
     }
+    let all: Vec<usize> = (0..NP).collect();
 
     // Statistics.
     let prob = Problem { model: &model, data: &data, p, free: all.clone() };

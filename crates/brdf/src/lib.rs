@@ -6,6 +6,7 @@
 //! - Directions are unit vectors pointing away from the surface; values are linear RGB, f32.
 
 pub mod basis;
+pub mod cluster;
 pub mod error;
 pub mod frame;
 pub mod fit;
@@ -14,6 +15,7 @@ pub mod materials;
 pub mod samples;
 
 pub use basis::Basis;
+pub use cluster::{basis_weights, cluster, ClusterOptions, ClusterResult, Lumitexel};
 pub use error::BrdfError;
 pub use frame::Frame;
 pub use fit::{fit_material, FitOptions, FitReport, LobeStderr, Stderr};
