@@ -12,10 +12,11 @@ pub mod frame;
 pub mod fit;
 pub mod lafortune;
 pub mod materials;
+pub mod plot;
 pub mod samples;
 
 pub use basis::Basis;
-pub use cluster::{basis_weights, cluster, ClusterOptions, ClusterResult, Lumitexel};
+pub use cluster::{basis_weights, cluster, read_lumitexels, ClusterOptions, ClusterResult, Lumitexel};
 pub use error::BrdfError;
 pub use frame::Frame;
 pub use fit::{fit_material, FitOptions, FitReport, LobeStderr, Stderr};
