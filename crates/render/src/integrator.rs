@@ -86,7 +86,8 @@ pub struct RenderOutput {
 }
 
 #[inline]
-fn offset_origin(p: Vec3, n: Vec3) -> Vec3 {
+/// Offsets a ray origin off a surface along `n`, by an amount that scales with the coordinates.
+pub fn offset_origin(p: Vec3, n: Vec3) -> Vec3 {
     let scale = 1.0 + p.abs().max_element();
     p + n * (3e-5 * scale)
 }

@@ -15,6 +15,7 @@ pub mod embree;
 pub mod integrator;
 pub mod lighting;
 pub mod sampling;
+pub mod sky;
 pub mod scene;
 
 pub use compare::{compare_images, difference_image, Comparison};
