@@ -42,9 +42,9 @@ enum Command {
     /// BRDFs from hand-held samples: fit, eval, infer, cluster. (planned: issue 5)
     Brdf(cmd::planned::PlannedArgs),
     /// Voxelize a scanned site into a multiresolution store with atlases. (planned: issue 6)
-    Prepare(cmd::planned::PlannedArgs),
+    Prepare(cmd::prepare::PrepareArgs),
     /// Summarise a prepared site. (planned: issue 6)
-    Info(cmd::planned::PlannedArgs),
+    Info(cmd::prepare::InfoArgs),
     /// Recover per-texel reflectance from a survey folder. (planned: issue 7)
     Solve(cmd::planned::PlannedArgs),
     /// Recovered albedo at given surface points. (planned: issue 7)
@@ -66,8 +66,8 @@ fn main() {
         Command::Compare(a) => cmd::compare::run(a, &ctx),
         Command::Probe(a) => cmd::planned::run("probe", 4, a),
         Command::Brdf(a) => cmd::planned::run("brdf", 5, a),
-        Command::Prepare(a) => cmd::planned::run("prepare", 6, a),
-        Command::Info(a) => cmd::planned::run("info", 6, a),
+        Command::Prepare(a) => cmd::prepare::run_prepare(a, &ctx),
+        Command::Info(a) => cmd::prepare::run_info(a, &ctx),
         Command::Solve(a) => cmd::planned::run("solve", 7, a),
         Command::Sample(a) => cmd::planned::run("sample", 7, a),
         Command::Export(a) => cmd::planned::run("export", 7, a),

@@ -5,4 +5,5 @@ pub mod compare;
 pub mod demo;
 pub mod hdr;
 pub mod planned;
+pub mod prepare;
 pub mod render;

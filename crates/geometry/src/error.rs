@@ -24,9 +24,9 @@ pub enum GeometryError {
     /// A bad argument (voxel size, level list, voxel id...).
     #[error("invalid argument: {0}")]
     InvalidArgument(String),
-    /// An error from the imaging layer (EXR caches), already formatted.
-    #[error("{0}")]
-    Imaging(String),
+    /// An error from the imaging layer (EXR caches, atomic writes).
+    #[error(transparent)]
+    Imaging(#[from] igi_imaging::ImagingError),
 }
 
 impl GeometryError {

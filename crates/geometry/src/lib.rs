@@ -1,25 +1,40 @@
-//! `igi-geometry`: meshes for the igi toolkit.
+//! `igi-geometry`: meshes and the multiresolution site store of the igi toolkit.
 //!
 //! - [`TriMesh`], the indexed triangle mesh every crate shares, with [`read_mesh`] (PLY ASCII
 //!   and binary of either byte order, OBJ), [`write_ply`] (binary little endian) and
 //!   [`write_obj`]; writes are atomic (temp file + rename).
 //! - [`procedural`]: the embedded default site (terrain, steps, columns, wall, architrave) at any
 //!   tessellation density.
+//! - [`repair`]: degenerate and duplicate triangles removed, non-manifold edges counted.
+//! - [`voxel`]: the voxel lattice and the exact clipping of a mesh into voxels (neighbouring
+//!   voxels share bit-identical boundary vertices).
+//! - [`atlas`]: per-voxel texture atlases (projected charts, shelf packing) and the world
+//!   position / normal texel caches.
+//! - [`levels`]: multiresolution levels by meshoptimizer edge collapse with the voxel faces locked.
+//! - [`store`]: `prepare` writes a site folder; [`store::SiteStore`] loads "this voxel high,
+//!   neighbours medium, the rest low".
 //!
 //! Conventions: world Z up, metres; UVs as in OBJ ((0,0) bottom-left, v up); colours linear RGB
 //! in [0, 1].
 
 mod atomic;
+pub mod atlas;
 pub mod error;
+pub mod levels;
 pub mod mesh;
 pub mod obj;
 pub mod ply;
 pub mod procedural;
+pub mod repair;
+pub mod store;
+pub mod voxel;
 
 pub use error::GeometryError;
 pub use mesh::TriMesh;
 pub use obj::{read_obj, write_obj};
 pub use ply::{read_ply, write_ply};
+pub use store::{prepare, Manifest, PrepareOptions, SiteStore};
+pub use voxel::{VoxelGrid, VoxelId};
 
 use std::path::Path;
 

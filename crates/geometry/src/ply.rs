@@ -517,7 +517,7 @@ pub fn write_ply(path: &Path, mesh: &TriMesh) -> Result<(), GeometryError> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::io::Write as _;
+
 
     fn write(dir: &Path, name: &str, bytes: &[u8]) -> std::path::PathBuf {
         let p = dir.join(name);

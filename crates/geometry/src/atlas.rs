@@ -1,0 +1,479 @@
+//! Per-voxel texture atlases and their texel caches.
+//!
+//! No maintained Rust binding of xatlas was available (the `xatlas-rs` crate is a 2019
+//! wrapper with bindings generated on Windows), so this is a simple, honest chart packer:
+//! triangles are grouped by the dominant axis of their normal (six directions), each
+//! connected group of same-direction triangles becomes a chart, projected orthographically on
+//! its axis plane (at one common scale, so every texel has the same size in metres), and the
+//! chart rectangles are shelf-packed with gutters. The largest scale that fits the atlas
+//! resolution is chosen. Projection distorts areas by at most sqrt(3) (a normal at least
+//! 1/sqrt(3) along its dominant axis).
+//!
+//! The texel caches hold, for each texel whose centre lies on a triangle, the world position
+//! and the interpolated normal; gutter texels around each chart are dilated from the chart's
+//! own texels so bilinear lookups inside a chart never mix in another chart.
+
+use crate::error::GeometryError;
+use crate::mesh::{cross, sub, TriMesh};
+use igi_imaging::HdrImage;
+use std::collections::HashMap;
+
+/// Atlas settings.
+#[derive(Clone, Copy, Debug)]
+pub struct AtlasOptions {
+    /// Width and height in texels (default 512).
+    pub resolution: u32,
+    /// Empty texels kept around each chart (default 2; bilinear lookups need at least 1).
+    pub gutter: u32,
+}
+
+impl Default for AtlasOptions {
+    fn default() -> Self {
+        AtlasOptions { resolution: 512, gutter: 2 }
+    }
+}
+
+/// A mesh with atlas UVs and its texel caches.
+pub struct Atlas {
+    /// The input mesh with vertices split along chart borders and `uvs` set.
+    pub mesh: TriMesh,
+    pub resolution: usize,
+    /// Edge length of one texel in metres (on the projection plane).
+    pub texel_size: f64,
+    pub charts: usize,
+    /// World position per texel; `valid` marks covered and dilated (gutter) texels.
+    pub position: HdrImage,
+    /// Unit normal per texel; same validity as `position`.
+    pub normal: HdrImage,
+    /// 1 where the texel centre lies on the surface, 0.5 on dilated gutter texels, 0 elsewhere.
+    pub coverage: HdrImage,
+    /// Texels whose centre lies on the surface.
+    pub covered_texels: usize,
+    /// Texels claimed by two charts (0 unless a chart's projection folds over itself).
+    pub overlap_texels: usize,
+}
+
+impl Atlas {
+    /// Fraction of the atlas's texels that are on the surface.
+    pub fn coverage_fraction(&self) -> f64 {
+        self.covered_texels as f64 / (self.resolution * self.resolution) as f64
+    }
+}
+
+struct Chart {
+    axis: usize,
+    sign: f64,
+    tris: Vec<u32>,
+    lo: [f64; 2],
+    hi: [f64; 2],
+    /// placement (texel column, row) of the padded rectangle
+    at: [usize; 2],
+}
+
+fn project(p: [f32; 3], axis: usize, sign: f64) -> [f64; 2] {
+    [p[(axis + 1) % 3] as f64 * sign, p[(axis + 2) % 3] as f64]
+}
+
+fn find(parent: &mut [u32], mut x: u32) -> u32 {
+    while parent[x as usize] != x {
+        parent[x as usize] = parent[parent[x as usize] as usize];
+        x = parent[x as usize];
+    }
+    x
+}
+
+/// Shelf-pack rectangles of the given texel sizes into a `res x res` square; positions or None.
+fn shelf_pack(sizes: &[[usize; 2]], order: &[usize], res: usize) -> Option<Vec<[usize; 2]>> {
+    let mut at = vec![[0usize; 2]; sizes.len()];
+    let (mut x, mut y, mut row_h) = (0usize, 0usize, 0usize);
+    for &c in order {
+        let [w, h] = sizes[c];
+        if w > res {
+            return None;
+        }
+        if x + w > res {
+            y += row_h;
+            x = 0;
+            row_h = 0;
+        }
+        if y + h > res {
+            return None;
+        }
+        at[c] = [x, y];
+        x += w;
+        row_h = row_h.max(h);
+    }
+    Some(at)
+}
+
+/// Build the atlas of one mesh (which must have normals).
+pub fn build_atlas(mesh: &TriMesh, opts: AtlasOptions) -> Result<Atlas, GeometryError> {
+    let res = opts.resolution as usize;
+    let g = opts.gutter as usize;
+    if res < 8 {
+        return Err(GeometryError::InvalidArgument(format!("atlas resolution {res} is too small (minimum 8)")));
+    }
+    let nt = mesh.indices.len();
+    // 1. dominant direction of each face
+    let label: Vec<u8> = (0..nt)
+        .map(|t| {
+            let [a, b, c] = mesh.triangle(t).map(|p| p.map(f64::from));
+            let n = cross(sub(b, a), sub(c, a));
+            let axis = (0..3).max_by(|&i, &j| n[i].abs().total_cmp(&n[j].abs())).unwrap();
+            (axis * 2 + usize::from(n[axis] < 0.0)) as u8
+        })
+        .collect();
+    // 2. connected components of same-direction faces, connected through shared positions
+    let mut canon: HashMap<[u32; 3], u32> = HashMap::with_capacity(mesh.positions.len());
+    let cid: Vec<u32> = mesh
+        .positions
+        .iter()
+        .enumerate()
+        .map(|(i, p)| *canon.entry(p.map(f32::to_bits)).or_insert(i as u32))
+        .collect();
+    drop(canon);
+    let mut edges: Vec<(u64, u32)> = Vec::with_capacity(nt * 3);
+    for (t, tri) in mesh.indices.iter().enumerate() {
+        for k in 0..3 {
+            let (a, b) = (cid[tri[k] as usize], cid[tri[(k + 1) % 3] as usize]);
+            let key = ((a.min(b) as u64) << 32) | a.max(b) as u64;
+            edges.push((key, t as u32));
+        }
+    }
+    edges.sort_unstable();
+    let mut parent: Vec<u32> = (0..nt as u32).collect();
+    for w in edges.windows(2) {
+        if w[0].0 == w[1].0 && label[w[0].1 as usize] == label[w[1].1 as usize] {
+            let (a, b) = (find(&mut parent, w[0].1), find(&mut parent, w[1].1));
+            if a != b {
+                parent[a.max(b) as usize] = a.min(b);
+            }
+        }
+    }
+    drop(edges);
+    let mut chart_of_root: HashMap<u32, usize> = HashMap::new();
+    let mut charts: Vec<Chart> = Vec::new();
+    let mut chart_of = vec![0u32; nt];
+    for t in 0..nt {
+        let r = find(&mut parent, t as u32);
+        let c = *chart_of_root.entry(r).or_insert_with(|| {
+            let l = label[t] as usize;
+            charts.push(Chart {
+                axis: l / 2,
+                sign: if l % 2 == 0 { 1.0 } else { -1.0 },
+                tris: Vec::new(),
+                lo: [f64::INFINITY; 2],
+                hi: [f64::NEG_INFINITY; 2],
+                at: [0; 2],
+            });
+            charts.len() - 1
+        });
+        chart_of[t] = c as u32;
+        let ch = &mut charts[c];
+        ch.tris.push(t as u32);
+        for &i in &mesh.indices[t] {
+            let q = project(mesh.positions[i as usize], ch.axis, ch.sign);
+            for k in 0..2 {
+                ch.lo[k] = ch.lo[k].min(q[k]);
+                ch.hi[k] = ch.hi[k].max(q[k]);
+            }
+        }
+    }
+    // 3. the largest scale (texels per metre) at which the padded rectangles pack
+    let sizes_at = |s: f64| -> Vec<[usize; 2]> {
+        charts
+            .iter()
+            .map(|c| [0, 1].map(|k| ((c.hi[k] - c.lo[k]) * s).ceil() as usize + 1 + 2 * g))
+            .collect()
+    };
+    let area: f64 = charts.iter().map(|c| (c.hi[0] - c.lo[0]).max(1e-9) * (c.hi[1] - c.lo[1]).max(1e-9)).sum();
+    let try_pack = |s: f64| -> Option<Vec<[usize; 2]>> {
+        let sizes = sizes_at(s);
+        let mut order: Vec<usize> = (0..charts.len()).collect();
+        order.sort_by(|&a, &b| sizes[b][1].cmp(&sizes[a][1]).then(sizes[b][0].cmp(&sizes[a][0])));
+        shelf_pack(&sizes, &order, res)
+    };
+    let mut s = res as f64 * (0.6 / area).sqrt();
+    let mut best: Option<(f64, Vec<[usize; 2]>)> = None;
+    for _ in 0..200 {
+        match try_pack(s) {
+            Some(at) => {
+                best = Some((s, at));
+                s *= 1.03;
+            }
+            None if best.is_some() => break,
+            None => s *= 0.9,
+        }
+        if s < 1e-9 {
+            break;
+        }
+    }
+    let (scale, at) = best.ok_or_else(|| {
+        GeometryError::InvalidArgument(format!(
+            "{} charts do not fit a {res}x{res} atlas with {g}-texel gutters; raise the atlas resolution",
+            charts.len()
+        ))
+    })?;
+    for (c, a) in charts.iter_mut().zip(&at) {
+        c.at = *a;
+    }
+    // 4. split vertices per chart and set UVs; texel-space coordinates (X right, Y down)
+    let mut out = TriMesh::default();
+    let mut normals = Vec::new();
+    let mut colors = Vec::new();
+    let mut uvs = Vec::new();
+    let mut texel_xy: Vec<[f64; 2]> = Vec::new();
+    let mut remap: HashMap<(u32, u32), u32> = HashMap::new();
+    let src_n = mesh.normals.as_ref();
+    out.indices = vec![[0; 3]; nt];
+    for (ci, ch) in charts.iter().enumerate() {
+        for &t in &ch.tris {
+            let tri = mesh.indices[t as usize];
+            let mut nt3 = [0u32; 3];
+            for k in 0..3 {
+                let v = tri[k];
+                nt3[k] = *remap.entry((v, ci as u32)).or_insert_with(|| {
+                    let p = mesh.positions[v as usize];
+                    let q = project(p, ch.axis, ch.sign);
+                    let x = (ch.at[0] + g) as f64 + 0.5 + (q[0] - ch.lo[0]) * scale;
+                    let y = (ch.at[1] + g) as f64 + 0.5 + (ch.hi[1] - q[1]) * scale;
+                    out.positions.push(p);
+                    if let Some(n) = src_n {
+                        normals.push(n[v as usize]);
+                    }
+                    if let Some(c) = &mesh.colors {
+                        colors.push(c[v as usize]);
+                    }
+                    uvs.push([(x / res as f64) as f32, (1.0 - y / res as f64) as f32]);
+                    texel_xy.push([x, y]);
+                    (out.positions.len() - 1) as u32
+                });
+            }
+            out.indices[t as usize] = nt3;
+        }
+    }
+    drop(remap);
+    out.normals = src_n.map(|_| normals);
+    out.colors = mesh.colors.as_ref().map(|_| colors);
+    out.uvs = Some(uvs);
+    if out.normals.is_none() {
+        out.compute_vertex_normals();
+    }
+    // 5. rasterise texel centres
+    let mut position = HdrImage::new(res, res);
+    let mut normal = HdrImage::new(res, res);
+    let mut owner = vec![u32::MAX; res * res];
+    let mut overlap = 0usize;
+    let on = out.normals.as_ref().unwrap();
+    for t in 0..nt {
+        let tri = out.indices[t];
+        let c = chart_of[t];
+        let [a, b, cc] = tri.map(|i| texel_xy[i as usize]);
+        let den = (b[1] - cc[1]) * (a[0] - cc[0]) + (cc[0] - b[0]) * (a[1] - cc[1]);
+        if den.abs() < 1e-18 {
+            continue;
+        }
+        let x0 = (a[0].min(b[0]).min(cc[0]) - 0.5).floor().max(0.0) as usize;
+        let x1 = ((a[0].max(b[0]).max(cc[0]) - 0.5).ceil() as usize).min(res - 1);
+        let y0 = (a[1].min(b[1]).min(cc[1]) - 0.5).floor().max(0.0) as usize;
+        let y1 = ((a[1].max(b[1]).max(cc[1]) - 0.5).ceil() as usize).min(res - 1);
+        let [pa, pb, pc] = tri.map(|i| out.positions[i as usize].map(f64::from));
+        let [na, nb, nc] = tri.map(|i| on[i as usize].map(f64::from));
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                let (px, py) = (x as f64 + 0.5, y as f64 + 0.5);
+                let l1 = ((b[1] - cc[1]) * (px - cc[0]) + (cc[0] - b[0]) * (py - cc[1])) / den;
+                let l2 = ((cc[1] - a[1]) * (px - cc[0]) + (a[0] - cc[0]) * (py - cc[1])) / den;
+                let l3 = 1.0 - l1 - l2;
+                let eps = -1e-7;
+                if l1 < eps || l2 < eps || l3 < eps {
+                    continue;
+                }
+                let i = y * res + x;
+                if owner[i] != u32::MAX && owner[i] != c {
+                    overlap += 1;
+                    continue;
+                }
+                owner[i] = c;
+                let p = [0, 1, 2].map(|k| (l1 * pa[k] + l2 * pb[k] + l3 * pc[k]) as f32);
+                let n = [0, 1, 2].map(|k| l1 * na[k] + l2 * nb[k] + l3 * nc[k]);
+                let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+                let n = if l > 0.0 { n.map(|v| (v / l) as f32) } else { na.map(|v| v as f32) };
+                position.pixels[i] = p;
+                normal.pixels[i] = n;
+            }
+        }
+    }
+    // triangles too thin to contain a texel centre: the texels holding their corners and
+    // centroid get those surface points (each within half a texel of the texel centre)
+    for t in 0..nt {
+        let tri = out.indices[t];
+        let c = chart_of[t];
+        let xy = tri.map(|i| texel_xy[i as usize]);
+        let ps = tri.map(|i| out.positions[i as usize]);
+        let ns = tri.map(|i| on[i as usize]);
+        let cxy = [0, 1].map(|k| (xy[0][k] + xy[1][k] + xy[2][k]) / 3.0);
+        let cp = [0, 1, 2].map(|k| (ps[0][k] + ps[1][k] + ps[2][k]) / 3.0);
+        let cn = [0, 1, 2].map(|k| ns[0][k] + ns[1][k] + ns[2][k]);
+        let l = (cn[0] * cn[0] + cn[1] * cn[1] + cn[2] * cn[2]).sqrt();
+        let cn = if l > 0.0 { cn.map(|v| v / l) } else { ns[0] };
+        for (q, p, n) in [(cxy, cp, cn), (xy[0], ps[0], ns[0]), (xy[1], ps[1], ns[1]), (xy[2], ps[2], ns[2])] {
+            let (x, y) = (q[0].floor().clamp(0.0, (res - 1) as f64) as usize, q[1].floor().clamp(0.0, (res - 1) as f64) as usize);
+            let i = y * res + x;
+            if owner[i] == u32::MAX {
+                owner[i] = c;
+                position.pixels[i] = p;
+                normal.pixels[i] = n;
+            }
+        }
+    }
+    let covered: Vec<bool> = owner.iter().map(|&o| o != u32::MAX).collect();
+    let covered_texels = covered.iter().filter(|c| **c).count();
+    // 6. dilate each chart into its gutter, g + 1 rings (the rectangle's padding)
+    for _ in 0..=g {
+        let prev = owner.clone();
+        for y in 0..res {
+            for x in 0..res {
+                let i = y * res + x;
+                if prev[i] != u32::MAX {
+                    continue;
+                }
+                let mut chart = u32::MAX;
+                let (mut sp, mut sn, mut cnt) = ([0.0f32; 3], [0.0f32; 3], 0.0f32);
+                for dy in -1i64..=1 {
+                    for dx in -1i64..=1 {
+                        let (xx, yy) = (x as i64 + dx, y as i64 + dy);
+                        if xx < 0 || yy < 0 || xx >= res as i64 || yy >= res as i64 {
+                            continue;
+                        }
+                        let j = yy as usize * res + xx as usize;
+                        if prev[j] == u32::MAX || (chart != u32::MAX && prev[j] != chart) {
+                            continue;
+                        }
+                        chart = prev[j];
+                        for k in 0..3 {
+                            sp[k] += position.pixels[j][k];
+                            sn[k] += normal.pixels[j][k];
+                        }
+                        cnt += 1.0;
+                    }
+                }
+                if cnt > 0.0 {
+                    owner[i] = chart;
+                    position.pixels[i] = sp.map(|v| v / cnt);
+                    let l = (sn[0] * sn[0] + sn[1] * sn[1] + sn[2] * sn[2]).sqrt();
+                    normal.pixels[i] = if l > 0.0 { sn.map(|v| v / l) } else { [0.0, 0.0, 1.0] };
+                }
+            }
+        }
+    }
+    let mut coverage = HdrImage::new(res, res);
+    for i in 0..res * res {
+        let filled = owner[i] != u32::MAX;
+        position.valid[i] = filled;
+        normal.valid[i] = filled;
+        let v = if covered[i] { 1.0 } else if filled { 0.5 } else { 0.0 };
+        coverage.pixels[i] = [v; 3];
+    }
+    Ok(Atlas {
+        mesh: out,
+        resolution: res,
+        texel_size: 1.0 / scale,
+        charts: charts.len(),
+        position,
+        normal,
+        coverage,
+        covered_texels,
+        overlap_texels: overlap,
+    })
+}
+
+/// Continuous pixel coordinates (centre of the top-left texel at (0, 0), as
+/// `HdrImage::bilinear` expects) of a UV in an atlas of `res` texels.
+pub fn uv_to_pixel(uv: [f32; 2], res: usize) -> [f32; 2] {
+    [uv[0] * res as f32 - 0.5, (1.0 - uv[1]) * res as f32 - 0.5]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample_points(m: &TriMesh, n_per_tri: usize) -> Vec<([f64; 3], [f32; 2], usize)> {
+        let mut out = Vec::new();
+        let mut s = 12345u64;
+        let mut rnd = || {
+            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((s >> 11) as f64) / (1u64 << 53) as f64
+        };
+        for t in 0..m.indices.len() {
+            for _ in 0..n_per_tri {
+                let (mut a, mut b) = (rnd(), rnd());
+                if a + b > 1.0 {
+                    a = 1.0 - a;
+                    b = 1.0 - b;
+                }
+                let tri = m.indices[t];
+                let [p0, p1, p2] = tri.map(|i| m.positions[i as usize].map(f64::from));
+                let [u0, u1, u2] = tri.map(|i| m.uvs.as_ref().unwrap()[i as usize].map(f64::from));
+                let c = 1.0 - a - b;
+                let p = [0, 1, 2].map(|k| c * p0[k] + a * p1[k] + b * p2[k]);
+                let uv = [0, 1].map(|k| (c * u0[k] + a * u1[k] + b * u2[k]) as f32);
+                out.push((p, uv, t));
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn caches_reproduce_surface_positions_within_half_a_texel() {
+        let site = crate::procedural::colonnade_site(5, 1);
+        for name in ["column_02", "stylobate", "wall"] {
+            let m = &site.iter().find(|(n, _)| n == name).unwrap().1;
+            let atlas = build_atlas(m, AtlasOptions::default()).unwrap();
+            assert_eq!(atlas.overlap_texels, 0, "{name}");
+            assert!(atlas.coverage_fraction() > 0.2, "{name}: coverage {}", atlas.coverage_fraction());
+            let ts = atlas.texel_size;
+            let mut worst = 0.0f64;
+            let mut bilinear_worst = 0.0f64;
+            for (p, uv, _) in sample_points(&atlas.mesh, 4) {
+                let [x, y] = uv_to_pixel(uv, atlas.resolution);
+                let (j, i) = (x.round() as usize, y.round() as usize);
+                assert!(atlas.position.is_valid(j, i), "{name}: texel under a surface point is empty");
+                let q = atlas.position.get(j, i).map(f64::from);
+                let d = ((q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2) + (q[2] - p[2]).powi(2)).sqrt();
+                worst = worst.max(d);
+                // bilinear lookups never hit an empty texel
+                let b = atlas.position.bilinear(x, y).expect("bilinear tap outside the chart");
+                let d = ((b[0] as f64 - p[0]).powi(2) + (b[1] as f64 - p[1]).powi(2) + (b[2] as f64 - p[2]).powi(2)).sqrt();
+                bilinear_worst = bilinear_worst.max(d);
+            }
+            // the nearest texel centre is within half a texel diagonal on the projection plane;
+            // projection stretches distances by at most sqrt(3)
+            let bound = 0.5 * ts * 2f64.sqrt() * 3f64.sqrt();
+            assert!(worst <= bound, "{name}: {worst} > {bound} (texel {ts})");
+            assert!(bilinear_worst <= 2.0 * bound, "{name}: bilinear {bilinear_worst}");
+        }
+    }
+
+    #[test]
+    fn a_flat_square_fills_the_atlas_at_the_expected_texel_size() {
+        let m = TriMesh {
+            positions: vec![[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [2.0, 2.0, 0.0], [0.0, 2.0, 0.0]],
+            normals: Some(vec![[0.0, 0.0, 1.0]; 4]),
+            indices: vec![[0, 1, 2], [0, 2, 3]],
+            ..Default::default()
+        };
+        let a = build_atlas(&m, AtlasOptions { resolution: 64, gutter: 2 }).unwrap();
+        assert_eq!(a.charts, 1);
+        // one chart of 2 m: ceil(2 s) + 1 + 4 <= 64 -> s <= 29.5 texels per metre
+        assert!(a.texel_size >= 2.0 / 59.0 - 1e-9 && a.texel_size < 2.0 / 50.0, "{}", a.texel_size);
+        let side = (2.0 / a.texel_size).floor() as usize + 1;
+        assert!(a.covered_texels >= (side - 1) * (side - 1) && a.covered_texels <= (side + 1) * (side + 1));
+        // the normal cache is +z wherever valid
+        for i in 0..64 * 64 {
+            if a.normal.valid[i] {
+                assert_eq!(a.normal.pixels[i], [0.0, 0.0, 1.0]);
+            }
+        }
+    }
+}

@@ -1,0 +1,174 @@
+//! Import repair: remove degenerate and duplicate triangles, report non-manifold edges.
+
+use crate::mesh::TriMesh;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+/// What [`repair`] found and did.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct RepairReport {
+    pub triangles_in: usize,
+    /// Zero-area triangles (repeated vertex or collinear corners) removed.
+    pub degenerate_removed: usize,
+    /// Triangles with the same three corner positions as an earlier one (any order) removed.
+    pub duplicate_removed: usize,
+    /// Edges (by corner positions) used by more than two triangles, after removal.
+    pub non_manifold_edges: usize,
+    /// Edges used by exactly one triangle (holes and open borders), after removal.
+    pub border_edges: usize,
+    pub triangles_out: usize,
+}
+
+fn hash_words(words: &[u32]) -> u64 {
+    // FNV-1a over the words, then a final mix
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for w in words {
+        h ^= *w as u64;
+        h = h.wrapping_mul(0x0000_0100_0000_01B3);
+    }
+    h ^= h >> 33;
+    h = h.wrapping_mul(0xff51_afd7_ed55_8ccd);
+    h ^ (h >> 33)
+}
+
+fn pos_key(p: [f32; 3]) -> [u32; 3] {
+    // +0.0 and -0.0 are the same point
+    p.map(|x| if x == 0.0 { 0 } else { x.to_bits() })
+}
+
+/// Remove degenerate and duplicate triangles (comparing corner positions, so unwelded
+/// duplicates are found too) and count non-manifold and border edges. Vertices are kept.
+pub fn repair(mesh: &TriMesh) -> (TriMesh, RepairReport) {
+    let mut rep = RepairReport { triangles_in: mesh.indices.len(), ..Default::default() };
+    let keep: Vec<bool> = mesh
+        .indices
+        .par_iter()
+        .enumerate()
+        .map(|(t, tri)| tri[0] != tri[1] && tri[1] != tri[2] && tri[0] != tri[2] && mesh.triangle_area(t) > 0.0)
+        .collect();
+    rep.degenerate_removed = keep.iter().filter(|k| !**k).count();
+    let tri_key = |t: usize| -> [[u32; 3]; 3] {
+        let mut k = mesh.indices[t].map(|i| pos_key(mesh.positions[i as usize]));
+        k.sort();
+        k
+    };
+    // duplicates: sort (hash, index) and compare exactly inside runs of equal hash
+    let mut keyed: Vec<(u64, u32)> = (0..mesh.indices.len())
+        .into_par_iter()
+        .filter(|&t| keep[t])
+        .map(|t| (hash_words(tri_key(t).as_flattened()), t as u32))
+        .collect();
+    keyed.par_sort_unstable();
+    let mut dup = vec![false; mesh.indices.len()];
+    let mut i = 0;
+    while i < keyed.len() {
+        let mut j = i + 1;
+        while j < keyed.len() && keyed[j].0 == keyed[i].0 {
+            j += 1;
+        }
+        if j - i > 1 {
+            for a in i..j {
+                let ta = keyed[a].1 as usize;
+                if dup[ta] {
+                    continue;
+                }
+                let ka = tri_key(ta);
+                for b in a + 1..j {
+                    let tb = keyed[b].1 as usize;
+                    if !dup[tb] && tri_key(tb) == ka {
+                        dup[tb] = true; // keeps the one with the smaller index (sorted by index in a run)
+                    }
+                }
+            }
+        }
+        i = j;
+    }
+    drop(keyed);
+    rep.duplicate_removed = dup.iter().filter(|d| **d).count();
+    let indices: Vec<[u32; 3]> =
+        mesh.indices.iter().enumerate().filter(|(t, _)| keep[*t] && !dup[*t]).map(|(_, t)| *t).collect();
+    let out = TriMesh { indices, ..mesh.clone() };
+    // edges by position: (hash, edge id), exact compare in runs
+    let edge_key = |e: usize| -> [[u32; 3]; 2] {
+        let tri = out.indices[e / 3];
+        let (a, b) = (tri[e % 3], tri[(e + 1) % 3]);
+        let mut k = [pos_key(out.positions[a as usize]), pos_key(out.positions[b as usize])];
+        k.sort();
+        k
+    };
+    let mut edges: Vec<(u64, u32)> =
+        (0..out.indices.len() * 3).into_par_iter().map(|e| (hash_words(edge_key(e).as_flattened()), e as u32)).collect();
+    edges.par_sort_unstable();
+    let mut i = 0;
+    while i < edges.len() {
+        let mut j = i + 1;
+        while j < edges.len() && edges[j].0 == edges[i].0 {
+            j += 1;
+        }
+        if j - i == 1 {
+            rep.border_edges += 1;
+        } else {
+            // group the run by exact key
+            let mut keys: Vec<[[u32; 3]; 2]> = edges[i..j].iter().map(|e| edge_key(e.1 as usize)).collect();
+            keys.sort();
+            let mut a = 0;
+            while a < keys.len() {
+                let mut b = a + 1;
+                while b < keys.len() && keys[b] == keys[a] {
+                    b += 1;
+                }
+                match b - a {
+                    1 => rep.border_edges += 1,
+                    2 => {}
+                    _ => rep.non_manifold_edges += 1,
+                }
+                a = b;
+            }
+        }
+        i = j;
+    }
+    rep.triangles_out = out.indices.len();
+    (out, rep)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn removes_degenerate_and_duplicates_and_counts_edges() {
+        // a closed tetrahedron + a duplicate face (reversed, unwelded copy) + a degenerate sliver
+        // + a repeated-index triangle + a fin on edge (0,1) making it non-manifold
+        let mut m = TriMesh {
+            positions: vec![
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [0.0, 0.0, 1.0],
+                // unwelded copies of 0, 1, 2
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                // collinear point
+                [2.0, 0.0, 0.0],
+                // fin apex
+                [0.5, -1.0, 0.5],
+            ],
+            indices: vec![[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]],
+            ..Default::default()
+        };
+        m.indices.push([4, 5, 6]); // duplicate of [0,2,1]
+        m.indices.push([0, 1, 7]); // collinear
+        m.indices.push([1, 1, 3]); // repeated index
+        m.indices.push([0, 1, 8]); // fin
+        let (out, rep) = repair(&m);
+        assert_eq!(rep.triangles_in, 8);
+        assert_eq!(rep.degenerate_removed, 2);
+        assert_eq!(rep.duplicate_removed, 1);
+        assert_eq!(rep.triangles_out, 5);
+        assert_eq!(out.indices.len(), 5);
+        assert_eq!(rep.non_manifold_edges, 1, "edge (0,1) has three faces");
+        assert_eq!(rep.border_edges, 2, "the fin's two free edges");
+        assert_eq!(out.indices[0], [0, 2, 1], "the first of the duplicates is kept");
+    }
+}

@@ -1,0 +1,559 @@
+//! The prepared-site store: voxel levels, atlases and caches on disk, and the loader.
+//!
+//! Layout of a site folder:
+//! ```text
+//! site.igi/manifest.json            bounds, grid, counts per level, texel sizes, coverage
+//! site.igi/settings.json            the options the folder was prepared with (for resuming)
+//! site.igi/voxels/I_J_K/level0.ply  binary PLY per level (0 = full resolution), with atlas UVs
+//! site.igi/voxels/I_J_K/position.exr, normal.exr, coverage.exr   texel caches
+//! site.igi/voxels/I_J_K/done.json   written last: the voxel's statistics
+//! site.igi/terrain/...              the same for the optional terrain mesh (not voxelized)
+//! ```
+//! Every file is written atomically; a voxel whose `done.json` and level files exist is skipped
+//! when `prepare` runs again on the same folder with the same settings.
+
+use crate::atlas::{build_atlas, AtlasOptions};
+use crate::error::GeometryError;
+use crate::levels::simplify;
+use crate::mesh::TriMesh;
+use crate::repair::RepairReport;
+use crate::voxel::{partition, VoxelGrid, VoxelId};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// Options of [`prepare`].
+#[derive(Clone, Debug)]
+pub struct PrepareOptions {
+    pub grid: VoxelGrid,
+    pub atlas: AtlasOptions,
+    /// Triangle fractions per level, first = 1.0 (full resolution), decreasing.
+    pub levels: Vec<f64>,
+}
+
+impl Default for PrepareOptions {
+    fn default() -> Self {
+        PrepareOptions {
+            grid: VoxelGrid { origin: [0.0; 3], size: 4.3 },
+            atlas: AtlasOptions::default(),
+            levels: vec![1.0, 0.2, 0.05],
+        }
+    }
+}
+
+impl PrepareOptions {
+    fn check(&self) -> Result<(), GeometryError> {
+        VoxelGrid::new(self.grid.origin, self.grid.size)?;
+        let l = &self.levels;
+        if l.is_empty() || l[0] != 1.0 || l.iter().any(|x| !(*x > 0.0 && *x <= 1.0)) || l.windows(2).any(|w| w[1] >= w[0]) {
+            return Err(GeometryError::InvalidArgument(format!(
+                "levels must start at 1.0 and decrease inside (0, 1], got {l:?}"
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// Statistics of one stored part (a voxel or the terrain).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PartEntry {
+    /// `None` for the terrain.
+    pub voxel: Option<VoxelId>,
+    /// Folder relative to the site folder.
+    pub dir: String,
+    pub triangles: Vec<usize>,
+    /// Geometric error per level in metres (0 for level 0).
+    pub errors: Vec<f64>,
+    /// Atlas texel edge in metres.
+    pub texel_size: f64,
+    /// Fraction of atlas texels on the surface.
+    pub coverage: f64,
+    pub charts: usize,
+    pub overlap_texels: usize,
+    pub area: f64,
+}
+
+/// The site's `manifest.json`.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Manifest {
+    pub format: String,
+    pub source: String,
+    pub grid: VoxelGrid,
+    pub levels: Vec<f64>,
+    pub atlas_resolution: u32,
+    /// (min, max) of all stored geometry.
+    pub bounds: [[f32; 3]; 2],
+    /// Smallest and largest voxel index per axis.
+    pub voxel_range: [VoxelId; 2],
+    pub repair: RepairReport,
+    /// Sum over voxels per level (terrain excluded).
+    pub triangles_per_level: Vec<usize>,
+    pub texel_size_min: f64,
+    pub texel_size_max: f64,
+    pub coverage_mean: f64,
+    pub voxels: Vec<PartEntry>,
+    pub terrain: Option<PartEntry>,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+struct Settings {
+    grid: VoxelGrid,
+    levels: Vec<f64>,
+    atlas_resolution: u32,
+    atlas_gutter: u32,
+    has_terrain: bool,
+}
+
+const FORMAT: &str = "igi-site-1";
+
+fn voxel_dir(v: VoxelId) -> String {
+    format!("voxels/{}_{}_{}", v[0], v[1], v[2])
+}
+
+fn level_file(l: usize) -> String {
+    format!("level{l}.ply")
+}
+
+fn write_json<T: Serialize>(path: &Path, v: &T) -> Result<(), GeometryError> {
+    let text = serde_json::to_string_pretty(v).expect("serialisable");
+    crate::atomic::write_atomic_with(path, |w| std::io::Write::write_all(w, text.as_bytes()))
+}
+
+fn read_json<T: for<'de> Deserialize<'de>>(path: &Path) -> Result<T, GeometryError> {
+    let text = std::fs::read_to_string(path).map_err(|e| GeometryError::io(path, e))?;
+    serde_json::from_str(&text).map_err(|e| GeometryError::format(path, format!("bad JSON: {e}")))
+}
+
+fn mkdir(p: &Path) -> Result<(), GeometryError> {
+    std::fs::create_dir_all(p).map_err(|e| GeometryError::io(p, e))
+}
+
+/// Atlas, caches and levels of one part, written into `site/dir`; reuses a finished part.
+fn process_part(
+    site: &Path,
+    dir: &str,
+    voxel: Option<VoxelId>,
+    mesh: TriMesh,
+    opts: &PrepareOptions,
+) -> Result<PartEntry, GeometryError> {
+    let folder = site.join(dir);
+    let done = folder.join("done.json");
+    if done.exists() {
+        if let Ok(entry) = read_json::<PartEntry>(&done) {
+            let complete = (0..opts.levels.len()).all(|l| folder.join(level_file(l)).exists())
+                && ["position.exr", "normal.exr", "coverage.exr"].iter().all(|f| folder.join(f).exists());
+            if complete && entry.voxel == voxel {
+                return Ok(entry);
+            }
+        }
+    }
+    mkdir(&folder)?;
+    let area = mesh.total_area();
+    let atlas = build_atlas(&mesh, opts.atlas).map_err(|e| match e {
+        GeometryError::InvalidArgument(m) => GeometryError::InvalidArgument(format!("{dir}: {m}")),
+        e => e,
+    })?;
+    drop(mesh);
+    igi_imaging::write_exr(&folder.join("position.exr"), &atlas.position)?;
+    igi_imaging::write_exr(&folder.join("normal.exr"), &atlas.normal)?;
+    igi_imaging::write_exr(&folder.join("coverage.exr"), &atlas.coverage)?;
+    let locked: Vec<bool> = match voxel {
+        Some(v) => atlas.mesh.positions.iter().map(|p| opts.grid.on_voxel_face(v, *p)).collect(),
+        None => vec![false; atlas.mesh.positions.len()],
+    };
+    let mut triangles = Vec::new();
+    let mut errors = Vec::new();
+    for (l, &ratio) in opts.levels.iter().enumerate() {
+        // open borders locked too: a border vertex next to a voxel face could otherwise collapse
+        // onto it and take a boundary edge with it
+        let level = simplify(&atlas.mesh, &locked, ratio, true);
+        crate::ply::write_ply(&folder.join(level_file(l)), &level.mesh)?;
+        triangles.push(level.mesh.indices.len());
+        errors.push(level.error);
+    }
+    let entry = PartEntry {
+        voxel,
+        dir: dir.to_string(),
+        triangles,
+        errors,
+        texel_size: atlas.texel_size,
+        coverage: atlas.coverage_fraction(),
+        charts: atlas.charts,
+        overlap_texels: atlas.overlap_texels,
+        area,
+    };
+    write_json(&done, &entry)?;
+    Ok(entry)
+}
+
+/// Voxelize a (repaired) site mesh and write the store into `out`. `progress(done, total)` is
+/// called after each part. Resumes an interrupted run with the same settings.
+pub fn prepare(
+    site: TriMesh,
+    terrain: Option<TriMesh>,
+    repair: RepairReport,
+    out: &Path,
+    source: &str,
+    opts: &PrepareOptions,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<Manifest, GeometryError> {
+    opts.check()?;
+    site.validate()?;
+    if let Some(t) = &terrain {
+        t.validate()?;
+    }
+    let settings = Settings {
+        grid: opts.grid,
+        levels: opts.levels.clone(),
+        atlas_resolution: opts.atlas.resolution,
+        atlas_gutter: opts.atlas.gutter,
+        has_terrain: terrain.is_some(),
+    };
+    let settings_path = out.join("settings.json");
+    if settings_path.exists() {
+        let old: Settings = read_json(&settings_path)?;
+        if old != settings {
+            return Err(GeometryError::format(
+                &settings_path,
+                "this folder was prepared with different settings; choose another output folder or delete it",
+            ));
+        }
+    }
+    mkdir(&out.join("voxels"))?;
+    write_json(&settings_path, &settings)?;
+    let (mut lo, mut hi) = site.bounds().expect("validated mesh has vertices");
+    if let Some((tl, th)) = terrain.as_ref().and_then(|t| t.bounds()) {
+        for k in 0..3 {
+            lo[k] = lo[k].min(tl[k]);
+            hi[k] = hi[k].max(th[k]);
+        }
+    }
+    let parts: Vec<(VoxelId, TriMesh)> = partition(&site, &opts.grid).into_iter().collect();
+    drop(site);
+    let total = parts.len() + usize::from(terrain.is_some());
+    let count = std::sync::atomic::AtomicUsize::new(0);
+    let tick = || progress(count.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1, total);
+    let mut voxels: Vec<PartEntry> = parts
+        .into_par_iter()
+        .map(|(v, m)| {
+            let r = process_part(out, &voxel_dir(v), Some(v), m, opts);
+            tick();
+            r
+        })
+        .collect::<Result<_, _>>()?;
+    voxels.sort_by_key(|e| e.voxel);
+    let terrain = match terrain {
+        Some(t) => {
+            mkdir(&out.join("terrain"))?;
+            let e = process_part(out, "terrain", None, t, opts)?;
+            tick();
+            Some(e)
+        }
+        None => None,
+    };
+    let mut vr = [[i32::MAX; 3], [i32::MIN; 3]];
+    for e in &voxels {
+        let v = e.voxel.unwrap();
+        for k in 0..3 {
+            vr[0][k] = vr[0][k].min(v[k]);
+            vr[1][k] = vr[1][k].max(v[k]);
+        }
+    }
+    let triangles_per_level = (0..opts.levels.len()).map(|l| voxels.iter().map(|e| e.triangles[l]).sum()).collect();
+    let all = voxels.iter().chain(terrain.iter());
+    let texel_size_min = all.clone().map(|e| e.texel_size).fold(f64::INFINITY, f64::min);
+    let texel_size_max = all.clone().map(|e| e.texel_size).fold(0.0, f64::max);
+    let n = all.clone().count().max(1) as f64;
+    let coverage_mean = all.map(|e| e.coverage).sum::<f64>() / n;
+    let manifest = Manifest {
+        format: FORMAT.to_string(),
+        source: source.to_string(),
+        grid: opts.grid,
+        levels: opts.levels.clone(),
+        atlas_resolution: opts.atlas.resolution,
+        bounds: [lo, hi],
+        voxel_range: vr,
+        repair,
+        triangles_per_level,
+        texel_size_min,
+        texel_size_max,
+        coverage_mean,
+        voxels,
+        terrain,
+    };
+    write_json(&out.join("manifest.json"), &manifest)?;
+    Ok(manifest)
+}
+
+/// One mesh loaded from the store.
+pub struct LoadedPart {
+    /// `None` for the terrain.
+    pub voxel: Option<VoxelId>,
+    pub level: usize,
+    pub mesh: TriMesh,
+}
+
+/// A prepared site on disk.
+pub struct SiteStore {
+    dir: PathBuf,
+    manifest: Manifest,
+}
+
+impl SiteStore {
+    /// Open a site folder (reads `manifest.json` only).
+    pub fn open(dir: &Path) -> Result<SiteStore, GeometryError> {
+        let path = dir.join("manifest.json");
+        if !path.exists() {
+            return Err(GeometryError::format(dir, "not a prepared site (no manifest.json; run `igi prepare`)"));
+        }
+        let manifest: Manifest = read_json(&path)?;
+        if manifest.format != FORMAT {
+            return Err(GeometryError::format(&path, format!("unknown site format `{}`", manifest.format)));
+        }
+        Ok(SiteStore { dir: dir.to_path_buf(), manifest })
+    }
+
+    pub fn manifest(&self) -> &Manifest {
+        &self.manifest
+    }
+
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// The non-empty voxels, sorted.
+    pub fn voxel_ids(&self) -> Vec<VoxelId> {
+        self.manifest.voxels.iter().filter_map(|e| e.voxel).collect()
+    }
+
+    fn entry(&self, v: VoxelId) -> Result<&PartEntry, GeometryError> {
+        self.manifest
+            .voxels
+            .iter()
+            .find(|e| e.voxel == Some(v))
+            .ok_or_else(|| GeometryError::InvalidArgument(format!("voxel {v:?} is empty or outside the site")))
+    }
+
+    /// Folder of a voxel (its level PLYs and `position.exr`, `normal.exr`, `coverage.exr`).
+    pub fn voxel_folder(&self, v: VoxelId) -> Result<PathBuf, GeometryError> {
+        Ok(self.dir.join(&self.entry(v)?.dir))
+    }
+
+    /// Folder of the terrain, if the site has one.
+    pub fn terrain_folder(&self) -> Option<PathBuf> {
+        self.manifest.terrain.as_ref().map(|e| self.dir.join(&e.dir))
+    }
+
+    /// Read one voxel at one level (0 = full resolution).
+    pub fn load_voxel(&self, v: VoxelId, level: usize) -> Result<TriMesh, GeometryError> {
+        let level = level.min(self.manifest.levels.len() - 1);
+        crate::ply::read_ply(&self.voxel_folder(v)?.join(level_file(level)))
+    }
+
+    /// What the solver of voxel `v` needs: `v` at level 0, its 26 neighbours at level 1, every
+    /// other voxel and the terrain at the lowest level. Reads only those files.
+    pub fn load_for_voxel(&self, v: VoxelId) -> Result<Vec<LoadedPart>, GeometryError> {
+        self.entry(v)?;
+        let n = self.manifest.levels.len();
+        let (medium, low) = (1.min(n - 1), n - 1);
+        let ids = self.voxel_ids();
+        let mut out: Vec<LoadedPart> = ids
+            .par_iter()
+            .map(|&u| {
+                let d = (0..3).map(|k| (u[k] - v[k]).abs()).max().unwrap();
+                let level = match d {
+                    0 => 0,
+                    1 => medium,
+                    _ => low,
+                };
+                Ok(LoadedPart { voxel: Some(u), level, mesh: self.load_voxel(u, level)? })
+            })
+            .collect::<Result<_, GeometryError>>()?;
+        if let Some(t) = self.terrain_folder() {
+            out.push(LoadedPart { voxel: None, level: low, mesh: crate::ply::read_ply(&t.join(level_file(low)))? });
+        }
+        Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::collections::HashMap;
+
+    fn bunny() -> TriMesh {
+        let p = Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../../shared/data/meshes/stanford_bunny/reconstruction/bun_zipper_res2.ply"
+        ));
+        let mut m = crate::read_mesh(p).unwrap();
+        // about 0.155 m across: scale by 60 so it spans 2-3 voxels of 4.3 m per axis
+        for q in &mut m.positions {
+            *q = q.map(|x| x * 60.0);
+        }
+        m
+    }
+
+    type Edge = [[u32; 3]; 2];
+
+    /// Border edges (used by one triangle, by position) of a mesh that lie in the plane.
+    fn border_edges_on_plane(m: &TriMesh, axis: usize, plane: f32) -> Vec<Edge> {
+        let mut count: HashMap<Edge, usize> = HashMap::new();
+        for t in &m.indices {
+            for k in 0..3 {
+                let a = m.positions[t[k] as usize].map(f32::to_bits);
+                let b = m.positions[t[(k + 1) % 3] as usize].map(f32::to_bits);
+                let e = if a < b { [a, b] } else { [b, a] };
+                *count.entry(e).or_default() += 1;
+            }
+        }
+        let mut out: Vec<Edge> = count
+            .into_iter()
+            .filter(|(e, c)| *c == 1 && f32::from_bits(e[0][axis]) == plane && f32::from_bits(e[1][axis]) == plane)
+            .map(|(e, _)| e)
+            .collect();
+        out.sort();
+        out
+    }
+
+    #[test]
+    fn bunny_site_partition_levels_atlases_and_loader() {
+        let (m, rep) = crate::repair::repair(&bunny());
+        let area = m.total_area();
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("bunny.igi");
+        let opts = PrepareOptions {
+            grid: VoxelGrid::new([-1.0, 0.3, -0.7], 4.3).unwrap(),
+            atlas: AtlasOptions { resolution: 256, gutter: 2 },
+            levels: vec![1.0, 0.2, 0.05],
+        };
+        let man = prepare(m.clone(), None, rep.clone(), &out, "bunny", &opts, &|_, _| {}).unwrap();
+        assert!(man.voxels.len() >= 8, "{} voxels", man.voxels.len());
+        let store = SiteStore::open(&out).unwrap();
+        let ids = store.voxel_ids();
+        // 1. area: every piece of surface in exactly one voxel, inside its bounds
+        let mut sum = 0.0;
+        let mut levels: HashMap<(VoxelId, usize), TriMesh> = HashMap::new();
+        for &v in &ids {
+            let (lo, hi) = opts.grid.bounds(v);
+            for l in 0..3 {
+                let mesh = store.load_voxel(v, l).unwrap();
+                for p in &mesh.positions {
+                    for k in 0..3 {
+                        assert!(p[k] >= lo[k] && p[k] <= hi[k], "{v:?} level {l}: {p:?} outside");
+                    }
+                }
+                assert!(mesh.uvs.is_some() && mesh.normals.is_some());
+                levels.insert((v, l), mesh);
+            }
+            sum += levels[&(v, 0)].total_area();
+        }
+        assert!((sum - area).abs() < 1e-5 * area, "voxel area {sum} vs mesh {area}");
+        // 2. boundary edges of face neighbours match exactly, at every pair of levels
+        let mut checked = 0;
+        for &a in &ids {
+            for axis in 0..3 {
+                let mut b = a;
+                b[axis] += 1;
+                if !ids.contains(&b) {
+                    continue;
+                }
+                let plane = opts.grid.plane(axis, b[axis]);
+                let ea0 = border_edges_on_plane(&levels[&(a, 0)], axis, plane);
+                if ea0.is_empty() {
+                    continue;
+                }
+                for la in 0..3 {
+                    for lb in 0..3 {
+                        let ea = border_edges_on_plane(&levels[&(a, la)], axis, plane);
+                        let eb = border_edges_on_plane(&levels[&(b, lb)], axis, plane);
+                        let only_a: Vec<_> = ea.iter().filter(|e| !eb.contains(e)).map(|e| e.map(|p| p.map(f32::from_bits))).collect();
+                        let only_b: Vec<_> = eb.iter().filter(|e| !ea.contains(e)).map(|e| e.map(|p| p.map(f32::from_bits))).collect();
+                        assert!(
+                            only_a.is_empty() && only_b.is_empty(),
+                            "{a:?} level {la} vs {b:?} level {lb} on axis {axis}: only in a {only_a:?}, only in b {only_b:?}"
+                        );
+                        assert_eq!(ea, ea0);
+                    }
+                }
+                checked += 1;
+            }
+        }
+        assert!(checked >= 3, "only {checked} shared faces checked");
+        // 3. levels really are smaller and report their error
+        let t: Vec<usize> = man.triangles_per_level.clone();
+        assert_eq!(t[0], man.voxels.iter().map(|e| e.triangles[0]).sum::<usize>());
+        assert!(t[1] < t[0] / 2 && t[2] < t[1], "{t:?}");
+        assert!(man.voxels.iter().all(|e| e.errors[0] == 0.0 && e.errors.iter().all(|x| x.is_finite() && *x >= 0.0)));
+        let err_sum = |l: usize| man.voxels.iter().map(|e| e.errors[l]).sum::<f64>();
+        assert!(err_sum(2) > err_sum(1) && err_sum(1) > 0.0, "{} {}", err_sum(1), err_sum(2));
+        // the errors are small against the 9 m bunny
+        assert!(man.voxels.iter().all(|e| e.errors[2] < 0.5), "{:?}", man.voxels.iter().map(|e| e.errors[2]).collect::<Vec<_>>());
+        // 4. coverage and texel caches: cached positions lie on the mesh
+        assert!(man.coverage_mean > 0.05 && man.coverage_mean <= 1.0, "{}", man.coverage_mean);
+        let v = ids[ids.len() / 2];
+        let e = man.voxels.iter().find(|e| e.voxel == Some(v)).unwrap();
+        let pos = igi_imaging::read_image(&store.voxel_folder(v).unwrap().join("position.exr")).unwrap();
+        let m0 = &levels[&(v, 0)];
+        let uv = m0.uvs.as_ref().unwrap();
+        // the centroid and the cached point lie in the same texel: at most one texel diagonal
+        // apart on the projection plane, stretched at most sqrt(3) by the projection
+        let bound = e.texel_size * 2f64.sqrt() * 3f64.sqrt();
+        let mut worst = 0.0f64;
+        for tri in &m0.indices {
+            // the centroid of each triangle, looked up at the nearest texel
+            let p = [0, 1, 2].map(|k| tri.iter().map(|&i| m0.positions[i as usize][k] as f64).sum::<f64>() / 3.0);
+            let u = [0, 1].map(|k| tri.iter().map(|&i| uv[i as usize][k]).sum::<f32>() / 3.0);
+            let [x, y] = crate::atlas::uv_to_pixel(u, pos.width);
+            let q = pos.get(x.round() as usize, y.round() as usize).map(f64::from);
+            let d = ((q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2) + (q[2] - p[2]).powi(2)).sqrt();
+            worst = worst.max(d);
+        }
+        assert!(worst <= bound, "cache position off by {worst} m (texel {} m)", e.texel_size);
+        // 5. loader: v high, neighbours medium, the rest low
+        let parts = store.load_for_voxel(v).unwrap();
+        assert_eq!(parts.len(), ids.len());
+        let mut loaded = 0;
+        for p in &parts {
+            let u = p.voxel.unwrap();
+            let d = (0..3).map(|k| (u[k] - v[k]).abs()).max().unwrap();
+            assert_eq!(p.level, [0, 1, 2][d.min(2) as usize]);
+            assert_eq!(p.mesh.indices.len(), man.voxels.iter().find(|e| e.voxel == Some(u)).unwrap().triangles[p.level]);
+            loaded += p.mesh.indices.len();
+        }
+        assert!(loaded < t[0]);
+        assert!(store.load_for_voxel([99, 99, 99]).is_err());
+        // 6. resume: a finished voxel is not rewritten; a broken one is redone
+        let f0 = store.voxel_folder(ids[0]).unwrap().join("level0.ply");
+        let t0 = std::fs::metadata(&f0).unwrap().modified().unwrap();
+        let f1 = store.voxel_folder(ids[1]).unwrap();
+        std::fs::remove_file(f1.join("level2.ply")).unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(20));
+        let man2 = prepare(m.clone(), None, rep.clone(), &out, "bunny", &opts, &|_, _| {}).unwrap();
+        assert_eq!(std::fs::metadata(&f0).unwrap().modified().unwrap(), t0);
+        assert!(f1.join("level2.ply").exists());
+        assert_eq!(man2.voxels.len(), man.voxels.len());
+        for (a, b) in man2.voxels.iter().zip(&man.voxels) {
+            assert_eq!((a.voxel, &a.triangles, a.charts), (b.voxel, &b.triangles, b.charts));
+            assert!((a.texel_size - b.texel_size).abs() < 1e-12 && (a.area - b.area).abs() < 1e-9);
+        }
+        // different settings on the same folder are refused
+        let mut other = opts.clone();
+        other.grid.size = 3.0;
+        let e = prepare(m, None, rep, &out, "bunny", &other, &|_, _| {}).unwrap_err().to_string();
+        assert!(e.contains("different settings"), "{e}");
+    }
+
+    #[test]
+    fn bad_levels_are_refused() {
+        let mut o = PrepareOptions::default();
+        o.levels = vec![0.5, 0.2];
+        assert!(o.check().is_err());
+        o.levels = vec![1.0, 0.2, 0.3];
+        assert!(o.check().is_err());
+        o.levels = vec![1.0, 0.0];
+        assert!(o.check().is_err());
+        o.levels = vec![1.0, 0.25, 0.05];
+        o.check().unwrap();
+    }
+}
