@@ -39,8 +39,9 @@ enum Command {
     Compare(cmd::compare::CompareArgs),
     /// Lighting from a capture of the three-sphere board. (planned: issue 4)
     Probe(cmd::planned::PlannedArgs),
-    /// BRDFs from hand-held samples: fit, eval, infer, cluster. (planned: issue 5)
-    Brdf(cmd::planned::PlannedArgs),
+    /// BRDFs from hand-held samples: fit, eval, infer, cluster.
+    #[command(subcommand)]
+    Brdf(cmd::brdf::BrdfCmd),
     /// Voxelize a scanned site into a multiresolution store with atlases. (planned: issue 6)
     Prepare(cmd::prepare::PrepareArgs),
     /// Summarise a prepared site. (planned: issue 6)
@@ -65,7 +66,7 @@ fn main() {
         Command::Render(a) => cmd::render::run(a, &ctx),
         Command::Compare(a) => cmd::compare::run(a, &ctx),
         Command::Probe(a) => cmd::planned::run("probe", 4, a),
-        Command::Brdf(a) => cmd::planned::run("brdf", 5, a),
+        Command::Brdf(c) => cmd::brdf::run(c, &ctx),
         Command::Prepare(a) => cmd::prepare::run_prepare(a, &ctx),
         Command::Info(a) => cmd::prepare::run_info(a, &ctx),
         Command::Solve(a) => cmd::planned::run("solve", 7, a),

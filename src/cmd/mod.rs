@@ -1,5 +1,6 @@
 //! One module per subcommand.
 
+pub mod brdf;
 pub mod camera;
 pub mod compare;
 pub mod demo;
