@@ -11,7 +11,7 @@ use crate::sampling::{power_heuristic, Rng};
 use crate::scene::{Scene, SurfacePoint};
 use crate::RenderError;
 use glam::{DVec3, Vec2, Vec3};
-use igi_brdf::{Frame, LafortuneRef};
+use igi_brdf::{BsdfSample, Frame, LafortuneRef};
 use igi_imaging::{Camera, HdrImage};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -85,11 +85,54 @@ pub struct RenderOutput {
     pub bad_samples: u64,
 }
 
-#[inline]
 /// Offsets a ray origin off a surface along `n`, by an amount that scales with the coordinates.
+#[inline]
 pub fn offset_origin(p: Vec3, n: Vec3) -> Vec3 {
     let scale = 1.0 + p.abs().max_element();
     p + n * (3e-5 * scale)
+}
+
+/// The BRDF at a vertex, with a fast path for purely Lambertian materials (no lobes): the
+/// general Lafortune mixture pdf costs a log and an exp per call, the Lambertian one a multiply.
+#[derive(Clone, Copy)]
+struct Shading<'b> {
+    brdf: LafortuneRef<'b>,
+}
+
+const INV_PI: f32 = std::f32::consts::FRAC_1_PI;
+
+impl<'b> Shading<'b> {
+    #[inline]
+    fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        if self.brdf.lobes.is_empty() {
+            if wi.z > 0.0 && wo.z > 0.0 {
+                (self.brdf.rho_d * INV_PI, wi.z * INV_PI)
+            } else {
+                (Vec3::ZERO, 0.0)
+            }
+        } else {
+            self.brdf.eval_pdf(wo, wi)
+        }
+    }
+
+    #[inline]
+    fn sample(&self, wo: Vec3, u_select: f32, u: Vec2) -> Option<BsdfSample> {
+        if self.brdf.lobes.is_empty() {
+            if !(wo.z > 0.0) {
+                return None;
+            }
+            // Cosine-weighted hemisphere (Malley): pdf = cos / pi.
+            let r = u.x.sqrt();
+            let (s, c) = (2.0 * std::f32::consts::PI * u.y).sin_cos();
+            let wi = Vec3::new(r * c, r * s, (1.0 - u.x).max(0.0).sqrt());
+            if !(wi.z > 0.0) {
+                return None;
+            }
+            Some(BsdfSample { wi, value: self.brdf.rho_d * INV_PI, pdf: wi.z * INV_PI })
+        } else {
+            self.brdf.sample(wo, u_select, u)
+        }
+    }
 }
 
 /// The path tracer bound to a scene and a lighting.
@@ -136,9 +179,11 @@ impl<'a> PathTracer<'a> {
             let ns = if sp.ns.dot(ng) < 0.0 { -sp.ns } else { sp.ns };
             let frame = Frame::from_normal(ns);
             let wo_l = frame.to_local(wo);
-            let brdf = match (vertex, first_brdf) {
-                (1, Some(b)) => b,
-                _ => self.scene.objects[sp.object as usize].material.brdf_at(sp.uv),
+            let brdf = Shading {
+                brdf: match (vertex, first_brdf) {
+                    (1, Some(b)) => b,
+                    _ => self.scene.objects[sp.object as usize].material.brdf_at(sp.uv),
+                },
             };
             let origin = offset_origin(sp.position, ng);
 
@@ -195,7 +240,8 @@ impl<'a> PathTracer<'a> {
                         }
                     }
                     if let Some(env) = env {
-                        le += env.eval(wi) * power_heuristic(bs.pdf, env.pdf(wi));
+                        let (l_env, pdf_env) = env.eval_pdf(wi);
+                        le += l_env * power_heuristic(bs.pdf, pdf_env);
                     }
                     l += beta * le;
                     break;

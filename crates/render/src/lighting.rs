@@ -11,7 +11,8 @@
 //!   `direction`, sampled uniformly in that cone (pdf = 1 / solid angle). Membership is tested
 //!   with `|d x s|^2 <= sin^2(half angle)`, which keeps full f32 precision for a 0.53 degree disk.
 
-use crate::sampling::{sample_cone, Distribution2D};
+use crate::sampling::{sample_cone_in, Distribution2D};
+use igi_brdf::Frame;
 use crate::RenderError;
 use glam::{Vec2, Vec3};
 use igi_brdf::luminance;
@@ -118,13 +119,24 @@ impl Environment {
     /// the poles.
     #[inline]
     pub fn eval(&self, d: Vec3) -> Vec3 {
-        let (x, y) = latlong::direction_to_pixel(d, self.w, self.h);
+        let (u, v) = latlong::direction_to_uv(d);
+        self.eval_uv(u, v)
+    }
+
+    /// Bilinear radiance at lat-long coordinates (u, v) in [0, 1] (pixel x = u W - 0.5,
+    /// y = v H - 0.5; wrap in x, clamp in y).
+    #[inline]
+    pub fn eval_uv(&self, u: f32, v: f32) -> Vec3 {
+        let x = u * self.w as f32 - 0.5;
+        let y = v * self.h as f32 - 0.5;
         let (x0f, y0f) = (x.floor(), y.floor());
         let (fx, fy) = (x - x0f, y - y0f);
-        let x0 = (x0f as i64).rem_euclid(self.w as i64) as usize;
-        let x1 = (x0 + 1) % self.w;
-        let y0 = (y0f as i64).clamp(0, self.h as i64 - 1) as usize;
-        let y1 = (y0f as i64 + 1).clamp(0, self.h as i64 - 1) as usize;
+        // x in [-0.5, W - 0.5]: the cell left of column 0 is the last column.
+        let x0 = if x0f < 0.0 { self.w - 1 } else { (x0f as usize).min(self.w - 1) };
+        let x1 = if x0 + 1 == self.w { 0 } else { x0 + 1 };
+        let y0 = if y0f < 0.0 { 0 } else { (y0f as usize).min(self.h - 1) };
+        let y1 = (y0 + 1).min(self.h - 1);
+        let fy = if y0f < 0.0 { 0.0 } else { fy };
         let top = self.texel(y0, x0) * (1.0 - fx) + self.texel(y0, x1) * fx;
         let bot = self.texel(y1, x0) * (1.0 - fx) + self.texel(y1, x1) * fx;
         top * (1.0 - fy) + bot * fy
@@ -136,12 +148,24 @@ impl Environment {
         if !self.nonzero {
             return 0.0;
         }
+        let (u, v) = latlong::direction_to_uv(d);
+        self.pdf_uv(d, u, v)
+    }
+
+    #[inline]
+    fn pdf_uv(&self, d: Vec3, u: f32, v: f32) -> f32 {
         let sin_t = (1.0 - d.z * d.z).max(0.0).sqrt();
-        if sin_t <= 0.0 {
+        if sin_t <= 0.0 || !self.nonzero {
             return 0.0;
         }
-        let (u, v) = latlong::direction_to_uv(d);
         self.dist.pdf(Vec2::new(u, v)) / (2.0 * PI * PI * sin_t)
+    }
+
+    /// Radiance and pdf of direction `d` with one lat-long conversion.
+    #[inline]
+    pub fn eval_pdf(&self, d: Vec3) -> (Vec3, f32) {
+        let (u, v) = latlong::direction_to_uv(d);
+        (self.eval_uv(u, v), self.pdf_uv(d, u, v))
     }
 
     /// Importance-samples a direction from two uniform numbers.
@@ -157,7 +181,7 @@ impl Environment {
             return None;
         }
         let pdf = pdf_uv / (2.0 * PI * PI * sin_t);
-        Some(LightSample { wi, radiance: self.eval(wi), pdf })
+        Some(LightSample { wi, radiance: self.eval_uv(uv.x, uv.y), pdf })
     }
 
     /// The sampling distribution (for tests and diagnostics).
@@ -178,6 +202,7 @@ pub struct Sun {
     one_minus_cos: f32,
     sin2_max: f32,
     solid_angle: f32,
+    frame: Frame,
 }
 
 impl Sun {
@@ -204,6 +229,7 @@ impl Sun {
             one_minus_cos: omc as f32,
             sin2_max: half.sin().powi(2) as f32,
             solid_angle: (2.0 * std::f64::consts::PI * omc) as f32,
+            frame: Frame::from_normal(direction / len),
         })
     }
 
@@ -241,7 +267,7 @@ impl Sun {
     #[inline]
     pub fn sample(&self, u: Vec2) -> LightSample {
         LightSample {
-            wi: sample_cone(self.direction, self.one_minus_cos, u),
+            wi: sample_cone_in(&self.frame, self.one_minus_cos, u),
             radiance: self.radiance,
             pdf: 1.0 / self.solid_angle,
         }

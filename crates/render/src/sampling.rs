@@ -69,6 +69,8 @@ impl Rng {
 #[derive(Clone, Debug)]
 pub struct Distribution1D {
     func: Vec<f32>,
+    /// Normalised density of each cell (func / integral, or 1 when the integral is 0).
+    pdf: Vec<f32>,
     /// cdf[0] = 0, cdf[n] = 1 (length n + 1).
     cdf: Vec<f32>,
     /// Integral of `func` over [0, 1] (= mean of func).
@@ -97,7 +99,8 @@ impl Distribution1D {
         };
         let mut cdf = cdf;
         cdf[n] = 1.0;
-        Distribution1D { func, cdf, integral }
+        let pdf = func.iter().map(|&f| if integral > 0.0 { (f as f64 / integral) as f32 } else { 1.0 }).collect();
+        Distribution1D { func, pdf, cdf, integral }
     }
 
     pub fn len(&self) -> usize {
@@ -116,24 +119,30 @@ impl Distribution1D {
     /// Density (w.r.t. x in [0,1)) of cell `i`.
     #[inline]
     pub fn pdf_cell(&self, i: usize) -> f32 {
-        if self.integral > 0.0 {
-            (self.func[i] as f64 / self.integral) as f32
-        } else {
-            1.0
-        }
+        self.pdf[i]
     }
 
     /// Samples x in [0, 1); returns (x, pdf(x), cell index).
     #[inline]
     pub fn sample(&self, u: f32) -> (f32, f32, usize) {
         let n = self.func.len();
-        // Largest i with cdf[i] <= u, restricted to cells of non-zero probability.
-        let mut i = self.cdf.partition_point(|&c| c <= u).saturating_sub(1).min(n - 1);
-        while i > 0 && self.cdf[i + 1] <= self.cdf[i] {
-            i -= 1; // skip zero-probability cells (can only happen at u == cdf[i])
+        // Largest i with cdf[i] <= u (branch-light binary search over cdf[0..n]).
+        let cdf = &self.cdf[..n];
+        let mut lo = 0usize;
+        let mut size = n;
+        while size > 1 {
+            let half = size / 2;
+            let mid = lo + half;
+            lo = if cdf[mid] <= u { mid } else { lo };
+            size -= half;
         }
+        let mut i = lo;
+        // Skip zero-probability cells (u landed exactly on a flat stretch of the cdf).
         while i + 1 < n && self.cdf[i + 1] <= self.cdf[i] {
             i += 1;
+        }
+        while i > 0 && self.cdf[i + 1] <= self.cdf[i] {
+            i -= 1;
         }
         let width = self.cdf[i + 1] - self.cdf[i];
         let du = if width > 0.0 { ((u - self.cdf[i]) / width).clamp(0.0, 1.0) } else { 0.5 };
@@ -197,12 +206,19 @@ impl Distribution2D {
 /// degree wide (the sun) keep full precision in f32. The pdf is 1 / (2 pi one_minus_cos_max).
 #[inline]
 pub fn sample_cone(axis: Vec3, one_minus_cos_max: f32, u: Vec2) -> Vec3 {
+    sample_cone_in(&Frame::from_normal(axis), one_minus_cos_max, u)
+}
+
+/// [`sample_cone`] around `frame.n` with a precomputed frame.
+#[inline]
+pub fn sample_cone_in(frame: &Frame, one_minus_cos_max: f32, u: Vec2) -> Vec3 {
     let omc = u.x * one_minus_cos_max; // 1 - cos(theta), uniform
     let sin2 = (omc * (2.0 - omc)).max(0.0);
     let sin_t = sin2.sqrt();
     let cos_t = 1.0 - omc;
     let phi = 2.0 * std::f32::consts::PI * u.y;
-    Frame::from_normal(axis).to_world(Vec3::new(sin_t * phi.cos(), sin_t * phi.sin(), cos_t)).normalize()
+    let (sp, cp) = phi.sin_cos();
+    frame.to_world(Vec3::new(sin_t * cp, sin_t * sp, cos_t)).normalize()
 }
 
 /// Power heuristic (beta = 2) weight of strategy `a` against `b`, with one sample each.
