@@ -558,3 +558,34 @@ mod tests {
         assert!(!und.is_valid(0, 0));
     }
 }
+
+impl WorldToCamera {
+    /// The pose of a camera at `eye` looking at `target`, with world `up` (Z in igi's frame)
+    /// pointing up in the image (OpenCV axes: x right, y down, z forward). `None` when the view
+    /// direction is degenerate or parallel to `up`.
+    pub fn look_at(eye: DVec3, target: DVec3, up: DVec3) -> Option<WorldToCamera> {
+        let z = (target - eye).try_normalize()?;
+        let x = z.cross(up).try_normalize()?;
+        let y = z.cross(x);
+        let r = DMat3::from_cols(x, y, z).transpose();
+        Some(WorldToCamera { r, t: -(r * eye) })
+    }
+}
+
+#[cfg(test)]
+mod look_at_tests {
+    use super::*;
+
+    #[test]
+    fn look_at_puts_the_target_at_the_principal_point_and_up_at_the_top() {
+        let pose = WorldToCamera::look_at(DVec3::new(1.0, -5.0, 2.0), DVec3::new(0.0, 0.0, 1.0), DVec3::Z).unwrap();
+        let mut cam = Camera::pinhole(100, 80, 90.0, 90.0, 49.5, 39.5);
+        cam.pose = pose;
+        let c = cam.project(DVec3::new(0.0, 0.0, 1.0)).unwrap();
+        assert!((c.x - 49.5).abs() < 1e-9 && (c.y - 39.5).abs() < 1e-9, "{c}");
+        let above = cam.project(DVec3::new(0.0, 0.0, 1.5)).unwrap();
+        assert!(above.y < c.y, "a point above the target is higher in the image");
+        assert!(check_rotation(&cam.pose.r).is_ok());
+        assert!((cam.center_world() - DVec3::new(1.0, -5.0, 2.0)).length() < 1e-12);
+    }
+}

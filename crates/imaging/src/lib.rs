@@ -25,6 +25,7 @@ pub mod hdr;
 mod image;
 pub mod io;
 pub mod latlong;
+pub mod plot;
 pub mod radiometry;
 
 pub use camera::{Camera, CameraToWorld, Distortion, Intrinsics, WorldToCamera};
