@@ -73,6 +73,8 @@ pub struct Distribution1D {
     pdf: Vec<f32>,
     /// cdf[0] = 0, cdf[n] = 1 (length n + 1).
     cdf: Vec<f32>,
+    /// Walker/Vose alias table: (probability of keeping cell i, alias of cell i).
+    alias: Vec<(f32, u32)>,
     /// Integral of `func` over [0, 1] (= mean of func).
     integral: f64,
 }
@@ -100,7 +102,8 @@ impl Distribution1D {
         let mut cdf = cdf;
         cdf[n] = 1.0;
         let pdf = func.iter().map(|&f| if integral > 0.0 { (f as f64 / integral) as f32 } else { 1.0 }).collect();
-        Distribution1D { func, pdf, cdf, integral }
+        let alias = build_alias(&func, integral * n as f64);
+        Distribution1D { func, pdf, cdf, alias, integral }
     }
 
     pub fn len(&self) -> usize {
@@ -122,21 +125,29 @@ impl Distribution1D {
         self.pdf[i]
     }
 
-    /// Samples x in [0, 1); returns (x, pdf(x), cell index).
+    /// Samples x in [0, 1); returns (x, pdf(x), cell index). O(1) through the alias table: the
+    /// cell is chosen with probability func[i] / sum(func), and x is uniform inside it. Not
+    /// monotone in `u` (use [`Self::sample_inverse_cdf`] where that matters).
     #[inline]
     pub fn sample(&self, u: f32) -> (f32, f32, usize) {
         let n = self.func.len();
-        // Largest i with cdf[i] <= u (branch-light binary search over cdf[0..n]).
-        let cdf = &self.cdf[..n];
-        let mut lo = 0usize;
-        let mut size = n;
-        while size > 1 {
-            let half = size / 2;
-            let mid = lo + half;
-            lo = if cdf[mid] <= u { mid } else { lo };
-            size -= half;
-        }
-        let mut i = lo;
+        let s = u * n as f32;
+        let j = (s as usize).min(n - 1);
+        let f = (s - j as f32).clamp(0.0, 1.0);
+        let (keep, other) = self.alias[j];
+        let (i, du) = if f < keep {
+            (j, f / keep)
+        } else {
+            (other as usize, if keep < 1.0 { (f - keep) / (1.0 - keep) } else { 0.5 })
+        };
+        let x = ((i as f32 + du.clamp(0.0, 1.0)) / n as f32).min(1.0 - f32::EPSILON * 0.5);
+        (x, self.pdf[i], i)
+    }
+
+    /// Samples x in [0, 1) by inverting the cdf (monotone in `u`, O(log n)).
+    pub fn sample_inverse_cdf(&self, u: f32) -> (f32, f32, usize) {
+        let n = self.func.len();
+        let mut i = self.cdf[..n].partition_point(|&c| c <= u).saturating_sub(1).min(n - 1);
         // Skip zero-probability cells (u landed exactly on a flat stretch of the cdf).
         while i + 1 < n && self.cdf[i + 1] <= self.cdf[i] {
             i += 1;
@@ -149,6 +160,30 @@ impl Distribution1D {
         let x = ((i as f32 + du) / n as f32).min(1.0 - f32::EPSILON * 0.5);
         (x, self.pdf_cell(i), i)
     }
+}
+
+/// Vose's alias table for non-negative weights `func` whose sum is `total`.
+fn build_alias(func: &[f32], total: f64) -> Vec<(f32, u32)> {
+    let n = func.len();
+    if !(total > 0.0) {
+        return (0..n).map(|i| (1.0, i as u32)).collect();
+    }
+    let mut scaled: Vec<f64> = func.iter().map(|&f| f as f64 * n as f64 / total).collect();
+    let mut table = vec![(1.0f32, 0u32); n];
+    let (mut small, mut large): (Vec<usize>, Vec<usize>) = (0..n).partition(|&i| scaled[i] < 1.0);
+    while let (Some(&s), Some(&l)) = (small.last(), large.last()) {
+        small.pop();
+        table[s] = (scaled[s] as f32, l as u32);
+        scaled[l] -= 1.0 - scaled[s];
+        if scaled[l] < 1.0 {
+            large.pop();
+            small.push(l);
+        }
+    }
+    for i in large.into_iter().chain(small) {
+        table[i] = (1.0, i as u32); // leftovers are 1 up to rounding
+    }
+    table
 }
 
 /// Piecewise-constant density on [0, 1)^2 over a `w x h` grid (row index = v, column = u).
@@ -277,13 +312,25 @@ mod tests {
             let expect = n as f64 * f[i] as f64 / 8.0;
             assert!((counts[i] as f64 - expect).abs() < 4.0 * expect.sqrt(), "{i} {counts:?}");
         }
-        // Edge values of u.
-        let (x0, _, i0) = d.sample(0.0);
+        // Edge values of u land in cells of non-zero probability, inside [0, 1).
+        for u in [0.0, 1e-7, 0.4, 0.6, 0.999_999_9] {
+            let (x, _, i) = d.sample(u);
+            assert!(f[i] > 0.0 && (0.0..1.0).contains(&x), "u = {u}: cell {i}, x = {x}");
+            let (x, _, i) = d.sample_inverse_cdf(u);
+            assert!(f[i] > 0.0 && (0.0..1.0).contains(&x), "u = {u}: cell {i}, x = {x}");
+        }
+        let (x0, _, i0) = d.sample_inverse_cdf(0.0);
         assert_eq!(i0, 1);
         assert!((x0 - 0.2).abs() < 1e-6);
-        let (x1, _, i1) = d.sample(0.999_999_9);
-        assert_eq!(i1, 4);
-        assert!(x1 < 1.0);
+        // The inverse-cdf sampler follows the function too.
+        let mut c2 = [0usize; 5];
+        for _ in 0..n {
+            c2[d.sample_inverse_cdf(rng.uniform()).2] += 1;
+        }
+        for i in [1, 2, 4] {
+            let expect = n as f64 * f[i] as f64 / 8.0;
+            assert!((c2[i] as f64 - expect).abs() < 4.0 * expect.sqrt(), "{i} {c2:?}");
+        }
         // All-zero function: uniform.
         let z = Distribution1D::new(&[0.0, 0.0]);
         assert_eq!(z.pdf_cell(1), 1.0);
