@@ -15,6 +15,8 @@ pub struct ProbeOptions {
     pub map_width: usize,
     /// Side of the upper-hemisphere pictures.
     pub hemi_size: usize,
+    /// Each sky texel averages `n` x `n` sub-directions (area sampling of the sphere image).
+    pub map_supersample: usize,
     /// Width of the lat-long map integrated for the diffuse convolution (divides `map_width`).
     pub conv_width: usize,
     /// Mirror and black sphere pixels beyond this incidence angle are not used (grazing
@@ -43,6 +45,7 @@ impl Default for ProbeOptions {
         ProbeOptions {
             map_width: 256,
             hemi_size: 512,
+            map_supersample: 2,
             conv_width: 128,
             max_incidence_deg: 72.0,
             camera_mask_deg: 4.0,
@@ -181,17 +184,32 @@ fn unwarp_latlong(
     view: &SphereView,
     refl: &(dyn Fn(f64) -> [f64; 3] + Sync),
     w: usize,
+    ss: usize,
     min_cos: f64,
     cam_cos: f64,
 ) -> HdrImage {
     let h = w / 2;
+    let ss = ss.max(1);
+    // each texel: the mean of ss x ss sub-directions (an area average, not a point sample);
+    // valid only if every sub-direction is
     let rows: Vec<Vec<Option<[f32; 3]>>> = (0..h)
         .into_par_iter()
         .map(|i| {
             (0..w)
                 .map(|j| {
-                    let d = latlong::pixel_center_direction(i, j, w, h).as_dvec3().normalize();
-                    reflected_radiance(img, view, d, refl, min_cos, cam_cos)
+                    let mut acc = [0.0f64; 3];
+                    for sy in 0..ss {
+                        for sx in 0..ss {
+                            let u = (j as f32 + (sx as f32 + 0.5) / ss as f32) / w as f32;
+                            let v = (i as f32 + (sy as f32 + 0.5) / ss as f32) / h as f32;
+                            let d = latlong::uv_to_direction(u, v).as_dvec3().normalize();
+                            let p = reflected_radiance(img, view, d, refl, min_cos, cam_cos)?;
+                            for c in 0..3 {
+                                acc[c] += p[c] as f64;
+                            }
+                        }
+                    }
+                    Some(acc.map(|v| (v / (ss * ss) as f64) as f32))
                 })
                 .collect()
         })
@@ -392,7 +410,7 @@ pub fn process(image: &HdrImage, camera: &Camera, board: &Board, opt: &ProbeOpti
             }
         }
     }
-    let sky_measured = unwarp_latlong(&mirror_img, &mirror, &mirror_refl, opt.map_width, min_cos, cam_cos);
+    let sky_measured = unwarp_latlong(&mirror_img, &mirror, &mirror_refl, opt.map_width, opt.map_supersample, min_cos, cam_cos);
     let mut sky = sky_measured.clone();
     envmap::fill_invalid_latlong(&mut sky);
     sky.valid.iter_mut().for_each(|v| *v = true);

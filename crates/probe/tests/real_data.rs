@@ -1,0 +1,156 @@
+//! Real data: lat-long light probes (round trip through a rendered mirror ball) and a real
+//! chrome ball photographed in three brackets.
+
+use glam::{DMat3, DVec3};
+use igi_imaging::hdr::{merge_linear, LinearParams};
+use igi_imaging::io::srgb_to_linear;
+use igi_imaging::{latlong, read_image, Camera, HdrImage, WorldToCamera};
+use igi_probe::synth::render_board;
+use igi_probe::{process, Board, ProbeOptions};
+use std::path::PathBuf;
+
+fn data(rel: &str) -> PathBuf {
+    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data")).join(rel)
+}
+
+/// Camera at the world origin looking along +X (x right = world -Y, y down = world -Z).
+fn camera(w: u32, h: u32, f: f64) -> Camera {
+    let mut c = Camera::pinhole(w, h, f, f, (w as f64 - 1.0) / 2.0, (h as f64 - 1.0) / 2.0);
+    c.pose = WorldToCamera {
+        r: DMat3::from_cols_array_2d(&[[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]]).transpose(),
+        t: DVec3::ZERO,
+    };
+    c
+}
+
+/// Box-average a lat-long map by `f` (solid-angle weighted).
+fn downsample(m: &HdrImage, f: usize) -> HdrImage {
+    igi_probe::envmap::downsample_latlong(m, f)
+}
+
+/// Reference: the area average over each texel of a `w` x `w/2` map of the continuous
+/// environment the renderer shows (the probe's bilinear interpolant), by 16 x 16 sub-samples
+/// weighted by sin(theta).
+fn area_average(probe: &HdrImage, w: usize) -> HdrImage {
+    let h = w / 2;
+    let mut out = HdrImage::new(w, h);
+    let n = 16;
+    for i in 0..h {
+        for j in 0..w {
+            let (mut acc, mut wsum) = ([0.0f64; 3], 0.0f64);
+            for sy in 0..n {
+                for sx in 0..n {
+                    let u = (j as f32 + (sx as f32 + 0.5) / n as f32) / w as f32;
+                    let v = (i as f32 + (sy as f32 + 0.5) / n as f32) / h as f32;
+                    let wt = (std::f64::consts::PI * v as f64).sin();
+                    let p = igi_probe::envmap::latlong_lookup(probe, latlong::uv_to_direction(u, v)).unwrap();
+                    for c in 0..3 {
+                        acc[c] += wt * p[c] as f64;
+                    }
+                    wsum += wt;
+                }
+            }
+            out.set(j, i, acc.map(|v| (v / wsum) as f32));
+        }
+    }
+    out
+}
+
+#[test]
+fn latlong_probe_round_trip_through_a_mirror_ball() {
+    // grace (tiny lamps of up to 3500x the mean near the zenith) is reported, not asserted:
+    // see docs/PROBE.md, "Known limits"
+    for name in ["pisa", "uffizi", "wells", "ennis", "grace"] {
+        let probe = read_image(&data(&format!("light_probes/probulator_latlong_256x128/{name}.hdr"))).unwrap();
+        assert_eq!((probe.width, probe.height), (256, 128));
+        let cam = camera(800, 800, 3000.0);
+        // ball of radius 0.1 m at 1.0 m: about 302 px in radius
+        let board = Board::mirror_only(DVec3::new(0.0, 0.0, 1.0), 0.1);
+        let img = render_board(&cam, &board, &probe, None, 3);
+        let opt = ProbeOptions { map_width: 512, conv_width: 128, ..ProbeOptions::default() };
+        let r = process(&img, &cam, &board, &opt).unwrap();
+        assert!(!r.diagnostics.sun_found || r.diagnostics.sun.as_ref().unwrap().radiance.is_none());
+        // compare at 64x32 (5.6 degree texels): the recovered 512x256 map box-averaged, the
+        // probe's interpolant area-averaged; only coarse texels whose every fine texel is valid (outside the blind
+        // spot and the camera cone)
+        let (cw, ch) = (64, 32);
+        let rec = downsample(&r.sky_measured, 512 / cw);
+        let reference = area_average(&probe, cw);
+        let (mut se, mut st, mut n) = (0.0f64, 0.0f64, 0usize);
+        for i in 0..ch {
+            let sa = latlong::pixel_solid_angle(i, cw, ch) as f64;
+            for j in 0..cw {
+                let k = i * cw + j;
+                if !rec.valid[k] {
+                    continue;
+                }
+                for c in 0..3 {
+                    se += sa * (rec.pixels[k][c] - reference.pixels[k][c]).powi(2) as f64;
+                    st += sa * (reference.pixels[k][c] as f64).powi(2);
+                }
+                n += 1;
+            }
+        }
+        let rel = (se / st).sqrt();
+        eprintln!("{name}: round trip relative RMS {:.4} over {n} of {} texels", rel, cw * ch);
+        assert!(n > cw * ch * 3 / 4, "{name}: only {n} valid texels");
+        if name != "grace" {
+            assert!(rel < 0.03, "{name}: round trip relative RMS {rel}");
+        }
+        assert!(r.sky.pixels.iter().flatten().all(|v| v.is_finite()));
+    }
+}
+
+#[test]
+fn real_chrome_ball_brackets_merge_and_unwarp() {
+    // 147x147 crops of the same ball at 0.1, 0.025, 0.00625 s (sRGB JPEGs); the ball fills the
+    // crop: centre (73, 73), radius about 72 px. A long lens makes the view nearly orthographic.
+    let names = ["rec1.jpg", "rec2.jpg", "rec3.jpg"];
+    let times = [0.1, 0.025, 0.00625];
+    let imgs: Vec<HdrImage> = names
+        .iter()
+        .map(|n| {
+            let mut im = read_image(&data(&format!("mirror_ball_ldr/olapietka_sony_a6400/{n}"))).unwrap();
+            im.pixels.iter_mut().for_each(|p| *p = p.map(srgb_to_linear));
+            im
+        })
+        .collect();
+    let sat = srgb_to_linear(0.98);
+    let (merged, _) = merge_linear(&imgs, &times, LinearParams { noise_floor: 0.002, saturation: sat }).unwrap();
+    let mut cam = camera(147, 147, 10000.0);
+    cam.intrinsics.cx = 73.0;
+    cam.intrinsics.cy = 73.0;
+    let board = Board::mirror_only(DVec3::new(0.0, 0.0, 10000.0 / 71.5), 1.0);
+    let r = process(&merged, &cam, &board, &ProbeOptions::default()).unwrap();
+    let m = &r.sky_measured;
+    assert!(r.sky.pixels.iter().flatten().all(|v| v.is_finite() && *v >= 0.0));
+    assert!(m.valid_fraction() > 0.5, "valid fraction {}", m.valid_fraction());
+    // the brightest 0.5 % of valid directions: the lamps (and the window), many times the
+    // median, and where the ball shows them (projected back) the longest exposure is clipped
+    let mut idx: Vec<usize> = (0..m.pixels.len()).filter(|&k| m.valid[k]).collect();
+    let lum = |p: [f32; 3]| 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
+    idx.sort_by(|a, b| lum(m.pixels[*b]).total_cmp(&lum(m.pixels[*a])));
+    let top = &idx[..idx.len() / 200];
+    let median = lum(m.pixels[idx[idx.len() / 2]]);
+    let mirror = igi_probe::sphere::SphereView::new(&cam, igi_probe::SphereKind::Mirror, &board.mirror);
+    let (mut up, mut clipped) = (0, 0);
+    for &k in top {
+        let d = latlong::pixel_center_direction(k / m.width, k % m.width, m.width, m.height);
+        if d.z > 0.0 {
+            up += 1;
+        }
+        let rp = mirror.reflection_point(d.as_dvec3()).unwrap();
+        let (x, y) = (rp.pixel.x.round() as usize, rp.pixel.y.round() as usize);
+        if imgs[0].get(x, y).iter().any(|c| *c >= sat) {
+            clipped += 1;
+        }
+    }
+    let weakest = lum(m.pixels[*top.last().unwrap()]);
+    eprintln!(
+        "chrome ball: {} brightest directions, {up} above the horizon, {clipped} clipped in the long exposure; \
+         weakest of them {weakest}, median {median}",
+        top.len()
+    );
+    assert!(weakest > 10.0 * median, "the lamps are only {} x the median", weakest / median);
+    assert!(clipped as f64 > 0.8 * top.len() as f64);
+}
