@@ -382,6 +382,7 @@ mod tests {
         }
         let pure: usize = counts.iter().map(|c| *c.iter().max().unwrap()).sum();
         let purity = pure as f64 / data.len() as f64;
+        eprintln!("clustering: purity {purity:.3}, counts {counts:?}");
         assert!(purity >= 0.95, "purity {purity}, counts {counts:?}");
         // the clusters map to distinct materials, and their diffuse colours are close to the truth
         let mats = materials();
@@ -401,12 +402,15 @@ mod tests {
         let mix = vec![vec![0.3, 0.7, 0.0], vec![0.5, 0.0, 0.5], vec![0.2, 0.3, 0.5]];
         let data = lumitexels(&mix, 10, 15, 0.01, 9);
         let mats = materials();
+        let mut worst = 0.0f32;
         for (lt, label) in &data {
             let w = basis_weights(&mats, lt);
+            worst = (0..3).map(|k| (w[k] - mix[*label][k]).abs()).fold(worst, f32::max);
             for k in 0..3 {
                 assert!((w[k] - mix[*label][k]).abs() < 0.05, "weights {w:?} vs {:?}", mix[*label]);
             }
         }
+        eprintln!("mixtures: largest weight error {worst:.4}");
     }
 
     #[test]
