@@ -1,0 +1,62 @@
+//! Iterative inverse global illumination (Debevec et al. 2004, sections 4.1-4.2).
+//!
+//! Given a site (meshes), photographs with their cameras, and the lighting captured with each
+//! photograph, recover the diffuse albedo `rho_d` of every texel of the site's texture atlases,
+//! then infer the specular lobes from `rho_d` with a BRDF basis (when hand-held samples are
+//! given). The loop, per iteration:
+//!
+//! 1. render, for each texel `p` and photo `I`, the radiance leaving `p` toward `I`'s camera
+//!    under `I`'s lighting with the current reflectance everywhere (path tracing with
+//!    `igi-render`, two indirect bounces by default);
+//! 2. form the ratio proposal `rho_d(p) * I(p) / L_render(p)` per channel;
+//! 3. average the proposals over photos with weights (cosine of the view angle, lowered near
+//!    occlusion boundaries and near shadow edges, see [`weights`]);
+//! 4. repeat with more samples per estimate until the change in `rho_d` is below a tolerance.
+//!
+//! Texels seen by no photo are filled from their seen neighbours (see [`fill`]). Results are
+//! written per part (an input mesh, or a voxel of a prepared site) atomically, with a report of
+//! every iteration, and a killed run resumes after its last finished iteration.
+//!
+//! Modules: [`survey`] (the survey folder of FORMATS.md), [`parts`] (atlases and texel caches
+//! of the site), [`solver`] (the iteration), [`weights`] and [`fill`] (the documented rules),
+//! [`result`] (the result folder: atlases, `scene.toml`, `report.json`, export, sampling).
+
+pub mod fill;
+pub mod parts;
+pub mod plot;
+pub mod result;
+pub mod solver;
+pub mod survey;
+pub mod synth;
+pub mod weights;
+
+use std::path::PathBuf;
+
+pub use parts::{Part, TexelCache};
+pub use result::{export, load_result_scene, sample_albedo, ExportFormat, SolveResult};
+pub use solver::{solve, IterationRecord, Progress, SolveOptions, SolveReport};
+pub use survey::{PhotoSpec, Survey};
+
+/// Errors of the inverse solver.
+#[derive(Debug, thiserror::Error)]
+pub enum ReflectError {
+    /// A file is missing, unreadable or malformed.
+    #[error("{path}: {msg}")]
+    File { path: PathBuf, msg: String },
+    #[error("invalid input: {0}")]
+    Invalid(String),
+    #[error(transparent)]
+    Imaging(#[from] igi_imaging::ImagingError),
+    #[error(transparent)]
+    Geometry(#[from] igi_geometry::GeometryError),
+    #[error(transparent)]
+    Render(#[from] igi_render::RenderError),
+    #[error(transparent)]
+    Brdf(#[from] igi_brdf::BrdfError),
+}
+
+impl ReflectError {
+    pub(crate) fn file(path: impl Into<PathBuf>, msg: impl Into<String>) -> Self {
+        ReflectError::File { path: path.into(), msg: msg.into() }
+    }
+}

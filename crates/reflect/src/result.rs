@@ -1,0 +1,319 @@
+//! The result folder of a solve, and what reads it: resuming, re-lighting, export, sampling.
+//!
+//! ```text
+//! RESULT_DIR/
+//!   scene.toml                  FORMATS.md scene file (no lighting): one object per part
+//!   report.json                 options, per-iteration records, per-part summaries
+//!   convergence.png             error against run time
+//!   parts/NAME.ply              the part's mesh with atlas UVs
+//!   parts/NAME_rho_d.exr        recovered diffuse albedo (linear RGB atlas)
+//!   parts/NAME_weight.exr       sum of the observation weights per texel (grey)
+//!   parts/NAME_observations.exr number of photos that contributed per texel (grey)
+//!   parts/NAME_coverage.exr     1 covered, 0.5 gutter, 0 empty
+//!   parts/NAME_position.exr     texel cache: world position per texel
+//!   parts/NAME_normal.exr       texel cache: world normal per texel
+//!   parts/NAME_lobes.json       lobes inferred for the part (when BRDF samples were given)
+//! ```
+//! Every file is written atomically; `report.json` is written last in each checkpoint, so a
+//! run killed mid-iteration resumes from the last complete iteration.
+
+use crate::parts::{Part, Texel, TexelCache};
+use crate::solver::{SolveOptions, SolveReport};
+use crate::ReflectError;
+use glam::Vec3;
+use igi_brdf::Lobe;
+use igi_geometry::{read_mesh, write_obj, write_ply, TriMesh};
+use igi_imaging::{read_image, write_exr, HdrImage};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// The state and result of a solve.
+pub struct SolveResult {
+    pub parts: Vec<Part>,
+    /// Per part, per atlas texel (`row * res + column`): the diffuse albedo.
+    pub rho: Vec<Vec<Vec3>>,
+    pub weight_sum: Vec<Vec<f32>>,
+    pub observations: Vec<Vec<u32>>,
+    /// Lobes per part (empty without a BRDF basis).
+    pub lobes: Vec<Vec<Lobe>>,
+    pub report: SolveReport,
+}
+
+impl SolveResult {
+    /// A fresh state: every texel at the initial albedo.
+    pub fn fresh(parts: Vec<Part>, photo_ids: Vec<String>, opts: &SolveOptions) -> SolveResult {
+        let init = Vec3::from_array(opts.initial_albedo);
+        let rho = parts.iter().map(|p| vec![init; p.resolution() * p.resolution()]).collect();
+        let weight_sum = parts.iter().map(|p| vec![0.0; p.resolution() * p.resolution()]).collect();
+        let observations = parts.iter().map(|p| vec![0; p.resolution() * p.resolution()]).collect();
+        let lobes = parts.iter().map(|_| Vec::new()).collect();
+        SolveResult {
+            parts,
+            rho,
+            weight_sum,
+            observations,
+            lobes,
+            report: SolveReport { options: opts.clone(), photos: photo_ids, iterations: Vec::new(), parts: Vec::new(), converged: false },
+        }
+    }
+
+    /// Writes the parts' geometry and texel caches (once, at the start of a solve).
+    pub fn write_geometry(&self, dir: &Path) -> Result<(), ReflectError> {
+        let pdir = dir.join("parts");
+        std::fs::create_dir_all(&pdir).map_err(|e| ReflectError::file(&pdir, format!("cannot create folder: {e}")))?;
+        for p in &self.parts {
+            write_ply(&pdir.join(format!("{}.ply", p.name)), &p.mesh)?;
+            let r = p.resolution();
+            let mut pos = HdrImage::new(r, r);
+            let mut nrm = HdrImage::new(r, r);
+            for t in &p.cache.texels {
+                pos.pixels[t.index as usize] = t.position.to_array();
+                nrm.pixels[t.index as usize] = t.normal.to_array();
+            }
+            write_exr(&pdir.join(format!("{}_position.exr", p.name)), &pos)?;
+            write_exr(&pdir.join(format!("{}_normal.exr", p.name)), &nrm)?;
+            write_exr(&pdir.join(format!("{}_coverage.exr", p.name)), &p.coverage)?;
+        }
+        Ok(())
+    }
+
+    /// Writes the current albedo, weights, observation counts, lobes, `scene.toml`, the plot and
+    /// `report.json` (last).
+    pub fn write_state(&self, dir: &Path) -> Result<(), ReflectError> {
+        let pdir = dir.join("parts");
+        let mut scene = String::from("# Recovered reflectance (igi solve). Re-light with:\n# igi render THIS_FOLDER --lighting L.toml --camera C.json --spp N -o out.exr\n");
+        for (i, p) in self.parts.iter().enumerate() {
+            let r = p.resolution();
+            let img = |f: &dyn Fn(usize) -> [f32; 3]| {
+                let mut im = HdrImage::new(r, r);
+                for (k, px) in im.pixels.iter_mut().enumerate() {
+                    *px = f(k);
+                }
+                im
+            };
+            write_exr(&pdir.join(format!("{}_rho_d.exr", p.name)), &img(&|k| self.rho[i][k].to_array()))?;
+            write_exr(&pdir.join(format!("{}_weight.exr", p.name)), &img(&|k| [self.weight_sum[i][k]; 3]))?;
+            write_exr(&pdir.join(format!("{}_observations.exr", p.name)), &img(&|k| [self.observations[i][k] as f32; 3]))?;
+            if !self.lobes[i].is_empty() {
+                let json = serde_json::to_string_pretty(&self.lobes[i]).expect("lobes serialise");
+                write_text(&pdir.join(format!("{}_lobes.json", p.name)), &json)?;
+            }
+            let _ = writeln!(scene, "\n[[object]]\nmesh = \"parts/{0}.ply\"\nalbedo = \"parts/{0}_rho_d.exr\"", p.name);
+            if !self.lobes[i].is_empty() {
+                let lobes: Vec<String> = self.lobes[i]
+                    .iter()
+                    .map(|l| format!("{{ rho = [{}, {}, {}], cxy = {}, cz = {}, n = {} }}", l.rho.x, l.rho.y, l.rho.z, l.cxy, l.cz, l.n))
+                    .collect();
+                let _ = writeln!(scene, "lobes = [{}]", lobes.join(", "));
+            }
+        }
+        write_text(&dir.join("scene.toml"), &scene)?;
+        crate::plot::plot_convergence(&self.report, &dir.join("convergence.png"))?;
+        let json = serde_json::to_string_pretty(&self.report).expect("report serialises");
+        write_text(&dir.join("report.json"), &json)?;
+        Ok(())
+    }
+
+    /// Loads a result folder written by [`write_geometry`](Self::write_geometry) and
+    /// [`write_state`](Self::write_state), for resuming or reading.
+    pub fn load(dir: &Path) -> Result<SolveResult, ReflectError> {
+        let rp = dir.join("report.json");
+        let text = std::fs::read_to_string(&rp).map_err(|e| ReflectError::file(&rp, format!("cannot read: {e}")))?;
+        let report: SolveReport = serde_json::from_str(&text).map_err(|e| ReflectError::file(&rp, format!("not a solve report: {e}")))?;
+        let pdir = dir.join("parts");
+        let mut parts = Vec::new();
+        let (mut rho, mut weight_sum, mut observations, mut lobes) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        for s in &report.parts {
+            let name = &s.name;
+            let mesh = read_mesh(&pdir.join(format!("{name}.ply")))?;
+            let coverage = read_image(&pdir.join(format!("{name}_coverage.exr")))?;
+            let pos = read_image(&pdir.join(format!("{name}_position.exr")))?;
+            let nrm = read_image(&pdir.join(format!("{name}_normal.exr")))?;
+            let r = coverage.width;
+            let sized = |im: &HdrImage, f: &str| -> Result<(), ReflectError> {
+                if im.width != r || im.height != r {
+                    return Err(ReflectError::file(pdir.join(f), format!("is {}x{}, expected {r}x{r}", im.width, im.height)));
+                }
+                Ok(())
+            };
+            let rho_img = read_image(&pdir.join(format!("{name}_rho_d.exr")))?;
+            let w_img = read_image(&pdir.join(format!("{name}_weight.exr")))?;
+            let o_img = read_image(&pdir.join(format!("{name}_observations.exr")))?;
+            for (im, f) in [(&pos, "position"), (&nrm, "normal"), (&rho_img, "rho_d"), (&w_img, "weight"), (&o_img, "observations")] {
+                sized(im, &format!("{name}_{f}.exr"))?;
+            }
+            let texels = (0..r * r)
+                .filter(|&i| coverage.pixels[i][0] == 1.0)
+                .map(|i| Texel {
+                    index: i as u32,
+                    position: Vec3::from_array(pos.pixels[i]),
+                    normal: Vec3::from_array(nrm.pixels[i]).normalize_or(Vec3::Z),
+                })
+                .collect();
+            let lp = pdir.join(format!("{name}_lobes.json"));
+            let l: Vec<Lobe> = if lp.exists() {
+                let t = std::fs::read_to_string(&lp).map_err(|e| ReflectError::file(&lp, e.to_string()))?;
+                serde_json::from_str(&t).map_err(|e| ReflectError::file(&lp, format!("not a lobe list: {e}")))?
+            } else {
+                Vec::new()
+            };
+            rho.push(rho_img.pixels.iter().map(|p| Vec3::from_array(*p)).collect());
+            weight_sum.push(w_img.pixels.iter().map(|p| p[0]).collect());
+            observations.push(o_img.pixels.iter().map(|p| p[0].max(0.0) as u32).collect());
+            lobes.push(l);
+            parts.push(Part { name: name.clone(), mesh, texel_size: s.texel_size_m, cache: TexelCache { resolution: r, texels }, coverage });
+        }
+        Ok(SolveResult { parts, rho, weight_sum, observations, lobes, report })
+    }
+}
+
+pub(crate) fn write_text(path: &Path, text: &str) -> Result<(), ReflectError> {
+    igi_imaging::io::write_atomic(path, |tmp| {
+        std::fs::write(tmp, text).map_err(|e| igi_imaging::ImagingError::Io { path: path.to_path_buf(), source: e })
+    })?;
+    Ok(())
+}
+
+/// The scene file of a result folder (for `igi render RESULT_DIR --lighting ...`).
+pub fn load_result_scene(dir: &Path) -> Result<PathBuf, ReflectError> {
+    let p = dir.join("scene.toml");
+    if !p.is_file() || !dir.join("report.json").is_file() {
+        return Err(ReflectError::file(dir, "not a solve result folder (no scene.toml and report.json)"));
+    }
+    Ok(p)
+}
+
+/// Export formats of `igi export`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ExportFormat {
+    Ply,
+    Obj,
+    Mitsuba,
+}
+
+impl std::str::FromStr for ExportFormat {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "ply" => Ok(ExportFormat::Ply),
+            "obj" => Ok(ExportFormat::Obj),
+            "mitsuba" => Ok(ExportFormat::Mitsuba),
+            _ => Err(format!("unknown export format `{s}` (ply, obj or mitsuba)")),
+        }
+    }
+}
+
+/// Writes the recovered site into `out`: meshes with atlas UVs plus linear EXR albedo
+/// textures (and sRGB PNG previews); for `Obj` a `.mtl` per part; for `Mitsuba` a
+/// `scene.xml` with diffuse bitmap textures (Mitsuba reads the EXR as linear). Returns the
+/// files written.
+pub fn export(result_dir: &Path, format: ExportFormat, out: &Path) -> Result<Vec<PathBuf>, ReflectError> {
+    let res = SolveResult::load(result_dir)?;
+    std::fs::create_dir_all(out).map_err(|e| ReflectError::file(out, format!("cannot create folder: {e}")))?;
+    let mut written = Vec::new();
+    let mut xml = String::from("<scene version=\"3.0.0\">\n  <!-- igi export: recovered diffuse albedo; world Z up, metres. Add a sensor and emitters to render. -->\n");
+    for (i, p) in res.parts.iter().enumerate() {
+        let r = p.resolution();
+        let mut tex = HdrImage::new(r, r);
+        for (k, px) in tex.pixels.iter_mut().enumerate() {
+            *px = res.rho[i][k].to_array();
+        }
+        let tex_name = format!("{}_albedo.exr", p.name);
+        write_exr(&out.join(&tex_name), &tex)?;
+        igi_imaging::write_png_tonemapped(&out.join(format!("{}_albedo.png", p.name)), &tex, 1.0)?;
+        written.push(out.join(&tex_name));
+        match format {
+            ExportFormat::Ply | ExportFormat::Mitsuba => {
+                let mp = out.join(format!("{}.ply", p.name));
+                write_ply(&mp, &p.mesh)?;
+                written.push(mp);
+                let _ = writeln!(
+                    xml,
+                    "  <shape type=\"ply\">\n    <string name=\"filename\" value=\"{0}.ply\"/>\n    <bsdf type=\"twosided\"><bsdf type=\"diffuse\">\n      <texture type=\"bitmap\" name=\"reflectance\"><string name=\"filename\" value=\"{1}\"/><string name=\"filter_type\" value=\"bilinear\"/><string name=\"wrap_mode\" value=\"clamp\"/></texture>\n    </bsdf></bsdf>\n  </shape>",
+                    p.name, tex_name
+                );
+            }
+            ExportFormat::Obj => {
+                let mp = out.join(format!("{}.obj", p.name));
+                write_obj(&mp, &p.mesh)?;
+                let mtl = format!("newmtl {0}\nKd 1 1 1\nmap_Kd {0}_albedo.png\n", p.name);
+                write_text(&out.join(format!("{}.mtl", p.name)), &mtl)?;
+                written.push(mp);
+            }
+        }
+    }
+    if format == ExportFormat::Mitsuba {
+        xml.push_str("</scene>\n");
+        let xp = out.join("scene.xml");
+        write_text(&xp, &xml)?;
+        written.push(xp);
+    }
+    Ok(written)
+}
+
+/// The recovered diffuse albedo of the surface nearest each query point: a short ray along the
+/// point's normal (both ways) finds the surface; when it misses, the nearest covered texel.
+pub fn sample_albedo(result_dir: &Path, points: &[(Vec3, Vec3)]) -> Result<Vec<Vec3>, ReflectError> {
+    let res = SolveResult::load(result_dir)?;
+    let objects: Vec<(String, TriMesh, igi_render::Material)> = res
+        .parts
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let r = p.resolution();
+            let tex = igi_render::Texture { width: r, height: r, texels: res.rho[i].clone() };
+            (p.name.clone(), p.mesh.clone(), igi_render::Material { albedo: igi_render::Albedo::Texture(tex), lobes: Vec::new() })
+        })
+        .collect();
+    let scene = igi_render::Scene::new(objects)?;
+    let reach = res.parts.iter().map(|p| p.texel_size as f32).fold(0.0f32, f32::max).max(1e-3) * 4.0;
+    Ok(points
+        .iter()
+        .map(|&(p, n)| {
+            let n = n.normalize_or(Vec3::Z);
+            for d in [n, -n] {
+                if let Some(h) = scene.intersect(p + d * reach, -d) {
+                    if h.t <= 2.0 * reach {
+                        let sp = scene.surface_point(&h);
+                        return scene.objects[sp.object as usize].material.brdf_at(sp.uv).rho_d;
+                    }
+                }
+            }
+            // nearest covered texel
+            let mut best = (f32::INFINITY, Vec3::ZERO);
+            for (i, part) in res.parts.iter().enumerate() {
+                for t in &part.cache.texels {
+                    let d = t.position.distance_squared(p);
+                    if d < best.0 {
+                        best = (d, res.rho[i][t.index as usize]);
+                    }
+                }
+            }
+            best.1
+        })
+        .collect())
+}
+
+/// Reads `x,y,z,nx,ny,nz` rows (a header row is allowed) for [`sample_albedo`].
+pub fn read_points(path: &Path) -> Result<Vec<(Vec3, Vec3)>, ReflectError> {
+    let text = std::fs::read_to_string(path).map_err(|e| ReflectError::file(path, format!("cannot read: {e}")))?;
+    let mut out = Vec::new();
+    for (ln, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let vals: Result<Vec<f32>, _> = line.split(',').map(|s| s.trim().parse::<f32>()).collect();
+        match vals {
+            Ok(v) if v.len() == 6 && v.iter().all(|x| x.is_finite()) => {
+                out.push((Vec3::new(v[0], v[1], v[2]), Vec3::new(v[3], v[4], v[5])));
+            }
+            Err(_) if ln == 0 && out.is_empty() => continue, // header
+            _ => return Err(ReflectError::file(path, format!("line {}: expected six finite numbers x,y,z,nx,ny,nz", ln + 1))),
+        }
+    }
+    if out.is_empty() {
+        return Err(ReflectError::file(path, "no points"));
+    }
+    Ok(out)
+}

@@ -1,0 +1,143 @@
+//! The survey folder of FORMATS.md: `survey.toml` naming the site meshes, the photographs with
+//! their cameras and lighting files, and optional hand-held BRDF samples.
+
+use crate::ReflectError;
+use igi_imaging::{Camera, HdrImage};
+use igi_render::Lighting;
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+/// One photograph as listed in `survey.toml` (paths resolved against the survey folder).
+#[derive(Clone, Debug)]
+pub struct PhotoSpec {
+    pub id: String,
+    pub image: PathBuf,
+    pub camera: PathBuf,
+    pub lighting: PathBuf,
+}
+
+/// A parsed survey: everything is checked to exist, nothing heavy is loaded yet.
+#[derive(Clone, Debug)]
+pub struct Survey {
+    /// The folder holding `survey.toml`.
+    pub root: PathBuf,
+    pub meshes: Vec<PathBuf>,
+    pub photos: Vec<PhotoSpec>,
+    pub brdf_samples: Option<PathBuf>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SurveyFile {
+    site: SiteSpec,
+    #[serde(default)]
+    photo: Vec<PhotoEntry>,
+    brdf: Option<BrdfSpec>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SiteSpec {
+    mesh: Option<PathBuf>,
+    #[serde(default)]
+    meshes: Vec<PathBuf>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PhotoEntry {
+    id: String,
+    image: PathBuf,
+    camera: PathBuf,
+    lighting: PathBuf,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BrdfSpec {
+    samples: PathBuf,
+}
+
+impl Survey {
+    /// Reads `survey.toml` from a survey folder (or the file itself). Every path it names must
+    /// exist; photo ids must be unique.
+    pub fn load(path: &Path) -> Result<Survey, ReflectError> {
+        let file = if path.is_dir() { path.join("survey.toml") } else { path.to_path_buf() };
+        let text = std::fs::read_to_string(&file).map_err(|e| ReflectError::file(&file, format!("cannot read survey: {e}")))?;
+        let f: SurveyFile = toml::from_str(&text).map_err(|e| ReflectError::file(&file, format!("not a valid survey file: {e}")))?;
+        let root = file.parent().unwrap_or(Path::new(".")).to_path_buf();
+        let exists = |p: &Path, what: &str| -> Result<PathBuf, ReflectError> {
+            let full = root.join(p);
+            if full.exists() {
+                Ok(full)
+            } else {
+                Err(ReflectError::file(&file, format!("{what} {} does not exist", full.display())))
+            }
+        };
+        let mut meshes = Vec::new();
+        for m in f.site.mesh.iter().chain(f.site.meshes.iter()) {
+            meshes.push(exists(m, "site mesh")?);
+        }
+        if meshes.is_empty() {
+            return Err(ReflectError::file(&file, "[site] names no mesh (use `mesh = ...` or `meshes = [...]`)"));
+        }
+        if f.photo.is_empty() {
+            return Err(ReflectError::file(&file, "no [[photo]] entries"));
+        }
+        let mut photos = Vec::new();
+        for p in &f.photo {
+            if photos.iter().any(|q: &PhotoSpec| q.id == p.id) {
+                return Err(ReflectError::file(&file, format!("photo id `{}` appears twice", p.id)));
+            }
+            photos.push(PhotoSpec {
+                id: p.id.clone(),
+                image: exists(&p.image, &format!("photo `{}` image", p.id))?,
+                camera: exists(&p.camera, &format!("photo `{}` camera", p.id))?,
+                lighting: exists(&p.lighting, &format!("photo `{}` lighting", p.id))?,
+            });
+        }
+        let brdf_samples = match &f.brdf {
+            Some(b) => Some(exists(&b.samples, "BRDF samples")?),
+            None => None,
+        };
+        Ok(Survey { root, meshes, photos, brdf_samples })
+    }
+}
+
+/// A photograph loaded into memory.
+pub struct Photo {
+    pub id: String,
+    pub image: HdrImage,
+    pub camera: Camera,
+    pub lighting: Lighting,
+}
+
+impl PhotoSpec {
+    /// Loads the image, camera and lighting; the image must match the camera's size and hold
+    /// only finite, non-negative radiance (saturated pixels stay marked invalid).
+    pub fn load(&self) -> Result<Photo, ReflectError> {
+        let image = igi_imaging::read_image(&self.image)?;
+        let camera = Camera::load(&self.camera)?;
+        if image.width != camera.width as usize || image.height != camera.height as usize {
+            return Err(ReflectError::file(
+                &self.image,
+                format!(
+                    "image is {}x{} but its camera {} says {}x{}",
+                    image.width,
+                    image.height,
+                    self.camera.display(),
+                    camera.width,
+                    camera.height
+                ),
+            ));
+        }
+        if let Some(i) = image.pixels.iter().position(|p| p.iter().any(|c| !c.is_finite() || *c < 0.0)) {
+            return Err(ReflectError::file(
+                &self.image,
+                format!("pixel ({}, {}) is negative or not finite", i % image.width, i / image.width),
+            ));
+        }
+        let lighting = Lighting::load(&self.lighting)?;
+        Ok(Photo { id: self.id.clone(), image, camera, lighting })
+    }
+}

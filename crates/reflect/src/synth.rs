@@ -1,0 +1,165 @@
+//! Synthetic surveys with known albedo: the embedded default (`igi demo`) and the solver's
+//! tests. A site's parts get a known per-texel albedo (a function of world position), photos
+//! are path-traced from it under given lightings, and everything is written as a FORMATS.md
+//! survey folder plus a `truth/scene.toml` holding the true albedo.
+
+use crate::fill::dilate;
+use crate::parts::Part;
+use crate::ReflectError;
+use glam::{DVec3, Vec3};
+use igi_imaging::{Camera, HdrImage, WorldToCamera};
+use igi_render::{render_image, Albedo, Lighting, Material, RenderOptions, Scene, Sun, Texture, Environment};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// A smooth, colourful albedo pattern with per-texel detail, in [0.08, 0.85] per channel.
+pub fn albedo_pattern(p: Vec3) -> Vec3 {
+    let s = |f: f32, ph: f32| 0.5 + 0.5 * (f + ph).sin();
+    let base = Vec3::new(
+        0.25 + 0.45 * s(0.9 * p.x + 0.4 * p.z, 0.3),
+        0.22 + 0.40 * s(0.7 * p.y - 0.5 * p.z, 1.1),
+        0.15 + 0.35 * s(0.5 * (p.x + p.y) + 0.8 * p.z, 2.0),
+    );
+    // fine stripes (texel-scale variation)
+    let stripe = if ((p.x * 4.0).floor() as i64 + (p.y * 4.0).floor() as i64 + (p.z * 4.0).floor() as i64) % 2 == 0 { 1.0 } else { 0.8 };
+    (base * stripe).clamp(Vec3::splat(0.08), Vec3::splat(0.85))
+}
+
+/// The true albedo atlas of a part: `f(position)` on covered texels, dilated into the gutters.
+pub fn truth_atlas(part: &Part, f: impl Fn(Vec3) -> Vec3) -> Vec<Vec3> {
+    let r = part.resolution();
+    let mut v = vec![Vec3::ZERO; r * r];
+    let mut known = vec![false; r * r];
+    for t in &part.cache.texels {
+        v[t.index as usize] = f(t.position);
+        known[t.index as usize] = true;
+    }
+    let gutter: Vec<bool> = part.coverage.pixels.iter().map(|c| c[0] > 0.0).collect();
+    dilate(&mut v, &mut known, &gutter, r, 4);
+    v
+}
+
+/// The scene of the parts with the given albedo atlases (and no lobes).
+pub fn scene_with_albedo(parts: &[Part], albedo: &[Vec<Vec3>]) -> Result<Scene, ReflectError> {
+    let objects = parts
+        .iter()
+        .zip(albedo)
+        .map(|(p, a)| {
+            let r = p.resolution();
+            let tex = Texture { width: r, height: r, texels: a.clone() };
+            (p.name.clone(), p.mesh.clone(), Material { albedo: Albedo::Texture(tex), lobes: Vec::new() })
+        })
+        .collect();
+    Ok(Scene::new(objects)?)
+}
+
+/// A lighting condition: a lat-long sky and an optional sun (direction, radiance).
+pub struct LightingSpec {
+    pub name: String,
+    pub sky: HdrImage,
+    pub sun: Option<(Vec3, Vec3)>,
+}
+
+impl LightingSpec {
+    /// The in-memory lighting.
+    pub fn lighting(&self) -> Result<Lighting, ReflectError> {
+        let environment = Some(Environment::from_image(&self.sky, 1.0)?);
+        let sun = match self.sun {
+            Some((d, l)) => Some(Sun::new(d, l, 0.53)?),
+            None => None,
+        };
+        Ok(Lighting { environment, sun })
+    }
+
+    /// Writes `NAME.toml` and `NAME_sky.exr` into `dir` (FORMATS.md lighting file).
+    pub fn write(&self, dir: &Path) -> Result<PathBuf, ReflectError> {
+        igi_imaging::write_exr(&dir.join(format!("{}_sky.exr", self.name)), &self.sky)?;
+        let mut t = format!("[environment]\nmap = \"{}_sky.exr\"\nscale = 1.0\n", self.name);
+        if let Some((d, l)) = self.sun {
+            let d = d.normalize();
+            let _ = write!(
+                t,
+                "\n[sun]\ndirection = [{}, {}, {}]\nradiance = [{}, {}, {}]\nangular_diameter_deg = 0.53\n",
+                d.x, d.y, d.z, l.x, l.y, l.z
+            );
+        }
+        let p = dir.join(format!("{}.toml", self.name));
+        write_text(&p, &t)?;
+        Ok(p)
+    }
+}
+
+/// A pinhole camera at `eye` looking at `target` with a horizontal field of view in degrees.
+pub fn look_at_camera(eye: Vec3, target: Vec3, width: u32, height: u32, hfov_deg: f64) -> Result<Camera, ReflectError> {
+    let pose = WorldToCamera::look_at(eye.as_dvec3(), target.as_dvec3(), DVec3::Z)
+        .ok_or_else(|| ReflectError::Invalid(format!("camera at {eye} looking at {target} is degenerate")))?;
+    let f = 0.5 * width as f64 / (0.5 * hfov_deg.to_radians()).tan();
+    let mut cam = Camera::pinhole(width, height, f, f, width as f64 / 2.0 - 0.5, height as f64 / 2.0 - 0.5);
+    cam.pose = pose;
+    Ok(cam)
+}
+
+/// One photograph of a synthetic survey.
+pub struct ShotSpec {
+    pub id: String,
+    pub camera: Camera,
+    /// Index into the lighting list.
+    pub lighting: usize,
+}
+
+/// Writes a complete survey folder: `geometry/NAME.ply` per part (the atlas meshes), `truth/`
+/// (true albedo atlases and `scene.toml`), `lighting/`, `cameras/`, `photos/` (path-traced at
+/// `spp`) and `survey.toml`. `progress(i, n)` is called before each photo.
+pub fn write_survey(
+    dir: &Path,
+    parts: &[Part],
+    truth: &[Vec<Vec3>],
+    lightings: &[LightingSpec],
+    shots: &[ShotSpec],
+    spp: u32,
+    seed: u64,
+    progress: &dyn Fn(usize, usize),
+) -> Result<(), ReflectError> {
+    for sub in ["geometry", "truth", "lighting", "cameras", "photos"] {
+        let p = dir.join(sub);
+        std::fs::create_dir_all(&p).map_err(|e| ReflectError::file(&p, format!("cannot create folder: {e}")))?;
+    }
+    let mut truth_toml = String::from("# true albedo of the synthetic site (igi solve --truth)\n");
+    let mut survey = String::from("[site]\nmeshes = [");
+    for (k, (p, a)) in parts.iter().zip(truth).enumerate() {
+        igi_geometry::write_ply(&dir.join("geometry").join(format!("{}.ply", p.name)), &p.mesh)?;
+        let r = p.resolution();
+        let mut img = HdrImage::new(r, r);
+        for (px, v) in img.pixels.iter_mut().zip(a) {
+            *px = v.to_array();
+        }
+        igi_imaging::write_exr(&dir.join("truth").join(format!("{}_albedo.exr", p.name)), &img)?;
+        let _ = write!(truth_toml, "\n[[object]]\nmesh = \"../geometry/{0}.ply\"\nalbedo = \"{0}_albedo.exr\"\n", p.name);
+        let _ = write!(survey, "{}\"geometry/{}.ply\"", if k > 0 { ", " } else { "" }, p.name);
+    }
+    survey.push_str("]\n");
+    write_text(&dir.join("truth").join("scene.toml"), &truth_toml)?;
+    let scene = scene_with_albedo(parts, truth)?;
+    let mut lit = Vec::new();
+    for l in lightings {
+        l.write(&dir.join("lighting"))?;
+        lit.push(l.lighting()?);
+    }
+    for (i, s) in shots.iter().enumerate() {
+        progress(i, shots.len());
+        let l = lightings.get(s.lighting).ok_or_else(|| ReflectError::Invalid(format!("shot {}: no lighting {}", s.id, s.lighting)))?;
+        let opts = RenderOptions { spp, seed: seed.wrapping_add(i as u64 * 7919), indirect: 2, russian_roulette: false };
+        let out = render_image(&scene, &lit[s.lighting], &s.camera, &opts, &|_| {})?;
+        igi_imaging::write_exr(&dir.join("photos").join(format!("{}.exr", s.id)), &out.mean)?;
+        s.camera.save(&dir.join("cameras").join(format!("{}.json", s.id)))?;
+        let _ = write!(
+            survey,
+            "\n[[photo]]\nid = \"{0}\"\nimage = \"photos/{0}.exr\"\ncamera = \"cameras/{0}.json\"\nlighting = \"lighting/{1}.toml\"\n",
+            s.id, l.name
+        );
+    }
+    write_text(&dir.join("survey.toml"), &survey)?;
+    Ok(())
+}
+
+use crate::result::write_text;

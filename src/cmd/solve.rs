@@ -1,0 +1,210 @@
+//! `igi solve`, `igi sample` and `igi export`: the inverse solver and what reads its result.
+use crate::report::Ctx;
+use anyhow::{bail, Context};
+use igi_reflect::parts::build_parts;
+use igi_reflect::solver::{truth_from_scene, Progress};
+use igi_reflect::{ExportFormat, SolveOptions, SolveResult, Survey};
+use indicatif::ProgressBar;
+use std::path::PathBuf;
+
+#[derive(clap::Args, Debug)]
+pub struct SolveArgs {
+    /// Survey folder holding survey.toml (FORMATS.md), or the survey.toml itself.
+    pub survey: PathBuf,
+    /// Result folder (created; an unfinished result there is resumed).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Atlas resolution per part (texels per side).
+    #[arg(long, default_value_t = 512)]
+    pub atlas: u32,
+    /// Most iterations.
+    #[arg(long, default_value_t = 4)]
+    pub iterations: u32,
+    /// Stop when the mean change of rho_d over seen texels is below this (after 2 iterations).
+    #[arg(long, default_value_t = 0.002)]
+    pub tolerance: f32,
+    /// Samples per radiance estimate, per iteration (the last repeats).
+    #[arg(long, value_delimiter = ',', default_value = "16,64,256")]
+    pub spp: Vec<u32>,
+    /// Indirect bounces after direct lighting.
+    #[arg(long, default_value_t = 2)]
+    pub indirect: u32,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Initial albedo of every texel (r,g,b).
+    #[arg(long, value_delimiter = ',', default_value = "0.5,0.5,0.5")]
+    pub initial: Vec<f32>,
+    /// Solve only these parts (site meshes by file stem), comma-separated; to share a site
+    /// between machines.
+    #[arg(long, value_delimiter = ',')]
+    pub parts: Option<Vec<String>>,
+    /// A scene file with the true albedo over the same geometry: the report then records the
+    /// rho_d error per iteration.
+    #[arg(long)]
+    pub truth: Option<PathBuf>,
+    /// Start afresh even if the output folder holds an unfinished result.
+    #[arg(long)]
+    pub restart: bool,
+    /// Print the report as JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+struct Bar(ProgressBar);
+impl Progress for Bar {
+    fn begin(&self, what: &str, total: u64) {
+        self.0.reset();
+        self.0.set_length(total);
+        self.0.set_message(what.to_string());
+    }
+    fn advance(&self, n: u64) {
+        self.0.inc(n);
+    }
+    fn finish(&self) {}
+}
+
+pub fn run_solve(a: SolveArgs, ctx: &Ctx) -> anyhow::Result<()> {
+    if a.initial.len() != 3 {
+        bail!("--initial takes three values r,g,b");
+    }
+    let survey = Survey::load(&a.survey)?;
+    let opts = SolveOptions {
+        atlas_resolution: a.atlas,
+        max_iterations: a.iterations,
+        tolerance: a.tolerance,
+        spp: a.spp.clone(),
+        indirect: a.indirect,
+        seed: a.seed,
+        initial_albedo: [a.initial[0], a.initial[1], a.initial[2]],
+        parts: a.parts.clone(),
+        ..SolveOptions::default()
+    };
+    let photo_ids: Vec<String> = survey.photos.iter().map(|p| p.id.clone()).collect();
+    let pb = ctx.progress(survey.photos.len() as u64, "photos");
+    let photos = survey
+        .photos
+        .iter()
+        .map(|p| {
+            pb.inc(1);
+            p.load()
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    pb.finish_and_clear();
+    let resume = !a.restart && a.output.join("report.json").is_file();
+    let state = if resume {
+        let r = SolveResult::load(&a.output).with_context(|| format!("resuming {}", a.output.display()))?;
+        if r.report.photos != photo_ids || r.report.options.atlas_resolution != a.atlas {
+            bail!(
+                "{}: holds a result of another survey or atlas resolution; use --restart or another folder",
+                a.output.display()
+            );
+        }
+        tracing::info!("resuming after iteration {}", r.report.iterations.len());
+        r
+    } else {
+        let mut meshes = Vec::new();
+        for m in &survey.meshes {
+            let name = m.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+            meshes.push((name, igi_geometry::read_mesh(m)?));
+        }
+        let parts = build_parts(meshes, a.atlas)?;
+        std::fs::create_dir_all(&a.output).with_context(|| format!("{}: cannot create folder", a.output.display()))?;
+        let r = SolveResult::fresh(parts, photo_ids, &opts);
+        r.write_geometry(&a.output)?;
+        r
+    };
+    let basis = match &survey.brdf_samples {
+        None => None,
+        Some(p) => {
+            let samples = igi_brdf::read_samples(p)?;
+            let mut mats = Vec::new();
+            for (name, s) in igi_brdf::samples::group_by_material(&samples) {
+                let fit = igi_brdf::fit_material(&name, &s, &igi_brdf::FitOptions::default())
+                    .with_context(|| format!("{}: fitting material {name}", p.display()))?;
+                mats.push((name, fit.brdf));
+            }
+            Some(igi_brdf::Basis::new(mats)?)
+        }
+    };
+    let truth = match &a.truth {
+        None => None,
+        Some(t) => {
+            let (scene, _) = igi_render::Scene::load(t)?;
+            Some(truth_from_scene(&state.parts, &scene))
+        }
+    };
+    let bar = Bar(ctx.progress(1, "solve"));
+    let out = a.output.clone();
+    let result = igi_reflect::solve(state, &photos, basis.as_ref(), truth.as_ref(), &opts, &bar, &mut |r| r.write_state(&out))?;
+    bar.0.finish_and_clear();
+    if a.json {
+        crate::report::print_json(&result.report)?;
+    } else {
+        for r in &result.report.iterations {
+            let truth = r.truth_mae.map(|m| format!(", rho_d MAE {:.4} {:.4} {:.4}", m[0], m[1], m[2])).unwrap_or_default();
+            println!(
+                "iteration {}: {} spp, {:.1} s, {} observations, residual {:.2}% (relative RMS), change {:.4}{}",
+                r.iteration,
+                r.spp,
+                r.wall_s,
+                r.observations,
+                100.0 * r.residual_rel_rms,
+                r.delta_rho,
+                truth
+            );
+        }
+        for p in &result.report.parts {
+            println!(
+                "part {}: {} texels of {:.4} m, {} seen ({} by 2+ photos), {} filled",
+                p.name, p.covered_texels, p.texel_size_m, p.seen_texels, p.seen_twice_texels, p.filled_texels
+            );
+        }
+        println!("result in {}", a.output.display());
+    }
+    Ok(())
+}
+
+#[derive(clap::Args, Debug)]
+pub struct SampleArgs {
+    /// Result folder of `igi solve`.
+    pub result: PathBuf,
+    /// CSV with x,y,z,nx,ny,nz per row (a header row is allowed).
+    #[arg(long)]
+    pub points: PathBuf,
+    /// Output CSV: the input columns plus r,g,b.
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
+pub fn run_sample(a: SampleArgs, _ctx: &Ctx) -> anyhow::Result<()> {
+    let pts = igi_reflect::result::read_points(&a.points)?;
+    let values = igi_reflect::sample_albedo(&a.result, &pts)?;
+    let mut csv = String::from("x,y,z,nx,ny,nz,r,g,b\n");
+    for ((p, n), v) in pts.iter().zip(&values) {
+        csv.push_str(&format!("{},{},{},{},{},{},{},{},{}\n", p.x, p.y, p.z, n.x, n.y, n.z, v.x, v.y, v.z));
+    }
+    igi_imaging::io::write_atomic(&a.output, |tmp| {
+        std::fs::write(tmp, &csv).map_err(|e| igi_imaging::ImagingError::Io { path: a.output.clone(), source: e })
+    })?;
+    println!("{} points -> {}", values.len(), a.output.display());
+    Ok(())
+}
+
+#[derive(clap::Args, Debug)]
+pub struct ExportArgs {
+    /// Result folder of `igi solve`.
+    pub result: PathBuf,
+    /// ply, obj or mitsuba.
+    #[arg(long)]
+    pub format: ExportFormat,
+    /// Output folder.
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
+pub fn run_export(a: ExportArgs, _ctx: &Ctx) -> anyhow::Result<()> {
+    let files = igi_reflect::export(&a.result, a.format, &a.output)?;
+    println!("{} files written to {}", files.len(), a.output.display());
+    Ok(())
+}
+
