@@ -72,6 +72,7 @@ pub struct FitReport {
 }
 
 pub(crate) const NP: usize = 13;
+const PRIOR: f64 = 1e-3;
 // parameter layout
 const LD: usize = 0; // rho_d log colour (3)
 const RR: usize = 3; // retro log colour (3)
@@ -170,20 +171,24 @@ pub(crate) struct Problem<'a> {
 impl Problem<'_> {
     pub(crate) fn residuals_at(&self, p: &[f64]) -> DVector<f64> {
         let m = self.data.light.len();
-        let mut r = DVector::zeros(3 * m);
+        let mut r = DVector::zeros(3 * m + 2);
         for i in 0..m {
             let f = self.model.value(p, &self.data.light[i], &self.data.view[i]);
             for c in 0..3 {
                 r[3 * i + c] = (f[c] - self.data.value[i][c]) * self.data.weight[i][c];
             }
         }
+        // A weak prior |Cxy| ~ 1 (ln|Cxy| ~ 0): keeps the Cxy of a lobe the data do not support at
+        // a sane value instead of drifting to the clamp; negligible wherever the data constrain it.
+        r[3 * m] = PRIOR * p[RA];
+        r[3 * m + 1] = PRIOR * p[SA];
         r
     }
     fn cost(&self) -> f64 {
         self.residuals_at(&self.p).norm_squared()
     }
     pub(crate) fn jacobian_at(&self, p: &[f64; NP], free: &[usize]) -> DMatrix<f64> {
-        let m = 3 * self.data.light.len();
+        let m = 3 * self.data.light.len() + 2;
         let mut j = DMatrix::zeros(m, free.len());
         for (k, &i) in free.iter().enumerate() {
             let h = 1e-6 * (1.0 + p[i].abs());
@@ -366,8 +371,8 @@ pub fn fit_material(material: &str, samples: &[BrdfSample], opts: &FitOptions) -
     // Statistics.
     let prob = Problem { model: &model, data: &data, p, free: all.clone() };
     let r = prob.residuals_at(&p);
-    let m = r.len();
-    let rms = (r.norm_squared() / m as f64).sqrt();
+    let m = 3 * data.light.len(); // data residuals (the prior's two come after them)
+    let rms = (r.rows(0, m).norm_squared() / m as f64).sqrt();
     let mut abs2 = 0.0;
     for i in 0..data.light.len() {
         let f = model.value(&p, &data.light[i], &data.view[i]);
@@ -376,7 +381,7 @@ pub fn fit_material(material: &str, samples: &[BrdfSample], opts: &FitOptions) -
         }
     }
     let rms_abs = (abs2 / m as f64).sqrt();
-    let sigma2 = r.norm_squared() / (m.saturating_sub(NP)).max(1) as f64;
+    let sigma2 = r.rows(0, m).norm_squared() / (m.saturating_sub(NP)).max(1) as f64;
     let j = prob.jacobian_at(&p, &all);
     let jtj = j.transpose() * &j;
     let svd = jtj.svd(true, true);
