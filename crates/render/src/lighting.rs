@@ -129,7 +129,9 @@ impl Environment {
     pub fn eval_uv(&self, u: f32, v: f32) -> Vec3 {
         let x = u * self.w as f32 - 0.5;
         let y = v * self.h as f32 - 0.5;
-        let (x0f, y0f) = (x.floor(), y.floor());
+        // floor() without a libm call (x, y >= -0.5 here): truncation, minus one below zero.
+        let fl = |a: f32| if a < 0.0 { -1.0 } else { (a as u32) as f32 };
+        let (x0f, y0f) = (fl(x), fl(y));
         let (fx, fy) = (x - x0f, y - y0f);
         // x in [-0.5, W - 0.5]: the cell left of column 0 is the last column.
         let x0 = if x0f < 0.0 { self.w - 1 } else { (x0f as usize).min(self.w - 1) };
