@@ -1,1 +1,487 @@
-//! (in progress)
+//! OpenCV-backed geometry: checkerboard calibration (Zhang), PnP pose, homography, ArUco.
+//!
+//! All OpenCV calls of the workspace live in this module, behind the cargo feature `opencv`.
+//! Without the feature the same functions exist and return [`ImagingError::NoOpenCv`].
+//! OpenCV's RANSAC uses a fixed internal seed, so results are deterministic.
+
+use crate::{Camera, HdrImage, ImagingError, Intrinsics, WorldToCamera};
+use glam::{DMat3, DVec2, DVec3};
+
+/// Result of [`solve_pnp`].
+#[derive(Clone, Debug)]
+pub struct PnpResult {
+    pub pose: WorldToCamera,
+    /// Indices of the RANSAC inliers.
+    pub inliers: Vec<usize>,
+    /// RMS reprojection error over the inliers after LM refinement, pixels.
+    pub rms_px: f64,
+}
+
+/// Result of a calibration.
+#[derive(Clone, Debug)]
+pub struct Calibration {
+    /// Intrinsics and distortion; the pose is that of the first view.
+    pub camera: Camera,
+    /// RMS reprojection error, pixels (as reported by OpenCV).
+    pub rms_px: f64,
+    /// Board-to-camera pose of every view.
+    pub poses: Vec<WorldToCamera>,
+}
+
+/// A detected ArUco marker: id and its four corners (pixels, OpenCV order: clockwise from
+/// the top-left corner of the marker).
+#[derive(Clone, Debug)]
+pub struct ArucoMarker {
+    pub id: i32,
+    pub corners: [DVec2; 4],
+}
+
+/// Predefined ArUco dictionaries.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ArucoDict {
+    Dict4x4_50,
+    Dict5x5_100,
+    Dict6x6_250,
+    Original,
+}
+
+/// Object points of a checkerboard with `cols` x `rows` inner corners and `square` metres,
+/// in the board plane z = 0, row-major (OpenCV's corner order).
+pub fn checkerboard_points(cols: usize, rows: usize, square: f64) -> Vec<DVec3> {
+    let mut v = Vec::with_capacity(cols * rows);
+    for r in 0..rows {
+        for c in 0..cols {
+            v.push(DVec3::new(c as f64 * square, r as f64 * square, 0.0));
+        }
+    }
+    v
+}
+
+/// Axis-angle (Rodrigues) vector -> rotation matrix.
+pub fn rotation_from_rodrigues(r: DVec3) -> DMat3 {
+    let th = r.length();
+    if th < 1e-15 {
+        return DMat3::IDENTITY;
+    }
+    DMat3::from_axis_angle(r / th, th)
+}
+
+/// Rotation angle (radians) between two rotations.
+pub fn rotation_angle_between(a: &DMat3, b: &DMat3) -> f64 {
+    let m = a.transpose() * *b;
+    let tr = m.x_axis.x + m.y_axis.y + m.z_axis.z;
+    ((tr - 1.0) * 0.5).clamp(-1.0, 1.0).acos()
+}
+
+#[cfg(not(feature = "opencv"))]
+mod imp {
+    use super::*;
+    pub fn solve_pnp(_: &Intrinsics, _: &[DVec3], _: &[DVec2], _: f64) -> Result<PnpResult, ImagingError> {
+        Err(ImagingError::NoOpenCv)
+    }
+    pub fn calibrate_from_points(_: &[Vec<DVec3>], _: &[Vec<DVec2>], _: u32, _: u32) -> Result<Calibration, ImagingError> {
+        Err(ImagingError::NoOpenCv)
+    }
+    pub fn find_checkerboard_corners(_: &HdrImage, _: usize, _: usize) -> Result<Option<Vec<DVec2>>, ImagingError> {
+        Err(ImagingError::NoOpenCv)
+    }
+    pub fn find_homography(_: &[DVec2], _: &[DVec2], _: f64) -> Result<DMat3, ImagingError> {
+        Err(ImagingError::NoOpenCv)
+    }
+    pub fn detect_aruco(_: &HdrImage, _: ArucoDict) -> Result<Vec<ArucoMarker>, ImagingError> {
+        Err(ImagingError::NoOpenCv)
+    }
+}
+
+#[cfg(feature = "opencv")]
+mod imp {
+    use super::*;
+    use opencv::core::{self, Mat, Point2f, Point3f, Vector};
+    use opencv::prelude::*;
+    use opencv::{aruco, calib3d, imgproc};
+
+    fn cv_err(e: opencv::Error) -> ImagingError {
+        ImagingError::OpenCv(e.to_string())
+    }
+
+    fn k_mat(i: &Intrinsics) -> Result<Mat, ImagingError> {
+        Mat::from_slice_2d(&i.k_matrix()).map_err(cv_err)
+    }
+
+    fn dist_mat(i: &Intrinsics) -> Result<Mat, ImagingError> {
+        Mat::from_slice(&i.dist.to_array()).map_err(cv_err).and_then(|m| m.try_clone().map_err(cv_err))
+    }
+
+    fn vec3(m: &Mat) -> Result<DVec3, ImagingError> {
+        let mut v = [0.0; 3];
+        for (k, x) in v.iter_mut().enumerate() {
+            *x = *m.at::<f64>(k as i32).map_err(cv_err)?;
+        }
+        Ok(DVec3::from_array(v))
+    }
+
+    fn pose_of(rvec: &Mat, tvec: &Mat) -> Result<WorldToCamera, ImagingError> {
+        Ok(WorldToCamera { r: rotation_from_rodrigues(vec3(rvec)?), t: vec3(tvec)? })
+    }
+
+    fn p3(v: &[DVec3]) -> Vector<Point3f> {
+        v.iter().map(|p| Point3f::new(p.x as f32, p.y as f32, p.z as f32)).collect()
+    }
+
+    fn p2(v: &[DVec2]) -> Vector<Point2f> {
+        v.iter().map(|p| Point2f::new(p.x as f32, p.y as f32)).collect()
+    }
+
+    fn gray8(img: &HdrImage) -> Result<Mat, ImagingError> {
+        let g: Vec<f32> = img.pixels.iter().map(|p| (p[0] + p[1] + p[2]) / 3.0).collect();
+        let mut sorted = g.clone();
+        sorted.sort_by(|a, b| a.partial_cmp(b).unwrap_or(std::cmp::Ordering::Equal));
+        let hi = sorted.get(sorted.len() * 99 / 100).copied().unwrap_or(1.0).max(1e-12);
+        let bytes: Vec<u8> = g.iter().map(|v| ((v / hi) * 255.0).round().clamp(0.0, 255.0) as u8).collect();
+        let m = Mat::from_slice(&bytes).map_err(cv_err)?;
+        m.reshape(1, img.height as i32).map_err(cv_err)?.try_clone().map_err(cv_err)
+    }
+
+    pub fn solve_pnp(intr: &Intrinsics, world: &[DVec3], pixels: &[DVec2], threshold_px: f64) -> Result<PnpResult, ImagingError> {
+        if world.len() != pixels.len() {
+            return Err(ImagingError::InvalidInput(format!("PnP: {} world points but {} pixels", world.len(), pixels.len())));
+        }
+        if world.len() < 6 {
+            return Err(ImagingError::InvalidInput(format!("PnP needs at least 6 correspondences, got {}", world.len())));
+        }
+        let (obj, imgp) = (p3(world), p2(pixels));
+        let (k, d) = (k_mat(intr)?, dist_mat(intr)?);
+        let mut rvec = Mat::default();
+        let mut tvec = Mat::default();
+        let mut inl = Mat::default();
+        let ok = calib3d::solve_pnp_ransac(
+            &obj, &imgp, &k, &d, &mut rvec, &mut tvec, false, 1000, threshold_px as f32, 0.999, &mut inl,
+            calib3d::SOLVEPNP_ITERATIVE,
+        )
+        .map_err(cv_err)?;
+        if !ok {
+            return Err(ImagingError::InvalidInput("PnP RANSAC found no consistent pose".into()));
+        }
+        let mut inliers = Vec::new();
+        for k in 0..inl.total() as i32 {
+            inliers.push(*inl.at::<i32>(k).map_err(cv_err)? as usize);
+        }
+        let io: Vector<Point3f> = inliers.iter().map(|&i| obj.get(i).unwrap()).collect();
+        let ii: Vector<Point2f> = inliers.iter().map(|&i| imgp.get(i).unwrap()).collect();
+        let crit = core::TermCriteria::new(core::TermCriteria_COUNT + core::TermCriteria_EPS, 50, 1e-12).map_err(cv_err)?;
+        calib3d::solve_pnp_refine_lm(&io, &ii, &k, &d, &mut rvec, &mut tvec, crit).map_err(cv_err)?;
+        let pose = pose_of(&rvec, &tvec)?;
+        let cam = Camera { width: 1, height: 1, intrinsics: *intr, pose };
+        let mut se = 0.0;
+        for &i in &inliers {
+            let p = cam.project(world[i]).map(|q| (q - pixels[i]).length_squared()).unwrap_or(f64::INFINITY);
+            se += p;
+        }
+        let rms_px = (se / inliers.len().max(1) as f64).sqrt();
+        Ok(PnpResult { pose, inliers, rms_px })
+    }
+
+    pub fn calibrate_from_points(object: &[Vec<DVec3>], image: &[Vec<DVec2>], width: u32, height: u32) -> Result<Calibration, ImagingError> {
+        if object.len() != image.len() || object.len() < 3 {
+            return Err(ImagingError::InvalidInput(format!(
+                "calibration needs at least 3 views with matching point lists ({} object, {} image)",
+                object.len(),
+                image.len()
+            )));
+        }
+        let obj: Vector<Vector<Point3f>> = object.iter().map(|v| p3(v)).collect();
+        let imgp: Vector<Vector<Point2f>> = image.iter().map(|v| p2(v)).collect();
+        let mut k = Mat::default();
+        let mut d = Mat::default();
+        let mut rvecs: Vector<Mat> = Vector::new();
+        let mut tvecs: Vector<Mat> = Vector::new();
+        let crit = core::TermCriteria::new(core::TermCriteria_COUNT + core::TermCriteria_EPS, 100, 1e-12).map_err(cv_err)?;
+        let rms = calib3d::calibrate_camera(
+            &obj, &imgp, core::Size::new(width as i32, height as i32), &mut k, &mut d, &mut rvecs, &mut tvecs, 0, crit,
+        )
+        .map_err(cv_err)?;
+        let kk = |r: i32, c: i32| k.at_2d::<f64>(r, c).map(|v| *v).map_err(cv_err);
+        let mut dist = [0.0; 5];
+        for (i, x) in dist.iter_mut().enumerate() {
+            *x = *d.at::<f64>(i as i32).map_err(cv_err)?;
+        }
+        let intrinsics = Intrinsics {
+            fx: kk(0, 0)?,
+            fy: kk(1, 1)?,
+            cx: kk(0, 2)?,
+            cy: kk(1, 2)?,
+            dist: crate::Distortion::from_array(dist),
+        };
+        let mut poses = Vec::new();
+        for i in 0..rvecs.len() {
+            poses.push(pose_of(&rvecs.get(i).map_err(cv_err)?, &tvecs.get(i).map_err(cv_err)?)?);
+        }
+        Ok(Calibration { camera: Camera { width, height, intrinsics, pose: poses[0] }, rms_px: rms, poses })
+    }
+
+    pub fn find_checkerboard_corners(img: &HdrImage, cols: usize, rows: usize) -> Result<Option<Vec<DVec2>>, ImagingError> {
+        let g = gray8(img)?;
+        let mut corners: Vector<Point2f> = Vector::new();
+        let found = calib3d::find_chessboard_corners(
+            &g,
+            core::Size::new(cols as i32, rows as i32),
+            &mut corners,
+            calib3d::CALIB_CB_ADAPTIVE_THRESH + calib3d::CALIB_CB_NORMALIZE_IMAGE,
+        )
+        .map_err(cv_err)?;
+        if !found {
+            return Ok(None);
+        }
+        let crit = core::TermCriteria::new(core::TermCriteria_COUNT + core::TermCriteria_EPS, 50, 1e-4).map_err(cv_err)?;
+        imgproc::corner_sub_pix(&g, &mut corners, core::Size::new(5, 5), core::Size::new(-1, -1), crit).map_err(cv_err)?;
+        Ok(Some(corners.iter().map(|p| DVec2::new(p.x as f64, p.y as f64)).collect()))
+    }
+
+    pub fn find_homography(src: &[DVec2], dst: &[DVec2], threshold_px: f64) -> Result<DMat3, ImagingError> {
+        if src.len() != dst.len() || src.len() < 4 {
+            return Err(ImagingError::InvalidInput(format!(
+                "homography needs at least 4 matching points ({} and {})",
+                src.len(),
+                dst.len()
+            )));
+        }
+        let mut mask = Mat::default();
+        let h = calib3d::find_homography(&p2(src), &p2(dst), &mut mask, calib3d::RANSAC, threshold_px).map_err(cv_err)?;
+        if h.empty() {
+            return Err(ImagingError::InvalidInput("no homography found".into()));
+        }
+        let mut rows = [[0.0; 3]; 3];
+        for (r, row) in rows.iter_mut().enumerate() {
+            for (c, x) in row.iter_mut().enumerate() {
+                *x = *h.at_2d::<f64>(r as i32, c as i32).map_err(cv_err)?;
+            }
+        }
+        Ok(DMat3::from_cols_array_2d(&rows).transpose())
+    }
+
+    pub fn detect_aruco(img: &HdrImage, dict: ArucoDict) -> Result<Vec<ArucoMarker>, ImagingError> {
+        use aruco::PREDEFINED_DICTIONARY_NAME as N;
+        let name = match dict {
+            ArucoDict::Dict4x4_50 => N::DICT_4X4_50,
+            ArucoDict::Dict5x5_100 => N::DICT_5X5_100,
+            ArucoDict::Dict6x6_250 => N::DICT_6X6_250,
+            ArucoDict::Original => N::DICT_ARUCO_ORIGINAL,
+        };
+        let d = aruco::get_predefined_dictionary(name).map_err(cv_err)?;
+        let g = gray8(img)?;
+        let mut corners: Vector<Vector<Point2f>> = Vector::new();
+        let mut ids: Vector<i32> = Vector::new();
+        aruco::detect_markers_def(&g, &d, &mut corners, &mut ids).map_err(cv_err)?;
+        let mut out = Vec::new();
+        for (i, id) in ids.iter().enumerate() {
+            let c = corners.get(i).map_err(cv_err)?;
+            let mut cs = [DVec2::ZERO; 4];
+            for (k, p) in c.iter().take(4).enumerate() {
+                cs[k] = DVec2::new(p.x as f64, p.y as f64);
+            }
+            out.push(ArucoMarker { id, corners: cs });
+        }
+        Ok(out)
+    }
+}
+
+/// Camera pose from 2D-3D correspondences: RANSAC PnP (`threshold_px` inlier threshold) then
+/// Levenberg-Marquardt refinement on the inliers.
+pub fn solve_pnp(intr: &Intrinsics, world: &[DVec3], pixels: &[DVec2], threshold_px: f64) -> Result<PnpResult, ImagingError> {
+    imp::solve_pnp(intr, world, pixels, threshold_px)
+}
+
+/// Zhang calibration from per-view object points (board frame) and detected pixels.
+pub fn calibrate_from_points(object: &[Vec<DVec3>], image: &[Vec<DVec2>], width: u32, height: u32) -> Result<Calibration, ImagingError> {
+    imp::calibrate_from_points(object, image, width, height)
+}
+
+/// Checkerboard inner corners (`cols` x `rows`), refined to sub-pixel; `None` if not found.
+pub fn find_checkerboard_corners(img: &HdrImage, cols: usize, rows: usize) -> Result<Option<Vec<DVec2>>, ImagingError> {
+    imp::find_checkerboard_corners(img, cols, rows)
+}
+
+/// Calibrate from checkerboard photographs (views where the board is not found are skipped;
+/// at least 3 are needed). Returns the calibration and the indices of the views used.
+pub fn calibrate_checkerboard(images: &[HdrImage], cols: usize, rows: usize, square: f64) -> Result<(Calibration, Vec<usize>), ImagingError> {
+    if images.is_empty() {
+        return Err(ImagingError::InvalidInput("no calibration images".into()));
+    }
+    let (w, h) = (images[0].width, images[0].height);
+    let obj = checkerboard_points(cols, rows, square);
+    let mut objs = Vec::new();
+    let mut imgs = Vec::new();
+    let mut used = Vec::new();
+    for (i, im) in images.iter().enumerate() {
+        if (im.width, im.height) != (w, h) {
+            return Err(ImagingError::InvalidInput(format!("calibration image {i} has a different size")));
+        }
+        if let Some(c) = find_checkerboard_corners(im, cols, rows)? {
+            objs.push(obj.clone());
+            imgs.push(c);
+            used.push(i);
+        }
+    }
+    if used.len() < 3 {
+        return Err(ImagingError::InvalidInput(format!(
+            "checkerboard {cols}x{rows} found in only {} of {} images (need 3)",
+            used.len(),
+            images.len()
+        )));
+    }
+    Ok((calibrate_from_points(&objs, &imgs, w as u32, h as u32)?, used))
+}
+
+/// Homography `dst ~ H src` (RANSAC with `threshold_px`).
+pub fn find_homography(src: &[DVec2], dst: &[DVec2], threshold_px: f64) -> Result<DMat3, ImagingError> {
+    imp::find_homography(src, dst, threshold_px)
+}
+
+/// Detect ArUco markers (OpenCV 4.6 contrib aruco).
+pub fn detect_aruco(img: &HdrImage, dict: ArucoDict) -> Result<Vec<ArucoMarker>, ImagingError> {
+    imp::detect_aruco(img, dict)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[cfg(not(feature = "opencv"))]
+    #[test]
+    fn without_opencv_functions_say_so() {
+        let i = Camera::pinhole(10, 10, 10.0, 10.0, 5.0, 5.0).intrinsics;
+        let e = solve_pnp(&i, &[], &[], 2.0).unwrap_err().to_string();
+        assert!(e.contains("built without opencv") && e.contains("--features opencv"), "{e}");
+        assert!(matches!(find_homography(&[], &[], 1.0), Err(ImagingError::NoOpenCv)));
+        assert!(matches!(detect_aruco(&HdrImage::new(2, 2), ArucoDict::Dict4x4_50), Err(ImagingError::NoOpenCv)));
+    }
+
+    #[test]
+    fn rodrigues_and_angle() {
+        let r = rotation_from_rodrigues(DVec3::new(0.0, 0.0, std::f64::consts::FRAC_PI_2));
+        assert!((r * DVec3::X - DVec3::Y).length() < 1e-12);
+        assert!((rotation_angle_between(&DMat3::IDENTITY, &r) - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+    }
+
+    #[cfg(feature = "opencv")]
+    mod with_opencv {
+        use super::super::*;
+        use crate::Distortion;
+        use rand::{Rng, SeedableRng};
+        use rand_distr_free::normal;
+
+        mod rand_distr_free {
+            use rand::Rng;
+            /// Standard normal sample (Box-Muller).
+            pub fn normal(rng: &mut impl Rng) -> f64 {
+                let u1: f64 = rng.gen_range(1e-12..1.0);
+                let u2: f64 = rng.gen();
+                (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+            }
+        }
+
+        fn truth() -> Camera {
+            let r = DMat3::from_rotation_x(0.4) * DMat3::from_rotation_y(-0.3) * DMat3::from_rotation_z(0.2);
+            Camera {
+                width: 1280,
+                height: 960,
+                intrinsics: Intrinsics { fx: 1000.0, fy: 1000.0, cx: 640.0, cy: 480.0, dist: Distortion { k1: -0.1, k2: 0.02, ..Default::default() } },
+                pose: WorldToCamera { r, t: DVec3::new(0.2, -0.1, 6.0) },
+            }
+        }
+
+        #[test]
+        fn pnp_15_points_1px_noise_rotation_within_1_degree() {
+            let cam = truth();
+            let mut rng = rand_pcg::Pcg64::seed_from_u64(42);
+            let mut world = Vec::new();
+            let mut px = Vec::new();
+            while world.len() < 15 {
+                let p = DVec3::new(rng.gen_range(-2.0..2.0), rng.gen_range(-2.0..2.0), rng.gen_range(-1.0..1.0));
+                if let Some(q) = cam.project(p) {
+                    if q.x > 0.0 && q.y > 0.0 && q.x < 1279.0 && q.y < 959.0 {
+                        world.push(p);
+                        px.push(q + DVec2::new(normal(&mut rng), normal(&mut rng)));
+                    }
+                }
+            }
+            let res = solve_pnp(&cam.intrinsics, &world, &px, 4.0).unwrap();
+            let ang = rotation_angle_between(&res.pose.r, &cam.pose.r).to_degrees();
+            let dt = (res.pose.t - cam.pose.t).length();
+            eprintln!("PnP: rotation error {ang:.4} deg, translation error {dt:.4} m, rms {:.3} px, inliers {}", res.rms_px, res.inliers.len());
+            assert!(ang < 1.0, "rotation error {ang} deg");
+            assert!(res.rms_px < 2.0);
+        }
+
+        #[test]
+        fn calibration_of_synthetic_board_views_recovers_focal_within_1_percent() {
+            let cam = truth();
+            let board = checkerboard_points(9, 6, 0.05);
+            let mut rng = rand_pcg::Pcg64::seed_from_u64(9);
+            let mut objs = Vec::new();
+            let mut imgs = Vec::new();
+            for v in 0..12 {
+                let r = DMat3::from_rotation_x(rng.gen_range(-0.5..0.5))
+                    * DMat3::from_rotation_y(rng.gen_range(-0.5..0.5))
+                    * DMat3::from_rotation_z(rng.gen_range(-0.3..0.3));
+                let t = DVec3::new(-0.2 + 0.03 * (v % 3) as f64, -0.12 + 0.02 * (v % 4) as f64, rng.gen_range(0.6..1.0));
+                let c = Camera { pose: WorldToCamera { r, t }, ..cam.clone() };
+                let px: Vec<DVec2> = board
+                    .iter()
+                    .map(|p| c.project(*p).unwrap() + DVec2::new(0.2 * normal(&mut rng), 0.2 * normal(&mut rng)))
+                    .collect();
+                objs.push(board.clone());
+                imgs.push(px);
+            }
+            let cal = calibrate_from_points(&objs, &imgs, 1280, 960).unwrap();
+            let i = cal.camera.intrinsics;
+            eprintln!("calibration: fx {:.2} fy {:.2} cx {:.2} cy {:.2} k1 {:.4} rms {:.3}", i.fx, i.fy, i.cx, i.cy, i.dist.k1, cal.rms_px);
+            assert!((i.fx / 1000.0 - 1.0).abs() < 0.01 && (i.fy / 1000.0 - 1.0).abs() < 0.01);
+            assert!(cal.rms_px < 0.5);
+        }
+
+        #[test]
+        fn checkerboard_corners_found_in_rendered_image() {
+            // anti-aliased synthetic checkerboard, fronto-parallel, 8x5 inner corners
+            let (w, h) = (400, 300);
+            let sq = 30.0;
+            let (ox, oy) = (65.3, 62.7);
+            let mut img = HdrImage::new(w, h);
+            for y in 0..h {
+                for x in 0..w {
+                    let mut acc = 0.0;
+                    for sy in 0..4 {
+                        for sx in 0..4 {
+                            let fx = x as f64 + (sx as f64 + 0.5) / 4.0 - 0.5 - ox;
+                            let fy = y as f64 + (sy as f64 + 0.5) / 4.0 - 0.5 - oy;
+                            let (i, j) = ((fx / sq).floor() as i64, (fy / sq).floor() as i64);
+                            let inside = (-1..=7).contains(&i) && (-1..=4).contains(&j);
+                            acc += if inside && (i + j).rem_euclid(2) == 0 { 0.05 } else { 0.9 };
+                        }
+                    }
+                    let v = acc as f32 / 16.0;
+                    img.set(x, y, [v, v, v]);
+                }
+            }
+            let c = find_checkerboard_corners(&img, 8, 5).unwrap().expect("board found");
+            assert_eq!(c.len(), 40);
+            // corners lie at (ox + i sq, oy + j sq), i = 0..8, j = 0..5 (in some OpenCV order)
+            for p in &c {
+                let i = ((p.x - ox) / sq).round();
+                let j = ((p.y - oy) / sq).round();
+                let e = (*p - DVec2::new(ox + i * sq, oy + j * sq)).length();
+                assert!(e < 0.2, "corner {p} off by {e}");
+            }
+        }
+
+        #[test]
+        fn homography_recovers_known_matrix() {
+            let hm = DMat3::from_cols_array_2d(&[[1.1, 0.05, 0.0002], [-0.03, 0.95, 0.0001], [12.0, -7.0, 1.0]]);
+            let src: Vec<DVec2> = (0..20).map(|k| DVec2::new((k % 5) as f64 * 50.0, (k / 5) as f64 * 40.0)).collect();
+            let dst: Vec<DVec2> = src.iter().map(|p| { let q = hm * DVec3::new(p.x, p.y, 1.0); DVec2::new(q.x / q.z, q.y / q.z) }).collect();
+            let h = find_homography(&src, &dst, 1.0).unwrap();
+            let h = h / h.z_axis.z;
+            assert!(h.abs_diff_eq(hm, 1e-5), "{h}"); // f32 point transfer
+        }
+    }
+}
