@@ -475,6 +475,36 @@ mod tests {
         }
 
         #[test]
+        fn aruco_marker_detected_with_id_and_corners() {
+            use opencv::prelude::*;
+            let dict = opencv::aruco::get_predefined_dictionary(opencv::aruco::PREDEFINED_DICTIONARY_NAME::DICT_4X4_50).unwrap();
+            let mut m = opencv::core::Mat::default();
+            opencv::aruco::draw_marker(&dict, 7, 120, &mut m, 1).unwrap();
+            let bytes = m.data_bytes().unwrap().to_vec();
+            assert_eq!(bytes.len(), 120 * 120);
+            let (ox, oy) = (90usize, 60usize);
+            let mut img = HdrImage::new(300, 240);
+            for p in img.pixels.iter_mut() {
+                *p = [1.0; 3];
+            }
+            for y in 0..120 {
+                for x in 0..120 {
+                    let v = bytes[y * 120 + x] as f32 / 255.0;
+                    img.set(ox + x, oy + y, [v, v, v]);
+                }
+            }
+            let found = detect_aruco(&img, ArucoDict::Dict4x4_50).unwrap();
+            assert_eq!(found.len(), 1, "{found:?}");
+            assert_eq!(found[0].id, 7);
+            // outer corners at the pixel edges: 89.5 .. 209.5 (pixel centres at integers)
+            let expect = [(89.5, 59.5), (209.5, 59.5), (209.5, 179.5), (89.5, 179.5)];
+            for (c, e) in found[0].corners.iter().zip(expect) {
+                assert!((*c - DVec2::new(e.0, e.1)).length() < 1.5, "{:?}", found[0].corners);
+            }
+            assert!(detect_aruco(&HdrImage::new(50, 50), ArucoDict::Dict4x4_50).unwrap().is_empty());
+        }
+
+        #[test]
         fn homography_recovers_known_matrix() {
             let hm = DMat3::from_cols_array_2d(&[[1.1, 0.05, 0.0002], [-0.03, 0.95, 0.0001], [12.0, -7.0, 1.0]]);
             let src: Vec<DVec2> = (0..20).map(|k| DVec2::new((k % 5) as f64 * 50.0, (k / 5) as f64 * 40.0)).collect();
