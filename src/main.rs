@@ -37,8 +37,8 @@ enum Command {
     Render(cmd::render::RenderArgs),
     /// Compare two images: RMSE, relative mean difference, PSNR and a difference picture.
     Compare(cmd::compare::CompareArgs),
-    /// Lighting from a capture of the three-sphere board. (planned: issue 4)
-    Probe(cmd::planned::PlannedArgs),
+    /// Lighting from a capture of the three-sphere board: sky map, sun, diagnostics.
+    Probe(cmd::probe::ProbeArgs),
     /// BRDFs from hand-held samples: fit, eval, infer, cluster.
     #[command(subcommand)]
     Brdf(cmd::brdf::BrdfCmd),
@@ -65,7 +65,7 @@ fn main() {
         Command::Camera(c) => cmd::camera::run(c, &ctx),
         Command::Render(a) => cmd::render::run(a, &ctx),
         Command::Compare(a) => cmd::compare::run(a, &ctx),
-        Command::Probe(a) => cmd::planned::run("probe", 4, a),
+        Command::Probe(a) => cmd::probe::run(a, &ctx),
         Command::Brdf(c) => cmd::brdf::run(c, &ctx),
         Command::Prepare(a) => cmd::prepare::run_prepare(a, &ctx),
         Command::Info(a) => cmd::prepare::run_info(a, &ctx),

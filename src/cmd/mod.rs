@@ -6,5 +6,6 @@ pub mod compare;
 pub mod demo;
 pub mod hdr;
 pub mod planned;
+pub mod probe;
 pub mod prepare;
 pub mod render;
