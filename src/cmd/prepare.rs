@@ -74,7 +74,9 @@ pub fn run_prepare(a: PrepareArgs, ctx: &Ctx) -> anyhow::Result<()> {
     let mesh = read_mesh(&a.mesh)?;
     let terrain = a.terrain.as_deref().map(read_mesh).transpose()?;
     tracing::info!("read {} triangles in {:.1} s", mesh.indices.len(), t0.elapsed().as_secs_f64());
-    let (mesh, report) = repair(&mesh);
+    let (repaired, report) = repair(&mesh);
+    drop(mesh);
+    let mesh = repaired;
     if report.degenerate_removed + report.duplicate_removed > 0 || report.non_manifold_edges > 0 {
         eprintln!(
             "repair: removed {} degenerate and {} duplicate triangles; {} non-manifold edges, {} border edges",

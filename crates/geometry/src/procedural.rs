@@ -5,7 +5,8 @@
 //! an architrave slab on top. Every mesh has per-vertex normals and UVs in [0, 1] laid out
 //! without overlap (one chart per planar face or cylinder part, with margins), so it can carry
 //! a per-texel albedo texture. `detail` scales every tessellation linearly, so the triangle
-//! count grows as `detail^2` (about 4,300 triangles at detail 1, 20 million near detail 68).
+//! count grows as `detail^2`: 5,448 triangles at detail 1 (4,296 without the terrain), 27.2
+//! million at detail 75 (20.7 million without the terrain).
 
 use crate::mesh::TriMesh;
 

@@ -87,7 +87,13 @@ pub fn repair(mesh: &TriMesh) -> (TriMesh, RepairReport) {
     rep.duplicate_removed = dup.iter().filter(|d| **d).count();
     let indices: Vec<[u32; 3]> =
         mesh.indices.iter().enumerate().filter(|(t, _)| keep[*t] && !dup[*t]).map(|(_, t)| *t).collect();
-    let out = TriMesh { indices, ..mesh.clone() };
+    let out = TriMesh {
+        positions: mesh.positions.clone(),
+        normals: mesh.normals.clone(),
+        uvs: mesh.uvs.clone(),
+        colors: mesh.colors.clone(),
+        indices,
+    };
     // edges by position: (hash, edge id), exact compare in runs
     let edge_key = |e: usize| -> [[u32; 3]; 2] {
         let tri = out.indices[e / 3];

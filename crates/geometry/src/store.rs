@@ -233,24 +233,33 @@ pub fn prepare(
     let total = parts.len() + usize::from(terrain.is_some());
     let count = std::sync::atomic::AtomicUsize::new(0);
     let tick = || progress(count.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1, total);
-    let mut voxels: Vec<PartEntry> = parts
-        .into_par_iter()
-        .map(|(v, m)| {
-            let r = process_part(out, &voxel_dir(v), Some(v), m, opts);
-            tick();
-            r
-        })
-        .collect::<Result<_, _>>()?;
+    // the terrain (one large part) runs beside the voxels
+    let (voxels, terrain) = rayon::join(
+        || {
+            parts
+                .into_par_iter()
+                .map(|(v, m)| {
+                    let r = process_part(out, &voxel_dir(v), Some(v), m, opts);
+                    tick();
+                    r
+                })
+                .collect::<Result<Vec<PartEntry>, _>>()
+        },
+        || -> Result<Option<PartEntry>, GeometryError> {
+            match terrain {
+                Some(t) => {
+                    mkdir(&out.join("terrain"))?;
+                    let e = process_part(out, "terrain", None, t, opts)?;
+                    tick();
+                    Ok(Some(e))
+                }
+                None => Ok(None),
+            }
+        },
+    );
+    let mut voxels = voxels?;
+    let terrain = terrain?;
     voxels.sort_by_key(|e| e.voxel);
-    let terrain = match terrain {
-        Some(t) => {
-            mkdir(&out.join("terrain"))?;
-            let e = process_part(out, "terrain", None, t, opts)?;
-            tick();
-            Some(e)
-        }
-        None => None,
-    };
     let mut vr = [[i32::MAX; 3], [i32::MIN; 3]];
     for e in &voxels {
         let v = e.voxel.unwrap();
@@ -542,6 +551,42 @@ mod tests {
         other.grid.size = 3.0;
         let e = prepare(m, None, rep, &out, "bunny", &other, &|_, _| {}).unwrap_err().to_string();
         assert!(e.contains("different settings"), "{e}");
+    }
+
+    #[test]
+    fn procedural_site_with_terrain_kept_apart() {
+        let mut site = TriMesh::default();
+        let mut terrain = None;
+        for (name, m) in crate::procedural::colonnade_site(2, 2) {
+            if name == "terrain" {
+                terrain = Some(m);
+            } else {
+                site.append(&m);
+            }
+        }
+        let terrain = terrain.unwrap();
+        let (t_tris, t_area) = (terrain.indices.len(), terrain.total_area());
+        let site_area = site.total_area();
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("site.igi");
+        let opts = PrepareOptions { atlas: AtlasOptions { resolution: 128, gutter: 2 }, ..Default::default() };
+        let (site, rep) = crate::repair::repair(&site);
+        let man = prepare(site, Some(terrain), rep, &out, "procedural", &opts, &|_, _| {}).unwrap();
+        let t = man.terrain.as_ref().unwrap();
+        assert_eq!(t.triangles[0], t_tris);
+        assert!(t.triangles[2] < t_tris / 10, "{:?}", t.triangles);
+        assert!((t.area - t_area).abs() < 1e-6 * t_area);
+        let voxel_area: f64 = man.voxels.iter().map(|e| e.area).sum();
+        assert!((voxel_area - site_area).abs() < 1e-5 * site_area, "{voxel_area} vs {site_area}");
+        // 40 x 40 m terrain in one 128-texel atlas: texels of at least 40/128 m
+        assert!(t.texel_size >= 40.0 / 128.0, "{}", t.texel_size);
+        let store = SiteStore::open(&out).unwrap();
+        let parts = store.load_for_voxel(store.voxel_ids()[0]).unwrap();
+        let terr: Vec<_> = parts.iter().filter(|p| p.voxel.is_none()).collect();
+        assert_eq!(terr.len(), 1);
+        assert_eq!((terr[0].level, terr[0].mesh.indices.len()), (2, t.triangles[2]));
+        // the stylobate sits on the voxel plane z = 0: its faces lie in or above it, never below
+        assert!(man.voxel_range[0][2] >= 0, "{:?}", man.voxel_range);
     }
 
     #[test]
