@@ -7,7 +7,7 @@ use std::time::Instant;
 
 #[derive(clap::Args, Debug)]
 pub struct RenderArgs {
-    /// Scene file (TOML, FORMATS.md). A solve result folder is not supported yet.
+    /// Scene file (TOML, FORMATS.md), or the result folder of `igi solve` (then --lighting is required).
     pub input: PathBuf,
     /// Camera file (JSON, OpenCV model).
     #[arg(long)]
@@ -47,17 +47,21 @@ fn write_any(path: &Path, img: &igi_imaging::HdrImage) -> anyhow::Result<()> {
 }
 
 pub fn run(a: RenderArgs, ctx: &Ctx) -> anyhow::Result<()> {
-    if a.input.is_dir() {
-        bail!(
-            "{}: is a directory, not a scene file (re-lighting a solve result folder is not supported yet)",
-            a.input.display()
-        );
-    }
+    // A solve result folder is re-lit: its scene.toml holds the recovered materials and no
+    // lighting, so --lighting is required.
+    let scene_file = if a.input.is_dir() {
+        if a.lighting.is_none() {
+            bail!("{}: re-lighting a solve result needs --lighting LIGHTING.toml", a.input.display());
+        }
+        igi_reflect::load_result_scene(&a.input)?
+    } else {
+        a.input.clone()
+    };
     if a.spp == 0 {
         bail!("--spp must be at least 1");
     }
     let t0 = Instant::now();
-    let (scene, scene_lighting) = Scene::load(&a.input)?;
+    let (scene, scene_lighting) = Scene::load(&scene_file)?;
     let lighting = match &a.lighting {
         Some(p) => Lighting::load(p)?,
         None => scene_lighting,

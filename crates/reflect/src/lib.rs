@@ -21,6 +21,7 @@
 //! of the site), [`solver`] (the iteration), [`weights`] and [`fill`] (the documented rules),
 //! [`result`] (the result folder: atlases, `scene.toml`, `report.json`, export, sampling).
 
+pub mod demo;
 pub mod fill;
 pub mod parts;
 pub mod plot;

@@ -266,7 +266,8 @@ pub fn sample_albedo(result_dir: &Path, points: &[(Vec3, Vec3)]) -> Result<Vec<V
         })
         .collect();
     let scene = igi_render::Scene::new(objects)?;
-    let reach = res.parts.iter().map(|p| p.texel_size as f32).fold(0.0f32, f32::max).max(1e-3) * 4.0;
+    // how far off the surface a query point may lie: half the finest texel, 1 mm to 5 cm
+    let reach = (res.parts.iter().map(|p| p.texel_size as f32).fold(f32::INFINITY, f32::min) * 0.5).clamp(1e-3, 0.05);
     Ok(points
         .iter()
         .map(|&(p, n)| {

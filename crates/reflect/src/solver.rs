@@ -81,7 +81,7 @@ pub struct IterationRecord {
     /// Observations (texel, photo) that entered the update.
     pub observations: u64,
     /// RMS of rendered minus photographed radiance over the observations, with the reflectance
-    /// of the start of the iteration (absolute, and relative to the photographed value).
+    /// of the start of the iteration; and that RMS divided by the RMS of the photographed values.
     pub residual_rms: f32,
     pub residual_rel_rms: f32,
     /// Mean over seen texels of the largest per-channel change of `rho_d`.
@@ -126,7 +126,7 @@ struct Obs {
     /// Neither near an occlusion boundary nor on a shadow edge.
     clean: bool,
     residual: Vec3,
-    rel_residual: Vec3,
+    pixel: Vec3,
 }
 
 /// Everything the per-photo pass needs about one texel.
@@ -236,7 +236,7 @@ pub fn solve(
             per_texel[o.part as usize][o.texel as usize].push((o.proposal, o.weight));
             any_clean[o.part as usize][o.texel as usize] |= o.clean;
             res2 += o.residual.length_squared() as f64;
-            rel2 += o.rel_residual.length_squared() as f64;
+            rel2 += o.pixel.length_squared() as f64;
             nres += 3;
         }
         let mut new_rho = start.rho.clone();
@@ -314,7 +314,7 @@ pub fn solve(
             cumulative_s: already + t0.elapsed().as_secs_f64(),
             observations: obs.len() as u64,
             residual_rms: if nres > 0 { (res2 / nres as f64).sqrt() as f32 } else { 0.0 },
-            residual_rel_rms: if nres > 0 { (rel2 / nres as f64).sqrt() as f32 } else { 0.0 },
+            residual_rel_rms: if rel2 > 0.0 { (res2 / rel2).sqrt() as f32 } else { 0.0 },
             delta_rho,
             truth_mae,
             truth_rms,
@@ -515,8 +515,7 @@ fn observe_photo(
             // rendered radiance with the current albedo (linear in the first vertex's albedo)
             let current = l * (rho / rho_eval);
             let residual = current - pixel;
-            let rel = residual / pixel.max(Vec3::splat(floor));
-            Some(Obs { part: t.part, texel: t.texel, proposal, weight, clean, residual, rel_residual: rel })
+            Some(Obs { part: t.part, texel: t.texel, proposal, weight, clean, residual, pixel })
         })
         .collect()
 }

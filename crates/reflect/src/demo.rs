@@ -1,0 +1,209 @@
+//! The embedded default (`igi demo`): a complete run of the pipeline on a procedural site, with
+//! no downloaded data.
+//!
+//! 1. Build the procedural colonnade site (`igi_geometry::procedural`) and give every part a
+//!    known per-texel albedo ([`crate::synth::albedo_pattern`]).
+//! 2. Make three lighting conditions (sunny, low sun, overcast skies from `igi_render::sky`).
+//! 3. Path-trace the survey photographs at a high sample count and write the survey folder.
+//! 4. Solve (`crate::solve`) with the ground truth attached, so the report records the albedo
+//!    error per iteration.
+//! 5. Re-render the recovered site from a held-out viewpoint under a held-out lighting and
+//!    compare with a rendering of the true site (relative mean, RMSE against the two images'
+//!    Monte-Carlo noise).
+//! 6. Write pictures a person can look at and `demo.json`.
+
+use crate::parts::build_parts;
+use crate::result::{write_text, SolveResult};
+use crate::solver::{truth_from_scene, Progress, SolveOptions};
+use crate::synth::{albedo_pattern, look_at_camera, scene_with_albedo, truth_atlas, write_survey, LightingSpec, ShotSpec};
+use crate::{ReflectError, Survey};
+use glam::Vec3;
+use igi_imaging::{write_exr, write_png_tonemapped, HdrImage};
+use igi_render::sky::{clear_sky, overcast_sky, sun_direction};
+use igi_render::{compare_images, difference_image, render_image, Comparison, RenderOptions};
+use serde::Serialize;
+use std::path::Path;
+use std::time::Instant;
+
+/// Sizes of the demo (the defaults run in a few minutes on 2 cores).
+#[derive(Clone, Debug, Serialize)]
+pub struct DemoOptions {
+    pub seed: u64,
+    pub atlas: u32,
+    pub photo_width: u32,
+    pub photo_height: u32,
+    pub photo_spp: u32,
+    pub solve_spp: Vec<u32>,
+    pub iterations: u32,
+    pub relight_spp: u32,
+}
+
+impl Default for DemoOptions {
+    fn default() -> Self {
+        DemoOptions {
+            seed: 7,
+            atlas: 128,
+            photo_width: 240,
+            photo_height: 160,
+            photo_spp: 256,
+            solve_spp: vec![16, 64, 128],
+            iterations: 3,
+            relight_spp: 128,
+        }
+    }
+}
+
+/// The numbers `igi demo` reports (`demo.json`).
+#[derive(Clone, Debug, Serialize)]
+pub struct DemoReport {
+    pub options: DemoOptions,
+    pub parts: usize,
+    pub triangles: usize,
+    pub photos: usize,
+    pub photo_seconds: f64,
+    pub solve_seconds: f64,
+    pub iterations: usize,
+    /// Mean absolute rho_d error per channel over texels seen in at least two photos.
+    pub albedo_mae: Option<[f32; 3]>,
+    pub relight: Comparison,
+    pub total_seconds: f64,
+}
+
+fn lightings() -> Vec<LightingSpec> {
+    let sunny = sun_direction(52.0, 35.0);
+    let low = sun_direction(12.0, 250.0);
+    vec![
+        LightingSpec {
+            name: "sunny".into(),
+            sky: clear_sky(128, 64, sunny, 0.5, Vec3::new(0.06, 0.055, 0.05)),
+            sun: Some((sunny, Vec3::new(5.0e4, 4.8e4, 4.5e4))),
+        },
+        LightingSpec {
+            name: "low-sun".into(),
+            sky: clear_sky(128, 64, low, 0.35, Vec3::new(0.04, 0.035, 0.03)),
+            sun: Some((low, Vec3::new(3.6e4, 2.7e4, 1.8e4))),
+        },
+        LightingSpec { name: "overcast".into(), sky: overcast_sky(128, 64, 1.6, Vec3::new(0.12, 0.11, 0.1)), sun: None },
+    ]
+}
+
+/// Runs the demo into `out` (created). `progress(stage)` reports the stage names.
+pub fn run_demo(out: &Path, opts: &DemoOptions, progress: &dyn Progress, stage: &dyn Fn(&str)) -> Result<DemoReport, ReflectError> {
+    let t0 = Instant::now();
+    let mk = |p: &Path| std::fs::create_dir_all(p).map_err(|e| ReflectError::file(p, format!("cannot create folder: {e}")));
+    mk(out)?;
+    let pictures = out.join("pictures");
+    mk(&pictures)?;
+    stage("building the procedural site");
+    let site = igi_geometry::procedural::colonnade_site(opts.seed, 1);
+    let triangles = site.iter().map(|(_, m)| m.indices.len()).sum();
+    let parts = build_parts(site, opts.atlas)?;
+    let truth: Vec<Vec<Vec3>> = parts.iter().map(|p| truth_atlas(p, albedo_pattern)).collect();
+    let lights = lightings();
+    let (w, h) = (opts.photo_width, opts.photo_height);
+    let target = Vec3::new(0.0, 0.0, 1.8);
+    let views: [(f32, f32, f32, usize); 8] = [
+        (-30.0, 16.0, 4.0, 0),
+        (20.0, 15.0, 5.0, 0),
+        (75.0, 15.0, 3.5, 0),
+        (150.0, 16.0, 4.5, 1),
+        (210.0, 15.0, 4.0, 1),
+        (260.0, 14.0, 6.0, 2),
+        (-80.0, 15.0, 3.0, 2),
+        (110.0, 17.0, 5.5, 2),
+    ];
+    let shots: Vec<ShotSpec> = views
+        .iter()
+        .enumerate()
+        .map(|(k, &(az, dist, z, l))| {
+            let a = az.to_radians();
+            let eye = Vec3::new(dist * a.cos(), dist * a.sin(), z);
+            Ok(ShotSpec { id: format!("view{k}-{}", lights[l].name), camera: look_at_camera(eye, target, w, h, 65.0)?, lighting: l })
+        })
+        .collect::<Result<_, ReflectError>>()?;
+    stage("rendering the survey photographs");
+    let survey_dir = out.join("survey");
+    let tp = Instant::now();
+    progress.begin("photographs", shots.len() as u64);
+    write_survey(&survey_dir, &parts, &truth, &lights, &shots, opts.photo_spp, opts.seed, &|_, _| progress.advance(1))?;
+    progress.finish();
+    let photo_seconds = tp.elapsed().as_secs_f64();
+    for s in &shots {
+        let img = igi_imaging::read_image(&survey_dir.join("photos").join(format!("{}.exr", s.id)))?;
+        write_png_tonemapped(&pictures.join(format!("photo-{}.png", s.id)), &img, 1.0)?;
+    }
+
+    stage("solving for the albedo");
+    let survey = Survey::load(&survey_dir)?;
+    let photos = survey.photos.iter().map(|p| p.load()).collect::<Result<Vec<_>, _>>()?;
+    let solve_opts = SolveOptions {
+        atlas_resolution: opts.atlas,
+        max_iterations: opts.iterations,
+        spp: opts.solve_spp.clone(),
+        seed: opts.seed,
+        ..SolveOptions::default()
+    };
+    let result_dir = out.join("result");
+    mk(&result_dir)?;
+    let (truth_scene, _) = igi_render::Scene::load(&survey_dir.join("truth").join("scene.toml"))?;
+    let gt = truth_from_scene(&parts, &truth_scene);
+    let ids = photos.iter().map(|p| p.id.clone()).collect();
+    let start = SolveResult::fresh(parts, ids, &solve_opts);
+    start.write_geometry(&result_dir)?;
+    let ts = Instant::now();
+    let result = crate::solve(start, &photos, None, Some(&gt), &solve_opts, progress, &mut |r| r.write_state(&result_dir))?;
+    let solve_seconds = ts.elapsed().as_secs_f64();
+
+    stage("re-lighting from a held-out view");
+    let new_sun = sun_direction(30.0, 160.0);
+    let held_out = LightingSpec {
+        name: "held-out".into(),
+        sky: clear_sky(128, 64, new_sun, 0.45, Vec3::new(0.05, 0.05, 0.045)),
+        sun: Some((new_sun, Vec3::new(4.5e4, 4.0e4, 3.4e4))),
+    };
+    held_out.write(&out.join("survey").join("lighting"))?;
+    let lighting = held_out.lighting()?;
+    let a = 125.0f32.to_radians();
+    let cam = look_at_camera(Vec3::new(19.0 * a.cos(), 19.0 * a.sin(), 7.0), target, w, h, 65.0)?;
+    cam.save(&out.join("survey").join("cameras").join("held-out.json"))?;
+    let ropts = RenderOptions { spp: opts.relight_spp, seed: opts.seed ^ 0xABCD, indirect: 2, russian_roulette: false };
+    let recovered = scene_with_albedo(&result.parts, &result.rho)?;
+    let relit = render_image(&recovered, &lighting, &cam, &ropts, &|_| {})?;
+    let reference_opts = RenderOptions { seed: opts.seed ^ 0x1234, ..ropts };
+    let reference = render_image(&truth_scene, &lighting, &cam, &reference_opts, &|_| {})?;
+    let cmp = compare_images(&relit.mean, &reference.mean, Some(&relit.stderr), Some(&reference.stderr))?;
+    write_exr(&out.join("relit.exr"), &relit.mean)?;
+    write_exr(&out.join("relit-reference.exr"), &reference.mean)?;
+    write_png_tonemapped(&pictures.join("relit.png"), &relit.mean, 1.0)?;
+    write_png_tonemapped(&pictures.join("relit-reference.png"), &reference.mean, 1.0)?;
+    let diff = difference_image(&relit.mean, &reference.mean, None)?;
+    write_png_tonemapped(&pictures.join("relit-difference.png"), &diff, 1.0)?;
+    // albedo pictures: true and recovered atlases side by side, per part
+    for (i, p) in result.parts.iter().enumerate() {
+        let r = p.resolution();
+        let mut side = HdrImage::new(2 * r + 4, r);
+        for y in 0..r {
+            for x in 0..r {
+                side.set(x, y, truth[i][y * r + x].to_array());
+                side.set(x + r + 4, y, result.rho[i][y * r + x].to_array());
+            }
+        }
+        write_png_tonemapped(&pictures.join(format!("albedo-{}-truth-vs-recovered.png", p.name)), &side, 1.0)?;
+    }
+    std::fs::copy(result_dir.join("convergence.png"), pictures.join("convergence.png"))
+        .map_err(|e| ReflectError::file(result_dir.join("convergence.png"), format!("cannot copy: {e}")))?;
+    let report = DemoReport {
+        options: opts.clone(),
+        parts: result.parts.len(),
+        triangles,
+        photos: photos.len(),
+        photo_seconds,
+        solve_seconds,
+        iterations: result.report.iterations.len(),
+        albedo_mae: result.report.iterations.last().and_then(|r| r.truth_mae),
+        relight: cmp,
+        total_seconds: t0.elapsed().as_secs_f64(),
+    };
+    write_text(&out.join("demo.json"), &serde_json::to_string_pretty(&report).expect("report serialises"))?;
+    Ok(report)
+}

@@ -1,0 +1,137 @@
+//! End-to-end tests of `igi demo`, `igi solve`, `igi render RESULT_DIR`, `igi export` and
+//! `igi sample` on the embedded default (quick size).
+
+use std::path::Path;
+use std::process::Command;
+
+fn igi() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_igi"))
+}
+
+fn run_ok(cmd: &mut Command) -> String {
+    let out = cmd.output().expect("igi runs");
+    assert!(out.status.success(), "igi failed: {}\n{}", String::from_utf8_lossy(&out.stderr), String::from_utf8_lossy(&out.stdout));
+    String::from_utf8(out.stdout).unwrap()
+}
+
+fn json(s: &str) -> serde_json::Value {
+    serde_json::from_str(s).expect("JSON on stdout")
+}
+
+#[test]
+fn demo_then_solve_resume_relight_export_and_sample() {
+    let tmp = tempfile::tempdir().unwrap();
+    let demo = tmp.path().join("demo");
+    let d = json(&run_ok(igi().args(["demo", "--quick", "--quiet", "--json", "-o"]).arg(&demo)));
+    assert_eq!(d["photos"], 8);
+    let mae = d["albedo_mae"].as_array().expect("demo reports the albedo error");
+    assert!(mae.iter().all(|m| m.as_f64().unwrap() < 0.15), "quick demo albedo MAE {mae:?}");
+    for f in ["demo.json", "pictures/relit.png", "pictures/convergence.png", "result/report.json", "survey/survey.toml"] {
+        assert!(demo.join(f).is_file(), "{f}");
+    }
+
+    // solve the demo's survey from the CLI: one iteration, then resume for a second
+    let survey = demo.join("survey");
+    let res = tmp.path().join("res");
+    let solve = |iters: &str| {
+        json(&run_ok(
+            igi()
+                .arg("solve")
+                .arg(&survey)
+                .arg("-o")
+                .arg(&res)
+                .args(["--atlas", "32", "--spp", "8,32", "--iterations", iters, "--quiet", "--json", "--truth"])
+                .arg(survey.join("truth/scene.toml")),
+        ))
+    };
+    let r1 = solve("1");
+    assert_eq!(r1["iterations"].as_array().unwrap().len(), 1);
+    let r2 = solve("3");
+    let its = r2["iterations"].as_array().unwrap();
+    assert!(its.len() >= 2, "resumed and continued: {} iterations", its.len());
+    assert_eq!(its[0]["observations"], r1["iterations"][0]["observations"], "iteration 1 was kept, not redone");
+    let err = |i: &serde_json::Value| i["truth_rms"].as_f64().unwrap();
+    assert!(err(its.last().unwrap()) < err(&its[0]), "rho_d error falls: {} -> {}", err(&its[0]), err(its.last().unwrap()));
+
+    // re-light the result
+    let relit = tmp.path().join("relit.exr");
+    run_ok(
+        igi()
+            .arg("render")
+            .arg(&res)
+            .arg("--lighting")
+            .arg(survey.join("lighting/held-out.toml"))
+            .arg("--camera")
+            .arg(survey.join("cameras/held-out.json"))
+            .args(["--spp", "4", "--quiet", "-o"])
+            .arg(&relit),
+    );
+    let img = igi_imaging::read_image(&relit).unwrap();
+    assert!(img.pixels.iter().all(|p| p.iter().all(|c| c.is_finite() && *c >= 0.0)));
+    let mean: f64 = img.pixels.iter().map(|p| (p[0] + p[1] + p[2]) as f64).sum::<f64>() / (3 * img.pixels.len()) as f64;
+    assert!(mean > 0.0);
+    // without --lighting a result folder is refused clearly
+    let out = igi().arg("render").arg(&res).arg("--camera").arg(survey.join("cameras/held-out.json")).arg("-o").arg(tmp.path().join("x.exr")).output().unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--lighting"));
+    assert!(!tmp.path().join("x.exr").exists());
+
+    // export: every file the Mitsuba scene names exists
+    for fmt in ["ply", "obj", "mitsuba"] {
+        let dir = tmp.path().join(format!("export-{fmt}"));
+        run_ok(igi().arg("export").arg(&res).args(["--format", fmt, "-o"]).arg(&dir));
+        assert!(dir.join("terrain_albedo.exr").is_file(), "{fmt}");
+        if fmt == "mitsuba" {
+            let xml = std::fs::read_to_string(dir.join("scene.xml")).unwrap();
+            for name in xml.split("value=\"").skip(1).map(|s| s.split('"').next().unwrap()) {
+                if name.ends_with(".ply") || name.ends_with(".exr") {
+                    assert!(dir.join(name).is_file(), "scene.xml names {name}");
+                }
+            }
+        }
+    }
+
+    // sample: points on the surface get the albedo of the texel under them
+    let result = igi_reflect::SolveResult::load(&res).unwrap();
+    let part = result.parts.iter().position(|p| p.name == "wall").unwrap();
+    let texels: Vec<_> = result.parts[part].cache.texels.iter().step_by(37).take(5).copied().collect();
+    let mut csv = String::from("x,y,z,nx,ny,nz\n");
+    for t in &texels {
+        csv.push_str(&format!("{},{},{},{},{},{}\n", t.position.x, t.position.y, t.position.z, t.normal.x, t.normal.y, t.normal.z));
+    }
+    let pts = tmp.path().join("points.csv");
+    std::fs::write(&pts, csv).unwrap();
+    let vals = tmp.path().join("values.csv");
+    run_ok(igi().arg("sample").arg(&res).arg("--points").arg(&pts).arg("-o").arg(&vals));
+    let text = std::fs::read_to_string(&vals).unwrap();
+    for (line, t) in text.lines().skip(1).zip(&texels) {
+        let v: Vec<f32> = line.split(',').map(|s| s.parse().unwrap()).collect();
+        let want = result.rho[part][t.index as usize];
+        // bilinear lookup at the texel centre returns the texel itself
+        assert!((v[6] - want.x).abs() < 2e-3 && (v[7] - want.y).abs() < 2e-3 && (v[8] - want.z).abs() < 2e-3, "{line} vs {want}");
+    }
+}
+
+fn write(path: &Path, text: &str) {
+    std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+    std::fs::write(path, text).unwrap();
+}
+
+#[test]
+fn bad_surveys_fail_clearly_without_output() {
+    let tmp = tempfile::tempdir().unwrap();
+    let s = tmp.path().join("s");
+    write(&s.join("survey.toml"), "[site]\nmesh = \"geometry/site.ply\"\n[[photo]]\nid = \"a\"\nimage = \"photos/a.exr\"\ncamera = \"c.json\"\nlighting = \"l.toml\"\n");
+    let out_dir = tmp.path().join("out");
+    let out = igi().arg("solve").arg(&s).arg("-o").arg(&out_dir).output().unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("survey.toml") && err.contains("site.ply") && err.contains("does not exist"), "{err}");
+    assert!(!out_dir.exists(), "no output folder for a bad survey");
+
+    write(&s.join("survey.toml"), "[site]\nmesh = 3\n");
+    let out = igi().arg("solve").arg(&s).arg("-o").arg(&out_dir).output().unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("not a valid survey file"));
+    assert!(!out_dir.exists());
+}
