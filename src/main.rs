@@ -42,17 +42,17 @@ enum Command {
     /// BRDFs from hand-held samples: fit, eval, infer, cluster.
     #[command(subcommand)]
     Brdf(cmd::brdf::BrdfCmd),
-    /// Voxelize a scanned site into a multiresolution store with atlases. (planned: issue 6)
+    /// Voxelize a scanned site into a multiresolution store with atlases.
     Prepare(cmd::prepare::PrepareArgs),
-    /// Summarise a prepared site. (planned: issue 6)
+    /// Summarise a prepared site.
     Info(cmd::prepare::InfoArgs),
-    /// Recover per-texel reflectance from a survey folder. (planned: issue 7)
-    Solve(cmd::planned::PlannedArgs),
-    /// Recovered albedo at given surface points. (planned: issue 7)
-    Sample(cmd::planned::PlannedArgs),
-    /// Export a recovered site as PLY, OBJ or a Mitsuba 3 scene. (planned: issue 7)
-    Export(cmd::planned::PlannedArgs),
-    /// The embedded default: build a procedural site, light it, render it, report.
+    /// Recover per-texel reflectance from a survey folder (iterative inverse global illumination).
+    Solve(cmd::solve::SolveArgs),
+    /// Recovered diffuse albedo at given surface points (compare with colour-checker readings).
+    Sample(cmd::solve::SampleArgs),
+    /// Export a recovered site as PLY, OBJ or a Mitsuba 3 scene.
+    Export(cmd::solve::ExportArgs),
+    /// The embedded default: a procedural site photographed under three skies, solved, re-lit.
     Demo(cmd::demo::DemoArgs),
 }
 
@@ -69,9 +69,9 @@ fn main() {
         Command::Brdf(c) => cmd::brdf::run(c, &ctx),
         Command::Prepare(a) => cmd::prepare::run_prepare(a, &ctx),
         Command::Info(a) => cmd::prepare::run_info(a, &ctx),
-        Command::Solve(a) => cmd::planned::run("solve", 7, a),
-        Command::Sample(a) => cmd::planned::run("sample", 7, a),
-        Command::Export(a) => cmd::planned::run("export", 7, a),
+        Command::Solve(a) => cmd::solve::run_solve(a, &ctx),
+        Command::Sample(a) => cmd::solve::run_sample(a, &ctx),
+        Command::Export(a) => cmd::solve::run_export(a, &ctx),
         Command::Demo(a) => cmd::demo::run(a, &ctx),
     };
     if let Err(e) = result {

@@ -12,6 +12,7 @@
 //! * [`hdr`]: merging exposure brackets (linear sensors, or LDR via Debevec & Malik 1997
 //!   response recovery), EXIF exposure times.
 //! * [`radiometry`]: lens falloff (vignetting) polynomial fit and 3x3 colour matrices.
+//! * [`plot`]: font registration for plotters (diagnostic plots).
 //! * [`cv`]: OpenCV-backed calibration, PnP, homography and ArUco detection (cargo feature
 //!   `opencv`; without it the same functions return [`ImagingError::NoOpenCv`]).
 //!
