@@ -213,3 +213,37 @@ fn camera_pose_from_correspondences() {
     let o = igi(&["camera", "pose", "--camera", s(&cam), "--points", s(&pts), "-o", s(&out)]);
     assert_failed(&o, "corr.csv", "line 2", tmp.path(), &[cam.clone(), pts.clone(), out.clone()]);
 }
+
+#[test]
+fn merge_linear_exr_brackets_recovers_radiance() {
+    let tmp = tempfile::tempdir().unwrap();
+    let times = [0.01, 0.1, 1.0];
+    let field = |x: usize| 10f32.powf(-2.0 + 3.5 * x as f32 / 31.0); // 0.01 .. 31.6
+    let mut paths = Vec::new();
+    for (k, t) in times.iter().enumerate() {
+        let mut im = HdrImage::new(32, 2);
+        for y in 0..2 {
+            for x in 0..32 {
+                let v = (field(x) * *t as f32).min(1.0);
+                im.set(x, y, [v, v, v]);
+            }
+        }
+        let p = tmp.path().join(format!("b{k}.exr"));
+        write_exr(&p, &im).unwrap();
+        paths.push(p.to_string_lossy().into_owned());
+    }
+    let out = tmp.path().join("m.exr");
+    let mut args = vec!["hdr", "merge", "--linear", "--json"];
+    args.extend(paths.iter().map(|s| s.as_str()));
+    args.extend(["--times", "0.01", "0.1", "1", "-o", s(&out)]);
+    let o = igi(&args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(j["method"], "linear");
+    assert_eq!(j["valid_fraction"], 1.0);
+    let m = read_image(&out).unwrap();
+    for x in 0..32 {
+        let got = m.get(x, 0)[0];
+        assert!((got / field(x) - 1.0).abs() < 1e-5, "x={x}: {got} vs {}", field(x));
+    }
+}
