@@ -1,0 +1,103 @@
+//! igi-brdf throughput: Lafortune eval / pdf / sample, and the staged LM fit of one material.
+//! `cargo bench --bench brdf`
+
+use criterion::{black_box, criterion_group, criterion_main, BatchSize, Criterion, Throughput};
+use glam::{Vec2, Vec3};
+use igi_brdf::{fit_material, BrdfSample, FitOptions, Lafortune, Lobe};
+
+fn dir(theta_deg: f32, phi_deg: f32) -> Vec3 {
+    let (t, p) = (theta_deg.to_radians(), phi_deg.to_radians());
+    Vec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos())
+}
+
+fn material(n_spec: f32) -> Lafortune {
+    Lafortune {
+        rho_d: Vec3::new(0.35, 0.3, 0.22),
+        lobes: vec![
+            Lobe { rho: Vec3::new(0.1, 0.09, 0.07), cxy: 0.7, cz: 1.0, n: 5.0 },
+            Lobe { rho: Vec3::splat(0.5 * (n_spec + 2.0) / std::f32::consts::TAU), cxy: -1.0, cz: 1.0, n: n_spec },
+        ],
+    }
+}
+
+/// Deterministic quasi-random directions (golden-ratio sequences), upper hemisphere.
+fn dirs(n: usize) -> Vec<(Vec3, Vec3)> {
+    (0..n)
+        .map(|i| {
+            let a = (i as f32 * 0.618_034).fract();
+            let b = (i as f32 * 0.754_877_7).fract();
+            let c = (i as f32 * 0.569_840_3).fract();
+            let d = (i as f32 * 0.362_437_6).fract();
+            (dir(85.0 * a, 360.0 * b), dir(85.0 * c, 360.0 * d))
+        })
+        .collect()
+}
+
+fn bench_model(c: &mut Criterion) {
+    let pairs = dirs(4096);
+    let mut g = c.benchmark_group("lafortune");
+    g.throughput(Throughput::Elements(pairs.len() as u64));
+    for n in [30.0f32, 1.0e4] {
+        let m = material(n);
+        g.bench_function(format!("eval n={n}"), |b| {
+            b.iter(|| {
+                let r = m.as_ref();
+                let mut s = Vec3::ZERO;
+                for &(l, v) in &pairs {
+                    s += r.eval(l, v);
+                }
+                black_box(s)
+            })
+        });
+        g.bench_function(format!("eval_pdf n={n}"), |b| {
+            b.iter(|| {
+                let r = m.as_ref();
+                let mut s = 0.0;
+                for &(l, v) in &pairs {
+                    let (f, p) = r.eval_pdf(v, l);
+                    s += f.x + p;
+                }
+                black_box(s)
+            })
+        });
+        g.bench_function(format!("sample n={n}"), |b| {
+            b.iter(|| {
+                let r = m.as_ref();
+                let mut s = 0.0;
+                for (i, &(_, v)) in pairs.iter().enumerate() {
+                    let u = (i as f32 * 0.618_034).fract();
+                    if let Some(x) = r.sample(v, u, Vec2::new((i as f32 * 0.754_877_7).fract(), (i as f32 * 0.569_84).fract())) {
+                        s += x.pdf;
+                    }
+                }
+                black_box(s)
+            })
+        });
+    }
+    g.finish();
+}
+
+fn bench_fit(c: &mut Criterion) {
+    let mut g = c.benchmark_group("fit");
+    g.sample_size(10);
+    for (name, n, count) in [("glossy n=60, 136 samples", 60.0f32, 136usize), ("stiff n=1e4, 200 samples", 1.0e4, 200)] {
+        let m = material(n);
+        let mut pairs = dirs(count - 40);
+        for i in 0..40 {
+            let t = 10.0 + 1.5 * i as f32;
+            let p = 9.0 * i as f32;
+            pairs.push((dir(t, p), dir(t + 0.05 * (i % 7) as f32 - 0.15, p + 180.0 + 0.1 * (i % 5) as f32 - 0.2)));
+        }
+        let samples: Vec<BrdfSample> = pairs
+            .iter()
+            .map(|&(l, v)| BrdfSample { material: "m".into(), light: l, view: v, value: m.as_ref().eval(l, v) * std::f32::consts::PI })
+            .collect();
+        g.bench_function(name, |b| {
+            b.iter_batched(|| samples.clone(), |s| black_box(fit_material("m", &s, &FitOptions::default()).unwrap().rms), BatchSize::SmallInput)
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, bench_model, bench_fit);
+criterion_main!(benches);
