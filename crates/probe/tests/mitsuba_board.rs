@@ -137,3 +137,42 @@ fn cloudy_hdr() {
 fn cloudy_brackets() {
     check_cloudy(true);
 }
+
+/// Sphere calibration from the image itself: reflectance-versus-angle samples of the Mitsuba
+/// mirror sphere under the known cloudy sky, fitted by Levenberg-Marquardt, give back the
+/// conductor's complex index.
+#[test]
+fn mirror_index_fitted_from_the_rendered_sphere() {
+    use igi_probe::sphere::{reflect, SphereView};
+    let d = dir("cloudy");
+    let cam = Camera::load(&d.join("camera.json")).unwrap();
+    let board = Board::load(&d.join("board.json")).unwrap();
+    let img = read_image(&d.join("board.exr")).unwrap();
+    let sky = truth("cloudy").sky;
+    let view = SphereView::new(&cam, igi_probe::SphereKind::Mirror, &board.mirror);
+    let (x0, y0, x1, y1) = view.pixel_bbox();
+    let mut samples: Vec<Vec<(f64, f64)>> = vec![Vec::new(); 3];
+    for y in y0..=y1 {
+        for x in x0..=x1 {
+            let Some((_, n, dv)) = view.hit_pixel(x as f64, y as f64) else { continue };
+            let cos_i = n.dot(-dv);
+            if cos_i < 0.35 {
+                continue;
+            }
+            let l = latlong_lookup(&sky, reflect(dv, n).as_vec3()).unwrap();
+            let p = img.get(x, y);
+            for c in 0..3 {
+                samples[c].push((cos_i.acos(), (p[c] / l[c]) as f64));
+            }
+        }
+    }
+    let want = [(2.40, 2.98), (2.40, 3.02), (2.40, 3.02)];
+    for c in 0..3 {
+        let fit = igi_probe::fresnel::fit_complex_ior(&samples[c], (1.5, 2.0)).unwrap();
+        eprintln!("channel {c}: n {:.3} k {:.3} (rms {:.4}, {} samples)", fit.n, fit.k, fit.rms, samples[c].len());
+        assert!((fit.n - want[c].0).abs() < 0.05 && (fit.k - want[c].1).abs() < 0.05, "{fit:?}");
+        let r0 = igi_probe::fresnel::conductor(1.0, fit.n, fit.k);
+        let r0_want = igi_probe::fresnel::conductor(1.0, want[c].0, want[c].1);
+        assert!((r0 - r0_want).abs() < 0.005, "{r0} vs {r0_want}");
+    }
+}
