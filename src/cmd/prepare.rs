@@ -49,31 +49,51 @@ pub struct InfoArgs {
 
 fn parse_list(s: &str, what: &str) -> anyhow::Result<Vec<f64>> {
     s.split(',')
-        .map(|t| t.trim().parse::<f64>().with_context(|| format!("--{what}: `{t}` is not a number")))
+        .map(|t| {
+            t.trim()
+                .parse::<f64>()
+                .with_context(|| format!("--{what}: `{t}` is not a number"))
+        })
         .collect()
 }
 
 pub fn run_prepare(a: PrepareArgs, ctx: &Ctx) -> anyhow::Result<()> {
     let origin = parse_list(&a.origin, "origin")?;
-    let [x, y, z] = origin[..] else { bail!("--origin needs three numbers x,y,z, got `{}`", a.origin) };
+    let [x, y, z] = origin[..] else {
+        bail!("--origin needs three numbers x,y,z, got `{}`", a.origin)
+    };
     let grid = VoxelGrid::new([x, y, z], a.voxel)?;
     let opts = PrepareOptions {
         grid,
-        atlas: AtlasOptions { resolution: a.atlas, ..Default::default() },
+        atlas: AtlasOptions {
+            resolution: a.atlas,
+            ..Default::default()
+        },
         levels: parse_list(&a.levels, "levels")?,
     };
     if a.output.exists() {
         let is_site = a.output.join("settings.json").exists();
-        let empty = a.output.read_dir().map(|mut d| d.next().is_none()).unwrap_or(false);
+        let empty = a
+            .output
+            .read_dir()
+            .map(|mut d| d.next().is_none())
+            .unwrap_or(false);
         if !is_site && !empty {
-            bail!("{}: exists and is not a site folder; choose another output", a.output.display());
+            bail!(
+                "{}: exists and is not a site folder; choose another output",
+                a.output.display()
+            );
         }
     }
     // read and check everything before creating the output folder
     let t0 = std::time::Instant::now();
     let mesh = read_mesh(&a.mesh)?;
     let terrain = a.terrain.as_deref().map(read_mesh).transpose()?;
-    tracing::info!("read {} triangles in {:.1} s", mesh.indices.len(), t0.elapsed().as_secs_f64());
+    tracing::info!(
+        "read {} triangles in {:.1} s",
+        mesh.indices.len(),
+        t0.elapsed().as_secs_f64()
+    );
     let (repaired, report) = repair(&mesh);
     drop(mesh);
     let mesh = repaired;
@@ -84,7 +104,10 @@ pub fn run_prepare(a: PrepareArgs, ctx: &Ctx) -> anyhow::Result<()> {
         );
     }
     if mesh.indices.is_empty() {
-        bail!("{}: no triangle left after removing degenerate ones", a.mesh.display());
+        bail!(
+            "{}: no triangle left after removing degenerate ones",
+            a.mesh.display()
+        );
     }
     let terrain = terrain.map(|t| repair(&t).0);
     let pb = ctx.progress(0, "voxels");
@@ -92,7 +115,15 @@ pub fn run_prepare(a: PrepareArgs, ctx: &Ctx) -> anyhow::Result<()> {
         pb.set_length(total as u64);
         pb.set_position(done as u64);
     };
-    let man = igi_geometry::prepare(mesh, terrain, report, &a.output, &a.mesh.display().to_string(), &opts, &progress)?;
+    let man = igi_geometry::prepare(
+        mesh,
+        terrain,
+        report,
+        &a.output,
+        &a.mesh.display().to_string(),
+        &opts,
+        &progress,
+    )?;
     pb.finish_and_clear();
     if a.json {
         return crate::report::print_json(&man);
@@ -119,13 +150,22 @@ fn parse_voxel(s: &str, store: &SiteStore) -> anyhow::Result<VoxelId> {
         let r = store.manifest().voxel_range;
         let c = [0, 1, 2].map(|k| (r[0][k] + r[1][k]) as f64 / 2.0);
         let d = |v: &VoxelId| (0..3).map(|k| (v[k] as f64 - c[k]).powi(2)).sum::<f64>();
-        return ids.into_iter().min_by(|a, b| d(a).total_cmp(&d(b))).context("the site has no voxel");
+        return ids
+            .into_iter()
+            .min_by(|a, b| d(a).total_cmp(&d(b)))
+            .context("the site has no voxel");
     }
     let v: Vec<i32> = s
         .split(',')
-        .map(|t| t.trim().parse::<i32>().with_context(|| format!("--load-voxel: `{t}` is not an integer")))
+        .map(|t| {
+            t.trim()
+                .parse::<i32>()
+                .with_context(|| format!("--load-voxel: `{t}` is not an integer"))
+        })
         .collect::<anyhow::Result<_>>()?;
-    let [i, j, k] = v[..] else { bail!("--load-voxel needs i,j,k or `middle`") };
+    let [i, j, k] = v[..] else {
+        bail!("--load-voxel needs i,j,k or `middle`")
+    };
     Ok([i, j, k])
 }
 
@@ -139,7 +179,8 @@ pub fn run_info(a: InfoArgs, _ctx: &Ctx) -> anyhow::Result<()> {
             let parts = store.load_for_voxel(v)?;
             let secs = t0.elapsed().as_secs_f64();
             let loaded: usize = parts.iter().map(|p| p.mesh.indices.len()).sum();
-            let full: usize = man.triangles_per_level[0] + man.terrain.as_ref().map_or(0, |t| t.triangles[0]);
+            let full: usize =
+                man.triangles_per_level[0] + man.terrain.as_ref().map_or(0, |t| t.triangles[0]);
             Some(serde_json::json!({
                 "voxel": v, "parts": parts.len(), "triangles_loaded": loaded, "triangles_full": full,
                 "reduction": 1.0 - loaded as f64 / full as f64, "seconds": secs,
@@ -168,10 +209,18 @@ pub fn run_info(a: InfoArgs, _ctx: &Ctx) -> anyhow::Result<()> {
     );
     for (l, f) in man.levels.iter().enumerate() {
         let err = man.voxels.iter().map(|e| e.errors[l]).fold(0.0, f64::max);
-        println!("level {l}   {:>5.1}%  {:>10} triangles  max error {:.4} m", 100.0 * f, man.triangles_per_level[l], err);
+        println!(
+            "level {l}   {:>5.1}%  {:>10} triangles  max error {:.4} m",
+            100.0 * f,
+            man.triangles_per_level[l],
+            err
+        );
     }
     if let Some(t) = &man.terrain {
-        println!("terrain   triangles per level {:?}, texel {:.4} m", t.triangles, t.texel_size);
+        println!(
+            "terrain   triangles per level {:?}, texel {:.4} m",
+            t.triangles, t.texel_size
+        );
     }
     println!(
         "atlas     {}x{} per voxel, texel {:.4}..{:.4} m, coverage {:.1}% of texels",
@@ -189,8 +238,12 @@ pub fn run_info(a: InfoArgs, _ctx: &Ctx) -> anyhow::Result<()> {
     if let Some(l) = load {
         println!(
             "load      voxel {} with {} parts: {} of {} triangles ({:.1}% less) in {:.2} s",
-            l["voxel"], l["parts"], l["triangles_loaded"], l["triangles_full"],
-            100.0 * l["reduction"].as_f64().unwrap_or(0.0), l["seconds"].as_f64().unwrap_or(0.0)
+            l["voxel"],
+            l["parts"],
+            l["triangles_loaded"],
+            l["triangles_full"],
+            100.0 * l["reduction"].as_f64().unwrap_or(0.0),
+            l["seconds"].as_f64().unwrap_or(0.0)
         );
     }
     Ok(())

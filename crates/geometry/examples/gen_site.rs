@@ -17,8 +17,12 @@ fn main() {
         std::process::exit(2);
     }
     let out = PathBuf::from(&args[1]);
-    let detail: u32 = args.get(2).map_or(1, |s| s.parse().expect("DETAIL must be an integer"));
-    let seed: u64 = args.get(3).map_or(1, |s| s.parse().expect("SEED must be an integer"));
+    let detail: u32 = args
+        .get(2)
+        .map_or(1, |s| s.parse().expect("DETAIL must be an integer"));
+    let seed: u64 = args
+        .get(3)
+        .map_or(1, |s| s.parse().expect("SEED must be an integer"));
     std::fs::create_dir_all(&out).expect("cannot create the output folder");
     let mut site = TriMesh::default();
     let mut terrain = None;

@@ -29,7 +29,10 @@ pub struct AtlasOptions {
 
 impl Default for AtlasOptions {
     fn default() -> Self {
-        AtlasOptions { resolution: 512, gutter: 2 }
+        AtlasOptions {
+            resolution: 512,
+            gutter: 2,
+        }
     }
 }
 
@@ -111,7 +114,9 @@ pub fn build_atlas(mesh: &TriMesh, opts: AtlasOptions) -> Result<Atlas, Geometry
     let res = opts.resolution as usize;
     let g = opts.gutter as usize;
     if res < 8 {
-        return Err(GeometryError::InvalidArgument(format!("atlas resolution {res} is too small (minimum 8)")));
+        return Err(GeometryError::InvalidArgument(format!(
+            "atlas resolution {res} is too small (minimum 8)"
+        )));
     }
     let nt = mesh.indices.len();
     // 1. dominant direction of each face
@@ -119,7 +124,9 @@ pub fn build_atlas(mesh: &TriMesh, opts: AtlasOptions) -> Result<Atlas, Geometry
         .map(|t| {
             let [a, b, c] = mesh.triangle(t).map(|p| p.map(f64::from));
             let n = cross(sub(b, a), sub(c, a));
-            let axis = (0..3).max_by(|&i, &j| n[i].abs().total_cmp(&n[j].abs())).unwrap();
+            let axis = (0..3)
+                .max_by(|&i, &j| n[i].abs().total_cmp(&n[j].abs()))
+                .unwrap();
             (axis * 2 + usize::from(n[axis] < 0.0)) as u8
         })
         .collect();
@@ -186,11 +193,18 @@ pub fn build_atlas(mesh: &TriMesh, opts: AtlasOptions) -> Result<Atlas, Geometry
             .map(|c| [0, 1].map(|k| ((c.hi[k] - c.lo[k]) * s).ceil() as usize + 1 + 2 * g))
             .collect()
     };
-    let area: f64 = charts.iter().map(|c| (c.hi[0] - c.lo[0]).max(1e-9) * (c.hi[1] - c.lo[1]).max(1e-9)).sum();
+    let area: f64 = charts
+        .iter()
+        .map(|c| (c.hi[0] - c.lo[0]).max(1e-9) * (c.hi[1] - c.lo[1]).max(1e-9))
+        .sum();
     let try_pack = |s: f64| -> Option<Vec<[usize; 2]>> {
         let sizes = sizes_at(s);
         let mut order: Vec<usize> = (0..charts.len()).collect();
-        order.sort_by(|&a, &b| sizes[b][1].cmp(&sizes[a][1]).then(sizes[b][0].cmp(&sizes[a][0])));
+        order.sort_by(|&a, &b| {
+            sizes[b][1]
+                .cmp(&sizes[a][1])
+                .then(sizes[b][0].cmp(&sizes[a][0]))
+        });
         shelf_pack(&sizes, &order, res)
     };
     let mut s = res as f64 * (0.6 / area).sqrt();
@@ -298,7 +312,11 @@ pub fn build_atlas(mesh: &TriMesh, opts: AtlasOptions) -> Result<Atlas, Geometry
                 let p = [0, 1, 2].map(|k| (l1 * pa[k] + l2 * pb[k] + l3 * pc[k]) as f32);
                 let n = [0, 1, 2].map(|k| l1 * na[k] + l2 * nb[k] + l3 * nc[k]);
                 let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-                let n = if l > 0.0 { n.map(|v| (v / l) as f32) } else { na.map(|v| v as f32) };
+                let n = if l > 0.0 {
+                    n.map(|v| (v / l) as f32)
+                } else {
+                    na.map(|v| v as f32)
+                };
                 position.pixels[i] = p;
                 normal.pixels[i] = n;
             }
@@ -317,8 +335,16 @@ pub fn build_atlas(mesh: &TriMesh, opts: AtlasOptions) -> Result<Atlas, Geometry
         let cn = [0, 1, 2].map(|k| ns[0][k] + ns[1][k] + ns[2][k]);
         let l = (cn[0] * cn[0] + cn[1] * cn[1] + cn[2] * cn[2]).sqrt();
         let cn = if l > 0.0 { cn.map(|v| v / l) } else { ns[0] };
-        for (q, p, n) in [(cxy, cp, cn), (xy[0], ps[0], ns[0]), (xy[1], ps[1], ns[1]), (xy[2], ps[2], ns[2])] {
-            let (x, y) = (q[0].floor().clamp(0.0, (res - 1) as f64) as usize, q[1].floor().clamp(0.0, (res - 1) as f64) as usize);
+        for (q, p, n) in [
+            (cxy, cp, cn),
+            (xy[0], ps[0], ns[0]),
+            (xy[1], ps[1], ns[1]),
+            (xy[2], ps[2], ns[2]),
+        ] {
+            let (x, y) = (
+                q[0].floor().clamp(0.0, (res - 1) as f64) as usize,
+                q[1].floor().clamp(0.0, (res - 1) as f64) as usize,
+            );
             let i = y * res + x;
             if owner[i] == u32::MAX {
                 owner[i] = c;
@@ -362,7 +388,11 @@ pub fn build_atlas(mesh: &TriMesh, opts: AtlasOptions) -> Result<Atlas, Geometry
                     owner[i] = chart;
                     position.pixels[i] = sp.map(|v| v / cnt);
                     let l = (sn[0] * sn[0] + sn[1] * sn[1] + sn[2] * sn[2]).sqrt();
-                    normal.pixels[i] = if l > 0.0 { sn.map(|v| v / l) } else { [0.0, 0.0, 1.0] };
+                    normal.pixels[i] = if l > 0.0 {
+                        sn.map(|v| v / l)
+                    } else {
+                        [0.0, 0.0, 1.0]
+                    };
                 }
             }
         }
@@ -372,7 +402,13 @@ pub fn build_atlas(mesh: &TriMesh, opts: AtlasOptions) -> Result<Atlas, Geometry
         let filled = owner[i] != u32::MAX;
         position.valid[i] = filled;
         normal.valid[i] = filled;
-        let v = if covered[i] { 1.0 } else if filled { 0.5 } else { 0.0 };
+        let v = if covered[i] {
+            1.0
+        } else if filled {
+            0.5
+        } else {
+            0.0
+        };
         coverage.pixels[i] = [v; 3];
     }
     Ok(Atlas {
@@ -402,7 +438,9 @@ mod tests {
         let mut out = Vec::new();
         let mut s = 12345u64;
         let mut rnd = || {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             ((s >> 11) as f64) / (1u64 << 53) as f64
         };
         for t in 0..m.indices.len() {
@@ -431,44 +469,80 @@ mod tests {
             let m = &site.iter().find(|(n, _)| n == name).unwrap().1;
             let atlas = build_atlas(m, AtlasOptions::default()).unwrap();
             assert_eq!(atlas.overlap_texels, 0, "{name}");
-            assert!(atlas.coverage_fraction() > 0.2, "{name}: coverage {}", atlas.coverage_fraction());
+            assert!(
+                atlas.coverage_fraction() > 0.2,
+                "{name}: coverage {}",
+                atlas.coverage_fraction()
+            );
             let ts = atlas.texel_size;
             let mut worst = 0.0f64;
             let mut bilinear_worst = 0.0f64;
             for (p, uv, _) in sample_points(&atlas.mesh, 4) {
                 let [x, y] = uv_to_pixel(uv, atlas.resolution);
                 let (j, i) = (x.round() as usize, y.round() as usize);
-                assert!(atlas.position.is_valid(j, i), "{name}: texel under a surface point is empty");
+                assert!(
+                    atlas.position.is_valid(j, i),
+                    "{name}: texel under a surface point is empty"
+                );
                 let q = atlas.position.get(j, i).map(f64::from);
-                let d = ((q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2) + (q[2] - p[2]).powi(2)).sqrt();
+                let d =
+                    ((q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2) + (q[2] - p[2]).powi(2)).sqrt();
                 worst = worst.max(d);
                 // bilinear lookups never hit an empty texel
-                let b = atlas.position.bilinear(x, y).expect("bilinear tap outside the chart");
-                let d = ((b[0] as f64 - p[0]).powi(2) + (b[1] as f64 - p[1]).powi(2) + (b[2] as f64 - p[2]).powi(2)).sqrt();
+                let b = atlas
+                    .position
+                    .bilinear(x, y)
+                    .expect("bilinear tap outside the chart");
+                let d = ((b[0] as f64 - p[0]).powi(2)
+                    + (b[1] as f64 - p[1]).powi(2)
+                    + (b[2] as f64 - p[2]).powi(2))
+                .sqrt();
                 bilinear_worst = bilinear_worst.max(d);
             }
             // the nearest texel centre is within half a texel diagonal on the projection plane;
             // projection stretches distances by at most sqrt(3)
             let bound = 0.5 * ts * 2f64.sqrt() * 3f64.sqrt();
             assert!(worst <= bound, "{name}: {worst} > {bound} (texel {ts})");
-            assert!(bilinear_worst <= 2.0 * bound, "{name}: bilinear {bilinear_worst}");
+            assert!(
+                bilinear_worst <= 2.0 * bound,
+                "{name}: bilinear {bilinear_worst}"
+            );
         }
     }
 
     #[test]
     fn a_flat_square_fills_the_atlas_at_the_expected_texel_size() {
         let m = TriMesh {
-            positions: vec![[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [2.0, 2.0, 0.0], [0.0, 2.0, 0.0]],
+            positions: vec![
+                [0.0, 0.0, 0.0],
+                [2.0, 0.0, 0.0],
+                [2.0, 2.0, 0.0],
+                [0.0, 2.0, 0.0],
+            ],
             normals: Some(vec![[0.0, 0.0, 1.0]; 4]),
             indices: vec![[0, 1, 2], [0, 2, 3]],
             ..Default::default()
         };
-        let a = build_atlas(&m, AtlasOptions { resolution: 64, gutter: 2 }).unwrap();
+        let a = build_atlas(
+            &m,
+            AtlasOptions {
+                resolution: 64,
+                gutter: 2,
+            },
+        )
+        .unwrap();
         assert_eq!(a.charts, 1);
         // one chart of 2 m: ceil(2 s) + 1 + 4 <= 64 -> s <= 29.5 texels per metre
-        assert!(a.texel_size >= 2.0 / 59.0 - 1e-9 && a.texel_size < 2.0 / 50.0, "{}", a.texel_size);
+        assert!(
+            a.texel_size >= 2.0 / 59.0 - 1e-9 && a.texel_size < 2.0 / 50.0,
+            "{}",
+            a.texel_size
+        );
         let side = (2.0 / a.texel_size).floor() as usize + 1;
-        assert!(a.covered_texels >= (side - 1) * (side - 1) && a.covered_texels <= (side + 1) * (side + 1));
+        assert!(
+            a.covered_texels >= (side - 1) * (side - 1)
+                && a.covered_texels <= (side + 1) * (side + 1)
+        );
         // the normal cache is +z wherever valid
         for i in 0..64 * 64 {
             if a.normal.valid[i] {

@@ -12,7 +12,10 @@ pub(crate) fn write_atomic_with(
     write: impl FnOnce(&mut BufWriter<std::fs::File>) -> std::io::Result<()>,
 ) -> Result<(), GeometryError> {
     igi_imaging::io::write_atomic(path, |tmp| {
-        let io = |source| ImagingError::Io { path: path.to_path_buf(), source };
+        let io = |source| ImagingError::Io {
+            path: path.to_path_buf(),
+            source,
+        };
         let f = std::fs::File::create(tmp).map_err(io)?;
         let mut w = BufWriter::with_capacity(1 << 20, f);
         write(&mut w).map_err(io)?;

@@ -31,10 +31,16 @@ pub enum GeometryError {
 
 impl GeometryError {
     pub(crate) fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
-        GeometryError::Io { path: path.into(), source }
+        GeometryError::Io {
+            path: path.into(),
+            source,
+        }
     }
     pub(crate) fn format(path: impl Into<PathBuf>, msg: impl Into<String>) -> Self {
-        GeometryError::Format { path: path.into(), msg: msg.into() }
+        GeometryError::Format {
+            path: path.into(),
+            msg: msg.into(),
+        }
     }
     /// Attach a file name to an `InvalidMesh` error (other variants already name their file).
     pub(crate) fn in_file(self, path: &std::path::Path) -> Self {

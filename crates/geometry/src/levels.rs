@@ -48,7 +48,10 @@ pub fn compact(mesh: &TriMesh, indices: &[u32]) -> TriMesh {
 /// `ratio >= 1` returns the mesh unchanged with error 0.
 pub fn simplify(mesh: &TriMesh, locked: &[bool], ratio: f64, lock_border: bool) -> Level {
     if ratio >= 1.0 || mesh.indices.is_empty() {
-        return Level { mesh: mesh.clone(), error: 0.0 };
+        return Level {
+            mesh: mesh.clone(),
+            error: 0.0,
+        };
     }
     let flat: &[u32] = mesh.indices.as_flattened();
     let bytes: &[u8] = meshopt::typed_to_bytes(&mesh.positions);
@@ -59,12 +62,23 @@ pub fn simplify(mesh: &TriMesh, locked: &[bool], ratio: f64, lock_border: bool) 
         options |= SimplifyOptions::LockBorder;
     }
     let mut err = 0.0f32;
-    let out = meshopt::simplify_with_locks(flat, &adapter, locked, target, f32::MAX, options, Some(&mut err));
+    let out = meshopt::simplify_with_locks(
+        flat,
+        &adapter,
+        locked,
+        target,
+        f32::MAX,
+        options,
+        Some(&mut err),
+    );
     // collapses in folded regions can map two faces onto the same corners: drop the copies
     // (and any degenerate face), so a boundary edge is never hidden by a doubled face
     let (m, _) = crate::repair::repair(&compact(mesh, &out));
     let m = compact(&m, m.indices.as_flattened());
-    Level { mesh: m, error: err as f64 }
+    Level {
+        mesh: m,
+        error: err as f64,
+    }
 }
 
 #[cfg(test)]
@@ -78,7 +92,8 @@ mod tests {
         for j in 0..=n {
             for i in 0..=n {
                 let (x, y) = (i as f32 / n as f32, j as f32 / n as f32);
-                m.positions.push([x, y, 0.02 * (6.0 * x).sin() * (5.0 * y).cos()]);
+                m.positions
+                    .push([x, y, 0.02 * (6.0 * x).sin() * (5.0 * y).cos()]);
             }
         }
         let w = (n + 1) as u32;
@@ -90,12 +105,25 @@ mod tests {
             }
         }
         m.uvs = Some(m.positions.iter().map(|p| [p[0], p[1]]).collect());
-        let locked: Vec<bool> = m.positions.iter().map(|p| p[0] == 0.0 || p[0] == 1.0).collect();
+        let locked: Vec<bool> = m
+            .positions
+            .iter()
+            .map(|p| p[0] == 0.0 || p[0] == 1.0)
+            .collect();
         let l = simplify(&m, &locked, 0.1, false);
-        assert!(l.mesh.indices.len() <= m.indices.len() / 5, "{}", l.mesh.indices.len());
+        assert!(
+            l.mesh.indices.len() <= m.indices.len() / 5,
+            "{}",
+            l.mesh.indices.len()
+        );
         assert!(l.error > 0.0 && l.error < 0.05, "{}", l.error);
         // every locked vertex survives in place (the x = 0 and x = 1 columns, 82 vertices)
-        let kept = l.mesh.positions.iter().filter(|p| p[0] == 0.0 || p[0] == 1.0).count();
+        let kept = l
+            .mesh
+            .positions
+            .iter()
+            .filter(|p| p[0] == 0.0 || p[0] == 1.0)
+            .count();
         assert_eq!(kept, 2 * (n + 1));
         // uvs still equal (x, y) of the kept vertices: collapses keep a vertex's own attributes
         for (p, uv) in l.mesh.positions.iter().zip(l.mesh.uvs.as_ref().unwrap()) {

@@ -17,8 +17,8 @@
 //! Conventions: world Z up, metres; UVs as in OBJ ((0,0) bottom-left, v up); colours linear RGB
 //! in [0, 1].
 
-mod atomic;
 pub mod atlas;
+mod atomic;
 pub mod error;
 pub mod levels;
 pub mod mesh;
@@ -40,10 +40,17 @@ use std::path::Path;
 
 /// Read a `.ply` or `.obj` mesh (chosen by extension, case-insensitive) and validate it.
 pub fn read_mesh(path: &Path) -> Result<TriMesh, GeometryError> {
-    match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+    match path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .as_deref()
+    {
         Some("ply") => read_ply(path),
         Some("obj") => read_obj(path),
-        _ => Err(GeometryError::UnknownFormat { path: path.to_path_buf() }),
+        _ => Err(GeometryError::UnknownFormat {
+            path: path.to_path_buf(),
+        }),
     }
 }
 
@@ -53,13 +60,20 @@ mod tests {
 
     #[test]
     fn unknown_extension_is_refused_by_name() {
-        let e = read_mesh(Path::new("/tmp/site.stl")).unwrap_err().to_string();
-        assert!(e.contains("site.stl") && e.contains("unknown mesh format"), "{e}");
+        let e = read_mesh(Path::new("/tmp/site.stl"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("site.stl") && e.contains("unknown mesh format"),
+            "{e}"
+        );
     }
 
     #[test]
     fn missing_file_names_the_file() {
-        let e = read_mesh(Path::new("/nonexistent/x.ply")).unwrap_err().to_string();
+        let e = read_mesh(Path::new("/nonexistent/x.ply"))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("/nonexistent/x.ply"), "{e}");
     }
 }

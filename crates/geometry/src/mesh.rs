@@ -30,7 +30,11 @@ impl TriMesh {
     /// The three corner positions of triangle `t`.
     pub fn triangle(&self, t: usize) -> [[f32; 3]; 3] {
         let [a, b, c] = self.indices[t];
-        [self.positions[a as usize], self.positions[b as usize], self.positions[c as usize]]
+        [
+            self.positions[a as usize],
+            self.positions[b as usize],
+            self.positions[c as usize],
+        ]
     }
 
     /// Area of triangle `t` in square metres (computed in f64).
@@ -98,13 +102,21 @@ impl TriMesh {
                 self.indices.len()
             )));
         }
-        if let Some(i) = self.positions.iter().position(|p| !p.iter().all(|x| x.is_finite())) {
+        if let Some(i) = self
+            .positions
+            .iter()
+            .position(|p| !p.iter().all(|x| x.is_finite()))
+        {
             return Err(GeometryError::InvalidMesh(format!(
                 "vertex {i} has a non-finite coordinate {:?}",
                 self.positions[i]
             )));
         }
-        fn check<const N: usize>(name: &str, a: &Option<Vec<[f32; N]>>, nv: usize) -> Result<(), GeometryError> {
+        fn check<const N: usize>(
+            name: &str,
+            a: &Option<Vec<[f32; N]>>,
+            nv: usize,
+        ) -> Result<(), GeometryError> {
             if let Some(a) = a {
                 if a.len() != nv {
                     return Err(GeometryError::InvalidMesh(format!(
@@ -113,7 +125,9 @@ impl TriMesh {
                     )));
                 }
                 if let Some(i) = a.iter().position(|p| !p.iter().all(|x| x.is_finite())) {
-                    return Err(GeometryError::InvalidMesh(format!("{name} of vertex {i} is not finite")));
+                    return Err(GeometryError::InvalidMesh(format!(
+                        "{name} of vertex {i} is not finite"
+                    )));
                 }
             }
             Ok(())
@@ -146,7 +160,8 @@ impl TriMesh {
         merge(&mut self.uvs, &other.uvs, self_empty);
         merge(&mut self.colors, &other.colors, self_empty);
         self.positions.extend_from_slice(&other.positions);
-        self.indices.extend(other.indices.iter().map(|t| t.map(|i| i + base)));
+        self.indices
+            .extend(other.indices.iter().map(|t| t.map(|i| i + base)));
     }
 }
 
@@ -155,7 +170,11 @@ pub(crate) fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 }
 
 pub(crate) fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
 }
 
 pub(crate) fn norm(a: [f64; 3]) -> f64 {
@@ -174,7 +193,12 @@ mod tests {
 
     fn quad() -> TriMesh {
         TriMesh {
-            positions: vec![[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [2.0, 3.0, 0.0], [0.0, 3.0, 0.0]],
+            positions: vec![
+                [0.0, 0.0, 0.0],
+                [2.0, 0.0, 0.0],
+                [2.0, 3.0, 0.0],
+                [0.0, 3.0, 0.0],
+            ],
             indices: vec![[0, 1, 2], [0, 2, 3]],
             ..Default::default()
         }
@@ -195,7 +219,12 @@ mod tests {
     fn normals_of_a_tent_are_area_weighted() {
         // two faces sharing edge (0,1): one in plane z=0 (area 1), one vertical (area 3)
         let mut m = TriMesh {
-            positions: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, -6.0]],
+            positions: vec![
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 2.0, 0.0],
+                [0.0, 0.0, -6.0],
+            ],
             indices: vec![[0, 1, 2], [0, 3, 1]],
             ..Default::default()
         };
@@ -203,7 +232,10 @@ mod tests {
         let n0 = m.normals.as_ref().unwrap()[0];
         // face normals: +z*2 (2*area 1) and (0,-1,0)*6 -> (0,-6,2)/|.|
         let l = (36.0f32 + 4.0).sqrt();
-        assert!((n0[1] + 6.0 / l).abs() < 1e-6 && (n0[2] - 2.0 / l).abs() < 1e-6, "{n0:?}");
+        assert!(
+            (n0[1] + 6.0 / l).abs() < 1e-6 && (n0[2] - 2.0 / l).abs() < 1e-6,
+            "{n0:?}"
+        );
         // vertex 2 touches only the flat face
         assert_eq!(m.normals.as_ref().unwrap()[2], [0.0, 0.0, 1.0]);
     }
@@ -213,18 +245,33 @@ mod tests {
         let mut m = quad();
         m.indices[1][2] = 4;
         let e = m.validate().unwrap_err().to_string();
-        assert!(e.contains("index 4") && e.contains("only 4 vertices"), "{e}");
+        assert!(
+            e.contains("index 4") && e.contains("only 4 vertices"),
+            "{e}"
+        );
         let mut m = quad();
         m.positions[2][1] = f32::NAN;
-        assert!(m.validate().unwrap_err().to_string().contains("vertex 2 has a non-finite"));
+        assert!(m
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("vertex 2 has a non-finite"));
         let m = TriMesh::default();
         assert!(m.validate().unwrap_err().to_string().contains("empty mesh"));
         let mut m = quad();
         m.uvs = Some(vec![[0.0, 0.0]; 3]);
-        assert!(m.validate().unwrap_err().to_string().contains("uvs has 3 entries for 4 vertices"));
+        assert!(m
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("uvs has 3 entries for 4 vertices"));
         let mut m = quad();
         m.normals = Some(vec![[0.0, 0.0, f32::INFINITY]; 4]);
-        assert!(m.validate().unwrap_err().to_string().contains("normals of vertex 0"));
+        assert!(m
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("normals of vertex 0"));
     }
 
     #[test]

@@ -32,7 +32,12 @@ pub fn read_obj(path: &Path) -> Result<TriMesh, GeometryError> {
         let Some(key) = it.next() else { continue };
         let nums = |it: std::str::SplitWhitespace, min: usize| -> Result<Vec<f32>, GeometryError> {
             let v: Result<Vec<f32>, _> = it.map(|t| t.parse::<f32>()).collect();
-            let v = v.map_err(|_| bad(&format!("`{}` has a value that is not a number", line.trim())))?;
+            let v = v.map_err(|_| {
+                bad(&format!(
+                    "`{}` has a value that is not a number",
+                    line.trim()
+                ))
+            })?;
             if v.len() < min {
                 return Err(bad(&format!("`{key}` needs {min} numbers")));
             }
@@ -63,9 +68,15 @@ pub fn read_obj(path: &Path) -> Result<TriMesh, GeometryError> {
                     for (k, slot) in idx.iter_mut().enumerate() {
                         match parts.next() {
                             None | Some("") if k > 0 => {}
-                            None | Some("") => return Err(bad(&format!("face corner `{tok}` has no vertex index"))),
+                            None | Some("") => {
+                                return Err(bad(&format!(
+                                    "face corner `{tok}` has no vertex index"
+                                )))
+                            }
                             Some(s) => {
-                                let i: i64 = s.parse().map_err(|_| bad(&format!("bad face index `{s}`")))?;
+                                let i: i64 = s
+                                    .parse()
+                                    .map_err(|_| bad(&format!("bad face index `{s}`")))?;
                                 let n = lens[k] as i64;
                                 let j = if i > 0 { i - 1 } else { n + i };
                                 if i == 0 || j < 0 || j >= n {
@@ -112,8 +123,16 @@ pub fn read_obj(path: &Path) -> Result<TriMesh, GeometryError> {
                     if colors_ok {
                         cv.push(col[c[0] as usize]);
                     }
-                    uvs.push(if c[1] == u32::MAX { [0.0, 0.0] } else { tex[c[1] as usize] });
-                    nv.push(if c[2] == u32::MAX { [0.0, 0.0, 0.0] } else { nrm[c[2] as usize] });
+                    uvs.push(if c[1] == u32::MAX {
+                        [0.0, 0.0]
+                    } else {
+                        tex[c[1] as usize]
+                    });
+                    nv.push(if c[2] == u32::MAX {
+                        [0.0, 0.0, 0.0]
+                    } else {
+                        nrm[c[2] as usize]
+                    });
                     id
                 });
             }
@@ -189,26 +208,50 @@ o x\ng y\nusemtl m\nf 1/1/1 2/2/1 3/3/1 4/4/1\nf -4/1 -2/3 -1/2\n";
         assert_eq!(m.uvs.as_ref().unwrap()[6], [1.0, 0.0]);
         assert_eq!(m.positions[6], [0.0, 1.0, 0.0]);
         assert_eq!(m.normals.as_ref().unwrap()[0], [0.0, 0.0, 1.0]);
-        let s = "v 0 0 0 1 0 0\nv 1 0 0 0 1 0\nv 0 1 0 0 0 1\nvn 0 0 1\nf 1//1 2//1 3//1\nf 3 2 1\n";
+        let s =
+            "v 0 0 0 1 0 0\nv 1 0 0 0 1 0\nv 0 1 0 0 0 1\nvn 0 0 1\nf 1//1 2//1 3//1\nf 3 2 1\n";
         let m = read_obj(&write(d.path(), "b.obj", s)).unwrap();
         assert_eq!(m.indices.len(), 2);
         assert!(m.uvs.is_none());
         assert_eq!(m.colors.as_ref().unwrap()[2], [0.0, 0.0, 1.0]);
         let s = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 5 5 5\nf 1 2 3\n";
         let m = read_obj(&write(d.path(), "c.obj", s)).unwrap();
-        assert_eq!(m.positions.len(), 4, "position-only files keep their vertices");
+        assert_eq!(
+            m.positions.len(),
+            4,
+            "position-only files keep their vertices"
+        );
     }
 
     #[test]
     fn bad_obj_is_reported_with_file_and_line() {
         let d = tempfile::tempdir().unwrap();
-        let e = read_obj(&write(d.path(), "r.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n")).unwrap_err().to_string();
-        assert!(e.contains("r.obj") && e.contains("line 4") && e.contains("index 4 out of range"), "{e}");
-        let e = read_obj(&write(d.path(), "n.obj", "v 0 x 0\n")).unwrap_err().to_string();
+        let e = read_obj(&write(
+            d.path(),
+            "r.obj",
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n",
+        ))
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("r.obj") && e.contains("line 4") && e.contains("index 4 out of range"),
+            "{e}"
+        );
+        let e = read_obj(&write(d.path(), "n.obj", "v 0 x 0\n"))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("n.obj") && e.contains("line 1"), "{e}");
-        let e = read_obj(&write(d.path(), "e.obj", "# nothing\n")).unwrap_err().to_string();
+        let e = read_obj(&write(d.path(), "e.obj", "# nothing\n"))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("e.obj") && e.contains("empty"), "{e}");
-        let e = read_obj(&write(d.path(), "z.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n")).unwrap_err().to_string();
+        let e = read_obj(&write(
+            d.path(),
+            "z.obj",
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n",
+        ))
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("index 0"), "{e}");
     }
 

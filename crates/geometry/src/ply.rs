@@ -60,7 +60,11 @@ impl Scalar {
         macro_rules! rd {
             ($t:ty, $n:expr) => {{
                 let a: [u8; $n] = b[..$n].try_into().unwrap();
-                (if enc == Encoding::BinBe { <$t>::from_be_bytes(a) } else { <$t>::from_le_bytes(a) }) as f64
+                (if enc == Encoding::BinBe {
+                    <$t>::from_be_bytes(a)
+                } else {
+                    <$t>::from_le_bytes(a)
+                }) as f64
             }};
         }
         match self {
@@ -102,24 +106,37 @@ fn read_header<R: BufRead>(r: &mut R, path: &Path) -> Result<Header, GeometryErr
         line.clear();
         // header lines are ASCII; read bytes up to '\n' so binary data after the header is untouched
         let mut buf = Vec::new();
-        let n = r.read_until(b'\n', &mut buf).map_err(|e| GeometryError::io(path, e))?;
+        let n = r
+            .read_until(b'\n', &mut buf)
+            .map_err(|e| GeometryError::io(path, e))?;
         if n == 0 {
             return Ok(false);
         }
         if buf.len() > 4096 {
-            return Err(GeometryError::format(path, "PLY header line longer than 4096 bytes"));
+            return Err(GeometryError::format(
+                path,
+                "PLY header line longer than 4096 bytes",
+            ));
         }
-        *line = String::from_utf8_lossy(&buf).trim_end_matches(['\n', '\r']).to_string();
+        *line = String::from_utf8_lossy(&buf)
+            .trim_end_matches(['\n', '\r'])
+            .to_string();
         Ok(true)
     };
     if !read_line(&mut line)? || line.trim() != "ply" {
-        return Err(GeometryError::format(path, "not a PLY file (first line is not `ply`)"));
+        return Err(GeometryError::format(
+            path,
+            "not a PLY file (first line is not `ply`)",
+        ));
     }
     let mut enc = None;
     let mut elements: Vec<Element> = Vec::new();
     loop {
         if !read_line(&mut line)? {
-            return Err(GeometryError::format(path, "truncated PLY header (no `end_header`)"));
+            return Err(GeometryError::format(
+                path,
+                "truncated PLY header (no `end_header`)",
+            ));
         }
         let toks: Vec<&str> = line.split_whitespace().collect();
         match toks.first().copied() {
@@ -130,20 +147,35 @@ fn read_header<R: BufRead>(r: &mut R, path: &Path) -> Result<Header, GeometryErr
                     Some("binary_little_endian") => Encoding::BinLe,
                     Some("binary_big_endian") => Encoding::BinBe,
                     other => {
-                        return Err(GeometryError::format(path, format!("unknown PLY format {other:?}")))
+                        return Err(GeometryError::format(
+                            path,
+                            format!("unknown PLY format {other:?}"),
+                        ))
                     }
                 })
             }
             Some("element") => {
-                let (Some(name), Some(count)) = (toks.get(1), toks.get(2).and_then(|c| c.parse::<usize>().ok()))
-                else {
-                    return Err(GeometryError::format(path, format!("bad PLY element line `{line}`")));
+                let (Some(name), Some(count)) = (
+                    toks.get(1),
+                    toks.get(2).and_then(|c| c.parse::<usize>().ok()),
+                ) else {
+                    return Err(GeometryError::format(
+                        path,
+                        format!("bad PLY element line `{line}`"),
+                    ));
                 };
-                elements.push(Element { name: name.to_string(), count, props: Vec::new() });
+                elements.push(Element {
+                    name: name.to_string(),
+                    count,
+                    props: Vec::new(),
+                });
             }
             Some("property") => {
                 let Some(el) = elements.last_mut() else {
-                    return Err(GeometryError::format(path, "PLY property before any element"));
+                    return Err(GeometryError::format(
+                        path,
+                        "PLY property before any element",
+                    ));
                 };
                 let bad = || GeometryError::format(path, format!("bad PLY property line `{line}`"));
                 let prop = if toks.get(1) == Some(&"list") {
@@ -152,16 +184,27 @@ fn read_header<R: BufRead>(r: &mut R, path: &Path) -> Result<Header, GeometryErr
                     if matches!(ct, Scalar::F32 | Scalar::F64) {
                         return Err(bad());
                     }
-                    Property { name: toks.get(4).ok_or_else(bad)?.to_string(), list: Some(ct), ty }
+                    Property {
+                        name: toks.get(4).ok_or_else(bad)?.to_string(),
+                        list: Some(ct),
+                        ty,
+                    }
                 } else {
                     let ty = toks.get(1).and_then(|s| Scalar::parse(s)).ok_or_else(bad)?;
-                    Property { name: toks.get(2).ok_or_else(bad)?.to_string(), list: None, ty }
+                    Property {
+                        name: toks.get(2).ok_or_else(bad)?.to_string(),
+                        list: None,
+                        ty,
+                    }
                 };
                 el.props.push(prop);
             }
             Some("end_header") => break,
             Some(other) => {
-                return Err(GeometryError::format(path, format!("unknown PLY header keyword `{other}`")))
+                return Err(GeometryError::format(
+                    path,
+                    format!("unknown PLY header keyword `{other}`"),
+                ))
             }
         }
     }
@@ -180,7 +223,10 @@ struct VertexLayout {
 }
 
 fn vertex_layout(el: &Element, path: &Path) -> Result<VertexLayout, GeometryError> {
-    let mut l = VertexLayout { col_scale: [1.0; 3], ..Default::default() };
+    let mut l = VertexLayout {
+        col_scale: [1.0; 3],
+        ..Default::default()
+    };
     for (i, p) in el.props.iter().enumerate() {
         let slot = match p.name.as_str() {
             "x" => &mut l.pos[0],
@@ -206,20 +252,34 @@ fn vertex_layout(el: &Element, path: &Path) -> Result<VertexLayout, GeometryErro
             _ => continue,
         };
         if p.list.is_some() {
-            return Err(GeometryError::format(path, format!("vertex property `{}` is a list", p.name)));
+            return Err(GeometryError::format(
+                path,
+                format!("vertex property `{}` is a list", p.name),
+            ));
         }
         *slot = Some(i);
     }
     if l.pos.iter().any(|p| p.is_none()) {
-        return Err(GeometryError::format(path, "PLY vertex element lacks x, y or z"));
+        return Err(GeometryError::format(
+            path,
+            "PLY vertex element lacks x, y or z",
+        ));
     }
     Ok(l)
 }
 
 /// Source of property values: ASCII tokens or binary bytes.
 enum Source<R: BufRead> {
-    Ascii { r: R, line: String, toks: Vec<String>, pos: usize },
-    Binary { r: R, enc: Encoding },
+    Ascii {
+        r: R,
+        line: String,
+        toks: Vec<String>,
+        pos: usize,
+    },
+    Binary {
+        r: R,
+        enc: Encoding,
+    },
 }
 
 enum Eof {
@@ -243,7 +303,8 @@ impl<R: BufRead> Source<R> {
                 }
                 let t = &toks[*pos];
                 *pos += 1;
-                t.parse::<f64>().map_err(|_| Eof::Bad(format!("`{t}` is not a number")))
+                t.parse::<f64>()
+                    .map_err(|_| Eof::Bad(format!("`{t}` is not a number")))
             }
             Source::Binary { r, enc } => {
                 let mut b = [0u8; 8];
@@ -303,14 +364,20 @@ pub fn read_ply(path: &Path) -> Result<TriMesh, GeometryError> {
     let mut r = BufReader::with_capacity(1 << 20, f);
     let header = read_header(&mut r, path)?;
     let mut src = match header.enc {
-        Encoding::Ascii => Source::Ascii { r, line: String::new(), toks: Vec::new(), pos: 0 },
+        Encoding::Ascii => Source::Ascii {
+            r,
+            line: String::new(),
+            toks: Vec::new(),
+            pos: 0,
+        },
         enc => Source::Binary { r, enc },
     };
     let mut mesh = TriMesh::default();
     let mut saw_vertex = false;
     let mut saw_face = false;
     for el in &header.elements {
-        let what = |e: Eof, i: usize| match e {
+        let what = |e: Eof, i: usize| {
+            match e {
             Eof::Eof => GeometryError::format(
                 path,
                 format!(
@@ -320,6 +387,7 @@ pub fn read_ply(path: &Path) -> Result<TriMesh, GeometryError> {
             ),
             Eof::Io(e) => GeometryError::io(path, e),
             Eof::Bad(m) => GeometryError::format(path, format!("{} element {i}: {m}", el.name)),
+        }
         };
         match el.name.as_str() {
             "vertex" if !saw_vertex => {
@@ -366,7 +434,11 @@ pub fn read_ply(path: &Path) -> Result<TriMesh, GeometryError> {
                         }
                     }
                     let g = |s: Option<usize>| vals[s.unwrap()];
-                    mesh.positions.push([g(l.pos[0]) as f32, g(l.pos[1]) as f32, g(l.pos[2]) as f32]);
+                    mesh.positions.push([
+                        g(l.pos[0]) as f32,
+                        g(l.pos[1]) as f32,
+                        g(l.pos[2]) as f32,
+                    ]);
                     if has_n {
                         normals.push([g(l.nrm[0]) as f32, g(l.nrm[1]) as f32, g(l.nrm[2]) as f32]);
                     }
@@ -390,8 +462,12 @@ pub fn read_ply(path: &Path) -> Result<TriMesh, GeometryError> {
                 let vi = el
                     .props
                     .iter()
-                    .position(|p| p.list.is_some() && (p.name == "vertex_indices" || p.name == "vertex_index"))
-                    .ok_or_else(|| GeometryError::format(path, "PLY face element has no vertex_indices list"))?;
+                    .position(|p| {
+                        p.list.is_some() && (p.name == "vertex_indices" || p.name == "vertex_index")
+                    })
+                    .ok_or_else(|| {
+                        GeometryError::format(path, "PLY face element has no vertex_indices list")
+                    })?;
                 mesh.indices.reserve(el.count);
                 let mut poly: Vec<u32> = Vec::with_capacity(8);
                 for i in 0..el.count {
@@ -399,7 +475,10 @@ pub fn read_ply(path: &Path) -> Result<TriMesh, GeometryError> {
                         if let Some(ct) = p.list {
                             let n = src.scalar(ct).map_err(|e| what(e, i))?;
                             if n < 0.0 || n > 1e6 {
-                                return Err(GeometryError::format(path, format!("face {i}: bad list length {n}")));
+                                return Err(GeometryError::format(
+                                    path,
+                                    format!("face {i}: bad list length {n}"),
+                                ));
                             }
                             poly.clear();
                             for _ in 0..n as usize {
@@ -418,7 +497,10 @@ pub fn read_ply(path: &Path) -> Result<TriMesh, GeometryError> {
                                 if poly.len() < 3 {
                                     return Err(GeometryError::format(
                                         path,
-                                        format!("face {i} has {} vertices (need at least 3)", poly.len()),
+                                        format!(
+                                            "face {i} has {} vertices (need at least 3)",
+                                            poly.len()
+                                        ),
                                     ));
                                 }
                                 for j in 1..poly.len() - 1 {
@@ -451,7 +533,10 @@ pub fn read_ply(path: &Path) -> Result<TriMesh, GeometryError> {
     if !saw_vertex {
         return Err(GeometryError::format(path, "PLY has no vertex element"));
     }
-    if src.has_trailing_data().map_err(|e| GeometryError::io(path, e))? {
+    if src
+        .has_trailing_data()
+        .map_err(|e| GeometryError::io(path, e))?
+    {
         return Err(GeometryError::format(
             path,
             "data continues after the last element the header declares: the element counts do not match the data",
@@ -466,11 +551,18 @@ pub fn read_ply(path: &Path) -> Result<TriMesh, GeometryError> {
 pub fn write_ply(path: &Path, mesh: &TriMesh) -> Result<(), GeometryError> {
     mesh.validate().map_err(|e| e.in_file(path))?;
     if mesh.positions.len() > i32::MAX as usize {
-        return Err(GeometryError::format(path, "too many vertices for a PLY with int indices"));
+        return Err(GeometryError::format(
+            path,
+            "too many vertices for a PLY with int indices",
+        ));
     }
     write_atomic_with(path, |w| {
-        let mut h = String::from("ply\nformat binary_little_endian 1.0\ncomment written by igi-geometry\n");
-        h += &format!("element vertex {}\nproperty float x\nproperty float y\nproperty float z\n", mesh.positions.len());
+        let mut h =
+            String::from("ply\nformat binary_little_endian 1.0\ncomment written by igi-geometry\n");
+        h += &format!(
+            "element vertex {}\nproperty float x\nproperty float y\nproperty float z\n",
+            mesh.positions.len()
+        );
         if mesh.normals.is_some() {
             h += "property float nx\nproperty float ny\nproperty float nz\n";
         }
@@ -480,7 +572,10 @@ pub fn write_ply(path: &Path, mesh: &TriMesh) -> Result<(), GeometryError> {
         if mesh.colors.is_some() {
             h += "property float red\nproperty float green\nproperty float blue\n";
         }
-        h += &format!("element face {}\nproperty list uchar int vertex_indices\nend_header\n", mesh.indices.len());
+        h += &format!(
+            "element face {}\nproperty list uchar int vertex_indices\nend_header\n",
+            mesh.indices.len()
+        );
         w.write_all(h.as_bytes())?;
         let mut rec = Vec::with_capacity(44);
         for i in 0..mesh.positions.len() {
@@ -518,7 +613,6 @@ pub fn write_ply(path: &Path, mesh: &TriMesh) -> Result<(), GeometryError> {
 mod tests {
     use super::*;
 
-
     fn write(dir: &Path, name: &str, bytes: &[u8]) -> std::path::PathBuf {
         let p = dir.join(name);
         std::fs::File::create(&p).unwrap().write_all(bytes).unwrap();
@@ -535,7 +629,15 @@ element face 1\nproperty list uchar int vertex_indices\nend_header\n\
         let d = tempfile::tempdir().unwrap();
         let p = write(d.path(), "q.ply", ASCII.as_bytes());
         let m = read_ply(&p).unwrap();
-        assert_eq!(m.positions, vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]]);
+        assert_eq!(
+            m.positions,
+            vec![
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [1.0, 1.0, 0.0],
+                [0.0, 1.0, 0.0]
+            ]
+        );
         assert_eq!(m.indices, vec![[0, 1, 2], [0, 2, 3]]);
         let c = m.colors.unwrap();
         assert_eq!(c[0], [1.0, 0.0, 0.0]);
@@ -544,7 +646,11 @@ element face 1\nproperty list uchar int vertex_indices\nend_header\n\
     }
 
     fn binary(big: bool) -> Vec<u8> {
-        let fmt = if big { "binary_big_endian" } else { "binary_little_endian" };
+        let fmt = if big {
+            "binary_big_endian"
+        } else {
+            "binary_little_endian"
+        };
         let mut b = format!(
             "ply\nformat {fmt} 1.0\nelement vertex 3\nproperty double x\nproperty double y\nproperty double z\n\
 property short flags\nproperty float s\nproperty float t\nelement face 1\nproperty uchar tag\n\
@@ -593,7 +699,10 @@ property list uchar uint vertex_index\nproperty list uchar float texcoord\neleme
         for big in [false, true] {
             let p = write(d.path(), "b.ply", &binary(big));
             let m = read_ply(&p).unwrap();
-            assert_eq!(m.positions, vec![[0.0, 0.0, 1.0], [2.0, 0.0, 1.0], [0.0, 3.0, 1.0]]);
+            assert_eq!(
+                m.positions,
+                vec![[0.0, 0.0, 1.0], [2.0, 0.0, 1.0], [0.0, 3.0, 1.0]]
+            );
             assert_eq!(m.uvs.unwrap(), vec![[0.0, 0.5], [0.25, 0.5], [0.5, 0.5]]);
             assert_eq!(m.indices, vec![[0, 1, 2]]);
         }
@@ -612,7 +721,9 @@ property list uchar uint vertex_index\nproperty list uchar float texcoord\neleme
         let e = read_ply(&p).unwrap_err().to_string();
         assert!(e.contains("c.ply") && e.contains("truncated"), "{e}");
         // declares fewer vertices than present: trailing data
-        let bad = ASCII.replace("element vertex 4", "element vertex 3").replace("4 0 1 2 3", "3 0 1 2");
+        let bad = ASCII
+            .replace("element vertex 4", "element vertex 3")
+            .replace("4 0 1 2 3", "3 0 1 2");
         let p = write(d.path(), "m.ply", bad.as_bytes());
         let e = read_ply(&p).unwrap_err().to_string();
         assert!(e.contains("m.ply"), "{e}");
@@ -625,7 +736,10 @@ property list uchar uint vertex_index\nproperty list uchar float texcoord\neleme
         let bad = ASCII.replace("1 1 0 0.5", "1 nan 0 0.5");
         let p = write(d.path(), "n.ply", bad.as_bytes());
         let e = read_ply(&p).unwrap_err().to_string();
-        assert!(e.contains("n.ply") && e.contains("vertex 2 has a non-finite"), "{e}");
+        assert!(
+            e.contains("n.ply") && e.contains("vertex 2 has a non-finite"),
+            "{e}"
+        );
         // empty
         let p = write(
             d.path(),
@@ -635,7 +749,11 @@ property list uchar uint vertex_index\nproperty list uchar float texcoord\neleme
         let e = read_ply(&p).unwrap_err().to_string();
         assert!(e.contains("e.ply") && e.contains("empty mesh"), "{e}");
         // header without end
-        let p = write(d.path(), "h.ply", b"ply\nformat ascii 1.0\nelement vertex 3\n");
+        let p = write(
+            d.path(),
+            "h.ply",
+            b"ply\nformat ascii 1.0\nelement vertex 3\n",
+        );
         assert!(read_ply(&p).unwrap_err().to_string().contains("end_header"));
         let p = write(d.path(), "x.ply", b"solid stl\n");
         assert!(read_ply(&p).unwrap_err().to_string().contains("not a PLY"));

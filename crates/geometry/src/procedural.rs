@@ -46,7 +46,12 @@ fn tile(k: usize, count: usize) -> Rect {
     let s = 1.0 / g as f64;
     let m = 0.04 * s;
     let (i, j) = (k / g, k % g);
-    Rect([j as f64 * s + m, i as f64 * s + m, (j + 1) as f64 * s - m, (i + 1) as f64 * s - m])
+    Rect([
+        j as f64 * s + m,
+        i as f64 * s + m,
+        (j + 1) as f64 * s - m,
+        (i + 1) as f64 * s - m,
+    ])
 }
 
 impl Builder {
@@ -66,7 +71,10 @@ impl Builder {
             for i in 0..=nu {
                 let (s, t) = (i as f64 / nu as f64, j as f64 / nv as f64);
                 let p = [0, 1, 2].map(|k| o[k] + s * ex[k] + t * ey[k]);
-                let uv = [r.0[0] + s * (r.0[2] - r.0[0]), r.0[1] + t * (r.0[3] - r.0[1])];
+                let uv = [
+                    r.0[0] + s * (r.0[2] - r.0[0]),
+                    r.0[1] + t * (r.0[3] - r.0[1]),
+                ];
                 self.vert(p, n, uv);
             }
         }
@@ -82,19 +90,27 @@ impl Builder {
 
     /// An axis-aligned box, `per_m` quads per metre on each face, faces drawn into tiles
     /// `first_tile..` of a `tiles`-tile layout. The bottom face only when `bottom`.
-    fn aabox(&mut self, lo: [f64; 3], hi: [f64; 3], per_m: f64, first_tile: usize, tiles: usize, bottom: bool) {
+    fn aabox(
+        &mut self,
+        lo: [f64; 3],
+        hi: [f64; 3],
+        per_m: f64,
+        first_tile: usize,
+        tiles: usize,
+        bottom: bool,
+    ) {
         let d = [hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]];
         let cells = |l: f64| ((l * per_m).ceil() as usize).max(1);
         let (x, y, z) = ([d[0], 0.0, 0.0], [0.0, d[1], 0.0], [0.0, 0.0, d[2]]);
         let neg = |v: [f64; 3]| v.map(|c| -c);
         // (origin, ex, ey, len ex, len ey): each face wound counter-clockwise seen from outside
         let faces = [
-            ([lo[0], lo[1], hi[2]], x, y, d[0], d[1]),                // top +z
-            ([lo[0], lo[1], lo[2]], x, z, d[0], d[2]),                // front -y
-            ([hi[0], hi[1], lo[2]], neg(x), z, d[0], d[2]),           // back +y
-            ([hi[0], lo[1], lo[2]], y, z, d[1], d[2]),                // right +x
-            ([lo[0], hi[1], lo[2]], neg(y), z, d[1], d[2]),           // left -x
-            ([lo[0], hi[1], lo[2]], x, neg(y), d[0], d[1]),           // bottom -z
+            ([lo[0], lo[1], hi[2]], x, y, d[0], d[1]),      // top +z
+            ([lo[0], lo[1], lo[2]], x, z, d[0], d[2]),      // front -y
+            ([hi[0], hi[1], lo[2]], neg(x), z, d[0], d[2]), // back +y
+            ([hi[0], lo[1], lo[2]], y, z, d[1], d[2]),      // right +x
+            ([lo[0], hi[1], lo[2]], neg(y), z, d[1], d[2]), // left -x
+            ([lo[0], hi[1], lo[2]], x, neg(y), d[0], d[1]), // bottom -z
         ];
         for (k, (o, ex, ey, lx, ly)) in faces.into_iter().enumerate() {
             if k == 5 && !bottom {
@@ -105,7 +121,13 @@ impl Builder {
     }
 
     fn finish(self) -> TriMesh {
-        TriMesh { positions: self.p, normals: Some(self.n), uvs: Some(self.uv), colors: None, indices: self.idx }
+        TriMesh {
+            positions: self.p,
+            normals: Some(self.n),
+            uvs: Some(self.uv),
+            colors: None,
+            indices: self.idx,
+        }
     }
 }
 
@@ -117,7 +139,10 @@ fn terrain_height(x: f64, y: f64, waves: &[(f64, f64, f64, f64)]) -> f64 {
     let r = (dx * dx + dy * dy).sqrt();
     let w = (r / 6.0).clamp(0.0, 1.0);
     let w = w * w * (3.0 - 2.0 * w);
-    let h: f64 = waves.iter().map(|&(a, kx, ky, ph)| a * (kx * x + ky * y + ph).sin()).sum();
+    let h: f64 = waves
+        .iter()
+        .map(|&(a, kx, ky, ph)| a * (kx * x + ky * y + ph).sin())
+        .sum();
     w * h
 }
 
@@ -131,7 +156,12 @@ pub fn colonnade_site(seed: u64, detail: u32) -> Vec<(String, TriMesh)> {
             let a = 0.35 / (k as f64 + 1.0);
             let ang = rng.next_f64() * std::f64::consts::TAU;
             let freq = 0.12 * (k as f64 + 1.0);
-            (a, freq * ang.cos(), freq * ang.sin(), rng.next_f64() * std::f64::consts::TAU)
+            (
+                a,
+                freq * ang.cos(),
+                freq * ang.sin(),
+                rng.next_f64() * std::f64::consts::TAU,
+            )
         })
         .collect();
     let mut out = Vec::new();
@@ -146,8 +176,10 @@ pub fn colonnade_site(seed: u64, detail: u32) -> Vec<(String, TriMesh)> {
             let (x, y) = (-size / 2.0 + s * size, -size / 2.0 + t * size);
             let h = 1e-3;
             let z = terrain_height(x, y, &waves);
-            let gx = (terrain_height(x + h, y, &waves) - terrain_height(x - h, y, &waves)) / (2.0 * h);
-            let gy = (terrain_height(x, y + h, &waves) - terrain_height(x, y - h, &waves)) / (2.0 * h);
+            let gx =
+                (terrain_height(x + h, y, &waves) - terrain_height(x - h, y, &waves)) / (2.0 * h);
+            let gy =
+                (terrain_height(x, y + h, &waves) - terrain_height(x, y - h, &waves)) / (2.0 * h);
             b.vert([x, y, z], normalize([-gx, -gy, 1.0]), [s, t]);
         }
     }
@@ -219,7 +251,8 @@ pub fn colonnade_site(seed: u64, detail: u32) -> Vec<(String, TriMesh)> {
             }
             for i in 0..sides as u32 {
                 let (p, q) = (first + i, first + (i + 1) % sides as u32);
-                b.idx.push(if top { [centre, p, q] } else { [centre, q, p] });
+                b.idx
+                    .push(if top { [centre, p, q] } else { [centre, q, p] });
             }
         }
         out.push((format!("column_{c:02}"), b.finish()));
@@ -250,7 +283,10 @@ mod tests {
             ma.validate().unwrap();
             assert_eq!(ma, mb, "{na} not deterministic");
             for uv in ma.uvs.as_ref().unwrap() {
-                assert!((0.0..=1.0).contains(&uv[0]) && (0.0..=1.0).contains(&uv[1]), "{na} uv {uv:?}");
+                assert!(
+                    (0.0..=1.0).contains(&uv[0]) && (0.0..=1.0).contains(&uv[1]),
+                    "{na} uv {uv:?}"
+                );
             }
             for n in ma.normals.as_ref().unwrap() {
                 let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
@@ -279,7 +315,11 @@ mod tests {
         }
         // the wall is a 12 x 0.6 x 6 box without bottom: 2*(12*6) + 2*(0.6*6) + 12*0.6
         let wall = &site.iter().find(|(n, _)| n == "wall").unwrap().1;
-        assert!((wall.total_area() - (144.0 + 7.2 + 7.2)).abs() < 1e-3, "{}", wall.total_area());
+        assert!(
+            (wall.total_area() - (144.0 + 7.2 + 7.2)).abs() < 1e-3,
+            "{}",
+            wall.total_area()
+        );
     }
 
     #[test]
@@ -298,9 +338,13 @@ mod tests {
                 if den.abs() < 1e-15 {
                     continue;
                 }
-                for y in (lo_y * res as f64) as usize..=((hi_y * res as f64) as usize).min(res - 1) {
-                    for x in (lo_x * res as f64) as usize..=((hi_x * res as f64) as usize).min(res - 1) {
-                        let (px, py) = ((x as f64 + 0.5) / res as f64, (y as f64 + 0.5) / res as f64);
+                for y in (lo_y * res as f64) as usize..=((hi_y * res as f64) as usize).min(res - 1)
+                {
+                    for x in
+                        (lo_x * res as f64) as usize..=((hi_x * res as f64) as usize).min(res - 1)
+                    {
+                        let (px, py) =
+                            ((x as f64 + 0.5) / res as f64, (y as f64 + 0.5) / res as f64);
                         let l1 = ((b[1] - c[1]) * (px - c[0]) + (c[0] - b[0]) * (py - c[1])) / den;
                         let l2 = ((c[1] - a[1]) * (px - c[0]) + (a[0] - c[0]) * (py - c[1])) / den;
                         let l3 = 1.0 - l1 - l2;
@@ -313,7 +357,10 @@ mod tests {
             }
             let overlaps = hit.iter().filter(|&&h| h > 1).count();
             assert_eq!(overlaps, 0, "{name}: {overlaps} texels covered twice");
-            assert!(hit.iter().filter(|&&h| h > 0).count() > res * res / 10, "{name} uses little of its atlas");
+            assert!(
+                hit.iter().filter(|&&h| h > 0).count() > res * res / 10,
+                "{name} uses little of its atlas"
+            );
         }
     }
 }

@@ -39,12 +39,17 @@ fn pos_key(p: [f32; 3]) -> [u32; 3] {
 /// Remove degenerate and duplicate triangles (comparing corner positions, so unwelded
 /// duplicates are found too) and count non-manifold and border edges. Vertices are kept.
 pub fn repair(mesh: &TriMesh) -> (TriMesh, RepairReport) {
-    let mut rep = RepairReport { triangles_in: mesh.indices.len(), ..Default::default() };
+    let mut rep = RepairReport {
+        triangles_in: mesh.indices.len(),
+        ..Default::default()
+    };
     let keep: Vec<bool> = mesh
         .indices
         .par_iter()
         .enumerate()
-        .map(|(t, tri)| tri[0] != tri[1] && tri[1] != tri[2] && tri[0] != tri[2] && mesh.triangle_area(t) > 0.0)
+        .map(|(t, tri)| {
+            tri[0] != tri[1] && tri[1] != tri[2] && tri[0] != tri[2] && mesh.triangle_area(t) > 0.0
+        })
         .collect();
     rep.degenerate_removed = keep.iter().filter(|k| !**k).count();
     let tri_key = |t: usize| -> [[u32; 3]; 3] {
@@ -85,8 +90,13 @@ pub fn repair(mesh: &TriMesh) -> (TriMesh, RepairReport) {
     }
     drop(keyed);
     rep.duplicate_removed = dup.iter().filter(|d| **d).count();
-    let indices: Vec<[u32; 3]> =
-        mesh.indices.iter().enumerate().filter(|(t, _)| keep[*t] && !dup[*t]).map(|(_, t)| *t).collect();
+    let indices: Vec<[u32; 3]> = mesh
+        .indices
+        .iter()
+        .enumerate()
+        .filter(|(t, _)| keep[*t] && !dup[*t])
+        .map(|(_, t)| *t)
+        .collect();
     let out = TriMesh {
         positions: mesh.positions.clone(),
         normals: mesh.normals.clone(),
@@ -98,12 +108,17 @@ pub fn repair(mesh: &TriMesh) -> (TriMesh, RepairReport) {
     let edge_key = |e: usize| -> [[u32; 3]; 2] {
         let tri = out.indices[e / 3];
         let (a, b) = (tri[e % 3], tri[(e + 1) % 3]);
-        let mut k = [pos_key(out.positions[a as usize]), pos_key(out.positions[b as usize])];
+        let mut k = [
+            pos_key(out.positions[a as usize]),
+            pos_key(out.positions[b as usize]),
+        ];
         k.sort();
         k
     };
-    let mut edges: Vec<(u64, u32)> =
-        (0..out.indices.len() * 3).into_par_iter().map(|e| (hash_words(edge_key(e).as_flattened()), e as u32)).collect();
+    let mut edges: Vec<(u64, u32)> = (0..out.indices.len() * 3)
+        .into_par_iter()
+        .map(|e| (hash_words(edge_key(e).as_flattened()), e as u32))
+        .collect();
     edges.par_sort_unstable();
     let mut i = 0;
     while i < edges.len() {
@@ -115,7 +130,8 @@ pub fn repair(mesh: &TriMesh) -> (TriMesh, RepairReport) {
             rep.border_edges += 1;
         } else {
             // group the run by exact key
-            let mut keys: Vec<[[u32; 3]; 2]> = edges[i..j].iter().map(|e| edge_key(e.1 as usize)).collect();
+            let mut keys: Vec<[[u32; 3]; 2]> =
+                edges[i..j].iter().map(|e| edge_key(e.1 as usize)).collect();
             keys.sort();
             let mut a = 0;
             while a < keys.len() {
@@ -175,6 +191,10 @@ mod tests {
         assert_eq!(out.indices.len(), 5);
         assert_eq!(rep.non_manifold_edges, 1, "edge (0,1) has three faces");
         assert_eq!(rep.border_edges, 2, "the fin's two free edges");
-        assert_eq!(out.indices[0], [0, 2, 1], "the first of the duplicates is kept");
+        assert_eq!(
+            out.indices[0],
+            [0, 2, 1],
+            "the first of the duplicates is kept"
+        );
     }
 }

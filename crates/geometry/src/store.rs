@@ -34,7 +34,10 @@ pub struct PrepareOptions {
 impl Default for PrepareOptions {
     fn default() -> Self {
         PrepareOptions {
-            grid: VoxelGrid { origin: [0.0; 3], size: 4.3 },
+            grid: VoxelGrid {
+                origin: [0.0; 3],
+                size: 4.3,
+            },
             atlas: AtlasOptions::default(),
             levels: vec![1.0, 0.2, 0.05],
         }
@@ -45,7 +48,11 @@ impl PrepareOptions {
     fn check(&self) -> Result<(), GeometryError> {
         VoxelGrid::new(self.grid.origin, self.grid.size)?;
         let l = &self.levels;
-        if l.is_empty() || l[0] != 1.0 || l.iter().any(|x| !(*x > 0.0 && *x <= 1.0)) || l.windows(2).any(|w| w[1] >= w[0]) {
+        if l.is_empty()
+            || l[0] != 1.0
+            || l.iter().any(|x| !(*x > 0.0 && *x <= 1.0))
+            || l.windows(2).any(|w| w[1] >= w[0])
+        {
             return Err(GeometryError::InvalidArgument(format!(
                 "levels must start at 1.0 and decrease inside (0, 1], got {l:?}"
             )));
@@ -141,7 +148,9 @@ fn process_part(
     if done.exists() {
         if let Ok(entry) = read_json::<PartEntry>(&done) {
             let complete = (0..opts.levels.len()).all(|l| folder.join(level_file(l)).exists())
-                && ["position.exr", "normal.exr", "coverage.exr"].iter().all(|f| folder.join(f).exists());
+                && ["position.exr", "normal.exr", "coverage.exr"]
+                    .iter()
+                    .all(|f| folder.join(f).exists());
             if complete && entry.voxel == voxel {
                 return Ok(entry);
             }
@@ -158,7 +167,12 @@ fn process_part(
     igi_imaging::write_exr(&folder.join("normal.exr"), &atlas.normal)?;
     igi_imaging::write_exr(&folder.join("coverage.exr"), &atlas.coverage)?;
     let locked: Vec<bool> = match voxel {
-        Some(v) => atlas.mesh.positions.iter().map(|p| opts.grid.on_voxel_face(v, *p)).collect(),
+        Some(v) => atlas
+            .mesh
+            .positions
+            .iter()
+            .map(|p| opts.grid.on_voxel_face(v, *p))
+            .collect(),
         None => vec![false; atlas.mesh.positions.len()],
     };
     let mut triangles = Vec::new();
@@ -232,7 +246,12 @@ pub fn prepare(
     drop(site);
     let total = parts.len() + usize::from(terrain.is_some());
     let count = std::sync::atomic::AtomicUsize::new(0);
-    let tick = || progress(count.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1, total);
+    let tick = || {
+        progress(
+            count.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1,
+            total,
+        )
+    };
     // the terrain (one large part) runs beside the voxels
     let (voxels, terrain) = rayon::join(
         || {
@@ -268,9 +287,14 @@ pub fn prepare(
             vr[1][k] = vr[1][k].max(v[k]);
         }
     }
-    let triangles_per_level = (0..opts.levels.len()).map(|l| voxels.iter().map(|e| e.triangles[l]).sum()).collect();
+    let triangles_per_level = (0..opts.levels.len())
+        .map(|l| voxels.iter().map(|e| e.triangles[l]).sum())
+        .collect();
     let all = voxels.iter().chain(terrain.iter());
-    let texel_size_min = all.clone().map(|e| e.texel_size).fold(f64::INFINITY, f64::min);
+    let texel_size_min = all
+        .clone()
+        .map(|e| e.texel_size)
+        .fold(f64::INFINITY, f64::min);
     let texel_size_max = all.clone().map(|e| e.texel_size).fold(0.0, f64::max);
     let n = all.clone().count().max(1) as f64;
     let coverage_mean = all.map(|e| e.coverage).sum::<f64>() / n;
@@ -313,13 +337,22 @@ impl SiteStore {
     pub fn open(dir: &Path) -> Result<SiteStore, GeometryError> {
         let path = dir.join("manifest.json");
         if !path.exists() {
-            return Err(GeometryError::format(dir, "not a prepared site (no manifest.json; run `igi prepare`)"));
+            return Err(GeometryError::format(
+                dir,
+                "not a prepared site (no manifest.json; run `igi prepare`)",
+            ));
         }
         let manifest: Manifest = read_json(&path)?;
         if manifest.format != FORMAT {
-            return Err(GeometryError::format(&path, format!("unknown site format `{}`", manifest.format)));
+            return Err(GeometryError::format(
+                &path,
+                format!("unknown site format `{}`", manifest.format),
+            ));
         }
-        Ok(SiteStore { dir: dir.to_path_buf(), manifest })
+        Ok(SiteStore {
+            dir: dir.to_path_buf(),
+            manifest,
+        })
     }
 
     pub fn manifest(&self) -> &Manifest {
@@ -332,7 +365,11 @@ impl SiteStore {
 
     /// The non-empty voxels, sorted.
     pub fn voxel_ids(&self) -> Vec<VoxelId> {
-        self.manifest.voxels.iter().filter_map(|e| e.voxel).collect()
+        self.manifest
+            .voxels
+            .iter()
+            .filter_map(|e| e.voxel)
+            .collect()
     }
 
     fn entry(&self, v: VoxelId) -> Result<&PartEntry, GeometryError> {
@@ -340,7 +377,9 @@ impl SiteStore {
             .voxels
             .iter()
             .find(|e| e.voxel == Some(v))
-            .ok_or_else(|| GeometryError::InvalidArgument(format!("voxel {v:?} is empty or outside the site")))
+            .ok_or_else(|| {
+                GeometryError::InvalidArgument(format!("voxel {v:?} is empty or outside the site"))
+            })
     }
 
     /// Folder of a voxel (its level PLYs and `position.exr`, `normal.exr`, `coverage.exr`).
@@ -350,7 +389,10 @@ impl SiteStore {
 
     /// Folder of the terrain, if the site has one.
     pub fn terrain_folder(&self) -> Option<PathBuf> {
-        self.manifest.terrain.as_ref().map(|e| self.dir.join(&e.dir))
+        self.manifest
+            .terrain
+            .as_ref()
+            .map(|e| self.dir.join(&e.dir))
     }
 
     /// Read one voxel at one level (0 = full resolution).
@@ -375,11 +417,19 @@ impl SiteStore {
                     1 => medium,
                     _ => low,
                 };
-                Ok(LoadedPart { voxel: Some(u), level, mesh: self.load_voxel(u, level)? })
+                Ok(LoadedPart {
+                    voxel: Some(u),
+                    level,
+                    mesh: self.load_voxel(u, level)?,
+                })
             })
             .collect::<Result<_, GeometryError>>()?;
         if let Some(t) = self.terrain_folder() {
-            out.push(LoadedPart { voxel: None, level: low, mesh: crate::ply::read_ply(&t.join(level_file(low)))? });
+            out.push(LoadedPart {
+                voxel: None,
+                level: low,
+                mesh: crate::ply::read_ply(&t.join(level_file(low)))?,
+            });
         }
         Ok(out)
     }
@@ -418,7 +468,11 @@ mod tests {
         }
         let mut out: Vec<Edge> = count
             .into_iter()
-            .filter(|(e, c)| *c == 1 && f32::from_bits(e[0][axis]) == plane && f32::from_bits(e[1][axis]) == plane)
+            .filter(|(e, c)| {
+                *c == 1
+                    && f32::from_bits(e[0][axis]) == plane
+                    && f32::from_bits(e[1][axis]) == plane
+            })
             .map(|(e, _)| e)
             .collect();
         out.sort();
@@ -433,10 +487,22 @@ mod tests {
         let out = dir.path().join("bunny.igi");
         let opts = PrepareOptions {
             grid: VoxelGrid::new([-1.0, 0.3, -0.7], 4.3).unwrap(),
-            atlas: AtlasOptions { resolution: 256, gutter: 2 },
+            atlas: AtlasOptions {
+                resolution: 256,
+                gutter: 2,
+            },
             levels: vec![1.0, 0.2, 0.05],
         };
-        let man = prepare(m.clone(), None, rep.clone(), &out, "bunny", &opts, &|_, _| {}).unwrap();
+        let man = prepare(
+            m.clone(),
+            None,
+            rep.clone(),
+            &out,
+            "bunny",
+            &opts,
+            &|_, _| {},
+        )
+        .unwrap();
         assert!(man.voxels.len() >= 8, "{} voxels", man.voxels.len());
         let store = SiteStore::open(&out).unwrap();
         let ids = store.voxel_ids();
@@ -449,7 +515,10 @@ mod tests {
                 let mesh = store.load_voxel(v, l).unwrap();
                 for p in &mesh.positions {
                     for k in 0..3 {
-                        assert!(p[k] >= lo[k] && p[k] <= hi[k], "{v:?} level {l}: {p:?} outside");
+                        assert!(
+                            p[k] >= lo[k] && p[k] <= hi[k],
+                            "{v:?} level {l}: {p:?} outside"
+                        );
                     }
                 }
                 assert!(mesh.uvs.is_some() && mesh.normals.is_some());
@@ -457,7 +526,10 @@ mod tests {
             }
             sum += levels[&(v, 0)].total_area();
         }
-        assert!((sum - area).abs() < 1e-5 * area, "voxel area {sum} vs mesh {area}");
+        assert!(
+            (sum - area).abs() < 1e-5 * area,
+            "voxel area {sum} vs mesh {area}"
+        );
         // 2. boundary edges of face neighbours match exactly, at every pair of levels
         let mut checked = 0;
         for &a in &ids {
@@ -476,8 +548,16 @@ mod tests {
                     for lb in 0..3 {
                         let ea = border_edges_on_plane(&levels[&(a, la)], axis, plane);
                         let eb = border_edges_on_plane(&levels[&(b, lb)], axis, plane);
-                        let only_a: Vec<_> = ea.iter().filter(|e| !eb.contains(e)).map(|e| e.map(|p| p.map(f32::from_bits))).collect();
-                        let only_b: Vec<_> = eb.iter().filter(|e| !ea.contains(e)).map(|e| e.map(|p| p.map(f32::from_bits))).collect();
+                        let only_a: Vec<_> = ea
+                            .iter()
+                            .filter(|e| !eb.contains(e))
+                            .map(|e| e.map(|p| p.map(f32::from_bits)))
+                            .collect();
+                        let only_b: Vec<_> = eb
+                            .iter()
+                            .filter(|e| !ea.contains(e))
+                            .map(|e| e.map(|p| p.map(f32::from_bits)))
+                            .collect();
                         assert!(
                             only_a.is_empty() && only_b.is_empty(),
                             "{a:?} level {la} vs {b:?} level {lb} on axis {axis}: only in a {only_a:?}, only in b {only_b:?}"
@@ -491,18 +571,38 @@ mod tests {
         assert!(checked >= 3, "only {checked} shared faces checked");
         // 3. levels really are smaller and report their error
         let t: Vec<usize> = man.triangles_per_level.clone();
-        assert_eq!(t[0], man.voxels.iter().map(|e| e.triangles[0]).sum::<usize>());
+        assert_eq!(
+            t[0],
+            man.voxels.iter().map(|e| e.triangles[0]).sum::<usize>()
+        );
         assert!(t[1] < t[0] / 2 && t[2] < t[1], "{t:?}");
-        assert!(man.voxels.iter().all(|e| e.errors[0] == 0.0 && e.errors.iter().all(|x| x.is_finite() && *x >= 0.0)));
+        assert!(man
+            .voxels
+            .iter()
+            .all(|e| e.errors[0] == 0.0 && e.errors.iter().all(|x| x.is_finite() && *x >= 0.0)));
         let err_sum = |l: usize| man.voxels.iter().map(|e| e.errors[l]).sum::<f64>();
-        assert!(err_sum(2) > err_sum(1) && err_sum(1) > 0.0, "{} {}", err_sum(1), err_sum(2));
+        assert!(
+            err_sum(2) > err_sum(1) && err_sum(1) > 0.0,
+            "{} {}",
+            err_sum(1),
+            err_sum(2)
+        );
         // the errors are small against the 9 m bunny
-        assert!(man.voxels.iter().all(|e| e.errors[2] < 0.5), "{:?}", man.voxels.iter().map(|e| e.errors[2]).collect::<Vec<_>>());
+        assert!(
+            man.voxels.iter().all(|e| e.errors[2] < 0.5),
+            "{:?}",
+            man.voxels.iter().map(|e| e.errors[2]).collect::<Vec<_>>()
+        );
         // 4. coverage and texel caches: cached positions lie on the mesh
-        assert!(man.coverage_mean > 0.05 && man.coverage_mean <= 1.0, "{}", man.coverage_mean);
+        assert!(
+            man.coverage_mean > 0.05 && man.coverage_mean <= 1.0,
+            "{}",
+            man.coverage_mean
+        );
         let v = ids[ids.len() / 2];
         let e = man.voxels.iter().find(|e| e.voxel == Some(v)).unwrap();
-        let pos = igi_imaging::read_image(&store.voxel_folder(v).unwrap().join("position.exr")).unwrap();
+        let pos =
+            igi_imaging::read_image(&store.voxel_folder(v).unwrap().join("position.exr")).unwrap();
         let m0 = &levels[&(v, 0)];
         let uv = m0.uvs.as_ref().unwrap();
         // the centroid and the cached point lie in the same texel: at most one texel diagonal
@@ -511,14 +611,25 @@ mod tests {
         let mut worst = 0.0f64;
         for tri in &m0.indices {
             // the centroid of each triangle, looked up at the nearest texel
-            let p = [0, 1, 2].map(|k| tri.iter().map(|&i| m0.positions[i as usize][k] as f64).sum::<f64>() / 3.0);
+            let p = [0, 1, 2].map(|k| {
+                tri.iter()
+                    .map(|&i| m0.positions[i as usize][k] as f64)
+                    .sum::<f64>()
+                    / 3.0
+            });
             let u = [0, 1].map(|k| tri.iter().map(|&i| uv[i as usize][k]).sum::<f32>() / 3.0);
             let [x, y] = crate::atlas::uv_to_pixel(u, pos.width);
-            let q = pos.get(x.round() as usize, y.round() as usize).map(f64::from);
+            let q = pos
+                .get(x.round() as usize, y.round() as usize)
+                .map(f64::from);
             let d = ((q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2) + (q[2] - p[2]).powi(2)).sqrt();
             worst = worst.max(d);
         }
-        assert!(worst <= bound, "cache position off by {worst} m (texel {} m)", e.texel_size);
+        assert!(
+            worst <= bound,
+            "cache position off by {worst} m (texel {} m)",
+            e.texel_size
+        );
         // 5. loader: v high, neighbours medium, the rest low
         let parts = store.load_for_voxel(v).unwrap();
         assert_eq!(parts.len(), ids.len());
@@ -527,7 +638,14 @@ mod tests {
             let u = p.voxel.unwrap();
             let d = (0..3).map(|k| (u[k] - v[k]).abs()).max().unwrap();
             assert_eq!(p.level, [0, 1, 2][d.min(2) as usize]);
-            assert_eq!(p.mesh.indices.len(), man.voxels.iter().find(|e| e.voxel == Some(u)).unwrap().triangles[p.level]);
+            assert_eq!(
+                p.mesh.indices.len(),
+                man.voxels
+                    .iter()
+                    .find(|e| e.voxel == Some(u))
+                    .unwrap()
+                    .triangles[p.level]
+            );
             loaded += p.mesh.indices.len();
         }
         assert!(loaded < t[0]);
@@ -538,18 +656,32 @@ mod tests {
         let f1 = store.voxel_folder(ids[1]).unwrap();
         std::fs::remove_file(f1.join("level2.ply")).unwrap();
         std::thread::sleep(std::time::Duration::from_millis(20));
-        let man2 = prepare(m.clone(), None, rep.clone(), &out, "bunny", &opts, &|_, _| {}).unwrap();
+        let man2 = prepare(
+            m.clone(),
+            None,
+            rep.clone(),
+            &out,
+            "bunny",
+            &opts,
+            &|_, _| {},
+        )
+        .unwrap();
         assert_eq!(std::fs::metadata(&f0).unwrap().modified().unwrap(), t0);
         assert!(f1.join("level2.ply").exists());
         assert_eq!(man2.voxels.len(), man.voxels.len());
         for (a, b) in man2.voxels.iter().zip(&man.voxels) {
-            assert_eq!((a.voxel, &a.triangles, a.charts), (b.voxel, &b.triangles, b.charts));
+            assert_eq!(
+                (a.voxel, &a.triangles, a.charts),
+                (b.voxel, &b.triangles, b.charts)
+            );
             assert!((a.texel_size - b.texel_size).abs() < 1e-12 && (a.area - b.area).abs() < 1e-9);
         }
         // different settings on the same folder are refused
         let mut other = opts.clone();
         other.grid.size = 3.0;
-        let e = prepare(m, None, rep, &out, "bunny", &other, &|_, _| {}).unwrap_err().to_string();
+        let e = prepare(m, None, rep, &out, "bunny", &other, &|_, _| {})
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("different settings"), "{e}");
     }
 
@@ -569,22 +701,43 @@ mod tests {
         let site_area = site.total_area();
         let dir = tempfile::tempdir().unwrap();
         let out = dir.path().join("site.igi");
-        let opts = PrepareOptions { atlas: AtlasOptions { resolution: 128, gutter: 2 }, ..Default::default() };
+        let opts = PrepareOptions {
+            atlas: AtlasOptions {
+                resolution: 128,
+                gutter: 2,
+            },
+            ..Default::default()
+        };
         let (site, rep) = crate::repair::repair(&site);
-        let man = prepare(site, Some(terrain), rep, &out, "procedural", &opts, &|_, _| {}).unwrap();
+        let man = prepare(
+            site,
+            Some(terrain),
+            rep,
+            &out,
+            "procedural",
+            &opts,
+            &|_, _| {},
+        )
+        .unwrap();
         let t = man.terrain.as_ref().unwrap();
         assert_eq!(t.triangles[0], t_tris);
         assert!(t.triangles[2] < t_tris / 10, "{:?}", t.triangles);
         assert!((t.area - t_area).abs() < 1e-6 * t_area);
         let voxel_area: f64 = man.voxels.iter().map(|e| e.area).sum();
-        assert!((voxel_area - site_area).abs() < 1e-5 * site_area, "{voxel_area} vs {site_area}");
+        assert!(
+            (voxel_area - site_area).abs() < 1e-5 * site_area,
+            "{voxel_area} vs {site_area}"
+        );
         // 40 x 40 m terrain in one 128-texel atlas: texels of at least 40/128 m
         assert!(t.texel_size >= 40.0 / 128.0, "{}", t.texel_size);
         let store = SiteStore::open(&out).unwrap();
         let parts = store.load_for_voxel(store.voxel_ids()[0]).unwrap();
         let terr: Vec<_> = parts.iter().filter(|p| p.voxel.is_none()).collect();
         assert_eq!(terr.len(), 1);
-        assert_eq!((terr[0].level, terr[0].mesh.indices.len()), (2, t.triangles[2]));
+        assert_eq!(
+            (terr[0].level, terr[0].mesh.indices.len()),
+            (2, t.triangles[2])
+        );
         // the stylobate sits on the voxel plane z = 0: its faces lie in or above it, never below
         assert!(man.voxel_range[0][2] >= 0, "{:?}", man.voxel_range);
     }

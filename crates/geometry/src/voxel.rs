@@ -29,10 +29,14 @@ impl VoxelGrid {
     /// A lattice; the size must be positive and finite, the origin finite.
     pub fn new(origin: [f64; 3], size: f64) -> Result<Self, GeometryError> {
         if !(size.is_finite() && size > 0.0) {
-            return Err(GeometryError::InvalidArgument(format!("voxel size must be positive, got {size}")));
+            return Err(GeometryError::InvalidArgument(format!(
+                "voxel size must be positive, got {size}"
+            )));
         }
         if !origin.iter().all(|x| x.is_finite()) {
-            return Err(GeometryError::InvalidArgument(format!("voxel origin must be finite, got {origin:?}")));
+            return Err(GeometryError::InvalidArgument(format!(
+                "voxel origin must be finite, got {origin:?}"
+            )));
         }
         Ok(VoxelGrid { origin, size })
     }
@@ -62,8 +66,16 @@ impl VoxelGrid {
     /// Bounds (min, max) of a voxel, with the exact `f32` planes.
     pub fn bounds(&self, v: VoxelId) -> ([f32; 3], [f32; 3]) {
         (
-            [self.plane(0, v[0]), self.plane(1, v[1]), self.plane(2, v[2])],
-            [self.plane(0, v[0] + 1), self.plane(1, v[1] + 1), self.plane(2, v[2] + 1)],
+            [
+                self.plane(0, v[0]),
+                self.plane(1, v[1]),
+                self.plane(2, v[2]),
+            ],
+            [
+                self.plane(0, v[0] + 1),
+                self.plane(1, v[1] + 1),
+                self.plane(2, v[2] + 1),
+            ],
         )
     }
 
@@ -100,13 +112,20 @@ fn key_lt(a: &CV, b: &CV) -> bool {
 fn cut(a: &CV, b: &CV, axis: usize, plane: f32) -> CV {
     let (a, b) = if key_lt(b, a) { (b, a) } else { (a, b) };
     let t = (plane as f64 - a.p[axis] as f64) / (b.p[axis] as f64 - a.p[axis] as f64);
-    let lerp = |x: [f32; 3], y: [f32; 3]| [0, 1, 2].map(|k| (x[k] as f64 + t * (y[k] as f64 - x[k] as f64)) as f32);
+    let lerp = |x: [f32; 3], y: [f32; 3]| {
+        [0, 1, 2].map(|k| (x[k] as f64 + t * (y[k] as f64 - x[k] as f64)) as f32)
+    };
     let mut p = lerp(a.p, b.p);
     p[axis] = plane;
     let n = lerp(a.n, b.n);
     let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
     let n = if l > 0.0 { n.map(|x| x / l) } else { a.n };
-    CV { p, n, c: lerp(a.c, b.c), src: u32::MAX }
+    CV {
+        p,
+        n,
+        c: lerp(a.c, b.c),
+        src: u32::MAX,
+    }
 }
 
 /// Split a convex polygon by the plane: (part with coordinate <= plane, part >= plane).
@@ -202,7 +221,11 @@ pub fn partition(mesh: &TriMesh, grid: &VoxelGrid) -> BTreeMap<VoxelId, TriMesh>
     let normals = match &mesh.normals {
         Some(n) => n,
         None => {
-            let mut m = TriMesh { positions: mesh.positions.clone(), indices: mesh.indices.clone(), ..Default::default() };
+            let mut m = TriMesh {
+                positions: mesh.positions.clone(),
+                indices: mesh.indices.clone(),
+                ..Default::default()
+            };
             m.compute_vertex_normals();
             computed = m.normals.unwrap();
             &computed
@@ -287,7 +310,10 @@ mod tests {
         for x in [-3.3f32, -0.3, 0.1, 0.8, 0.79999, 5.0] {
             for axis in 0..3 {
                 let c = g.cell(axis, x);
-                assert!(g.plane(axis, c) <= x && x < g.plane(axis, c + 1), "{axis} {x} -> {c}");
+                assert!(
+                    g.plane(axis, c) <= x && x < g.plane(axis, c + 1),
+                    "{axis} {x} -> {c}"
+                );
             }
         }
         assert!(VoxelGrid::new([0.0; 3], 0.0).is_err());
@@ -304,7 +330,11 @@ mod tests {
         let parts = partition(&m, &grid());
         assert!(parts.len() > 6, "{}", parts.len());
         let total: f64 = parts.values().map(|p| p.total_area()).sum();
-        assert!((total - m.total_area()).abs() < 1e-5 * m.total_area(), "{total} vs {}", m.total_area());
+        assert!(
+            (total - m.total_area()).abs() < 1e-5 * m.total_area(),
+            "{total} vs {}",
+            m.total_area()
+        );
         for (id, p) in &parts {
             let (lo, hi) = grid().bounds(*id);
             for q in &p.positions {
@@ -317,10 +347,61 @@ mod tests {
     }
 
     #[test]
+    fn a_grid_lying_on_the_lattice_planes_is_neither_lost_nor_doubled() {
+        // a tilted-free worst case: a 2 x 2 m grid in the plane z = 1 (a voxel face) whose
+        // vertices and edges all lie on voxel planes x = k/2, y = k/2, plus a vertical wall in x = 1
+        let g = VoxelGrid::new([0.0; 3], 0.5).unwrap();
+        let mut m = TriMesh::default();
+        for j in 0..=4 {
+            for i in 0..=4 {
+                m.positions.push([i as f32 * 0.5, j as f32 * 0.5, 1.0]);
+            }
+        }
+        for j in 0..4u32 {
+            for i in 0..4u32 {
+                let a = j * 5 + i;
+                m.indices.push([a, a + 1, a + 6]);
+                m.indices.push([a, a + 6, a + 5]);
+            }
+        }
+        let b = m.positions.len() as u32;
+        m.positions.extend([
+            [1.0, 0.0, 0.0],
+            [1.0, 2.0, 0.0],
+            [1.0, 2.0, 1.0],
+            [1.0, 0.0, 1.0],
+        ]);
+        m.indices.push([b, b + 1, b + 2]);
+        m.indices.push([b, b + 2, b + 3]);
+        let parts = partition(&m, &g);
+        let total: f64 = parts.values().map(|p| p.total_area()).sum();
+        assert!((total - 6.0).abs() < 1e-6, "area {total} (expected 4 + 2)");
+        // the flat grid goes to the voxels above z = 1 (k = 2), 16 of them, 2 triangles each
+        let flat: Vec<_> = parts.iter().filter(|(id, _)| id[2] == 2).collect();
+        assert_eq!(flat.len(), 16);
+        assert!(flat.iter().all(|(_, p)| p.indices.len() == 2));
+        // the wall in x = 1 goes to the voxels with x index 2, cut into 4 x 2 squares
+        let wall: f64 = parts
+            .iter()
+            .filter(|(id, _)| id[2] < 2)
+            .map(|(id, p)| {
+                assert_eq!(id[0], 2);
+                p.total_area()
+            })
+            .sum();
+        assert!((wall - 2.0).abs() < 1e-6);
+    }
+
+    #[test]
     fn shared_edges_get_bit_identical_cut_points_and_coplanar_faces_go_up() {
         // two triangles sharing the edge (1, 2) in opposite directions, crossing x = 1 and y = 1
         let m = TriMesh {
-            positions: vec![[0.3, 0.2, 0.5], [1.7, 0.1, 0.5], [0.2, 1.9, 0.6], [1.8, 1.7, 0.4]],
+            positions: vec![
+                [0.3, 0.2, 0.5],
+                [1.7, 0.1, 0.5],
+                [0.2, 1.9, 0.6],
+                [1.8, 1.7, 0.4],
+            ],
             indices: vec![[0, 1, 2], [1, 3, 2]],
             ..Default::default()
         };
@@ -328,7 +409,11 @@ mod tests {
         // every vertex on the plane x = 1 must appear in both the x = 0 and x = 1 voxels
         let on_plane = |id: VoxelId| -> Vec<[u32; 3]> {
             parts.get(&id).map_or(vec![], |p| {
-                p.positions.iter().filter(|q| q[0] == 1.0).map(|q| q.map(f32::to_bits)).collect()
+                p.positions
+                    .iter()
+                    .filter(|q| q[0] == 1.0)
+                    .map(|q| q.map(f32::to_bits))
+                    .collect()
             })
         };
         let mut a = on_plane([0, 0, 0]);
