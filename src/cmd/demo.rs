@@ -48,6 +48,20 @@ pub fn run(a: DemoArgs, ctx: &Ctx) -> anyhow::Result<()> {
         crate::report::print_json(&report)?;
     } else {
         println!("procedural site: {} parts, {} triangles; {} photographs in {:.1} s", report.parts, report.triangles, report.photos, report.photo_seconds);
+        for p in &report.probes {
+            match (p.sun_direction_error_deg, p.sun_radiance_error) {
+                (Some(d), Some(e)) => println!(
+                    "probe {}: sun within {:.3} deg, radiance error {:+.2}% {:+.2}% {:+.2}%, check {:.2}% RMS",
+                    p.name,
+                    d,
+                    100.0 * e[0],
+                    100.0 * e[1],
+                    100.0 * e[2],
+                    p.check_rms_percent.unwrap_or(f64::NAN)
+                ),
+                _ => println!("probe {}: no sun (found: {}), check {:.2}% RMS", p.name, p.sun_found, p.check_rms_percent.unwrap_or(f64::NAN)),
+            }
+        }
         if let Some(m) = report.albedo_mae {
             println!("solve: {} iterations in {:.1} s; albedo MAE vs truth {:.4} {:.4} {:.4} (texels seen twice)", report.iterations, report.solve_seconds, m[0], m[1], m[2]);
         }

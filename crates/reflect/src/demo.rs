@@ -3,8 +3,11 @@
 //!
 //! 1. Build the procedural colonnade site (`igi_geometry::procedural`) and give every part a
 //!    known per-texel albedo ([`crate::synth::albedo_pattern`]).
-//! 2. Make three lighting conditions (sunny, low sun, overcast skies from `igi_render::sky`).
-//! 3. Path-trace the survey photographs at a high sample count and write the survey folder.
+//! 2. Make three lighting conditions (sunny, low sun, overcast skies from `igi_render::sky`),
+//!    photograph the three-sphere board under each (`igi_probe::synth`) and recover the
+//!    lighting files from those captures with `igi_probe::process`, as `igi probe` does.
+//! 3. Path-trace the survey photographs under the true skies at a high sample count and write
+//!    the survey folder with the probe-recovered lighting files.
 //! 4. Solve (`crate::solve`) with the ground truth attached, so the report records the albedo
 //!    error per iteration.
 //! 5. Re-render the recovered site from a held-out viewpoint under a held-out lighting and
@@ -65,8 +68,58 @@ pub struct DemoReport {
     pub iterations: usize,
     /// Mean absolute rho_d error per channel over texels seen in at least two photos.
     pub albedo_mae: Option<[f32; 3]>,
+    pub probes: Vec<ProbeSummary>,
     pub relight: Comparison,
     pub total_seconds: f64,
+}
+
+/// How well the probe captures recovered each lighting.
+#[derive(Clone, Debug, Serialize)]
+pub struct ProbeSummary {
+    pub name: String,
+    pub sun_found: bool,
+    /// Angle between the recovered and the true sun direction, degrees.
+    pub sun_direction_error_deg: Option<f64>,
+    /// Relative error of the recovered sun radiance per channel.
+    pub sun_radiance_error: Option<[f64; 3]>,
+    /// The probe's own check: diffuse convolution of the recovered lighting against the
+    /// diffuse sphere, RMS percent.
+    pub check_rms_percent: Option<f64>,
+}
+
+/// The lighting-capture board of the demo (FORMATS.md board file, camera frame): three 7 cm
+/// spheres 0.6 m in front of the board camera (about 88 px in radius).
+const BOARD: &str = r#"{ "spheres": [
+  { "kind": "mirror",  "center": [-0.15, 0.0, 0.6], "radius": 0.06 },
+  { "kind": "black",   "center": [ 0.0,  0.0, 0.6], "radius": 0.06 },
+  { "kind": "diffuse", "center": [ 0.15, 0.0, 0.6], "radius": 0.06 } ] }"#;
+
+/// Photographs the board under `truth` and recovers a lighting from it, as `igi probe` does.
+fn probe_capture(truth: &LightingSpec, pictures: &Path) -> Result<(LightingSpec, ProbeSummary), ReflectError> {
+    use igi_probe::synth::{render_board, SynthSun};
+    let board = igi_probe::Board::from_json_str(BOARD, Path::new("demo board"))?;
+    let cam = look_at_camera(Vec3::new(0.0, 0.0, 1.5), Vec3::new(0.0, 1.0, 1.5), 640, 480, 40.0)?;
+    let sun = truth.sun.map(|(d, l)| SynthSun { direction: d.normalize().as_dvec3(), radiance: l.to_array(), diameter_deg: 0.53 });
+    let image = render_board(&cam, &board, &truth.sky, sun, 4);
+    write_png_tonemapped(&pictures.join(format!("board-{}.png", truth.name)), &image, 1.0)?;
+    let r = igi_probe::process(&image, &cam, &board, &igi_probe::ProbeOptions::default())?;
+    tracing::info!("probe {}: {}", truth.name, r.diagnostics.sun_decision);
+    let est = r.diagnostics.sun.as_ref();
+    let rec_sun = est.and_then(|s| s.radiance.map(|l| (glam::DVec3::from_array(s.direction).as_vec3(), Vec3::from_array(l))));
+    let summary = ProbeSummary {
+        name: truth.name.clone(),
+        sun_found: r.diagnostics.sun_found,
+        sun_direction_error_deg: match (rec_sun, truth.sun) {
+            (Some((a, _)), Some((b, _))) => Some((a.dot(b.normalize()).clamp(-1.0, 1.0) as f64).acos().to_degrees()),
+            _ => None,
+        },
+        sun_radiance_error: match (rec_sun, truth.sun) {
+            (Some((_, a)), Some((_, b))) => Some(std::array::from_fn(|k| (a[k] as f64 - b[k] as f64) / b[k] as f64)),
+            _ => None,
+        },
+        check_rms_percent: r.diagnostics.check_rms_percent,
+    };
+    Ok((LightingSpec { name: truth.name.clone(), sky: r.sky, sun: rec_sun }, summary))
 }
 
 fn lightings() -> Vec<LightingSpec> {
@@ -121,11 +174,19 @@ pub fn run_demo(out: &Path, opts: &DemoOptions, progress: &dyn Progress, stage: 
             Ok(ShotSpec { id: format!("view{k}-{}", lights[l].name), camera: look_at_camera(eye, target, w, h, 65.0)?, lighting: l })
         })
         .collect::<Result<_, ReflectError>>()?;
+    stage("recovering the lighting from probe captures");
+    let mut recorded = Vec::new();
+    let mut probes = Vec::new();
+    for l in &lights {
+        let (rec, summary) = probe_capture(l, &pictures)?;
+        recorded.push(rec);
+        probes.push(summary);
+    }
     stage("rendering the survey photographs");
     let survey_dir = out.join("survey");
     let tp = Instant::now();
     progress.begin("photographs", shots.len() as u64);
-    write_survey(&survey_dir, &parts, &truth, &lights, &shots, opts.photo_spp, opts.seed, &|_, _| progress.advance(1))?;
+    write_survey(&survey_dir, &parts, &truth, &lights, &recorded, &shots, opts.photo_spp, opts.seed, &|_, _| progress.advance(1))?;
     progress.finish();
     let photo_seconds = tp.elapsed().as_secs_f64();
     for s in &shots {
@@ -201,6 +262,7 @@ pub fn run_demo(out: &Path, opts: &DemoOptions, progress: &dyn Progress, stage: 
         solve_seconds,
         iterations: result.report.iterations.len(),
         albedo_mae: result.report.iterations.last().and_then(|r| r.truth_mae),
+        probes,
         relight: cmp,
         total_seconds: t0.elapsed().as_secs_f64(),
     };

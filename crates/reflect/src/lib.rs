@@ -54,6 +54,8 @@ pub enum ReflectError {
     Render(#[from] igi_render::RenderError),
     #[error(transparent)]
     Brdf(#[from] igi_brdf::BrdfError),
+    #[error(transparent)]
+    Probe(#[from] igi_probe::ProbeError),
 }
 
 impl ReflectError {

@@ -109,12 +109,17 @@ pub struct ShotSpec {
 
 /// Writes a complete survey folder: `geometry/NAME.ply` per part (the atlas meshes), `truth/`
 /// (true albedo atlases and `scene.toml`), `lighting/`, `cameras/`, `photos/` (path-traced at
-/// `spp`) and `survey.toml`. `progress(i, n)` is called before each photo.
+/// `spp`) and `survey.toml`. Photos are rendered under `lightings`; the survey's lighting files
+/// are `recorded` (for example what probe captures recovered of the same skies, as in a real
+/// survey; pass `lightings` again to record the truth). `progress(i, n)` is called before each
+/// photo.
+#[allow(clippy::too_many_arguments)]
 pub fn write_survey(
     dir: &Path,
     parts: &[Part],
     truth: &[Vec<Vec3>],
     lightings: &[LightingSpec],
+    recorded: &[LightingSpec],
     shots: &[ShotSpec],
     spp: u32,
     seed: u64,
@@ -140,14 +145,17 @@ pub fn write_survey(
     survey.push_str("]\n");
     write_text(&dir.join("truth").join("scene.toml"), &truth_toml)?;
     let scene = scene_with_albedo(parts, truth)?;
+    if recorded.len() != lightings.len() {
+        return Err(ReflectError::Invalid(format!("{} lightings but {} recorded lightings", lightings.len(), recorded.len())));
+    }
     let mut lit = Vec::new();
-    for l in lightings {
-        l.write(&dir.join("lighting"))?;
+    for (l, r) in lightings.iter().zip(recorded) {
+        r.write(&dir.join("lighting"))?;
         lit.push(l.lighting()?);
     }
     for (i, s) in shots.iter().enumerate() {
         progress(i, shots.len());
-        let l = lightings.get(s.lighting).ok_or_else(|| ReflectError::Invalid(format!("shot {}: no lighting {}", s.id, s.lighting)))?;
+        let l = recorded.get(s.lighting).ok_or_else(|| ReflectError::Invalid(format!("shot {}: no lighting {}", s.id, s.lighting)))?;
         let opts = RenderOptions { spp, seed: seed.wrapping_add(i as u64 * 7919), indirect: 2, russian_roulette: false };
         let out = render_image(&scene, &lit[s.lighting], &s.camera, &opts, &|_| {})?;
         igi_imaging::write_exr(&dir.join("photos").join(format!("{}.exr", s.id)), &out.mean)?;

@@ -74,7 +74,7 @@ fn solve_recovers_known_albedo_from_synthetic_photos_and_resumes() {
             shots.push(ShotSpec { id: format!("cam{k}-{}", l.name), camera: look_at_camera(eye, Vec3::new(0.0, 0.0, 0.5), 96, 96, 70.0).unwrap(), lighting: li });
         }
     }
-    write_survey(dir.path(), &parts, &truth, &lightings, &shots, 256, 11, &|_, _| {}).unwrap();
+    write_survey(dir.path(), &parts, &truth, &lightings, &lightings, &shots, 256, 11, &|_, _| {}).unwrap();
 
     let survey = Survey::load(dir.path()).unwrap();
     assert_eq!(survey.photos.len(), 6);
