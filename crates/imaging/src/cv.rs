@@ -200,7 +200,7 @@ mod imp {
             &obj, &imgp, core::Size::new(width as i32, height as i32), &mut k, &mut d, &mut rvecs, &mut tvecs, 0, crit,
         )
         .map_err(cv_err)?;
-        let kk = |r: i32, c: i32| k.at_2d::<f64>(r, c).map(|v| *v).map_err(cv_err);
+        let kk = |r: i32, c: i32| k.at_2d::<f64>(r, c).copied().map_err(cv_err);
         let mut dist = [0.0; 5];
         for (i, x) in dist.iter_mut().enumerate() {
             *x = *d.at::<f64>(i as i32).map_err(cv_err)?;

@@ -78,8 +78,8 @@ impl HdrImage {
                     return None;
                 }
                 let w = wx * wy;
-                for c in 0..3 {
-                    out[c] += w * self.pixels[i][c];
+                for (o, v) in out.iter_mut().zip(self.pixels[i]) {
+                    *o += w * v;
                 }
             }
         }

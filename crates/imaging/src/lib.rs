@@ -19,6 +19,9 @@
 //! Conventions: linear radiance, pixel centres at integer coordinates (the centre of the
 //! top-left pixel is (0, 0)), camera x right, y down, z forward, `x_cam = R x_world + t`.
 
+// `!(x > 0.0)` is used on purpose: it is also true for NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 pub mod camera;
 pub mod cv;
 mod error;
