@@ -10,6 +10,9 @@
 //! Conventions: world Z up, metres; linear f32 RGB radiance; directions are unit vectors.
 //! See `docs/RENDER.md` for the lighting model, MIS and lookup rules.
 
+// `!(x > 0.0)` is deliberate throughout: it is true for NaN, which must take the safe branch.
+#![allow(clippy::neg_cmp_op_on_partial_ord, clippy::nonminimal_bool, clippy::type_complexity)]
+
 pub mod compare;
 pub mod embree;
 pub mod integrator;
