@@ -1,8 +1,6 @@
 //! `igi demo`: the embedded default, end to end on a procedural site (no downloaded data).
-use crate::report::Ctx;
+use crate::report::{Bar, Ctx};
 use igi_reflect::demo::{run_demo, DemoOptions};
-use igi_reflect::solver::Progress;
-use indicatif::ProgressBar;
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
@@ -16,18 +14,6 @@ pub struct DemoArgs {
     /// Print demo.json on stdout.
     #[arg(long)]
     pub json: bool,
-}
-
-struct Bar(ProgressBar);
-impl Progress for Bar {
-    fn begin(&self, what: &str, total: u64) {
-        self.0.reset();
-        self.0.set_length(total);
-        self.0.set_message(what.to_string());
-    }
-    fn advance(&self, n: u64) {
-        self.0.inc(n);
-    }
 }
 
 pub fn run(a: DemoArgs, ctx: &Ctx) -> anyhow::Result<()> {

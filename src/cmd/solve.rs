@@ -1,10 +1,9 @@
 //! `igi solve`, `igi sample` and `igi export`: the inverse solver and what reads its result.
-use crate::report::Ctx;
+use crate::report::{Bar, Ctx};
 use anyhow::{bail, Context};
 use igi_reflect::parts::build_parts;
-use igi_reflect::solver::{truth_from_scene, Progress};
+use igi_reflect::solver::truth_from_scene;
 use igi_reflect::{ExportFormat, SolveOptions, SolveResult, Survey};
-use indicatif::ProgressBar;
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
@@ -48,19 +47,6 @@ pub struct SolveArgs {
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
-}
-
-struct Bar(ProgressBar);
-impl Progress for Bar {
-    fn begin(&self, what: &str, total: u64) {
-        self.0.reset();
-        self.0.set_length(total);
-        self.0.set_message(what.to_string());
-    }
-    fn advance(&self, n: u64) {
-        self.0.inc(n);
-    }
-    fn finish(&self) {}
 }
 
 pub fn run_solve(a: SolveArgs, ctx: &Ctx) -> anyhow::Result<()> {
