@@ -205,8 +205,9 @@ impl std::str::FromStr for ExportFormat {
 
 /// Writes the recovered site into `out`: meshes with atlas UVs plus linear EXR albedo
 /// textures (and sRGB PNG previews); for `Obj` a `.mtl` per part; for `Mitsuba` a
-/// `scene.xml` with diffuse bitmap textures (Mitsuba reads the EXR as linear). Returns the
-/// files written.
+/// `scene.xml` with diffuse bitmap textures (Mitsuba reads the EXR as linear; its bitmap lookup
+/// has v = 0 at the top row, so `to_uv` flips v to FORMATS.md's convention, as
+/// `datasets/mitsuba/outdoor_reference.py` verifies against Mitsuba). Returns the files written.
 pub fn export(result_dir: &Path, format: ExportFormat, out: &Path) -> Result<Vec<PathBuf>, ReflectError> {
     let res = SolveResult::load(result_dir)?;
     std::fs::create_dir_all(out).map_err(|e| ReflectError::file(out, format!("cannot create folder: {e}")))?;
@@ -229,7 +230,7 @@ pub fn export(result_dir: &Path, format: ExportFormat, out: &Path) -> Result<Vec
                 written.push(mp);
                 let _ = writeln!(
                     xml,
-                    "  <shape type=\"ply\">\n    <string name=\"filename\" value=\"{0}.ply\"/>\n    <bsdf type=\"twosided\"><bsdf type=\"diffuse\">\n      <texture type=\"bitmap\" name=\"reflectance\"><string name=\"filename\" value=\"{1}\"/><string name=\"filter_type\" value=\"bilinear\"/><string name=\"wrap_mode\" value=\"clamp\"/></texture>\n    </bsdf></bsdf>\n  </shape>",
+                    "  <shape type=\"ply\">\n    <string name=\"filename\" value=\"{0}.ply\"/>\n    <bsdf type=\"twosided\"><bsdf type=\"diffuse\">\n      <texture type=\"bitmap\" name=\"reflectance\"><string name=\"filename\" value=\"{1}\"/><boolean name=\"raw\" value=\"true\"/><string name=\"filter_type\" value=\"bilinear\"/><string name=\"wrap_mode\" value=\"clamp\"/>\n        <transform name=\"to_uv\"><scale x=\"1\" y=\"-1\"/><translate x=\"0\" y=\"1\"/></transform></texture>\n    </bsdf></bsdf>\n  </shape>",
                     p.name, tex_name
                 );
             }
