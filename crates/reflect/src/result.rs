@@ -212,7 +212,9 @@ pub fn export(result_dir: &Path, format: ExportFormat, out: &Path) -> Result<Vec
     let res = SolveResult::load(result_dir)?;
     std::fs::create_dir_all(out).map_err(|e| ReflectError::file(out, format!("cannot create folder: {e}")))?;
     let mut written = Vec::new();
-    let mut xml = String::from("<scene version=\"3.0.0\">\n  <!-- igi export: recovered diffuse albedo; world Z up, metres. Add a sensor and emitters to render. -->\n");
+    let mut xml = String::from(
+        "<scene version=\"3.0.0\">\n  <!-- igi export: recovered diffuse albedo; world Z up, metres. Add a sensor and emitters to render. -->\n  <integrator type=\"path\"><integer name=\"max_depth\" value=\"4\"/></integrator>\n",
+    );
     for (i, p) in res.parts.iter().enumerate() {
         let r = p.resolution();
         let mut tex = HdrImage::new(r, r);
