@@ -4,5 +4,6 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/deps.sh
-cargo build --workspace --all-features --all-targets
+# compile every target (benches and examples too, in test mode) so none can rot, then run the tests
+cargo test --workspace --all-features --all-targets --no-run
 cargo test --workspace --all-features
