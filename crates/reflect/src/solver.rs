@@ -8,7 +8,7 @@ use crate::weights::{combine, WeightRules};
 use crate::ReflectError;
 use glam::{DVec3, Vec2, Vec3};
 use igi_brdf::{luminance, Basis, LafortuneRef, Lobe};
-use igi_render::integrator::{offset_origin, Accumulator};
+use igi_render::integrator::offset_origin;
 use igi_render::sampling::{hash2, Rng};
 use igi_render::{Albedo, Material, PathTracer, RenderOptions, Scene, SurfacePoint, Texture};
 use rayon::prelude::*;
@@ -471,14 +471,7 @@ fn observe_photo(
                     let rho_eval = rho.max(min_eval);
                     let brdf = LafortuneRef { rho_d: rho_eval, lobes: &lobes[t.part as usize] };
                     let sp = SurfacePoint { position: t.position, ng: n, ns: n, uv: t.uv, object: t.part, prim: 0 };
-                    let mut rng = Rng::new(stream_seed, gi);
-                    let mut acc = Accumulator::default();
-                    let mut rays = 0u64;
-                    for _ in 0..spp {
-                        let v = pt.lo(&sp, wo, Some(brdf), &mut rng, &mut rays);
-                        acc.add(if v.is_finite() { v } else { Vec3::ZERO });
-                    }
-                    let est = acc.estimate();
+                    let est = pt.lo_estimate(&sp, wo, Some(brdf), spp, &mut Rng::new(stream_seed, gi));
                     Some((gi as u32, pixel, est.mean, est.stderr, weight, clean, rho_eval))
                 })
                 .collect();

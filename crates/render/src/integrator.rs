@@ -149,6 +149,18 @@ impl<'a> PathTracer<'a> {
         PathTracer { scene, lighting, max_vertices: opts.indirect.saturating_add(1), rr: opts.russian_roulette }
     }
 
+    /// Mean and standard error of `spp` samples of [`lo`](Self::lo) (a non-finite sample counts
+    /// as zero), drawn from `rng`.
+    pub fn lo_estimate(&self, sp: &SurfacePoint, wo: Vec3, first_brdf: Option<LafortuneRef<'_>>, spp: u32, rng: &mut Rng) -> Estimate {
+        let mut acc = Accumulator::default();
+        let mut rays = 0;
+        for _ in 0..spp {
+            let v = self.lo(sp, wo, first_brdf, rng, &mut rays);
+            acc.add(if v.is_finite() { v } else { Vec3::ZERO });
+        }
+        acc.estimate()
+    }
+
     /// Radiance arriving at `origin` along `-dir` (a camera ray). Rays that leave the scene
     /// see the environment and the sun disk.
     #[inline]
@@ -362,14 +374,7 @@ pub fn radiance_toward(
             if wo == Vec3::ZERO {
                 return Estimate::default();
             }
-            let mut rng = Rng::new(opts.seed, i as u64);
-            let mut acc = Accumulator::default();
-            let mut rays = 0;
-            for _ in 0..opts.spp {
-                let v = pt.lo(sp, wo, None, &mut rng, &mut rays);
-                acc.add(if v.is_finite() { v } else { Vec3::ZERO });
-            }
-            acc.estimate()
+            pt.lo_estimate(sp, wo, None, opts.spp, &mut Rng::new(opts.seed, i as u64))
         })
         .collect())
 }
@@ -404,14 +409,8 @@ pub fn irradiance(
             }
             // object/prim/uv are unused at the first vertex (its BRDF is overridden).
             let sp = SurfacePoint { position: *p, ng: n, ns: n, uv: Vec2::ZERO, object: 0, prim: 0 };
-            let mut rng = Rng::new(opts.seed, i as u64);
-            let mut acc = Accumulator::default();
-            let mut rays = 0;
-            for _ in 0..opts.spp {
-                let v = pt.lo(&sp, n, Some(white), &mut rng, &mut rays) * pi;
-                acc.add(if v.is_finite() { v } else { Vec3::ZERO });
-            }
-            acc.estimate()
+            let e = pt.lo_estimate(&sp, n, Some(white), opts.spp, &mut Rng::new(opts.seed, i as u64));
+            Estimate { mean: e.mean * pi, stderr: e.stderr * pi }
         })
         .collect())
 }
