@@ -2,7 +2,7 @@
 use crate::report::Ctx;
 use anyhow::{bail, Context};
 use igi_imaging::hdr::{merge_linear, parse_time, LinearParams};
-use igi_imaging::io::{srgb_to_linear, write_atomic};
+use igi_imaging::io::{srgb_to_linear, write_text_atomic};
 use igi_imaging::{read_image, write_exr, write_png_tonemapped, Camera, HdrImage, ImagingError};
 use igi_probe::envmap::hemisphere_pixel;
 use igi_probe::pipeline::luminance;
@@ -226,7 +226,7 @@ fn write_outputs(out: &Path, r: &ProbeResult) -> anyhow::Result<()> {
     // diagnostics
     let diag_path = sibling(out, "diagnostics.json");
     let json = serde_json::to_string_pretty(&r.diagnostics)?;
-    write_atomic(&diag_path, |tmp| std::fs::write(tmp, json.as_bytes()).map_err(|e| ImagingError::Io { path: diag_path.clone(), source: e }))?;
+    write_text_atomic(&diag_path, &json)?;
     // lighting file
     let mut toml = format!(
         "# written by igi probe; diagnostics in {}\n[environment]\nmap = \"{}\"\nscale = 1.0\n",
@@ -243,6 +243,6 @@ fn write_outputs(out: &Path, r: &ProbeResult) -> anyhow::Result<()> {
             ));
         }
     }
-    write_atomic(out, |tmp| std::fs::write(tmp, toml.as_bytes()).map_err(|e| ImagingError::Io { path: out.to_path_buf(), source: e }))?;
+    write_text_atomic(out, &toml)?;
     Ok(())
 }

@@ -169,9 +169,7 @@ pub fn run_sample(a: SampleArgs, _ctx: &Ctx) -> anyhow::Result<()> {
     for ((p, n), v) in pts.iter().zip(&values) {
         csv.push_str(&format!("{},{},{},{},{},{},{},{},{}\n", p.x, p.y, p.z, n.x, n.y, n.z, v.x, v.y, v.z));
     }
-    igi_imaging::io::write_atomic(&a.output, |tmp| {
-        std::fs::write(tmp, &csv).map_err(|e| igi_imaging::ImagingError::Io { path: a.output.clone(), source: e })
-    })?;
+    igi_imaging::io::write_text_atomic(&a.output, &csv)?;
     println!("{} points -> {}", values.len(), a.output.display());
     Ok(())
 }

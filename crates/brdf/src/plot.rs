@@ -109,10 +109,7 @@ pub fn plot_fits(path: &Path, materials: &[(String, Vec<BrdfSample>, Lafortune)]
 
 /// Write text to `path` atomically (temp file in the same folder, then rename).
 pub fn write_text_atomic(path: &Path, text: &str) -> Result<(), BrdfError> {
-    igi_imaging::io::write_atomic(path, |tmp| {
-        std::fs::write(tmp, text).map_err(|e| igi_imaging::ImagingError::Io { path: tmp.to_path_buf(), source: e })
-    })
-    .map_err(|e| BrdfError::File { path: path.into(), msg: format!("cannot write: {e}") })
+    igi_imaging::io::write_text_atomic(path, text).map_err(|e| BrdfError::File { path: path.into(), msg: format!("cannot write: {e}") })
 }
 
 #[cfg(test)]

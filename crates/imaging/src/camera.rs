@@ -3,7 +3,7 @@
 //! Convention (FORMATS.md): camera x right, y down, z forward; `x_cam = R x_world + t`;
 //! pixel centres at integer coordinates, the top-left pixel centre at (0, 0).
 
-use crate::{io::write_atomic, HdrImage, ImagingError};
+use crate::{HdrImage, ImagingError};
 use glam::{DMat3, DVec2, DVec3};
 use rayon::prelude::*;
 use std::path::Path;
@@ -313,7 +313,7 @@ impl Camera {
     /// Save as JSON, atomically.
     pub fn save(&self, path: &Path) -> Result<(), ImagingError> {
         let text = self.to_json_string();
-        write_atomic(path, |tmp| std::fs::write(tmp, text.as_bytes()).map_err(|e| ImagingError::io(path, e)))
+        crate::io::write_text_atomic(path, &text)
     }
 
     /// Pixel coordinates of a world point (distortion applied); `None` behind the camera.

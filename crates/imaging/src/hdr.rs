@@ -264,7 +264,7 @@ impl Response {
         for z in 0..LEVELS {
             s.push_str(&format!("{z},{},{},{}\n", self.g[0][z], self.g[1][z], self.g[2][z]));
         }
-        crate::io::write_atomic(path, |tmp| std::fs::write(tmp, s.as_bytes()).map_err(|e| ImagingError::io(path, e)))
+        crate::io::write_text_atomic(path, &s)
     }
 }
 

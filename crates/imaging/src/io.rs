@@ -41,6 +41,11 @@ pub fn write_atomic(
     }
 }
 
+/// Write text to `path` atomically (see [`write_atomic`]).
+pub fn write_text_atomic(path: &Path, text: &str) -> Result<(), ImagingError> {
+    write_atomic(path, |tmp| std::fs::write(tmp, text).map_err(|e| ImagingError::io(path, e)))
+}
+
 fn ext_of(path: &Path) -> String {
     path.extension().map(|e| e.to_string_lossy().to_lowercase()).unwrap_or_default()
 }

@@ -168,10 +168,7 @@ impl SolveResult {
 }
 
 pub(crate) fn write_text(path: &Path, text: &str) -> Result<(), ReflectError> {
-    igi_imaging::io::write_atomic(path, |tmp| {
-        std::fs::write(tmp, text).map_err(|e| igi_imaging::ImagingError::Io { path: path.to_path_buf(), source: e })
-    })?;
-    Ok(())
+    Ok(igi_imaging::io::write_text_atomic(path, text)?)
 }
 
 /// The scene file of a result folder (for `igi render RESULT_DIR --lighting ...`).
