@@ -12,6 +12,8 @@
 //! * [`hdr`]: merging exposure brackets (linear sensors, or LDR via Debevec & Malik 1997
 //!   response recovery), EXIF exposure times.
 //! * [`radiometry`]: lens falloff (vignetting) polynomial fit and 3x3 colour matrices.
+//! * [`planar`]: pure-Rust homography (normalised DLT) and the pose of a plane from four or
+//!   more points (no OpenCV needed).
 //! * [`plot`]: font registration for plotters (diagnostic plots).
 //! * [`cv`]: OpenCV-backed calibration, PnP, homography and ArUco detection (cargo feature
 //!   `opencv`; without it the same functions return [`ImagingError::NoOpenCv`]).
@@ -29,6 +31,7 @@ pub mod hdr;
 mod image;
 pub mod io;
 pub mod latlong;
+pub mod planar;
 pub mod plot;
 pub mod radiometry;
 
