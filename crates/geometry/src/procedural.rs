@@ -6,7 +6,8 @@
 //! without overlap (one chart per planar face or cylinder part, with margins), so it can carry
 //! a per-texel albedo texture. `detail` scales every tessellation linearly, so the triangle
 //! count grows as `detail^2`: 5,448 triangles at detail 1 (4,296 without the terrain), 27.2
-//! million at detail 75 (20.7 million without the terrain).
+//! million at detail 75 (20.7 million without the terrain). [`colonnade_field`] repeats the
+//! colonnade on a grid 20 m apart over a larger terrain, for sites that span many voxels.
 
 use crate::mesh::TriMesh;
 
@@ -131,12 +132,18 @@ impl Builder {
     }
 }
 
-/// Terrain height at (x, y): zero on and near the temple platform, undulating outside.
-fn terrain_height(x: f64, y: f64, waves: &[(f64, f64, f64, f64)]) -> f64 {
-    // distance outside the platform rectangle (|x| <= 8, |y| <= 5.5)
-    let dx = (x.abs() - 8.0).max(0.0);
-    let dy = (y.abs() - 5.5).max(0.0);
-    let r = (dx * dx + dy * dy).sqrt();
+/// Terrain height at (x, y): zero on and near the temple platforms (centred at `centres`,
+/// |x| <= 8, |y| <= 5.5 around each), undulating outside.
+fn terrain_height(x: f64, y: f64, waves: &[(f64, f64, f64, f64)], centres: &[[f64; 2]]) -> f64 {
+    // distance outside the nearest platform rectangle
+    let r = centres
+        .iter()
+        .map(|c| {
+            let dx = ((x - c[0]).abs() - 8.0).max(0.0);
+            let dy = ((y - c[1]).abs() - 5.5).max(0.0);
+            (dx * dx + dy * dy).sqrt()
+        })
+        .fold(f64::INFINITY, f64::min);
     let w = (r / 6.0).clamp(0.0, 1.0);
     let w = w * w * (3.0 - 2.0 * w);
     let h: f64 = waves
@@ -150,8 +157,60 @@ fn terrain_height(x: f64, y: f64, waves: &[(f64, f64, f64, f64)]) -> f64 {
 /// Returns named meshes: `terrain`, `stylobate`, `column_00`..`column_05`, `wall`, `architrave`.
 pub fn colonnade_site(seed: u64, detail: u32) -> Vec<(String, TriMesh)> {
     let d = detail.max(1) as usize;
+    let waves = waves(seed);
+    let mut out = Vec::new();
+    out.push((
+        "terrain".to_string(),
+        terrain(40.0, 24 * d, &waves, &[[0.0, 0.0]]),
+    ));
+    out.extend(structures(d));
+    out
+}
+
+/// A field of `grid x grid` colonnades 20 m apart on one terrain (20 m wider than the field,
+/// tessellated as densely per metre as [`colonnade_site`]'s), for scale tests that need many
+/// voxels: `colonnade_field(seed, detail, 1)` is `colonnade_site(seed, detail)`. The meshes of
+/// the colonnade in row `i`, column `j` are suffixed `_i_j` (no suffix when `grid` is 1).
+pub fn colonnade_field(seed: u64, detail: u32, grid: u32) -> Vec<(String, TriMesh)> {
+    let grid = grid.max(1) as usize;
+    if grid == 1 {
+        return colonnade_site(seed, detail);
+    }
+    let d = detail.max(1) as usize;
+    let spacing = 20.0;
+    let size = spacing * grid as f64 + 20.0;
+    let centres: Vec<[f64; 2]> = (0..grid * grid)
+        .map(|k| {
+            let (i, j) = (k / grid, k % grid);
+            let off = |a: usize| (a as f64 - (grid - 1) as f64 / 2.0) * spacing;
+            [off(j), off(i)]
+        })
+        .collect();
+    let mut out = vec![(
+        "terrain".to_string(),
+        terrain(
+            size,
+            (24.0 * d as f64 * size / 40.0).round() as usize,
+            &waves(seed),
+            &centres,
+        ),
+    )];
+    for (k, c) in centres.iter().enumerate() {
+        for (name, mut m) in structures(d) {
+            for p in &mut m.positions {
+                p[0] += c[0] as f32;
+                p[1] += c[1] as f32;
+            }
+            out.push((format!("{name}_{}_{}", k / grid, k % grid), m));
+        }
+    }
+    out
+}
+
+/// The terrain's undulation, from the seed.
+fn waves(seed: u64) -> Vec<(f64, f64, f64, f64)> {
     let mut rng = SplitMix(seed ^ 0x1234_5678_9ABC_DEF0);
-    let waves: Vec<(f64, f64, f64, f64)> = (0..4)
+    (0..4)
         .map(|k| {
             let a = 0.35 / (k as f64 + 1.0);
             let ang = rng.next_f64() * std::f64::consts::TAU;
@@ -163,23 +222,24 @@ pub fn colonnade_site(seed: u64, detail: u32) -> Vec<(String, TriMesh)> {
                 rng.next_f64() * std::f64::consts::TAU,
             )
         })
-        .collect();
-    let mut out = Vec::new();
+        .collect()
+}
 
-    // terrain: 40 x 40 m centred on the origin
+/// A `size x size` m terrain centred on the origin, `n x n` cells.
+fn terrain(size: f64, n: usize, waves: &[(f64, f64, f64, f64)], centres: &[[f64; 2]]) -> TriMesh {
     let mut b = Builder::default();
-    let n = 24 * d;
-    let size = 40.0;
     for j in 0..=n {
         for i in 0..=n {
             let (s, t) = (i as f64 / n as f64, j as f64 / n as f64);
             let (x, y) = (-size / 2.0 + s * size, -size / 2.0 + t * size);
             let h = 1e-3;
-            let z = terrain_height(x, y, &waves);
-            let gx =
-                (terrain_height(x + h, y, &waves) - terrain_height(x - h, y, &waves)) / (2.0 * h);
-            let gy =
-                (terrain_height(x, y + h, &waves) - terrain_height(x, y - h, &waves)) / (2.0 * h);
+            let z = terrain_height(x, y, waves, centres);
+            let gx = (terrain_height(x + h, y, waves, centres)
+                - terrain_height(x - h, y, waves, centres))
+                / (2.0 * h);
+            let gy = (terrain_height(x, y + h, waves, centres)
+                - terrain_height(x, y - h, waves, centres))
+                / (2.0 * h);
             b.vert([x, y, z], normalize([-gx, -gy, 1.0]), [s, t]);
         }
     }
@@ -191,8 +251,12 @@ pub fn colonnade_site(seed: u64, detail: u32) -> Vec<(String, TriMesh)> {
             b.idx.push([a, a + w + 1, a + w]);
         }
     }
-    out.push(("terrain".to_string(), b.finish()));
+    b.finish()
+}
 
+/// The temple at the origin: stylobate, six columns, wall, architrave.
+fn structures(d: usize) -> Vec<(String, TriMesh)> {
+    let mut out = Vec::new();
     let per_m = d as f64;
     // stylobate: three steps of 0.3 m, each inset by 0.4 m
     let mut b = Builder::default();
@@ -298,6 +362,43 @@ mod tests {
         let t3 = tris(&colonnade_site(7, 3));
         let ratio = t3 as f64 / t1 as f64;
         assert!((7.0..=9.5).contains(&ratio), "{t1} -> {t3}");
+    }
+
+    #[test]
+    fn a_field_of_one_is_the_site_and_larger_fields_tile_it() {
+        assert_eq!(colonnade_field(4, 1, 1), colonnade_site(4, 1));
+        let site = colonnade_site(4, 1);
+        let field = colonnade_field(4, 1, 3);
+        let tris = |s: &[(String, TriMesh)], terrain: bool| {
+            s.iter()
+                .filter(|(n, _)| (n == "terrain") == terrain)
+                .map(|(_, m)| m.indices.len())
+                .sum::<usize>()
+        };
+        assert_eq!(tris(&field, false), 9 * tris(&site, false));
+        // an 80 m terrain as densely tessellated as the 40 m one: 4x the triangles
+        assert_eq!(tris(&field, true), 4 * tris(&site, true));
+        let wall_11 = &field.iter().find(|(n, _)| n == "wall_1_1").unwrap().1;
+        let wall = &site.iter().find(|(n, _)| n == "wall").unwrap().1;
+        assert_eq!(
+            wall_11.positions, wall.positions,
+            "the middle colonnade sits at the origin"
+        );
+        let wall_02 = &field.iter().find(|(n, _)| n == "wall_0_2").unwrap().1;
+        assert_eq!(wall_02.positions[0][0], wall.positions[0][0] + 20.0);
+        assert_eq!(wall_02.positions[0][1], wall.positions[0][1] - 20.0);
+        // terrain is flat under every platform
+        let t = &field[0].1;
+        for p in &t.positions {
+            let near = (-1..=1).any(|i| {
+                (-1..=1).any(|j| {
+                    (p[0] - 20.0 * i as f32).abs() <= 8.0 && (p[1] - 20.0 * j as f32).abs() <= 5.5
+                })
+            });
+            if near {
+                assert_eq!(p[2], 0.0);
+            }
+        }
     }
 
     #[test]

@@ -605,30 +605,69 @@ mod tests {
             igi_imaging::read_image(&store.voxel_folder(v).unwrap().join("position.exr")).unwrap();
         let m0 = &levels[&(v, 0)];
         let uv = m0.uvs.as_ref().unwrap();
-        // the centroid and the cached point lie in the same texel: at most one texel diagonal
-        // apart on the projection plane, stretched at most sqrt(3) by the projection
-        let bound = e.texel_size * 2f64.sqrt() * 3f64.sqrt();
-        let mut worst = 0.0f64;
+        // "Texel caches reproduce positions on the mesh within half a texel": for points on
+        // the mesh (three per triangle), the cache looked up bilinearly at the point's UV is
+        // within half a texel of the point, and the nearest texel's cached position is within
+        // half that texel's diagonal, measured on the surface through the triangle's own
+        // UV-to-world Jacobian.
+        let ts = e.texel_size;
+        let res = pos.width;
+        let (mut worst_bilinear, mut worst_nearest_ratio, mut n) = (0.0f64, 0.0f64, 0usize);
         for tri in &m0.indices {
-            // the centroid of each triangle, looked up at the nearest texel
-            let p = [0, 1, 2].map(|k| {
-                tri.iter()
-                    .map(|&i| m0.positions[i as usize][k] as f64)
-                    .sum::<f64>()
-                    / 3.0
-            });
-            let u = [0, 1].map(|k| tri.iter().map(|&i| uv[i as usize][k]).sum::<f32>() / 3.0);
-            let [x, y] = crate::atlas::uv_to_pixel(u, pos.width);
-            let q = pos
-                .get(x.round() as usize, y.round() as usize)
-                .map(f64::from);
-            let d = ((q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2) + (q[2] - p[2]).powi(2)).sqrt();
-            worst = worst.max(d);
+            let p = tri.map(|i| m0.positions[i as usize].map(f64::from));
+            let t = tri.map(|i| uv[i as usize].map(f64::from));
+            // Jacobian d(world)/d(uv) of the triangle
+            let (du1, dv1) = (t[1][0] - t[0][0], t[1][1] - t[0][1]);
+            let (du2, dv2) = (t[2][0] - t[0][0], t[2][1] - t[0][1]);
+            let det = du1 * dv2 - du2 * dv1;
+            if det.abs() < 1e-14 {
+                continue;
+            }
+            let e1 = [0, 1, 2].map(|k| p[1][k] - p[0][k]);
+            let e2 = [0, 1, 2].map(|k| p[2][k] - p[0][k]);
+            let ju = [0, 1, 2].map(|k| (e1[k] * dv2 - e2[k] * dv1) / det);
+            let jv = [0, 1, 2].map(|k| (e2[k] * du1 - e1[k] * du2) / det);
+            let norm = |a: [f64; 3]| (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+            // half a texel diagonal on this triangle (the longer of the two diagonals)
+            let h = 0.5 / res as f64;
+            let half_diag = [1.0, -1.0]
+                .map(|s| norm([0, 1, 2].map(|k| h * (ju[k] + s * jv[k]))))
+                .into_iter()
+                .fold(0.0, f64::max);
+            for (a, b) in [
+                (1.0 / 6.0, 1.0 / 6.0),
+                (2.0 / 3.0, 1.0 / 6.0),
+                (1.0 / 6.0, 2.0 / 3.0),
+            ] {
+                let c = 1.0 - a - b;
+                let q = [0, 1, 2].map(|k| c * p[0][k] + a * p[1][k] + b * p[2][k]);
+                let u = [0, 1].map(|k| (c * t[0][k] + a * t[1][k] + b * t[2][k]) as f32);
+                let [x, y] = crate::atlas::uv_to_pixel(u, res);
+                let dist = |r: [f32; 3]| norm([0, 1, 2].map(|k| r[k] as f64 - q[k]));
+                let bl = pos
+                    .bilinear(x, y)
+                    .expect("bilinear lookup reaches an empty texel");
+                worst_bilinear = worst_bilinear.max(dist(bl));
+                let (j, i) = (x.round() as usize, y.round() as usize);
+                assert!(pos.is_valid(j, i), "texel under a surface point is empty");
+                worst_nearest_ratio = worst_nearest_ratio.max(dist(pos.get(j, i)) / half_diag);
+                n += 1;
+            }
         }
+        assert!(n > 1000, "{n}");
         assert!(
-            worst <= bound,
-            "cache position off by {worst} m (texel {} m)",
-            e.texel_size
+            worst_bilinear <= 0.5 * ts,
+            "bilinear cache lookup off by {worst_bilinear} m (half a texel is {} m)",
+            0.5 * ts
+        );
+        assert!(
+            worst_nearest_ratio <= 1.0 + 1e-3,
+            "nearest cached position off by {worst_nearest_ratio} half-texel diagonals"
+        );
+        eprintln!(
+            "bunny texel cache: {n} points, bilinear worst {:.3} texel, nearest worst {:.3} half-diagonals",
+            worst_bilinear / ts,
+            worst_nearest_ratio
         );
         // 5. loader: v high, neighbours medium, the rest low
         let parts = store.load_for_voxel(v).unwrap();
