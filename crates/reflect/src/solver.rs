@@ -1,7 +1,7 @@
 //! The iteration of the inverse global illumination solve (see the crate overview).
 
 use crate::fill::fill_unseen;
-use crate::parts::Part;
+use crate::parts::{stored_part_name, Part, StoredPart};
 use crate::result::SolveResult;
 use crate::survey::Photo;
 use crate::weights::{combine, WeightRules};
@@ -103,6 +103,13 @@ pub struct PartSummary {
     pub seen_texels: usize,
     pub seen_twice_texels: usize,
     pub filled_texels: usize,
+    /// Where the part lives in a prepared site (none for a part built from a survey mesh).
+    #[serde(default)]
+    pub stored: Option<StoredPart>,
+    /// Triangles in the scene its last solve traced against (with a prepared site: the
+    /// multiresolution load of its voxel).
+    #[serde(default)]
+    pub scene_triangles: u64,
 }
 
 /// The report of a solve (`report.json`).
@@ -113,6 +120,27 @@ pub struct SolveReport {
     pub iterations: Vec<IterationRecord>,
     pub parts: Vec<PartSummary>,
     pub converged: bool,
+    /// The prepared site the parts come from (solved voxel by voxel), if any.
+    #[serde(default)]
+    pub site: Option<std::path::PathBuf>,
+    /// The iteration in progress when a voxel-by-voxel solve was checkpointed after a voxel.
+    #[serde(default)]
+    pub pending: Option<Pending>,
+}
+
+/// A voxel-by-voxel iteration in progress: the groups already solved and the running sums of
+/// the iteration's statistics, so a killed run resumes with the next voxel.
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+pub struct Pending {
+    pub iteration: u32,
+    pub done: Vec<String>,
+    pub wall_s: f64,
+    pub observations: u64,
+    pub res2: f64,
+    pub rel2: f64,
+    pub nres: u64,
+    pub delta: f64,
+    pub nseen: u64,
 }
 
 /// Ground-truth albedo per part and covered texel (same order as `Part::cache.texels`).
@@ -139,17 +167,55 @@ struct TexelRef {
     uv: Vec2,
 }
 
-fn build_scene(parts: &[Part], rho: &[Vec<Vec3>], lobes: &[Vec<Lobe>]) -> Result<Scene, ReflectError> {
-    let objects = parts
-        .iter()
-        .enumerate()
-        .map(|(i, p)| {
-            let r = p.resolution();
-            let tex = Texture { width: r, height: r, texels: rho[i].clone() };
-            (p.name.clone(), p.mesh.clone(), Material { albedo: Albedo::Texture(tex), lobes: lobes[i].clone() })
-        })
-        .collect();
-    Ok(Scene::new(objects)?)
+/// A group of parts solved together against one scene: every part of an in-memory site at
+/// once, or one voxel (or the terrain) of a prepared site with the multiresolution load.
+struct Group {
+    name: String,
+    /// Solved parts whose texels this group observes.
+    parts: Vec<usize>,
+    load: GroupLoad,
+}
+
+enum GroupLoad {
+    /// Every part's own mesh, at full resolution.
+    Meshes,
+    /// The voxel at level 0, its neighbours at level 1, the rest and the terrain at the lowest.
+    Voxel(igi_geometry::VoxelId),
+    /// The terrain at level 0, the voxels at level 1.
+    Terrain,
+}
+
+/// The scene of a group: every part with its current albedo atlas (one atlas serves every level
+/// of a stored part) and lobes, in part order.
+fn group_scene(state: &SolveResult, group: &Group, store: Option<&igi_geometry::SiteStore>, lobes: &[Vec<Lobe>]) -> Result<(Scene, u64), ReflectError> {
+    let material = |i: usize| {
+        let r = state.parts[i].resolution();
+        let tex = Texture { width: r, height: r, texels: state.rho[i].clone() };
+        Material { albedo: Albedo::Texture(tex), lobes: lobes[i].clone() }
+    };
+    let objects = match (&group.load, store) {
+        (GroupLoad::Meshes, _) => state.parts.iter().enumerate().map(|(i, p)| (p.name.clone(), p.mesh.clone(), material(i))).collect(),
+        (load, Some(store)) => {
+            let loaded = match load {
+                GroupLoad::Voxel(v) => store.load_for_voxel(*v)?,
+                _ => store.load_for_terrain()?,
+            };
+            let mut objects = Vec::with_capacity(loaded.len());
+            for lp in loaded {
+                let name = stored_part_name(lp.voxel);
+                let i = state
+                    .parts
+                    .iter()
+                    .position(|p| p.name == name)
+                    .ok_or_else(|| ReflectError::Invalid(format!("the prepared site holds {name}, which the result does not")))?;
+                objects.push((name, lp.mesh, material(i)));
+            }
+            objects
+        }
+        (_, None) => return Err(ReflectError::Invalid("a voxel group needs its prepared site".into())),
+    };
+    let triangles = objects.iter().map(|(_, m, _): &(String, igi_geometry::TriMesh, Material)| m.indices.len() as u64).sum();
+    Ok((Scene::new(objects)?, triangles))
 }
 
 /// Lobes of each part: inferred from the part's mean albedo with the basis, or none.
@@ -168,9 +234,36 @@ fn infer_lobes(parts: &[Part], rho: &[Vec<Vec3>], basis: Option<&Basis>) -> Vec<
         .collect()
 }
 
+/// The groups of a solve: one per solved stored part (voxels, then the terrain), or one holding
+/// every solved in-memory part.
+fn make_groups(parts: &[Part], solved: &[bool]) -> Result<Vec<Group>, ReflectError> {
+    let stored = parts.iter().filter(|p| p.stored.is_some()).count();
+    if stored == 0 {
+        let ids: Vec<usize> = (0..parts.len()).filter(|&i| solved[i]).collect();
+        return Ok(vec![Group { name: "site".into(), parts: ids, load: GroupLoad::Meshes }]);
+    }
+    if stored != parts.len() {
+        return Err(ReflectError::Invalid("a site is either prepared or a set of meshes, not both".into()));
+    }
+    Ok(parts
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| solved[*i])
+        .map(|(i, p)| {
+            let load = match p.stored.as_ref().and_then(|s| s.voxel) {
+                Some(v) => GroupLoad::Voxel(v),
+                None => GroupLoad::Terrain,
+            };
+            Group { name: p.name.clone(), parts: vec![i], load }
+        })
+        .collect())
+}
+
 /// Runs the solve. `start` is the state to continue from (a fresh state or one resumed from a
 /// result folder); `checkpoint` is called after every iteration with the current result (the
-/// CLI writes it atomically, which is what makes a killed run resumable).
+/// CLI writes it atomically, which is what makes a killed run resumable). A prepared site is
+/// solved voxel by voxel, each against the multiresolution load of the site (the voxel at full
+/// resolution, its neighbours at medium, the rest at low), with a checkpoint after every voxel.
 pub fn solve(
     mut start: SolveResult,
     photos: &[Photo],
@@ -186,139 +279,114 @@ pub fn solve(
     if opts.spp.is_empty() || opts.spp.contains(&0) {
         return Err(ReflectError::Invalid("the spp schedule must be non-empty and positive".into()));
     }
-    let parts = &start.parts;
-    let solved: Vec<bool> = parts
+    let solved: Vec<bool> = start
+        .parts
         .iter()
         .map(|p| opts.parts.as_ref().is_none_or(|sel| sel.iter().any(|s| s == &p.name)))
         .collect();
     if let Some(sel) = &opts.parts {
         for s in sel {
-            if !parts.iter().any(|p| &p.name == s) {
+            if !start.parts.iter().any(|p| &p.name == s) {
                 return Err(ReflectError::Invalid(format!("no part named `{s}` in the site")));
             }
         }
     }
-    let texels: Vec<TexelRef> = parts
+    let groups = make_groups(&start.parts, &solved)?;
+    let store = match start.parts.iter().find_map(|p| p.stored.as_ref()) {
+        Some(s) => Some(igi_geometry::SiteStore::open(&s.site)?),
+        None => None,
+    };
+    // every part has a summary (kept for parts this run does not solve)
+    let summaries: Vec<PartSummary> = start
+        .parts
         .iter()
-        .enumerate()
-        .filter(|(i, _)| solved[*i])
-        .flat_map(|(i, p)| {
-            p.cache.texels.iter().enumerate().map(move |(k, t)| TexelRef {
-                part: i as u32,
-                texel: k as u32,
-                position: t.position,
-                normal: t.normal,
-                uv: p.cache.uv(t.index),
+        .map(|p| {
+            start.report.parts.iter().find(|s| s.name == p.name).cloned().unwrap_or_else(|| PartSummary {
+                name: p.name.clone(),
+                resolution: p.resolution(),
+                texel_size_m: p.texel_size,
+                covered_texels: p.cache.texels.len(),
+                seen_texels: 0,
+                seen_twice_texels: 0,
+                filled_texels: 0,
+                stored: p.stored.clone(),
+                scene_triangles: 0,
             })
         })
         .collect();
+    start.report.parts = summaries;
     let t0 = Instant::now();
     let already = start.report.iterations.last().map_or(0.0, |r| r.cumulative_s);
     let first_k = start.report.iterations.len() as u32;
     for k in first_k..opts.max_iterations {
-        let ti = Instant::now();
         let spp = opts.spp[(k as usize).min(opts.spp.len() - 1)];
-        let lobes = infer_lobes(&start.parts, &start.rho, basis);
-        let scene = build_scene(&start.parts, &start.rho, &lobes)?;
-        progress.begin(&format!("iteration {}", k + 1), (photos.len() * texels.len()) as u64);
-        let mut obs: Vec<Obs> = Vec::new();
-        for (pi, photo) in photos.iter().enumerate() {
-            let o = observe_photo(&scene, photo, pi, &texels, &start, &lobes, opts, k, spp, progress);
-            obs.extend(o);
+        let mut acc = match start.report.pending.take() {
+            Some(p) if p.iteration == k + 1 => p,
+            _ => Pending { iteration: k + 1, ..Pending::default() },
+        };
+        let already_in_iteration = acc.wall_s;
+        let ti = Instant::now();
+        let todo: Vec<&Group> = groups.iter().filter(|g| !acc.done.contains(&g.name)).collect();
+        let total: u64 = todo.iter().map(|g| g.parts.iter().map(|&i| start.parts[i].cache.texels.len() as u64).sum::<u64>()).sum::<u64>() * photos.len() as u64;
+        progress.begin(&format!("iteration {}", k + 1), total);
+        for g in todo {
+            let lobes = infer_lobes(&start.parts, &start.rho, basis);
+            let (scene, triangles) = group_scene(&start, g, store.as_ref(), &lobes)?;
+            for &i in &g.parts {
+                start.report.parts[i].scene_triangles = triangles;
+            }
+            // texel streams are numbered across groups so no two texels share one
+            let offset: u64 = start.parts[..g.parts[0]].iter().map(|p| p.cache.texels.len() as u64).sum();
+            let texels: Vec<TexelRef> = g
+                .parts
+                .iter()
+                .flat_map(|&i| {
+                    let p = &start.parts[i];
+                    p.cache.texels.iter().enumerate().map(move |(k, t)| TexelRef {
+                        part: i as u32,
+                        texel: k as u32,
+                        position: t.position,
+                        normal: t.normal,
+                        uv: p.cache.uv(t.index),
+                    })
+                })
+                .collect();
+            let mut obs: Vec<Obs> = Vec::new();
+            for (pi, photo) in photos.iter().enumerate() {
+                obs.extend(observe_photo(&scene, photo, pi, &texels, offset, &start, &lobes, opts, k, spp, progress));
+            }
+            drop(scene);
+            update_parts(&mut start, &g.parts, &obs, opts, &mut acc);
+            acc.done.push(g.name.clone());
+            if groups.len() > 1 {
+                acc.wall_s = already_in_iteration + ti.elapsed().as_secs_f64();
+                start.lobes = infer_lobes(&start.parts, &start.rho, basis);
+                start.report.pending = Some(acc.clone());
+                checkpoint(&start)?;
+                start.changed.iter_mut().for_each(|c| *c = false);
+            }
         }
         progress.finish();
-        // combine per texel
-        let parts = &start.parts;
-        let mut per_texel: Vec<Vec<Vec<(Vec3, f32)>>> = parts.iter().map(|p| vec![Vec::new(); p.cache.texels.len()]).collect();
-        let mut any_clean: Vec<Vec<bool>> = parts.iter().map(|p| vec![false; p.cache.texels.len()]).collect();
-        let (mut res2, mut rel2, mut nres) = (0.0f64, 0.0f64, 0u64);
-        for o in &obs {
-            per_texel[o.part as usize][o.texel as usize].push((o.proposal, o.weight));
-            any_clean[o.part as usize][o.texel as usize] |= o.clean;
-            res2 += o.residual.length_squared() as f64;
-            rel2 += o.pixel.length_squared() as f64;
-            nres += 3;
-        }
-        let mut new_rho = start.rho.clone();
-        let mut weight_sum = start.weight_sum.clone();
-        let mut observations = start.observations.clone();
-        let (mut delta, mut nseen) = (0.0f64, 0u64);
-        let mut summaries = Vec::new();
-        for (pi, p) in parts.iter().enumerate() {
-            let res = p.resolution();
-            if !solved[pi] {
-                summaries.push(start.report.parts.get(pi).cloned().unwrap_or_else(|| PartSummary {
-                    name: p.name.clone(),
-                    resolution: res,
-                    texel_size_m: p.texel_size,
-                    covered_texels: p.cache.texels.len(),
-                    seen_texels: 0,
-                    seen_twice_texels: 0,
-                    filled_texels: 0,
-                }));
-                continue;
-            }
-            let mut seen = vec![false; res * res];
-            let covered: Vec<bool> = p.coverage.pixels.iter().map(|c| c[0] == 1.0).collect();
-            let gutter: Vec<bool> = p.coverage.pixels.iter().map(|c| c[0] > 0.0).collect();
-            let (mut nseen_p, mut twice) = (0usize, 0usize);
-            for (ti, t) in p.cache.texels.iter().enumerate() {
-                let i = t.index as usize;
-                let props = &mut per_texel[pi][ti];
-                // seen only through occlusion boundaries or shadow edges: not reliable; filled
-                let combined = if any_clean[pi][ti] { combine(props, &opts.rules) } else { None };
-                observations[pi][i] = if combined.is_some() { props.iter().filter(|(_, w)| *w > 0.0).count() as u32 } else { 0 };
-                match combined {
-                    Some((v, w)) => {
-                        delta += (v - start.rho[pi][i]).abs().max_element() as f64;
-                        nseen += 1;
-                        nseen_p += 1;
-                        if observations[pi][i] >= 2 {
-                            twice += 1;
-                        }
-                        new_rho[pi][i] = v;
-                        weight_sum[pi][i] = w;
-                        seen[i] = true;
-                    }
-                    None => {
-                        weight_sum[pi][i] = 0.0;
-                    }
-                }
-            }
-            let fallback = Vec3::from_array(opts.initial_albedo);
-            let filled = fill_unseen(&mut new_rho[pi], &seen, &covered, &gutter, res, fallback, 8);
-            summaries.push(PartSummary {
-                name: p.name.clone(),
-                resolution: res,
-                texel_size_m: p.texel_size,
-                covered_texels: p.cache.texels.len(),
-                seen_texels: nseen_p,
-                seen_twice_texels: twice,
-                filled_texels: filled,
-            });
-        }
-        let delta_rho = if nseen > 0 { (delta / nseen as f64) as f32 } else { 0.0 };
-        start.rho = new_rho;
-        start.weight_sum = weight_sum;
-        start.observations = observations;
+        start.report.pending = None;
         start.lobes = infer_lobes(&start.parts, &start.rho, basis);
         let (truth_mae, truth_rms) = match truth {
             Some(t) => truth_error(&start, t, &solved),
             None => (None, None),
         };
-        let wall = ti.elapsed().as_secs_f64();
+        let delta_rho = if acc.nseen > 0 { (acc.delta / acc.nseen as f64) as f32 } else { 0.0 };
+        let wall = already_in_iteration + ti.elapsed().as_secs_f64();
         let rec = IterationRecord {
             iteration: k + 1,
             spp,
             wall_s: wall,
-            cumulative_s: already + t0.elapsed().as_secs_f64(),
-            observations: obs.len() as u64,
-            residual_rms: if nres > 0 { (res2 / nres as f64).sqrt() as f32 } else { 0.0 },
-            residual_rel_rms: if rel2 > 0.0 { (res2 / rel2).sqrt() as f32 } else { 0.0 },
+            cumulative_s: already + t0.elapsed().as_secs_f64() + already_in_iteration,
+            observations: acc.observations,
+            residual_rms: if acc.nres > 0 { (acc.res2 / acc.nres as f64).sqrt() as f32 } else { 0.0 },
+            residual_rel_rms: if acc.rel2 > 0.0 { (acc.res2 / acc.rel2).sqrt() as f32 } else { 0.0 },
             delta_rho,
             truth_mae,
             truth_rms,
-            seen_texels: nseen,
+            seen_texels: acc.nseen,
         };
         tracing::info!(
             "iteration {}: {} spp, {:.1} s, {} observations, residual {:.4} ({:.2}% rel), change {:.5}",
@@ -330,16 +398,77 @@ pub fn solve(
             100.0 * rec.residual_rel_rms,
             delta_rho
         );
-        start.report.parts = summaries;
         start.report.iterations.push(rec);
         let done = k + 1 >= opts.min_iterations && delta_rho < opts.tolerance;
         start.report.converged = done;
         checkpoint(&start)?;
+        start.changed.iter_mut().for_each(|c| *c = false);
         if done {
             break;
         }
     }
     Ok(start)
+}
+
+/// Combines the observations of a group's parts into their new albedo (outlier rejection and
+/// the weighted mean per texel, then the fill of unseen texels), updating the part summaries
+/// and the iteration's running statistics.
+fn update_parts(start: &mut SolveResult, group: &[usize], obs: &[Obs], opts: &SolveOptions, acc: &mut Pending) {
+    let mut per_texel: Vec<Vec<Vec<(Vec3, f32)>>> = start.parts.iter().map(|_| Vec::new()).collect();
+    let mut any_clean: Vec<Vec<bool>> = start.parts.iter().map(|_| Vec::new()).collect();
+    for &pi in group {
+        let n = start.parts[pi].cache.texels.len();
+        per_texel[pi] = vec![Vec::new(); n];
+        any_clean[pi] = vec![false; n];
+    }
+    for o in obs {
+        per_texel[o.part as usize][o.texel as usize].push((o.proposal, o.weight));
+        any_clean[o.part as usize][o.texel as usize] |= o.clean;
+        acc.res2 += o.residual.length_squared() as f64;
+        acc.rel2 += o.pixel.length_squared() as f64;
+        acc.nres += 3;
+    }
+    acc.observations += obs.len() as u64;
+    for &pi in group {
+        let p = &start.parts[pi];
+        let res = p.resolution();
+        let mut seen = vec![false; res * res];
+        let covered: Vec<bool> = p.coverage.pixels.iter().map(|c| c[0] == 1.0).collect();
+        let gutter: Vec<bool> = p.coverage.pixels.iter().map(|c| c[0] > 0.0).collect();
+        let (mut nseen_p, mut twice) = (0usize, 0usize);
+        let mut new_rho = start.rho[pi].clone();
+        for (ti, t) in p.cache.texels.iter().enumerate() {
+            let i = t.index as usize;
+            let props = &mut per_texel[pi][ti];
+            // seen only through occlusion boundaries or shadow edges: not reliable; filled
+            let combined = if any_clean[pi][ti] { combine(props, &opts.rules) } else { None };
+            start.observations[pi][i] = if combined.is_some() { props.iter().filter(|(_, w)| *w > 0.0).count() as u32 } else { 0 };
+            match combined {
+                Some((v, w)) => {
+                    acc.delta += (v - start.rho[pi][i]).abs().max_element() as f64;
+                    acc.nseen += 1;
+                    nseen_p += 1;
+                    if start.observations[pi][i] >= 2 {
+                        twice += 1;
+                    }
+                    new_rho[i] = v;
+                    start.weight_sum[pi][i] = w;
+                    seen[i] = true;
+                }
+                None => {
+                    start.weight_sum[pi][i] = 0.0;
+                }
+            }
+        }
+        let fallback = Vec3::from_array(opts.initial_albedo);
+        let filled = fill_unseen(&mut new_rho, &seen, &covered, &gutter, res, fallback, 8);
+        start.rho[pi] = new_rho;
+        start.changed[pi] = true;
+        let s = &mut start.report.parts[pi];
+        s.seen_texels = nseen_p;
+        s.seen_twice_texels = twice;
+        s.filled_texels = filled;
+    }
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -348,6 +477,7 @@ fn observe_photo(
     photo: &Photo,
     photo_index: usize,
     texels: &[TexelRef],
+    offset: u64,
     state: &SolveResult,
     lobes: &[Vec<Lobe>],
     opts: &SolveOptions,
@@ -448,13 +578,18 @@ fn observe_photo(
                     let pixel = Vec3::from_array(photo.image.bilinear(px.x as f32, px.y as f32)?);
                     let mut weight = cos;
                     let mut clean = true;
-                    // occlusion boundary / misregistration: depth agreement of neighbouring rays
+                    // occlusion boundary / misregistration: neighbouring rays must land on the
+                    // texel's tangent plane (not merely at its depth: on a surface seen at a
+                    // grazing angle the depth changes by several percent per pixel)
                     let o = rules.boundary_offset_px;
                     for (dx, dy) in [(o, 0.0), (-o, 0.0), (0.0, o), (0.0, -o)] {
                         let (ro, rd) = cam.pixel_ray(px.x + dx, px.y + dy);
-                        let hit = scene.intersect(ro.as_vec3(), rd.as_vec3());
+                        let (ro, rd) = (ro.as_vec3(), rd.as_vec3());
+                        let hit = scene.intersect(ro, rd);
+                        let denom = n.dot(rd);
+                        let t_plane = if denom.abs() > 1e-6 { n.dot(t.position - ro) / denom } else { f32::INFINITY };
                         let ok = hit.is_some_and(|h| {
-                            (h.t - dist).abs() <= rules.depth_tolerance * dist && h.ng.normalize_or_zero().dot(n).abs() >= rules.min_normal_agreement
+                            (h.t - t_plane).abs() <= rules.depth_tolerance * dist && h.ng.normalize_or_zero().dot(n).abs() >= rules.min_normal_agreement
                         });
                         if !ok {
                             weight *= rules.boundary_factor;
@@ -471,7 +606,7 @@ fn observe_photo(
                     let rho_eval = rho.max(min_eval);
                     let brdf = LafortuneRef { rho_d: rho_eval, lobes: &lobes[t.part as usize] };
                     let sp = SurfacePoint { position: t.position, ng: n, ns: n, uv: t.uv, object: t.part, prim: 0 };
-                    let est = pt.lo_estimate(&sp, wo, Some(brdf), spp, &mut Rng::new(stream_seed, gi));
+                    let est = pt.lo_estimate(&sp, wo, Some(brdf), spp, &mut Rng::new(stream_seed, offset + gi));
                     Some((gi as u32, pixel, est.mean, est.stderr, weight, clean, rho_eval))
                 })
                 .collect();

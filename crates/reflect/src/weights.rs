@@ -4,8 +4,10 @@
 //! - **View angle.** The weight starts at `cos(view angle)`; views more grazing than
 //!   `min_cos` are dropped (their pixel footprint smears over a long stretch of surface).
 //! - **Occlusion boundaries.** Rays from the camera through the projected pixel offset by
-//!   `boundary_offset_px` in the four axis directions must land at the texel's depth within
-//!   `depth_tolerance` (relative); otherwise the pixel's footprint mixes two surfaces (or a
+//!   `boundary_offset_px` in the four axis directions must land on the texel's tangent plane,
+//!   where that plane would put them, within `depth_tolerance` times the camera distance
+//!   (comparing with the texel's own depth instead would flag every surface seen at a grazing
+//!   angle, whose depth changes by several percent per pixel); otherwise the pixel's footprint mixes two surfaces (or a
 //!   slightly misregistered photo puts the wrong surface there) and the weight is multiplied
 //!   by `boundary_factor`. The rays must also meet a surface whose normal agrees with the
 //!   texel's (`|cos| >= min_normal_agreement`), which catches convex edges where depth barely
