@@ -36,7 +36,10 @@ pub struct FitOptions {
 
 impl Default for FitOptions {
     fn default() -> Self {
-        FitOptions { max_n: 2.0e4, rel_floor: 0.05 }
+        FitOptions {
+            max_n: 2.0e4,
+            rel_floor: 0.05,
+        }
     }
 }
 
@@ -105,11 +108,25 @@ pub(crate) struct Model {
 }
 
 impl Model {
-    fn lobes(&self, p: &[f64]) -> (  [f64; 3], LobeF64, LobeF64) {
-        let col = |i: usize| [p[i].clamp(-40.0, 20.0).exp(), p[i + 1].clamp(-40.0, 20.0).exp(), p[i + 2].clamp(-40.0, 20.0).exp()];
+    fn lobes(&self, p: &[f64]) -> ([f64; 3], LobeF64, LobeF64) {
+        let col = |i: usize| {
+            [
+                p[i].clamp(-40.0, 20.0).exp(),
+                p[i + 1].clamp(-40.0, 20.0).exp(),
+                p[i + 2].clamp(-40.0, 20.0).exp(),
+            ]
+        };
         let nmax = (self.max_n - 1.0).ln();
-        let retro = LobeF64 { rho: col(RR), cxy: p[RA].clamp(-6.0, 3.0).exp(), n: 1.0 + p[RM].clamp(-12.0, nmax).exp() };
-        let spec = LobeF64 { rho: col(SR), cxy: -p[SA].clamp(-6.0, 3.0).exp(), n: 1.0 + p[SM].clamp(-12.0, nmax).exp() };
+        let retro = LobeF64 {
+            rho: col(RR),
+            cxy: p[RA].clamp(-6.0, 3.0).exp(),
+            n: 1.0 + p[RM].clamp(-12.0, nmax).exp(),
+        };
+        let spec = LobeF64 {
+            rho: col(SR),
+            cxy: -p[SA].clamp(-6.0, 3.0).exp(),
+            n: 1.0 + p[SM].clamp(-12.0, nmax).exp(),
+        };
         (col(LD), retro, spec)
     }
 
@@ -127,8 +144,18 @@ impl Model {
         Lafortune {
             rho_d: v(d),
             lobes: vec![
-                Lobe { rho: v(r.rho), cxy: r.cxy as f32, cz: 1.0, n: r.n as f32 },
-                Lobe { rho: v(s.rho), cxy: s.cxy as f32, cz: 1.0, n: s.n as f32 },
+                Lobe {
+                    rho: v(r.rho),
+                    cxy: r.cxy as f32,
+                    cz: 1.0,
+                    n: r.n as f32,
+                },
+                Lobe {
+                    rho: v(s.rho),
+                    cxy: s.cxy as f32,
+                    cz: 1.0,
+                    n: s.n as f32,
+                },
             ],
         }
     }
@@ -143,9 +170,22 @@ pub(crate) struct Data {
 }
 
 impl Data {
-    pub(crate) fn new(light: Vec<[f64; 3]>, view: Vec<[f64; 3]>, value: Vec<[f64; 3]>, floor: [f64; 3]) -> Self {
-        let weight = value.iter().map(|v| [0, 1, 2].map(|c| 1.0 / (v[c] + floor[c]))).collect();
-        Data { light, view, value, weight }
+    pub(crate) fn new(
+        light: Vec<[f64; 3]>,
+        view: Vec<[f64; 3]>,
+        value: Vec<[f64; 3]>,
+        floor: [f64; 3],
+    ) -> Self {
+        let weight = value
+            .iter()
+            .map(|v| [0, 1, 2].map(|c| 1.0 / (v[c] + floor[c])))
+            .collect();
+        Data {
+            light,
+            view,
+            value,
+            weight,
+        }
     }
 
     /// Sum of squared weighted residuals of the parameters `p`.
@@ -228,15 +268,262 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for Problem<'_> {
 
 /// Run LM over `free` from `p`; returns the new parameters, the cost and the termination text.
 fn lm(model: &Model, data: &Data, p: [f64; NP], free: &[usize]) -> ([f64; NP], f64, String) {
-    let prob = Problem { model, data, p, free: free.to_vec() };
+    let prob = Problem {
+        model,
+        data,
+        p,
+        free: free.to_vec(),
+    };
     let start_cost = prob.cost();
     let (prob, report) = LevenbergMarquardt::new().with_patience(200).minimize(prob);
     let cost = prob.cost();
     if cost.is_finite() && cost <= start_cost {
         (prob.p, cost, format!("{:?}", report.termination))
     } else {
-        (p, start_cost, format!("{:?} (step rejected)", report.termination))
+        (
+            p,
+            start_cost,
+            format!("{:?} (step rejected)", report.termination),
+        )
     }
+}
+
+/// Minimise `x^T G x - 2 x.b` over `x >= 0` for the first `k` (<= 3) unknowns by trying every
+/// active set (the problem is tiny); returns `x` and the minimum (`-x.b`).
+fn nnls_small(g: &[[f64; 3]; 3], b: &[f64; 3], k: usize) -> ([f64; 3], f64) {
+    let mut best = ([0.0; 3], 0.0);
+    for set in 1u32..(1 << k) {
+        let idx: Vec<usize> = (0..k).filter(|i| set & (1 << i) != 0).collect();
+        let n = idx.len();
+        // Gaussian elimination with partial pivoting on the n x n subsystem
+        let mut a = [[0.0f64; 4]; 3];
+        for (r, &i) in idx.iter().enumerate() {
+            for (c, &j) in idx.iter().enumerate() {
+                a[r][c] = g[i][j];
+            }
+            a[r][3] = b[i];
+        }
+        let scale = (0..n).map(|r| a[r][r].abs()).fold(0.0, f64::max);
+        let mut ok = scale > 0.0;
+        for col in 0..n {
+            if !ok {
+                break;
+            }
+            let piv = (col..n)
+                .max_by(|&x, &y| a[x][col].abs().total_cmp(&a[y][col].abs()))
+                .unwrap_or(col);
+            a.swap(col, piv);
+            if a[col][col].abs() <= 1e-12 * scale {
+                ok = false;
+                break;
+            }
+            for r in 0..n {
+                if r != col {
+                    let f = a[r][col] / a[col][col];
+                    for c in col..4 {
+                        a[r][c] -= f * a[col][c];
+                    }
+                }
+            }
+        }
+        if !ok {
+            continue;
+        }
+        let mut x = [0.0; 3];
+        for (r, &i) in idx.iter().enumerate() {
+            x[i] = a[r][3] / a[r][r];
+        }
+        if x.iter().any(|v| *v < 0.0 || !v.is_finite()) {
+            continue;
+        }
+        let val = -(0..k).map(|i| x[i] * b[i]).sum::<f64>();
+        if val < best.1 {
+            best = (x, val);
+        }
+    }
+    best
+}
+
+/// Exponent grid of the lobe searches: `1.5 * 1.6^k` up to `max_n`.
+fn n_grid(max_n: f64) -> Vec<f64> {
+    (0..40)
+        .map(|k| 1.5 * 1.6f64.powi(k))
+        .take_while(|&n| n <= max_n)
+        .collect()
+}
+
+/// Stage "one lobe alone", global part: a grid over the lobe's `(|Cxy|, N)`; at every node the
+/// colours (`rho_d`, the other lobe's colour at its current shape, this lobe's colour) enter
+/// linearly and are solved exactly (non-negative weighted least squares per channel), so the
+/// search is over the two shape parameters only (variable projection). Returns the best node of
+/// each exponent range (N < 8, < 60, < 500, >= 500) as starting points, best first.
+fn grid_starts(
+    model: &Model,
+    data: &Data,
+    p: &[f64; NP],
+    colour: usize,
+    a: usize,
+    m: usize,
+) -> Vec<[f64; NP]> {
+    let spec = colour == SR;
+    let cxys: &[f64] = if spec {
+        &[
+            0.7, 0.85, 0.95, 1.0, 1.02, 1.05, 1.1, 1.2, 1.35, 1.6, 2.0, 2.5,
+        ]
+    } else {
+        &[0.2, 0.5, 0.8, 0.95, 1.0, 1.05, 1.2, 1.5]
+    };
+    let ns = n_grid(model.max_n);
+    let pi = std::f64::consts::PI;
+    let len = data.light.len();
+    // the other lobe, as it stands (a basis only if it has any colour)
+    let oc = if spec { RR } else { SR };
+    let (_, retro, specl) = model.lobes(p);
+    let other = if spec { retro } else { specl };
+    let has_other = (0..3).any(|c| p[oc + c] > -39.0);
+    let g1: Vec<f64> = data
+        .light
+        .iter()
+        .zip(&data.view)
+        .map(|(l, v)| pi * shape(other.cxy, other.n, l, v))
+        .collect();
+    let k = if has_other { 3 } else { 2 };
+    // Gram sums that do not involve the grid lobe
+    let mut g_fix = [[[0.0f64; 3]; 3]; 3];
+    let mut b_fix = [[0.0f64; 3]; 3];
+    for i in 0..len {
+        for c in 0..3 {
+            let w2 = data.weight[i][c] * data.weight[i][c];
+            let d = data.value[i][c];
+            g_fix[c][0][0] += w2;
+            g_fix[c][0][1] += w2 * g1[i];
+            g_fix[c][1][1] += w2 * g1[i] * g1[i];
+            b_fix[c][0] += w2 * d;
+            b_fix[c][1] += w2 * g1[i] * d;
+        }
+    }
+    let bucket = |n: f64| {
+        if n < 8.0 {
+            0
+        } else if n < 60.0 {
+            1
+        } else if n < 500.0 {
+            2
+        } else {
+            3
+        }
+    };
+    let mut best: [Option<(f64, [f64; NP])>; 4] = [None; 4];
+    let mut g2 = vec![0.0f64; len];
+    for &cxy in cxys {
+        for &n in &ns {
+            let signed = if spec { -cxy } else { cxy };
+            let mut big = false;
+            for i in 0..len {
+                g2[i] = pi * shape(signed, n, &data.light[i], &data.view[i]);
+                big |= g2[i] > 1e12;
+            }
+            if big {
+                continue;
+            }
+            let mut q = *p;
+            q[a] = cxy.ln();
+            q[m] = (n - 1.0).max(1e-6).ln();
+            let mut cost = 0.0;
+            for c in 0..3 {
+                let mut g = g_fix[c];
+                let mut b = b_fix[c];
+                for i in 0..len {
+                    let w2 = data.weight[i][c] * data.weight[i][c];
+                    g[0][2] += w2 * g2[i];
+                    g[1][2] += w2 * g1[i] * g2[i];
+                    g[2][2] += w2 * g2[i] * g2[i];
+                    b[2] += w2 * g2[i] * data.value[i][c];
+                }
+                // unknown order: rho_d, [other lobe], this lobe
+                let (gg, bb) = if has_other {
+                    let mut s = g;
+                    for r in 0..3 {
+                        for cc in r..3 {
+                            s[cc][r] = s[r][cc];
+                        }
+                    }
+                    (s, b)
+                } else {
+                    (
+                        [[g[0][0], g[0][2], 0.0], [g[0][2], g[2][2], 0.0], [0.0; 3]],
+                        [b[0], b[2], 0.0],
+                    )
+                };
+                let (x, val) = nnls_small(&gg, &bb, k);
+                cost += val;
+                let (xd, xo, xs) = if has_other {
+                    (x[0], x[1], x[2])
+                } else {
+                    (x[0], 0.0, x[1])
+                };
+                let ln = |v: f64| if v > 0.0 { v.ln().max(-40.0) } else { -40.0 };
+                q[LD + c] = ln(xd);
+                if has_other {
+                    q[oc + c] = ln(xo);
+                }
+                q[colour + c] = ln(xs);
+            }
+            let slot = &mut best[bucket(n)];
+            if slot.as_ref().is_none_or(|s| cost < s.0) {
+                *slot = Some((cost, q));
+            }
+        }
+    }
+    let mut v: Vec<(f64, [f64; NP])> = best.into_iter().flatten().collect();
+    v.sort_by(|x, y| x.0.total_cmp(&y.0));
+    v.into_iter().map(|x| x.1).collect()
+}
+
+/// One lobe fitted alone: LM over the lobe's colour, `Cxy` and `N` from fixed starting exponents
+/// (`Cxy = +-1`, colour solved linearly with the rest fixed) and, with `grid`, from the
+/// variable-projection grid's starts ([`grid_starts`]); the best result.
+fn fit_lobe(
+    model: &Model,
+    data: &Data,
+    p: [f64; NP],
+    colour: usize,
+    a: usize,
+    m: usize,
+    grid: bool,
+) -> [f64; NP] {
+    let free = [colour, colour + 1, colour + 2, a, m];
+    let mut best = (p, f64::INFINITY);
+    let starts: &[f64] = if colour == SR {
+        &[3.0, 15.0, 60.0, 300.0, 1500.0, 8000.0, 2.0e4]
+    } else {
+        &[2.0, 8.0, 30.0, 150.0]
+    };
+    for &n0 in starts {
+        if n0 > model.max_n {
+            continue;
+        }
+        let mut q = p;
+        q[a] = 0.0;
+        q[m] = (n0 - 1.0).max(1e-3).ln();
+        linear_colour(model, data, &mut q, colour);
+        let (q, cost, _) = lm(model, data, q, &free);
+        if cost < best.1 {
+            best = (q, cost);
+        }
+    }
+    let grid_starts = if grid {
+        grid_starts(model, data, &p, colour, a, m)
+    } else {
+        Vec::new()
+    };
+    for q in grid_starts {
+        let (q, cost, _) = lm(model, data, q, &free);
+        if cost < best.1 {
+            best = (q, cost);
+        }
+    }
+    best.0
 }
 
 /// Colour of the lobe at `ci` (log colour index) that best explains the data left over by the
@@ -258,29 +545,13 @@ fn linear_colour(model: &Model, data: &Data, p: &mut [f64; NP], ci: usize) {
             num += w2 * g * (data.value[i][c] - base);
             den += w2 * g * g;
         }
-        let rho = if den > 0.0 { (num / den).max(1e-12) } else { 1e-12 };
+        let rho = if den > 0.0 {
+            (num / den).max(1e-12)
+        } else {
+            1e-12
+        };
         p[ci + c] = rho.ln().max(-40.0);
     }
-}
-
-/// Best of several starting exponents for one lobe fitted alone.
-fn fit_lobe(model: &Model, data: &Data, p: [f64; NP], colour: usize, a: usize, m: usize, starts: &[f64]) -> [f64; NP] {
-    let mut best = (p, f64::INFINITY);
-    for &n0 in starts {
-        if n0 > model.max_n {
-            continue;
-        }
-        let mut q = p;
-        q[a] = 0.0;
-        q[m] = (n0 - 1.0).max(1e-3).ln();
-        linear_colour(model, data, &mut q, colour);
-        let free = [colour, colour + 1, colour + 2, a, m];
-        let (q, cost, _) = lm(model, data, q, &free);
-        if cost < best.1 {
-            best = (q, cost);
-        }
-    }
-    best.0
 }
 
 fn percentile(mut v: Vec<f64>, q: f64) -> f64 {
@@ -289,8 +560,15 @@ fn percentile(mut v: Vec<f64>, q: f64) -> f64 {
     v[i]
 }
 
-/// The staged fit of Debevec et al. on prepared data: returns parameters, cost, termination.
+/// The staged fit of Debevec et al. on prepared data with the fixed starting exponents only
+/// (what Lensch clustering uses for its pooled and per-cluster fits; see [`fit_staged`]).
 pub(crate) fn fit_data(model: &Model, data: &Data) -> ([f64; NP], f64, String) {
+    fit_staged(model, data, false)
+}
+
+/// The staged fit of Debevec et al. on prepared data: returns parameters, cost, termination.
+/// `grid` adds the variable-projection grid starts to each single-lobe stage.
+fn fit_staged(model: &Model, data: &Data, grid: bool) -> ([f64; NP], f64, String) {
     // Stage 1: rho_d from the lower part of the data (pi f = rho_d where no lobe reaches).
     let mut p0 = [0.0; NP];
     for c in 0..3 {
@@ -303,8 +581,6 @@ pub(crate) fn fit_data(model: &Model, data: &Data) -> ([f64; NP], f64, String) {
     }
     p0[RM] = 1.0f64.ln();
     p0[SM] = 9.0f64.ln();
-    let retro_starts = [2.0, 8.0, 30.0, 150.0];
-    let spec_starts = [3.0, 15.0, 60.0, 300.0, 1500.0, 8000.0, 2.0e4];
     let all: Vec<usize> = (0..NP).collect();
 
     // Stages 2-3 in the paper's order (retro, then specular), and the other order as a second
@@ -314,9 +590,9 @@ pub(crate) fn fit_data(model: &Model, data: &Data) -> ([f64; NP], f64, String) {
         let mut p = p0;
         for which in order {
             p = if which == 0 {
-                fit_lobe(model, data, p, RR, RA, RM, &retro_starts)
+                fit_lobe(model, data, p, RR, RA, RM, grid)
             } else {
-                fit_lobe(model, data, p, SR, SA, SM, &spec_starts)
+                fit_lobe(model, data, p, SR, SA, SM, grid)
             };
         }
         let (p, cost, term) = lm(model, data, p, &all);
@@ -335,8 +611,15 @@ pub(crate) fn refine(model: &Model, data: &Data, p: [f64; NP]) -> ([f64; NP], f6
 }
 
 /// Fit Lambertian + retroreflective + specular lobes to one material's samples.
-pub fn fit_material(material: &str, samples: &[BrdfSample], opts: &FitOptions) -> Result<FitReport, BrdfError> {
-    let fail = |msg: String| BrdfError::Fit { material: material.to_string(), msg };
+pub fn fit_material(
+    material: &str,
+    samples: &[BrdfSample],
+    opts: &FitOptions,
+) -> Result<FitReport, BrdfError> {
+    let fail = |msg: String| BrdfError::Fit {
+        material: material.to_string(),
+        msg,
+    };
     if samples.len() < 5 {
         return Err(fail(format!(
             "{} samples are too few for the {NP}-parameter model (need at least 5, i.e. 15 values)",
@@ -344,16 +627,23 @@ pub fn fit_material(material: &str, samples: &[BrdfSample], opts: &FitOptions) -
         )));
     }
     for (i, s) in samples.iter().enumerate() {
-        if !(s.light.is_finite() && s.view.is_finite() && s.value.is_finite()) || s.value.min_element() < 0.0 {
-            return Err(fail(format!("sample {i} has non-finite or negative values")));
+        if !(s.light.is_finite() && s.view.is_finite() && s.value.is_finite())
+            || s.value.min_element() < 0.0
+        {
+            return Err(fail(format!(
+                "sample {i} has non-finite or negative values"
+            )));
         }
         if s.light.z <= 0.0 || s.view.z <= 0.0 {
-            return Err(fail(format!("sample {i} has a direction below the surface")));
+            return Err(fail(format!(
+                "sample {i} has a direction below the surface"
+            )));
         }
     }
     let d3 = |v: Vec3| [v.x as f64, v.y as f64, v.z as f64];
     let value: Vec<[f64; 3]> = samples.iter().map(|s| d3(s.value)).collect();
-    let mean: [f64; 3] = [0, 1, 2].map(|c| value.iter().map(|v| v[c]).sum::<f64>() / value.len() as f64);
+    let mean: [f64; 3] =
+        [0, 1, 2].map(|c| value.iter().map(|v| v[c]).sum::<f64>() / value.len() as f64);
     let floor = mean.map(|m| opts.rel_floor * m + 1e-12);
     let data = Data::new(
         samples.iter().map(|s| d3(s.light.normalize())).collect(),
@@ -362,14 +652,19 @@ pub fn fit_material(material: &str, samples: &[BrdfSample], opts: &FitOptions) -
         floor,
     );
     let model = Model { max_n: opts.max_n };
-    let (p, cost, termination) = fit_data(&model, &data);
+    let (p, cost, termination) = fit_staged(&model, &data, true);
     if !cost.is_finite() || p.iter().any(|x| !x.is_finite()) {
         return Err(fail("the optimiser produced non-finite values".into()));
     }
     let all: Vec<usize> = (0..NP).collect();
 
     // Statistics.
-    let prob = Problem { model: &model, data: &data, p, free: all.clone() };
+    let prob = Problem {
+        model: &model,
+        data: &data,
+        p,
+        free: all.clone(),
+    };
     let r = prob.residuals_at(&p);
     let m = 3 * data.light.len(); // data residuals (the prior's two come after them)
     let rms = (r.rows(0, m).norm_squared() / m as f64).sqrt();
@@ -392,21 +687,44 @@ pub fn fit_material(material: &str, samples: &[BrdfSample], opts: &FitOptions) -
         let s = svd.singular_values[k].max(smax * 1e-14).max(1e-300);
         cov += (u.column(k) * vt.row(k)) / s;
     }
-    let se: Vec<f64> = (0..NP).map(|i| (cov[(i, i)].abs() * sigma2).sqrt().min(1e30)).collect();
+    let se: Vec<f64> = (0..NP)
+        .map(|i| (cov[(i, i)].abs() * sigma2).sqrt().min(1e30))
+        .collect();
     let (d, re, sp) = model.lobes(&p);
     let cap = |x: f64| if x.is_finite() { x.min(1e30) } else { 1e30 };
     let stderr = Stderr {
         rho_d: [0, 1, 2].map(|c| cap(d[c] * se[LD + c])),
         lobes: vec![
-            LobeStderr { rho: [0, 1, 2].map(|c| cap(re.rho[c] * se[RR + c])), cxy: cap(re.cxy.abs() * se[RA]), n: cap((re.n - 1.0) * se[RM]) },
-            LobeStderr { rho: [0, 1, 2].map(|c| cap(sp.rho[c] * se[SR + c])), cxy: cap(sp.cxy.abs() * se[SA]), n: cap((sp.n - 1.0) * se[SM]) },
+            LobeStderr {
+                rho: [0, 1, 2].map(|c| cap(re.rho[c] * se[RR + c])),
+                cxy: cap(re.cxy.abs() * se[RA]),
+                n: cap((re.n - 1.0) * se[RM]),
+            },
+            LobeStderr {
+                rho: [0, 1, 2].map(|c| cap(sp.rho[c] * se[SR + c])),
+                cxy: cap(sp.cxy.abs() * se[SA]),
+                n: cap((sp.n - 1.0) * se[SM]),
+            },
         ],
     };
     let brdf = model.to_lafortune(&p);
-    if !brdf.rho_d.is_finite() || brdf.lobes.iter().any(|l| !l.rho.is_finite() || !l.n.is_finite()) {
+    if !brdf.rho_d.is_finite()
+        || brdf
+            .lobes
+            .iter()
+            .any(|l| !l.rho.is_finite() || !l.n.is_finite())
+    {
         return Err(fail("the fitted parameters overflow f32".into()));
     }
-    Ok(FitReport { material: material.to_string(), brdf, rms, rms_abs, stderr, samples: samples.len(), termination })
+    Ok(FitReport {
+        material: material.to_string(),
+        brdf,
+        rms,
+        rms_abs,
+        stderr,
+        samples: samples.len(),
+        termination,
+    })
 }
 
 #[cfg(test)]
@@ -437,7 +755,10 @@ pub(crate) mod tests {
         for lt in [0.0f32, 30.0, 50.0, 75.0] {
             for k in 0..21 {
                 let vt = -80.0 + 8.0 * k as f32;
-                v.push((dir(lt, 180.0), dir(vt.abs(), if vt < 0.0 { 180.0 } else { 0.0 })));
+                v.push((
+                    dir(lt, 180.0),
+                    dir(vt.abs(), if vt < 0.0 { 180.0 } else { 0.0 }),
+                ));
             }
             for vt in [20.0, 45.0, 70.0] {
                 v.push((dir(lt, 180.0), dir(vt, 60.0)));
@@ -465,20 +786,34 @@ pub(crate) mod tests {
                 let t = rng.gen_range(10.0..70.0);
                 let p = rng.gen_range(0.0..360.0);
                 let l = dir(t, p);
-                let v = dir(t + rng.gen_range(-spread..spread), p + 180.0 + rng.gen_range(-spread..spread));
+                let v = dir(
+                    t + rng.gen_range(-spread..spread),
+                    p + 180.0 + rng.gen_range(-spread..spread),
+                );
                 (l, v)
             })
             .collect()
     }
 
-    pub fn synth(m: &Lafortune, name: &str, pairs: &[(Vec3, Vec3)], noise: f32, seed: u64) -> Vec<BrdfSample> {
+    pub fn synth(
+        m: &Lafortune,
+        name: &str,
+        pairs: &[(Vec3, Vec3)],
+        noise: f32,
+        seed: u64,
+    ) -> Vec<BrdfSample> {
         let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
         pairs
             .iter()
             .map(|&(l, v)| {
                 let f = m.as_ref().eval(l, v) * std::f32::consts::PI;
                 let n = Vec3::new(normal(&mut rng), normal(&mut rng), normal(&mut rng));
-                BrdfSample { material: name.into(), light: l, view: v, value: (f * (Vec3::ONE + noise * n)).max(Vec3::ZERO) }
+                BrdfSample {
+                    material: name.into(),
+                    light: l,
+                    view: v,
+                    value: (f * (Vec3::ONE + noise * n)).max(Vec3::ZERO),
+                }
             })
             .collect()
     }
@@ -486,8 +821,14 @@ pub(crate) mod tests {
     /// Max relative error of the fitted model against the truth over `pairs`, relative to
     /// (true value + 5% of the mean true value) as in the residuals.
     pub fn heldout_rel(truth: &Lafortune, fit: &Lafortune, pairs: &[(Vec3, Vec3)]) -> (f32, f32) {
-        let t: Vec<Vec3> = pairs.iter().map(|&(l, v)| truth.as_ref().eval(l, v)).collect();
-        let f: Vec<Vec3> = pairs.iter().map(|&(l, v)| fit.as_ref().eval(l, v)).collect();
+        let t: Vec<Vec3> = pairs
+            .iter()
+            .map(|&(l, v)| truth.as_ref().eval(l, v))
+            .collect();
+        let f: Vec<Vec3> = pairs
+            .iter()
+            .map(|&(l, v)| fit.as_ref().eval(l, v))
+            .collect();
         let mean = t.iter().copied().sum::<Vec3>() / t.len() as f32;
         let (mut mx, mut s2) = (0.0f32, 0.0f32);
         for (a, b) in t.iter().zip(&f) {
@@ -502,8 +843,18 @@ pub(crate) mod tests {
         Lafortune {
             rho_d: Vec3::new(0.3, 0.25, 0.2),
             lobes: vec![
-                Lobe { rho: Vec3::new(0.08, 0.07, 0.06), cxy: 0.8, cz: 1.0, n: 4.0 },
-                Lobe { rho: Vec3::new(2.0, 2.2, 2.4), cxy: -1.0, cz: 1.0, n: 60.0 },
+                Lobe {
+                    rho: Vec3::new(0.08, 0.07, 0.06),
+                    cxy: 0.8,
+                    cz: 1.0,
+                    n: 4.0,
+                },
+                Lobe {
+                    rho: Vec3::new(2.0, 2.2, 2.4),
+                    cxy: -1.0,
+                    cz: 1.0,
+                    n: 60.0,
+                },
             ],
         }
     }
@@ -526,8 +877,14 @@ pub(crate) mod tests {
             assert!(rel(b.lobes[0].rho[c], t.lobes[0].rho[c]) < 0.03, "{b:?}");
             assert!(rel(b.lobes[1].rho[c], t.lobes[1].rho[c]) < 0.02, "{b:?}");
         }
-        assert!(rel(b.lobes[0].cxy, 0.8) < 0.02 && rel(b.lobes[0].n, 4.0) < 0.03, "{b:?}");
-        assert!(rel(b.lobes[1].cxy, -1.0) < 0.01 && rel(b.lobes[1].n, 60.0) < 0.01, "{b:?}");
+        assert!(
+            rel(b.lobes[0].cxy, 0.8) < 0.02 && rel(b.lobes[0].n, 4.0) < 0.03,
+            "{b:?}"
+        );
+        assert!(
+            rel(b.lobes[1].cxy, -1.0) < 0.01 && rel(b.lobes[1].n, 60.0) < 0.01,
+            "{b:?}"
+        );
         // standard errors of exact data are tiny
         assert!(r.stderr.lobes[1].n < 0.1, "{:?}", r.stderr);
     }
@@ -537,7 +894,12 @@ pub(crate) mod tests {
         // (cxy, cz) = (-0.95, 0.9) equals (cxy/cz, 1) with rho * 0.9^n.
         let t = Lafortune {
             rho_d: Vec3::splat(0.2),
-            lobes: vec![Lobe { rho: Vec3::splat(3.0), cxy: -0.95, cz: 0.9, n: 40.0 }],
+            lobes: vec![Lobe {
+                rho: Vec3::splat(3.0),
+                cxy: -0.95,
+                cz: 0.9,
+                n: 40.0,
+            }],
         };
         let mut pairs = paper_pairs();
         pairs.extend(random_pairs(150, 2));
@@ -555,13 +917,21 @@ pub(crate) mod tests {
         let n = 1.0e4f32;
         let t = Lafortune {
             rho_d: Vec3::splat(0.05),
-            lobes: vec![Lobe { rho: Vec3::splat(0.5 * (n + 2.0) / std::f32::consts::TAU), cxy: -1.0, cz: 1.0, n }],
+            lobes: vec![Lobe {
+                rho: Vec3::splat(0.5 * (n + 2.0) / std::f32::consts::TAU),
+                cxy: -1.0,
+                cz: 1.0,
+                n,
+            }],
         };
         let mut pairs = random_pairs(120, 3);
         pairs.extend(mirror_pairs(60, 1.5, 4));
         let r = fit_material("m", &synth(&t, "m", &pairs, 0.0, 0), &FitOptions::default()).unwrap();
         let spec = r.brdf.lobes[1];
-        eprintln!("n=1e4: fitted n {:.1} +- {:.1}, cxy {:.5}, rms {:.2e}", spec.n, r.stderr.lobes[1].n, spec.cxy, r.rms);
+        eprintln!(
+            "n=1e4: fitted n {:.1} +- {:.1}, cxy {:.5}, rms {:.2e}",
+            spec.n, r.stderr.lobes[1].n, spec.cxy, r.rms
+        );
         assert!(rel(spec.n, n) < 0.05, "{spec:?} rms {}", r.rms);
         assert!(rel(spec.cxy, -1.0) < 0.001, "{spec:?}");
         assert!(rel(r.brdf.rho_d.x, 0.05) < 0.01, "{:?}", r.brdf);
@@ -575,14 +945,20 @@ pub(crate) mod tests {
         let mut pairs = paper_pairs();
         let mut rng = rand_pcg::Pcg64::seed_from_u64(6);
         for _ in 0..60 {
-            pairs.push((dir(rng.gen_range(85.0..89.5), rng.gen_range(0.0..360.0)), dir(rng.gen_range(85.0..89.5), rng.gen_range(0.0..360.0))));
+            pairs.push((
+                dir(rng.gen_range(85.0..89.5), rng.gen_range(0.0..360.0)),
+                dir(rng.gen_range(85.0..89.5), rng.gen_range(0.0..360.0)),
+            ));
         }
         let s = synth(&t, "m", &pairs, 0.0, 0);
         let r = fit_material("m", &s, &FitOptions::default()).unwrap();
         assert!(r.rms < 2e-3, "rms {}", r.rms);
         let mut graze = Vec::new();
         for _ in 0..200 {
-            graze.push((dir(rng.gen_range(85.0..89.5), rng.gen_range(0.0..360.0)), dir(rng.gen_range(85.0..89.5), rng.gen_range(0.0..360.0))));
+            graze.push((
+                dir(rng.gen_range(85.0..89.5), rng.gen_range(0.0..360.0)),
+                dir(rng.gen_range(85.0..89.5), rng.gen_range(0.0..360.0)),
+            ));
         }
         let (mx, _) = heldout_rel(&t, &r.brdf, &graze);
         assert!(mx < 0.02, "grazing held-out max relative error {mx}");
@@ -597,7 +973,12 @@ pub(crate) mod tests {
         }
         let mut pairs = paper_pairs();
         pairs.extend(random_pairs(100, 7));
-        let r = fit_material("dark", &synth(&t, "dark", &pairs, 0.0, 0), &FitOptions::default()).unwrap();
+        let r = fit_material(
+            "dark",
+            &synth(&t, "dark", &pairs, 0.0, 0),
+            &FitOptions::default(),
+        )
+        .unwrap();
         assert!(r.rms < 2e-3, "rms {}", r.rms);
         assert!(rel(r.brdf.rho_d.y, t.rho_d.y) < 0.01, "{:?}", r.brdf);
         assert!(rel(r.brdf.lobes[1].n, 60.0) < 0.02, "{:?}", r.brdf);
@@ -606,8 +987,17 @@ pub(crate) mod tests {
         t2.rho_d.z = 0.0;
         t2.lobes[0].rho.z = 0.0;
         t2.lobes[1].rho.z = 0.0;
-        let r2 = fit_material("m", &synth(&t2, "m", &pairs, 0.0, 0), &FitOptions::default()).unwrap();
-        assert!(r2.brdf.rho_d.z < 1e-6 && r2.brdf.lobes[1].rho.z < 1e-6, "{:?}", r2.brdf);
+        let r2 = fit_material(
+            "m",
+            &synth(&t2, "m", &pairs, 0.0, 0),
+            &FitOptions::default(),
+        )
+        .unwrap();
+        assert!(
+            r2.brdf.rho_d.z < 1e-6 && r2.brdf.lobes[1].rho.z < 1e-6,
+            "{:?}",
+            r2.brdf
+        );
         assert!(rel(r2.brdf.rho_d.x, 0.3) < 0.01);
     }
 
@@ -616,17 +1006,33 @@ pub(crate) mod tests {
         let t = truth();
         let mut pairs = paper_pairs();
         pairs.extend(random_pairs(200, 8));
-        let r = fit_material("m", &synth(&t, "m", &pairs, 0.05, 9), &FitOptions::default()).unwrap();
-        assert!(r.rms > 0.03 && r.rms < 0.06, "rms {} should be about the noise level", r.rms);
+        let r = fit_material(
+            "m",
+            &synth(&t, "m", &pairs, 0.05, 9),
+            &FitOptions::default(),
+        )
+        .unwrap();
+        assert!(
+            r.rms > 0.03 && r.rms < 0.06,
+            "rms {} should be about the noise level",
+            r.rms
+        );
         for c in 0..3 {
             assert!(rel(r.brdf.rho_d[c], t.rho_d[c]) < 0.03, "{:?}", r.brdf);
         }
         assert!(rel(r.brdf.lobes[1].n, 60.0) < 0.15, "{:?}", r.brdf);
         // the standard error is consistent with the actual error (within 4 sigma)
         let err = (r.brdf.lobes[1].n - 60.0).abs() as f64;
-        assert!(err < 4.0 * r.stderr.lobes[1].n + 1e-9, "n error {err}, stderr {}", r.stderr.lobes[1].n);
+        assert!(
+            err < 4.0 * r.stderr.lobes[1].n + 1e-9,
+            "n error {err}, stderr {}",
+            r.stderr.lobes[1].n
+        );
         let (_, rms) = heldout_rel(&t, &r.brdf, &random_pairs(500, 10));
-        eprintln!("5% noise: fit rms {:.4}, n = {:.2} +- {:.2}, rho_d {:?}, held-out rel rms {rms:.4}", r.rms, r.brdf.lobes[1].n, r.stderr.lobes[1].n, r.brdf.rho_d);
+        eprintln!(
+            "5% noise: fit rms {:.4}, n = {:.2} +- {:.2}, rho_d {:?}, held-out rel rms {rms:.4}",
+            r.rms, r.brdf.lobes[1].n, r.stderr.lobes[1].n, r.brdf.rho_d
+        );
         assert!(rms < 0.03, "held-out relative rms {rms}");
     }
 
@@ -637,8 +1043,17 @@ pub(crate) mod tests {
         assert_eq!(pairs.len(), 10);
         let r = fit_material("m", &synth(&t, "m", &pairs, 0.0, 0), &FitOptions::default()).unwrap();
         let b = &r.brdf;
-        assert!(b.rho_d.is_finite() && b.lobes.iter().all(|l| l.rho.is_finite() && l.n.is_finite() && l.n <= 2.0e4));
-        assert!(r.rms < 0.02, "10 samples, 13 parameters: data fitted, rms {}", r.rms);
+        assert!(
+            b.rho_d.is_finite()
+                && b.lobes
+                    .iter()
+                    .all(|l| l.rho.is_finite() && l.n.is_finite() && l.n <= 2.0e4)
+        );
+        assert!(
+            r.rms < 0.02,
+            "10 samples, 13 parameters: data fitted, rms {}",
+            r.rms
+        );
         assert!(rel(b.rho_d.x, 0.3) < 0.1, "{b:?}");
     }
 
@@ -648,7 +1063,12 @@ pub(crate) mod tests {
         let t = Lafortune::lambertian(Vec3::new(0.4, 0.5, 0.6));
         let mut pairs = paper_pairs();
         pairs.extend(random_pairs(100, 11));
-        let r = fit_material("m", &synth(&t, "m", &pairs, 0.02, 12), &FitOptions::default()).unwrap();
+        let r = fit_material(
+            "m",
+            &synth(&t, "m", &pairs, 0.02, 12),
+            &FitOptions::default(),
+        )
+        .unwrap();
         for c in 0..3 {
             assert!(rel(r.brdf.rho_d[c], t.rho_d[c]) < 0.02, "{:?}", r.brdf);
         }
@@ -658,7 +1078,12 @@ pub(crate) mod tests {
         // at least one parameter of each lobe is undetermined: its standard error dwarfs its value
         for (l, e) in r.brdf.lobes.iter().zip(&r.stderr.lobes) {
             eprintln!("unconstrained: lobe {l:?} stderr {e:?}");
-            let big = e.n > (l.n as f64) || e.cxy > l.cxy.abs() as f64 || e.rho.iter().zip(l.rho.to_array()).any(|(s, v)| *s > v as f64);
+            let big = e.n > (l.n as f64)
+                || e.cxy > l.cxy.abs() as f64
+                || e.rho
+                    .iter()
+                    .zip(l.rho.to_array())
+                    .any(|(s, v)| *s > v as f64);
             assert!(big, "lobe {l:?} stderr {e:?}");
             assert!(l.n >= 1.0 && l.n <= 2.0e4 && l.cxy.abs() < 30.0, "{l:?}");
         }
@@ -668,11 +1093,18 @@ pub(crate) mod tests {
     fn clear_errors() {
         let t = truth();
         let s = synth(&t, "m", &paper_pairs()[..4], 0.0, 0);
-        let e = fit_material("m", &s, &FitOptions::default()).unwrap_err().to_string();
-        assert!(e.contains("`m`") && e.contains("4 samples are too few"), "{e}");
+        let e = fit_material("m", &s, &FitOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("`m`") && e.contains("4 samples are too few"),
+            "{e}"
+        );
         let mut s = synth(&t, "m", &paper_pairs(), 0.0, 0);
         s[3].value.y = f32::NAN;
-        let e = fit_material("m", &s, &FitOptions::default()).unwrap_err().to_string();
+        let e = fit_material("m", &s, &FitOptions::default())
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("sample 3 has non-finite"), "{e}");
     }
 }
