@@ -13,7 +13,7 @@ pub struct SolveArgs {
     /// Result folder (created; an unfinished result there is resumed).
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Atlas resolution per part (texels per side).
+    /// Atlas resolution per part (texels per side); a prepared site keeps its own atlases.
     #[arg(long, default_value_t = 512)]
     pub atlas: u32,
     /// Most iterations.
@@ -33,9 +33,9 @@ pub struct SolveArgs {
     /// Initial albedo of every texel (r,g,b).
     #[arg(long, value_delimiter = ',', default_value = "0.5,0.5,0.5")]
     pub initial: Vec<f32>,
-    /// Solve only these parts (site meshes by file stem), comma-separated; to share a site
-    /// between machines.
-    #[arg(long, value_delimiter = ',')]
+    /// Solve only these parts, comma-separated, to share a site between machines: site meshes
+    /// by file stem, or for a prepared site voxels as I_J_K (and `terrain`).
+    #[arg(long, visible_alias = "voxels", value_delimiter = ',')]
     pub parts: Option<Vec<String>>,
     /// A scene file with the true albedo over the same geometry: the report then records the
     /// rho_d error per iteration.
@@ -54,8 +54,15 @@ pub fn run_solve(a: SolveArgs, ctx: &Ctx) -> anyhow::Result<()> {
         bail!("--initial takes three values r,g,b");
     }
     let survey = Survey::load(&a.survey)?;
+    let store = match &survey.prepared {
+        Some(p) => Some(igi_geometry::SiteStore::open(p)?),
+        None => None,
+    };
+    let atlas = store
+        .as_ref()
+        .map_or(a.atlas, |s| s.manifest().atlas_resolution);
     let opts = SolveOptions {
-        atlas_resolution: a.atlas,
+        atlas_resolution: atlas,
         max_iterations: a.iterations,
         tolerance: a.tolerance,
         spp: a.spp.clone(),
@@ -78,8 +85,9 @@ pub fn run_solve(a: SolveArgs, ctx: &Ctx) -> anyhow::Result<()> {
     pb.finish_and_clear();
     let resume = !a.restart && a.output.join("report.json").is_file();
     let state = if resume {
-        let r = SolveResult::load(&a.output).with_context(|| format!("resuming {}", a.output.display()))?;
-        if r.report.photos != photo_ids || r.report.options.atlas_resolution != a.atlas {
+        let r = SolveResult::load(&a.output)
+            .with_context(|| format!("resuming {}", a.output.display()))?;
+        if r.report.photos != photo_ids || r.report.options.atlas_resolution != atlas {
             bail!(
                 "{}: holds a result of another survey or atlas resolution; use --restart or another folder",
                 a.output.display()
@@ -88,13 +96,22 @@ pub fn run_solve(a: SolveArgs, ctx: &Ctx) -> anyhow::Result<()> {
         tracing::info!("resuming after iteration {}", r.report.iterations.len());
         r
     } else {
-        let mut meshes = Vec::new();
-        for m in &survey.meshes {
-            let name = m.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-            meshes.push((name, igi_geometry::read_mesh(m)?));
-        }
-        let parts = build_parts(meshes, a.atlas)?;
-        std::fs::create_dir_all(&a.output).with_context(|| format!("{}: cannot create folder", a.output.display()))?;
+        let parts = match &store {
+            Some(store) => igi_reflect::parts::prepared_parts(store)?,
+            None => {
+                let mut meshes = Vec::new();
+                for m in &survey.meshes {
+                    let name = m
+                        .file_stem()
+                        .map(|s| s.to_string_lossy().into_owned())
+                        .unwrap_or_default();
+                    meshes.push((name, igi_geometry::read_mesh(m)?));
+                }
+                build_parts(meshes, a.atlas)?
+            }
+        };
+        std::fs::create_dir_all(&a.output)
+            .with_context(|| format!("{}: cannot create folder", a.output.display()))?;
         let r = SolveResult::fresh(parts, photo_ids, &opts);
         r.write_geometry(&a.output)?;
         r
@@ -121,13 +138,24 @@ pub fn run_solve(a: SolveArgs, ctx: &Ctx) -> anyhow::Result<()> {
     };
     let bar = Bar(ctx.progress(1, "solve"));
     let out = a.output.clone();
-    let result = igi_reflect::solve(state, &photos, basis.as_ref(), truth.as_ref(), &opts, &bar, &mut |r| r.write_state(&out))?;
+    let result = igi_reflect::solve(
+        state,
+        &photos,
+        basis.as_ref(),
+        truth.as_ref(),
+        &opts,
+        &bar,
+        &mut |r| r.write_state(&out),
+    )?;
     bar.0.finish_and_clear();
     if a.json {
         crate::report::print_json(&result.report)?;
     } else {
         for r in &result.report.iterations {
-            let truth = r.truth_mae.map(|m| format!(", rho_d MAE {:.4} {:.4} {:.4}", m[0], m[1], m[2])).unwrap_or_default();
+            let truth = r
+                .truth_mae
+                .map(|m| format!(", rho_d MAE {:.4} {:.4} {:.4}", m[0], m[1], m[2]))
+                .unwrap_or_default();
             println!(
                 "iteration {}: {} spp, {:.1} s, {} observations, residual {:.2}% (relative RMS), change {:.4}{}",
                 r.iteration,
@@ -142,7 +170,12 @@ pub fn run_solve(a: SolveArgs, ctx: &Ctx) -> anyhow::Result<()> {
         for p in &result.report.parts {
             println!(
                 "part {}: {} texels of {:.4} m, {} seen ({} by 2+ photos), {} filled",
-                p.name, p.covered_texels, p.texel_size_m, p.seen_texels, p.seen_twice_texels, p.filled_texels
+                p.name,
+                p.covered_texels,
+                p.texel_size_m,
+                p.seen_texels,
+                p.seen_twice_texels,
+                p.filled_texels
             );
         }
         println!("result in {}", a.output.display());
@@ -167,7 +200,10 @@ pub fn run_sample(a: SampleArgs, _ctx: &Ctx) -> anyhow::Result<()> {
     let values = igi_reflect::sample_albedo(&a.result, &pts)?;
     let mut csv = String::from("x,y,z,nx,ny,nz,r,g,b\n");
     for ((p, n), v) in pts.iter().zip(&values) {
-        csv.push_str(&format!("{},{},{},{},{},{},{},{},{}\n", p.x, p.y, p.z, n.x, n.y, n.z, v.x, v.y, v.z));
+        csv.push_str(&format!(
+            "{},{},{},{},{},{},{},{},{}\n",
+            p.x, p.y, p.z, n.x, n.y, n.z, v.x, v.y, v.z
+        ));
     }
     igi_imaging::io::write_text_atomic(&a.output, &csv)?;
     println!("{} points -> {}", values.len(), a.output.display());
@@ -191,4 +227,3 @@ pub fn run_export(a: ExportArgs, _ctx: &Ctx) -> anyhow::Result<()> {
     println!("{} files written to {}", files.len(), a.output.display());
     Ok(())
 }
-

@@ -407,16 +407,40 @@ impl SiteStore {
         self.entry(v)?;
         let n = self.manifest.levels.len();
         let (medium, low) = (1.min(n - 1), n - 1);
+        self.load_with(&|u| match u {
+            Some(u) => match (0..3).map(|k| (u[k] - v[k]).abs()).max().unwrap() {
+                0 => 0,
+                1 => medium,
+                _ => low,
+            },
+            None => low,
+        })
+    }
+
+    /// What the solver of the terrain needs: the terrain at level 0 and every voxel at level 1
+    /// (the buildings that shadow it).
+    pub fn load_for_terrain(&self) -> Result<Vec<LoadedPart>, GeometryError> {
+        if self.manifest.terrain.is_none() {
+            return Err(GeometryError::InvalidArgument(
+                "the site has no terrain".into(),
+            ));
+        }
+        let medium = 1.min(self.manifest.levels.len() - 1);
+        self.load_with(&|u| if u.is_some() { medium } else { 0 })
+    }
+
+    /// Every stored part (the voxels in [`voxel_ids`](Self::voxel_ids) order, then the
+    /// terrain) at the level `level_of` gives it (clamped to the stored levels).
+    pub fn load_with(
+        &self,
+        level_of: &(dyn Fn(Option<VoxelId>) -> usize + Sync),
+    ) -> Result<Vec<LoadedPart>, GeometryError> {
+        let last = self.manifest.levels.len() - 1;
         let ids = self.voxel_ids();
         let mut out: Vec<LoadedPart> = ids
             .par_iter()
             .map(|&u| {
-                let d = (0..3).map(|k| (u[k] - v[k]).abs()).max().unwrap();
-                let level = match d {
-                    0 => 0,
-                    1 => medium,
-                    _ => low,
-                };
+                let level = level_of(Some(u)).min(last);
                 Ok(LoadedPart {
                     voxel: Some(u),
                     level,
@@ -425,10 +449,11 @@ impl SiteStore {
             })
             .collect::<Result<_, GeometryError>>()?;
         if let Some(t) = self.terrain_folder() {
+            let level = level_of(None).min(last);
             out.push(LoadedPart {
                 voxel: None,
-                level: low,
-                mesh: crate::ply::read_ply(&t.join(level_file(low)))?,
+                level,
+                mesh: crate::ply::read_ply(&t.join(level_file(level)))?,
             });
         }
         Ok(out)

@@ -1,13 +1,17 @@
 //! The parts of a site that the solver recovers: each input mesh gets a texture atlas
 //! (`igi_geometry::atlas`) whose texel caches give the world position and normal of every texel
-//! centre that lies on the surface.
+//! centre that lies on the surface. A prepared site (`igi prepare`) gives one part per voxel and
+//! one for the terrain, with the atlases and caches it already holds; their meshes stay on disk
+//! and the solver loads, per voxel, only the levels that voxel's solve needs.
 
 use crate::ReflectError;
 use glam::{Vec2, Vec3};
 use igi_geometry::atlas::{build_atlas, AtlasOptions};
-use igi_geometry::TriMesh;
+use igi_geometry::{SiteStore, TriMesh, VoxelId};
 use igi_imaging::HdrImage;
 use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
 
 /// A texel whose centre lies on the surface.
 #[derive(Clone, Copy, Debug)]
@@ -30,15 +34,41 @@ impl TexelCache {
     pub fn uv(&self, index: u32) -> Vec2 {
         let r = self.resolution;
         let (x, y) = (index as usize % r, index as usize / r);
-        Vec2::new((x as f32 + 0.5) / r as f32, 1.0 - (y as f32 + 0.5) / r as f32)
+        Vec2::new(
+            (x as f32 + 0.5) / r as f32,
+            1.0 - (y as f32 + 0.5) / r as f32,
+        )
+    }
+}
+
+/// Where a part of a prepared site lives.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StoredPart {
+    /// The prepared site folder.
+    pub site: PathBuf,
+    /// The voxel (`None` for the terrain).
+    pub voxel: Option<VoxelId>,
+}
+
+impl StoredPart {
+    /// The part's folder in the site (its level PLYs and caches).
+    pub fn folder(&self, store: &SiteStore) -> Result<PathBuf, ReflectError> {
+        match self.voxel {
+            Some(v) => Ok(store.voxel_folder(v)?),
+            None => store
+                .terrain_folder()
+                .ok_or_else(|| ReflectError::file(&self.site, "the prepared site has no terrain")),
+        }
     }
 }
 
 /// One part of the site: a mesh with atlas UVs and its texel cache.
 pub struct Part {
     pub name: String,
-    /// The mesh with atlas UVs (vertices split along chart borders).
+    /// The mesh with atlas UVs (vertices split along chart borders); empty for a part of a
+    /// prepared site, whose levels are read from `stored` when needed.
     pub mesh: TriMesh,
+    pub stored: Option<StoredPart>,
     pub texel_size: f64,
     pub cache: TexelCache,
     /// 1 on covered texels, 0.5 on gutter texels, 0 elsewhere.
@@ -49,14 +79,99 @@ impl Part {
     pub fn resolution(&self) -> usize {
         self.cache.resolution
     }
+
+    /// The full-resolution mesh (read from the prepared site for a stored part).
+    pub fn full_mesh(&self) -> Result<std::borrow::Cow<'_, TriMesh>, ReflectError> {
+        match &self.stored {
+            None => Ok(std::borrow::Cow::Borrowed(&self.mesh)),
+            Some(s) => {
+                let store = SiteStore::open(&s.site)?;
+                Ok(std::borrow::Cow::Owned(igi_geometry::read_ply(
+                    &s.folder(&store)?.join("level0.ply"),
+                )?))
+            }
+        }
+    }
+}
+
+/// The name of a stored part: `I_J_K` for a voxel, `terrain` for the terrain.
+pub fn stored_part_name(voxel: Option<VoxelId>) -> String {
+    match voxel {
+        Some(v) => format!("{}_{}_{}", v[0], v[1], v[2]),
+        None => "terrain".to_string(),
+    }
+}
+
+/// The parts of a prepared site: every voxel, then the terrain, with the atlases and texel
+/// caches `igi prepare` wrote (no mesh is read).
+pub fn prepared_parts(store: &SiteStore) -> Result<Vec<Part>, ReflectError> {
+    let man = store.manifest();
+    let entries: Vec<_> = man
+        .voxels
+        .iter()
+        .chain(man.terrain.iter())
+        .cloned()
+        .collect();
+    entries
+        .into_par_iter()
+        .map(|e| {
+            let folder = store.dir().join(&e.dir);
+            let read = |f: &str| igi_imaging::read_image(&folder.join(f));
+            let (pos, nrm, coverage) = (
+                read("position.exr")?,
+                read("normal.exr")?,
+                read("coverage.exr")?,
+            );
+            let res = coverage.width;
+            for (im, f) in [
+                (&pos, "position.exr"),
+                (&nrm, "normal.exr"),
+                (&coverage, "coverage.exr"),
+            ] {
+                if im.width != res || im.height != res {
+                    return Err(ReflectError::file(
+                        folder.join(f),
+                        format!("is {}x{}, expected {res}x{res}", im.width, im.height),
+                    ));
+                }
+            }
+            let texels = (0..res * res)
+                .filter(|&i| coverage.pixels[i][0] == 1.0)
+                .map(|i| Texel {
+                    index: i as u32,
+                    position: Vec3::from_array(pos.pixels[i]),
+                    normal: Vec3::from_array(nrm.pixels[i]).normalize_or(Vec3::Z),
+                })
+                .collect();
+            Ok(Part {
+                name: stored_part_name(e.voxel),
+                mesh: TriMesh::default(),
+                stored: Some(StoredPart {
+                    site: store.dir().to_path_buf(),
+                    voxel: e.voxel,
+                }),
+                texel_size: e.texel_size,
+                cache: TexelCache {
+                    resolution: res,
+                    texels,
+                },
+                coverage,
+            })
+        })
+        .collect()
 }
 
 /// Builds an atlas of `resolution` texels per side for each named mesh (normals are computed
 /// when a mesh has none). Names must be unique; they name the output files.
-pub fn build_parts(meshes: Vec<(String, TriMesh)>, resolution: u32) -> Result<Vec<Part>, ReflectError> {
+pub fn build_parts(
+    meshes: Vec<(String, TriMesh)>,
+    resolution: u32,
+) -> Result<Vec<Part>, ReflectError> {
     for (i, (a, _)) in meshes.iter().enumerate() {
         if meshes[..i].iter().any(|(b, _)| b == a) {
-            return Err(ReflectError::Invalid(format!("two site meshes are both named `{a}`")));
+            return Err(ReflectError::Invalid(format!(
+                "two site meshes are both named `{a}`"
+            )));
         }
         if a.is_empty() || a.contains(['/', '\\']) {
             return Err(ReflectError::Invalid(format!("`{a}` cannot name a part")));
@@ -68,8 +183,14 @@ pub fn build_parts(meshes: Vec<(String, TriMesh)>, resolution: u32) -> Result<Ve
             if mesh.normals.is_none() {
                 mesh.compute_vertex_normals();
             }
-            let atlas = build_atlas(&mesh, AtlasOptions { resolution, ..AtlasOptions::default() })
-                .map_err(|e| ReflectError::Invalid(format!("atlas of `{name}`: {e}")))?;
+            let atlas = build_atlas(
+                &mesh,
+                AtlasOptions {
+                    resolution,
+                    ..AtlasOptions::default()
+                },
+            )
+            .map_err(|e| ReflectError::Invalid(format!("atlas of `{name}`: {e}")))?;
             let res = atlas.resolution;
             let texels = (0..res * res)
                 .filter(|&i| atlas.coverage.pixels[i][0] == 1.0)
@@ -82,8 +203,12 @@ pub fn build_parts(meshes: Vec<(String, TriMesh)>, resolution: u32) -> Result<Ve
             Ok(Part {
                 name,
                 mesh: atlas.mesh,
+                stored: None,
                 texel_size: atlas.texel_size,
-                cache: TexelCache { resolution: res, texels },
+                cache: TexelCache {
+                    resolution: res,
+                    texels,
+                },
                 coverage: atlas.coverage,
             })
         })

@@ -37,32 +37,60 @@ pub struct SolveResult {
     /// Lobes per part (empty without a BRDF basis).
     pub lobes: Vec<Vec<Lobe>>,
     pub report: SolveReport,
+    /// Parts whose albedo changed since the last [`write_state`](Self::write_state) (only
+    /// those are rewritten; all after [`fresh`](Self::fresh), none after [`load`](Self::load)).
+    pub changed: Vec<bool>,
 }
 
 impl SolveResult {
     /// A fresh state: every texel at the initial albedo.
     pub fn fresh(parts: Vec<Part>, photo_ids: Vec<String>, opts: &SolveOptions) -> SolveResult {
         let init = Vec3::from_array(opts.initial_albedo);
-        let rho = parts.iter().map(|p| vec![init; p.resolution() * p.resolution()]).collect();
-        let weight_sum = parts.iter().map(|p| vec![0.0; p.resolution() * p.resolution()]).collect();
-        let observations = parts.iter().map(|p| vec![0; p.resolution() * p.resolution()]).collect();
+        let rho = parts
+            .iter()
+            .map(|p| vec![init; p.resolution() * p.resolution()])
+            .collect();
+        let weight_sum = parts
+            .iter()
+            .map(|p| vec![0.0; p.resolution() * p.resolution()])
+            .collect();
+        let observations = parts
+            .iter()
+            .map(|p| vec![0; p.resolution() * p.resolution()])
+            .collect();
         let lobes = parts.iter().map(|_| Vec::new()).collect();
+        let changed = vec![true; parts.len()];
+        let site = parts
+            .iter()
+            .find_map(|p| p.stored.as_ref().map(|s| s.site.clone()));
         SolveResult {
             parts,
             rho,
             weight_sum,
             observations,
             lobes,
-            report: SolveReport { options: opts.clone(), photos: photo_ids, iterations: Vec::new(), parts: Vec::new(), converged: false },
+            report: SolveReport {
+                options: opts.clone(),
+                photos: photo_ids,
+                iterations: Vec::new(),
+                parts: Vec::new(),
+                converged: false,
+                site,
+                pending: None,
+            },
+            changed,
         }
     }
 
     /// Writes the parts' geometry and texel caches (once, at the start of a solve).
     pub fn write_geometry(&self, dir: &Path) -> Result<(), ReflectError> {
         let pdir = dir.join("parts");
-        std::fs::create_dir_all(&pdir).map_err(|e| ReflectError::file(&pdir, format!("cannot create folder: {e}")))?;
+        std::fs::create_dir_all(&pdir)
+            .map_err(|e| ReflectError::file(&pdir, format!("cannot create folder: {e}")))?;
         for p in &self.parts {
-            write_ply(&pdir.join(format!("{}.ply", p.name)), &p.mesh)?;
+            if p.stored.is_none() {
+                write_ply(&pdir.join(format!("{}.ply", p.name)), &p.mesh)?;
+            }
             let r = p.resolution();
             let mut pos = HdrImage::new(r, r);
             let mut nrm = HdrImage::new(r, r);
@@ -77,10 +105,14 @@ impl SolveResult {
         Ok(())
     }
 
-    /// Writes the current albedo, weights, observation counts, lobes, `scene.toml`, the plot and
-    /// `report.json` (last).
+    /// Writes the current albedo, weights, observation counts and lobes of the changed parts,
+    /// then `scene.toml`, the plot and `report.json` (last).
     pub fn write_state(&self, dir: &Path) -> Result<(), ReflectError> {
         let pdir = dir.join("parts");
+        let store = match self.parts.iter().find_map(|p| p.stored.as_ref()) {
+            Some(s) => Some(igi_geometry::SiteStore::open(&s.site)?),
+            None => None,
+        };
         let mut scene = String::from("# Recovered reflectance (igi solve). Re-light with:\n# igi render THIS_FOLDER --lighting L.toml --camera C.json --spp N -o out.exr\n");
         for (i, p) in self.parts.iter().enumerate() {
             let r = p.resolution();
@@ -91,18 +123,48 @@ impl SolveResult {
                 }
                 im
             };
-            write_exr(&pdir.join(format!("{}_rho_d.exr", p.name)), &img(&|k| self.rho[i][k].to_array()))?;
-            write_exr(&pdir.join(format!("{}_weight.exr", p.name)), &img(&|k| [self.weight_sum[i][k]; 3]))?;
-            write_exr(&pdir.join(format!("{}_observations.exr", p.name)), &img(&|k| [self.observations[i][k] as f32; 3]))?;
-            if !self.lobes[i].is_empty() {
-                let json = serde_json::to_string_pretty(&self.lobes[i]).expect("lobes serialise");
-                write_text(&pdir.join(format!("{}_lobes.json", p.name)), &json)?;
+            if self.changed.get(i).copied().unwrap_or(true) {
+                write_exr(
+                    &pdir.join(format!("{}_rho_d.exr", p.name)),
+                    &img(&|k| self.rho[i][k].to_array()),
+                )?;
+                write_exr(
+                    &pdir.join(format!("{}_weight.exr", p.name)),
+                    &img(&|k| [self.weight_sum[i][k]; 3]),
+                )?;
+                write_exr(
+                    &pdir.join(format!("{}_observations.exr", p.name)),
+                    &img(&|k| [self.observations[i][k] as f32; 3]),
+                )?;
+                if !self.lobes[i].is_empty() {
+                    let json =
+                        serde_json::to_string_pretty(&self.lobes[i]).expect("lobes serialise");
+                    write_text(&pdir.join(format!("{}_lobes.json", p.name)), &json)?;
+                }
             }
-            let _ = writeln!(scene, "\n[[object]]\nmesh = \"parts/{0}.ply\"\nalbedo = \"parts/{0}_rho_d.exr\"", p.name);
+            let mesh = match (&p.stored, &store) {
+                (None, _) | (_, None) => format!("parts/{}.ply", p.name),
+                (Some(s), Some(store)) => {
+                    // the prepared site's full-resolution level, by absolute path
+                    let f = s.folder(store)?.join("level0.ply");
+                    std::fs::canonicalize(&f).unwrap_or(f).display().to_string()
+                }
+            };
+            let _ = writeln!(
+                scene,
+                "\n[[object]]\nmesh = {}\nalbedo = \"parts/{}_rho_d.exr\"",
+                toml_string(&mesh),
+                p.name
+            );
             if !self.lobes[i].is_empty() {
                 let lobes: Vec<String> = self.lobes[i]
                     .iter()
-                    .map(|l| format!("{{ rho = [{}, {}, {}], cxy = {}, cz = {}, n = {} }}", l.rho.x, l.rho.y, l.rho.z, l.cxy, l.cz, l.n))
+                    .map(|l| {
+                        format!(
+                            "{{ rho = [{}, {}, {}], cxy = {}, cz = {}, n = {} }}",
+                            l.rho.x, l.rho.y, l.rho.z, l.cxy, l.cz, l.n
+                        )
+                    })
                     .collect();
                 let _ = writeln!(scene, "lobes = [{}]", lobes.join(", "));
             }
@@ -118,28 +180,43 @@ impl SolveResult {
     /// [`write_state`](Self::write_state), for resuming or reading.
     pub fn load(dir: &Path) -> Result<SolveResult, ReflectError> {
         let rp = dir.join("report.json");
-        let text = std::fs::read_to_string(&rp).map_err(|e| ReflectError::file(&rp, format!("cannot read: {e}")))?;
-        let report: SolveReport = serde_json::from_str(&text).map_err(|e| ReflectError::file(&rp, format!("not a solve report: {e}")))?;
+        let text = std::fs::read_to_string(&rp)
+            .map_err(|e| ReflectError::file(&rp, format!("cannot read: {e}")))?;
+        let report: SolveReport = serde_json::from_str(&text)
+            .map_err(|e| ReflectError::file(&rp, format!("not a solve report: {e}")))?;
         let pdir = dir.join("parts");
         let mut parts = Vec::new();
-        let (mut rho, mut weight_sum, mut observations, mut lobes) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        let (mut rho, mut weight_sum, mut observations, mut lobes) =
+            (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         for s in &report.parts {
             let name = &s.name;
-            let mesh = read_mesh(&pdir.join(format!("{name}.ply")))?;
+            let mesh = match &s.stored {
+                None => read_mesh(&pdir.join(format!("{name}.ply")))?,
+                Some(_) => TriMesh::default(),
+            };
             let coverage = read_image(&pdir.join(format!("{name}_coverage.exr")))?;
             let pos = read_image(&pdir.join(format!("{name}_position.exr")))?;
             let nrm = read_image(&pdir.join(format!("{name}_normal.exr")))?;
             let r = coverage.width;
             let sized = |im: &HdrImage, f: &str| -> Result<(), ReflectError> {
                 if im.width != r || im.height != r {
-                    return Err(ReflectError::file(pdir.join(f), format!("is {}x{}, expected {r}x{r}", im.width, im.height)));
+                    return Err(ReflectError::file(
+                        pdir.join(f),
+                        format!("is {}x{}, expected {r}x{r}", im.width, im.height),
+                    ));
                 }
                 Ok(())
             };
             let rho_img = read_image(&pdir.join(format!("{name}_rho_d.exr")))?;
             let w_img = read_image(&pdir.join(format!("{name}_weight.exr")))?;
             let o_img = read_image(&pdir.join(format!("{name}_observations.exr")))?;
-            for (im, f) in [(&pos, "position"), (&nrm, "normal"), (&rho_img, "rho_d"), (&w_img, "weight"), (&o_img, "observations")] {
+            for (im, f) in [
+                (&pos, "position"),
+                (&nrm, "normal"),
+                (&rho_img, "rho_d"),
+                (&w_img, "weight"),
+                (&o_img, "observations"),
+            ] {
                 sized(im, &format!("{name}_{f}.exr"))?;
             }
             let texels = (0..r * r)
@@ -152,19 +229,51 @@ impl SolveResult {
                 .collect();
             let lp = pdir.join(format!("{name}_lobes.json"));
             let l: Vec<Lobe> = if lp.exists() {
-                let t = std::fs::read_to_string(&lp).map_err(|e| ReflectError::file(&lp, e.to_string()))?;
-                serde_json::from_str(&t).map_err(|e| ReflectError::file(&lp, format!("not a lobe list: {e}")))?
+                let t = std::fs::read_to_string(&lp)
+                    .map_err(|e| ReflectError::file(&lp, e.to_string()))?;
+                serde_json::from_str(&t)
+                    .map_err(|e| ReflectError::file(&lp, format!("not a lobe list: {e}")))?
             } else {
                 Vec::new()
             };
-            rho.push(rho_img.pixels.iter().map(|p| Vec3::from_array(*p)).collect());
+            rho.push(
+                rho_img
+                    .pixels
+                    .iter()
+                    .map(|p| Vec3::from_array(*p))
+                    .collect(),
+            );
             weight_sum.push(w_img.pixels.iter().map(|p| p[0]).collect());
             observations.push(o_img.pixels.iter().map(|p| p[0].max(0.0) as u32).collect());
             lobes.push(l);
-            parts.push(Part { name: name.clone(), mesh, texel_size: s.texel_size_m, cache: TexelCache { resolution: r, texels }, coverage });
+            parts.push(Part {
+                name: name.clone(),
+                mesh,
+                stored: s.stored.clone(),
+                texel_size: s.texel_size_m,
+                cache: TexelCache {
+                    resolution: r,
+                    texels,
+                },
+                coverage,
+            });
         }
-        Ok(SolveResult { parts, rho, weight_sum, observations, lobes, report })
+        let changed = vec![false; parts.len()];
+        Ok(SolveResult {
+            parts,
+            rho,
+            weight_sum,
+            observations,
+            lobes,
+            report,
+            changed,
+        })
     }
+}
+
+/// A TOML basic string (quoted, with backslashes and quotes escaped).
+fn toml_string(s: &str) -> String {
+    format!("\"{}\"", s.replace('\\', "\\\\").replace('"', "\\\""))
 }
 
 pub(crate) fn write_text(path: &Path, text: &str) -> Result<(), ReflectError> {
@@ -175,7 +284,10 @@ pub(crate) fn write_text(path: &Path, text: &str) -> Result<(), ReflectError> {
 pub fn load_result_scene(dir: &Path) -> Result<PathBuf, ReflectError> {
     let p = dir.join("scene.toml");
     if !p.is_file() || !dir.join("report.json").is_file() {
-        return Err(ReflectError::file(dir, "not a solve result folder (no scene.toml and report.json)"));
+        return Err(ReflectError::file(
+            dir,
+            "not a solve result folder (no scene.toml and report.json)",
+        ));
     }
     Ok(p)
 }
@@ -205,9 +317,14 @@ impl std::str::FromStr for ExportFormat {
 /// `scene.xml` with diffuse bitmap textures (Mitsuba reads the EXR as linear; its bitmap lookup
 /// has v = 0 at the top row, so `to_uv` flips v to FORMATS.md's convention, as
 /// `datasets/mitsuba/outdoor_reference.py` verifies against Mitsuba). Returns the files written.
-pub fn export(result_dir: &Path, format: ExportFormat, out: &Path) -> Result<Vec<PathBuf>, ReflectError> {
+pub fn export(
+    result_dir: &Path,
+    format: ExportFormat,
+    out: &Path,
+) -> Result<Vec<PathBuf>, ReflectError> {
     let res = SolveResult::load(result_dir)?;
-    std::fs::create_dir_all(out).map_err(|e| ReflectError::file(out, format!("cannot create folder: {e}")))?;
+    std::fs::create_dir_all(out)
+        .map_err(|e| ReflectError::file(out, format!("cannot create folder: {e}")))?;
     let mut written = Vec::new();
     let mut xml = String::from(
         "<scene version=\"3.0.0\">\n  <!-- igi export: recovered diffuse albedo; world Z up, metres. Add a sensor and emitters to render. -->\n  <integrator type=\"path\"><integer name=\"max_depth\" value=\"4\"/></integrator>\n",
@@ -225,7 +342,7 @@ pub fn export(result_dir: &Path, format: ExportFormat, out: &Path) -> Result<Vec
         match format {
             ExportFormat::Ply | ExportFormat::Mitsuba => {
                 let mp = out.join(format!("{}.ply", p.name));
-                write_ply(&mp, &p.mesh)?;
+                write_ply(&mp, &*p.full_mesh()?)?;
                 written.push(mp);
                 let _ = writeln!(
                     xml,
@@ -235,7 +352,7 @@ pub fn export(result_dir: &Path, format: ExportFormat, out: &Path) -> Result<Vec
             }
             ExportFormat::Obj => {
                 let mp = out.join(format!("{}.obj", p.name));
-                write_obj(&mp, &p.mesh)?;
+                write_obj(&mp, &*p.full_mesh()?)?;
                 let mtl = format!("newmtl {0}\nKd 1 1 1\nmap_Kd {0}_albedo.png\n", p.name);
                 write_text(&out.join(format!("{}.mtl", p.name)), &mtl)?;
                 written.push(mp);
@@ -253,7 +370,10 @@ pub fn export(result_dir: &Path, format: ExportFormat, out: &Path) -> Result<Vec
 
 /// The recovered diffuse albedo of the surface nearest each query point: a short ray along the
 /// point's normal (both ways) finds the surface; when it misses, the nearest covered texel.
-pub fn sample_albedo(result_dir: &Path, points: &[(Vec3, Vec3)]) -> Result<Vec<Vec3>, ReflectError> {
+pub fn sample_albedo(
+    result_dir: &Path,
+    points: &[(Vec3, Vec3)],
+) -> Result<Vec<Vec3>, ReflectError> {
     let res = SolveResult::load(result_dir)?;
     let objects: Vec<(String, TriMesh, igi_render::Material)> = res
         .parts
@@ -261,13 +381,30 @@ pub fn sample_albedo(result_dir: &Path, points: &[(Vec3, Vec3)]) -> Result<Vec<V
         .enumerate()
         .map(|(i, p)| {
             let r = p.resolution();
-            let tex = igi_render::Texture { width: r, height: r, texels: res.rho[i].clone() };
-            (p.name.clone(), p.mesh.clone(), igi_render::Material { albedo: igi_render::Albedo::Texture(tex), lobes: Vec::new() })
+            let tex = igi_render::Texture {
+                width: r,
+                height: r,
+                texels: res.rho[i].clone(),
+            };
+            Ok((
+                p.name.clone(),
+                p.full_mesh()?.into_owned(),
+                igi_render::Material {
+                    albedo: igi_render::Albedo::Texture(tex),
+                    lobes: Vec::new(),
+                },
+            ))
         })
-        .collect();
+        .collect::<Result<_, ReflectError>>()?;
     let scene = igi_render::Scene::new(objects)?;
     // how far off the surface a query point may lie: half the finest texel, 1 mm to 5 cm
-    let reach = (res.parts.iter().map(|p| p.texel_size as f32).fold(f32::INFINITY, f32::min) * 0.5).clamp(1e-3, 0.05);
+    let reach = (res
+        .parts
+        .iter()
+        .map(|p| p.texel_size as f32)
+        .fold(f32::INFINITY, f32::min)
+        * 0.5)
+        .clamp(1e-3, 0.05);
     Ok(points
         .iter()
         .map(|&(p, n)| {
@@ -276,7 +413,10 @@ pub fn sample_albedo(result_dir: &Path, points: &[(Vec3, Vec3)]) -> Result<Vec<V
                 if let Some(h) = scene.intersect(p + d * reach, -d) {
                     if h.t <= 2.0 * reach {
                         let sp = scene.surface_point(&h);
-                        return scene.objects[sp.object as usize].material.brdf_at(sp.uv).rho_d;
+                        return scene.objects[sp.object as usize]
+                            .material
+                            .brdf_at(sp.uv)
+                            .rho_d;
                     }
                 }
             }
@@ -297,7 +437,8 @@ pub fn sample_albedo(result_dir: &Path, points: &[(Vec3, Vec3)]) -> Result<Vec<V
 
 /// Reads `x,y,z,nx,ny,nz` rows (a header row is allowed) for [`sample_albedo`].
 pub fn read_points(path: &Path) -> Result<Vec<(Vec3, Vec3)>, ReflectError> {
-    let text = std::fs::read_to_string(path).map_err(|e| ReflectError::file(path, format!("cannot read: {e}")))?;
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| ReflectError::file(path, format!("cannot read: {e}")))?;
     let mut out = Vec::new();
     for (ln, line) in text.lines().enumerate() {
         let line = line.trim();
@@ -310,7 +451,15 @@ pub fn read_points(path: &Path) -> Result<Vec<(Vec3, Vec3)>, ReflectError> {
                 out.push((Vec3::new(v[0], v[1], v[2]), Vec3::new(v[3], v[4], v[5])));
             }
             Err(_) if ln == 0 && out.is_empty() => continue, // header
-            _ => return Err(ReflectError::file(path, format!("line {}: expected six finite numbers x,y,z,nx,ny,nz", ln + 1))),
+            _ => {
+                return Err(ReflectError::file(
+                    path,
+                    format!(
+                        "line {}: expected six finite numbers x,y,z,nx,ny,nz",
+                        ln + 1
+                    ),
+                ))
+            }
         }
     }
     if out.is_empty() {

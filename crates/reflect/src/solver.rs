@@ -187,14 +187,31 @@ enum GroupLoad {
 
 /// The scene of a group: every part with its current albedo atlas (one atlas serves every level
 /// of a stored part) and lobes, in part order.
-fn group_scene(state: &SolveResult, group: &Group, store: Option<&igi_geometry::SiteStore>, lobes: &[Vec<Lobe>]) -> Result<(Scene, u64), ReflectError> {
+fn group_scene(
+    state: &SolveResult,
+    group: &Group,
+    store: Option<&igi_geometry::SiteStore>,
+    lobes: &[Vec<Lobe>],
+) -> Result<(Scene, u64), ReflectError> {
     let material = |i: usize| {
         let r = state.parts[i].resolution();
-        let tex = Texture { width: r, height: r, texels: state.rho[i].clone() };
-        Material { albedo: Albedo::Texture(tex), lobes: lobes[i].clone() }
+        let tex = Texture {
+            width: r,
+            height: r,
+            texels: state.rho[i].clone(),
+        };
+        Material {
+            albedo: Albedo::Texture(tex),
+            lobes: lobes[i].clone(),
+        }
     };
     let objects = match (&group.load, store) {
-        (GroupLoad::Meshes, _) => state.parts.iter().enumerate().map(|(i, p)| (p.name.clone(), p.mesh.clone(), material(i))).collect(),
+        (GroupLoad::Meshes, _) => state
+            .parts
+            .iter()
+            .enumerate()
+            .map(|(i, p)| (p.name.clone(), p.mesh.clone(), material(i)))
+            .collect(),
         (load, Some(store)) => {
             let loaded = match load {
                 GroupLoad::Voxel(v) => store.load_for_voxel(*v)?,
@@ -207,14 +224,25 @@ fn group_scene(state: &SolveResult, group: &Group, store: Option<&igi_geometry::
                     .parts
                     .iter()
                     .position(|p| p.name == name)
-                    .ok_or_else(|| ReflectError::Invalid(format!("the prepared site holds {name}, which the result does not")))?;
+                    .ok_or_else(|| {
+                        ReflectError::Invalid(format!(
+                            "the prepared site holds {name}, which the result does not"
+                        ))
+                    })?;
                 objects.push((name, lp.mesh, material(i)));
             }
             objects
         }
-        (_, None) => return Err(ReflectError::Invalid("a voxel group needs its prepared site".into())),
+        (_, None) => {
+            return Err(ReflectError::Invalid(
+                "a voxel group needs its prepared site".into(),
+            ))
+        }
     };
-    let triangles = objects.iter().map(|(_, m, _): &(String, igi_geometry::TriMesh, Material)| m.indices.len() as u64).sum();
+    let triangles = objects
+        .iter()
+        .map(|(_, m, _): &(String, igi_geometry::TriMesh, Material)| m.indices.len() as u64)
+        .sum();
     Ok((Scene::new(objects)?, triangles))
 }
 
@@ -227,7 +255,12 @@ fn infer_lobes(parts: &[Part], rho: &[Vec<Vec3>], basis: Option<&Basis>) -> Vec<
             None => Vec::new(),
             Some(b) => {
                 let n = p.cache.texels.len().max(1) as f32;
-                let mean = p.cache.texels.iter().fold(Vec3::ZERO, |a, t| a + rho[i][t.index as usize]) / n;
+                let mean = p
+                    .cache
+                    .texels
+                    .iter()
+                    .fold(Vec3::ZERO, |a, t| a + rho[i][t.index as usize])
+                    / n;
                 b.infer(mean).lobes
             }
         })
@@ -240,10 +273,16 @@ fn make_groups(parts: &[Part], solved: &[bool]) -> Result<Vec<Group>, ReflectErr
     let stored = parts.iter().filter(|p| p.stored.is_some()).count();
     if stored == 0 {
         let ids: Vec<usize> = (0..parts.len()).filter(|&i| solved[i]).collect();
-        return Ok(vec![Group { name: "site".into(), parts: ids, load: GroupLoad::Meshes }]);
+        return Ok(vec![Group {
+            name: "site".into(),
+            parts: ids,
+            load: GroupLoad::Meshes,
+        }]);
     }
     if stored != parts.len() {
-        return Err(ReflectError::Invalid("a site is either prepared or a set of meshes, not both".into()));
+        return Err(ReflectError::Invalid(
+            "a site is either prepared or a set of meshes, not both".into(),
+        ));
     }
     Ok(parts
         .iter()
@@ -254,7 +293,11 @@ fn make_groups(parts: &[Part], solved: &[bool]) -> Result<Vec<Group>, ReflectErr
                 Some(v) => GroupLoad::Voxel(v),
                 None => GroupLoad::Terrain,
             };
-            Group { name: p.name.clone(), parts: vec![i], load }
+            Group {
+                name: p.name.clone(),
+                parts: vec![i],
+                load,
+            }
         })
         .collect())
 }
@@ -277,17 +320,25 @@ pub fn solve(
         return Err(ReflectError::Invalid("no photographs to solve from".into()));
     }
     if opts.spp.is_empty() || opts.spp.contains(&0) {
-        return Err(ReflectError::Invalid("the spp schedule must be non-empty and positive".into()));
+        return Err(ReflectError::Invalid(
+            "the spp schedule must be non-empty and positive".into(),
+        ));
     }
     let solved: Vec<bool> = start
         .parts
         .iter()
-        .map(|p| opts.parts.as_ref().is_none_or(|sel| sel.iter().any(|s| s == &p.name)))
+        .map(|p| {
+            opts.parts
+                .as_ref()
+                .is_none_or(|sel| sel.iter().any(|s| s == &p.name))
+        })
         .collect();
     if let Some(sel) = &opts.parts {
         for s in sel {
             if !start.parts.iter().any(|p| &p.name == s) {
-                return Err(ReflectError::Invalid(format!("no part named `{s}` in the site")));
+                return Err(ReflectError::Invalid(format!(
+                    "no part named `{s}` in the site"
+                )));
             }
         }
     }
@@ -301,33 +352,58 @@ pub fn solve(
         .parts
         .iter()
         .map(|p| {
-            start.report.parts.iter().find(|s| s.name == p.name).cloned().unwrap_or_else(|| PartSummary {
-                name: p.name.clone(),
-                resolution: p.resolution(),
-                texel_size_m: p.texel_size,
-                covered_texels: p.cache.texels.len(),
-                seen_texels: 0,
-                seen_twice_texels: 0,
-                filled_texels: 0,
-                stored: p.stored.clone(),
-                scene_triangles: 0,
-            })
+            start
+                .report
+                .parts
+                .iter()
+                .find(|s| s.name == p.name)
+                .cloned()
+                .unwrap_or_else(|| PartSummary {
+                    name: p.name.clone(),
+                    resolution: p.resolution(),
+                    texel_size_m: p.texel_size,
+                    covered_texels: p.cache.texels.len(),
+                    seen_texels: 0,
+                    seen_twice_texels: 0,
+                    filled_texels: 0,
+                    stored: p.stored.clone(),
+                    scene_triangles: 0,
+                })
         })
         .collect();
     start.report.parts = summaries;
     let t0 = Instant::now();
-    let already = start.report.iterations.last().map_or(0.0, |r| r.cumulative_s);
+    let already = start
+        .report
+        .iterations
+        .last()
+        .map_or(0.0, |r| r.cumulative_s);
     let first_k = start.report.iterations.len() as u32;
     for k in first_k..opts.max_iterations {
         let spp = opts.spp[(k as usize).min(opts.spp.len() - 1)];
         let mut acc = match start.report.pending.take() {
             Some(p) if p.iteration == k + 1 => p,
-            _ => Pending { iteration: k + 1, ..Pending::default() },
+            _ => Pending {
+                iteration: k + 1,
+                ..Pending::default()
+            },
         };
         let already_in_iteration = acc.wall_s;
         let ti = Instant::now();
-        let todo: Vec<&Group> = groups.iter().filter(|g| !acc.done.contains(&g.name)).collect();
-        let total: u64 = todo.iter().map(|g| g.parts.iter().map(|&i| start.parts[i].cache.texels.len() as u64).sum::<u64>()).sum::<u64>() * photos.len() as u64;
+        let todo: Vec<&Group> = groups
+            .iter()
+            .filter(|g| !acc.done.contains(&g.name))
+            .collect();
+        let total: u64 = todo
+            .iter()
+            .map(|g| {
+                g.parts
+                    .iter()
+                    .map(|&i| start.parts[i].cache.texels.len() as u64)
+                    .sum::<u64>()
+            })
+            .sum::<u64>()
+            * photos.len() as u64;
         progress.begin(&format!("iteration {}", k + 1), total);
         for g in todo {
             let lobes = infer_lobes(&start.parts, &start.rho, basis);
@@ -336,24 +412,33 @@ pub fn solve(
                 start.report.parts[i].scene_triangles = triangles;
             }
             // texel streams are numbered across groups so no two texels share one
-            let offset: u64 = start.parts[..g.parts[0]].iter().map(|p| p.cache.texels.len() as u64).sum();
+            let offset: u64 = start.parts[..g.parts[0]]
+                .iter()
+                .map(|p| p.cache.texels.len() as u64)
+                .sum();
             let texels: Vec<TexelRef> = g
                 .parts
                 .iter()
                 .flat_map(|&i| {
                     let p = &start.parts[i];
-                    p.cache.texels.iter().enumerate().map(move |(k, t)| TexelRef {
-                        part: i as u32,
-                        texel: k as u32,
-                        position: t.position,
-                        normal: t.normal,
-                        uv: p.cache.uv(t.index),
-                    })
+                    p.cache
+                        .texels
+                        .iter()
+                        .enumerate()
+                        .map(move |(k, t)| TexelRef {
+                            part: i as u32,
+                            texel: k as u32,
+                            position: t.position,
+                            normal: t.normal,
+                            uv: p.cache.uv(t.index),
+                        })
                 })
                 .collect();
             let mut obs: Vec<Obs> = Vec::new();
             for (pi, photo) in photos.iter().enumerate() {
-                obs.extend(observe_photo(&scene, photo, pi, &texels, offset, &start, &lobes, opts, k, spp, progress));
+                obs.extend(observe_photo(
+                    &scene, photo, pi, &texels, offset, &start, &lobes, opts, k, spp, progress,
+                ));
             }
             drop(scene);
             update_parts(&mut start, &g.parts, &obs, opts, &mut acc);
@@ -373,7 +458,11 @@ pub fn solve(
             Some(t) => truth_error(&start, t, &solved),
             None => (None, None),
         };
-        let delta_rho = if acc.nseen > 0 { (acc.delta / acc.nseen as f64) as f32 } else { 0.0 };
+        let delta_rho = if acc.nseen > 0 {
+            (acc.delta / acc.nseen as f64) as f32
+        } else {
+            0.0
+        };
         let wall = already_in_iteration + ti.elapsed().as_secs_f64();
         let rec = IterationRecord {
             iteration: k + 1,
@@ -381,8 +470,16 @@ pub fn solve(
             wall_s: wall,
             cumulative_s: already + t0.elapsed().as_secs_f64() + already_in_iteration,
             observations: acc.observations,
-            residual_rms: if acc.nres > 0 { (acc.res2 / acc.nres as f64).sqrt() as f32 } else { 0.0 },
-            residual_rel_rms: if acc.rel2 > 0.0 { (acc.res2 / acc.rel2).sqrt() as f32 } else { 0.0 },
+            residual_rms: if acc.nres > 0 {
+                (acc.res2 / acc.nres as f64).sqrt() as f32
+            } else {
+                0.0
+            },
+            residual_rel_rms: if acc.rel2 > 0.0 {
+                (acc.res2 / acc.rel2).sqrt() as f32
+            } else {
+                0.0
+            },
             delta_rho,
             truth_mae,
             truth_rms,
@@ -413,8 +510,15 @@ pub fn solve(
 /// Combines the observations of a group's parts into their new albedo (outlier rejection and
 /// the weighted mean per texel, then the fill of unseen texels), updating the part summaries
 /// and the iteration's running statistics.
-fn update_parts(start: &mut SolveResult, group: &[usize], obs: &[Obs], opts: &SolveOptions, acc: &mut Pending) {
-    let mut per_texel: Vec<Vec<Vec<(Vec3, f32)>>> = start.parts.iter().map(|_| Vec::new()).collect();
+fn update_parts(
+    start: &mut SolveResult,
+    group: &[usize],
+    obs: &[Obs],
+    opts: &SolveOptions,
+    acc: &mut Pending,
+) {
+    let mut per_texel: Vec<Vec<Vec<(Vec3, f32)>>> =
+        start.parts.iter().map(|_| Vec::new()).collect();
     let mut any_clean: Vec<Vec<bool>> = start.parts.iter().map(|_| Vec::new()).collect();
     for &pi in group {
         let n = start.parts[pi].cache.texels.len();
@@ -441,8 +545,16 @@ fn update_parts(start: &mut SolveResult, group: &[usize], obs: &[Obs], opts: &So
             let i = t.index as usize;
             let props = &mut per_texel[pi][ti];
             // seen only through occlusion boundaries or shadow edges: not reliable; filled
-            let combined = if any_clean[pi][ti] { combine(props, &opts.rules) } else { None };
-            start.observations[pi][i] = if combined.is_some() { props.iter().filter(|(_, w)| *w > 0.0).count() as u32 } else { 0 };
+            let combined = if any_clean[pi][ti] {
+                combine(props, &opts.rules)
+            } else {
+                None
+            };
+            start.observations[pi][i] = if combined.is_some() {
+                props.iter().filter(|(_, w)| *w > 0.0).count() as u32
+            } else {
+                0
+            };
             match combined {
                 Some((v, w)) => {
                     acc.delta += (v - start.rho[pi][i]).abs().max_element() as f64;
@@ -499,7 +611,11 @@ fn observe_photo(
                     .texels
                     .par_iter()
                     .map(|t| {
-                        let n = if t.normal.dot(s.direction) < 0.0 { -t.normal } else { t.normal };
+                        let n = if t.normal.dot(s.direction) < 0.0 {
+                            -t.normal
+                        } else {
+                            t.normal
+                        };
                         !scene.occluded(offset_origin(t.position, n), s.direction, f32::INFINITY)
                     })
                     .collect()
@@ -522,7 +638,9 @@ fn observe_photo(
             .collect()
     });
     let shadow_edge = |t: &TexelRef| -> bool {
-        let (Some(vis), Some(maps)) = (&sun_vis, &index_maps) else { return false };
+        let (Some(vis), Some(maps)) = (&sun_vis, &index_maps) else {
+            return false;
+        };
         let p = &state.parts[t.part as usize];
         let r = p.resolution() as i64;
         let idx = p.cache.texels[t.texel as usize].index as i64;
@@ -540,7 +658,12 @@ fn observe_photo(
         }
         false
     };
-    let render_opts = RenderOptions { spp, seed: opts.seed, indirect: opts.indirect, russian_roulette: false };
+    let render_opts = RenderOptions {
+        spp,
+        seed: opts.seed,
+        indirect: opts.indirect,
+        russian_roulette: false,
+    };
     let pt = PathTracer::new(scene, &photo.lighting, &render_opts);
     let stream_seed = hash2(opts.seed, ((iteration as u64) << 32) | photo_index as u64);
     let min_eval = Vec3::splat(opts.min_eval_albedo);
@@ -587,9 +710,15 @@ fn observe_photo(
                         let (ro, rd) = (ro.as_vec3(), rd.as_vec3());
                         let hit = scene.intersect(ro, rd);
                         let denom = n.dot(rd);
-                        let t_plane = if denom.abs() > 1e-6 { n.dot(t.position - ro) / denom } else { f32::INFINITY };
+                        let t_plane = if denom.abs() > 1e-6 {
+                            n.dot(t.position - ro) / denom
+                        } else {
+                            f32::INFINITY
+                        };
                         let ok = hit.is_some_and(|h| {
-                            (h.t - t_plane).abs() <= rules.depth_tolerance * dist && h.ng.normalize_or_zero().dot(n).abs() >= rules.min_normal_agreement
+                            (h.t - t_plane).abs() <= rules.depth_tolerance * dist
+                                && h.ng.normalize_or_zero().dot(n).abs()
+                                    >= rules.min_normal_agreement
                         });
                         if !ok {
                             weight *= rules.boundary_factor;
@@ -602,12 +731,32 @@ fn observe_photo(
                         clean = false;
                     }
                     // radiance toward the camera with the evaluation albedo at this texel
-                    let rho = state.rho[t.part as usize][state.parts[t.part as usize].cache.texels[t.texel as usize].index as usize];
+                    let rho = state.rho[t.part as usize][state.parts[t.part as usize].cache.texels
+                        [t.texel as usize]
+                        .index as usize];
                     let rho_eval = rho.max(min_eval);
-                    let brdf = LafortuneRef { rho_d: rho_eval, lobes: &lobes[t.part as usize] };
-                    let sp = SurfacePoint { position: t.position, ng: n, ns: n, uv: t.uv, object: t.part, prim: 0 };
-                    let est = pt.lo_estimate(&sp, wo, Some(brdf), spp, &mut Rng::new(stream_seed, offset + gi));
-                    Some((gi as u32, pixel, est.mean, est.stderr, weight, clean, rho_eval))
+                    let brdf = LafortuneRef {
+                        rho_d: rho_eval,
+                        lobes: &lobes[t.part as usize],
+                    };
+                    let sp = SurfacePoint {
+                        position: t.position,
+                        ng: n,
+                        ns: n,
+                        uv: t.uv,
+                        object: t.part,
+                        prim: 0,
+                    };
+                    let est = pt.lo_estimate(
+                        &sp,
+                        wo,
+                        Some(brdf),
+                        spp,
+                        &mut Rng::new(stream_seed, offset + gi),
+                    );
+                    Some((
+                        gi as u32, pixel, est.mean, est.stderr, weight, clean, rho_eval,
+                    ))
                 })
                 .collect();
             progress.advance(ch.len() as u64);
@@ -615,7 +764,12 @@ fn observe_photo(
         })
         .collect();
     // near-zero floor relative to the photo's median rendered luminance
-    let mut lums: Vec<f32> = raw.iter().flatten().map(|r| luminance(r.2)).filter(|l| *l > 0.0).collect();
+    let mut lums: Vec<f32> = raw
+        .iter()
+        .flatten()
+        .map(|r| luminance(r.2))
+        .filter(|l| *l > 0.0)
+        .collect();
     let median = if lums.is_empty() {
         0.0
     } else {
@@ -631,7 +785,8 @@ fn observe_photo(
                 return None;
             }
             let t = &texels[gi as usize];
-            let rho = state.rho[t.part as usize][state.parts[t.part as usize].cache.texels[t.texel as usize].index as usize];
+            let rho = state.rho[t.part as usize]
+                [state.parts[t.part as usize].cache.texels[t.texel as usize].index as usize];
             // per channel; a channel rendered at zero keeps the current value
             let proposal = Vec3::from_array(std::array::from_fn(|ch| {
                 if l[ch] > floor * 1e-3 {
@@ -643,14 +798,26 @@ fn observe_photo(
             // rendered radiance with the current albedo (linear in the first vertex's albedo)
             let current = l * (rho / rho_eval);
             let residual = current - pixel;
-            Some(Obs { part: t.part, texel: t.texel, proposal, weight, clean, residual, pixel })
+            Some(Obs {
+                part: t.part,
+                texel: t.texel,
+                proposal,
+                weight,
+                clean,
+                residual,
+                pixel,
+            })
         })
         .collect()
 }
 
 /// Mean absolute error per channel and RMS error of `rho_d` against ground truth over covered
 /// texels seen at least twice.
-fn truth_error(state: &SolveResult, truth: &Truth, solved: &[bool]) -> (Option<[f32; 3]>, Option<f32>) {
+fn truth_error(
+    state: &SolveResult,
+    truth: &Truth,
+    solved: &[bool],
+) -> (Option<[f32; 3]>, Option<f32>) {
     let (mut s, mut s2, mut n) = (DVec3::ZERO, 0.0f64, 0u64);
     for (pi, p) in state.parts.iter().enumerate() {
         if !solved[pi] {
@@ -673,7 +840,10 @@ fn truth_error(state: &SolveResult, truth: &Truth, solved: &[bool]) -> (Option<[
         return (None, None);
     }
     let m = s / n as f64;
-    (Some([m.x as f32, m.y as f32, m.z as f32]), Some((s2 / n as f64).sqrt() as f32))
+    (
+        Some([m.x as f32, m.y as f32, m.z as f32]),
+        Some((s2 / n as f64).sqrt() as f32),
+    )
 }
 
 /// Ground truth per texel from a scene with known albedo over the same geometry: the albedo
@@ -692,7 +862,12 @@ pub fn truth_from_scene(parts: &[Part], truth: &Scene) -> Truth {
                         if let Some(h) = truth.intersect(o, -n) {
                             if h.t <= 2.0 * eps {
                                 let sp = truth.surface_point(&h);
-                                return Some(truth.objects[sp.object as usize].material.brdf_at(sp.uv).rho_d);
+                                return Some(
+                                    truth.objects[sp.object as usize]
+                                        .material
+                                        .brdf_at(sp.uv)
+                                        .rho_d,
+                                );
                             }
                         }
                     }
@@ -702,4 +877,3 @@ pub fn truth_from_scene(parts: &[Part], truth: &Scene) -> Truth {
         })
         .collect()
 }
-

@@ -22,6 +22,9 @@ pub struct Survey {
     /// The folder holding `survey.toml`.
     pub root: PathBuf,
     pub meshes: Vec<PathBuf>,
+    /// A prepared site (`igi prepare` output) in place of meshes: `[site] prepared = "site.igi"`,
+    /// or a `mesh` that names such a folder.
+    pub prepared: Option<PathBuf>,
     pub photos: Vec<PhotoSpec>,
     pub brdf_samples: Option<PathBuf>,
 }
@@ -39,6 +42,7 @@ struct SurveyFile {
 #[serde(deny_unknown_fields)]
 struct SiteSpec {
     mesh: Option<PathBuf>,
+    prepared: Option<PathBuf>,
     #[serde(default)]
     meshes: Vec<PathBuf>,
 }
@@ -62,24 +66,61 @@ impl Survey {
     /// Reads `survey.toml` from a survey folder (or the file itself). Every path it names must
     /// exist; photo ids must be unique.
     pub fn load(path: &Path) -> Result<Survey, ReflectError> {
-        let file = if path.is_dir() { path.join("survey.toml") } else { path.to_path_buf() };
-        let text = std::fs::read_to_string(&file).map_err(|e| ReflectError::file(&file, format!("cannot read survey: {e}")))?;
-        let f: SurveyFile = toml::from_str(&text).map_err(|e| ReflectError::file(&file, format!("not a valid survey file: {e}")))?;
+        let file = if path.is_dir() {
+            path.join("survey.toml")
+        } else {
+            path.to_path_buf()
+        };
+        let text = std::fs::read_to_string(&file)
+            .map_err(|e| ReflectError::file(&file, format!("cannot read survey: {e}")))?;
+        let f: SurveyFile = toml::from_str(&text)
+            .map_err(|e| ReflectError::file(&file, format!("not a valid survey file: {e}")))?;
         let root = file.parent().unwrap_or(Path::new(".")).to_path_buf();
         let exists = |p: &Path, what: &str| -> Result<PathBuf, ReflectError> {
             let full = root.join(p);
             if full.exists() {
                 Ok(full)
             } else {
-                Err(ReflectError::file(&file, format!("{what} {} does not exist", full.display())))
+                Err(ReflectError::file(
+                    &file,
+                    format!("{what} {} does not exist", full.display()),
+                ))
             }
         };
         let mut meshes = Vec::new();
+        let mut prepared = match &f.site.prepared {
+            Some(p) => Some(exists(p, "prepared site")?),
+            None => None,
+        };
         for m in f.site.mesh.iter().chain(f.site.meshes.iter()) {
-            meshes.push(exists(m, "site mesh")?);
+            let full = exists(m, "site mesh")?;
+            if full.is_dir() && full.join("manifest.json").is_file() {
+                prepared = Some(full);
+            } else {
+                meshes.push(full);
+            }
         }
-        if meshes.is_empty() {
-            return Err(ReflectError::file(&file, "[site] names no mesh (use `mesh = ...` or `meshes = [...]`)"));
+        if let Some(p) = &prepared {
+            if !meshes.is_empty() {
+                return Err(ReflectError::file(
+                    &file,
+                    "[site] names both a prepared site and meshes; give one or the other",
+                ));
+            }
+            if !p.join("manifest.json").is_file() {
+                return Err(ReflectError::file(
+                    &file,
+                    format!(
+                        "{} is not a prepared site (no manifest.json; run `igi prepare`)",
+                        p.display()
+                    ),
+                ));
+            }
+        } else if meshes.is_empty() {
+            return Err(ReflectError::file(
+                &file,
+                "[site] names no mesh (use `mesh = ...`, `meshes = [...]` or `prepared = ...`)",
+            ));
         }
         if f.photo.is_empty() {
             return Err(ReflectError::file(&file, "no [[photo]] entries"));
@@ -87,7 +128,10 @@ impl Survey {
         let mut photos = Vec::new();
         for p in &f.photo {
             if photos.iter().any(|q: &PhotoSpec| q.id == p.id) {
-                return Err(ReflectError::file(&file, format!("photo id `{}` appears twice", p.id)));
+                return Err(ReflectError::file(
+                    &file,
+                    format!("photo id `{}` appears twice", p.id),
+                ));
             }
             photos.push(PhotoSpec {
                 id: p.id.clone(),
@@ -100,7 +144,13 @@ impl Survey {
             Some(b) => Some(exists(&b.samples, "BRDF samples")?),
             None => None,
         };
-        Ok(Survey { root, meshes, photos, brdf_samples })
+        Ok(Survey {
+            root,
+            meshes,
+            prepared,
+            photos,
+            brdf_samples,
+        })
     }
 }
 
@@ -131,13 +181,26 @@ impl PhotoSpec {
                 ),
             ));
         }
-        if let Some(i) = image.pixels.iter().position(|p| p.iter().any(|c| !c.is_finite() || *c < 0.0)) {
+        if let Some(i) = image
+            .pixels
+            .iter()
+            .position(|p| p.iter().any(|c| !c.is_finite() || *c < 0.0))
+        {
             return Err(ReflectError::file(
                 &self.image,
-                format!("pixel ({}, {}) is negative or not finite", i % image.width, i / image.width),
+                format!(
+                    "pixel ({}, {}) is negative or not finite",
+                    i % image.width,
+                    i / image.width
+                ),
             ));
         }
         let lighting = Lighting::load(&self.lighting)?;
-        Ok(Photo { id: self.id.clone(), image, camera, lighting })
+        Ok(Photo {
+            id: self.id.clone(),
+            image,
+            camera,
+            lighting,
+        })
     }
 }

@@ -8,7 +8,9 @@ use crate::parts::Part;
 use crate::ReflectError;
 use glam::{DVec3, Vec3};
 use igi_imaging::{Camera, HdrImage, WorldToCamera};
-use igi_render::{render_image, Albedo, Lighting, Material, RenderOptions, Scene, Sun, Texture, Environment};
+use igi_render::{
+    render_image, Albedo, Environment, Lighting, Material, RenderOptions, Scene, Sun, Texture,
+};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -21,7 +23,15 @@ pub fn albedo_pattern(p: Vec3) -> Vec3 {
         0.15 + 0.35 * s(0.5 * (p.x + p.y) + 0.8 * p.z, 2.0),
     );
     // fine stripes (texel-scale variation)
-    let stripe = if ((p.x * 4.0).floor() as i64 + (p.y * 4.0).floor() as i64 + (p.z * 4.0).floor() as i64) % 2 == 0 { 1.0 } else { 0.8 };
+    let stripe =
+        if ((p.x * 4.0).floor() as i64 + (p.y * 4.0).floor() as i64 + (p.z * 4.0).floor() as i64)
+            % 2
+            == 0
+        {
+            1.0
+        } else {
+            0.8
+        };
     (base * stripe).clamp(Vec3::splat(0.08), Vec3::splat(0.85))
 }
 
@@ -46,10 +56,21 @@ pub fn scene_with_albedo(parts: &[Part], albedo: &[Vec<Vec3>]) -> Result<Scene, 
         .zip(albedo)
         .map(|(p, a)| {
             let r = p.resolution();
-            let tex = Texture { width: r, height: r, texels: a.clone() };
-            (p.name.clone(), p.mesh.clone(), Material { albedo: Albedo::Texture(tex), lobes: Vec::new() })
+            let tex = Texture {
+                width: r,
+                height: r,
+                texels: a.clone(),
+            };
+            Ok((
+                p.name.clone(),
+                p.full_mesh()?.into_owned(),
+                Material {
+                    albedo: Albedo::Texture(tex),
+                    lobes: Vec::new(),
+                },
+            ))
         })
-        .collect();
+        .collect::<Result<_, ReflectError>>()?;
     Ok(Scene::new(objects)?)
 }
 
@@ -74,7 +95,10 @@ impl LightingSpec {
     /// Writes `NAME.toml` and `NAME_sky.exr` into `dir` (FORMATS.md lighting file).
     pub fn write(&self, dir: &Path) -> Result<PathBuf, ReflectError> {
         igi_imaging::write_exr(&dir.join(format!("{}_sky.exr", self.name)), &self.sky)?;
-        let mut t = format!("[environment]\nmap = \"{}_sky.exr\"\nscale = 1.0\n", self.name);
+        let mut t = format!(
+            "[environment]\nmap = \"{}_sky.exr\"\nscale = 1.0\n",
+            self.name
+        );
         if let Some((d, l)) = self.sun {
             let d = d.normalize();
             let _ = write!(
@@ -90,11 +114,26 @@ impl LightingSpec {
 }
 
 /// A pinhole camera at `eye` looking at `target` with a horizontal field of view in degrees.
-pub fn look_at_camera(eye: Vec3, target: Vec3, width: u32, height: u32, hfov_deg: f64) -> Result<Camera, ReflectError> {
-    let pose = WorldToCamera::look_at(eye.as_dvec3(), target.as_dvec3(), DVec3::Z)
-        .ok_or_else(|| ReflectError::Invalid(format!("camera at {eye} looking at {target} is degenerate")))?;
+pub fn look_at_camera(
+    eye: Vec3,
+    target: Vec3,
+    width: u32,
+    height: u32,
+    hfov_deg: f64,
+) -> Result<Camera, ReflectError> {
+    let pose =
+        WorldToCamera::look_at(eye.as_dvec3(), target.as_dvec3(), DVec3::Z).ok_or_else(|| {
+            ReflectError::Invalid(format!("camera at {eye} looking at {target} is degenerate"))
+        })?;
     let f = 0.5 * width as f64 / (0.5 * hfov_deg.to_radians()).tan();
-    let mut cam = Camera::pinhole(width, height, f, f, width as f64 / 2.0 - 0.5, height as f64 / 2.0 - 0.5);
+    let mut cam = Camera::pinhole(
+        width,
+        height,
+        f,
+        f,
+        width as f64 / 2.0 - 0.5,
+        height as f64 / 2.0 - 0.5,
+    );
     cam.pose = pose;
     Ok(cam)
 }
@@ -107,7 +146,8 @@ pub struct ShotSpec {
     pub lighting: usize,
 }
 
-/// Writes a complete survey folder: `geometry/NAME.ply` per part (the atlas meshes), `truth/`
+/// Writes a complete survey folder: `geometry/NAME.ply` per part (the atlas meshes; for the parts
+/// of a prepared site the survey names the site instead), `truth/`
 /// (true albedo atlases and `scene.toml`), `lighting/`, `cameras/`, `photos/` (path-traced at
 /// `spp`) and `survey.toml`. Photos are rendered under `lightings`; the survey's lighting files
 /// are `recorded` (for example what probe captures recovered of the same skies, as in a real
@@ -127,26 +167,59 @@ pub fn write_survey(
 ) -> Result<(), ReflectError> {
     for sub in ["geometry", "truth", "lighting", "cameras", "photos"] {
         let p = dir.join(sub);
-        std::fs::create_dir_all(&p).map_err(|e| ReflectError::file(&p, format!("cannot create folder: {e}")))?;
+        std::fs::create_dir_all(&p)
+            .map_err(|e| ReflectError::file(&p, format!("cannot create folder: {e}")))?;
     }
     let mut truth_toml = String::from("# true albedo of the synthetic site (igi solve --truth)\n");
-    let mut survey = String::from("[site]\nmeshes = [");
+    let prepared = parts
+        .iter()
+        .find_map(|p| p.stored.as_ref().map(|s| s.site.clone()));
+    let mut survey = match &prepared {
+        Some(site) => {
+            let site = std::fs::canonicalize(site).unwrap_or(site.clone());
+            format!("[site]\nprepared = \"{}\"\n", site.display())
+        }
+        None => String::from("[site]\nmeshes = ["),
+    };
     for (k, (p, a)) in parts.iter().zip(truth).enumerate() {
-        igi_geometry::write_ply(&dir.join("geometry").join(format!("{}.ply", p.name)), &p.mesh)?;
+        igi_geometry::write_ply(
+            &dir.join("geometry").join(format!("{}.ply", p.name)),
+            &*p.full_mesh()?,
+        )?;
         let r = p.resolution();
         let mut img = HdrImage::new(r, r);
         for (px, v) in img.pixels.iter_mut().zip(a) {
             *px = v.to_array();
         }
-        igi_imaging::write_exr(&dir.join("truth").join(format!("{}_albedo.exr", p.name)), &img)?;
-        let _ = write!(truth_toml, "\n[[object]]\nmesh = \"../geometry/{0}.ply\"\nalbedo = \"{0}_albedo.exr\"\n", p.name);
-        let _ = write!(survey, "{}\"geometry/{}.ply\"", if k > 0 { ", " } else { "" }, p.name);
+        igi_imaging::write_exr(
+            &dir.join("truth").join(format!("{}_albedo.exr", p.name)),
+            &img,
+        )?;
+        let _ = write!(
+            truth_toml,
+            "\n[[object]]\nmesh = \"../geometry/{0}.ply\"\nalbedo = \"{0}_albedo.exr\"\n",
+            p.name
+        );
+        if prepared.is_none() {
+            let _ = write!(
+                survey,
+                "{}\"geometry/{}.ply\"",
+                if k > 0 { ", " } else { "" },
+                p.name
+            );
+        }
     }
-    survey.push_str("]\n");
+    if prepared.is_none() {
+        survey.push_str("]\n");
+    }
     write_text(&dir.join("truth").join("scene.toml"), &truth_toml)?;
     let scene = scene_with_albedo(parts, truth)?;
     if recorded.len() != lightings.len() {
-        return Err(ReflectError::Invalid(format!("{} lightings but {} recorded lightings", lightings.len(), recorded.len())));
+        return Err(ReflectError::Invalid(format!(
+            "{} lightings but {} recorded lightings",
+            lightings.len(),
+            recorded.len()
+        )));
     }
     let mut lit = Vec::new();
     for (l, r) in lightings.iter().zip(recorded) {
@@ -155,11 +228,19 @@ pub fn write_survey(
     }
     for (i, s) in shots.iter().enumerate() {
         progress(i, shots.len());
-        let l = recorded.get(s.lighting).ok_or_else(|| ReflectError::Invalid(format!("shot {}: no lighting {}", s.id, s.lighting)))?;
-        let opts = RenderOptions { spp, seed: seed.wrapping_add(i as u64 * 7919), indirect: 2, russian_roulette: false };
+        let l = recorded.get(s.lighting).ok_or_else(|| {
+            ReflectError::Invalid(format!("shot {}: no lighting {}", s.id, s.lighting))
+        })?;
+        let opts = RenderOptions {
+            spp,
+            seed: seed.wrapping_add(i as u64 * 7919),
+            indirect: 2,
+            russian_roulette: false,
+        };
         let out = render_image(&scene, &lit[s.lighting], &s.camera, &opts, &|_| {})?;
         igi_imaging::write_exr(&dir.join("photos").join(format!("{}.exr", s.id)), &out.mean)?;
-        s.camera.save(&dir.join("cameras").join(format!("{}.json", s.id)))?;
+        s.camera
+            .save(&dir.join("cameras").join(format!("{}.json", s.id)))?;
         let _ = write!(
             survey,
             "\n[[photo]]\nid = \"{0}\"\nimage = \"photos/{0}.exr\"\ncamera = \"cameras/{0}.json\"\nlighting = \"lighting/{1}.toml\"\n",

@@ -1,0 +1,235 @@
+//! The voxel-by-voxel solve over a prepared site (`igi prepare` output): every voxel solved
+//! against the multiresolution load of the site, checkpointed after each voxel, resumable
+//! mid-iteration with the same result as an uninterrupted run.
+
+use glam::Vec3;
+use igi_geometry::{PrepareOptions, SiteStore, TriMesh};
+use igi_reflect::parts::prepared_parts;
+use igi_reflect::solver::{truth_from_scene, NoProgress};
+use igi_reflect::synth::{look_at_camera, truth_atlas, write_survey, LightingSpec, ShotSpec};
+use igi_reflect::{ReflectError, SolveOptions, SolveResult, Survey};
+use igi_render::sky::{clear_sky, overcast_sky, sun_direction};
+use std::path::Path;
+
+/// A smooth albedo field (detail far coarser than a texel, so the photos resolve it).
+fn albedo(p: Vec3) -> Vec3 {
+    Vec3::new(
+        0.35 + 0.25 * (0.4 * p.x).sin(),
+        0.3 + 0.15 * (0.5 * p.y + 0.3 * p.z).cos(),
+        0.2 + 0.06 * p.z.min(6.0),
+    )
+}
+
+fn prepare_site(out: &Path) -> SiteStore {
+    let mut site = TriMesh::default();
+    let mut terrain = None;
+    for (name, m) in igi_geometry::procedural::colonnade_site(3, 1) {
+        if name == "terrain" {
+            terrain = Some(m);
+        } else {
+            site.append(&m);
+        }
+    }
+    let (site, rep) = igi_geometry::repair::repair(&site);
+    let mut opts = PrepareOptions::default();
+    opts.atlas.resolution = 48;
+    igi_geometry::prepare(site, terrain, rep, out, "colonnade", &opts, &|_, _| {}).unwrap();
+    SiteStore::open(out).unwrap()
+}
+
+#[test]
+fn a_prepared_site_is_solved_voxel_by_voxel_with_the_multiresolution_load_and_resumes_mid_iteration(
+) {
+    let dir = tempfile::tempdir().unwrap();
+    let store = prepare_site(&dir.path().join("site.igi"));
+    let voxels = store.voxel_ids().len();
+    assert!(voxels >= 8, "{voxels} voxels");
+    let parts = prepared_parts(&store).unwrap();
+    assert_eq!(parts.len(), voxels + 1, "voxels and the terrain");
+    assert!(
+        parts.iter().all(|p| p.mesh.indices.is_empty()),
+        "no mesh is loaded for the parts themselves"
+    );
+    let truth: Vec<Vec<Vec3>> = parts.iter().map(|p| truth_atlas(p, albedo)).collect();
+    let sun = sun_direction(35.0, 50.0);
+    let lightings = vec![
+        LightingSpec {
+            name: "sunny".into(),
+            sky: clear_sky(64, 32, sun, 0.6, Vec3::splat(0.08)),
+            sun: Some((sun, Vec3::new(6.0e4, 5.7e4, 5.2e4))),
+        },
+        LightingSpec {
+            name: "overcast".into(),
+            sky: overcast_sky(64, 32, 2.0, Vec3::splat(0.15)),
+            sun: None,
+        },
+    ];
+    let mut shots = Vec::new();
+    for (k, az) in [-60.0f32, -120.0, 30.0, 150.0].iter().enumerate() {
+        let a = az.to_radians();
+        let eye = Vec3::new(16.0 * a.cos(), 14.0 * a.sin(), 7.0);
+        for (li, l) in lightings.iter().enumerate() {
+            shots.push(ShotSpec {
+                id: format!("cam{k}-{}", l.name),
+                camera: look_at_camera(eye, Vec3::new(0.0, 0.0, 2.5), 128, 96, 75.0).unwrap(),
+                lighting: li,
+            });
+        }
+    }
+    let sdir = dir.path().join("survey");
+    write_survey(
+        &sdir,
+        &parts,
+        &truth,
+        &lightings,
+        &lightings,
+        &shots,
+        128,
+        5,
+        &|_, _| {},
+    )
+    .unwrap();
+    let survey = Survey::load(&sdir).unwrap();
+    assert!(survey.meshes.is_empty());
+    assert_eq!(
+        survey
+            .prepared
+            .as_deref()
+            .map(|p| p.join("manifest.json").is_file()),
+        Some(true)
+    );
+    let photos: Vec<_> = survey.photos.iter().map(|p| p.load().unwrap()).collect();
+    let (truth_scene, _) = igi_render::Scene::load(&sdir.join("truth/scene.toml")).unwrap();
+    let truth = truth_from_scene(&parts, &truth_scene);
+    let ids: Vec<String> = photos.iter().map(|p| p.id.clone()).collect();
+    let opts = SolveOptions {
+        atlas_resolution: 48,
+        max_iterations: 2,
+        min_iterations: 2,
+        spp: vec![32, 64],
+        ..SolveOptions::default()
+    };
+
+    // 1. uninterrupted
+    let out_a = dir.path().join("a");
+    std::fs::create_dir_all(&out_a).unwrap();
+    let start = SolveResult::fresh(prepared_parts(&store).unwrap(), ids.clone(), &opts);
+    start.write_geometry(&out_a).unwrap();
+    let mut checkpoints = 0;
+    let a = igi_reflect::solve(
+        start,
+        &photos,
+        None,
+        Some(&truth),
+        &opts,
+        &NoProgress,
+        &mut |r| {
+            checkpoints += 1;
+            r.write_state(&out_a)
+        },
+    )
+    .unwrap();
+    // a checkpoint after every voxel (and the terrain) and after every iteration
+    assert_eq!(checkpoints, 2 * (voxels + 1) + 2);
+    assert!(a.report.pending.is_none());
+    let its = &a.report.iterations;
+    for r in its {
+        eprintln!(
+            "iteration {}: {:.2} s, obs {}, residual {:.2}%, delta {:.4}, MAE {:?}",
+            r.iteration,
+            r.wall_s,
+            r.observations,
+            100.0 * r.residual_rel_rms,
+            r.delta_rho,
+            r.truth_mae
+        );
+    }
+    let mae = its.last().unwrap().truth_mae.expect("texels seen twice");
+    assert!(mae.iter().all(|m| *m < 0.02), "rho_d MAE {mae:?}");
+    assert!(its[1].residual_rel_rms < its[0].residual_rel_rms);
+    // the multiresolution load: every voxel's scene is far smaller than the whole site at full
+    // resolution, and holds the voxel itself at full resolution
+    let man = store.manifest();
+    let full: u64 = man.triangles_per_level[0] as u64
+        + man.terrain.as_ref().map_or(0, |t| t.triangles[0] as u64);
+    let mut seen_parts = 0;
+    for (p, e) in a.report.parts.iter().zip(man.voxels.iter()) {
+        assert_eq!(p.stored.as_ref().unwrap().voxel, e.voxel);
+        assert!(
+            p.scene_triangles < full,
+            "{}: {} of {full}",
+            p.name,
+            p.scene_triangles
+        );
+        assert!(p.scene_triangles >= e.triangles[0] as u64);
+        seen_parts += (p.seen_texels > 0) as usize;
+    }
+    assert!(
+        seen_parts >= voxels / 2,
+        "{seen_parts} of {voxels} voxels seen"
+    );
+    assert!(a
+        .rho
+        .iter()
+        .flatten()
+        .all(|v| v.is_finite() && v.min_element() >= 0.0 && v.max_element() <= 1.0));
+
+    // 2. killed after three voxels of the second iteration, then resumed from disk
+    let out_b = dir.path().join("b");
+    std::fs::create_dir_all(&out_b).unwrap();
+    let start = SolveResult::fresh(prepared_parts(&store).unwrap(), ids.clone(), &opts);
+    start.write_geometry(&out_b).unwrap();
+    let mut n = 0;
+    let killed = igi_reflect::solve(
+        start,
+        &photos,
+        None,
+        Some(&truth),
+        &opts,
+        &NoProgress,
+        &mut |r| {
+            n += 1;
+            if n > voxels + 2 + 3 {
+                return Err(ReflectError::Invalid("killed".into()));
+            }
+            r.write_state(&out_b)
+        },
+    );
+    assert!(killed.is_err());
+    let resumed = SolveResult::load(&out_b).unwrap();
+    let pending = resumed
+        .report
+        .pending
+        .clone()
+        .expect("an iteration in progress");
+    assert_eq!((pending.iteration, pending.done.len()), (2, 3));
+    assert_eq!(resumed.report.iterations.len(), 1);
+    let b = igi_reflect::solve(
+        resumed,
+        &photos,
+        None,
+        Some(&truth),
+        &opts,
+        &NoProgress,
+        &mut |r| r.write_state(&out_b),
+    )
+    .unwrap();
+    assert_eq!(b.report.iterations.len(), 2);
+    let mut worst = 0.0f32;
+    for (x, y) in a.rho.iter().flatten().zip(b.rho.iter().flatten()) {
+        worst = worst.max((*x - *y).abs().max_element());
+    }
+    assert!(
+        worst < 1e-5,
+        "resumed run differs from the uninterrupted one by {worst}"
+    );
+    assert_eq!(
+        a.report.iterations[1].observations,
+        b.report.iterations[1].observations
+    );
+
+    // 3. the result re-renders: its scene names the site's full-resolution levels
+    let scene_file = igi_reflect::result::load_result_scene(&out_b).unwrap();
+    let (scene, _) = igi_render::Scene::load(&scene_file).unwrap();
+    assert_eq!(scene.objects.len(), voxels + 1);
+}
