@@ -20,7 +20,9 @@ pub fn latlong_lookup(map: &HdrImage, d: Vec3) -> Option<[f32; 3]> {
     let y0 = y0f as usize;
     let y1 = (y0 + 1).min(h - 1);
     let mut out = [0.0f32; 3];
-    for (xx, yy, wt) in [(x0, y0, (1.0 - fx) * (1.0 - fy)), (x1, y0, fx * (1.0 - fy)), (x0, y1, (1.0 - fx) * fy), (x1, y1, fx * fy)] {
+    for (xx, yy, wt) in
+        [(x0, y0, (1.0 - fx) * (1.0 - fy)), (x1, y0, fx * (1.0 - fy)), (x0, y1, (1.0 - fx) * fy), (x1, y1, fx * fy)]
+    {
         if wt <= 0.0 {
             continue;
         }
@@ -39,8 +41,13 @@ pub fn latlong_lookup(map: &HdrImage, d: Vec3) -> Option<[f32; 3]> {
 /// (polar) projection looking down from the zenith; image right is world +X, image up is
 /// world +Y, the zenith at the centre and the horizon on the inscribed circle. `None` outside.
 pub fn hemisphere_direction(x: usize, y: usize, size: usize) -> Option<Vec3> {
-    let a = (x as f32 + 0.5) / size as f32 * 2.0 - 1.0;
-    let b = 1.0 - (y as f32 + 0.5) / size as f32 * 2.0;
+    hemisphere_direction_at(x as f32, y as f32, size)
+}
+
+/// [`hemisphere_direction`] at continuous pixel coordinates (pixel centres at integers).
+pub fn hemisphere_direction_at(x: f32, y: f32, size: usize) -> Option<Vec3> {
+    let a = (x + 0.5) / size as f32 * 2.0 - 1.0;
+    let b = 1.0 - (y + 0.5) / size as f32 * 2.0;
     let r = (a * a + b * b).sqrt();
     if r > 1.0 {
         return None;

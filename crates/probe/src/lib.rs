@@ -18,16 +18,20 @@
 //!   direction from the sub-pixel centre of the black sphere's spot, reflected, and its
 //!   radiance from the per-channel least squares `D' + a D* = D` over the diffuse sphere;
 //!   the 2 % check of the final lighting against the diffuse sphere.
+//! * [`resample`]: area-preserving resampling of a sphere's photograph into direction maps
+//!   (box reconstruction of the pixels, solid-angle weighted, sub-directions at the pixel
+//!   grid's Nyquist rate).
 //! * [`synth`]: a forward renderer of board photographs from a known sky, for tests and benches.
 //!
 //! All radiance is linear `f32`; directions are in igi's world frame (Z up), obtained from the
 //! camera pose (board centres are given in the camera frame).
 
 pub mod board;
-mod error;
 pub mod envmap;
+mod error;
 pub mod fresnel;
 pub mod pipeline;
+pub mod resample;
 pub mod sphere;
 pub mod synth;
 

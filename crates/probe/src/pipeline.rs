@@ -2,10 +2,11 @@
 
 use crate::board::{Board, SphereKind};
 use crate::envmap::{self, Integrator};
+use crate::resample::{self, Reflector};
 use crate::sphere::{reflect, SphereView};
 use crate::ProbeError;
 use glam::{DVec2, DVec3, Vec3};
-use igi_imaging::{latlong, Camera, HdrImage};
+use igi_imaging::{Camera, HdrImage};
 use rayon::prelude::*;
 
 /// Tunable parameters of [`process`].
@@ -15,7 +16,8 @@ pub struct ProbeOptions {
     pub map_width: usize,
     /// Side of the upper-hemisphere pictures.
     pub hemi_size: usize,
-    /// Each sky texel averages `n` x `n` sub-directions (area sampling of the sphere image).
+    /// Each map texel averages at least `n` x `n` sub-directions, more where its footprint in
+    /// the photograph is larger (two per pixel, up to [`resample::MAX_SUBSAMPLES`]; see [`resample`]).
     pub map_supersample: usize,
     /// Width of the lat-long map integrated for the diffuse convolution (divides `map_width`).
     pub conv_width: usize,
@@ -157,76 +159,6 @@ fn median(v: &mut [f64]) -> f64 {
     v[v.len() / 2]
 }
 
-/// Unwarp a reflective sphere: value of direction `w` = pixel / reflectance, or `None` where the
-/// sphere cannot see `w`, near the camera's reflection, or where the image is invalid.
-fn reflected_radiance(
-    img: &HdrImage,
-    view: &SphereView,
-    w: DVec3,
-    refl: &dyn Fn(f64) -> [f64; 3],
-    min_cos: f64,
-    cam_cos: f64,
-) -> Option<[f32; 3]> {
-    if w.dot(view.to_eye()) > cam_cos {
-        return None;
-    }
-    let rp = view.reflection_point(w)?;
-    if rp.cos_i < min_cos {
-        return None;
-    }
-    let v = img.bilinear(rp.pixel.x as f32, rp.pixel.y as f32)?;
-    let r = refl(rp.cos_i);
-    Some([(v[0] as f64 / r[0]) as f32, (v[1] as f64 / r[1]) as f32, (v[2] as f64 / r[2]) as f32])
-}
-
-fn unwarp_latlong(
-    img: &HdrImage,
-    view: &SphereView,
-    refl: &(dyn Fn(f64) -> [f64; 3] + Sync),
-    w: usize,
-    ss: usize,
-    min_cos: f64,
-    cam_cos: f64,
-) -> HdrImage {
-    let h = w / 2;
-    let ss = ss.max(1);
-    // each texel: the mean of ss x ss sub-directions (an area average, not a point sample);
-    // valid only if every sub-direction is
-    let rows: Vec<Vec<Option<[f32; 3]>>> = (0..h)
-        .into_par_iter()
-        .map(|i| {
-            (0..w)
-                .map(|j| {
-                    let mut acc = [0.0f64; 3];
-                    for sy in 0..ss {
-                        for sx in 0..ss {
-                            let u = (j as f32 + (sx as f32 + 0.5) / ss as f32) / w as f32;
-                            let v = (i as f32 + (sy as f32 + 0.5) / ss as f32) / h as f32;
-                            let d = latlong::uv_to_direction(u, v).as_dvec3().normalize();
-                            let p = reflected_radiance(img, view, d, refl, min_cos, cam_cos)?;
-                            for c in 0..3 {
-                                acc[c] += p[c] as f64;
-                            }
-                        }
-                    }
-                    Some(acc.map(|v| (v / (ss * ss) as f64) as f32))
-                })
-                .collect()
-        })
-        .collect();
-    let mut out = HdrImage::new(w, h);
-    for (i, row) in rows.into_iter().enumerate() {
-        for (j, v) in row.into_iter().enumerate() {
-            let k = i * w + j;
-            match v {
-                Some(p) => out.pixels[k] = p,
-                None => out.valid[k] = false,
-            }
-        }
-    }
-    out
-}
-
 fn hemisphere_map(size: usize, f: &(dyn Fn(DVec3) -> Option<[f32; 3]> + Sync)) -> HdrImage {
     let rows: Vec<Vec<Option<[f32; 3]>>> = (0..size)
         .into_par_iter()
@@ -254,7 +186,12 @@ fn sphere_saturated(img: &HdrImage, px: &[SpherePixel]) -> Vec<usize> {
 }
 
 /// Process one board photograph.
-pub fn process(image: &HdrImage, camera: &Camera, board: &Board, opt: &ProbeOptions) -> Result<ProbeResult, ProbeError> {
+pub fn process(
+    image: &HdrImage,
+    camera: &Camera,
+    board: &Board,
+    opt: &ProbeOptions,
+) -> Result<ProbeResult, ProbeError> {
     if image.width != camera.width as usize || image.height != camera.height as usize {
         return Err(ProbeError::InvalidInput(format!(
             "the image is {}x{} but the camera is {}x{}",
@@ -310,10 +247,8 @@ pub fn process(image: &HdrImage, camera: &Camera, board: &Board, opt: &ProbeOpti
     let spot_refl: &dyn Fn(f64) -> [f64; 3] = if black.is_some() { &black_refl } else { &mirror_refl };
     let spot_px = if black.is_some() { sphere_pixels(spot_view, min_cos) } else { mirror_px.clone() };
     let spot_sat = sphere_saturated(&img, &spot_px);
-    let spot_val: Vec<f64> = spot_px
-        .iter()
-        .map(|p| luminance(img.pixels[p.y * img.width + p.x]) / spot_refl(p.cos_i)[1])
-        .collect();
+    let spot_val: Vec<f64> =
+        spot_px.iter().map(|p| luminance(img.pixels[p.y * img.width + p.x]) / spot_refl(p.cos_i)[1]).collect();
     let mut valid_vals: Vec<f64> =
         spot_px.iter().zip(&spot_val).filter(|(p, _)| img.valid[p.y * img.width + p.x]).map(|(_, v)| *v).collect();
     let med = median(&mut valid_vals);
@@ -326,7 +261,8 @@ pub fn process(image: &HdrImage, camera: &Camera, board: &Board, opt: &ProbeOpti
     }
     let peak_ratio = if med > 0.0 { Some(peak_v / med) } else { None };
     let black_sat_count = if black.is_some() { spot_sat.len() } else { 0 };
-    let sun_found = !mirror_sat.is_empty() || !spot_sat.is_empty() || peak_ratio.is_some_and(|r| r > opt.sun_peak_ratio);
+    let sun_found =
+        !mirror_sat.is_empty() || !spot_sat.is_empty() || peak_ratio.is_some_and(|r| r > opt.sun_peak_ratio);
     let decision = format!(
         "{} saturated mirror pixels, {} saturated {} pixels, brightest spot {} x median (threshold {}) -> sun {}",
         mirror_sat.len(),
@@ -391,7 +327,10 @@ pub fn process(image: &HdrImage, camera: &Camera, board: &Board, opt: &ProbeOpti
     // ---- mirror: mask the sun's neighbourhood (its light goes into the disk) and unwarp
     let solve_sun = sun_dir.is_some() && diffuse.is_some();
     if sun_dir.is_some() && diffuse.is_none() {
-        warnings.push("sun visible but the board has no diffuse sphere: its radiance cannot be solved, it stays in the map".into());
+        warnings.push(
+            "sun visible but the board has no diffuse sphere: its radiance cannot be solved, it stays in the map"
+                .into(),
+        );
     }
     let mut mirror_img = img.clone();
     let mut mirror_pixel = None;
@@ -410,15 +349,18 @@ pub fn process(image: &HdrImage, camera: &Camera, board: &Board, opt: &ProbeOpti
             }
         }
     }
-    let sky_measured = unwarp_latlong(&mirror_img, &mirror, &mirror_refl, opt.map_width, opt.map_supersample, min_cos, cam_cos);
+    let (mw, ms) = (opt.map_width, opt.map_supersample);
+    let mirror_reader = Reflector { img: &mirror_img, view: &mirror, refl: &mirror_refl, min_cos, cam_cos };
+    let sky_measured = resample::resample(&mirror_reader, &resample::latlong_layout(mw, mw / 2), mw, mw / 2, ms);
     let mut sky = sky_measured.clone();
     envmap::fill_invalid_latlong(&mut sky);
     sky.valid.iter_mut().for_each(|v| *v = true);
-    let mirror_hemi =
-        hemisphere_map(opt.hemi_size, &|d| reflected_radiance(&mirror_img, &mirror, d, &mirror_refl, min_cos, cam_cos));
-    let black_hemi = black
-        .as_ref()
-        .map(|b| hemisphere_map(opt.hemi_size, &|d| reflected_radiance(&img, b, d, &black_refl, min_cos, cam_cos)));
+    let hemi = resample::hemisphere_layout(opt.hemi_size);
+    let mirror_hemi = resample::resample(&mirror_reader, &hemi, opt.hemi_size, opt.hemi_size, ms);
+    let black_hemi = black.as_ref().map(|b| {
+        let reader = Reflector { img: &img, view: b, refl: &black_refl, min_cos, cam_cos };
+        resample::resample(&reader, &hemi, opt.hemi_size, opt.hemi_size, ms)
+    });
 
     // ---- diffuse sphere: D, D', D*, the sun's radiance, the check
     let mut sun_radiance = None;
@@ -452,11 +394,8 @@ pub fn process(image: &HdrImage, camera: &Camera, board: &Board, opt: &ProbeOpti
         let normals: Vec<Vec3> = good.iter().map(|p| to_v3(p.normal)).collect();
         let conv = envmap::downsample_latlong(&sky, opt.map_width / opt.conv_width);
         let integ = Integrator::new(&conv);
-        let d_prime: Vec<[f64; 3]> = integ
-            .irradiance_many(&normals)
-            .into_iter()
-            .map(|e| e.map(|v| v as f64 / std::f64::consts::PI))
-            .collect();
+        let d_prime: Vec<[f64; 3]> =
+            integ.irradiance_many(&normals).into_iter().map(|e| e.map(|v| v as f64 / std::f64::consts::PI)).collect();
         let mut a = [0.0f64; 3];
         let d_star: Vec<f64> = match (solve_sun, sun_dir) {
             (true, Some(s)) => {
@@ -471,7 +410,8 @@ pub fn process(image: &HdrImage, camera: &Camera, board: &Board, opt: &ProbeOpti
                 warnings.push("the sun lights no visible part of the diffuse sphere: radiance not solvable".into());
             } else {
                 for c in 0..3 {
-                    let num: f64 = d_star.iter().zip(&d_meas).zip(&d_prime).map(|((s, d), dp)| s * (d[c] - dp[c])).sum();
+                    let num: f64 =
+                        d_star.iter().zip(&d_meas).zip(&d_prime).map(|((s, d), dp)| s * (d[c] - dp[c])).sum();
                     a[c] = num / ss;
                     if a[c] < 0.0 {
                         warnings.push(format!("negative sun radiance in channel {c} ({:.3e}) clamped to 0", a[c]));

@@ -64,27 +64,48 @@ impl<'a> SphereView<'a> {
     }
 
     /// The point whose mirror reflection of the camera ray leaves along unit direction `w`
-    /// (the half vector of `w` and the direction to the eye, solved by fixed-point iteration,
-    /// exact for a camera at finite distance). `None` in the blind spot straight behind.
+    /// (exact for a camera at finite distance, not the orthographic approximation). `None` in
+    /// the blind spot straight behind.
+    ///
+    /// The normal lies in the plane of the eye, the centre and `w`; with `e1` toward the eye and
+    /// `e2` toward `w` in that plane, `n = (cos a, sin a)` must bisect `w` (at angle `psi_w`)
+    /// and the direction to the eye from the surface point (at angle `psi_v(a)`): `g(a) = 2a -
+    /// psi_w - psi_v(a) = 0`. `g' = 2 - psi_v' >= 1 + D/(D + r) > 1`, so `g` is monotone and
+    /// Newton's method from the orthographic answer `psi_w / 2` converges in a few steps.
     pub fn reflection_point(&self, w: DVec3) -> Option<ReflectionPoint> {
-        let mut v = self.to_eye();
-        let mut n = DVec3::ZERO;
-        for _ in 0..40 {
-            let h = w + v;
-            let len = h.length();
-            if len < 1e-9 {
+        let e = self.eye - self.center;
+        let dist = e.length();
+        let e1 = e / dist;
+        let w = w.normalize();
+        let wa = w.dot(e1);
+        let wp = w - wa * e1;
+        let wb = wp.length();
+        let r = self.radius;
+        let n = if wb < 1e-12 {
+            if wa <= 0.0 {
                 return None;
             }
-            let n_new = h / len;
-            let p = self.center + self.radius * n_new;
-            v = (self.eye - p).normalize();
-            let done = n_new.distance_squared(n) < 1e-24;
-            n = n_new;
-            if done {
-                break;
+            e1
+        } else {
+            let e2 = wp / wb;
+            let psi_w = wb.atan2(wa);
+            let psi_v = |a: f64| (-r * a.sin()).atan2(dist - r * a.cos());
+            let mut a = 0.5 * psi_w;
+            for _ in 0..30 {
+                let c = a.cos();
+                let g = 2.0 * a - psi_w - psi_v(a);
+                let dpsi = r * (r - dist * c) / (dist * dist - 2.0 * r * dist * c + r * r);
+                let step = g / (2.0 - dpsi);
+                a -= step;
+                if step.abs() < 1e-14 {
+                    break;
+                }
             }
-        }
+            let (s, c) = a.sin_cos();
+            c * e1 + s * e2
+        };
         let point = self.center + self.radius * n;
+        let v = (self.eye - point).normalize();
         let cos_i = n.dot(v);
         if !(cos_i > 0.0) {
             return None;
@@ -183,7 +204,9 @@ mod tests {
         let mut checked = 0;
         for y in (60..200).step_by(7) {
             for x in (0..130).step_by(7) {
-                let Some((_, n, d)) = view.hit_pixel(x as f64, y as f64) else { continue };
+                let Some((_, n, d)) = view.hit_pixel(x as f64, y as f64) else {
+                    continue;
+                };
                 if n.dot(-d) < 0.2 {
                     continue;
                 }
