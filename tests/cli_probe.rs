@@ -115,3 +115,46 @@ fn probe_bad_input_is_a_clear_error() {
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && e.contains("2 brackets but 1 exposure times"), "{e}");
 }
+
+/// `igi probe calibrate-mirror`: reflectance-versus-angle samples of a sphere with a known
+/// complex index (not the default steel), with +-0.2 % deterministic noise, give that index back.
+#[test]
+fn probe_calibrate_mirror_fits_a_known_index() {
+    let truth = [(1.9, 3.4), (2.6, 3.1), (3.0, 2.5)];
+    let tmp = tempfile::tempdir().unwrap();
+    let csv = tmp.path().join("steel.csv");
+    let mut text = String::from("angle_deg,r,g,b\n");
+    for i in 0..36 {
+        let a = 2.4 * i as f64;
+        let noise = 0.002 * ((i * 7 % 5) as f64 - 2.0) / 2.0;
+        let r = truth.map(|(n, k)| igi_probe::fresnel::conductor(a.to_radians().cos(), n, k) * (1.0 + noise));
+        text.push_str(&format!("{a},{},{},{}\n", r[0], r[1], r[2]));
+    }
+    std::fs::write(&csv, text).unwrap();
+    let out = tmp.path().join("ior.json");
+    let o = igi(&["probe", "calibrate-mirror", s(&csv), "-o", s(&out)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // stdout is the board file's entry, ready to paste
+    let line = String::from_utf8_lossy(&o.stdout).trim().to_string();
+    let printed: serde_json::Value = serde_json::from_str(&format!("{{{line}}}")).unwrap();
+    let j: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    for c in 0..3 {
+        let (n, k) = (j["ior"][c][0].as_f64().unwrap(), j["ior"][c][1].as_f64().unwrap());
+        assert!(
+            (n - truth[c].0).abs() < 0.05 && (k - truth[c].1).abs() < 0.05,
+            "channel {c}: {n} + {k}i vs {:?}",
+            truth[c]
+        );
+        assert!((printed["ior"][c][0].as_f64().unwrap() - n).abs() < 1e-4);
+        assert!(j["rms"][c].as_f64().unwrap() < 2e-3);
+    }
+    // the written entry is accepted by a board file
+    let board = format!(r#"{{"spheres":[{{"kind":"mirror","center":[0,0,1],"radius":0.1,"ior":{}}}]}}"#, j["ior"]);
+    let b = igi_probe::Board::from_json_str(&board, Path::new("b.json")).unwrap();
+    assert!((b.mirror_ior[1].0 - j["ior"][1][0].as_f64().unwrap()).abs() < 1e-12);
+    // bad samples: a clear error naming the file and the line
+    std::fs::write(&csv, "angle_deg,r,g,b\n10,0.5,0.5,0.5\n20,0.5,1.7,0.5\n30,0.5,0.5,0.5\n").unwrap();
+    let o = igi(&["probe", "calibrate-mirror", s(&csv)]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && e.contains("steel.csv") && e.contains("line 3"), "{e}");
+}

@@ -5,12 +5,16 @@ use igi_imaging::hdr::{merge_linear, parse_time, LinearParams};
 use igi_imaging::io::{srgb_to_linear, write_text_atomic};
 use igi_imaging::{read_image, write_exr, write_png_tonemapped, Camera, HdrImage, ImagingError};
 use igi_probe::envmap::hemisphere_pixel;
+use igi_probe::fresnel::{fit_mirror_ior, ReflectanceSamples};
 use igi_probe::pipeline::luminance;
 use igi_probe::{process, Board, ProbeOptions, ProbeResult};
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
 pub struct ProbeArgs {
+    #[command(subcommand)]
+    pub action: Option<ProbeAction>,
     /// Board photograph: linear HDR (.exr, .hdr) or a single LDR image (clipped values masked).
     #[arg(required_unless_present = "brackets")]
     pub image: Option<PathBuf>,
@@ -21,14 +25,15 @@ pub struct ProbeArgs {
     #[arg(long, num_args = 1..)]
     pub times: Vec<String>,
     /// Camera file (JSON, OpenCV model) of the board photograph.
-    #[arg(long)]
-    pub camera: PathBuf,
-    /// Board file (JSON, FORMATS.md): sphere kinds, centres and radii in the camera frame.
-    #[arg(long)]
-    pub board: PathBuf,
+    #[arg(long, required = true)]
+    pub camera: Option<PathBuf>,
+    /// Board file (JSON, FORMATS.md): sphere kinds, centres and radii in the camera frame, or
+    /// (with the opencv feature) fiducials and centres in the board frame (docs/PROBE.md).
+    #[arg(long, required = true)]
+    pub board: Option<PathBuf>,
     /// Output lighting file (TOML). The sky map, diagnostics and pictures go beside it.
-    #[arg(short, long)]
-    pub output: PathBuf,
+    #[arg(short, long, required = true)]
+    pub output: Option<PathBuf>,
     /// Decode sRGB-encoded 8-bit inputs (JPEG photographs) to linear before merging.
     #[arg(long)]
     pub srgb: bool,
@@ -48,6 +53,49 @@ pub struct ProbeArgs {
     /// Largest incidence angle used on the mirror and black spheres, degrees.
     #[arg(long, default_value_t = 72.0)]
     pub max_incidence_deg: f64,
+}
+
+#[derive(clap::Subcommand, Debug)]
+pub enum ProbeAction {
+    /// Fit the mirror sphere's complex index n + ik per channel (Levenberg-Marquardt) to
+    /// reflectance-versus-angle samples; prints the board file's "ior" entry.
+    CalibrateMirror(CalibrateMirrorArgs),
+}
+
+#[derive(clap::Args, Debug)]
+pub struct CalibrateMirrorArgs {
+    /// Samples (CSV with the header angle_deg,r,g,b): incidence angle in degrees and the
+    /// measured reflectance (0-1) per channel.
+    pub samples: PathBuf,
+    /// Also write the fit as JSON: {"ior": [[n_r, k_r], [n_g, k_g], [n_b, k_b]], "rms": [...], ...}.
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+}
+
+fn calibrate_mirror(a: CalibrateMirrorArgs) -> anyhow::Result<()> {
+    let samples = ReflectanceSamples::load(&a.samples)?;
+    let fits =
+        fit_mirror_ior(&samples).with_context(|| format!("fitting the complex index to {}", a.samples.display()))?;
+    let ior = fits.map(|f| [f.n, f.k]);
+    let json = serde_json::json!({
+        "ior": ior,
+        "rms": fits.map(|f| f.rms),
+        "normal_incidence_reflectance": fits.map(|f| igi_probe::fresnel::conductor(1.0, f.n, f.k)),
+        "samples": samples.angle_deg.len(),
+        "source": a.samples.display().to_string(),
+    });
+    println!("\"ior\": [{}]", ior.iter().map(|[n, k]| format!("[{n:.4}, {k:.4}]")).collect::<Vec<_>>().join(", "));
+    eprintln!(
+        "calibrate-mirror: {} samples, RMS residual {:.2e} {:.2e} {:.2e} (R, G, B)",
+        samples.angle_deg.len(),
+        fits[0].rms,
+        fits[1].rms,
+        fits[2].rms
+    );
+    if let Some(out) = &a.output {
+        write_text_atomic(out, &serde_json::to_string_pretty(&json)?)?;
+    }
+    Ok(())
 }
 
 fn is_ldr(p: &Path) -> bool {
@@ -76,7 +124,11 @@ fn auto_exposure(img: &HdrImage) -> f32 {
     }
     l.sort_by(|a, b| a.total_cmp(b));
     let m = l[l.len() / 2];
-    if m > 0.0 && m.is_finite() { (0.18 / m) as f32 } else { 1.0 }
+    if m > 0.0 && m.is_finite() {
+        (0.18 / m) as f32
+    } else {
+        1.0
+    }
 }
 
 /// Tone-mapped picture; invalid (masked) pixels shown in dark magenta.
@@ -105,7 +157,11 @@ fn picture(path: &Path, img: &HdrImage, exposure: f32, mark: Option<(f32, f32)>)
 fn load_input(a: &ProbeArgs) -> anyhow::Result<(HdrImage, Option<f32>)> {
     if !a.brackets.is_empty() {
         if a.brackets.len() != a.times.len() {
-            bail!("{} brackets but {} exposure times (give one --times value per bracket)", a.brackets.len(), a.times.len());
+            bail!(
+                "{} brackets but {} exposure times (give one --times value per bracket)",
+                a.brackets.len(),
+                a.times.len()
+            );
         }
         let times: Vec<f64> = a.times.iter().map(|t| parse_time(t)).collect::<Result<_, _>>()?;
         let mut imgs = Vec::new();
@@ -118,7 +174,12 @@ fn load_input(a: &ProbeArgs) -> anyhow::Result<(HdrImage, Option<f32>)> {
         }
         let sat = a.saturation.unwrap_or(if a.srgb { srgb_to_linear(0.98) } else { 0.98 });
         let (merged, stats) = merge_linear(&imgs, &times, LinearParams { noise_floor: 0.002, saturation: sat })
-            .with_context(|| format!("merging brackets {}", a.brackets.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ")))?;
+            .with_context(|| {
+                format!(
+                    "merging brackets {}",
+                    a.brackets.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ")
+                )
+            })?;
         tracing::info!("merged {} brackets, {:.2}% of pixels valid", stats.exposures, 100.0 * stats.valid_fraction);
         Ok((merged, None))
     } else {
@@ -138,9 +199,15 @@ fn toml_array(v: &[f64]) -> String {
 }
 
 pub fn run(a: ProbeArgs, ctx: &Ctx) -> anyhow::Result<()> {
+    if let Some(ProbeAction::CalibrateMirror(c)) = a.action {
+        return calibrate_mirror(c);
+    }
+    let (Some(camera_path), Some(board_path), Some(output)) = (&a.camera, &a.board, &a.output) else {
+        bail!("igi probe needs --camera, --board and -o (or a subcommand)");
+    };
     let pb = ctx.progress(4, "probe");
-    let camera = Camera::load(&a.camera)?;
-    let board = Board::load(&a.board)?;
+    let camera = Camera::load(camera_path)?;
+    let board = Board::load(board_path)?;
     let (image, saturation) = load_input(&a)?;
     pb.inc(1);
     let opt = ProbeOptions {
@@ -152,11 +219,14 @@ pub fn run(a: ProbeArgs, ctx: &Ctx) -> anyhow::Result<()> {
         saturation: a.saturation.or(saturation),
         ..ProbeOptions::default()
     };
-    let opt = ProbeOptions { conv_width: if a.map_width % opt.conv_width == 0 { opt.conv_width } else { a.map_width }, ..opt };
+    let opt = ProbeOptions {
+        conv_width: if a.map_width % opt.conv_width == 0 { opt.conv_width } else { a.map_width },
+        ..opt
+    };
     let src = a.image.as_ref().or(a.brackets.first()).map(|p| p.display().to_string()).unwrap_or_default();
     let r = process(&image, &camera, &board, &opt).with_context(|| format!("processing the board photograph {src}"))?;
     pb.inc(1);
-    write_outputs(&a.output, &r)?;
+    write_outputs(output, &r)?;
     pb.inc(2);
     pb.finish_and_clear();
     let d = &r.diagnostics;
@@ -169,11 +239,13 @@ pub fn run(a: ProbeArgs, ctx: &Ctx) -> anyhow::Result<()> {
                 " at elevation {:.2} deg, azimuth {:.2} deg, radiance {}",
                 s.elevation_deg,
                 s.azimuth_deg,
-                s.radiance.map(|r| format!("{:.4e} {:.4e} {:.4e}", r[0], r[1], r[2])).unwrap_or_else(|| "unknown".into())
+                s.radiance
+                    .map(|r| format!("{:.4e} {:.4e} {:.4e}", r[0], r[1], r[2]))
+                    .unwrap_or_else(|| "unknown".into())
             ))
             .unwrap_or_default(),
         d.check_rms_percent.map(|c| format!("{c:.2}%")).unwrap_or_else(|| "n/a (no diffuse sphere)".into()),
-        a.output.display()
+        output.display()
     );
     for w in &d.warnings {
         eprintln!("warning: {w}");
@@ -203,7 +275,8 @@ fn write_outputs(out: &Path, r: &ProbeResult) -> anyhow::Result<()> {
     if let Some(d) = &r.diffuse_hemi {
         picture(&sibling(out, "diffuse_hemi.png"), d, auto_exposure(d), None)?;
     }
-    let ll_mark = sun_v.map(|s| igi_imaging::latlong::direction_to_pixel(s, r.sky_measured.width, r.sky_measured.height));
+    let ll_mark =
+        sun_v.map(|s| igi_imaging::latlong::direction_to_pixel(s, r.sky_measured.width, r.sky_measured.height));
     picture(&sibling(out, "sky.png"), &r.sky_measured, exp, ll_mark)?;
     if let Some((dm, model)) = &r.diffuse_compare {
         // D | D' + a D* | 10 x |difference|

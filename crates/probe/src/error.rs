@@ -17,6 +17,8 @@ pub enum ProbeError {
     OutsideImage { kind: String, width: u32, height: u32, x: f64, y: f64 },
     #[error("{kind} sphere is behind the camera or contains it (centre {center:?}, radius {radius})")]
     BadSphere { kind: String, center: [f64; 3], radius: f64 },
+    #[error("{}: invalid reflectance samples: {msg}", path.display())]
+    Samples { path: PathBuf, msg: String },
     #[error("invalid input: {0}")]
     InvalidInput(String),
     #[error("fit failed: {0}")]

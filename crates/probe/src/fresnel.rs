@@ -4,6 +4,7 @@
 use crate::ProbeError;
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{Complex, DVector, Dyn, OMatrix, Owned, Vector2, U2};
+use std::path::Path;
 
 /// Unpolarised Fresnel reflectance at incidence cosine `cos_i` of a medium with complex index
 /// `n + i k` seen from air (exact complex formula; `k = 0` gives a dielectric).
@@ -16,7 +17,11 @@ pub fn conductor(cos_i: f64, n: f64, k: f64) -> f64 {
     let rs = (ci_c - eta * ct) / (ci_c + eta * ct);
     let rp = (eta * ci_c - ct) / (eta * ci_c + ct);
     let r = 0.5 * (rs.norm_sqr() + rp.norm_sqr());
-    if r.is_finite() { r.clamp(0.0, 1.0) } else { 1.0 }
+    if r.is_finite() {
+        r.clamp(0.0, 1.0)
+    } else {
+        1.0
+    }
 }
 
 /// Unpolarised Fresnel reflectance of a dielectric of index `eta` seen from air.
@@ -85,11 +90,13 @@ pub fn fit_complex_ior(samples: &[(f64, f64)], init: (f64, f64)) -> Result<IorFi
     if samples.len() < 3 {
         return Err(ProbeError::Fit(format!("need at least 3 reflectance samples, got {}", samples.len())));
     }
-    if let Some(s) = samples
-        .iter()
-        .find(|(t, r)| !(t.is_finite() && r.is_finite() && *t >= 0.0 && *t < std::f64::consts::FRAC_PI_2 && (0.0..=1.0).contains(r)))
-    {
-        return Err(ProbeError::Fit(format!("bad sample (angle {} rad, reflectance {}): want angle in [0, pi/2) and reflectance in [0, 1]", s.0, s.1)));
+    if let Some(s) = samples.iter().find(|(t, r)| {
+        !(t.is_finite() && r.is_finite() && *t >= 0.0 && *t < std::f64::consts::FRAC_PI_2 && (0.0..=1.0).contains(r))
+    }) {
+        return Err(ProbeError::Fit(format!(
+            "bad sample (angle {} rad, reflectance {}): want angle in [0, pi/2) and reflectance in [0, 1]",
+            s.0, s.1
+        )));
     }
     let problem = IorProblem { samples, p: Vector2::new(init.0, init.1) };
     let (problem, report) = LevenbergMarquardt::new().minimize(problem);
@@ -99,6 +106,68 @@ pub fn fit_complex_ior(samples: &[(f64, f64)], init: (f64, f64)) -> Result<IorFi
     let p = problem.p;
     let rms = (problem.res_at(&p).norm_squared() / samples.len() as f64).sqrt();
     Ok(IorFit { n: p[0], k: p[1].abs(), rms, evaluations: report.number_of_evaluations })
+}
+
+/// Reflectance-versus-angle samples of one sphere: incidence angle in degrees and the measured
+/// reflectance per channel (a CSV file with the header `angle_deg,r,g,b`, columns in any order).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ReflectanceSamples {
+    pub angle_deg: Vec<f64>,
+    pub rgb: Vec<[f64; 3]>,
+}
+
+impl ReflectanceSamples {
+    pub fn load(path: &Path) -> Result<Self, ProbeError> {
+        let text = std::fs::read_to_string(path).map_err(|e| ProbeError::Io { path: path.to_path_buf(), source: e })?;
+        Self::from_csv_str(&text).map_err(|msg| ProbeError::Samples { path: path.to_path_buf(), msg })
+    }
+
+    /// Parse the CSV text; blank lines and lines starting with `#` are skipped.
+    pub fn from_csv_str(text: &str) -> Result<Self, String> {
+        let mut lines =
+            text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
+        let (_, header) = lines.next().ok_or("empty file (want the header angle_deg,r,g,b)")?;
+        let names: Vec<&str> = header.split(',').map(str::trim).collect();
+        let col = |n: &str| {
+            names
+                .iter()
+                .position(|h| h.eq_ignore_ascii_case(n))
+                .ok_or(format!("the header '{header}' has no column '{n}' (want angle_deg,r,g,b)"))
+        };
+        let cols = [col("angle_deg")?, col("r")?, col("g")?, col("b")?];
+        let mut out = ReflectanceSamples { angle_deg: Vec::new(), rgb: Vec::new() };
+        for (i, line) in lines {
+            let f: Vec<&str> = line.split(',').map(str::trim).collect();
+            let v = cols.map(|c| f.get(c).and_then(|s| s.parse::<f64>().ok()));
+            let [Some(a), Some(r), Some(g), Some(b)] = v else {
+                return Err(format!("line {}: want {} numbers, got '{line}'", i + 1, names.len()));
+            };
+            if !(a.is_finite() && (0.0..90.0).contains(&a)) {
+                return Err(format!("line {}: angle {a} degrees is not in [0, 90)", i + 1));
+            }
+            if [r, g, b].iter().any(|x| !(x.is_finite() && (0.0..=1.0).contains(x))) {
+                return Err(format!("line {}: reflectance ({r}, {g}, {b}) is not in [0, 1]", i + 1));
+            }
+            out.angle_deg.push(a);
+            out.rgb.push([r, g, b]);
+        }
+        if out.angle_deg.len() < 3 {
+            return Err(format!("{} samples; the fit needs at least 3", out.angle_deg.len()));
+        }
+        Ok(out)
+    }
+}
+
+/// Fit the mirror sphere's complex index per channel ([`fit_complex_ior`], started from the
+/// default steel index [`crate::board::MIRROR_IOR`]).
+pub fn fit_mirror_ior(samples: &ReflectanceSamples) -> Result<[IorFit; 3], ProbeError> {
+    let mut fits = Vec::with_capacity(3);
+    for c in 0..3 {
+        let s: Vec<(f64, f64)> =
+            samples.angle_deg.iter().zip(&samples.rgb).map(|(a, v)| (a.to_radians(), v[c])).collect();
+        fits.push(fit_complex_ior(&s, crate::board::MIRROR_IOR[c])?);
+    }
+    Ok([fits[0], fits[1], fits[2]])
 }
 
 #[cfg(test)]
@@ -155,5 +224,36 @@ mod tests {
         assert!(fit_complex_ior(&[(0.1, 0.5), (0.2, 0.5)], (2.0, 3.0)).is_err());
         assert!(fit_complex_ior(&[(0.1, 0.5), (0.2, f64::NAN), (0.3, 0.5)], (2.0, 3.0)).is_err());
         assert!(fit_complex_ior(&[(0.1, 0.5), (0.2, 1.5), (0.3, 0.5)], (2.0, 3.0)).is_err());
+    }
+
+    #[test]
+    fn reflectance_csv_parses_and_fits_per_channel() {
+        let truth = [(2.1, 3.3), (2.4, 3.02), (2.9, 2.6)];
+        let mut csv = String::from("# steel sphere\nr,angle_deg,g,b\n");
+        for i in 0..30 {
+            let a = 2.5 * i as f64;
+            let r = truth.map(|(n, k)| conductor(a.to_radians().cos(), n, k));
+            csv.push_str(&format!("{},{a},{},{}\n", r[0], r[1], r[2]));
+        }
+        let s = ReflectanceSamples::from_csv_str(&csv).unwrap();
+        assert_eq!(s.angle_deg.len(), 30);
+        let fits = fit_mirror_ior(&s).unwrap();
+        for c in 0..3 {
+            assert!(
+                (fits[c].n - truth[c].0).abs() < 1e-4 && (fits[c].k - truth[c].1).abs() < 1e-4,
+                "{c}: {:?}",
+                fits[c]
+            );
+        }
+        for (bad, want) in [
+            ("angle,r,g,b\n1,0.5,0.5,0.5\n", "no column 'angle_deg'"),
+            ("angle_deg,r,g,b\n1,0.5,0.5\n", "line 2"),
+            ("angle_deg,r,g,b\n95,0.5,0.5,0.5\n", "not in [0, 90)"),
+            ("angle_deg,r,g,b\n5,0.5,1.5,0.5\n", "not in [0, 1]"),
+            ("angle_deg,r,g,b\n5,0.5,0.5,0.5\n", "at least 3"),
+        ] {
+            let e = ReflectanceSamples::from_csv_str(bad).unwrap_err();
+            assert!(e.contains(want), "{e}");
+        }
     }
 }
