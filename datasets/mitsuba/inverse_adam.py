@@ -13,6 +13,10 @@ igi side: `igi solve` with the same photographs, run one iteration at a time (ea
 previous one; `report.json`'s cumulative_s is the solve time) plus the first run's set-up (atlas
 building, photo loading), followed by `igi sample` after every iteration.
 
+Timing: wall seconds and CPU seconds (user + system of all threads: Mitsuba's process, igi's
+child processes), since the machine is shared; "the same albedo RMSE" is igi's final one, or
+Mitsuba's best if Mitsuba never reaches it.
+
 Fair error measure: both methods are evaluated at the SAME surface points: N points drawn
 uniformly by area on the faces of the site (2 cm away from face edges) that at least two survey
 cameras see (in the image, unoccluded, view more frontal than 84 degrees). Mitsuba's albedo there
@@ -21,7 +25,7 @@ truth texture's lookup. The error is the RMS over points and channels (and the p
 
 Usage:
     cargo build --release --bin igi
-    python3 datasets/mitsuba/inverse_adam.py [--survey datasets/fixtures/survey] [--iterations 100]
+    python3 datasets/mitsuba/inverse_adam.py [--survey datasets/fixtures/survey] [--iterations 80]
         [--spp 8] [--lr 0.03] [--igi target/release/igi] [--atlas 128] [--out DIR]
 Writes DIR/inverse_comparison.json (default /tmp/igi-inverse-compare) and prints a Markdown table.
 """
@@ -30,6 +34,7 @@ import argparse
 import csv
 import json
 import os
+import resource
 import subprocess
 import sys
 import time
@@ -160,7 +165,7 @@ def run_adam(photos, uvs, names, truth, args, work):
         opt[nm] = scenes[0][1][k]
     setup_s = time.perf_counter() - t_setup
     rows = []
-    elapsed = 0.0
+    elapsed, cpu = 0.0, 0.0
 
     def record(it):
         vals = np.zeros((len(names), 3))
@@ -168,13 +173,13 @@ def run_adam(photos, uvs, names, truth, args, work):
             sel = names == nm
             vals[sel] = bilinear_repeat(np.array(opt[nm]), uvs[sel])
         rms, mae = errors(vals, truth)
-        rows.append({"iteration": it, "seconds": elapsed, "rmse": rms, "mae": mae})
+        rows.append({"iteration": it, "seconds": elapsed, "cpu_seconds": cpu, "rmse": rms, "mae": mae})
         return rms
 
     record(0)
     print(f"mitsuba adam: set-up {setup_s:.1f} s; start RMSE {rows[0]['rmse']:.4f}", flush=True)
     for it in range(1, args.iterations + 1):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         for k, (sc, params, target) in enumerate(scenes):
             for nm, key in keys.items():
                 params[key] = opt[nm]
@@ -193,13 +198,19 @@ def run_adam(photos, uvs, names, truth, args, work):
             opt[nm] = dr.clip(opt[nm], 0.0, 1.0)
         dr.eval(*[opt[nm] for nm in res])
         elapsed += time.perf_counter() - t0
+        cpu += time.process_time() - c0
         rms = record(it)
         if it % 10 == 0 or it <= 5:
-            print(f"mitsuba adam iteration {it}: {elapsed:.1f} s, RMSE {rms:.4f}", flush=True)
+            print(f"mitsuba adam iteration {it}: {elapsed:.1f} s, CPU {cpu:.1f} s, RMSE {rms:.4f}", flush=True)
     return {"setup_seconds": setup_s, "rows": rows}
 
 
 # ----------------------------------------------------------------------------- igi
+def children_cpu():
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
 def run_igi(points, nrms, truth, args, work):
     pts_csv = os.path.join(work, "points.csv")
     with open(pts_csv, "w", newline="") as f:
@@ -208,16 +219,17 @@ def run_igi(points, nrms, truth, args, work):
         for p, n in zip(points, nrms):
             wr.writerow([repr(float(x)) for x in (*p, *n)])
     res = os.path.join(work, "igi_result")
-    rows, first_overhead = [], None
+    rows, first_overhead, cpu = [], None, 0.0
     spp = args.igi_spp.split(",")
     for it in range(1, args.igi_iterations + 1):
         cmd = [args.igi, "solve", SURVEY, "-o", res, "--atlas", str(args.atlas), "--spp", args.igi_spp,
                "--iterations", str(it), "--tolerance", "0", "--quiet", "--json"]
         if it == 1:
             cmd.append("--restart")
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), children_cpu()
         out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
         wall = time.perf_counter() - t0
+        cpu += children_cpu() - c0
         rep = json.loads(out)
         cum = rep["iterations"][-1]["cumulative_s"]
         if it == 1:
@@ -227,21 +239,21 @@ def run_igi(points, nrms, truth, args, work):
         vals = np.loadtxt(vals_csv, delimiter=",", skiprows=1)[:, 6:9]
         rms, mae = errors(vals, truth)
         rows.append({"iteration": it, "spp": int(spp[min(it - 1, len(spp) - 1)]), "solve_seconds": cum,
-                     "seconds": cum + first_overhead, "rmse": rms, "mae": mae,
+                     "seconds": cum + first_overhead, "cpu_seconds": cpu, "rmse": rms, "mae": mae,
                      "report_truth_rms": rep["iterations"][-1]["truth_rms"]})
-        print(f"igi iteration {it}: {cum + first_overhead:.1f} s (solve {cum:.1f} s), RMSE {rms:.4f}", flush=True)
+        print(f"igi iteration {it}: {cum + first_overhead:.1f} s (solve {cum:.1f} s), CPU {cpu:.1f} s, RMSE {rms:.4f}", flush=True)
     return {"setup_seconds": first_overhead, "rows": rows}
 
 
-def time_to(rows, target):
+def time_to(rows, target, key="seconds"):
     """Time of the first row at or below target (linear interpolation in time between rows)."""
     prev = None
     for r in rows:
         if r["rmse"] <= target:
             if prev is None or prev["rmse"] == r["rmse"]:
-                return r["seconds"]
+                return r[key]
             f = (prev["rmse"] - target) / (prev["rmse"] - r["rmse"])
-            return prev["seconds"] + f * (r["seconds"] - prev["seconds"])
+            return prev[key] + f * (r[key] - prev[key])
         prev = r
     return None
 
@@ -255,7 +267,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--survey", default=os.path.join(ROOT, "datasets", "fixtures", "survey"))
     ap.add_argument("--out", default="/tmp/igi-inverse-compare")
-    ap.add_argument("--iterations", type=int, default=100, help="Adam steps (each a sweep over all photos)")
+    ap.add_argument("--iterations", type=int, default=80, help="Adam steps (each a sweep over all photos)")
     ap.add_argument("--spp", type=int, default=8, help="prb samples per pixel per photo and step")
     ap.add_argument("--lr", type=float, default=0.03)
     ap.add_argument("--decay-start", type=int, default=15, help="Adam steps at the full learning rate")
@@ -286,8 +298,11 @@ def main():
     adam_best = min(r["rmse"] for r in adam["rows"])
     target = max(igi_final, adam_best)
     t_igi, t_adam = time_to(igi["rows"], target), time_to(adam["rows"], target)
+    c_igi, c_adam = time_to(igi["rows"], target, "cpu_seconds"), time_to(adam["rows"], target, "cpu_seconds")
     summary = {"target_rmse": target, "igi_seconds": t_igi, "adam_seconds": t_adam,
                "speedup": (t_adam / t_igi) if (t_igi and t_adam) else None,
+               "igi_cpu_seconds": c_igi, "adam_cpu_seconds": c_adam,
+               "cpu_speedup": (c_adam / c_igi) if (c_igi and c_adam) else None,
                "igi_final_rmse": igi_final, "adam_best_rmse": adam_best,
                "adam_final_rmse": adam["rows"][-1]["rmse"], "adam_total_seconds": adam["rows"][-1]["seconds"]}
     result = {"generator": "datasets/mitsuba/inverse_adam.py", "mitsuba": mi.__version__, "cores": os.cpu_count(),
@@ -296,12 +311,12 @@ def main():
               "igi": igi, "mitsuba_adam": adam}
     ref.write_text(os.path.join(work, "inverse_comparison.json"), json.dumps(result, indent=1) + "\n")
     print(json.dumps(summary, indent=2))
-    print("\n| method | iteration | seconds | albedo RMSE |\n|---|---:|---:|---:|")
+    print("\n| method | iteration | wall s | CPU s | albedo RMSE |\n|---|---:|---:|---:|---:|")
     for r in igi["rows"]:
-        print(f"| igi | {r['iteration']} ({r['spp']} spp) | {r['seconds']:.1f} | {r['rmse']:.4f} |")
+        print(f"| igi | {r['iteration']} ({r['spp']} spp) | {r['seconds']:.1f} | {r['cpu_seconds']:.1f} | {r['rmse']:.4f} |")
     for r in adam["rows"]:
         if r["iteration"] in (0, 1, 2, 5, 10, 20, 50, 100, 150, 200, 300, 400, 500) or r is adam["rows"][-1]:
-            print(f"| Mitsuba Adam | {r['iteration']} | {r['seconds']:.1f} | {r['rmse']:.4f} |")
+            print(f"| Mitsuba Adam | {r['iteration']} | {r['seconds']:.1f} | {r['cpu_seconds']:.1f} | {r['rmse']:.4f} |")
     return 0
 
 
