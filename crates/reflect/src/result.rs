@@ -40,6 +40,9 @@ pub struct SolveResult {
     /// Parts whose albedo changed since the last [`write_state`](Self::write_state) (only
     /// those are rewritten; all after [`fresh`](Self::fresh), none after [`load`](Self::load)).
     pub changed: Vec<bool>,
+    /// The BRDF basis the solve infers lobes with (set by `solve`); with it, `write_state`
+    /// writes per-texel lobe maps inferred from each texel's albedo.
+    pub basis: Option<igi_brdf::Basis>,
 }
 
 impl SolveResult {
@@ -79,6 +82,7 @@ impl SolveResult {
                 pending: None,
             },
             changed,
+            basis: None,
         }
     }
 
@@ -141,6 +145,12 @@ impl SolveResult {
                         serde_json::to_string_pretty(&self.lobes[i]).expect("lobes serialise");
                     write_text(&pdir.join(format!("{}_lobes.json", p.name)), &json)?;
                 }
+                if let Some(map) = self.lobe_map(i) {
+                    for (k, (rho, shape)) in map.to_images().iter().enumerate() {
+                        write_exr(&pdir.join(format!("{}_lobe{k}_rho.exr", p.name)), rho)?;
+                        write_exr(&pdir.join(format!("{}_lobe{k}_shape.exr", p.name)), shape)?;
+                    }
+                }
             }
             let mesh = match (&p.stored, &store) {
                 (None, _) | (_, None) => format!("parts/{}.ply", p.name),
@@ -156,7 +166,13 @@ impl SolveResult {
                 toml_string(&mesh),
                 p.name
             );
-            if !self.lobes[i].is_empty() {
+            let per_texel = self.basis.as_ref().map_or(0, |b| b.infer(Vec3::splat(0.5)).lobes.len());
+            if per_texel > 0 {
+                let maps: Vec<String> = (0..per_texel)
+                    .map(|k| format!("{{ rho = \"parts/{0}_lobe{k}_rho.exr\", shape = \"parts/{0}_lobe{k}_shape.exr\" }}", p.name))
+                    .collect();
+                let _ = writeln!(scene, "lobe_maps = [{}]", maps.join(", "));
+            } else if !self.lobes[i].is_empty() {
                 let lobes: Vec<String> = self.lobes[i]
                     .iter()
                     .map(|l| {
@@ -267,6 +283,7 @@ impl SolveResult {
             lobes,
             report,
             changed,
+            basis: None,
         })
     }
 }
@@ -274,6 +291,23 @@ impl SolveResult {
 /// A TOML basic string (quoted, with backslashes and quotes escaped).
 fn toml_string(s: &str) -> String {
     format!("\"{}\"", s.replace('\\', "\\\\").replace('"', "\\\""))
+}
+
+impl SolveResult {
+    /// Per-texel lobes of part `i`, inferred with the basis from every texel's albedo (`None`
+    /// without a basis). Each texel gets the lobes `Basis::infer` gives for its `rho_d`.
+    pub fn lobe_map(&self, i: usize) -> Option<igi_render::LobeMap> {
+        let basis = self.basis.as_ref()?;
+        let r = self.parts[i].resolution();
+        let per: Vec<Vec<Lobe>> = self.rho[i].iter().map(|rho| basis.infer(*rho).lobes).collect();
+        let k = per.iter().map(Vec::len).max().unwrap_or(0);
+        if k == 0 {
+            return None;
+        }
+        let none = Lobe { rho: Vec3::ZERO, cxy: 0.0, cz: 1.0, n: 1.0 };
+        let lobes = per.iter().flat_map(|l| (0..k).map(move |j| l.get(j).copied().unwrap_or(none))).collect();
+        Some(igi_render::LobeMap { width: r, height: r, per_texel: k, lobes })
+    }
 }
 
 pub(crate) fn write_text(path: &Path, text: &str) -> Result<(), ReflectError> {
@@ -390,6 +424,7 @@ pub fn sample_albedo(
                 p.name.clone(),
                 p.full_mesh()?.into_owned(),
                 igi_render::Material {
+                    lobe_map: None,
                     albedo: igi_render::Albedo::Texture(tex),
                     lobes: Vec::new(),
                 },

@@ -201,6 +201,7 @@ fn group_scene(
             texels: state.rho[i].clone(),
         };
         Material {
+            lobe_map: None,
             albedo: Albedo::Texture(tex),
             lobes: lobes[i].clone(),
         }
@@ -343,6 +344,7 @@ pub fn solve(
         }
     }
     let groups = make_groups(&start.parts, &solved)?;
+    start.basis = basis.cloned();
     let store = match start.parts.iter().find_map(|p| p.stored.as_ref()) {
         Some(s) => Some(igi_geometry::SiteStore::open(&s.site)?),
         None => None,
@@ -437,7 +439,7 @@ pub fn solve(
             let mut obs: Vec<Obs> = Vec::new();
             for (pi, photo) in photos.iter().enumerate() {
                 obs.extend(observe_photo(
-                    &scene, photo, pi, &texels, offset, &start, &lobes, opts, k, spp, progress,
+                    &scene, photo, pi, &texels, offset, &start, &lobes, basis, opts, k, spp, progress,
                 ));
             }
             drop(scene);
@@ -592,6 +594,7 @@ fn observe_photo(
     offset: u64,
     state: &SolveResult,
     lobes: &[Vec<Lobe>],
+    basis: Option<&Basis>,
     opts: &SolveOptions,
     iteration: u32,
     spp: u32,
@@ -735,9 +738,12 @@ fn observe_photo(
                         [t.texel as usize]
                         .index as usize];
                     let rho_eval = rho.max(min_eval);
+                    // the texel's own lobes, inferred from its albedo (other surfaces, met by
+                    // the bounces, carry their part's lobes)
+                    let inferred = basis.map(|b| b.infer(rho_eval).lobes);
                     let brdf = LafortuneRef {
                         rho_d: rho_eval,
-                        lobes: &lobes[t.part as usize],
+                        lobes: inferred.as_deref().unwrap_or(&lobes[t.part as usize]),
                     };
                     let sp = SurfacePoint {
                         position: t.position,

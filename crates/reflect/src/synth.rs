@@ -65,6 +65,7 @@ pub fn scene_with_albedo(parts: &[Part], albedo: &[Vec<Vec3>]) -> Result<Scene, 
                 p.name.clone(),
                 p.full_mesh()?.into_owned(),
                 Material {
+                    lobe_map: None,
                     albedo: Albedo::Texture(tex),
                     lobes: Vec::new(),
                 },

@@ -24,7 +24,7 @@ pub mod scene;
 pub use compare::{compare_images, difference_image, Comparison};
 pub use integrator::{irradiance, radiance_toward, render_image, Estimate, PathTracer, RenderOptions, RenderOutput};
 pub use lighting::{Environment, Lighting, Sun};
-pub use scene::{Albedo, Material, Object, Scene, SurfacePoint, Texture};
+pub use scene::{Albedo, LobeMap, Material, Object, Scene, SurfacePoint, Texture};
 
 use std::path::PathBuf;
 

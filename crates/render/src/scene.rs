@@ -63,16 +63,93 @@ pub enum Albedo {
     Texture(Texture),
 }
 
-/// Material of an object: Lafortune with per-texel (or constant) `rho_d` and constant lobes.
+/// Per-texel Lafortune lobes: `per_texel` lobes for every texel of a `width x height` map (the
+/// texel layout of FORMATS.md textures), looked up at the nearest texel (lobe exponents do not
+/// interpolate meaningfully).
+#[derive(Clone, Debug, PartialEq)]
+pub struct LobeMap {
+    pub width: usize,
+    pub height: usize,
+    pub per_texel: usize,
+    /// Texel-major: the lobes of texel `row * width + column` are
+    /// `lobes[texel * per_texel..(texel + 1) * per_texel]`.
+    pub lobes: Vec<Lobe>,
+}
+
+impl LobeMap {
+    /// The lobes of the texel nearest `uv`.
+    #[inline]
+    pub fn at(&self, uv: Vec2) -> &[Lobe] {
+        let (w, h) = (self.width, self.height);
+        let u = if uv.x.is_finite() { uv.x.clamp(0.0, 1.0) } else { 0.5 };
+        let v = if uv.y.is_finite() { uv.y.clamp(0.0, 1.0) } else { 0.5 };
+        let x = ((u * w as f32) as usize).min(w - 1);
+        let y = (((1.0 - v) * h as f32) as usize).min(h - 1);
+        let i = (y * w + x) * self.per_texel;
+        &self.lobes[i..i + self.per_texel]
+    }
+
+    /// Reads the maps of a scene file's `lobe_maps`: per lobe a `rho` EXR (RGB) and a `shape`
+    /// EXR (Cxy, Cz, N in its three channels), all of one size.
+    pub fn from_images(maps: &[(HdrImage, HdrImage)]) -> Result<LobeMap, String> {
+        let Some((first, _)) = maps.first() else { return Err("no lobe maps".into()) };
+        let (w, h) = (first.width, first.height);
+        if w == 0 || h == 0 {
+            return Err("empty lobe map".into());
+        }
+        for (k, (rho, shape)) in maps.iter().enumerate() {
+            for im in [rho, shape] {
+                if im.width != w || im.height != h {
+                    return Err(format!("lobe {k}: map is {}x{}, the first is {w}x{h}", im.width, im.height));
+                }
+            }
+        }
+        let k = maps.len();
+        let mut lobes = Vec::with_capacity(w * h * k);
+        for i in 0..w * h {
+            for (li, (rho, shape)) in maps.iter().enumerate() {
+                let r = Vec3::from_array(rho.pixels[i]);
+                let [cxy, cz, n] = shape.pixels[i];
+                let ok = r.is_finite() && r.min_element() >= 0.0 && cxy.is_finite() && cz.is_finite() && n.is_finite() && n >= 0.0;
+                if !ok {
+                    return Err(format!("lobe {li}: texel {i} has invalid parameters (rho {r}, cxy {cxy}, cz {cz}, n {n})"));
+                }
+                lobes.push(Lobe { rho: r, cxy, cz, n });
+            }
+        }
+        Ok(LobeMap { width: w, height: h, per_texel: k, lobes })
+    }
+
+    /// The maps for [`from_images`](Self::from_images): per lobe `(rho, shape)`.
+    pub fn to_images(&self) -> Vec<(HdrImage, HdrImage)> {
+        (0..self.per_texel)
+            .map(|li| {
+                let (mut rho, mut shape) = (HdrImage::new(self.width, self.height), HdrImage::new(self.width, self.height));
+                for i in 0..self.width * self.height {
+                    let l = &self.lobes[i * self.per_texel + li];
+                    rho.pixels[i] = l.rho.to_array();
+                    shape.pixels[i] = [l.cxy, l.cz, l.n];
+                }
+                (rho, shape)
+            })
+            .collect()
+    }
+}
+
+/// Material of an object: Lafortune with per-texel (or constant) `rho_d` and constant or
+/// per-texel lobes.
 #[derive(Clone, Debug)]
 pub struct Material {
     pub albedo: Albedo,
+    /// Lobes everywhere on the object (ignored where `lobe_map` is given).
     pub lobes: Vec<Lobe>,
+    /// Per-texel lobes (as the solver infers them from each texel's `rho_d`).
+    pub lobe_map: Option<LobeMap>,
 }
 
 impl Material {
     pub fn lambertian(rho_d: Vec3) -> Self {
-        Material { albedo: Albedo::Constant(rho_d), lobes: Vec::new() }
+        Material { albedo: Albedo::Constant(rho_d), lobes: Vec::new(), lobe_map: None }
     }
 
     /// The BRDF at texture coordinate `uv`.
@@ -82,7 +159,11 @@ impl Material {
             Albedo::Constant(c) => *c,
             Albedo::Texture(t) => t.lookup(uv),
         };
-        LafortuneRef { rho_d, lobes: &self.lobes }
+        let lobes = match &self.lobe_map {
+            Some(m) => m.at(uv),
+            None => &self.lobes,
+        };
+        LafortuneRef { rho_d, lobes }
     }
 }
 
@@ -299,7 +380,20 @@ impl Scene {
                     return Err(file_err(format!("object {k}: lobe {li} {l:?} has invalid parameters")));
                 }
             }
-            let material = Material { albedo, lobes: o.lobes.clone() };
+            let lobe_map = if o.lobe_maps.is_empty() {
+                None
+            } else {
+                let mut imgs = Vec::new();
+                for (li, m) in o.lobe_maps.iter().enumerate() {
+                    let read = |p: &PathBuf| {
+                        let full = dir.join(p);
+                        igi_imaging::read_image(&full).map_err(|e| file_err(format!("object {k}: lobe map {li} {}: {e}", full.display())))
+                    };
+                    imgs.push((read(&m.rho)?, read(&m.shape)?));
+                }
+                Some(LobeMap::from_images(&imgs).map_err(|e| file_err(format!("object {k}: {e}")))?)
+            };
+            let material = Material { albedo, lobes: o.lobes.clone(), lobe_map };
             objects.push((mesh_path.display().to_string(), mesh, material));
         }
         let scene = Scene::new(objects).map_err(|e| file_err(e.to_string()))?;
@@ -321,6 +415,17 @@ struct ObjectSpec {
     albedo: AlbedoSpec,
     #[serde(default)]
     lobes: Vec<Lobe>,
+    /// Per-texel lobes (an extension of FORMATS.md): `lobe_maps = [{ rho = "l0_rho.exr",
+    /// shape = "l0_shape.exr" }, ...]`, overriding `lobes`.
+    #[serde(default)]
+    lobe_maps: Vec<LobeMapSpec>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LobeMapSpec {
+    rho: PathBuf,
+    shape: PathBuf,
 }
 
 #[derive(Deserialize)]
@@ -362,6 +467,29 @@ mod tests {
         // Centre: average of all four.
         assert!(t.lookup(Vec2::new(0.5, 0.5)).abs_diff_eq(Vec3::new(0.5, 0.5, 0.5), 1e-6));
         assert!(t.lookup(Vec2::new(f32::NAN, 0.5)).is_finite());
+    }
+
+    #[test]
+    fn lobe_maps_look_up_the_nearest_texel_and_round_trip_through_images() {
+        let lobe = |n: f32| Lobe { rho: Vec3::new(0.1, 0.2, 0.3) * n, cxy: -1.0, cz: 1.0, n };
+        // 2x2 texels, two lobes each; texel (row i, column j) gets exponents 10 (2i + j) + 1, + 2
+        let lobes: Vec<Lobe> = (0..4).flat_map(|t| [lobe(10.0 * t as f32 + 1.0), lobe(10.0 * t as f32 + 2.0)]).collect();
+        let m = LobeMap { width: 2, height: 2, per_texel: 2, lobes };
+        // u right, v up: (0.25, 0.75) is row 0 column 0; (0.75, 0.25) is row 1 column 1
+        assert_eq!(m.at(Vec2::new(0.25, 0.75))[0].n, 1.0);
+        assert_eq!(m.at(Vec2::new(0.75, 0.75))[1].n, 12.0);
+        assert_eq!(m.at(Vec2::new(0.75, 0.25))[0].n, 31.0);
+        assert_eq!(m.at(Vec2::new(2.0, -1.0))[0].n, 31.0, "clamped");
+        let back = LobeMap::from_images(&m.to_images()).unwrap();
+        assert_eq!(back, m);
+        let mut imgs = m.to_images();
+        imgs[1].1 = HdrImage::new(3, 2);
+        assert!(LobeMap::from_images(&imgs).unwrap_err().contains("3x2"));
+        let mut imgs = m.to_images();
+        imgs[0].1.pixels[0][2] = -1.0;
+        assert!(LobeMap::from_images(&imgs).unwrap_err().contains("invalid"));
+        let material = Material { albedo: Albedo::Constant(Vec3::splat(0.5)), lobes: vec![lobe(99.0)], lobe_map: Some(m) };
+        assert_eq!(material.brdf_at(Vec2::new(0.75, 0.25)).lobes[1].n, 32.0, "the map overrides constant lobes");
     }
 
     #[test]
