@@ -45,6 +45,31 @@ pub enum ArucoDict {
     Original,
 }
 
+impl ArucoDict {
+    /// The dictionary of an OpenCV name (`"DICT_4X4_50"`, `"DICT_5X5_100"`, `"DICT_6X6_250"`,
+    /// `"DICT_ARUCO_ORIGINAL"`; case-insensitive, the `DICT_` prefix optional).
+    pub fn from_name(name: &str) -> Option<ArucoDict> {
+        let n = name.trim().to_ascii_uppercase();
+        match n.strip_prefix("DICT_").unwrap_or(&n) {
+            "4X4_50" => Some(ArucoDict::Dict4x4_50),
+            "5X5_100" => Some(ArucoDict::Dict5x5_100),
+            "6X6_250" => Some(ArucoDict::Dict6x6_250),
+            "ARUCO_ORIGINAL" | "ORIGINAL" => Some(ArucoDict::Original),
+            _ => None,
+        }
+    }
+
+    /// The OpenCV name of the dictionary.
+    pub fn name(self) -> &'static str {
+        match self {
+            ArucoDict::Dict4x4_50 => "DICT_4X4_50",
+            ArucoDict::Dict5x5_100 => "DICT_5X5_100",
+            ArucoDict::Dict6x6_250 => "DICT_6X6_250",
+            ArucoDict::Original => "DICT_ARUCO_ORIGINAL",
+        }
+    }
+}
+
 /// Object points of a checkerboard with `cols` x `rows` inner corners and `square` metres,
 /// in the board plane z = 0, row-major (OpenCV's corner order).
 pub fn checkerboard_points(cols: usize, rows: usize, square: f64) -> Vec<DVec3> {
@@ -89,6 +114,12 @@ mod imp {
         Err(ImagingError::NoOpenCv)
     }
     pub fn detect_aruco(_: &HdrImage, _: ArucoDict) -> Result<Vec<ArucoMarker>, ImagingError> {
+        Err(ImagingError::NoOpenCv)
+    }
+    pub fn detect_aruco_subpix(_: &HdrImage, _: ArucoDict) -> Result<Vec<ArucoMarker>, ImagingError> {
+        Err(ImagingError::NoOpenCv)
+    }
+    pub fn aruco_marker_image(_: ArucoDict, _: i32, _: usize) -> Result<Vec<u8>, ImagingError> {
         Err(ImagingError::NoOpenCv)
     }
 }
@@ -259,7 +290,7 @@ mod imp {
         Ok(DMat3::from_cols_array_2d(&rows).transpose())
     }
 
-    pub fn detect_aruco(img: &HdrImage, dict: ArucoDict) -> Result<Vec<ArucoMarker>, ImagingError> {
+    fn dictionary(dict: ArucoDict) -> Result<core::Ptr<aruco::Dictionary>, ImagingError> {
         use aruco::PREDEFINED_DICTIONARY_NAME as N;
         let name = match dict {
             ArucoDict::Dict4x4_50 => N::DICT_4X4_50,
@@ -267,11 +298,41 @@ mod imp {
             ArucoDict::Dict6x6_250 => N::DICT_6X6_250,
             ArucoDict::Original => N::DICT_ARUCO_ORIGINAL,
         };
-        let d = aruco::get_predefined_dictionary(name).map_err(cv_err)?;
+        aruco::get_predefined_dictionary(name).map_err(cv_err)
+    }
+
+    pub fn detect_aruco(img: &HdrImage, dict: ArucoDict) -> Result<Vec<ArucoMarker>, ImagingError> {
+        detect_with(img, dict, false)
+    }
+
+    pub fn detect_aruco_subpix(img: &HdrImage, dict: ArucoDict) -> Result<Vec<ArucoMarker>, ImagingError> {
+        detect_with(img, dict, true)
+    }
+
+    pub fn aruco_marker_image(dict: ArucoDict, id: i32, side_px: usize) -> Result<Vec<u8>, ImagingError> {
+        let d = dictionary(dict)?;
+        let mut m = Mat::default();
+        aruco::draw_marker(&d, id, side_px as i32, &mut m, 1).map_err(cv_err)?;
+        let bytes = m.data_bytes().map_err(cv_err)?.to_vec();
+        if bytes.len() != side_px * side_px {
+            return Err(ImagingError::OpenCv(format!("draw_marker gave {} bytes for a {side_px} px marker", bytes.len())));
+        }
+        Ok(bytes)
+    }
+
+    fn detect_with(img: &HdrImage, dict: ArucoDict, subpix: bool) -> Result<Vec<ArucoMarker>, ImagingError> {
+        let d = dictionary(dict)?;
         let g = gray8(img)?;
         let mut corners: Vector<Vector<Point2f>> = Vector::new();
         let mut ids: Vector<i32> = Vector::new();
-        aruco::detect_markers_def(&g, &d, &mut corners, &mut ids).map_err(cv_err)?;
+        if subpix {
+            let mut params = aruco::DetectorParameters::create().map_err(cv_err)?;
+            aruco::DetectorParametersTrait::set_corner_refinement_method(&mut params, aruco::CORNER_REFINE_SUBPIX);
+            let mut rejected: Vector<Vector<Point2f>> = Vector::new();
+            aruco::detect_markers(&g, &d, &mut corners, &mut ids, &params, &mut rejected).map_err(cv_err)?;
+        } else {
+            aruco::detect_markers_def(&g, &d, &mut corners, &mut ids).map_err(cv_err)?;
+        }
         let mut out = Vec::new();
         for (i, id) in ids.iter().enumerate() {
             let c = corners.get(i).map_err(cv_err)?;
@@ -342,6 +403,20 @@ pub fn detect_aruco(img: &HdrImage, dict: ArucoDict) -> Result<Vec<ArucoMarker>,
     imp::detect_aruco(img, dict)
 }
 
+/// [`detect_aruco`] with OpenCV's sub-pixel corner refinement (`CORNER_REFINE_SUBPIX`), for
+/// poses from the marker corners.
+pub fn detect_aruco_subpix(img: &HdrImage, dict: ArucoDict) -> Result<Vec<ArucoMarker>, ImagingError> {
+    imp::detect_aruco_subpix(img, dict)
+}
+
+/// The printable image of marker `id`: `side_px` x `side_px` bytes, row-major, 0 black and 255
+/// white, with a one-cell black border (OpenCV `drawMarker`). Its corners in
+/// [`ArucoMarker::corners`] order are the image's top-left, top-right, bottom-right and
+/// bottom-left corners.
+pub fn aruco_marker_image(dict: ArucoDict, id: i32, side_px: usize) -> Result<Vec<u8>, ImagingError> {
+    imp::aruco_marker_image(dict, id, side_px)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -354,6 +429,17 @@ mod tests {
         assert!(e.contains("built without opencv") && e.contains("--features opencv"), "{e}");
         assert!(matches!(find_homography(&[], &[], 1.0), Err(ImagingError::NoOpenCv)));
         assert!(matches!(detect_aruco(&HdrImage::new(2, 2), ArucoDict::Dict4x4_50), Err(ImagingError::NoOpenCv)));
+        assert!(matches!(detect_aruco_subpix(&HdrImage::new(2, 2), ArucoDict::Dict4x4_50), Err(ImagingError::NoOpenCv)));
+        assert!(matches!(aruco_marker_image(ArucoDict::Dict4x4_50, 0, 60), Err(ImagingError::NoOpenCv)));
+    }
+
+    #[test]
+    fn aruco_dictionary_names() {
+        for d in [ArucoDict::Dict4x4_50, ArucoDict::Dict5x5_100, ArucoDict::Dict6x6_250, ArucoDict::Original] {
+            assert_eq!(ArucoDict::from_name(d.name()), Some(d));
+        }
+        assert_eq!(ArucoDict::from_name("4x4_50"), Some(ArucoDict::Dict4x4_50));
+        assert_eq!(ArucoDict::from_name("DICT_7X7_1000"), None);
     }
 
     #[test]
@@ -502,6 +588,29 @@ mod tests {
                 assert!((*c - DVec2::new(e.0, e.1)).length() < 1.5, "{:?}", found[0].corners);
             }
             assert!(detect_aruco(&HdrImage::new(50, 50), ArucoDict::Dict4x4_50).unwrap().is_empty());
+        }
+
+        #[test]
+        fn marker_image_is_detected_with_subpixel_corners() {
+            let side = 90usize;
+            let bytes = aruco_marker_image(ArucoDict::Dict5x5_100, 42, side).unwrap();
+            let (ox, oy) = (70usize, 50usize);
+            let mut img = HdrImage::new(260, 200);
+            img.pixels.iter_mut().for_each(|p| *p = [1.0; 3]);
+            for y in 0..side {
+                for x in 0..side {
+                    let v = bytes[y * side + x] as f32 / 255.0;
+                    img.set(ox + x, oy + y, [v, v, v]);
+                }
+            }
+            let found = detect_aruco_subpix(&img, ArucoDict::Dict5x5_100).unwrap();
+            assert_eq!(found.len(), 1, "{found:?}");
+            assert_eq!(found[0].id, 42);
+            let (x0, y0, x1) = (ox as f64 - 0.5, oy as f64 - 0.5, (ox + side) as f64 - 0.5);
+            let y1 = (oy + side) as f64 - 0.5;
+            for (c, e) in found[0].corners.iter().zip([(x0, y0), (x1, y0), (x1, y1), (x0, y1)]) {
+                assert!((*c - DVec2::new(e.0, e.1)).length() < 0.3, "{:?}", found[0].corners);
+            }
         }
 
         #[test]
