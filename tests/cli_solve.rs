@@ -110,6 +110,35 @@ fn demo_then_solve_resume_relight_export_and_sample() {
         // bilinear lookup at the texel centre returns the texel itself
         assert!((v[6] - want.x).abs() < 2e-3 && (v[7] - want.y).abs() < 2e-3 && (v[8] - want.z).abs() < 2e-3, "{line} vs {want}");
     }
+
+    // a prepared site: `igi prepare` the stylobate (with the terrain), name it in a copy of
+    // the survey, and solve one voxel of it (--voxels); the others are not touched
+    let site = tmp.path().join("site.igi");
+    run_ok(igi().arg("-q").arg("prepare").arg(survey.join("geometry/stylobate.ply")).arg("--terrain").arg(survey.join("geometry/terrain.ply")).args(["--atlas", "32", "-o"]).arg(&site));
+    let text = std::fs::read_to_string(survey.join("survey.toml")).unwrap();
+    let photos = &text[text.find("[[photo]]").unwrap()..];
+    let prepared_survey = survey.join("prepared.toml");
+    std::fs::write(&prepared_survey, format!("[site]\nprepared = {:?}\n\n{photos}", site.display().to_string())).unwrap();
+    let man: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(site.join("manifest.json")).unwrap()).unwrap();
+    let v = &man["voxels"][0]["voxel"];
+    let name = format!("{}_{}_{}", v[0], v[1], v[2]);
+    let pres = tmp.path().join("prepared-result");
+    let r = json(&run_ok(igi().arg("solve").arg(&prepared_survey).arg("-o").arg(&pres).args(["--spp", "4", "--iterations", "1", "--quiet", "--json", "--voxels", &name])));
+    let parts = r["parts"].as_array().unwrap();
+    assert_eq!(parts.len(), man["voxels"].as_array().unwrap().len() + 1, "every voxel and the terrain");
+    for p in parts {
+        let solved = p["name"] == name.as_str();
+        assert_eq!(p["scene_triangles"].as_u64().unwrap() > 0, solved, "{}", p["name"]);
+        if !solved {
+            assert_eq!(p["seen_texels"], 0, "{}", p["name"]);
+        }
+    }
+    assert!(r["site"].as_str().unwrap().ends_with("site.igi"));
+    assert!(pres.join(format!("parts/{name}_rho_d.exr")).is_file());
+    // an unknown voxel is refused
+    let out = igi().arg("solve").arg(&prepared_survey).arg("-o").arg(tmp.path().join("x")).args(["--voxels", "99_99_99", "--restart"]).output().unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("99_99_99"));
 }
 
 fn write(path: &Path, text: &str) {
