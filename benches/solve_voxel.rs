@@ -100,7 +100,7 @@ fn main() {
     let tri = |v: &[(String, TriMesh)]| v.iter().map(|(_, m)| m.indices.len()).sum::<usize>();
     let (t0, t_other) = (tri(&centre), tri(&others));
     let mut parts = build_parts(std::mem::take(&mut centre), atlas).unwrap();
-    parts.extend(build_parts(others, 16).unwrap());
+    parts.extend(build_parts(others, 64).unwrap());
     let truth: Vec<Vec<Vec3>> = parts.iter().map(|p| truth_atlas(p, albedo)).collect();
     let truth_scene = scene_with_albedo(&parts, &truth).unwrap();
     eprintln!(
