@@ -1,9 +1,10 @@
-//! igi-brdf throughput: Lafortune eval / pdf / sample, and the staged LM fit of one material.
+//! igi-brdf throughput: Lafortune eval / pdf / sample, the staged LM fit of one material, and
+//! Lensch clustering of lumitexels (`IGI_BENCH_LUMITEXELS`, default 1e4).
 //! `cargo bench --bench brdf`
 
 use criterion::{black_box, criterion_group, criterion_main, BatchSize, Criterion, Throughput};
 use glam::{Vec2, Vec3};
-use igi_brdf::{fit_material, BrdfSample, FitOptions, Lafortune, Lobe};
+use igi_brdf::{cluster, fit_material, BrdfSample, ClusterOptions, FitOptions, Frame, Lafortune, Lobe, Lumitexel};
 
 fn dir(theta_deg: f32, phi_deg: f32) -> Vec3 {
     let (t, p) = (theta_deg.to_radians(), phi_deg.to_radians());
@@ -99,5 +100,47 @@ fn bench_fit(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bench_model, bench_fit);
+/// `IGI_BENCH_LUMITEXELS` (default 1e4; 1e5 takes minutes per iteration) lumitexels of 3 materials (matte red, glossy blue, retroreflective grey; the clustering
+/// test's materials), 10 samples each (half of the views near the mirror direction), random
+/// normals, 3% noise; k = 3, default options (fits capped at 3000 samples).
+fn bench_cluster(c: &mut Criterion) {
+    let mats = [
+        Lafortune { rho_d: Vec3::new(0.6, 0.12, 0.1), lobes: vec![Lobe { rho: Vec3::new(0.1, 0.02, 0.02), cxy: 0.9, cz: 1.0, n: 3.0 }] },
+        Lafortune { rho_d: Vec3::new(0.04, 0.06, 0.3), lobes: vec![Lobe { rho: Vec3::splat(6.0), cxy: -1.0, cz: 1.0, n: 80.0 }] },
+        Lafortune { rho_d: Vec3::splat(0.25), lobes: vec![Lobe { rho: Vec3::splat(0.6), cxy: 1.0, cz: 1.0, n: 12.0 }] },
+    ];
+    let count: usize = std::env::var("IGI_BENCH_LUMITEXELS").ok().and_then(|v| v.parse().ok()).unwrap_or(10_000);
+    let q = |i: usize, k: f32| (i as f32 * k).fract();
+    let lts: Vec<Lumitexel> = (0..count)
+        .map(|t| {
+            let m = &mats[t % 3];
+            let normal = dir(60.0 * q(t, 0.618_034), 360.0 * q(t, 0.754_877_7));
+            let f = Frame::from_normal(normal);
+            let samples = (0..10)
+                .map(|s| {
+                    let i = t * 10 + s;
+                    let (lt, lp) = (80.0 * q(i, 0.569_840_3), 360.0 * q(i, 0.362_437_6));
+                    let l = dir(lt, lp);
+                    let v = if s % 2 == 0 {
+                        dir(80.0 * q(i, 0.281_717), 360.0 * q(i, 0.131_986))
+                    } else {
+                        dir((lt + 16.0 * q(i, 0.281_717) - 8.0).clamp(0.0, 85.0), lp + 180.0 + 16.0 * q(i, 0.131_986) - 8.0)
+                    };
+                    let noise = Vec3::new(q(i, 0.427_8), q(i, 0.912_3), q(i, 0.334_1)) * 2.0 - Vec3::ONE;
+                    let val = m.as_ref().eval(l, v) * std::f32::consts::PI * (Vec3::ONE + 0.03 * noise);
+                    (f.to_world(l), f.to_world(v), val)
+                })
+                .collect();
+            Lumitexel { position: Vec3::ZERO, normal, samples }
+        })
+        .collect();
+    let opts = ClusterOptions { k: 3, ..ClusterOptions::default() };
+    let mut g = c.benchmark_group("cluster");
+    g.sample_size(10);
+    g.throughput(Throughput::Elements(count as u64));
+    g.bench_function(format!("{count} lumitexels x 10 samples, k=3"), |b| b.iter(|| black_box(cluster(&lts, &opts).unwrap().brdfs.len())));
+    g.finish();
+}
+
+criterion_group!(benches, bench_model, bench_fit, bench_cluster);
 criterion_main!(benches);
