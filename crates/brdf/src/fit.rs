@@ -18,6 +18,9 @@
 //! Standard errors: `sqrt(diag((J^T J)^-1) sigma^2)`, `sigma^2 = sum r^2 / (m - p)`, with the
 //! pseudo-inverse regularised so an unconstrained parameter gets a large, finite error.
 
+// Loops index several parallel per-sample / per-channel arrays at once.
+#![allow(clippy::needless_range_loop)]
+
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{storage::Owned, DMatrix, DVector, Dyn};
 use serde::{Deserialize, Serialize};

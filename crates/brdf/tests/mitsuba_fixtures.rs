@@ -6,7 +6,8 @@
 //! - relative RMS `sqrt(sum (model - truth)^2) / sqrt(sum truth^2)` (energy-weighted: dominated by
 //!   the brightest pairs, i.e. highlights near grazing);
 //! - median relative error `median |model - truth| / truth` (the typical pair);
-//! both over all 500 pairs and over the pairs with both directions within 75 degrees of the normal
+//!
+//! Both over all 500 pairs and over the pairs with both directions within 75 degrees of the normal
 //! (the elevations the training lights cover; the held-out pairs reach 89 degrees).
 //! The "bound" fits Lafortune to the held-out pairs themselves: no fit from training data can beat
 //! it (up to local minima), so it measures what the model can represent at all.
