@@ -1,13 +1,15 @@
 //! `igi brdf`: fit Lafortune BRDFs to hand-held samples, evaluate them, infer lobes from a
-//! diffuse colour, and cluster lumitexels (Lensch et al.).
+//! diffuse colour, cluster lumitexels (Lensch et al.), and measure samples from photographs of
+//! the hand-held sample frame.
 
 use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 use glam::Vec3;
 use igi_brdf::{
-    cluster, fit_material, plot::plot_fits, plot::write_text_atomic, read_lumitexels, read_pairs, read_samples,
-    samples::group_by_material, samples::pairs_to_csv, Basis, ClusterOptions, FitOptions, MaterialsFile,
+    cluster, fit_material, plot::plot_fits, plot::write_text_atomic, read_lumitexels, read_pairs,
+    read_samples, samples::group_by_material, samples::pairs_to_csv, Basis, ClusterOptions,
+    FitOptions, MaterialsFile,
 };
 use rayon::prelude::*;
 
@@ -23,6 +25,38 @@ pub enum BrdfCmd {
     Infer(InferArgs),
     /// Cluster lumitexels into K BRDFs and give each lumitexel basis weights.
     Cluster(ClusterArgs),
+    /// BRDF samples from photographs of the hand-held sample frame (pose from the fiducials,
+    /// light from the two black spheres' highlights, the white standard, an orthographic view).
+    Measure(MeasureArgs),
+}
+
+#[derive(clap::Args, Debug)]
+pub struct MeasureArgs {
+    /// Sample-frame description JSON (docs/BRDF.md, "Measuring samples").
+    pub frame: PathBuf,
+    /// A linear photograph of the frame (EXR, HDR, ...); repeat for several.
+    #[arg(long = "photo", required = true)]
+    pub photos: Vec<PathBuf>,
+    /// Camera JSON (FORMATS.md): intrinsics and distortion; its pose is ignored.
+    #[arg(long)]
+    pub camera: PathBuf,
+    /// Pixels of the fiducials' centres, u,v,u,v,u,v,u,v in the frame file's order; one per
+    /// --photo, in the same order. Without --corners the fiducials are found as ArUco markers
+    /// (needs a build with --features opencv).
+    #[arg(long = "corners")]
+    pub corners: Vec<String>,
+    /// Output samples CSV (material,light_x..view_z,r,g,b with r g b = pi f).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Also write each photo's orthographic view of the sample as DIR/<photo stem>_ortho.exr.
+    #[arg(long)]
+    pub ortho_dir: Option<PathBuf>,
+    /// Place the spheres by their outlines in each photo rather than by the pose alone.
+    #[arg(long)]
+    pub refine_spheres: bool,
+    /// Print the per-photo report (pose, light, gap, highlights, regions) as JSON.
+    #[arg(long)]
+    pub json: bool,
 }
 
 #[derive(clap::Args, Debug)]
@@ -87,18 +121,23 @@ pub fn run(cmd: BrdfCmd, ctx: &Ctx) -> anyhow::Result<()> {
         BrdfCmd::Eval(a) => eval(a),
         BrdfCmd::Infer(a) => infer(a),
         BrdfCmd::Cluster(a) => run_cluster(a),
+        BrdfCmd::Measure(a) => measure(a),
     }
 }
 
 fn fit(a: FitArgs, ctx: &Ctx) -> anyhow::Result<()> {
     let samples = read_samples(&a.samples)?;
     let groups = group_by_material(&samples);
-    let opts = FitOptions { max_n: a.max_n, ..Default::default() };
+    let opts = FitOptions {
+        max_n: a.max_n,
+        ..Default::default()
+    };
     let pb = ctx.progress(groups.len() as u64, "fitting");
     let reports: Vec<_> = groups
         .par_iter()
         .map(|(name, s)| {
-            let r = fit_material(name, s, &opts).with_context(|| format!("fitting {}", a.samples.display()));
+            let r = fit_material(name, s, &opts)
+                .with_context(|| format!("fitting {}", a.samples.display()));
             pb.inc(1);
             r
         })
@@ -106,7 +145,10 @@ fn fit(a: FitArgs, ctx: &Ctx) -> anyhow::Result<()> {
     pb.finish_and_clear();
     let file = MaterialsFile::from_reports(&reports);
     write_text_atomic(&a.output, &file.to_json())?;
-    println!("{:<16} {:>7} {:>9} {:>10}  rho_d / lobes (rho, cxy, cz, n)", "material", "samples", "rel.rms", "abs.rms");
+    println!(
+        "{:<16} {:>7} {:>9} {:>10}  rho_d / lobes (rho, cxy, cz, n)",
+        "material", "samples", "rel.rms", "abs.rms"
+    );
     for r in &reports {
         let b = &r.brdf;
         println!(
@@ -133,16 +175,25 @@ fn fit(a: FitArgs, ctx: &Ctx) -> anyhow::Result<()> {
 
 fn eval(a: EvalArgs) -> anyhow::Result<()> {
     let file = MaterialsFile::read(&a.materials)?;
-    let m = file.get(&a.material).with_context(|| format!("in {}", a.materials.display()))?;
+    let m = file
+        .get(&a.material)
+        .with_context(|| format!("in {}", a.materials.display()))?;
     let table = read_pairs(&a.pairs)?;
-    let values: Vec<Vec3> = table.rows.iter().map(|r| m.as_ref().eval(r.light, r.view) * std::f32::consts::PI).collect();
+    let values: Vec<Vec3> = table
+        .rows
+        .iter()
+        .map(|r| m.as_ref().eval(r.light, r.view) * std::f32::consts::PI)
+        .collect();
     write_text_atomic(&a.output, &pairs_to_csv(&table, &values))?;
     Ok(())
 }
 
 fn infer(a: InferArgs) -> anyhow::Result<()> {
     if a.rho.len() != 3 || a.rho.iter().any(|x| !x.is_finite() || *x < 0.0) {
-        bail!("--rho needs three finite non-negative numbers r,g,b (got {:?})", a.rho);
+        bail!(
+            "--rho needs three finite non-negative numbers r,g,b (got {:?})",
+            a.rho
+        );
     }
     let file = MaterialsFile::read(&a.materials)?;
     let basis = Basis::new(file.brdfs())?;
@@ -150,7 +201,14 @@ fn infer(a: InferArgs) -> anyhow::Result<()> {
     let mut out = MaterialsFile::default();
     out.materials.insert(
         "inferred".into(),
-        igi_brdf::MaterialEntry { rho_d: m.rho_d, lobes: m.lobes, rms: None, rms_abs: None, samples: None, stderr: None },
+        igi_brdf::MaterialEntry {
+            rho_d: m.rho_d,
+            lobes: m.lobes,
+            rms: None,
+            rms_abs: None,
+            samples: None,
+            stderr: None,
+        },
     );
     match &a.output {
         Some(p) => write_text_atomic(p, &out.to_json())?,
@@ -175,8 +233,15 @@ struct LumitexelOut {
 
 fn run_cluster(a: ClusterArgs) -> anyhow::Result<()> {
     let (ids, lts) = read_lumitexels(&a.lumitexels)?;
-    let r = cluster(&lts, &ClusterOptions { k: a.k, seed: a.seed, ..Default::default() })
-        .with_context(|| format!("clustering {}", a.lumitexels.display()))?;
+    let r = cluster(
+        &lts,
+        &ClusterOptions {
+            k: a.k,
+            seed: a.seed,
+            ..Default::default()
+        },
+    )
+    .with_context(|| format!("clustering {}", a.lumitexels.display()))?;
     let out = ClusterOut {
         brdfs: r.brdfs.clone(),
         lumitexels: ids
@@ -193,7 +258,95 @@ fn run_cluster(a: ClusterArgs) -> anyhow::Result<()> {
     write_text_atomic(&a.output, &(serde_json::to_string_pretty(&out)? + "\n"))?;
     for (k, b) in r.brdfs.iter().enumerate() {
         let n = r.assignment.iter().filter(|&&x| x == k).count();
-        println!("cluster {k}: {n} lumitexels, rho_d [{:.4}, {:.4}, {:.4}]", b.rho_d.x, b.rho_d.y, b.rho_d.z);
+        println!(
+            "cluster {k}: {n} lumitexels, rho_d [{:.4}, {:.4}, {:.4}]",
+            b.rho_d.x, b.rho_d.y, b.rho_d.z
+        );
     }
+    Ok(())
+}
+
+fn parse_corners(s: &str) -> anyhow::Result<Vec<glam::DVec2>> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .ok()
+        .filter(|v: &Vec<f64>| v.len() >= 8 && v.len() % 2 == 0 && v.iter().all(|x| x.is_finite()))
+        .with_context(|| format!("--corners {s:?}: expected u,v pairs for the four fiducials, e.g. 101.5,88,912,90.2,905,700,98,702"))?;
+    Ok(v.chunks(2).map(|c| glam::DVec2::new(c[0], c[1])).collect())
+}
+
+fn measure(a: MeasureArgs) -> anyhow::Result<()> {
+    use igi_brdf::measure::{
+        measure_photo, orthographic_view, MeasureOptions, PoseInput, SampleFrame,
+    };
+    let frame = SampleFrame::load(&a.frame)?;
+    let camera = igi_imaging::Camera::load(&a.camera)?;
+    if !a.corners.is_empty() && a.corners.len() != a.photos.len() {
+        bail!(
+            "{} --photo but {} --corners: give one --corners per photo, or none (ArUco)",
+            a.photos.len(),
+            a.corners.len()
+        );
+    }
+    let opts = MeasureOptions {
+        refine_spheres: a.refine_spheres,
+        ..Default::default()
+    };
+    let mut reports = Vec::new();
+    let mut samples = Vec::new();
+    for (k, photo) in a.photos.iter().enumerate() {
+        let input = match a.corners.get(k) {
+            Some(c) => PoseInput::Corners(parse_corners(c)?),
+            None => PoseInput::Aruco,
+        };
+        let img = igi_imaging::read_image(photo)?;
+        let m = measure_photo(&frame, &camera, &img, photo, &input, &opts)?;
+        if let Some(dir) = &a.ortho_dir {
+            std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+            let stem = photo
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_else(|| format!("photo{k}"));
+            let cam = igi_imaging::Camera {
+                pose: m.pose(),
+                ..camera.clone()
+            };
+            igi_imaging::write_exr(
+                &dir.join(format!("{stem}_ortho.exr")),
+                &orthographic_view(&frame, &cam, &img),
+            )?;
+        }
+        samples.extend(m.samples());
+        reports.push(m);
+    }
+    igi_imaging::io::write_text_atomic(&a.output, &igi_brdf::samples::samples_to_csv(&samples))?;
+    if a.json {
+        crate::report::print_json(&reports)?;
+        return Ok(());
+    }
+    for m in &reports {
+        let c = m.camera_center;
+        let l = m.light;
+        println!(
+            "{}: pose from {} (rms {:.2} px), camera at [{:.4}, {:.4}, {:.4}] m, light at [{:.4}, {:.4}, {:.4}] m (rays {:.1} mm apart), intensity [{:.4}, {:.4}, {:.4}]",
+            m.photo.display(), m.pose_source, m.pose_rms_px, c[0], c[1], c[2], l[0], l[1], l[2], m.gap * 1e3,
+            m.intensity[0], m.intensity[1], m.intensity[2]
+        );
+        for r in &m.regions {
+            println!(
+                "  {:<14} at [{:+.4}, {:+.4}]  light [{:+.3}, {:+.3}, {:+.3}]  view [{:+.3}, {:+.3}, {:+.3}]  pi f [{:.4}, {:.4}, {:.4}]  (sd {:.1}%)",
+                r.material, r.center[0], r.center[1], r.light[0], r.light[1], r.light[2], r.view[0], r.view[1], r.view[2],
+                r.value[0], r.value[1], r.value[2], r.rel_std * 100.0
+            );
+        }
+    }
+    println!(
+        "{} samples from {} photos -> {}",
+        samples.len(),
+        reports.len(),
+        a.output.display()
+    );
     Ok(())
 }

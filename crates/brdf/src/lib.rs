@@ -3,6 +3,9 @@
 //! - [`Lafortune`] / [`LafortuneRef`]: the model `rho_d/pi + sum rho_l max(0, Cxy(ux vx + uy vy) + Cz uz vz)^N`
 //!   in the local shading frame ([`Frame`], z = normal), with evaluation, importance sampling
 //!   (cosine + cosine-power lobes, mixture pdf for MIS) and directional albedo.
+//! - [`measure`]: BRDF samples from photographs of the hand-held sample frame (pose from the
+//!   fiducials, light from the two black spheres' highlights, the white standard, an
+//!   orthographic view of the sample).
 //! - Directions are unit vectors pointing away from the surface; values are linear RGB, f32.
 
 pub mod basis;
@@ -12,6 +15,7 @@ pub mod frame;
 pub mod fit;
 pub mod lafortune;
 pub mod materials;
+pub mod measure;
 pub mod plot;
 pub mod samples;
 
@@ -22,6 +26,7 @@ pub use frame::Frame;
 pub use fit::{fit_material, FitOptions, FitReport, LobeStderr, Stderr};
 pub use lafortune::{luminance, BsdfSample, Lafortune, LafortuneRef, Lobe};
 pub use materials::{MaterialEntry, MaterialsFile};
+pub use measure::{measure_photo, MeasureOptions, PhotoMeasurement, PoseInput, SampleFrame};
 pub use samples::{read_pairs, read_samples, BrdfSample, PairRow, PairTable};
 
 #[cfg(test)]

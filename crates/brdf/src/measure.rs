@@ -1,0 +1,1170 @@
+//! Hand-held BRDF measurement with the sample frame of Debevec et al. 2004 (3.2.1): from one
+//! photograph of the frame, recover
+//!
+//! - the camera pose from the four fiducials (user-supplied fiducial pixels and the pure-Rust
+//!   [`igi_imaging::planar::pose_from_plane`], or ArUco detection and PnP from
+//!   [`igi_imaging::cv`] with the `opencv` feature),
+//! - the light position from the highlights in the two glossy black spheres (the camera rays
+//!   through the highlights' sub-pixel centres, reflected off the spheres; the light is the
+//!   midpoint of the two reflected rays' closest approach),
+//! - the light's intensity from the white reflectance standard,
+//! - an orthographic (fronto-parallel) view of the sample plane (a homography, plus the lens
+//!   distortion), and the mean `pi f` over chosen regions of it,
+//!
+//! and turn them into [`BrdfSample`]s of the samples CSV (FORMATS.md).
+//!
+//! Geometry and normalisation. Everything is in the frame's own coordinates (metres, z up out
+//! of the sample plane z = 0; these are the "world" of the recovered pose). The light is a
+//! point source of intensity `I` (per channel) at `L`. A surface point `p` of the plane with
+//! BRDF `f` then shows radiance `f I cos(theta_l) / d^2`, with `d = |L - p|` and
+//! `cos(theta_l) = (L - p).z / d`; the white standard (Lambertian reflectance `rho_w`) shows
+//! `rho_w / pi I cos(theta_l) / d^2`. So
+//!
+//! - `I = mean over the white standard of pi Lw d^2 / (rho_w cos(theta_l))`, and
+//! - per orthographic pixel of a region, `pi f = pi L d^2 / (I cos(theta_l))` with that pixel's own
+//!   `d` and `theta_l`; the sample's value is the mean over the region's pixels, and its
+//!   directions are those from the region's centre to the light and to the camera centre.
+//!
+//! This divides out the differing light direction and distance between the standard and each
+//! region. It assumes the light is isotropic over the small solid angle the frame subtends from
+//! it, and ignores the light's size (its distance is many times its size).
+
+// `!(x > 0.0)` on purpose: it is also true for NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord, clippy::nonminimal_bool)]
+
+use std::path::{Path, PathBuf};
+
+use glam::{DMat3, DVec2, DVec3, Vec3};
+use igi_imaging::{cv, planar, Camera, HdrImage, WorldToCamera};
+use serde::{Deserialize, Serialize};
+
+use crate::{BrdfError, BrdfSample};
+
+/// One fiducial of the frame: its centre on the frame plane (the point a user marks for
+/// `--corners`) and, for ArUco detection, the marker id and side length.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Fiducial {
+    pub center: [f64; 2],
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub aruco_id: Option<i32>,
+    /// Marker side length, metres (ArUco only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub size: Option<f64>,
+}
+
+/// A glossy black sphere (frame coordinates).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FrameSphere {
+    pub center: [f64; 3],
+    pub radius: f64,
+}
+
+/// A reflectance: one number (grey) or per channel.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum Reflectance {
+    Grey(f64),
+    Rgb([f64; 3]),
+}
+
+impl Reflectance {
+    pub fn rgb(&self) -> DVec3 {
+        match *self {
+            Reflectance::Grey(x) => DVec3::splat(x),
+            Reflectance::Rgb(c) => DVec3::from_array(c),
+        }
+    }
+}
+
+fn default_white() -> Reflectance {
+    Reflectance::Grey(0.99)
+}
+
+/// The white reflectance standard: an axis-aligned rectangle at height `z` (default 0).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WhiteStandard {
+    pub min: [f64; 2],
+    pub max: [f64; 2],
+    #[serde(default)]
+    pub z: f64,
+    /// Lambertian reflectance (default 0.99).
+    #[serde(default = "default_white")]
+    pub reflectance: Reflectance,
+}
+
+/// The orthographic view: the rectangle `min..max` of the sample plane at `px_per_m` pixels per
+/// metre; row 0 at `max[1]` (the view from above, x to the right, y up).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Ortho {
+    pub min: [f64; 2],
+    pub max: [f64; 2],
+    pub px_per_m: f64,
+}
+
+fn default_region_px() -> usize {
+    30
+}
+
+/// A measured region: `size_px` x `size_px` orthographic pixels (default 30) centred on `center`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Region {
+    pub material: String,
+    pub center: [f64; 2],
+    #[serde(default = "default_region_px")]
+    pub size_px: usize,
+}
+
+fn default_dict() -> String {
+    "4x4_50".into()
+}
+
+/// The sample-frame description file (JSON; docs/BRDF.md "Measuring samples").
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SampleFrame {
+    /// Four (or more) fiducials on the plane z = 0, in the order `--corners` lists them.
+    pub fiducials: Vec<Fiducial>,
+    /// ArUco dictionary: `4x4_50` (default), `5x5_100`, `6x6_250` or `original`.
+    #[serde(default = "default_dict")]
+    pub aruco_dictionary: String,
+    /// The two glossy black spheres.
+    pub spheres: Vec<FrameSphere>,
+    pub white: WhiteStandard,
+    pub ortho: Ortho,
+    pub regions: Vec<Region>,
+}
+
+fn v2(a: [f64; 2]) -> DVec2 {
+    DVec2::from_array(a)
+}
+
+impl SampleFrame {
+    /// Read and validate a frame file; errors name it.
+    pub fn load(path: &Path) -> Result<SampleFrame, BrdfError> {
+        let text = std::fs::read_to_string(path).map_err(|source| BrdfError::Io {
+            path: path.into(),
+            source,
+        })?;
+        Self::from_json_str(&text, path)
+    }
+
+    /// Parse and validate frame JSON text; `path` names it in errors.
+    pub fn from_json_str(text: &str, path: &Path) -> Result<SampleFrame, BrdfError> {
+        let err = |msg: String| BrdfError::File {
+            path: path.into(),
+            msg: format!("sample frame: {msg}"),
+        };
+        let f: SampleFrame = serde_json::from_str(text).map_err(|e| err(e.to_string()))?;
+        f.validate().map_err(err)?;
+        Ok(f)
+    }
+
+    fn validate(&self) -> Result<(), String> {
+        let finite = |xs: &[f64]| xs.iter().all(|x| x.is_finite());
+        if self.fiducials.len() < 4 {
+            return Err(format!(
+                "needs four fiducials, found {}",
+                self.fiducials.len()
+            ));
+        }
+        for (i, fd) in self.fiducials.iter().enumerate() {
+            if !finite(&fd.center) || fd.size.is_some_and(|s| !(s > 0.0 && s.is_finite())) {
+                return Err(format!(
+                    "fiducial {i}: centre must be finite and size positive"
+                ));
+            }
+            if fd.aruco_id.is_some() != fd.size.is_some() {
+                return Err(format!("fiducial {i}: `aruco_id` and `size` go together"));
+            }
+        }
+        let c: Vec<DVec2> = self.fiducials.iter().map(|f| v2(f.center)).collect();
+        let spread = c.iter().map(|p| (*p - c[0]).length()).fold(0.0, f64::max);
+        let mut min_area = f64::INFINITY;
+        for i in 0..c.len() {
+            for j in i + 1..c.len() {
+                for k in j + 1..c.len() {
+                    min_area = min_area.min((c[j] - c[i]).perp_dot(c[k] - c[i]).abs() * 0.5);
+                }
+            }
+        }
+        if !(min_area > 1e-3 * spread * spread) {
+            return Err(
+                "three fiducials are (nearly) collinear: the pose would be degenerate".into(),
+            );
+        }
+        aruco_dict(&self.aruco_dictionary)?;
+        if self.spheres.len() != 2 {
+            return Err(format!(
+                "needs exactly two spheres, found {}",
+                self.spheres.len()
+            ));
+        }
+        for (i, s) in self.spheres.iter().enumerate() {
+            if !finite(&s.center) || !(s.radius > 0.0 && s.radius.is_finite()) {
+                return Err(format!(
+                    "sphere {i}: centre must be finite and radius positive"
+                ));
+            }
+        }
+        if (DVec3::from_array(self.spheres[0].center) - DVec3::from_array(self.spheres[1].center))
+            .length()
+            < self.spheres[0].radius + self.spheres[1].radius
+        {
+            return Err("the two spheres overlap".into());
+        }
+        let w = &self.white;
+        if !finite(&w.min)
+            || !finite(&w.max)
+            || !w.z.is_finite()
+            || !(w.max[0] > w.min[0] && w.max[1] > w.min[1])
+        {
+            return Err("white: `min` must be below `max` in x and y (finite metres)".into());
+        }
+        let rho = w.reflectance.rgb();
+        if !(rho.min_element() > 0.0 && rho.max_element() <= 1.5 && rho.is_finite()) {
+            return Err(format!(
+                "white: reflectance must be in (0, 1.5], found {:?}",
+                rho.to_array()
+            ));
+        }
+        let o = &self.ortho;
+        if !finite(&o.min) || !finite(&o.max) || !(o.max[0] > o.min[0] && o.max[1] > o.min[1]) {
+            return Err("ortho: `min` must be below `max` in x and y (finite metres)".into());
+        }
+        if !(o.px_per_m > 0.0 && o.px_per_m.is_finite()) {
+            return Err(format!(
+                "ortho: px_per_m must be positive, found {}",
+                o.px_per_m
+            ));
+        }
+        let (ow, oh) = self.ortho_size();
+        if ow == 0 || oh == 0 || ow > 20000 || oh > 20000 {
+            return Err(format!(
+                "ortho: the view would be {ow}x{oh} pixels (1 to 20000 each)"
+            ));
+        }
+        if self.regions.is_empty() {
+            return Err("needs at least one region".into());
+        }
+        for (i, r) in self.regions.iter().enumerate() {
+            if r.material.trim().is_empty() || r.material.contains([',', '"', '\n', '\r']) {
+                return Err(format!(
+                    "region {i}: material name {:?} must be non-empty, without commas or quotes",
+                    r.material
+                ));
+            }
+            if r.size_px == 0 {
+                return Err(format!(
+                    "region {i} ({}): size_px must be at least 1",
+                    r.material
+                ));
+            }
+            let h = r.size_px as f64 / o.px_per_m * 0.5;
+            let (cx, cy) = (r.center[0], r.center[1]);
+            if !finite(&r.center)
+                || cx - h < o.min[0]
+                || cx + h > o.max[0]
+                || cy - h < o.min[1]
+                || cy + h > o.max[1]
+            {
+                return Err(format!(
+                    "region {i} ({}): its {} px square must lie inside the ortho rectangle",
+                    r.material, r.size_px
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Width and height of the orthographic view, pixels.
+    pub fn ortho_size(&self) -> (usize, usize) {
+        let o = &self.ortho;
+        (
+            ((o.max[0] - o.min[0]) * o.px_per_m).round() as usize,
+            ((o.max[1] - o.min[1]) * o.px_per_m).round() as usize,
+        )
+    }
+
+    /// The affine map from orthographic pixel (column, row) to the frame plane point (x, y, 1).
+    pub fn ortho_to_plane(&self) -> DMat3 {
+        let o = &self.ortho;
+        let s = 1.0 / o.px_per_m;
+        DMat3::from_cols(
+            DVec3::new(s, 0.0, 0.0),
+            DVec3::new(0.0, -s, 0.0),
+            DVec3::new(o.min[0] + 0.5 * s, o.max[1] - 0.5 * s, 1.0),
+        )
+    }
+
+    /// The four corners of an ArUco fiducial in OpenCV's order (clockwise from the marker's
+    /// top-left), for a marker printed with its image x along frame +x and its image "up" along
+    /// frame +y. `None` for a fiducial without an id.
+    pub fn aruco_corners(&self, i: usize) -> Option<[DVec3; 4]> {
+        let f = &self.fiducials[i];
+        let (c, h) = (v2(f.center), f.size? * 0.5);
+        Some(
+            [(-h, h), (h, h), (h, -h), (-h, -h)]
+                .map(|(dx, dy)| DVec3::new(c.x + dx, c.y + dy, 0.0)),
+        )
+    }
+}
+
+fn aruco_dict(name: &str) -> Result<cv::ArucoDict, String> {
+    match name.to_ascii_lowercase().as_str() {
+        "4x4_50" => Ok(cv::ArucoDict::Dict4x4_50),
+        "5x5_100" => Ok(cv::ArucoDict::Dict5x5_100),
+        "6x6_250" => Ok(cv::ArucoDict::Dict6x6_250),
+        "original" => Ok(cv::ArucoDict::Original),
+        other => Err(format!(
+            "unknown aruco_dictionary {other:?} (4x4_50, 5x5_100, 6x6_250, original)"
+        )),
+    }
+}
+
+/// How the pose of a photograph is found.
+#[derive(Clone, Debug, PartialEq)]
+pub enum PoseInput {
+    /// Pixels of the fiducials' centres, in the frame file's order.
+    Corners(Vec<DVec2>),
+    /// ArUco detection and PnP (needs the `opencv` feature of igi-imaging).
+    Aruco,
+}
+
+/// Thresholds of [`measure_photo`].
+#[derive(Clone, Debug)]
+pub struct MeasureOptions {
+    /// A highlight's brightest pixel must be at least this many times the median of the
+    /// sphere's pixels 6 to 10 px away from it.
+    pub highlight_min_ratio: f64,
+    /// Largest fraction of a sphere's pixels that may be saturated (their centroid is the
+    /// highlight then); above it the highlight cannot be located.
+    pub max_saturated_fraction: f64,
+    /// Largest closest-approach gap of the reflected rays, as a fraction of the light's distance.
+    pub max_gap_ratio: f64,
+    /// Largest RMS reprojection error of the fiducials, pixels.
+    pub max_pose_rms_px: f64,
+    /// Place each sphere by its outline in the photograph ([`sphere_center_from_outline`])
+    /// rather than by the pose alone.
+    pub refine_spheres: bool,
+}
+
+impl Default for MeasureOptions {
+    fn default() -> Self {
+        MeasureOptions {
+            highlight_min_ratio: 4.0,
+            max_saturated_fraction: 0.05,
+            max_gap_ratio: 0.05,
+            max_pose_rms_px: 3.0,
+            refine_spheres: false,
+        }
+    }
+}
+
+/// A located highlight on one sphere.
+#[derive(Clone, Debug, Serialize)]
+pub struct Highlight {
+    /// Sub-pixel centre in the photograph.
+    pub pixel: [f64; 2],
+    /// True when the highlight was saturated (its centre is the centroid of the saturated pixels).
+    pub saturated: bool,
+    /// Brightest pixel over its surroundings on the sphere (0 when saturated).
+    pub peak_over_background: f64,
+    /// Point on the sphere and the unit reflected direction (frame coordinates).
+    pub point: [f64; 3],
+    pub reflected: [f64; 3],
+}
+
+/// A sphere's centre as used (frame coordinates), its distance from the frame file's centre,
+/// and the number of outline points that placed it (0: the frame file's centre was used).
+#[derive(Clone, Debug, Serialize)]
+pub struct SphereCenter {
+    pub center: [f64; 3],
+    pub shift: f64,
+    pub outline_points: usize,
+}
+
+/// One region's measured value.
+#[derive(Clone, Debug, Serialize)]
+pub struct RegionValue {
+    pub material: String,
+    pub center: [f64; 2],
+    /// Unit directions toward the light and the camera, in the sample's local frame.
+    pub light: [f32; 3],
+    pub view: [f32; 3],
+    /// pi f (r, g, b): mean over the region's orthographic pixels.
+    pub value: [f32; 3],
+    /// Relative standard deviation of the luminance of pi f over the region's pixels.
+    pub rel_std: f64,
+    pub pixels: usize,
+}
+
+/// Everything recovered from one photograph.
+#[derive(Clone, Debug, Serialize)]
+pub struct PhotoMeasurement {
+    pub photo: PathBuf,
+    /// `corners` or `aruco ids [..]`.
+    pub pose_source: String,
+    /// World (frame) to camera: rows of R, and t.
+    pub r: [[f64; 3]; 3],
+    pub t: [f64; 3],
+    pub pose_rms_px: f64,
+    pub camera_center: [f64; 3],
+    /// Light position (frame coordinates) and the closest-approach gap of the two reflected rays.
+    pub light: [f64; 3],
+    pub gap: f64,
+    /// Where each sphere was taken to be.
+    pub spheres: Vec<SphereCenter>,
+    pub highlights: Vec<Highlight>,
+    /// Light intensity I per channel (image radiance units times m^2) from the white standard.
+    pub intensity: [f64; 3],
+    /// Homography from orthographic pixel (column, row, 1) to the undistorted photograph pixel
+    /// (rows); the lens distortion is applied on top when sampling.
+    pub homography: [[f64; 3]; 3],
+    pub regions: Vec<RegionValue>,
+}
+
+impl PhotoMeasurement {
+    pub fn pose(&self) -> WorldToCamera {
+        WorldToCamera {
+            r: DMat3::from_cols_array_2d(&self.r).transpose(),
+            t: DVec3::from_array(self.t),
+        }
+    }
+
+    pub fn light_position(&self) -> DVec3 {
+        DVec3::from_array(self.light)
+    }
+
+    /// The regions as samples-CSV rows.
+    pub fn samples(&self) -> Vec<BrdfSample> {
+        self.regions
+            .iter()
+            .map(|r| BrdfSample {
+                material: r.material.clone(),
+                light: Vec3::from_array(r.light),
+                view: Vec3::from_array(r.view),
+                value: Vec3::from_array(r.value),
+            })
+            .collect()
+    }
+}
+
+fn rows(m: &DMat3) -> [[f64; 3]; 3] {
+    m.transpose().to_cols_array_2d()
+}
+
+/// Camera pose of a photograph from the frame's fiducials. Returns the pose, the RMS
+/// reprojection error and a description of the source. Errors are messages (the caller names
+/// the photo).
+pub fn frame_pose(
+    frame: &SampleFrame,
+    camera: &Camera,
+    img: &HdrImage,
+    input: &PoseInput,
+) -> Result<(WorldToCamera, f64, String), String> {
+    match input {
+        PoseInput::Corners(px) => {
+            if px.len() != frame.fiducials.len() {
+                return Err(format!(
+                    "{} corner pixels given, the frame has {} fiducials",
+                    px.len(),
+                    frame.fiducials.len()
+                ));
+            }
+            for (i, p) in px.iter().enumerate() {
+                if !p.is_finite()
+                    || p.x < 0.0
+                    || p.y < 0.0
+                    || p.x > (img.width - 1) as f64
+                    || p.y > (img.height - 1) as f64
+                {
+                    return Err(format!(
+                        "corner {i} ({:.1}, {:.1}) lies outside the {}x{} photo",
+                        p.x, p.y, img.width, img.height
+                    ));
+                }
+            }
+            let plane: Vec<DVec2> = frame.fiducials.iter().map(|f| v2(f.center)).collect();
+            let p = planar::pose_from_plane(&camera.intrinsics, &plane, px)
+                .map_err(|e| format!("corners: {e} (wrong order, or the wrong frame file?)"))?;
+            Ok((p.pose, p.rms_px, "corners".into()))
+        }
+        PoseInput::Aruco => {
+            let dict = aruco_dict(&frame.aruco_dictionary)?;
+            let found = cv::detect_aruco(img, dict).map_err(|e| {
+                format!("ArUco detection: {e} (or give the fiducial pixels with --corners)")
+            })?;
+            let (mut world, mut px, mut ids) = (Vec::new(), Vec::new(), Vec::new());
+            for m in &found {
+                if let Some(i) = frame
+                    .fiducials
+                    .iter()
+                    .position(|f| f.aruco_id == Some(m.id))
+                {
+                    if ids.contains(&m.id) {
+                        continue;
+                    }
+                    ids.push(m.id);
+                    world.extend(frame.aruco_corners(i).expect("id implies size"));
+                    px.extend(m.corners);
+                }
+            }
+            if ids.len() < 2 {
+                let want: Vec<i32> = frame.fiducials.iter().filter_map(|f| f.aruco_id).collect();
+                let seen: Vec<i32> = found.iter().map(|m| m.id).collect();
+                return Err(format!("found ArUco markers {seen:?}, the frame's are {want:?}: at least two are needed for the pose"));
+            }
+            ids.sort();
+            let r = cv::solve_pnp(&camera.intrinsics, &world, &px, 3.0)
+                .map_err(|e| format!("PnP: {e}"))?;
+            Ok((r.pose, r.rms_px, format!("aruco ids {ids:?}")))
+        }
+    }
+}
+
+/// Ray-sphere intersection: the nearest positive `s` with `|o + s d - c| = r` (`d` unit).
+fn hit_sphere(o: DVec3, d: DVec3, c: DVec3, r: f64) -> Option<f64> {
+    let oc = o - c;
+    let b = oc.dot(d);
+    let disc = b * b - (oc.length_squared() - r * r);
+    if disc < 0.0 {
+        return None;
+    }
+    let s = -b - disc.sqrt();
+    (s > 0.0).then_some(s)
+}
+
+/// Mirror reflection of `d` about the unit normal `n`.
+fn reflect(d: DVec3, n: DVec3) -> DVec3 {
+    d - 2.0 * d.dot(n) * n
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.sort_by(|a, b| a.total_cmp(b));
+    v[v.len() / 2]
+}
+
+/// Locate the highlight on a sphere of the frame photographed by `cam` (pose set): the
+/// pixels whose rays hit the sphere within 0.9 of its radius from the centre line (away from the
+/// limb) are examined; the highlight centre is the background-subtracted, intensity-weighted
+/// centroid of the bright blob around the brightest pixel; when some pixels are saturated, the
+/// saturated pixels count with the brightest unclipped level and the unclipped pixels within
+/// 3 px with their own.
+pub fn find_highlight(
+    cam: &Camera,
+    img: &HdrImage,
+    sphere: &FrameSphere,
+    opts: &MeasureOptions,
+) -> Result<Highlight, String> {
+    let c = DVec3::from_array(sphere.center);
+    let r = sphere.radius;
+    // bounding box of the sphere's image: projections of a circumscribing cube
+    let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+    for k in 0..8 {
+        let o = DVec3::new(
+            if k & 1 == 0 { -1.0 } else { 1.0 },
+            if k & 2 == 0 { -1.0 } else { 1.0 },
+            if k & 4 == 0 { -1.0 } else { 1.0 },
+        );
+        let p = cam
+            .project(c + o * 1.2 * r)
+            .ok_or("the sphere is (partly) behind the camera")?;
+        lo = lo.min(p);
+        hi = hi.max(p);
+    }
+    let x0 = lo.x.floor().max(0.0) as usize;
+    let y0 = lo.y.floor().max(0.0) as usize;
+    let x1 = (hi.x.ceil().max(-1.0) as i64).min(img.width as i64 - 1);
+    let y1 = (hi.y.ceil().max(-1.0) as i64).min(img.height as i64 - 1);
+    let mut mask: Vec<(usize, usize)> = Vec::new();
+    if x1 >= x0 as i64 && y1 >= y0 as i64 {
+        for y in y0..=y1 as usize {
+            for x in x0..=x1 as usize {
+                let (o, d) = cam.pixel_ray(x as f64, y as f64);
+                let tca = (c - o).dot(d);
+                if tca > 0.0 && (c - o).length_squared() - tca * tca < (0.9 * r) * (0.9 * r) {
+                    mask.push((x, y));
+                }
+            }
+        }
+    }
+    if mask.len() < 20 {
+        return Err(format!(
+            "it covers only {} usable pixels of the photo (outside the image, or a wrong pose?)",
+            mask.len()
+        ));
+    }
+    let lum = |x: usize, y: usize| {
+        let p = img.get(x, y);
+        (p[0] as f64 + p[1] as f64 + p[2] as f64) / 3.0
+    };
+    let sat: Vec<(usize, usize)> = mask
+        .iter()
+        .copied()
+        .filter(|&(x, y)| !img.is_valid(x, y))
+        .collect();
+    let (centre, saturated, ratio) = if !sat.is_empty() {
+        let frac = sat.len() as f64 / mask.len() as f64;
+        if frac > opts.max_saturated_fraction {
+            return Err(format!(
+                "{} of its {} pixels ({:.0}%) are saturated or unusable (at most {:.0}%): the highlight cannot be located; use a shorter exposure",
+                sat.len(),
+                mask.len(),
+                frac * 100.0,
+                opts.max_saturated_fraction * 100.0
+            ));
+        }
+        // the clipped profile is still symmetric about the highlight's centre: weight the
+        // saturated pixels with the brightest unclipped level and add the unclipped tails
+        // within 3 px, background subtracted
+        let inside: std::collections::HashSet<(usize, usize)> = mask.iter().copied().collect();
+        let mut support: std::collections::BTreeSet<(usize, usize)> =
+            std::collections::BTreeSet::new();
+        for &(x, y) in &sat {
+            for dy in -3i64..=3 {
+                for dx in -3i64..=3 {
+                    let q = (
+                        (x as i64 + dx).max(0) as usize,
+                        (y as i64 + dy).max(0) as usize,
+                    );
+                    if inside.contains(&q) {
+                        support.insert(q);
+                    }
+                }
+            }
+        }
+        let mut vals: Vec<f64> = mask
+            .iter()
+            .filter(|&&(x, y)| img.is_valid(x, y))
+            .map(|&(x, y)| lum(x, y))
+            .collect();
+        let bg = median(&mut vals);
+        let plateau = support
+            .iter()
+            .filter(|&&(x, y)| img.is_valid(x, y))
+            .map(|&(x, y)| lum(x, y))
+            .fold(bg, f64::max);
+        let (mut sw, mut sx, mut sy) = (0.0, 0.0, 0.0);
+        for &(x, y) in &support {
+            let w = if img.is_valid(x, y) {
+                (lum(x, y) - bg).max(0.0)
+            } else {
+                plateau - bg
+            };
+            sw += w;
+            sx += w * x as f64;
+            sy += w * y as f64;
+        }
+        if !(sw > 0.0) {
+            let n = sat.len() as f64;
+            sx = sat.iter().map(|p| p.0 as f64).sum::<f64>();
+            sy = sat.iter().map(|p| p.1 as f64).sum::<f64>();
+            sw = n;
+        }
+        (DVec2::new(sx / sw, sy / sw), true, 0.0)
+    } else {
+        let mut vals: Vec<f64> = mask.iter().map(|&(x, y)| lum(x, y)).collect();
+        let (ip, peak) =
+            vals.iter().enumerate().fold(
+                (0, f64::MIN),
+                |b, (i, v)| if *v > b.1 { (i, *v) } else { b },
+            );
+        let med = median(&mut vals);
+        let (px, py) = mask[ip];
+        let inside: std::collections::HashSet<(usize, usize)> = mask.iter().copied().collect();
+        let near = |rmin: f64, rmax: f64| {
+            mask.iter().copied().filter(move |&(x, y)| {
+                let d = ((x as f64 - px as f64).powi(2) + (y as f64 - py as f64).powi(2)).sqrt();
+                d > rmin && d <= rmax
+            })
+        };
+        let mut ring: Vec<f64> = near(6.0, 10.0).map(|(x, y)| lum(x, y)).collect();
+        let bg = if ring.len() >= 8 {
+            median(&mut ring)
+        } else {
+            med
+        };
+        // a highlight stands out of its surroundings (the shading of the sphere's base does not)
+        let ratio = if bg > 0.0 {
+            peak / bg
+        } else if peak > 0.0 {
+            f64::INFINITY
+        } else {
+            0.0
+        };
+        if !(ratio >= opts.highlight_min_ratio) {
+            return Err(format!(
+                "no highlight found: its brightest pixel is {ratio:.2} times its surroundings (at least {} needed)",
+                opts.highlight_min_ratio
+            ));
+        }
+        // the blob: 8-connected pixels above 2% of the peak's excess, grown from the peak
+        let thr = bg + 0.02 * (peak - bg);
+        let mut blob = vec![(px, py)];
+        let mut seen: std::collections::HashSet<(usize, usize)> = blob.iter().copied().collect();
+        let mut k = 0;
+        while k < blob.len() && blob.len() < 10000 {
+            let (x, y) = blob[k];
+            k += 1;
+            for dy in -1i64..=1 {
+                for dx in -1i64..=1 {
+                    let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+                    if nx < 0 || ny < 0 {
+                        continue;
+                    }
+                    let q = (nx as usize, ny as usize);
+                    if inside.contains(&q) && !seen.contains(&q) && lum(q.0, q.1) > thr {
+                        seen.insert(q);
+                        blob.push(q);
+                    }
+                }
+            }
+        }
+        // one pixel of margin around the blob carries the highlight's tails
+        let mut support = seen.clone();
+        for &(x, y) in &blob {
+            for dy in -1i64..=1 {
+                for dx in -1i64..=1 {
+                    let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+                    if nx >= 0 && ny >= 0 && inside.contains(&(nx as usize, ny as usize)) {
+                        support.insert((nx as usize, ny as usize));
+                    }
+                }
+            }
+        }
+        let (mut sw, mut sx, mut sy) = (0.0, 0.0, 0.0);
+        for &(x, y) in &support {
+            let w = (lum(x, y) - bg).max(0.0);
+            sw += w;
+            sx += w * x as f64;
+            sy += w * y as f64;
+        }
+        (DVec2::new(sx / sw, sy / sw), false, ratio)
+    };
+    let (o, d) = cam.pixel_ray(centre.x, centre.y);
+    let s = hit_sphere(o, d, c, r).ok_or_else(|| {
+        format!(
+            "the highlight's centre ({:.2}, {:.2}) does not lie on the sphere",
+            centre.x, centre.y
+        )
+    })?;
+    let p = o + d * s;
+    let n = (p - c) / r;
+    let refl = reflect(d, n).normalize();
+    Ok(Highlight {
+        pixel: centre.to_array(),
+        saturated,
+        peak_over_background: ratio,
+        point: p.to_array(),
+        reflected: refl.to_array(),
+    })
+}
+
+/// The sphere's centre as the photograph shows it: its outline is found along 64 radial lines
+/// (the 50% crossing between the sphere's dark rim and the background just outside it, lines
+/// with too little contrast or a second crossing rejected), the outline's camera rays are fitted
+/// with the cone of rays tangent to a sphere (`d . a = cos(alpha)`, linear least squares), and
+/// the centre is put on the cone's axis `a` at the distance the pose gives. This makes the
+/// highlight's position relative to the sphere independent of small pose errors. Returns the
+/// centre (frame coordinates) and the number of outline points, or `None` when fewer than 24
+/// lines give an edge.
+pub fn sphere_center_from_outline(
+    cam: &Camera,
+    img: &HdrImage,
+    sphere: &FrameSphere,
+) -> Option<(DVec3, usize)> {
+    let c = DVec3::from_array(sphere.center);
+    let eye = cam.center_world();
+    let pc = cam.project(c)?;
+    let cam_x = cam.pose.r.transpose() * DVec3::X;
+    let rpx = (cam.project(c + cam_x * sphere.radius)? - pc).length();
+    if !(rpx > 4.0) {
+        return None;
+    }
+    let lum = |p: DVec2| {
+        img.bilinear(p.x as f32, p.y as f32)
+            .map(|v| (v[0] as f64 + v[1] as f64 + v[2] as f64) / 3.0)
+    };
+    let mut dirs = Vec::new();
+    const LINES: usize = 64;
+    for k in 0..LINES {
+        let th = std::f64::consts::TAU * k as f64 / LINES as f64;
+        let u = DVec2::new(th.cos(), th.sin());
+        let at = |rho: f64| lum(pc + u * rho * rpx);
+        let Some(inner) = at(0.75) else { continue };
+        let mut outer: Vec<f64> = Vec::new();
+        for i in 0..=10 {
+            if let Some(v) = at(1.3 + 0.02 * i as f64) {
+                outer.push(v);
+            }
+        }
+        if outer.len() < 8 {
+            continue;
+        }
+        let outer = median(&mut outer);
+        if !(outer > 3.0 * inner && outer > 0.0) {
+            continue;
+        }
+        let thr = 0.5 * (inner + outer);
+        let step = 0.1 / rpx;
+        let n = ((1.3 - 0.75) / step) as usize;
+        let (mut prev, mut edge, mut clean) = (inner, None, true);
+        for i in 1..=n {
+            let rho = 0.75 + i as f64 * step;
+            let Some(v) = at(rho) else {
+                clean = false;
+                break;
+            };
+            match edge {
+                None if v >= thr => {
+                    let f = (thr - prev) / (v - prev);
+                    edge = Some(rho - step + f * step);
+                }
+                Some(_) if v < thr => {
+                    clean = false;
+                    break;
+                }
+                _ => {}
+            }
+            prev = v;
+        }
+        if let (Some(rho), true) = (edge, clean) {
+            if rho < 0.85 {
+                continue; // a highlight or a mark on the rim, not the outline
+            }
+            let q = pc + u * rho * rpx;
+            dirs.push(cam.pixel_ray(q.x, q.y).1);
+        }
+    }
+    if dirs.len() < 24 {
+        return None;
+    }
+    // d_i . b = 1 in least squares, b = a / cos(alpha)
+    let mut ata = nalgebra::Matrix3::<f64>::zeros();
+    let mut atb = nalgebra::Vector3::<f64>::zeros();
+    for d in &dirs {
+        let v = nalgebra::Vector3::new(d.x, d.y, d.z);
+        ata += v * v.transpose();
+        atb += v;
+    }
+    let b = ata.lu().solve(&atb)?;
+    let a = DVec3::new(b[0], b[1], b[2]).normalize();
+    let centre = eye + a * (c - eye).length();
+    centre.is_finite().then_some((centre, dirs.len()))
+}
+
+/// The point of closest approach of two rays `o + s d` (unit `d`): the midpoint of the
+/// closest points, the gap between them and the two ray parameters. `None` for (nearly)
+/// parallel rays.
+pub fn closest_approach(
+    o1: DVec3,
+    d1: DVec3,
+    o2: DVec3,
+    d2: DVec3,
+) -> Option<(DVec3, f64, f64, f64)> {
+    let w = o1 - o2;
+    let b = d1.dot(d2);
+    let den = 1.0 - b * b;
+    if den < 1e-10 {
+        return None;
+    }
+    let (dd, e) = (d1.dot(w), d2.dot(w));
+    let s = (b * e - dd) / den;
+    let u = (e - b * dd) / den;
+    let (p1, p2) = (o1 + d1 * s, o2 + d2 * u);
+    Some(((p1 + p2) * 0.5, (p1 - p2).length(), s, u))
+}
+
+/// Photograph pixel of a frame point (`None` behind the camera).
+fn sample_at(cam: &Camera, img: &HdrImage, p: DVec3) -> Option<DVec3> {
+    let q = cam.project(p)?;
+    let v = img.bilinear(q.x as f32, q.y as f32)?;
+    Some(DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64))
+}
+
+/// The orthographic view of the sample plane (`frame.ortho`): each pixel is the photograph's
+/// bilinear sample at the projection (with distortion) of its plane point; invalid where that
+/// falls outside the photo or on an invalid pixel.
+pub fn orthographic_view(frame: &SampleFrame, cam: &Camera, img: &HdrImage) -> HdrImage {
+    let (w, h) = frame.ortho_size();
+    let a = frame.ortho_to_plane();
+    let mut out = HdrImage::new(w, h);
+    for row in 0..h {
+        for col in 0..w {
+            let p = a * DVec3::new(col as f64, row as f64, 1.0);
+            let i = out.index(col, row);
+            match sample_at(cam, img, DVec3::new(p.x, p.y, 0.0)) {
+                Some(v) => out.pixels[i] = [v.x as f32, v.y as f32, v.z as f32],
+                None => out.valid[i] = false,
+            }
+        }
+    }
+    out
+}
+
+/// Measure one photograph of the frame. `camera` supplies the intrinsics (its pose is ignored)
+/// and must have the photo's size; `photo` names the file in errors.
+pub fn measure_photo(
+    frame: &SampleFrame,
+    camera: &Camera,
+    img: &HdrImage,
+    photo: &Path,
+    input: &PoseInput,
+    opts: &MeasureOptions,
+) -> Result<PhotoMeasurement, BrdfError> {
+    let err = |msg: String| BrdfError::File {
+        path: photo.into(),
+        msg,
+    };
+    if (img.width, img.height) != (camera.width as usize, camera.height as usize) {
+        return Err(err(format!(
+            "the photo is {}x{} but the camera is {}x{}",
+            img.width, img.height, camera.width, camera.height
+        )));
+    }
+    let (pose, pose_rms_px, pose_source) = frame_pose(frame, camera, img, input).map_err(&err)?;
+    if !(pose_rms_px <= opts.max_pose_rms_px) {
+        return Err(err(format!(
+            "the fiducials reproject with RMS {pose_rms_px:.2} px (at most {} px): wrong order or wrong frame file?",
+            opts.max_pose_rms_px
+        )));
+    }
+    let cam = Camera {
+        pose,
+        ..camera.clone()
+    };
+    let eye = cam.center_world();
+    if !(eye.z > 0.0) {
+        return Err(err(format!(
+            "the recovered camera centre {:?} is not above the frame plane",
+            eye.to_array()
+        )));
+    }
+
+    // ---- light position from the two highlights
+    let mut hl = Vec::new();
+    let mut sphere_centers = Vec::new();
+    for (k, s) in frame.spheres.iter().enumerate() {
+        let mut s = *s;
+        let mut outline_points = 0;
+        if opts.refine_spheres {
+            if let Some((c, n)) = sphere_center_from_outline(&cam, img, &s) {
+                if (c - DVec3::from_array(s.center)).length() < 0.5 * s.radius {
+                    s.center = c.to_array();
+                    outline_points = n;
+                }
+            }
+        }
+        sphere_centers.push(SphereCenter {
+            center: s.center,
+            shift: (DVec3::from_array(s.center) - DVec3::from_array(frame.spheres[k].center))
+                .length(),
+            outline_points,
+        });
+        hl.push(find_highlight(&cam, img, &s, opts).map_err(|m| err(format!("sphere {k}: {m}")))?);
+    }
+    let ray = |h: &Highlight| (DVec3::from_array(h.point), DVec3::from_array(h.reflected));
+    let ((o1, d1), (o2, d2)) = (ray(&hl[0]), ray(&hl[1]));
+    let (light, gap, s1, s2) = closest_approach(o1, d1, o2, d2).ok_or_else(|| {
+        err("the rays reflected off the two spheres are parallel: no light position".into())
+    })?;
+    if !(s1 > 0.0 && s2 > 0.0) {
+        return Err(err(format!(
+            "the rays reflected off the spheres meet behind them (parameters {s1:.3}, {s2:.3} m): highlights misidentified?"
+        )));
+    }
+    let dist = 0.5 * (s1 + s2);
+    if gap > opts.max_gap_ratio * dist {
+        return Err(err(format!(
+            "the reflected rays pass {gap:.4} m apart at {dist:.3} m (more than {:.0}%): highlights or pose inconsistent",
+            opts.max_gap_ratio * 100.0
+        )));
+    }
+    if !(light.z > frame.white.z.max(0.0)) {
+        return Err(err(format!(
+            "the recovered light {:?} is not above the frame plane",
+            light.to_array()
+        )));
+    }
+
+    // ---- intensity from the white standard
+    let w = &frame.white;
+    let rho = w.reflectance.rgb();
+    let step = 1.0 / frame.ortho.px_per_m;
+    let (mn, mx) = (v2(w.min), v2(w.max));
+    let inset = (mx - mn) * 0.1;
+    let (a, b) = (mn + inset, mx - inset);
+    let nx = (((b.x - a.x) / step).round() as usize).max(1);
+    let ny = (((b.y - a.y) / step).round() as usize).max(1);
+    let (mut sum, mut bad) = (DVec3::ZERO, 0usize);
+    for j in 0..ny {
+        for i in 0..nx {
+            let q = DVec3::new(
+                a.x + (i as f64 + 0.5) * (b.x - a.x) / nx as f64,
+                a.y + (j as f64 + 0.5) * (b.y - a.y) / ny as f64,
+                w.z,
+            );
+            let tl = light - q;
+            let d2 = tl.length_squared();
+            let cos = tl.z / d2.sqrt();
+            match sample_at(&cam, img, q) {
+                Some(l) if cos > 0.0 => sum += l * std::f64::consts::PI * d2 / (rho * cos),
+                _ => bad += 1,
+            }
+        }
+    }
+    if bad > 0 {
+        return Err(err(format!(
+            "white standard: {bad} of {} samples are saturated, unusable or outside the photo",
+            nx * ny
+        )));
+    }
+    let intensity = sum / (nx * ny) as f64;
+    if !(intensity.min_element() > 0.0 && intensity.is_finite()) {
+        return Err(err(format!(
+            "white standard: the light intensity {:?} is not positive in every channel",
+            intensity.to_array()
+        )));
+    }
+
+    // ---- regions
+    let mut regions = Vec::new();
+    for (k, r) in frame.regions.iter().enumerate() {
+        let c = v2(r.center);
+        let pc = DVec3::new(c.x, c.y, 0.0);
+        let (l, v) = ((light - pc).normalize(), (eye - pc).normalize());
+        if !(l.z > 0.0 && v.z > 0.0) {
+            return Err(err(format!(
+                "region {k} ({}): the light or the camera is below the sample plane",
+                r.material
+            )));
+        }
+        let n = r.size_px;
+        let (mut acc, mut lum, mut bad) = (DVec3::ZERO, Vec::with_capacity(n * n), 0usize);
+        for j in 0..n {
+            for i in 0..n {
+                let p = DVec3::new(
+                    c.x + (i as f64 - (n - 1) as f64 * 0.5) * step,
+                    c.y + (j as f64 - (n - 1) as f64 * 0.5) * step,
+                    0.0,
+                );
+                let tl = light - p;
+                let d2 = tl.length_squared();
+                let cos = tl.z / d2.sqrt();
+                match sample_at(&cam, img, p) {
+                    Some(val) if cos > 0.0 => {
+                        let f = val * std::f64::consts::PI * d2 / (intensity * cos);
+                        acc += f;
+                        lum.push(f.element_sum() / 3.0);
+                    }
+                    _ => bad += 1,
+                }
+            }
+        }
+        if bad > 0 {
+            return Err(err(format!(
+                "region {k} ({}): {bad} of {} pixels are saturated, unusable or outside the photo",
+                r.material,
+                n * n
+            )));
+        }
+        let m = acc / (n * n) as f64;
+        let ml = lum.iter().sum::<f64>() / lum.len() as f64;
+        let sd = (lum.iter().map(|x| (x - ml).powi(2)).sum::<f64>() / lum.len() as f64).sqrt();
+        regions.push(RegionValue {
+            material: r.material.clone(),
+            center: r.center,
+            light: l.as_vec3().to_array(),
+            view: v.as_vec3().to_array(),
+            value: m.as_vec3().to_array(),
+            rel_std: if ml > 0.0 { sd / ml } else { 0.0 },
+            pixels: n * n,
+        });
+    }
+
+    // ---- homography: ortho pixel -> undistorted photo pixel, K [r1 r2 t] A
+    let i = &cam.intrinsics;
+    let k = DMat3::from_cols(
+        DVec3::new(i.fx, 0.0, 0.0),
+        DVec3::new(0.0, i.fy, 0.0),
+        DVec3::new(i.cx, i.cy, 1.0),
+    );
+    let h = k * DMat3::from_cols(pose.r.x_axis, pose.r.y_axis, pose.t) * frame.ortho_to_plane();
+    let h = h * (1.0 / h.z_axis.z);
+
+    Ok(PhotoMeasurement {
+        photo: photo.into(),
+        pose_source,
+        r: rows(&pose.r),
+        t: pose.t.to_array(),
+        pose_rms_px,
+        camera_center: eye.to_array(),
+        light: light.to_array(),
+        gap,
+        spheres: sphere_centers,
+        highlights: hl,
+        intensity: intensity.to_array(),
+        homography: rows(&h),
+        regions,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn closest_approach_of_skew_rays() {
+        let (p, gap, s, u) = closest_approach(
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::X,
+            DVec3::new(1.0, -1.0, 0.2),
+            DVec3::Y,
+        )
+        .unwrap();
+        assert!((p - DVec3::new(1.0, 0.0, 0.1)).length() < 1e-12 && (gap - 0.2).abs() < 1e-12);
+        assert!((s - 1.0).abs() < 1e-12 && (u - 1.0).abs() < 1e-12);
+        assert!(closest_approach(DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::X).is_none());
+    }
+
+    #[test]
+    fn ortho_map_puts_row_zero_at_the_top() {
+        let f = SampleFrame {
+            fiducials: vec![],
+            aruco_dictionary: default_dict(),
+            spheres: vec![],
+            white: WhiteStandard {
+                min: [0.0; 2],
+                max: [1.0; 2],
+                z: 0.0,
+                reflectance: default_white(),
+            },
+            ortho: Ortho {
+                min: [-0.1, -0.05],
+                max: [0.1, 0.05],
+                px_per_m: 1000.0,
+            },
+            regions: vec![],
+        };
+        assert_eq!(f.ortho_size(), (200, 100));
+        let a = f.ortho_to_plane();
+        let p = a * DVec3::new(0.0, 0.0, 1.0);
+        assert!(
+            (p.x + 0.0995).abs() < 1e-12 && (p.y - 0.0495).abs() < 1e-12,
+            "{p}"
+        );
+        let q = a * DVec3::new(199.0, 99.0, 1.0);
+        assert!(
+            (q.x - 0.0995).abs() < 1e-12 && (q.y + 0.0495).abs() < 1e-12,
+            "{q}"
+        );
+    }
+}
