@@ -50,9 +50,6 @@ pub struct MeasureArgs {
     /// Also write each photo's orthographic view of the sample as DIR/<photo stem>_ortho.exr.
     #[arg(long)]
     pub ortho_dir: Option<PathBuf>,
-    /// Place the spheres by their outlines in each photo rather than by the pose alone.
-    #[arg(long)]
-    pub refine_spheres: bool,
     /// Print the per-photo report (pose, light, gap, highlights, regions) as JSON.
     #[arg(long)]
     pub json: bool,
@@ -256,10 +253,7 @@ fn measure(a: MeasureArgs) -> anyhow::Result<()> {
             a.corners.len()
         );
     }
-    let opts = MeasureOptions {
-        refine_spheres: a.refine_spheres,
-        ..Default::default()
-    };
+    let opts = MeasureOptions::default();
     let mut reports = Vec::new();
     let mut samples = Vec::new();
     for (k, photo) in a.photos.iter().enumerate() {

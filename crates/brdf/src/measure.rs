@@ -348,9 +348,6 @@ pub struct MeasureOptions {
     pub max_gap_ratio: f64,
     /// Largest RMS reprojection error of the fiducials, pixels.
     pub max_pose_rms_px: f64,
-    /// Place each sphere by its outline in the photograph ([`sphere_center_from_outline`])
-    /// rather than by the pose alone.
-    pub refine_spheres: bool,
 }
 
 impl Default for MeasureOptions {
@@ -360,7 +357,6 @@ impl Default for MeasureOptions {
             max_saturated_fraction: 0.05,
             max_gap_ratio: 0.05,
             max_pose_rms_px: 3.0,
-            refine_spheres: false,
         }
     }
 }
@@ -377,15 +373,6 @@ pub struct Highlight {
     /// Point on the sphere and the unit reflected direction (frame coordinates).
     pub point: [f64; 3],
     pub reflected: [f64; 3],
-}
-
-/// A sphere's centre as used (frame coordinates), its distance from the frame file's centre,
-/// and the number of outline points that placed it (0: the frame file's centre was used).
-#[derive(Clone, Debug, Serialize)]
-pub struct SphereCenter {
-    pub center: [f64; 3],
-    pub shift: f64,
-    pub outline_points: usize,
 }
 
 /// One region's measured value.
@@ -417,8 +404,6 @@ pub struct PhotoMeasurement {
     /// Light position (frame coordinates) and the closest-approach gap of the two reflected rays.
     pub light: [f64; 3],
     pub gap: f64,
-    /// Where each sphere was taken to be.
-    pub spheres: Vec<SphereCenter>,
     pub highlights: Vec<Highlight>,
     /// Light intensity I per channel (image radiance units times m^2) from the white standard.
     pub intensity: [f64; 3],
@@ -768,99 +753,6 @@ pub fn find_highlight(
     })
 }
 
-/// The sphere's centre as the photograph shows it: its outline is found along 64 radial lines
-/// (the 50% crossing between the sphere's dark rim and the background just outside it, lines
-/// with too little contrast or a second crossing rejected), the outline's camera rays are fitted
-/// with the cone of rays tangent to a sphere (`d . a = cos(alpha)`, linear least squares), and
-/// the centre is put on the cone's axis `a` at the distance the pose gives. This makes the
-/// highlight's position relative to the sphere independent of small pose errors. Returns the
-/// centre (frame coordinates) and the number of outline points, or `None` when fewer than 24
-/// lines give an edge.
-pub fn sphere_center_from_outline(
-    cam: &Camera,
-    img: &HdrImage,
-    sphere: &FrameSphere,
-) -> Option<(DVec3, usize)> {
-    let c = DVec3::from_array(sphere.center);
-    let eye = cam.center_world();
-    let pc = cam.project(c)?;
-    let cam_x = cam.pose.r.transpose() * DVec3::X;
-    let rpx = (cam.project(c + cam_x * sphere.radius)? - pc).length();
-    if !(rpx > 4.0) {
-        return None;
-    }
-    let lum = |p: DVec2| {
-        img.bilinear(p.x as f32, p.y as f32)
-            .map(|v| (v[0] as f64 + v[1] as f64 + v[2] as f64) / 3.0)
-    };
-    let mut dirs = Vec::new();
-    const LINES: usize = 64;
-    for k in 0..LINES {
-        let th = std::f64::consts::TAU * k as f64 / LINES as f64;
-        let u = DVec2::new(th.cos(), th.sin());
-        let at = |rho: f64| lum(pc + u * rho * rpx);
-        let Some(inner) = at(0.75) else { continue };
-        let mut outer: Vec<f64> = Vec::new();
-        for i in 0..=10 {
-            if let Some(v) = at(1.3 + 0.02 * i as f64) {
-                outer.push(v);
-            }
-        }
-        if outer.len() < 8 {
-            continue;
-        }
-        let outer = median(&mut outer);
-        if !(outer > 3.0 * inner && outer > 0.0) {
-            continue;
-        }
-        let thr = 0.5 * (inner + outer);
-        let step = 0.1 / rpx;
-        let n = ((1.3 - 0.75) / step) as usize;
-        let (mut prev, mut edge, mut clean) = (inner, None, true);
-        for i in 1..=n {
-            let rho = 0.75 + i as f64 * step;
-            let Some(v) = at(rho) else {
-                clean = false;
-                break;
-            };
-            match edge {
-                None if v >= thr => {
-                    let f = (thr - prev) / (v - prev);
-                    edge = Some(rho - step + f * step);
-                }
-                Some(_) if v < thr => {
-                    clean = false;
-                    break;
-                }
-                _ => {}
-            }
-            prev = v;
-        }
-        if let (Some(rho), true) = (edge, clean) {
-            if rho < 0.85 {
-                continue; // a highlight or a mark on the rim, not the outline
-            }
-            let q = pc + u * rho * rpx;
-            dirs.push(cam.pixel_ray(q.x, q.y).1);
-        }
-    }
-    if dirs.len() < 24 {
-        return None;
-    }
-    // d_i . b = 1 in least squares, b = a / cos(alpha)
-    let mut ata = nalgebra::Matrix3::<f64>::zeros();
-    let mut atb = nalgebra::Vector3::<f64>::zeros();
-    for d in &dirs {
-        let v = nalgebra::Vector3::new(d.x, d.y, d.z);
-        ata += v * v.transpose();
-        atb += v;
-    }
-    let b = ata.lu().solve(&atb)?;
-    let a = DVec3::new(b[0], b[1], b[2]).normalize();
-    let centre = eye + a * (c - eye).length();
-    centre.is_finite().then_some((centre, dirs.len()))
-}
-
 /// The point of closest approach of two rays `o + s d` (unit `d`): the midpoint of the
 /// closest points, the gap between them and the two ray parameters. `None` for (nearly)
 /// parallel rays.
@@ -951,25 +843,8 @@ pub fn measure_photo(
 
     // ---- light position from the two highlights
     let mut hl = Vec::new();
-    let mut sphere_centers = Vec::new();
     for (k, s) in frame.spheres.iter().enumerate() {
-        let mut s = *s;
-        let mut outline_points = 0;
-        if opts.refine_spheres {
-            if let Some((c, n)) = sphere_center_from_outline(&cam, img, &s) {
-                if (c - DVec3::from_array(s.center)).length() < 0.5 * s.radius {
-                    s.center = c.to_array();
-                    outline_points = n;
-                }
-            }
-        }
-        sphere_centers.push(SphereCenter {
-            center: s.center,
-            shift: (DVec3::from_array(s.center) - DVec3::from_array(frame.spheres[k].center))
-                .length(),
-            outline_points,
-        });
-        hl.push(find_highlight(&cam, img, &s, opts).map_err(|m| err(format!("sphere {k}: {m}")))?);
+        hl.push(find_highlight(&cam, img, s, opts).map_err(|m| err(format!("sphere {k}: {m}")))?);
     }
     let ray = |h: &Highlight| (DVec3::from_array(h.point), DVec3::from_array(h.reflected));
     let ((o1, d1), (o2, d2)) = (ray(&hl[0]), ray(&hl[1]));
@@ -1109,7 +984,6 @@ pub fn measure_photo(
         camera_center: eye.to_array(),
         light: light.to_array(),
         gap,
-        spheres: sphere_centers,
         highlights: hl,
         intensity: intensity.to_array(),
         homography: rows(&h),
