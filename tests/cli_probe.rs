@@ -158,3 +158,26 @@ fn probe_calibrate_mirror_fits_a_known_index() {
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && e.contains("steel.csv") && e.contains("line 3"), "{e}");
 }
+
+/// Without the opencv feature, a board file whose spheres are given only in the board frame
+/// (to be placed by the fiducials' pose) is a clear error naming the feature.
+#[cfg(not(feature = "opencv"))]
+#[test]
+fn probe_board_frame_board_without_opencv_says_so() {
+    let f = fixture("sunny");
+    let tmp = tempfile::tempdir().unwrap();
+    let board = tmp.path().join("fid_board.json");
+    std::fs::write(
+        &board,
+        r#"{ "spheres": [ { "kind": "mirror", "center_board": [-0.1, 0.0, 0.07], "radius": 0.07 } ],
+             "fiducials": { "dictionary": "DICT_4X4_50", "markers": [
+               { "id": 0, "corners": [[-0.3, 0.2, 0], [-0.2, 0.2, 0], [-0.2, 0.1, 0], [-0.3, 0.1, 0]] },
+               { "id": 1, "corners": [[0.2, 0.2, 0], [0.3, 0.2, 0], [0.3, 0.1, 0], [0.2, 0.1, 0]] } ] } }"#,
+    )
+    .unwrap();
+    let out = tmp.path().join("x.toml");
+    let o = igi(&["probe", s(&f.join("board.exr")), "--camera", s(&f.join("camera.json")), "--board", s(&board), "-o", s(&out)]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && e.contains("fid_board.json") && e.contains("opencv feature"), "{e}");
+    assert!(!out.exists());
+}

@@ -7,7 +7,8 @@ use igi_imaging::{read_image, write_exr, write_png_tonemapped, Camera, HdrImage,
 use igi_probe::envmap::hemisphere_pixel;
 use igi_probe::fresnel::{fit_mirror_ior, ReflectanceSamples};
 use igi_probe::pipeline::luminance;
-use igi_probe::{process, Board, ProbeOptions, ProbeResult};
+use igi_probe::fiducial::place_board;
+use igi_probe::{process, BoardSpec, ProbeOptions, ProbeResult};
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
@@ -207,8 +208,12 @@ pub fn run(a: ProbeArgs, ctx: &Ctx) -> anyhow::Result<()> {
     };
     let pb = ctx.progress(4, "probe");
     let camera = Camera::load(camera_path)?;
-    let board = Board::load(board_path)?;
+    let spec = BoardSpec::load(board_path)?;
     let (image, saturation) = load_input(&a)?;
+    // spheres in the camera frame: from the fiducials' pose (opencv feature) or the file
+    let placement = place_board(&spec, &image, &camera)
+        .with_context(|| format!("placing the board {} in the camera frame", board_path.display()))?;
+    let board = placement.board;
     pb.inc(1);
     let opt = ProbeOptions {
         map_width: a.map_width,
@@ -224,7 +229,16 @@ pub fn run(a: ProbeArgs, ctx: &Ctx) -> anyhow::Result<()> {
         ..opt
     };
     let src = a.image.as_ref().or(a.brackets.first()).map(|p| p.display().to_string()).unwrap_or_default();
-    let r = process(&image, &camera, &board, &opt).with_context(|| format!("processing the board photograph {src}"))?;
+    let mut r =
+        process(&image, &camera, &board, &opt).with_context(|| format!("processing the board photograph {src}"))?;
+    r.diagnostics.warnings.extend(placement.warnings);
+    if let Some(p) = &placement.pose {
+        eprintln!(
+            "probe: board pose from fiducials {:?} ({} of {} corners, RMS {:.3} px)",
+            p.markers_found, p.corners_inliers, p.corners_matched, p.rms_px
+        );
+    }
+    r.diagnostics.board_pose = placement.pose;
     pb.inc(1);
     write_outputs(output, &r)?;
     pb.inc(2);

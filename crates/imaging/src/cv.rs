@@ -119,6 +119,9 @@ mod imp {
     pub fn detect_aruco_subpix(_: &HdrImage, _: ArucoDict) -> Result<Vec<ArucoMarker>, ImagingError> {
         Err(ImagingError::NoOpenCv)
     }
+    pub fn solve_pnp_matched(_: &Intrinsics, _: &[DVec3], _: &[DVec2], _: f64) -> Result<PnpResult, ImagingError> {
+        Err(ImagingError::NoOpenCv)
+    }
     pub fn aruco_marker_image(_: ArucoDict, _: i32, _: usize) -> Result<Vec<u8>, ImagingError> {
         Err(ImagingError::NoOpenCv)
     }
@@ -209,6 +212,60 @@ mod imp {
             se += p;
         }
         let rms_px = (se / inliers.len().max(1) as f64).sqrt();
+        Ok(PnpResult { pose, inliers, rms_px })
+    }
+
+    /// Reprojection errors (pixels) of `world` under `pose`.
+    fn reprojection_errors(intr: &Intrinsics, pose: WorldToCamera, world: &[DVec3], pixels: &[DVec2]) -> Vec<f64> {
+        let cam = Camera { width: 1, height: 1, intrinsics: *intr, pose };
+        world.iter().zip(pixels).map(|(w, p)| cam.project(*w).map_or(f64::INFINITY, |q| (q - *p).length())).collect()
+    }
+
+    pub fn solve_pnp_matched(intr: &Intrinsics, world: &[DVec3], pixels: &[DVec2], threshold_px: f64) -> Result<PnpResult, ImagingError> {
+        if world.len() != pixels.len() {
+            return Err(ImagingError::InvalidInput(format!("PnP: {} world points but {} pixels", world.len(), pixels.len())));
+        }
+        if world.len() < 4 {
+            return Err(ImagingError::InvalidInput(format!("PnP needs at least 4 correspondences, got {}", world.len())));
+        }
+        let (k, d) = (k_mat(intr)?, dist_mat(intr)?);
+        let crit = core::TermCriteria::new(core::TermCriteria_COUNT + core::TermCriteria_EPS, 50, 1e-12).map_err(cv_err)?;
+        let solve = |idx: &[usize]| -> Result<WorldToCamera, ImagingError> {
+            let w: Vec<DVec3> = idx.iter().map(|&i| world[i]).collect();
+            let p: Vec<DVec2> = idx.iter().map(|&i| pixels[i]).collect();
+            let (obj, imgp) = (p3(&w), p2(&p));
+            let mut rvec = Mat::default();
+            let mut tvec = Mat::default();
+            let ok = calib3d::solve_pnp(&obj, &imgp, &k, &d, &mut rvec, &mut tvec, false, calib3d::SOLVEPNP_SQPNP)
+                .map_err(cv_err)?;
+            if !ok {
+                return Err(ImagingError::InvalidInput("PnP (SQPnP) found no pose".into()));
+            }
+            calib3d::solve_pnp_refine_lm(&obj, &imgp, &k, &d, &mut rvec, &mut tvec, crit).map_err(cv_err)?;
+            pose_of(&rvec, &tvec)
+        };
+        let all: Vec<usize> = (0..world.len()).collect();
+        let mut pose = solve(&all)?;
+        let mut inliers: Vec<usize> =
+            reprojection_errors(intr, pose, world, pixels).iter().enumerate().filter(|(_, e)| **e <= threshold_px).map(|(i, _)| i).collect();
+        if inliers.len() < world.len() {
+            if inliers.len() < 4 {
+                return Err(ImagingError::InvalidInput(format!(
+                    "PnP: only {} of {} points reproject within {threshold_px} px",
+                    inliers.len(),
+                    world.len()
+                )));
+            }
+            pose = solve(&inliers)?;
+            inliers = reprojection_errors(intr, pose, world, pixels)
+                .iter()
+                .enumerate()
+                .filter(|(_, e)| **e <= threshold_px)
+                .map(|(i, _)| i)
+                .collect();
+        }
+        let errs = reprojection_errors(intr, pose, world, pixels);
+        let rms_px = (inliers.iter().map(|&i| errs[i] * errs[i]).sum::<f64>() / inliers.len().max(1) as f64).sqrt();
         Ok(PnpResult { pose, inliers, rms_px })
     }
 
@@ -403,6 +460,15 @@ pub fn detect_aruco(img: &HdrImage, dict: ArucoDict) -> Result<Vec<ArucoMarker>,
     imp::detect_aruco(img, dict)
 }
 
+/// Camera pose from correspondences that are already matched (e.g. fiducial corners by id):
+/// SQPnP (OpenCV `SOLVEPNP_SQPNP`, planar and non-planar points alike, at least 4) and
+/// Levenberg-Marquardt refinement; points reprojecting beyond `threshold_px` are dropped and
+/// the pose solved again from the rest. [`solve_pnp`]'s RANSAC (OpenCV 4.6) fails on coplanar
+/// points, which fiducials on a flat board are.
+pub fn solve_pnp_matched(intr: &Intrinsics, world: &[DVec3], pixels: &[DVec2], threshold_px: f64) -> Result<PnpResult, ImagingError> {
+    imp::solve_pnp_matched(intr, world, pixels, threshold_px)
+}
+
 /// [`detect_aruco`] with OpenCV's sub-pixel corner refinement (`CORNER_REFINE_SUBPIX`), for
 /// poses from the marker corners.
 pub fn detect_aruco_subpix(img: &HdrImage, dict: ArucoDict) -> Result<Vec<ArucoMarker>, ImagingError> {
@@ -431,6 +497,7 @@ mod tests {
         assert!(matches!(detect_aruco(&HdrImage::new(2, 2), ArucoDict::Dict4x4_50), Err(ImagingError::NoOpenCv)));
         assert!(matches!(detect_aruco_subpix(&HdrImage::new(2, 2), ArucoDict::Dict4x4_50), Err(ImagingError::NoOpenCv)));
         assert!(matches!(aruco_marker_image(ArucoDict::Dict4x4_50, 0, 60), Err(ImagingError::NoOpenCv)));
+        assert!(matches!(solve_pnp_matched(&i, &[], &[], 2.0), Err(ImagingError::NoOpenCv)));
     }
 
     #[test]
@@ -611,6 +678,25 @@ mod tests {
             for (c, e) in found[0].corners.iter().zip([(x0, y0), (x1, y0), (x1, y1), (x0, y1)]) {
                 assert!((*c - DVec2::new(e.0, e.1)).length() < 0.3, "{:?}", found[0].corners);
             }
+        }
+
+        #[test]
+        fn pnp_matched_on_coplanar_points_with_an_outlier() {
+            let mut cam = Camera::pinhole(960, 720, 900.0, 900.0, 479.5, 359.5);
+            let tilt = DMat3::from_rotation_y(0.4) * DMat3::from_rotation_x(-0.2);
+            cam.pose = WorldToCamera { r: tilt * DMat3::from_cols(DVec3::X, -DVec3::Y, -DVec3::Z), t: DVec3::new(0.02, 0.03, 1.0) };
+            let world: Vec<DVec3> = (0..16).map(|k| DVec3::new((k % 4) as f64 * 0.2 - 0.3, (k / 4) as f64 * 0.15 - 0.2, 0.0)).collect();
+            let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
+            let mut px: Vec<DVec2> =
+                world.iter().map(|p| cam.project(*p).unwrap() + 0.1 * DVec2::new(normal(&mut rng), normal(&mut rng))).collect();
+            px[5] += DVec2::new(12.0, -7.0);
+            let res = solve_pnp_matched(&cam.intrinsics, &world, &px, 2.0).unwrap();
+            let ang = rotation_angle_between(&res.pose.r, &cam.pose.r).to_degrees();
+            let dt = (res.pose.t - cam.pose.t).length();
+            assert!(ang < 0.05 && dt < 1e-3, "rotation {ang} deg, translation {dt} m");
+            assert_eq!(res.inliers.len(), 15);
+            assert!(!res.inliers.contains(&5) && res.rms_px < 0.3, "{:?} {}", res.inliers, res.rms_px);
+            assert!(solve_pnp_matched(&cam.intrinsics, &world[..3], &px[..3], 2.0).is_err());
         }
 
         #[test]

@@ -2,7 +2,9 @@
 
 use crate::ProbeError;
 use glam::DVec3;
-use std::path::Path;
+use igi_imaging::cv::ArucoDict;
+use igi_imaging::WorldToCamera;
+use std::path::{Path, PathBuf};
 
 /// Default reflectance of the diffuse sphere's paint.
 pub const DIFFUSE_REFLECTANCE: [f64; 3] = [0.30, 0.31, 0.32];
@@ -21,6 +23,11 @@ pub enum SphereKind {
 }
 
 impl SphereKind {
+    /// The kind stored at index `i` (`SphereKind as usize`: mirror 0, black 1, diffuse 2).
+    pub fn from_index(i: usize) -> SphereKind {
+        [SphereKind::Mirror, SphereKind::Black, SphereKind::Diffuse][i]
+    }
+
     pub fn name(self) -> &'static str {
         match self {
             SphereKind::Mirror => "mirror",
@@ -53,7 +60,10 @@ pub struct Board {
 #[serde(deny_unknown_fields)]
 struct SphereJson {
     kind: SphereKind,
-    center: [f64; 3],
+    #[serde(default)]
+    center: Option<[f64; 3]>,
+    #[serde(default)]
+    center_board: Option<[f64; 3]>,
     radius: f64,
     #[serde(default)]
     reflectance: Option<[f64; 3]>,
@@ -62,8 +72,265 @@ struct SphereJson {
 }
 
 #[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MarkerJson {
+    id: i32,
+    corners: [[f64; 3]; 4],
+}
+
+#[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FiducialsJson {
+    dictionary: String,
+    markers: Vec<MarkerJson>,
+}
+
+#[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 struct BoardJson {
     spheres: Vec<SphereJson>,
+    #[serde(default)]
+    fiducials: Option<FiducialsJson>,
+}
+
+/// One fiducial of the board: its ArUco id and its corners in the board frame, in OpenCV's
+/// order (the printed marker's top-left, top-right, bottom-right, bottom-left corner).
+#[derive(Clone, Debug, PartialEq)]
+pub struct FiducialMarker {
+    pub id: i32,
+    pub corners: [DVec3; 4],
+}
+
+/// The board's fiducials (docs/PROBE.md, "Board file: fiducials").
+#[derive(Clone, Debug, PartialEq)]
+pub struct Fiducials {
+    pub dictionary: ArucoDict,
+    pub markers: Vec<FiducialMarker>,
+}
+
+/// One sphere as the board file gives it: its centre in the camera frame, in the board frame,
+/// or both.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SphereSpec {
+    pub center_cam: Option<DVec3>,
+    pub center_board: Option<DVec3>,
+    pub radius: f64,
+}
+
+/// A parsed board file (FORMATS.md, plus the optional fiducials and board-frame centres of
+/// docs/PROBE.md). [`BoardSpec::in_camera_frame`] gives the [`Board`] from the camera-frame
+/// centres; [`BoardSpec::with_pose`] from the board-frame centres and a board pose (which
+/// [`crate::fiducial::place_board`] estimates from the fiducials).
+#[derive(Clone, Debug, PartialEq)]
+pub struct BoardSpec {
+    /// The file, for error messages.
+    pub path: PathBuf,
+    /// Mirror, black, diffuse (indexed by `SphereKind as usize`).
+    pub spheres: [Option<SphereSpec>; 3],
+    pub fiducials: Option<Fiducials>,
+    pub mirror_ior: [(f64, f64); 3],
+    pub black_ior: f64,
+    pub diffuse_reflectance: [f64; 3],
+}
+
+impl BoardSpec {
+    pub fn load(path: &Path) -> Result<BoardSpec, ProbeError> {
+        let text = std::fs::read_to_string(path).map_err(|e| ProbeError::Io { path: path.to_path_buf(), source: e })?;
+        BoardSpec::from_json_str(&text, path)
+    }
+
+    fn bad(&self, msg: String) -> ProbeError {
+        ProbeError::Board { path: self.path.clone(), msg }
+    }
+
+    /// Parse board JSON; `path` names the file in errors.
+    pub fn from_json_str(text: &str, path: &Path) -> Result<BoardSpec, ProbeError> {
+        let bad = |msg: String| ProbeError::Board { path: path.to_path_buf(), msg };
+        let j: BoardJson = serde_json::from_str(text).map_err(|e| bad(e.to_string()))?;
+        let mut spec = BoardSpec {
+            path: path.to_path_buf(),
+            spheres: [None; 3],
+            fiducials: None,
+            mirror_ior: MIRROR_IOR,
+            black_ior: BLACK_IOR,
+            diffuse_reflectance: DIFFUSE_REFLECTANCE,
+        };
+        for (i, s) in j.spheres.iter().enumerate() {
+            let slot = s.kind as usize;
+            if spec.spheres[slot].is_some() {
+                return Err(bad(format!("sphere {i}: a second '{}' sphere (one of each kind)", s.kind.name())));
+            }
+            let finite = |c: &Option<[f64; 3]>| c.is_none_or(|c| c.iter().all(|v| v.is_finite()));
+            if !finite(&s.center) || !finite(&s.center_board) || !s.radius.is_finite() || s.radius <= 0.0 {
+                return Err(bad(format!("sphere {i} ({}): centre must be finite and radius positive", s.kind.name())));
+            }
+            if s.center.is_none() && s.center_board.is_none() {
+                return Err(bad(format!(
+                    "sphere {i} ({}): no 'center' (camera frame) or 'center_board' (board frame)",
+                    s.kind.name()
+                )));
+            }
+            if let Some(c) = s.center {
+                if c[2] <= s.radius {
+                    return Err(bad(format!(
+                        "sphere {i} ({}): centre z = {} is not in front of the camera by more than the radius {} \
+                         (centres are in the camera frame, z forward)",
+                        s.kind.name(),
+                        c[2],
+                        s.radius
+                    )));
+                }
+            }
+            spec.spheres[slot] = Some(SphereSpec {
+                center_cam: s.center.map(DVec3::from_array),
+                center_board: s.center_board.map(DVec3::from_array),
+                radius: s.radius,
+            });
+            match s.kind {
+                SphereKind::Mirror => {
+                    if let Some(v) = &s.ior {
+                        let arr: [[f64; 2]; 3] = serde_json::from_value(v.clone()).map_err(|_| {
+                            bad(format!("sphere {i} (mirror): ior must be [[n_r, k_r], [n_g, k_g], [n_b, k_b]]"))
+                        })?;
+                        if arr.iter().flatten().any(|x| !(x.is_finite() && *x >= 0.0))
+                            || arr.iter().any(|p| p[0] <= 0.0)
+                        {
+                            return Err(bad(format!("sphere {i} (mirror): ior entries must be finite, n > 0, k >= 0")));
+                        }
+                        spec.mirror_ior = [(arr[0][0], arr[0][1]), (arr[1][0], arr[1][1]), (arr[2][0], arr[2][1])];
+                    }
+                }
+                SphereKind::Black => {
+                    if let Some(v) = &s.ior {
+                        let n = v.as_f64().ok_or_else(|| bad(format!("sphere {i} (black): ior must be a number")))?;
+                        if !(n.is_finite() && n > 1.0) {
+                            return Err(bad(format!("sphere {i} (black): ior {n} must be > 1")));
+                        }
+                        spec.black_ior = n;
+                    }
+                }
+                SphereKind::Diffuse => {
+                    if let Some(r) = s.reflectance {
+                        if r.iter().any(|x| !(x.is_finite() && *x > 0.0 && *x <= 1.0)) {
+                            return Err(bad(format!("sphere {i} (diffuse): reflectance {r:?} must be in (0, 1]")));
+                        }
+                        spec.diffuse_reflectance = r;
+                    }
+                }
+            }
+            if s.kind != SphereKind::Diffuse && s.reflectance.is_some() {
+                return Err(bad(format!(
+                    "sphere {i} ({}): 'reflectance' applies to the diffuse sphere only",
+                    s.kind.name()
+                )));
+            }
+            if s.kind == SphereKind::Diffuse && s.ior.is_some() {
+                return Err(bad(format!("sphere {i} (diffuse): 'ior' applies to mirror and black spheres only")));
+            }
+        }
+        if spec.spheres[SphereKind::Mirror as usize].is_none() {
+            return Err(bad("no 'mirror' sphere (the sky map comes from it)".into()));
+        }
+        if let Some(f) = j.fiducials {
+            let dictionary = ArucoDict::from_name(&f.dictionary).ok_or_else(|| {
+                bad(format!(
+                    "fiducials: unknown ArUco dictionary '{}' (DICT_4X4_50, DICT_5X5_100, DICT_6X6_250 or DICT_ARUCO_ORIGINAL)",
+                    f.dictionary
+                ))
+            })?;
+            if f.markers.len() < 2 {
+                return Err(bad(format!(
+                    "fiducials: {} marker(s); the pose needs at least 2 (8 corners)",
+                    f.markers.len()
+                )));
+            }
+            let mut markers = Vec::new();
+            for (i, m) in f.markers.iter().enumerate() {
+                if f.markers[..i].iter().any(|o| o.id == m.id) {
+                    return Err(bad(format!("fiducials: marker id {} appears twice", m.id)));
+                }
+                let c = m.corners.map(DVec3::from_array);
+                let degenerate = (0..4).any(|k| c[k].distance(c[(k + 1) % 4]) <= 0.0);
+                if m.corners.iter().flatten().any(|v| !v.is_finite()) || degenerate {
+                    return Err(bad(format!("fiducials: marker {} corners must be finite and distinct", m.id)));
+                }
+                markers.push(FiducialMarker { id: m.id, corners: c });
+            }
+            spec.fiducials = Some(Fiducials { dictionary, markers });
+        } else if let Some((i, _)) =
+            spec.spheres.iter().enumerate().find(|(_, s)| s.is_some_and(|s| s.center_cam.is_none()))
+        {
+            return Err(bad(format!(
+                "the {} sphere has only 'center_board': board-frame centres need 'fiducials' to place them",
+                SphereKind::from_index(i).name()
+            )));
+        }
+        Ok(spec)
+    }
+
+    fn board_with(
+        &self,
+        center: impl Fn(SphereKind, &SphereSpec) -> Result<DVec3, ProbeError>,
+    ) -> Result<Board, ProbeError> {
+        let get = |k: SphereKind| -> Result<Option<BoardSphere>, ProbeError> {
+            match &self.spheres[k as usize] {
+                None => Ok(None),
+                Some(s) => Ok(Some(BoardSphere { center_cam: center(k, s)?, radius: s.radius })),
+            }
+        };
+        let board = Board {
+            mirror: get(SphereKind::Mirror)?.expect("parsing requires a mirror sphere"),
+            black: get(SphereKind::Black)?,
+            diffuse: get(SphereKind::Diffuse)?,
+            mirror_ior: self.mirror_ior,
+            black_ior: self.black_ior,
+            diffuse_reflectance: self.diffuse_reflectance,
+        };
+        for s in std::iter::once(&board.mirror).chain(board.black.iter()).chain(board.diffuse.iter()) {
+            if s.center_cam.z <= s.radius {
+                return Err(self.bad(format!(
+                    "a sphere placed at {:?} (camera frame) is not in front of the camera by more than its radius",
+                    s.center_cam.to_array()
+                )));
+            }
+        }
+        Ok(board)
+    }
+
+    /// The board from the spheres' camera-frame centres (FORMATS.md). A sphere given only in
+    /// the board frame is an error that says the fiducials (and the opencv feature) are needed.
+    pub fn in_camera_frame(&self) -> Result<Board, ProbeError> {
+        self.board_with(|k, s| {
+            s.center_cam.ok_or_else(|| {
+                self.bad(format!(
+                    "the {} sphere has no camera-frame 'center', only 'center_board': placing it needs the camera pose \
+                     from the board's fiducials, which needs igi built with the opencv feature \
+                     (cargo build --features opencv); or give every sphere's camera-frame 'center'",
+                    k.name()
+                ))
+            })
+        })
+    }
+
+    /// The board from the spheres' board-frame centres and the board's pose in the camera
+    /// (`x_cam = R x_board + t`).
+    pub fn with_pose(&self, board_to_camera: &WorldToCamera) -> Result<Board, ProbeError> {
+        self.board_with(|k, s| {
+            s.center_board.map(|c| board_to_camera.apply(c)).ok_or_else(|| {
+                self.bad(format!("the {} sphere has no 'center_board' to place with the fiducials' pose", k.name()))
+            })
+        })
+    }
+
+    /// Whether every sphere has a board-frame centre (so the fiducials' pose can place them).
+    pub fn has_board_centres(&self) -> bool {
+        self.spheres.iter().flatten().all(|s| s.center_board.is_some())
+    }
+
+    /// Whether every sphere has a camera-frame centre.
+    pub fn has_camera_centres(&self) -> bool {
+        self.spheres.iter().flatten().all(|s| s.center_cam.is_some())
+    }
 }
 
 impl Board {
@@ -79,79 +346,14 @@ impl Board {
         }
     }
 
+    /// Load a board file whose spheres have camera-frame centres ([`BoardSpec::in_camera_frame`]).
     pub fn load(path: &Path) -> Result<Board, ProbeError> {
-        let text = std::fs::read_to_string(path).map_err(|e| ProbeError::Io { path: path.to_path_buf(), source: e })?;
-        Board::from_json_str(&text, path)
+        BoardSpec::load(path)?.in_camera_frame()
     }
 
     /// Parse FORMATS.md board JSON; `path` names the file in errors.
     pub fn from_json_str(text: &str, path: &Path) -> Result<Board, ProbeError> {
-        let bad = |msg: String| ProbeError::Board { path: path.to_path_buf(), msg };
-        let j: BoardJson = serde_json::from_str(text).map_err(|e| bad(e.to_string()))?;
-        let mut board = Board::mirror_only(DVec3::ZERO, 0.0);
-        let mut seen = [false; 3];
-        for (i, s) in j.spheres.iter().enumerate() {
-            let slot = s.kind as usize;
-            if seen[slot] {
-                return Err(bad(format!("sphere {i}: a second '{}' sphere (one of each kind)", s.kind.name())));
-            }
-            seen[slot] = true;
-            if !s.center.iter().all(|v| v.is_finite()) || !(s.radius.is_finite() && s.radius > 0.0) {
-                return Err(bad(format!("sphere {i} ({}): centre must be finite and radius positive", s.kind.name())));
-            }
-            if s.center[2] <= s.radius {
-                return Err(bad(format!(
-                    "sphere {i} ({}): centre z = {} is not in front of the camera by more than the radius {} \
-                     (centres are in the camera frame, z forward)",
-                    s.kind.name(),
-                    s.center[2],
-                    s.radius
-                )));
-            }
-            let bs = BoardSphere { center_cam: DVec3::from_array(s.center), radius: s.radius };
-            match s.kind {
-                SphereKind::Mirror => {
-                    board.mirror = bs;
-                    if let Some(v) = &s.ior {
-                        let arr: [[f64; 2]; 3] = serde_json::from_value(v.clone())
-                            .map_err(|_| bad(format!("sphere {i} (mirror): ior must be [[n_r, k_r], [n_g, k_g], [n_b, k_b]]")))?;
-                        if arr.iter().flatten().any(|x| !(x.is_finite() && *x >= 0.0)) || arr.iter().any(|p| p[0] <= 0.0) {
-                            return Err(bad(format!("sphere {i} (mirror): ior entries must be finite, n > 0, k >= 0")));
-                        }
-                        board.mirror_ior = [(arr[0][0], arr[0][1]), (arr[1][0], arr[1][1]), (arr[2][0], arr[2][1])];
-                    }
-                }
-                SphereKind::Black => {
-                    board.black = Some(bs);
-                    if let Some(v) = &s.ior {
-                        let n = v.as_f64().ok_or_else(|| bad(format!("sphere {i} (black): ior must be a number")))?;
-                        if !(n.is_finite() && n > 1.0) {
-                            return Err(bad(format!("sphere {i} (black): ior {n} must be > 1")));
-                        }
-                        board.black_ior = n;
-                    }
-                }
-                SphereKind::Diffuse => {
-                    board.diffuse = Some(bs);
-                    if let Some(r) = s.reflectance {
-                        if r.iter().any(|x| !(x.is_finite() && *x > 0.0 && *x <= 1.0)) {
-                            return Err(bad(format!("sphere {i} (diffuse): reflectance {r:?} must be in (0, 1]")));
-                        }
-                        board.diffuse_reflectance = r;
-                    }
-                }
-            }
-            if s.kind != SphereKind::Diffuse && s.reflectance.is_some() {
-                return Err(bad(format!("sphere {i} ({}): 'reflectance' applies to the diffuse sphere only", s.kind.name())));
-            }
-            if s.kind == SphereKind::Diffuse && s.ior.is_some() {
-                return Err(bad(format!("sphere {i} (diffuse): 'ior' applies to mirror and black spheres only")));
-            }
-        }
-        if !seen[SphereKind::Mirror as usize] {
-            return Err(bad("no 'mirror' sphere (the sky map comes from it)".into()));
-        }
-        Ok(board)
+        BoardSpec::from_json_str(text, path)?.in_camera_frame()
     }
 
     /// Reflectance of the mirror sphere per channel at incidence cosine `cos_i`.
@@ -182,7 +384,8 @@ mod tests {
         assert_eq!(b.mirror_ior[2], (2.3, 3.2));
         assert_eq!(b.black_ior, 1.6);
         assert_eq!(b.diffuse_reflectance, [0.2, 0.25, 0.3]);
-        let d = Board::from_json_str(r#"{"spheres":[{"kind":"mirror","center":[0,0,1],"radius":0.1}]}"#, Path::new(P)).unwrap();
+        let d = Board::from_json_str(r#"{"spheres":[{"kind":"mirror","center":[0,0,1],"radius":0.1}]}"#, Path::new(P))
+            .unwrap();
         assert_eq!(d.mirror_ior, MIRROR_IOR);
         assert!(d.black.is_none() && d.diffuse.is_none());
         let r = d.mirror_reflectance(1.0);
@@ -196,7 +399,10 @@ mod tests {
             (r#"{"spheres":[{"kind":"mirror","center":[0,0,1],"radius":-1}]}"#, "radius positive"),
             (r#"{"spheres":[{"kind":"mirror","center":[0,0,-1],"radius":0.1}]}"#, "in front of the camera"),
             (r#"{"spheres":[{"kind":"chrome","center":[0,0,1],"radius":0.1}]}"#, "unknown variant"),
-            (r#"{"spheres":[{"kind":"mirror","center":[0,0,1],"radius":0.1},{"kind":"mirror","center":[0,0,2],"radius":0.1}]}"#, "second"),
+            (
+                r#"{"spheres":[{"kind":"mirror","center":[0,0,1],"radius":0.1},{"kind":"mirror","center":[0,0,2],"radius":0.1}]}"#,
+                "second",
+            ),
             (r#"{"spheres":[{"kind":"mirror","center":[0,0,1],"radius":0.1,"ior":1.5}]}"#, "ior must be"),
         ];
         for (t, want) in cases {

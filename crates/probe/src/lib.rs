@@ -6,6 +6,8 @@
 //!
 //! * [`board`]: the FORMATS.md board file and the spheres' calibration (diffuse paint
 //!   reflectance, the mirror's complex index, the black coat's index).
+//! * [`fiducial`]: the board's pose from its ArUco fiducials (OpenCV, feature `opencv`), which
+//!   places spheres given in the board frame into the camera frame.
 //! * [`fresnel`]: conductor and dielectric Fresnel reflectance; a Levenberg-Marquardt fit of a
 //!   complex index from reflectance-versus-angle samples.
 //! * [`sphere`]: a sphere seen by a calibrated camera: ray hits, the surface point that
@@ -29,12 +31,13 @@
 pub mod board;
 pub mod envmap;
 mod error;
+pub mod fiducial;
 pub mod fresnel;
 pub mod pipeline;
 pub mod resample;
 pub mod sphere;
 pub mod synth;
 
-pub use board::{Board, BoardSphere, SphereKind};
+pub use board::{Board, BoardSphere, BoardSpec, SphereKind};
 pub use error::ProbeError;
 pub use pipeline::{process, Diagnostics, ProbeOptions, ProbeResult, SunEstimate};

@@ -99,6 +99,9 @@ pub struct Diagnostics {
     pub sphere_radius_px: Vec<(String, f64)>,
     pub warnings: Vec<String>,
     pub options: ProbeOptions,
+    /// The board's pose from its fiducials when they placed the spheres (set by the caller of
+    /// [`process`], see [`crate::fiducial::place_board`]).
+    pub board_pose: Option<crate::fiducial::BoardPose>,
 }
 
 /// Everything [`process`] produces.
@@ -501,6 +504,7 @@ pub fn process(
             sphere_radius_px: radii,
             warnings,
             options: opt.clone(),
+            board_pose: None,
         },
     })
 }

@@ -107,7 +107,7 @@ impl<'a> SphereView<'a> {
         let point = self.center + self.radius * n;
         let v = (self.eye - point).normalize();
         let cos_i = n.dot(v);
-        if !(cos_i > 0.0) {
+        if cos_i <= 0.0 || cos_i.is_nan() {
             return None;
         }
         let pixel = self.camera.project(point)?;

@@ -3,11 +3,11 @@
 //! forward (pixel -> sphere -> reflected direction), with `ss` x `ss` supersampling.
 
 use crate::board::Board;
+use crate::board::SphereKind;
 use crate::envmap::{latlong_lookup, Integrator};
 use crate::sphere::{reflect, SphereView};
-use crate::board::SphereKind;
 use glam::DVec3;
-use igi_imaging::{Camera, HdrImage};
+use igi_imaging::{Camera, HdrImage, WorldToCamera};
 use rayon::prelude::*;
 
 /// A sun for [`render_board`]: direction (unit, toward the sun), radiance, angular diameter.
@@ -24,6 +24,74 @@ pub struct SynthSun {
 /// from the integrated sky plus the sun disk, evaluated at each sub-sample's normal).
 /// `sky` must be fully valid.
 pub fn render_board(camera: &Camera, board: &Board, sky: &HdrImage, sun: Option<SynthSun>, ss: usize) -> HdrImage {
+    render_board_with_panel(camera, board, sky, sun, ss, None)
+}
+
+/// The flat board behind the spheres, printed with fiducials, for [`render_board_with_panel`]:
+/// a rectangle of the board plane `z = 0` (board frame) of constant radiance `white`, with
+/// markers of radiance `black` where their images are 0 (and `white` where 255).
+#[derive(Clone, Debug)]
+pub struct SynthPanel {
+    /// Board to camera: `x_cam = r x_board + t`.
+    pub board_to_camera: WorldToCamera,
+    /// `[x0, y0, x1, y1]` in the board plane.
+    pub extent: [f64; 4],
+    pub white: f32,
+    pub black: f32,
+    /// Each marker: its corners in the board frame (the image's top-left, top-right,
+    /// bottom-right, bottom-left; in the plane z = 0), and its `side` x `side` image (bytes).
+    pub markers: Vec<([DVec3; 4], usize, Vec<u8>)>,
+}
+
+impl SynthPanel {
+    /// Radiance of board-frame point `q` (in the plane) if it is on the panel.
+    fn radiance(&self, q: DVec3) -> Option<f32> {
+        let [x0, y0, x1, y1] = self.extent;
+        if !(q.x >= x0 && q.x <= x1 && q.y >= y0 && q.y <= y1) {
+            return None;
+        }
+        for (c, side, bits) in &self.markers {
+            let (a, b) = (c[1] - c[0], c[3] - c[0]);
+            let (s, t) = ((q - c[0]).dot(a) / a.length_squared(), (q - c[0]).dot(b) / b.length_squared());
+            if (0.0..1.0).contains(&s) && (0.0..1.0).contains(&t) {
+                let (col, row) = ((s * *side as f64) as usize, (t * *side as f64) as usize);
+                let v = bits[row.min(side - 1) * side + col.min(side - 1)] as f32 / 255.0;
+                return Some(self.black + (self.white - self.black) * v);
+            }
+        }
+        Some(self.white)
+    }
+
+    /// Nearest hit (distance along the unit world ray, radiance) of the panel.
+    fn hit(&self, camera: &Camera, o: DVec3, d: DVec3) -> Option<(f64, f32)> {
+        let c2w = camera.pose.inverse();
+        let to_world = |p: DVec3| c2w.apply(self.board_to_camera.apply(p));
+        let origin = to_world(DVec3::ZERO);
+        let (ex, ey) = (to_world(DVec3::X) - origin, to_world(DVec3::Y) - origin);
+        let n = ex.cross(ey);
+        let den = d.dot(n);
+        if den.abs() < 1e-12 {
+            return None;
+        }
+        let t = (origin - o).dot(n) / den;
+        if t <= 0.0 || !t.is_finite() {
+            return None;
+        }
+        let q = o + t * d - origin;
+        self.radiance(DVec3::new(q.dot(ex), q.dot(ey), 0.0)).map(|v| (t, v))
+    }
+}
+
+/// [`render_board`] with the board itself behind the spheres (an optional textured panel
+/// with fiducials, see [`SynthPanel`]); rays that miss spheres and panel show the sky.
+pub fn render_board_with_panel(
+    camera: &Camera,
+    board: &Board,
+    sky: &HdrImage,
+    sun: Option<SynthSun>,
+    ss: usize,
+    panel: Option<&SynthPanel>,
+) -> HdrImage {
     let ss = ss.max(1);
     let views: Vec<SphereView> = std::iter::once(SphereView::new(camera, SphereKind::Mirror, &board.mirror))
         .chain(board.black.iter().map(|b| SphereView::new(camera, SphereKind::Black, b)))
@@ -63,6 +131,15 @@ pub fn render_board(camera: &Camera, board: &Board, sky: &HdrImage, sun: Option<
                                     }
                                 }
                             }
+                            let panel_hit = panel.and_then(|p| p.hit(camera, o, d));
+                            if let Some((t, v)) = panel_hit {
+                                if best.is_none_or(|b| t < b.0) {
+                                    for a in acc.iter_mut() {
+                                        *a += v as f64;
+                                    }
+                                    continue;
+                                }
+                            }
                             let val: [f64; 3] = match best {
                                 None => env(d).map(|c| c as f64),
                                 Some((_, view, p)) => {
@@ -79,10 +156,12 @@ pub fn render_board(camera: &Camera, board: &Board, sky: &HdrImage, sun: Option<
                                             [r[0] * l[0] as f64, r[1] * l[1] as f64, r[2] * l[2] as f64]
                                         }
                                         SphereKind::Diffuse => {
-                                            let e = integ.as_ref().map(|i| i.irradiance(n.as_vec3())).unwrap_or([0.0; 3]);
+                                            let e =
+                                                integ.as_ref().map(|i| i.irradiance(n.as_vec3())).unwrap_or([0.0; 3]);
                                             let mut e = e.map(|v| v as f64);
                                             if let Some(s) = sun {
-                                                let k = crate::envmap::disk_cosine_solid_angle(s.diameter_deg) * n.dot(s.direction).max(0.0);
+                                                let k = crate::envmap::disk_cosine_solid_angle(s.diameter_deg)
+                                                    * n.dot(s.direction).max(0.0);
                                                 for c in 0..3 {
                                                     e[c] += k * s.radiance[c] as f64;
                                                 }
@@ -117,4 +196,3 @@ pub fn direction_from_angles(elevation_deg: f64, azimuth_deg: f64) -> DVec3 {
     let (e, a) = (elevation_deg.to_radians(), azimuth_deg.to_radians());
     DVec3::new(e.cos() * a.cos(), e.cos() * a.sin(), e.sin())
 }
-
