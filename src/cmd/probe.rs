@@ -218,7 +218,7 @@ pub fn run(a: ProbeArgs, ctx: &Ctx) -> anyhow::Result<()> {
     let opt = ProbeOptions {
         map_width: a.map_width,
         hemi_size: a.hemi_size,
-        conv_width: (a.map_width / 2).max(2).min(128),
+        conv_width: (a.map_width / 2).clamp(2, 128),
         camera_mask_deg: a.camera_mask_deg,
         max_incidence_deg: a.max_incidence_deg,
         saturation: a.saturation.or(saturation),
