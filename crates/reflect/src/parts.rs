@@ -30,6 +30,18 @@ pub struct TexelCache {
 }
 
 impl TexelCache {
+    /// The covered texels (coverage 1) of same-size position, normal and coverage caches.
+    pub fn covered_texels(pos: &HdrImage, nrm: &HdrImage, coverage: &HdrImage) -> Vec<Texel> {
+        (0..coverage.width * coverage.height)
+            .filter(|&i| coverage.pixels[i][0] == 1.0)
+            .map(|i| Texel {
+                index: i as u32,
+                position: Vec3::from_array(pos.pixels[i]),
+                normal: Vec3::from_array(nrm.pixels[i]).normalize_or(Vec3::Z),
+            })
+            .collect()
+    }
+
     /// Texture coordinate of a texel centre (FORMATS.md: row 0 at the top, v up).
     pub fn uv(&self, index: u32) -> Vec2 {
         let r = self.resolution;
@@ -135,14 +147,7 @@ pub fn prepared_parts(store: &SiteStore) -> Result<Vec<Part>, ReflectError> {
                     ));
                 }
             }
-            let texels = (0..res * res)
-                .filter(|&i| coverage.pixels[i][0] == 1.0)
-                .map(|i| Texel {
-                    index: i as u32,
-                    position: Vec3::from_array(pos.pixels[i]),
-                    normal: Vec3::from_array(nrm.pixels[i]).normalize_or(Vec3::Z),
-                })
-                .collect();
+            let texels = TexelCache::covered_texels(&pos, &nrm, &coverage);
             Ok(Part {
                 name: stored_part_name(e.voxel),
                 mesh: TriMesh::default(),
@@ -192,14 +197,7 @@ pub fn build_parts(
             )
             .map_err(|e| ReflectError::Invalid(format!("atlas of `{name}`: {e}")))?;
             let res = atlas.resolution;
-            let texels = (0..res * res)
-                .filter(|&i| atlas.coverage.pixels[i][0] == 1.0)
-                .map(|i| Texel {
-                    index: i as u32,
-                    position: Vec3::from_array(atlas.position.pixels[i]),
-                    normal: Vec3::from_array(atlas.normal.pixels[i]).normalize_or(Vec3::Z),
-                })
-                .collect();
+            let texels = TexelCache::covered_texels(&atlas.position, &atlas.normal, &atlas.coverage);
             Ok(Part {
                 name,
                 mesh: atlas.mesh,

@@ -17,7 +17,7 @@
 //! Every file is written atomically; `report.json` is written last in each checkpoint, so a
 //! run killed mid-iteration resumes from the last complete iteration.
 
-use crate::parts::{Part, Texel, TexelCache};
+use crate::parts::{Part, TexelCache};
 use crate::solver::{SolveOptions, SolveReport};
 use crate::ReflectError;
 use glam::Vec3;
@@ -235,14 +235,7 @@ impl SolveResult {
             ] {
                 sized(im, &format!("{name}_{f}.exr"))?;
             }
-            let texels = (0..r * r)
-                .filter(|&i| coverage.pixels[i][0] == 1.0)
-                .map(|i| Texel {
-                    index: i as u32,
-                    position: Vec3::from_array(pos.pixels[i]),
-                    normal: Vec3::from_array(nrm.pixels[i]).normalize_or(Vec3::Z),
-                })
-                .collect();
+            let texels = TexelCache::covered_texels(&pos, &nrm, &coverage);
             let lp = pdir.join(format!("{name}_lobes.json"));
             let l: Vec<Lobe> = if lp.exists() {
                 let t = std::fs::read_to_string(&lp)

@@ -110,11 +110,16 @@ fn a_prepared_site_is_solved_voxel_by_voxel_with_the_multiresolution_load_and_re
         ..SolveOptions::default()
     };
 
+    let fresh = |out: &Path| {
+        std::fs::create_dir_all(out).unwrap();
+        let start = SolveResult::fresh(prepared_parts(&store).unwrap(), ids.clone(), &opts);
+        start.write_geometry(out).unwrap();
+        start
+    };
+
     // 1. uninterrupted
     let out_a = dir.path().join("a");
-    std::fs::create_dir_all(&out_a).unwrap();
-    let start = SolveResult::fresh(prepared_parts(&store).unwrap(), ids.clone(), &opts);
-    start.write_geometry(&out_a).unwrap();
+    let start = fresh(&out_a);
     let mut checkpoints = 0;
     let a = igi_reflect::solve(
         start,
@@ -176,9 +181,7 @@ fn a_prepared_site_is_solved_voxel_by_voxel_with_the_multiresolution_load_and_re
 
     // 2. killed after three voxels of the second iteration, then resumed from disk
     let out_b = dir.path().join("b");
-    std::fs::create_dir_all(&out_b).unwrap();
-    let start = SolveResult::fresh(prepared_parts(&store).unwrap(), ids.clone(), &opts);
-    start.write_geometry(&out_b).unwrap();
+    let start = fresh(&out_b);
     let mut n = 0;
     let killed = igi_reflect::solve(
         start,
