@@ -505,7 +505,9 @@ pub fn frame_pose(
                 return Err(format!("found ArUco markers {seen:?}, the frame's are {want:?}: at least two are needed for the pose"));
             }
             ids.sort();
-            let r = cv::solve_pnp(&camera.intrinsics, &world, &px, 3.0)
+            // the markers lie in one plane: the RANSAC solver of `cv::solve_pnp` is unreliable
+            // there; the matched solver (SQPnP + refinement, outlier rejection) is not
+            let r = cv::solve_pnp_matched(&camera.intrinsics, &world, &px, 3.0)
                 .map_err(|e| format!("PnP: {e}"))?;
             Ok((r.pose, r.rms_px, format!("aruco ids {ids:?}")))
         }
