@@ -36,7 +36,7 @@ use std::path::PathBuf;
 pub use parts::{Part, TexelCache};
 pub use result::{export, load_result_scene, sample_albedo, ExportFormat, SolveResult};
 pub use solver::{solve, IterationRecord, Progress, SolveOptions, SolveReport};
-pub use survey::{PhotoSpec, Survey};
+pub use survey::{lighting_from_probe, LightingSource, PhotoSpec, Survey};
 
 /// Errors of the inverse solver.
 #[derive(Debug, thiserror::Error)]

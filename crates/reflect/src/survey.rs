@@ -7,13 +7,23 @@ use igi_render::Lighting;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
+/// Where a photograph's lighting comes from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum LightingSource {
+    /// A FORMATS.md lighting file.
+    File(PathBuf),
+    /// A capture of the lighting board to process first (as `igi probe` does): the board
+    /// photograph (linear HDR), its camera and the board file.
+    Probe { image: PathBuf, camera: PathBuf, board: PathBuf },
+}
+
 /// One photograph as listed in `survey.toml` (paths resolved against the survey folder).
 #[derive(Clone, Debug)]
 pub struct PhotoSpec {
     pub id: String,
     pub image: PathBuf,
     pub camera: PathBuf,
-    pub lighting: PathBuf,
+    pub lighting: LightingSource,
 }
 
 /// A parsed survey: everything is checked to exist, nothing heavy is loaded yet.
@@ -53,7 +63,18 @@ struct PhotoEntry {
     id: String,
     image: PathBuf,
     camera: PathBuf,
-    lighting: PathBuf,
+    lighting: Option<PathBuf>,
+    probe: Option<ProbeEntry>,
+}
+
+/// `[photo.probe]`: a lighting-board capture in place of a lighting file (an extension of
+/// FORMATS.md's survey file).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ProbeEntry {
+    image: PathBuf,
+    camera: PathBuf,
+    board: PathBuf,
 }
 
 #[derive(Deserialize)]
@@ -137,7 +158,20 @@ impl Survey {
                 id: p.id.clone(),
                 image: exists(&p.image, &format!("photo `{}` image", p.id))?,
                 camera: exists(&p.camera, &format!("photo `{}` camera", p.id))?,
-                lighting: exists(&p.lighting, &format!("photo `{}` lighting", p.id))?,
+                lighting: match (&p.lighting, &p.probe) {
+                    (Some(l), None) => LightingSource::File(exists(l, &format!("photo `{}` lighting", p.id))?),
+                    (None, Some(b)) => LightingSource::Probe {
+                        image: exists(&b.image, &format!("photo `{}` probe image", p.id))?,
+                        camera: exists(&b.camera, &format!("photo `{}` probe camera", p.id))?,
+                        board: exists(&b.board, &format!("photo `{}` probe board", p.id))?,
+                    },
+                    _ => {
+                        return Err(ReflectError::file(
+                            &file,
+                            format!("photo `{}` needs exactly one of `lighting = ...` and a [photo.probe] capture", p.id),
+                        ))
+                    }
+                },
             });
         }
         let brdf_samples = match &f.brdf {
@@ -195,7 +229,19 @@ impl PhotoSpec {
                 ),
             ));
         }
-        let lighting = Lighting::load(&self.lighting)?;
+        let lighting = match &self.lighting {
+            LightingSource::File(f) => Lighting::load(f)?,
+            LightingSource::Probe { image, camera, board } => {
+                let img = igi_imaging::read_image(image)?;
+                let cam = Camera::load(camera)?;
+                let spec = igi_probe::BoardSpec::load(board)?;
+                let placement = igi_probe::fiducial::place_board(&spec, &img, &cam)?;
+                let r = igi_probe::process(&img, &cam, &placement.board, &igi_probe::ProbeOptions::default())
+                    .map_err(|e| ReflectError::file(image, format!("processing the probe capture of photo `{}`: {e}", self.id)))?;
+                tracing::info!("photo {}: lighting from its probe capture: {}", self.id, r.diagnostics.sun_decision);
+                lighting_from_probe(&r)?
+            }
+        };
         Ok(Photo {
             id: self.id.clone(),
             image,
@@ -203,4 +249,18 @@ impl PhotoSpec {
             lighting,
         })
     }
+}
+
+/// The lighting a probe capture recovered: its sky map and, when the sun was found and its
+/// radiance solved, the sun disk.
+pub fn lighting_from_probe(r: &igi_probe::ProbeResult) -> Result<Lighting, ReflectError> {
+    let sun = match r.diagnostics.sun.as_ref().and_then(|s| s.radiance.map(|l| (s, l))) {
+        Some((s, l)) => Some(igi_render::Sun::new(
+            glam::DVec3::from_array(s.direction).as_vec3(),
+            glam::Vec3::from_array(l),
+            s.angular_diameter_deg as f32,
+        )?),
+        None => None,
+    };
+    Ok(Lighting { environment: Some(igi_render::Environment::from_image(&r.sky, 1.0)?), sun })
 }
