@@ -394,7 +394,7 @@ pub fn solve(
         let ti = Instant::now();
         let todo: Vec<&Group> = groups
             .iter()
-            .filter(|g| !acc.done.contains(&g.name))
+            .filter(|g| !g.parts.is_empty() && !acc.done.contains(&g.name))
             .collect();
         let total: u64 = todo
             .iter()
