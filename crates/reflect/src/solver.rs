@@ -247,25 +247,16 @@ fn group_scene(
     Ok((Scene::new(objects)?, triangles))
 }
 
-/// Lobes of each part: inferred from the part's mean albedo with the basis, or none.
-fn infer_lobes(parts: &[Part], rho: &[Vec<Vec3>], basis: Option<&Basis>) -> Vec<Vec<Lobe>> {
-    parts
-        .iter()
-        .enumerate()
-        .map(|(i, p)| match basis {
-            None => Vec::new(),
-            Some(b) => {
-                let n = p.cache.texels.len().max(1) as f32;
-                let mean = p
-                    .cache
-                    .texels
-                    .iter()
-                    .fold(Vec3::ZERO, |a, t| a + rho[i][t.index as usize])
-                    / n;
-                b.infer(mean).lobes
-            }
-        })
-        .collect()
+/// Lobes of one part: inferred from its mean albedo with the basis, or none.
+fn part_lobes(part: &Part, rho: &[Vec3], basis: Option<&Basis>) -> Vec<Lobe> {
+    match basis {
+        None => Vec::new(),
+        Some(b) => {
+            let n = part.cache.texels.len().max(1) as f32;
+            let mean = part.cache.texels.iter().fold(Vec3::ZERO, |a, t| a + rho[t.index as usize]) / n;
+            b.infer(mean).lobes
+        }
+    }
 }
 
 /// The groups of a solve: one per solved stored part (voxels, then the terrain), or one holding
@@ -345,6 +336,8 @@ pub fn solve(
     }
     let groups = make_groups(&start.parts, &solved)?;
     start.basis = basis.cloned();
+    // kept current: the parts a group updates get new lobes right after it
+    start.lobes = start.parts.iter().zip(&start.rho).map(|(p, r)| part_lobes(p, r, basis)).collect();
     let store = match start.parts.iter().find_map(|p| p.stored.as_ref()) {
         Some(s) => Some(igi_geometry::SiteStore::open(&s.site)?),
         None => None,
@@ -408,8 +401,7 @@ pub fn solve(
             * photos.len() as u64;
         progress.begin(&format!("iteration {}", k + 1), total);
         for g in todo {
-            let lobes = infer_lobes(&start.parts, &start.rho, basis);
-            let (scene, triangles) = group_scene(&start, g, store.as_ref(), &lobes)?;
+            let (scene, triangles) = group_scene(&start, g, store.as_ref(), &start.lobes)?;
             for &i in &g.parts {
                 start.report.parts[i].scene_triangles = triangles;
             }
@@ -439,15 +431,17 @@ pub fn solve(
             let mut obs: Vec<Obs> = Vec::new();
             for (pi, photo) in photos.iter().enumerate() {
                 obs.extend(observe_photo(
-                    &scene, photo, pi, &texels, offset, &start, &lobes, basis, opts, k, spp, progress,
+                    &scene, photo, pi, &texels, offset, &start, &start.lobes, basis, opts, k, spp, progress,
                 ));
             }
             drop(scene);
             update_parts(&mut start, &g.parts, &obs, opts, &mut acc);
+            for &i in &g.parts {
+                start.lobes[i] = part_lobes(&start.parts[i], &start.rho[i], basis);
+            }
             acc.done.push(g.name.clone());
             if groups.len() > 1 {
                 acc.wall_s = already_in_iteration + ti.elapsed().as_secs_f64();
-                start.lobes = infer_lobes(&start.parts, &start.rho, basis);
                 start.report.pending = Some(acc.clone());
                 checkpoint(&start)?;
                 start.changed.iter_mut().for_each(|c| *c = false);
@@ -455,7 +449,6 @@ pub fn solve(
         }
         progress.finish();
         start.report.pending = None;
-        start.lobes = infer_lobes(&start.parts, &start.rho, basis);
         let (truth_mae, truth_rms) = match truth {
             Some(t) => truth_error(&start, t, &solved),
             None => (None, None),
