@@ -145,7 +145,7 @@ fn main() {
         };
         let ids = photos.iter().map(|p| p.id.clone()).collect();
         // the other voxels keep the true albedo (as if already solved)
-        let mut start = SolveResult::fresh(build_parts_again(&parts), ids, &opts);
+        let mut start = SolveResult::fresh(parts.clone(), ids, &opts);
         for i in 1..start.rho.len() {
             start.rho[i] = truth[i].clone();
         }
@@ -182,17 +182,3 @@ fn main() {
     eprintln!("wrote {}", path.display());
 }
 
-/// The parts again (SolveResult takes ownership), without rebuilding atlases.
-fn build_parts_again(parts: &[igi_reflect::Part]) -> Vec<igi_reflect::Part> {
-    parts
-        .iter()
-        .map(|p| igi_reflect::Part {
-            name: p.name.clone(),
-            mesh: p.mesh.clone(),
-            stored: p.stored.clone(),
-            texel_size: p.texel_size,
-            cache: p.cache.clone(),
-            coverage: p.coverage.clone(),
-        })
-        .collect()
-}

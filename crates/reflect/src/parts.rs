@@ -75,6 +75,7 @@ impl StoredPart {
 }
 
 /// One part of the site: a mesh with atlas UVs and its texel cache.
+#[derive(Clone)]
 pub struct Part {
     pub name: String,
     /// The mesh with atlas UVs (vertices split along chart borders); empty for a part of a
