@@ -1,0 +1,99 @@
+//! Dev-only test kit shared by every crate's tests and the CLI tests.
+//!
+//! - [`shared_data`]: a path into `../shared/data` (the real third-party data beside the
+//!   checkout). A test that needs it **fails** with the reason when it is missing; it never
+//!   passes silently.
+//! - [`Cli`]: runs the `igi` binary (`Cli::new(env!("CARGO_BIN_EXE_igi"))`) with `--quiet`.
+//! - [`assert_failed`]: a command failed, its stderr names the file and the problem, and the
+//!   folder holds nothing it should not (no half-written output, no temporary file).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// The repository root (the folder holding the workspace `Cargo.toml`).
+pub fn repo_root() -> PathBuf {
+    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
+}
+
+/// `../shared/data` beside the checkout.
+pub fn shared_data_root() -> PathBuf {
+    repo_root().join("../shared/data")
+}
+
+/// The path of `rel` under `../shared/data`; panics with the reason when it is missing, so a
+/// test that needs real data can never pass without it.
+pub fn shared_data(rel: &str) -> PathBuf {
+    let p = shared_data_root().join(rel);
+    assert!(
+        p.exists(),
+        "test data missing: {} (the real-data tests read ../shared/data beside the checkout; see shared/data/CATALOGUE.md)",
+        p.display()
+    );
+    p
+}
+
+/// A fixture committed under `datasets/fixtures`.
+pub fn fixture(rel: &str) -> PathBuf {
+    let p = repo_root().join("datasets/fixtures").join(rel);
+    assert!(p.exists(), "fixture missing: {}", p.display());
+    p
+}
+
+/// The `igi` binary of the test run.
+pub struct Cli {
+    bin: PathBuf,
+}
+
+impl Cli {
+    /// `bin` is `env!("CARGO_BIN_EXE_igi")` of the calling integration test.
+    pub fn new(bin: &str) -> Self {
+        Self { bin: PathBuf::from(bin) }
+    }
+
+    /// Runs `igi --quiet ARGS...` and returns its output.
+    pub fn run(&self, args: &[&str]) -> Output {
+        Command::new(&self.bin).arg("--quiet").args(args).output().expect("run igi")
+    }
+
+    /// Runs it and panics with its stderr unless it succeeded.
+    pub fn ok(&self, args: &[&str]) -> Output {
+        let o = self.run(args);
+        assert!(o.status.success(), "igi {args:?} failed: {}", String::from_utf8_lossy(&o.stderr));
+        o
+    }
+}
+
+/// A path as `&str` (test paths are UTF-8).
+pub fn s(p: &Path) -> &str {
+    p.to_str().expect("UTF-8 path")
+}
+
+/// Fails unless the command failed, stderr names `file` and contains `problem`, and `dir`
+/// holds nothing but `keep` (no output, no temp file).
+pub fn assert_failed(out: &Output, file: &str, problem: &str, dir: &Path, keep: &[PathBuf]) {
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "expected failure, stderr: {err}");
+    assert!(err.contains(file), "stderr does not name {file}: {err}");
+    assert!(err.contains(problem), "stderr does not say {problem:?}: {err}");
+    for e in std::fs::read_dir(dir).expect("read dir") {
+        let p = e.expect("dir entry").path();
+        assert!(keep.contains(&p), "left behind: {}", p.display());
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn repo_root_holds_the_workspace() {
+        assert!(repo_root().join("Cargo.toml").exists());
+        assert!(repo_root().join("crates/testkit/Cargo.toml").exists());
+    }
+
+    #[test]
+    #[should_panic(expected = "test data missing")]
+    fn missing_data_fails_loudly() {
+        shared_data("no/such/file.bin");
+    }
+}
