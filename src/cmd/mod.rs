@@ -5,7 +5,7 @@ pub mod camera;
 pub mod compare;
 pub mod demo;
 pub mod hdr;
-pub mod probe;
 pub mod prepare;
+pub mod probe;
 pub mod render;
 pub mod solve;

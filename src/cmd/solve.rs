@@ -35,7 +35,12 @@ pub struct SolveArgs {
     pub initial: Vec<f32>,
     /// Solve only these parts, comma-separated, to share a site between machines: site meshes
     /// by file stem, or for a prepared site voxels as I_J_K (and `terrain`).
-    #[arg(long, visible_alias = "voxels", value_delimiter = ',', allow_hyphen_values = true)]
+    #[arg(
+        long,
+        visible_alias = "voxels",
+        value_delimiter = ',',
+        allow_hyphen_values = true
+    )]
     pub parts: Option<Vec<String>>,
     /// A scene file with the true albedo over the same geometry: the report then records the
     /// rho_d error per iteration.

@@ -4,7 +4,10 @@ use std::path::PathBuf;
 #[derive(Debug, thiserror::Error)]
 pub enum ImagingError {
     #[error("{}: {source}", path.display())]
-    Io { path: PathBuf, source: std::io::Error },
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
     #[error("{}: unknown image format (extension {ext:?}); supported: .exr .hdr .png .jpg .jpeg .tif .tiff", path.display())]
     UnknownFormat { path: PathBuf, ext: String },
     #[error("{}: cannot decode image: {msg}", path.display())]
@@ -27,6 +30,9 @@ pub enum ImagingError {
 
 impl ImagingError {
     pub(crate) fn io(path: &std::path::Path, source: std::io::Error) -> Self {
-        ImagingError::Io { path: path.to_path_buf(), source }
+        ImagingError::Io {
+            path: path.to_path_buf(),
+            source,
+        }
     }
 }

@@ -27,7 +27,13 @@ pub fn write_atomic(
     // Keep the extension last so extension-sniffing writers still work.
     static COUNTER: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
     let n = COUNTER.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-    let tmp = dir.join(format!(".{}.tmp{}-{}.{}", name, std::process::id(), n, ext_of(path)));
+    let tmp = dir.join(format!(
+        ".{}.tmp{}-{}.{}",
+        name,
+        std::process::id(),
+        n,
+        ext_of(path)
+    ));
     let result = write(&tmp);
     match result {
         Ok(()) => std::fs::rename(&tmp, path).map_err(|e| {
@@ -43,11 +49,15 @@ pub fn write_atomic(
 
 /// Write text to `path` atomically (see [`write_atomic`]).
 pub fn write_text_atomic(path: &Path, text: &str) -> Result<(), ImagingError> {
-    write_atomic(path, |tmp| std::fs::write(tmp, text).map_err(|e| ImagingError::io(path, e)))
+    write_atomic(path, |tmp| {
+        std::fs::write(tmp, text).map_err(|e| ImagingError::io(path, e))
+    })
 }
 
 fn ext_of(path: &Path) -> String {
-    path.extension().map(|e| e.to_string_lossy().to_lowercase()).unwrap_or_default()
+    path.extension()
+        .map(|e| e.to_string_lossy().to_lowercase())
+        .unwrap_or_default()
 }
 
 /// Read an image as linear `f32` RGB. EXR (RGB, RGBA, B/G/R in any order, half or float, any
@@ -58,7 +68,12 @@ pub fn read_image(path: &Path) -> Result<HdrImage, ImagingError> {
     let ext = ext_of(path);
     match ext.as_str() {
         "exr" | "hdr" | "png" | "jpg" | "jpeg" | "tif" | "tiff" => {}
-        _ => return Err(ImagingError::UnknownFormat { path: path.to_path_buf(), ext }),
+        _ => {
+            return Err(ImagingError::UnknownFormat {
+                path: path.to_path_buf(),
+                ext,
+            })
+        }
     }
     if !path.exists() {
         return Err(ImagingError::io(
@@ -66,7 +81,11 @@ pub fn read_image(path: &Path) -> Result<HdrImage, ImagingError> {
             std::io::Error::new(std::io::ErrorKind::NotFound, "file not found"),
         ));
     }
-    let img = if ext == "exr" { read_exr(path)? } else { read_with_image_crate(path)? };
+    let img = if ext == "exr" {
+        read_exr(path)?
+    } else {
+        read_with_image_crate(path)?
+    };
     check_finite(path, &img)?;
     Ok(img)
 }
@@ -85,14 +104,19 @@ fn check_finite(path: &Path, img: &HdrImage) -> Result<(), ImagingError> {
     if let Some((x, y, v)) = first {
         return Err(ImagingError::BadPixels {
             path: path.to_path_buf(),
-            msg: format!("{bad} pixel(s) with NaN or infinite values, first at (x={x}, y={y}) = {v:?}"),
+            msg: format!(
+                "{bad} pixel(s) with NaN or infinite values, first at (x={x}, y={y}) = {v:?}"
+            ),
         });
     }
     Ok(())
 }
 
 fn read_with_image_crate(path: &Path) -> Result<HdrImage, ImagingError> {
-    let dec = |e: ::image::ImageError| ImagingError::Decode { path: path.to_path_buf(), msg: e.to_string() };
+    let dec = |e: ::image::ImageError| ImagingError::Decode {
+        path: path.to_path_buf(),
+        msg: e.to_string(),
+    };
     let reader = ::image::ImageReader::open(path)
         .map_err(|e| ImagingError::io(path, e))?
         .with_guessed_format()
@@ -109,7 +133,10 @@ fn read_with_image_crate(path: &Path) -> Result<HdrImage, ImagingError> {
 
 fn read_exr(path: &Path) -> Result<HdrImage, ImagingError> {
     use exr::prelude::*;
-    let dec = |msg: String| ImagingError::Decode { path: path.to_path_buf(), msg };
+    let dec = |msg: String| ImagingError::Decode {
+        path: path.to_path_buf(),
+        msg,
+    };
     let image = read()
         .no_deep_data()
         .largest_resolution_level()
@@ -118,9 +145,8 @@ fn read_exr(path: &Path) -> Result<HdrImage, ImagingError> {
         .all_attributes()
         .from_file(path)
         .map_err(|e| dec(e.to_string()))?;
-    let base = |name: &str| -> String {
-        name.rsplit('.').next().unwrap_or(name).to_ascii_lowercase()
-    };
+    let base =
+        |name: &str| -> String { name.rsplit('.').next().unwrap_or(name).to_ascii_lowercase() };
     for layer in &image.layer_data {
         let chans = &layer.channel_data.list;
         let find = |n: &str| chans.iter().find(|c| base(&c.name.to_string()) == n);
@@ -134,7 +160,12 @@ fn read_exr(path: &Path) -> Result<HdrImage, ImagingError> {
         let mut out = HdrImage::new(w, h);
         for (c, ch) in [r, g, b].into_iter().enumerate() {
             if ch.sample_data.len() != n {
-                return Err(dec(format!("channel {} has {} samples, expected {}", ch.name, ch.sample_data.len(), n)));
+                return Err(dec(format!(
+                    "channel {} has {} samples, expected {}",
+                    ch.name,
+                    ch.sample_data.len(),
+                    n
+                )));
             }
             for (i, v) in ch.sample_data.values_as_f32().enumerate() {
                 out.pixels[i][c] = v;
@@ -154,16 +185,25 @@ fn read_exr(path: &Path) -> Result<HdrImage, ImagingError> {
         .iter()
         .flat_map(|l| l.channel_data.list.iter().map(|c| c.name.to_string()))
         .collect();
-    Err(dec(format!("no R,G,B or Y channels found (channels: {names:?})")))
+    Err(dec(format!(
+        "no R,G,B or Y channels found (channels: {names:?})"
+    )))
 }
 
 fn check_dims(path: &Path, img: &HdrImage) -> Result<(), ImagingError> {
-    if img.width == 0 || img.height == 0 || img.pixels.len() != img.width * img.height || img.valid.len() != img.pixels.len() {
+    if img.width == 0
+        || img.height == 0
+        || img.pixels.len() != img.width * img.height
+        || img.valid.len() != img.pixels.len()
+    {
         return Err(ImagingError::Encode {
             path: path.to_path_buf(),
             msg: format!(
                 "inconsistent image: {}x{} with {} pixels and {} mask entries",
-                img.width, img.height, img.pixels.len(), img.valid.len()
+                img.width,
+                img.height,
+                img.pixels.len(),
+                img.valid.len()
             ),
         });
     }
@@ -179,13 +219,21 @@ pub fn write_exr(path: &Path, img: &HdrImage) -> Result<(), ImagingError> {
     let mut list: Vec<AnyChannel<FlatSamples>> = (0..3)
         .map(|c| {
             let name = ["R", "G", "B"][c];
-            AnyChannel::new(name, FlatSamples::F32(img.pixels.iter().map(|p| p[c]).collect()))
+            AnyChannel::new(
+                name,
+                FlatSamples::F32(img.pixels.iter().map(|p| p[c]).collect()),
+            )
         })
         .collect();
     if img.valid.iter().any(|v| !v) {
         list.push(AnyChannel::new(
             "valid",
-            FlatSamples::F32(img.valid.iter().map(|&v| if v { 1.0 } else { 0.0 }).collect()),
+            FlatSamples::F32(
+                img.valid
+                    .iter()
+                    .map(|&v| if v { 1.0 } else { 0.0 })
+                    .collect(),
+            ),
         ));
     }
     let layer = Layer::new(
@@ -199,7 +247,10 @@ pub fn write_exr(path: &Path, img: &HdrImage) -> Result<(), ImagingError> {
         image
             .write()
             .to_file(tmp)
-            .map_err(|e| ImagingError::Encode { path: path.to_path_buf(), msg: e.to_string() })
+            .map_err(|e| ImagingError::Encode {
+                path: path.to_path_buf(),
+                msg: e.to_string(),
+            })
     })
 }
 
@@ -207,14 +258,20 @@ pub fn write_exr(path: &Path, img: &HdrImage) -> Result<(), ImagingError> {
 pub fn write_hdr(path: &Path, img: &HdrImage) -> Result<(), ImagingError> {
     check_dims(path, img)?;
     check_finite(path, img)?;
-    let data: Vec<::image::Rgb<f32>> =
-        img.pixels.iter().map(|p| ::image::Rgb([p[0].max(0.0), p[1].max(0.0), p[2].max(0.0)])).collect();
+    let data: Vec<::image::Rgb<f32>> = img
+        .pixels
+        .iter()
+        .map(|p| ::image::Rgb([p[0].max(0.0), p[1].max(0.0), p[2].max(0.0)]))
+        .collect();
     write_atomic(path, |tmp| {
         let f = std::fs::File::create(tmp).map_err(|e| ImagingError::io(path, e))?;
         let w = std::io::BufWriter::new(f);
         ::image::codecs::hdr::HdrEncoder::new(w)
             .encode(&data, img.width, img.height)
-            .map_err(|e| ImagingError::Encode { path: path.to_path_buf(), msg: e.to_string() })
+            .map_err(|e| ImagingError::Encode {
+                path: path.to_path_buf(),
+                msg: e.to_string(),
+            })
     })
 }
 
@@ -239,10 +296,17 @@ pub fn srgb_to_linear(x: f32) -> f32 {
 }
 
 /// Write an 8-bit sRGB PNG preview: pixel * `exposure`, clipped to [0, 1], sRGB-encoded.
-pub fn write_png_tonemapped(path: &Path, img: &HdrImage, exposure: f32) -> Result<(), ImagingError> {
+pub fn write_png_tonemapped(
+    path: &Path,
+    img: &HdrImage,
+    exposure: f32,
+) -> Result<(), ImagingError> {
     check_dims(path, img)?;
     if !exposure.is_finite() {
-        return Err(ImagingError::InvalidInput(format!("{}: exposure {exposure} is not finite", path.display())));
+        return Err(ImagingError::InvalidInput(format!(
+            "{}: exposure {exposure} is not finite",
+            path.display()
+        )));
     }
     let mut buf = Vec::with_capacity(img.pixels.len() * 3);
     for p in &img.pixels {
@@ -260,7 +324,10 @@ pub fn write_png_tonemapped(path: &Path, img: &HdrImage, exposure: f32) -> Resul
             ::image::ExtendedColorType::Rgb8,
             ::image::ImageFormat::Png,
         )
-        .map_err(|e| ImagingError::Encode { path: path.to_path_buf(), msg: e.to_string() })
+        .map_err(|e| ImagingError::Encode {
+            path: path.to_path_buf(),
+            msg: e.to_string(),
+        })
     })
 }
 
@@ -274,7 +341,15 @@ mod tests {
         let mut im = HdrImage::new(5, 3);
         for y in 0..3 {
             for x in 0..5 {
-                im.set(x, y, [x as f32 * 0.5, y as f32 * 100.0 + 0.25, 1e-3 * (x + y) as f32]);
+                im.set(
+                    x,
+                    y,
+                    [
+                        x as f32 * 0.5,
+                        y as f32 * 100.0 + 0.25,
+                        1e-3 * (x + y) as f32,
+                    ],
+                );
             }
         }
         im
@@ -308,7 +383,10 @@ mod tests {
             let m = a.iter().cloned().fold(0.0f32, f32::max);
             for c in 0..3 {
                 // RGBE: 8-bit mantissa relative to the largest channel
-                assert!((a[c] - b[c]).abs() <= m * 1.0 / 128.0 + 1e-6, "{a:?} vs {b:?}");
+                assert!(
+                    (a[c] - b[c]).abs() <= m * 1.0 / 128.0 + 1e-6,
+                    "{a:?} vs {b:?}"
+                );
             }
         }
     }
@@ -331,10 +409,20 @@ mod tests {
 
     #[test]
     fn errors_name_file_and_problem() {
-        let e = read_image(Path::new("/nonexistent/x.exr")).unwrap_err().to_string();
-        assert!(e.contains("/nonexistent/x.exr") && e.contains("not found"), "{e}");
-        let e = read_image(Path::new("/tmp/foo.bmpx")).unwrap_err().to_string();
-        assert!(e.contains("foo.bmpx") && e.contains("unknown image format"), "{e}");
+        let e = read_image(Path::new("/nonexistent/x.exr"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("/nonexistent/x.exr") && e.contains("not found"),
+            "{e}"
+        );
+        let e = read_image(Path::new("/tmp/foo.bmpx"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("foo.bmpx") && e.contains("unknown image format"),
+            "{e}"
+        );
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("garbage.png");
         std::fs::write(&p, b"not a png").unwrap();
@@ -347,9 +435,19 @@ mod tests {
         use exr::prelude::*;
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("nan.exr");
-        write_rgb_file(&p, 4, 4, |x, y| if (x, y) == (2, 1) { (f32::NAN, 0.0, 0.0) } else { (1.0, 1.0, 1.0) }).unwrap();
+        write_rgb_file(&p, 4, 4, |x, y| {
+            if (x, y) == (2, 1) {
+                (f32::NAN, 0.0, 0.0)
+            } else {
+                (1.0, 1.0, 1.0)
+            }
+        })
+        .unwrap();
         let e = read_image(&p).unwrap_err().to_string();
-        assert!(e.contains("nan.exr") && e.contains("NaN") && e.contains("x=2, y=1"), "{e}");
+        assert!(
+            e.contains("nan.exr") && e.contains("NaN") && e.contains("x=2, y=1"),
+            "{e}"
+        );
         // and we refuse to write such data, leaving nothing behind
         let mut im = HdrImage::new(2, 2);
         im.pixels[0][1] = f32::INFINITY;
@@ -368,7 +466,10 @@ mod tests {
         });
         assert!(r.is_err());
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
-        write_atomic(&p, |tmp| std::fs::write(tmp, "ok").map_err(|e| ImagingError::io(tmp, e))).unwrap();
+        write_atomic(&p, |tmp| {
+            std::fs::write(tmp, "ok").map_err(|e| ImagingError::io(tmp, e))
+        })
+        .unwrap();
         assert_eq!(std::fs::read_to_string(&p).unwrap(), "ok");
     }
 
@@ -381,11 +482,19 @@ mod tests {
         }
         let im = read_image(&exr).unwrap();
         assert_eq!((im.width, im.height), (1024, 512));
-        let mean: f64 = im.pixels.iter().map(|p| (p[0] + p[1] + p[2]) as f64 / 3.0).sum::<f64>() / im.pixels.len() as f64;
+        let mean: f64 = im
+            .pixels
+            .iter()
+            .map(|p| (p[0] + p[1] + p[2]) as f64 / 3.0)
+            .sum::<f64>()
+            / im.pixels.len() as f64;
         assert!(mean > 0.01 && mean < 100.0, "mean {mean}");
         assert!(im.pixels.iter().all(|p| p.iter().all(|c| *c >= 0.0)));
         // Grace cathedral is warm (tungsten-lit): R channel mean exceeds B: checks channel order
-        let (r, b): (f64, f64) = im.pixels.iter().fold((0.0, 0.0), |a, p| (a.0 + p[0] as f64, a.1 + p[2] as f64));
+        let (r, b): (f64, f64) = im
+            .pixels
+            .iter()
+            .fold((0.0, 0.0), |a, p| (a.0 + p[0] as f64, a.1 + p[2] as f64));
         assert!(r > b * 1.1, "r {r} b {b}");
         let hdr = Path::new(DATA).join("light_probes/probulator_latlong_256x128/grace.hdr");
         let im2 = read_image(&hdr).unwrap();

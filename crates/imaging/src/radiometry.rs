@@ -30,10 +30,18 @@ impl Falloff {
     /// Returns the falloff and `s`.
     pub fn fit(samples: &[(f64, f64)]) -> Result<(Falloff, f64), ImagingError> {
         if samples.len() < 4 {
-            return Err(ImagingError::InvalidInput(format!("falloff fit needs at least 4 samples, got {}", samples.len())));
+            return Err(ImagingError::InvalidInput(format!(
+                "falloff fit needs at least 4 samples, got {}",
+                samples.len()
+            )));
         }
-        if samples.iter().any(|(r, v)| !r.is_finite() || !v.is_finite()) {
-            return Err(ImagingError::InvalidInput("falloff samples contain NaN or infinite values".into()));
+        if samples
+            .iter()
+            .any(|(r, v)| !r.is_finite() || !v.is_finite())
+        {
+            return Err(ImagingError::InvalidInput(
+                "falloff samples contain NaN or infinite values".into(),
+            ));
         }
         let mut a = DMatrix::<f64>::zeros(samples.len(), 4);
         let mut b = DVector::<f64>::zeros(samples.len());
@@ -45,15 +53,23 @@ impl Falloff {
             a[(i, 3)] = r2 * r2 * r2;
             b[i] = v;
         }
-        let x = a
-            .svd(true, true)
-            .solve(&b, 1e-12)
-            .map_err(|e| ImagingError::InvalidInput(format!("falloff least squares failed: {e}")))?;
+        let x = a.svd(true, true).solve(&b, 1e-12).map_err(|e| {
+            ImagingError::InvalidInput(format!("falloff least squares failed: {e}"))
+        })?;
         let s = x[0];
         if !(s.abs() > 0.0) || !s.is_finite() {
-            return Err(ImagingError::InvalidInput("falloff fit: centre value is zero (flat field too dark?)".into()));
+            return Err(ImagingError::InvalidInput(
+                "falloff fit: centre value is zero (flat field too dark?)".into(),
+            ));
         }
-        Ok((Falloff { a2: x[1] / s, a4: x[2] / s, a6: x[3] / s }, s))
+        Ok((
+            Falloff {
+                a2: x[1] / s,
+                a4: x[2] / s,
+                a6: x[3] / s,
+            },
+            s,
+        ))
     }
 
     /// Fit to a flat-field image (mean of the three channels of every valid pixel).
@@ -95,7 +111,10 @@ impl Falloff {
 /// Least-squares 3x3 colour matrix `M` with `target ~= M * source` (e.g. camera RGB of
 /// colour-checker patches -> their reference linear RGB). Needs at least 3 pairs spanning
 /// colour space.
-pub fn fit_color_matrix(source: &[[f64; 3]], target: &[[f64; 3]]) -> Result<[[f64; 3]; 3], ImagingError> {
+pub fn fit_color_matrix(
+    source: &[[f64; 3]],
+    target: &[[f64; 3]],
+) -> Result<[[f64; 3]; 3], ImagingError> {
     if source.len() != target.len() {
         return Err(ImagingError::InvalidInput(format!(
             "colour matrix: {} source patches but {} targets",
@@ -104,10 +123,19 @@ pub fn fit_color_matrix(source: &[[f64; 3]], target: &[[f64; 3]]) -> Result<[[f6
         )));
     }
     if source.len() < 3 {
-        return Err(ImagingError::InvalidInput("colour matrix needs at least 3 patches".into()));
+        return Err(ImagingError::InvalidInput(
+            "colour matrix needs at least 3 patches".into(),
+        ));
     }
-    if source.iter().chain(target).flatten().any(|v| !v.is_finite()) {
-        return Err(ImagingError::InvalidInput("colour patches contain NaN or infinite values".into()));
+    if source
+        .iter()
+        .chain(target)
+        .flatten()
+        .any(|v| !v.is_finite())
+    {
+        return Err(ImagingError::InvalidInput(
+            "colour patches contain NaN or infinite values".into(),
+        ));
     }
     let n = source.len();
     let a = DMatrix::<f64>::from_fn(n, 3, |i, j| source[i][j]);
@@ -115,14 +143,16 @@ pub fn fit_color_matrix(source: &[[f64; 3]], target: &[[f64; 3]]) -> Result<[[f6
     let sv = &svd.singular_values;
     let (smax, smin) = (sv.max(), sv.min());
     if !(smin > smax * 1e-9) {
-        return Err(ImagingError::InvalidInput("colour patches are degenerate (do not span RGB)".into()));
+        return Err(ImagingError::InvalidInput(
+            "colour patches are degenerate (do not span RGB)".into(),
+        ));
     }
     let mut m = [[0.0; 3]; 3];
     for r in 0..3 {
         let b = DVector::<f64>::from_fn(n, |i, _| target[i][r]);
-        let x = svd
-            .solve(&b, 1e-12)
-            .map_err(|e| ImagingError::InvalidInput(format!("colour matrix least squares failed: {e}")))?;
+        let x = svd.solve(&b, 1e-12).map_err(|e| {
+            ImagingError::InvalidInput(format!("colour matrix least squares failed: {e}"))
+        })?;
         m[r] = [x[0], x[1], x[2]];
     }
     Ok(m)
@@ -144,7 +174,11 @@ mod tests {
 
     #[test]
     fn falloff_fit_recovers_known_polynomial() {
-        let truth = Falloff { a2: -0.35, a4: 0.08, a6: -0.03 };
+        let truth = Falloff {
+            a2: -0.35,
+            a4: 0.08,
+            a6: -0.03,
+        };
         let (w, h) = (120, 80);
         let mut flat = HdrImage::new(w, h);
         let mut rng = rand_pcg::Pcg64::seed_from_u64(11);
@@ -158,7 +192,12 @@ mod tests {
         let (fit, s) = Falloff::fit_image(&flat).unwrap();
         assert!((s - 0.7).abs() < 1e-3, "{s}");
         for r in [0.0, 0.3, 0.6, 0.9, 1.0] {
-            assert!((fit.eval(r) - truth.eval(r)).abs() < 2e-3, "r={r}: {} vs {}", fit.eval(r), truth.eval(r));
+            assert!(
+                (fit.eval(r) - truth.eval(r)).abs() < 2e-3,
+                "r={r}: {} vs {}",
+                fit.eval(r),
+                truth.eval(r)
+            );
         }
         assert!((fit.a2 - truth.a2).abs() < 0.02, "{fit:?}");
         // corners: r = 1 exactly at the outer pixel corner; the corner pixel centre is just inside
@@ -177,10 +216,15 @@ mod tests {
         let mut src = Vec::new();
         let mut dst = Vec::new();
         for _ in 0..24 {
-            let s = [rng.gen_range(0.02..0.9), rng.gen_range(0.02..0.9), rng.gen_range(0.02..0.9)];
+            let s = [
+                rng.gen_range(0.02..0.9),
+                rng.gen_range(0.02..0.9),
+                rng.gen_range(0.02..0.9),
+            ];
             let mut t = [0.0; 3];
             for r in 0..3 {
-                t[r] = (0..3).map(|c| m[r][c] * s[c]).sum::<f64>() * (1.0 + rng.gen_range(-0.005..0.005));
+                t[r] = (0..3).map(|c| m[r][c] * s[c]).sum::<f64>()
+                    * (1.0 + rng.gen_range(-0.005..0.005));
             }
             src.push(s);
             dst.push(t);

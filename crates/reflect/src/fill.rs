@@ -11,7 +11,13 @@ use glam::Vec3;
 
 /// Grows `known` values into `target` texels that are not yet known, ring by ring (8-neighbour
 /// mean of known texels). Returns how many texels were filled.
-pub fn dilate(values: &mut [Vec3], known: &mut [bool], target: &[bool], res: usize, rings: usize) -> usize {
+pub fn dilate(
+    values: &mut [Vec3],
+    known: &mut [bool],
+    target: &[bool],
+    res: usize,
+    rings: usize,
+) -> usize {
     let mut filled = 0;
     for _ in 0..rings {
         let prev = known.to_vec();
@@ -54,11 +60,24 @@ pub fn dilate(values: &mut [Vec3], known: &mut [bool], target: &[bool], res: usi
 /// Applies the fill rule to one part's albedo atlas. `seen[i]`: texel i got a value from the
 /// photos; `covered[i]`: texel centre on the surface; `gutter[i]`: dilated border texel.
 /// Returns the number of covered texels that were filled rather than seen.
-pub fn fill_unseen(values: &mut [Vec3], seen: &[bool], covered: &[bool], gutter: &[bool], res: usize, fallback: Vec3, max_rings: usize) -> usize {
+pub fn fill_unseen(
+    values: &mut [Vec3],
+    seen: &[bool],
+    covered: &[bool],
+    gutter: &[bool],
+    res: usize,
+    fallback: Vec3,
+    max_rings: usize,
+) -> usize {
     let mut known = seen.to_vec();
     let nseen = seen.iter().filter(|s| **s).count();
     let mean = if nseen > 0 {
-        values.iter().zip(seen).filter(|(_, s)| **s).fold(Vec3::ZERO, |a, (v, _)| a + *v) / nseen as f32
+        values
+            .iter()
+            .zip(seen)
+            .filter(|(_, s)| **s)
+            .fold(Vec3::ZERO, |a, (v, _)| a + *v)
+            / nseen as f32
     } else {
         fallback
     };
@@ -101,6 +120,9 @@ mod tests {
         let n = fill_unseen(&mut v, &seen, &covered, &gutter, res, Vec3::splat(0.5), 2);
         assert_eq!(n, 2);
         assert!((v[2 * res + 2].x - 0.4).abs() < 1e-6);
-        assert!((v[7 * res + 7].x - 0.4).abs() < 1e-6, "island gets the part's mean");
+        assert!(
+            (v[7 * res + 7].x - 0.4).abs() < 1e-6,
+            "island gets the part's mean"
+        );
     }
 }

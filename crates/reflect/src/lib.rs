@@ -60,6 +60,9 @@ pub enum ReflectError {
 
 impl ReflectError {
     pub(crate) fn file(path: impl Into<PathBuf>, msg: impl Into<String>) -> Self {
-        ReflectError::File { path: path.into(), msg: msg.into() }
+        ReflectError::File {
+            path: path.into(),
+            msg: msg.into(),
+        }
     }
 }

@@ -198,7 +198,8 @@ pub fn build_parts(
             )
             .map_err(|e| ReflectError::Invalid(format!("atlas of `{name}`: {e}")))?;
             let res = atlas.resolution;
-            let texels = TexelCache::covered_texels(&atlas.position, &atlas.normal, &atlas.coverage);
+            let texels =
+                TexelCache::covered_texels(&atlas.position, &atlas.normal, &atlas.coverage);
             Ok(Part {
                 name,
                 mesh: atlas.mesh,

@@ -166,7 +166,10 @@ impl SolveResult {
                 toml_string(&mesh),
                 p.name
             );
-            let per_texel = self.basis.as_ref().map_or(0, |b| b.infer(Vec3::splat(0.5)).lobes.len());
+            let per_texel = self
+                .basis
+                .as_ref()
+                .map_or(0, |b| b.infer(Vec3::splat(0.5)).lobes.len());
             if per_texel > 0 {
                 let maps: Vec<String> = (0..per_texel)
                     .map(|k| format!("{{ rho = \"parts/{0}_lobe{k}_rho.exr\", shape = \"parts/{0}_lobe{k}_shape.exr\" }}", p.name))
@@ -292,14 +295,30 @@ impl SolveResult {
     pub fn lobe_map(&self, i: usize) -> Option<igi_render::LobeMap> {
         let basis = self.basis.as_ref()?;
         let r = self.parts[i].resolution();
-        let per: Vec<Vec<Lobe>> = self.rho[i].iter().map(|rho| basis.infer(*rho).lobes).collect();
+        let per: Vec<Vec<Lobe>> = self.rho[i]
+            .iter()
+            .map(|rho| basis.infer(*rho).lobes)
+            .collect();
         let k = per.iter().map(Vec::len).max().unwrap_or(0);
         if k == 0 {
             return None;
         }
-        let none = Lobe { rho: Vec3::ZERO, cxy: 0.0, cz: 1.0, n: 1.0 };
-        let lobes = per.iter().flat_map(|l| (0..k).map(move |j| l.get(j).copied().unwrap_or(none))).collect();
-        Some(igi_render::LobeMap { width: r, height: r, per_texel: k, lobes })
+        let none = Lobe {
+            rho: Vec3::ZERO,
+            cxy: 0.0,
+            cz: 1.0,
+            n: 1.0,
+        };
+        let lobes = per
+            .iter()
+            .flat_map(|l| (0..k).map(move |j| l.get(j).copied().unwrap_or(none)))
+            .collect();
+        Some(igi_render::LobeMap {
+            width: r,
+            height: r,
+            per_texel: k,
+            lobes,
+        })
     }
 }
 

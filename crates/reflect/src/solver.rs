@@ -253,7 +253,12 @@ fn part_lobes(part: &Part, rho: &[Vec3], basis: Option<&Basis>) -> Vec<Lobe> {
         None => Vec::new(),
         Some(b) => {
             let n = part.cache.texels.len().max(1) as f32;
-            let mean = part.cache.texels.iter().fold(Vec3::ZERO, |a, t| a + rho[t.index as usize]) / n;
+            let mean = part
+                .cache
+                .texels
+                .iter()
+                .fold(Vec3::ZERO, |a, t| a + rho[t.index as usize])
+                / n;
             b.infer(mean).lobes
         }
     }
@@ -337,7 +342,12 @@ pub fn solve(
     let groups = make_groups(&start.parts, &solved)?;
     start.basis = basis.cloned();
     // kept current: the parts a group updates get new lobes right after it
-    start.lobes = start.parts.iter().zip(&start.rho).map(|(p, r)| part_lobes(p, r, basis)).collect();
+    start.lobes = start
+        .parts
+        .iter()
+        .zip(&start.rho)
+        .map(|(p, r)| part_lobes(p, r, basis))
+        .collect();
     let store = match start.parts.iter().find_map(|p| p.stored.as_ref()) {
         Some(s) => Some(igi_geometry::SiteStore::open(&s.site)?),
         None => None,
@@ -431,7 +441,18 @@ pub fn solve(
             let mut obs: Vec<Obs> = Vec::new();
             for (pi, photo) in photos.iter().enumerate() {
                 obs.extend(observe_photo(
-                    &scene, photo, pi, &texels, offset, &start, &start.lobes, basis, opts, k, spp, progress,
+                    &scene,
+                    photo,
+                    pi,
+                    &texels,
+                    offset,
+                    &start,
+                    &start.lobes,
+                    basis,
+                    opts,
+                    k,
+                    spp,
+                    progress,
                 ));
             }
             drop(scene);
