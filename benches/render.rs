@@ -57,7 +57,7 @@ fn make_rays(scene: &Scene, cam: &igi_imaging::Camera, n: usize) -> Vec<ShadowRa
         });
         if let Some(sp) = scene.trace_point(o, d) {
             let z = rng.uniform();
-            let phi = 6.283_185 * rng.uniform();
+            let phi = std::f32::consts::TAU * rng.uniform();
             let r = (1.0 - z * z).sqrt();
             let mut w = Vec3::new(r * phi.cos(), r * phi.sin(), z);
             if w.dot(sp.ng) < 0.0 {

@@ -199,9 +199,8 @@ fn main() {
         let ids = photos.iter().map(|p| p.id.clone()).collect();
         // the other voxels keep the true albedo (as if already solved)
         let mut start = SolveResult::fresh(parts.clone(), ids, &opts);
-        for i in 1..start.rho.len() {
-            start.rho[i] = truth[i].clone();
-        }
+        let n = start.rho.len();
+        start.rho[1..].clone_from_slice(&truth[1..n]);
         let t = Instant::now();
         let r = igi_reflect::solve(
             start,

@@ -128,7 +128,13 @@ fn merge_errors_missing_file_and_unknown_format() {
         "-o",
         s(&out),
     ]);
-    assert_failed(&o, "nothere.png", "not found", tmp.path(), &[a.clone()]);
+    assert_failed(
+        &o,
+        "nothere.png",
+        "not found",
+        tmp.path(),
+        std::slice::from_ref(&a),
+    );
     let bmp = tmp.path().join("b.bmp");
     std::fs::write(&bmp, b"BM....").unwrap();
     let o = igi(&[

@@ -48,7 +48,7 @@ pub struct MeasureArgs {
     /// Output samples CSV (material,light_x..view_z,r,g,b with r g b = pi f).
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Also write each photo's orthographic view of the sample as DIR/<photo stem>_ortho.exr.
+    /// Also write each photo's orthographic view of the sample as DIR/STEM_ortho.exr (STEM: the photo's file stem).
     #[arg(long)]
     pub ortho_dir: Option<PathBuf>,
     /// Print the per-photo report (pose, light, gap, highlights, regions) as JSON.

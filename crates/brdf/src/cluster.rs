@@ -334,7 +334,7 @@ pub fn cluster(
             .copied()
             .filter(|&t| assignment[t] == c)
             .collect();
-        if mem.len() >= 1 {
+        if !mem.is_empty() {
             let d = ctx.data_of(&mem);
             let (q, cost, _) = fit_data(&ctx.model, &d);
             if cost <= d.cost(&ctx.model, p) {
@@ -398,6 +398,94 @@ pub fn basis_weights(brdfs: &[Lafortune], lt: &Lumitexel) -> Vec<f32> {
             .collect(),
         Err(_) => vec![0.0; brdfs.len()],
     }
+}
+
+/// Lumitexels CSV: `id,px,py,pz,nx,ny,nz,light_x,light_y,light_z,view_x,view_y,view_z,r,g,b`,
+/// one row per sample, rows of one lumitexel share `id` (world directions, r g b = pi f).
+/// Returns the ids (in order of first appearance) and the lumitexels.
+pub fn read_lumitexels(path: &std::path::Path) -> Result<(Vec<String>, Vec<Lumitexel>), BrdfError> {
+    let text = std::fs::read_to_string(path).map_err(|source| BrdfError::Io {
+        path: path.into(),
+        source,
+    })?;
+    let perr = |line: usize, msg: String| BrdfError::Parse {
+        path: path.into(),
+        line,
+        msg,
+    };
+    let mut it = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| (i + 1, l.trim()))
+        .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'));
+    let (hl, header) = it.next().ok_or_else(|| BrdfError::File {
+        path: path.into(),
+        msg: "empty file (no header)".into(),
+    })?;
+    let header: Vec<&str> = header.split(',').map(|c| c.trim()).collect();
+    const COLS: [&str; 15] = [
+        "px", "py", "pz", "nx", "ny", "nz", "light_x", "light_y", "light_z", "view_x", "view_y",
+        "view_z", "r", "g", "b",
+    ];
+    let col = |name: &str| {
+        header
+            .iter()
+            .position(|h| h.eq_ignore_ascii_case(name))
+            .ok_or_else(|| perr(hl, format!("header lacks column `{name}`")))
+    };
+    let iid = col("id")?;
+    let idx: Vec<usize> = COLS.iter().map(|c| col(c)).collect::<Result<_, _>>()?;
+    let mut ids: Vec<String> = Vec::new();
+    let mut lts: Vec<Lumitexel> = Vec::new();
+    let mut index = std::collections::HashMap::new();
+    for (line, l) in it {
+        let cells: Vec<&str> = l.split(',').map(|c| c.trim()).collect();
+        if cells.len() != header.len() {
+            return Err(perr(
+                line,
+                format!("{} cells, header has {}", cells.len(), header.len()),
+            ));
+        }
+        let mut v = [0.0f32; 15];
+        for k in 0..15 {
+            let cell = cells[idx[k]];
+            v[k] = cell
+                .parse()
+                .map_err(|_| perr(line, format!("`{}` = `{cell}` is not a number", COLS[k])))?;
+            if !v[k].is_finite() {
+                return Err(perr(
+                    line,
+                    format!("`{}` = `{cell}` is not finite", COLS[k]),
+                ));
+            }
+        }
+        let normal = Vec3::new(v[3], v[4], v[5]);
+        if normal.length() < 1e-6 {
+            return Err(perr(line, "zero normal".into()));
+        }
+        let id = cells[iid].to_string();
+        let t = *index.entry(id.clone()).or_insert_with(|| {
+            ids.push(id);
+            lts.push(Lumitexel {
+                position: Vec3::new(v[0], v[1], v[2]),
+                normal: normal.normalize(),
+                samples: vec![],
+            });
+            lts.len() - 1
+        });
+        lts[t].samples.push((
+            Vec3::new(v[6], v[7], v[8]),
+            Vec3::new(v[9], v[10], v[11]),
+            Vec3::new(v[12], v[13], v[14]),
+        ));
+    }
+    if lts.is_empty() {
+        return Err(BrdfError::File {
+            path: path.into(),
+            msg: "no lumitexel rows after the header".into(),
+        });
+    }
+    Ok((ids, lts))
 }
 
 #[cfg(test)]
@@ -598,92 +686,4 @@ mod tests {
         .to_string()
         .contains("at least 1"));
     }
-}
-
-/// Lumitexels CSV: `id,px,py,pz,nx,ny,nz,light_x,light_y,light_z,view_x,view_y,view_z,r,g,b`,
-/// one row per sample, rows of one lumitexel share `id` (world directions, r g b = pi f).
-/// Returns the ids (in order of first appearance) and the lumitexels.
-pub fn read_lumitexels(path: &std::path::Path) -> Result<(Vec<String>, Vec<Lumitexel>), BrdfError> {
-    let text = std::fs::read_to_string(path).map_err(|source| BrdfError::Io {
-        path: path.into(),
-        source,
-    })?;
-    let perr = |line: usize, msg: String| BrdfError::Parse {
-        path: path.into(),
-        line,
-        msg,
-    };
-    let mut it = text
-        .lines()
-        .enumerate()
-        .map(|(i, l)| (i + 1, l.trim()))
-        .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'));
-    let (hl, header) = it.next().ok_or_else(|| BrdfError::File {
-        path: path.into(),
-        msg: "empty file (no header)".into(),
-    })?;
-    let header: Vec<&str> = header.split(',').map(|c| c.trim()).collect();
-    const COLS: [&str; 15] = [
-        "px", "py", "pz", "nx", "ny", "nz", "light_x", "light_y", "light_z", "view_x", "view_y",
-        "view_z", "r", "g", "b",
-    ];
-    let col = |name: &str| {
-        header
-            .iter()
-            .position(|h| h.eq_ignore_ascii_case(name))
-            .ok_or_else(|| perr(hl, format!("header lacks column `{name}`")))
-    };
-    let iid = col("id")?;
-    let idx: Vec<usize> = COLS.iter().map(|c| col(c)).collect::<Result<_, _>>()?;
-    let mut ids: Vec<String> = Vec::new();
-    let mut lts: Vec<Lumitexel> = Vec::new();
-    let mut index = std::collections::HashMap::new();
-    for (line, l) in it {
-        let cells: Vec<&str> = l.split(',').map(|c| c.trim()).collect();
-        if cells.len() != header.len() {
-            return Err(perr(
-                line,
-                format!("{} cells, header has {}", cells.len(), header.len()),
-            ));
-        }
-        let mut v = [0.0f32; 15];
-        for k in 0..15 {
-            let cell = cells[idx[k]];
-            v[k] = cell
-                .parse()
-                .map_err(|_| perr(line, format!("`{}` = `{cell}` is not a number", COLS[k])))?;
-            if !v[k].is_finite() {
-                return Err(perr(
-                    line,
-                    format!("`{}` = `{cell}` is not finite", COLS[k]),
-                ));
-            }
-        }
-        let normal = Vec3::new(v[3], v[4], v[5]);
-        if normal.length() < 1e-6 {
-            return Err(perr(line, "zero normal".into()));
-        }
-        let id = cells[iid].to_string();
-        let t = *index.entry(id.clone()).or_insert_with(|| {
-            ids.push(id);
-            lts.push(Lumitexel {
-                position: Vec3::new(v[0], v[1], v[2]),
-                normal: normal.normalize(),
-                samples: vec![],
-            });
-            lts.len() - 1
-        });
-        lts[t].samples.push((
-            Vec3::new(v[6], v[7], v[8]),
-            Vec3::new(v[9], v[10], v[11]),
-            Vec3::new(v[12], v[13], v[14]),
-        ));
-    }
-    if lts.is_empty() {
-        return Err(BrdfError::File {
-            path: path.into(),
-            msg: "no lumitexel rows after the header".into(),
-        });
-    }
-    Ok((ids, lts))
 }

@@ -283,7 +283,7 @@ enum Source<R: BufRead> {
 }
 
 enum Eof {
-    Eof,
+    End,
     Io(std::io::Error),
     Bad(String),
 }
@@ -296,7 +296,7 @@ impl<R: BufRead> Source<R> {
                     line.clear();
                     let n = r.read_line(line).map_err(Eof::Io)?;
                     if n == 0 {
-                        return Err(Eof::Eof);
+                        return Err(Eof::End);
                     }
                     *toks = line.split_whitespace().map(str::to_string).collect();
                     *pos = 0;
@@ -311,7 +311,7 @@ impl<R: BufRead> Source<R> {
                 let n = ty.size();
                 r.read_exact(&mut b[..n]).map_err(|e| {
                     if e.kind() == std::io::ErrorKind::UnexpectedEof {
-                        Eof::Eof
+                        Eof::End
                     } else {
                         Eof::Io(e)
                     }
@@ -326,7 +326,7 @@ impl<R: BufRead> Source<R> {
         match self {
             Source::Binary { r, .. } => r.read_exact(buf).map_err(|e| {
                 if e.kind() == std::io::ErrorKind::UnexpectedEof {
-                    Eof::Eof
+                    Eof::End
                 } else {
                     Eof::Io(e)
                 }
@@ -378,7 +378,7 @@ pub fn read_ply(path: &Path) -> Result<TriMesh, GeometryError> {
     for el in &header.elements {
         let what = |e: Eof, i: usize| {
             match e {
-            Eof::Eof => GeometryError::format(
+            Eof::End => GeometryError::format(
                 path,
                 format!(
                     "truncated PLY: the header declares {} {} elements but the data ends in element {i}",
@@ -474,7 +474,7 @@ pub fn read_ply(path: &Path) -> Result<TriMesh, GeometryError> {
                     for (k, p) in el.props.iter().enumerate() {
                         if let Some(ct) = p.list {
                             let n = src.scalar(ct).map_err(|e| what(e, i))?;
-                            if n < 0.0 || n > 1e6 {
+                            if !(0.0..=1e6).contains(&n) {
                                 return Err(GeometryError::format(
                                     path,
                                     format!("face {i}: bad list length {n}"),
@@ -686,9 +686,7 @@ property list uchar uint vertex_index\nproperty list uchar float texcoord\neleme
         }
         for n in [2i32, 0] {
             put!(n);
-            for _ in 0..n {
-                b.push(1);
-            }
+            b.extend(std::iter::repeat_n(1, n as usize));
         }
         b
     }

@@ -808,8 +808,10 @@ mod tests {
 
     #[test]
     fn bad_levels_are_refused() {
-        let mut o = PrepareOptions::default();
-        o.levels = vec![0.5, 0.2];
+        let mut o = PrepareOptions {
+            levels: vec![0.5, 0.2],
+            ..Default::default()
+        };
         assert!(o.check().is_err());
         o.levels = vec![1.0, 0.2, 0.3];
         assert!(o.check().is_err());

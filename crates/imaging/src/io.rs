@@ -275,7 +275,7 @@ pub fn write_hdr(path: &Path, img: &HdrImage) -> Result<(), ImagingError> {
     })
 }
 
-/// sRGB transfer function (linear [0,1] -> encoded [0,1]).
+/// sRGB transfer function (linear [0, 1] -> encoded [0, 1]).
 pub fn linear_to_srgb(x: f32) -> f32 {
     let x = x.clamp(0.0, 1.0);
     if x <= 0.003_130_8 {
@@ -285,7 +285,7 @@ pub fn linear_to_srgb(x: f32) -> f32 {
     }
 }
 
-/// Inverse sRGB transfer function (encoded [0,1] -> linear).
+/// Inverse sRGB transfer function (encoded [0, 1] -> linear).
 pub fn srgb_to_linear(x: f32) -> f32 {
     let x = x.clamp(0.0, 1.0);
     if x <= 0.040_45 {

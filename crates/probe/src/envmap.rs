@@ -327,7 +327,7 @@ mod tests {
         let d = igi_imaging::latlong::uv_to_direction(0.9999, 0.5);
         let v = latlong_lookup(&m, d).unwrap()[0];
         assert!((v - 3.5).abs() < 0.01, "{v}");
-        m.valid[2 * 8 + 0] = false;
+        m.valid[2 * 8] = false;
         assert!(latlong_lookup(&m, d).is_none());
         let a = disk_cosine_solid_angle(0.53);
         let cap = 2.0 * std::f64::consts::PI * (1.0 - 0.265f64.to_radians().cos());

@@ -599,6 +599,10 @@ fn update_parts(
     }
 }
 
+/// One texel's raw observation in a photo: texel index and the per-texel estimates the
+/// ratio update needs (see `observe_photo`).
+type RawObservation = (u32, Vec3, Vec3, Vec3, f32, bool, Vec3);
+
 #[allow(clippy::too_many_arguments)]
 fn observe_photo(
     scene: &Scene,
@@ -686,7 +690,7 @@ fn observe_photo(
     let min_eval = Vec3::splat(opts.min_eval_albedo);
     // Geometric tests and radiance estimates, texel by texel.
     let chunk = 4096;
-    let raw: Vec<Option<(u32, Vec3, Vec3, Vec3, f32, bool, Vec3)>> = texels
+    let raw: Vec<Option<RawObservation>> = texels
         .par_chunks(chunk)
         .enumerate()
         .flat_map_iter(|(ci, ch)| {

@@ -148,7 +148,7 @@ impl Distribution1D {
     }
 
     /// Samples x in [0, 1); returns (x, pdf(x), cell index). O(1) through the alias table: the
-    /// cell is chosen with probability func[i] / sum(func), and x is uniform inside it. Not
+    /// cell is chosen with probability `func[i] / sum(func)`, and x is uniform inside it. Not
     /// monotone in `u` (use [`Self::sample_inverse_cdf`] where that matters).
     #[inline]
     pub fn sample(&self, u: f32) -> (f32, f32, usize) {
