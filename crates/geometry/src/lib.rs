@@ -3,6 +3,9 @@
 //! - [`TriMesh`], the indexed triangle mesh every crate shares, with [`read_mesh`] (PLY ASCII
 //!   and binary of either byte order, OBJ), [`write_ply`] (binary little endian) and
 //!   [`write_obj`]; writes are atomic (temp file + rename).
+//! - [`points`]: [`PointCloud`] (points or surfels: normal, colour, radius, named scalar
+//!   properties) with PLY I/O for vertex-only files.
+//! - [`marching`]: marching cubes from a scalar grid to a [`TriMesh`].
 //! - [`procedural`]: the embedded default site (terrain, steps, columns, wall, architrave) at any
 //!   tessellation density.
 //! - [`repair`]: degenerate and duplicate triangles removed, non-manifold edges counted.
@@ -21,9 +24,11 @@ pub mod atlas;
 mod atomic;
 pub mod error;
 pub mod levels;
+pub mod marching;
 pub mod mesh;
 pub mod obj;
 pub mod ply;
+pub mod points;
 pub mod procedural;
 pub mod repair;
 pub mod store;
@@ -31,6 +36,8 @@ pub mod voxel;
 
 pub use error::GeometryError;
 pub use mesh::TriMesh;
+pub use marching::{marching_cubes, Grid};
+pub use points::{read_points_ply, write_points_ply, PointCloud};
 pub use obj::{read_obj, write_obj};
 pub use ply::{read_ply, write_ply};
 pub use store::{prepare, Manifest, PrepareOptions, SiteStore};

@@ -220,6 +220,8 @@ struct VertexLayout {
     uv: [Option<usize>; 2],
     col: [Option<usize>; 3],
     col_scale: [f64; 3],
+    /// Every other scalar property (index into the record).
+    extra: Vec<usize>,
 }
 
 fn vertex_layout(el: &Element, path: &Path) -> Result<VertexLayout, GeometryError> {
@@ -249,7 +251,12 @@ fn vertex_layout(el: &Element, path: &Path) -> Result<VertexLayout, GeometryErro
                 l.col_scale[2] = p.ty.color_scale();
                 &mut l.col[2]
             }
-            _ => continue,
+            _ => {
+                if p.list.is_none() {
+                    l.extra.push(i);
+                }
+                continue;
+            }
         };
         if p.list.is_some() {
             return Err(GeometryError::format(
@@ -360,6 +367,17 @@ impl<R: BufRead> Source<R> {
 /// Read a PLY file (ASCII or binary, either byte order). Unknown elements and properties are
 /// skipped; polygons are fan-triangulated; the result is validated.
 pub fn read_ply(path: &Path) -> Result<TriMesh, GeometryError> {
+    let (mesh, _) = read_ply_unchecked(path)?;
+    mesh.validate().map_err(|e| e.in_file(path))?;
+    Ok(mesh)
+}
+
+/// Extra scalar vertex properties by name (those that are not positions, normals, UVs or colours).
+pub(crate) type ExtraProperties = Vec<(String, Vec<f32>)>;
+
+/// Read a PLY file without validating the mesh (a point cloud has no faces); also returns the
+/// vertex element's other scalar properties.
+pub(crate) fn read_ply_unchecked(path: &Path) -> Result<(TriMesh, ExtraProperties), GeometryError> {
     let f = std::fs::File::open(path).map_err(|e| GeometryError::io(path, e))?;
     let mut r = BufReader::with_capacity(1 << 20, f);
     let header = read_header(&mut r, path)?;
@@ -373,6 +391,7 @@ pub fn read_ply(path: &Path) -> Result<TriMesh, GeometryError> {
         enc => Source::Binary { r, enc },
     };
     let mut mesh = TriMesh::default();
+    let mut extras: ExtraProperties = Vec::new();
     let mut saw_vertex = false;
     let mut saw_face = false;
     for el in &header.elements {
@@ -414,6 +433,11 @@ pub fn read_ply(path: &Path) -> Result<TriMesh, GeometryError> {
                 let rec_size: usize = el.props.iter().map(|p| p.ty.size()).sum();
                 let mut buf = vec![0u8; rec_size];
                 let enc = header.enc;
+                extras = l
+                    .extra
+                    .iter()
+                    .map(|&k| (el.props[k].name.clone(), Vec::with_capacity(el.count)))
+                    .collect();
                 for i in 0..el.count {
                     if fixed && enc != Encoding::Ascii {
                         src.record(&mut buf).map_err(|e| what(e, i))?;
@@ -444,6 +468,9 @@ pub fn read_ply(path: &Path) -> Result<TriMesh, GeometryError> {
                     }
                     if has_uv {
                         uvs.push([g(l.uv[0]) as f32, g(l.uv[1]) as f32]);
+                    }
+                    for (e, &k) in extras.iter_mut().zip(&l.extra) {
+                        e.1.push(vals[k] as f32);
                     }
                     if has_c {
                         colors.push([
@@ -542,8 +569,7 @@ pub fn read_ply(path: &Path) -> Result<TriMesh, GeometryError> {
             "data continues after the last element the header declares: the element counts do not match the data",
         ));
     }
-    mesh.validate().map_err(|e| e.in_file(path))?;
-    Ok(mesh)
+    Ok((mesh, extras))
 }
 
 /// Write a binary little-endian PLY (x y z, then nx ny nz, u v, red green blue as floats when

@@ -20,6 +20,17 @@ pub enum ImagingError {
     Camera { path: PathBuf, msg: String },
     #[error("{}: exif: {msg}", path.display())]
     Exif { path: PathBuf, msg: String },
+    #[error("{}: {msg}", path.display())]
+    Rig { path: PathBuf, msg: String },
+    #[error("{}: view {view:?}: {msg}", path.display())]
+    RigView { path: PathBuf, view: String, msg: String },
+    #[error("{}: view {view:?}: {source}", path.display())]
+    RigViewFile {
+        path: PathBuf,
+        view: String,
+        #[source]
+        source: Box<ImagingError>,
+    },
     #[error("invalid input: {0}")]
     InvalidInput(String),
     #[error("built without opencv: rebuild with --features opencv")]

@@ -265,6 +265,77 @@ pub fn merge_linear(
     Ok((out, stats))
 }
 
+/// Usable range for [`merge_slope`], in the images' own units (for a 10-bit sensor stored as
+/// [0, 1]: 5/1023 .. 1000/1023, the paper's 5..1000).
+#[derive(Clone, Copy, Debug)]
+pub struct SlopeParams {
+    pub lo: f32,
+    pub hi: f32,
+}
+
+impl Default for SlopeParams {
+    fn default() -> Self {
+        SlopeParams { lo: 5.0 / 1023.0, hi: 1000.0 / 1023.0 }
+    }
+}
+
+/// Matusik et al. 2002's turntable HDR: per pixel and channel, the least-squares line
+/// `value = offset + slope * time` through the brackets whose value lies in `[lo, hi]`; the
+/// slope is the radiance. With a single usable bracket the line goes through the origin
+/// (`value / time`); with none the pixel is invalid (its value the shortest exposure's
+/// `value / time` for saturated pixels, else 0).
+pub fn merge_slope(images: &[HdrImage], times: &[f64], p: SlopeParams) -> Result<(HdrImage, MergeStats), ImagingError> {
+    validate_brackets(images, times, &[])?;
+    if !(p.lo < p.hi) {
+        return Err(ImagingError::InvalidInput(format!("slope merge range [{}, {}] is empty", p.lo, p.hi)));
+    }
+    let (w, h) = (images[0].width, images[0].height);
+    let (short, _) = extreme_indices(times);
+    let mut out = HdrImage::new(w, h);
+    for i in 0..w * h {
+        let mut ok = true;
+        for c in 0..3 {
+            let pts: Vec<(f64, f64)> = images
+                .iter()
+                .zip(times)
+                .filter(|(im, _)| im.valid[i] && (p.lo..=p.hi).contains(&im.pixels[i][c]))
+                .map(|(im, &t)| (t, im.pixels[i][c] as f64))
+                .collect();
+            out.pixels[i][c] = match slope_through(&pts) {
+                Some(s) => s as f32,
+                None => {
+                    ok = false;
+                    let zs = images[short].pixels[i][c];
+                    if zs > p.hi {
+                        (zs as f64 / times[short]) as f32
+                    } else {
+                        0.0
+                    }
+                }
+            };
+        }
+        out.valid[i] = ok;
+    }
+    let stats = MergeStats { exposures: images.len(), width: w, height: h, valid_fraction: out.valid_fraction() };
+    Ok((out, stats))
+}
+
+/// Least-squares slope of `v = a + b t` through the points (through the origin for one point).
+fn slope_through(pts: &[(f64, f64)]) -> Option<f64> {
+    match pts.len() {
+        0 => None,
+        1 => Some(pts[0].1 / pts[0].0),
+        n => {
+            let n = n as f64;
+            let mt = pts.iter().map(|p| p.0).sum::<f64>() / n;
+            let mv = pts.iter().map(|p| p.1).sum::<f64>() / n;
+            let stt: f64 = pts.iter().map(|p| (p.0 - mt) * (p.0 - mt)).sum();
+            let stv: f64 = pts.iter().map(|p| (p.0 - mt) * (p.1 - mv)).sum();
+            (stt > 0.0).then(|| stv / stt)
+        }
+    }
+}
+
 /// Debevec-Malik weight of an 8-bit code value (0 at 0 and 255, peak in the middle).
 pub fn debevec_weight(z: u8) -> f64 {
     let z = z as f64;
@@ -513,6 +584,39 @@ pub fn merge_ldr(
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn slope_merge_recovers_radiance_despite_a_dark_offset_and_saturation() {
+        // 10-bit sensor: value = (offset + L t) quantised, clipped at 1023
+        let times = [1.0, 4.0, 16.0, 64.0];
+        let radiance = [0.5f64, 5.0, 40.0];
+        let offset = 3.0;
+        let imgs: Vec<HdrImage> = times
+            .iter()
+            .map(|&t| {
+                let mut im = HdrImage::new(3, 1);
+                for (x, &l) in radiance.iter().enumerate() {
+                    let code = ((offset + l * t).round()).min(1023.0);
+                    im.set(x, 0, [(code / 1023.0) as f32; 3]);
+                }
+                im
+            })
+            .collect();
+        let (out, stats) = merge_slope(&imgs, &times, SlopeParams::default()).unwrap();
+        assert_eq!(stats.valid_fraction, 1.0);
+        for (x, &l) in radiance.iter().enumerate() {
+            let got = out.get(x, 0)[0] as f64 * 1023.0;
+            assert!((got / l - 1.0).abs() < 0.02, "pixel {x}: {got} vs {l}");
+        }
+        // a pixel saturated in every bracket is invalid, not NaN
+        let mut sat = imgs.clone();
+        for im in &mut sat {
+            im.set(0, 0, [1.0; 3]);
+        }
+        let (out, _) = merge_slope(&sat, &times, SlopeParams::default()).unwrap();
+        assert!(!out.is_valid(0, 0) && out.get(0, 0)[0].is_finite());
+        assert!(merge_slope(&imgs, &times, SlopeParams { lo: 0.5, hi: 0.1 }).is_err());
+    }
+
     use super::*;
 
     const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data");

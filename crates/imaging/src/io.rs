@@ -213,6 +213,40 @@ fn check_dims(path: &Path, img: &HdrImage) -> Result<(), ImagingError> {
 /// Write a linear `f32` RGB OpenEXR file (ZIP compression), atomically. If any pixel is invalid an
 /// extra channel `valid` (0/1) carries the mask. Non-finite values are refused.
 pub fn write_exr(path: &Path, img: &HdrImage) -> Result<(), ImagingError> {
+    write_exr_channels(path, img, None)
+}
+
+/// Write an RGBA OpenEXR file (FORMATS.md: colour premultiplied by alpha, the EXR convention;
+/// the caller passes premultiplied colour), atomically. `alpha` has one value per pixel.
+pub fn write_exr_rgba(path: &Path, img: &HdrImage, alpha: &[f32]) -> Result<(), ImagingError> {
+    if alpha.len() != img.pixels.len() || alpha.iter().any(|a| !a.is_finite()) {
+        return Err(ImagingError::Encode {
+            path: path.to_path_buf(),
+            msg: format!("alpha has {} finite values for {} pixels", alpha.iter().filter(|a| a.is_finite()).count(), img.pixels.len()),
+        });
+    }
+    write_exr_channels(path, img, Some(alpha))
+}
+
+/// The alpha channel (`A`) of an EXR file, or `None` when it has none.
+pub fn read_exr_alpha(path: &Path) -> Result<Option<Vec<f32>>, ImagingError> {
+    use exr::prelude::*;
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_file(path)
+        .map_err(|e| ImagingError::Decode { path: path.to_path_buf(), msg: e.to_string() })?;
+    let chans = &image.layer_data.channel_data.list;
+    Ok(chans
+        .iter()
+        .find(|c| c.name.to_string().rsplit('.').next() == Some("A"))
+        .map(|c| c.sample_data.values_as_f32().collect()))
+}
+
+fn write_exr_channels(path: &Path, img: &HdrImage, alpha: Option<&[f32]>) -> Result<(), ImagingError> {
     use exr::prelude::*;
     check_dims(path, img)?;
     check_finite(path, img)?;
@@ -225,6 +259,9 @@ pub fn write_exr(path: &Path, img: &HdrImage) -> Result<(), ImagingError> {
             )
         })
         .collect();
+    if let Some(a) = alpha {
+        list.push(AnyChannel::new("A", FlatSamples::F32(a.to_vec())));
+    }
     if img.valid.iter().any(|v| !v) {
         list.push(AnyChannel::new(
             "valid",
@@ -333,6 +370,22 @@ pub fn write_png_tonemapped(
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn rgba_exr_round_trips_alpha() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("a.exr");
+        let mut img = HdrImage::new(3, 2);
+        img.set(1, 0, [0.25, 0.5, 0.125]);
+        let alpha = vec![0.0, 0.5, 1.0, 0.25, 0.0, 1.0];
+        write_exr_rgba(&p, &img, &alpha).unwrap();
+        assert_eq!(read_exr_alpha(&p).unwrap(), Some(alpha));
+        assert_eq!(read_image(&p).unwrap(), img);
+        assert!(write_exr_rgba(&p, &img, &[0.0; 5]).is_err());
+        let q = dir.path().join("b.exr");
+        write_exr(&q, &img).unwrap();
+        assert_eq!(read_exr_alpha(&q).unwrap(), None);
+    }
+
     use super::*;
 
     const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data");
