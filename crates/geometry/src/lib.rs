@@ -35,11 +35,11 @@ pub mod store;
 pub mod voxel;
 
 pub use error::GeometryError;
-pub use mesh::TriMesh;
 pub use marching::{marching_cubes, Grid};
-pub use points::{read_points_ply, write_points_ply, PointCloud};
+pub use mesh::TriMesh;
 pub use obj::{read_obj, write_obj};
 pub use ply::{read_ply, write_ply};
+pub use points::{read_points_ply, write_points_ply, PointCloud};
 pub use store::{prepare, Manifest, PrepareOptions, SiteStore};
 pub use voxel::{VoxelGrid, VoxelId};
 

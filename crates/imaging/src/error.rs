@@ -23,7 +23,11 @@ pub enum ImagingError {
     #[error("{}: {msg}", path.display())]
     Rig { path: PathBuf, msg: String },
     #[error("{}: view {view:?}: {msg}", path.display())]
-    RigView { path: PathBuf, view: String, msg: String },
+    RigView {
+        path: PathBuf,
+        view: String,
+        msg: String,
+    },
     #[error("{}: view {view:?}: {source}", path.display())]
     RigViewFile {
         path: PathBuf,

@@ -275,7 +275,10 @@ pub struct SlopeParams {
 
 impl Default for SlopeParams {
     fn default() -> Self {
-        SlopeParams { lo: 5.0 / 1023.0, hi: 1000.0 / 1023.0 }
+        SlopeParams {
+            lo: 5.0 / 1023.0,
+            hi: 1000.0 / 1023.0,
+        }
     }
 }
 
@@ -284,10 +287,17 @@ impl Default for SlopeParams {
 /// slope is the radiance. With a single usable bracket the line goes through the origin
 /// (`value / time`); with none the pixel is invalid (its value the shortest exposure's
 /// `value / time` for saturated pixels, else 0).
-pub fn merge_slope(images: &[HdrImage], times: &[f64], p: SlopeParams) -> Result<(HdrImage, MergeStats), ImagingError> {
+pub fn merge_slope(
+    images: &[HdrImage],
+    times: &[f64],
+    p: SlopeParams,
+) -> Result<(HdrImage, MergeStats), ImagingError> {
     validate_brackets(images, times, &[])?;
     if !(p.lo < p.hi) {
-        return Err(ImagingError::InvalidInput(format!("slope merge range [{}, {}] is empty", p.lo, p.hi)));
+        return Err(ImagingError::InvalidInput(format!(
+            "slope merge range [{}, {}] is empty",
+            p.lo, p.hi
+        )));
     }
     let (w, h) = (images[0].width, images[0].height);
     let (short, _) = extreme_indices(times);
@@ -316,7 +326,12 @@ pub fn merge_slope(images: &[HdrImage], times: &[f64], p: SlopeParams) -> Result
         }
         out.valid[i] = ok;
     }
-    let stats = MergeStats { exposures: images.len(), width: w, height: h, valid_fraction: out.valid_fraction() };
+    let stats = MergeStats {
+        exposures: images.len(),
+        width: w,
+        height: h,
+        valid_fraction: out.valid_fraction(),
+    };
     Ok((out, stats))
 }
 

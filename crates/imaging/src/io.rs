@@ -222,7 +222,11 @@ pub fn write_exr_rgba(path: &Path, img: &HdrImage, alpha: &[f32]) -> Result<(), 
     if alpha.len() != img.pixels.len() || alpha.iter().any(|a| !a.is_finite()) {
         return Err(ImagingError::Encode {
             path: path.to_path_buf(),
-            msg: format!("alpha has {} finite values for {} pixels", alpha.iter().filter(|a| a.is_finite()).count(), img.pixels.len()),
+            msg: format!(
+                "alpha has {} finite values for {} pixels",
+                alpha.iter().filter(|a| a.is_finite()).count(),
+                img.pixels.len()
+            ),
         });
     }
     write_exr_channels(path, img, Some(alpha))
@@ -238,7 +242,10 @@ pub fn read_exr_alpha(path: &Path) -> Result<Option<Vec<f32>>, ImagingError> {
         .first_valid_layer()
         .all_attributes()
         .from_file(path)
-        .map_err(|e| ImagingError::Decode { path: path.to_path_buf(), msg: e.to_string() })?;
+        .map_err(|e| ImagingError::Decode {
+            path: path.to_path_buf(),
+            msg: e.to_string(),
+        })?;
     let chans = &image.layer_data.channel_data.list;
     Ok(chans
         .iter()
@@ -246,7 +253,11 @@ pub fn read_exr_alpha(path: &Path) -> Result<Option<Vec<f32>>, ImagingError> {
         .map(|c| c.sample_data.values_as_f32().collect()))
 }
 
-fn write_exr_channels(path: &Path, img: &HdrImage, alpha: Option<&[f32]>) -> Result<(), ImagingError> {
+fn write_exr_channels(
+    path: &Path,
+    img: &HdrImage,
+    alpha: Option<&[f32]>,
+) -> Result<(), ImagingError> {
     use exr::prelude::*;
     check_dims(path, img)?;
     check_finite(path, img)?;

@@ -44,6 +44,8 @@ pub mod rig;
 pub use camera::{Camera, CameraToWorld, Distortion, Intrinsics, WorldToCamera};
 pub use error::ImagingError;
 pub use image::HdrImage;
+pub use io::{
+    read_exr_alpha, read_image, write_exr, write_exr_rgba, write_hdr, write_png_tonemapped,
+};
 pub use mask::Mask;
 pub use rig::Rig;
-pub use io::{read_exr_alpha, read_image, write_exr, write_exr_rgba, write_hdr, write_png_tonemapped};
