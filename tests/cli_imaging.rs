@@ -6,8 +6,6 @@ use igi_imaging::{read_image, write_exr, write_png_tonemapped, Camera, Distortio
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data");
-
 fn igi(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_igi"))
         .arg("--quiet")
@@ -47,11 +45,7 @@ fn gray_png(path: &Path, w: usize, h: usize, v: f32) {
 
 #[test]
 fn merge_memorial_brackets_writes_readable_exr() {
-    let dir = Path::new(DATA).join("hdr_bracketed/memorial");
-    if !dir.exists() {
-        eprintln!("skipping: {} absent", dir.display());
-        return;
-    }
+    let dir = igi_testkit::shared_data("hdr_bracketed/memorial");
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("memorial.exr");
     let resp = tmp.path().join("resp.csv");

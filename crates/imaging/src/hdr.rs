@@ -634,8 +634,6 @@ mod tests {
 
     use super::*;
 
-    const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data");
-
     /// Smooth radiance field spanning ~2300:1 (11 stops), different per channel. Every pixel
     /// reaches a code of at least ~170 in the longest of the 12 brackets (a pixel whose best
     /// code is below ~80 carries > 1% 8-bit quantisation error whatever the method).
@@ -812,11 +810,7 @@ mod tests {
 
     #[test]
     fn exif_exposure_time_of_real_jpegs() {
-        let dir = Path::new(DATA).join("mirror_ball_ldr/uiuc_cs445_kagrawal_iphone7");
-        if !dir.exists() {
-            eprintln!("skipping: {} absent", dir.display());
-            return;
-        }
+        let dir = igi_testkit::shared_data("mirror_ball_ldr/uiuc_cs445_kagrawal_iphone7");
         for (f, t) in [
             ("ball_10.JPG", 0.1),
             ("ball_40.JPG", 0.025),
@@ -825,18 +819,14 @@ mod tests {
             let got = exif_exposure_time(&dir.join(f)).unwrap();
             assert!((got - t).abs() < 1e-9, "{f}: {got}");
         }
-        let png = Path::new(DATA).join("hdr_bracketed/memorial/memorial0061.png");
+        let png = igi_testkit::shared_data("hdr_bracketed/memorial/memorial0061.png");
         let e = exif_exposure_time(&png).unwrap_err().to_string();
         assert!(e.contains("memorial0061.png"), "{e}");
     }
 
     #[test]
     fn memorial_church_response_and_consistency() {
-        let dir = Path::new(DATA).join("hdr_bracketed/memorial");
-        if !dir.exists() {
-            eprintln!("skipping: {} absent", dir.display());
-            return;
-        }
+        let dir = igi_testkit::shared_data("hdr_bracketed/memorial");
         let times = read_times_file(&dir.join("shutter_times.txt")).unwrap();
         assert_eq!(times.len(), 16);
         let imgs: Vec<HdrImage> = (61..=76)

@@ -10,7 +10,7 @@ use igi_probe::{process, Board, ProbeOptions};
 use std::path::PathBuf;
 
 fn data(rel: &str) -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data")).join(rel)
+    igi_testkit::shared_data(rel)
 }
 
 /// Camera at the world origin looking along +X (x right = world -Y, y down = world -Z).
