@@ -19,7 +19,8 @@ pub const LAMBDAS: [f64; 3] = [27.0, 40.0, 53.0];
 
 /// Eq. 1 value of channel `i` at display pixel (x, y), in 8-bit units (0..254).
 pub fn pattern_value(x: f64, y: f64, i: usize, lambda: f64, n: i32) -> f64 {
-    let phase = 2.0 * std::f64::consts::PI * (x + y) / lambda + i as f64 * std::f64::consts::PI / 3.0;
+    let phase =
+        2.0 * std::f64::consts::PI * (x + y) / lambda + i as f64 * std::f64::consts::PI / 3.0;
     (1.0 + n as f64 * phase.sin()) * 127.0
 }
 
@@ -28,7 +29,8 @@ pub fn pattern_image(width: usize, height: usize, lambda: f64, n: i32) -> HdrIma
     let mut img = HdrImage::new(width, height);
     for y in 0..height {
         for x in 0..width {
-            let v = [0, 1, 2].map(|i| (pattern_value(x as f64, y as f64, i, lambda, n) / 255.0) as f32);
+            let v =
+                [0, 1, 2].map(|i| (pattern_value(x as f64, y as f64, i, lambda, n) / 255.0) as f32);
             img.set(x, y, v);
         }
     }
@@ -44,10 +46,15 @@ pub fn pattern_file_name(lambda: f64, n: i32) -> String {
 /// rounded to integers (what a monitor is sent), atomically. Returns the paths written.
 pub fn write_patterns(dir: &Path, width: usize, height: usize) -> Result<Vec<PathBuf>, HullError> {
     if width == 0 || height == 0 || width > 1 << 15 || height > 1 << 15 {
-        return Err(HullError::InvalidArgument(format!("backdrop size {width}x{height} must be 1..32768 on each side")));
+        return Err(HullError::InvalidArgument(format!(
+            "backdrop size {width}x{height} must be 1..32768 on each side"
+        )));
     }
     if !dir.is_dir() {
-        return Err(HullError::io(dir, std::io::Error::new(std::io::ErrorKind::NotFound, "output folder does not exist")));
+        return Err(HullError::io(
+            dir,
+            std::io::Error::new(std::io::ErrorKind::NotFound, "output folder does not exist"),
+        ));
     }
     let mut out = Vec::new();
     for lambda in LAMBDAS {
@@ -61,10 +68,14 @@ pub fn write_patterns(dir: &Path, width: usize, height: usize) -> Result<Vec<Pat
                     }
                 }
             }
-            let img = image::RgbImage::from_raw(width as u32, height as u32, bytes).expect("size matches");
+            let img = image::RgbImage::from_raw(width as u32, height as u32, bytes)
+                .expect("size matches");
             igi_imaging::io::write_atomic(&path, |tmp| {
                 img.save_with_format(tmp, image::ImageFormat::Png)
-                    .map_err(|e| ImagingError::Encode { path: path.clone(), msg: e.to_string() })
+                    .map_err(|e| ImagingError::Encode {
+                        path: path.clone(),
+                        msg: e.to_string(),
+                    })
             })?;
             out.push(path);
         }
@@ -84,7 +95,12 @@ pub struct Matte {
 impl Matte {
     /// A matte with every pixel invalid.
     pub fn invalid(width: usize, height: usize) -> Matte {
-        Matte { width, height, alpha: vec![0.0; width * height], valid: vec![false; width * height] }
+        Matte {
+            width,
+            height,
+            alpha: vec![0.0; width * height],
+            valid: vec![false; width * height],
+        }
     }
 
     /// Per pixel, the larger valid alpha of the two (Matusik: the maximum over lambdas).
@@ -109,13 +125,24 @@ impl Matte {
 
     /// From an image written by [`Matte::to_image`] (first channel, mask kept).
     pub fn from_image(img: &HdrImage) -> Matte {
-        Matte { width: img.width, height: img.height, alpha: img.pixels.iter().map(|p| p[0]).collect(), valid: img.valid.clone() }
+        Matte {
+            width: img.width,
+            height: img.height,
+            alpha: img.pixels.iter().map(|p| p[0]).collect(),
+            valid: img.valid.clone(),
+        }
     }
 }
 
 /// Eq. 2 for one lambda. `min_signal` is the smallest backdrop difference `|R_n - R_-n|`
 /// (root of the sum over channels of squares) that counts as signal. Alpha is clamped to [0, 1].
-pub fn alpha_from_pair(o_pos: &HdrImage, o_neg: &HdrImage, r_pos: &HdrImage, r_neg: &HdrImage, min_signal: f32) -> Matte {
+pub fn alpha_from_pair(
+    o_pos: &HdrImage,
+    o_neg: &HdrImage,
+    r_pos: &HdrImage,
+    r_neg: &HdrImage,
+    min_signal: f32,
+) -> Matte {
     let (w, h) = (r_pos.width, r_pos.height);
     let mut m = Matte::invalid(w, h);
     for i in 0..w * h {
@@ -146,11 +173,22 @@ mod tests {
     fn eq1_values_and_the_pairs_signal() {
         // at x + y = 0: sin(i pi / 3) for i = 0, 1, 2
         assert_eq!(pattern_value(0.0, 0.0, 0, 27.0, 1), 127.0);
-        assert!((pattern_value(0.0, 0.0, 1, 27.0, 1) - 127.0 * (1.0 + (3f64).sqrt() / 2.0)).abs() < 1e-9);
-        assert!((pattern_value(3.0, 4.0, 2, 40.0, -1) + pattern_value(3.0, 4.0, 2, 40.0, 1) - 254.0).abs() < 1e-9);
+        assert!(
+            (pattern_value(0.0, 0.0, 1, 27.0, 1) - 127.0 * (1.0 + (3f64).sqrt() / 2.0)).abs()
+                < 1e-9
+        );
+        assert!(
+            (pattern_value(3.0, 4.0, 2, 40.0, -1) + pattern_value(3.0, 4.0, 2, 40.0, 1) - 254.0)
+                .abs()
+                < 1e-9
+        );
         // sum over channels of (C_n - C_-n)^2 is constant: 3/2 * (2 * 127)^2 everywhere
         for (x, y) in [(0.0, 0.0), (5.0, 9.0), (13.5, 0.25)] {
-            let s: f64 = (0..3).map(|i| (pattern_value(x, y, i, 53.0, 1) - pattern_value(x, y, i, 53.0, -1)).powi(2)).sum();
+            let s: f64 = (0..3)
+                .map(|i| {
+                    (pattern_value(x, y, i, 53.0, 1) - pattern_value(x, y, i, 53.0, -1)).powi(2)
+                })
+                .sum();
             assert!((s - 1.5 * 254.0f64.powi(2)).abs() < 1e-6, "{s}");
         }
     }
@@ -159,7 +197,7 @@ mod tests {
     fn analytic_composites_recover_alpha() {
         let (w, h) = (40, 3);
         let fg = [0.3f32, 0.6, 0.1];
-        let mut obj = |n: i32| {
+        let obj = |n: i32| {
             let r = pattern_image(w, h, 27.0, n);
             let mut o = r.clone();
             for y in 0..h {
@@ -175,7 +213,10 @@ mod tests {
         let m = alpha_from_pair(&op, &on, &rp, &rn, 0.01);
         for x in 0..w {
             let a = m.alpha[x];
-            assert!(m.valid[x] && (a - x as f32 / (w - 1) as f32).abs() < 1e-5, "{x}: {a}");
+            assert!(
+                m.valid[x] && (a - x as f32 / (w - 1) as f32).abs() < 1e-5,
+                "{x}: {a}"
+            );
         }
         // no signal in the pair: invalid, not opaque
         let flat = HdrImage::new(w, h);

@@ -13,8 +13,8 @@ use crate::surfel::{make_surfels, Surfels};
 use crate::views::{load_views, MatteOptions, View};
 use crate::HullError;
 use glam::DVec3;
-use igi_imaging::rig::Rig;
 use igi_imaging::read_image;
+use igi_imaging::rig::Rig;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -32,7 +32,13 @@ pub struct BuildOptions {
 
 impl Default for BuildOptions {
     fn default() -> Self {
-        BuildOptions { resolution: 256, matte: MatteOptions::default(), volume_orders: 30, volume_resolution: 64, seed: 1 }
+        BuildOptions {
+            resolution: 256,
+            matte: MatteOptions::default(),
+            volume_orders: 30,
+            volume_resolution: 64,
+            seed: 1,
+        }
     }
 }
 
@@ -84,9 +90,17 @@ pub enum Stage {
 }
 
 /// Build a hull folder from a rig (see the module docs). `progress` hears each stage start.
-pub fn build(rig: &Rig, out: &Path, opts: BuildOptions, progress: &mut dyn FnMut(Stage)) -> Result<BuildReport, HullError> {
+pub fn build(
+    rig: &Rig,
+    out: &Path,
+    opts: BuildOptions,
+    progress: &mut dyn FnMut(Stage),
+) -> Result<BuildReport, HullError> {
     if opts.resolution < 256 {
-        return Err(HullError::InvalidArgument(format!("resolution {} is coarser than bbox/256", opts.resolution)));
+        return Err(HullError::InvalidArgument(format!(
+            "resolution {} is coarser than bbox/256",
+            opts.resolution
+        )));
     }
     check_output(out)?;
     let mut t = Timings::default();
@@ -99,7 +113,10 @@ pub fn build(rig: &Rig, out: &Path, opts: BuildOptions, progress: &mut dyn FnMut
     let views = load_views(rig, opts.matte)?;
     lap(&mut t.load_s);
     progress(Stage::Carve);
-    let (min, max) = (DVec3::from_array(rig.object.bbox_min), DVec3::from_array(rig.object.bbox_max));
+    let (min, max) = (
+        DVec3::from_array(rig.object.bbox_min),
+        DVec3::from_array(rig.object.bbox_max),
+    );
     let refs: Vec<&View> = views.iter().collect();
     let hull = carve_hull(&rig.path, &refs, min, max, opts.resolution)?;
     lap(&mut t.carve_s);
@@ -111,7 +128,14 @@ pub fn build(rig: &Rig, out: &Path, opts: BuildOptions, progress: &mut dyn FnMut
     let reps: Vec<Reprojection> = views.iter().map(|v| reproject(&hull.mesh, v)).collect();
     lap(&mut t.reproject_s);
     progress(Stage::Volume);
-    let curves = volume_curves(&refs, min, max, opts.volume_resolution, opts.volume_orders, opts.seed);
+    let curves = volume_curves(
+        &refs,
+        min,
+        max,
+        opts.volume_resolution,
+        opts.volume_orders,
+        opts.seed,
+    );
     lap(&mut t.volume_s);
     progress(Stage::Write);
     let manifest = Manifest {
@@ -135,34 +159,64 @@ pub fn build(rig: &Rig, out: &Path, opts: BuildOptions, progress: &mut dyn FnMut
     };
     let write_start = Instant::now();
     write_folder(out, |dir| {
-        igi_imaging::io::write_text_atomic(&dir.join("hull.json"), &serde_json::to_string_pretty(&manifest).expect("manifest"))?;
+        igi_imaging::io::write_text_atomic(
+            &dir.join("hull.json"),
+            &serde_json::to_string_pretty(&manifest).expect("manifest"),
+        )?;
         igi_geometry::write_ply(&dir.join("hull.ply"), &hull.mesh)?;
         igi_geometry::write_points_ply(&dir.join("surfels.ply"), &surfels.to_cloud())?;
-        std::fs::create_dir_all(dir.join("mattes")).map_err(|e| HullError::io(dir.join("mattes"), e))?;
+        std::fs::create_dir_all(dir.join("mattes"))
+            .map_err(|e| HullError::io(dir.join("mattes"), e))?;
         for v in &views {
-            igi_imaging::write_exr(&dir.join("mattes").join(format!("{}.exr", v.id)), &v.matte.to_image())?;
+            igi_imaging::write_exr(
+                &dir.join("mattes").join(format!("{}.exr", v.id)),
+                &v.matte.to_image(),
+            )?;
         }
         plot_volume_curves(&dir.join("volume.png"), &curves)?;
         report.timings.write_s = write_start.elapsed().as_secs_f64();
-        igi_imaging::io::write_text_atomic(&dir.join("report.json"), &serde_json::to_string_pretty(&report).expect("report"))?;
+        igi_imaging::io::write_text_atomic(
+            &dir.join("report.json"),
+            &serde_json::to_string_pretty(&report).expect("report"),
+        )?;
         Ok(())
     })?;
     Ok(report)
 }
 
 fn check_output(out: &Path) -> Result<(), HullError> {
-    if out.exists() && std::fs::read_dir(out).map_err(|e| HullError::io(out, e))?.next().is_some() {
-        return Err(HullError::io(out, std::io::Error::new(std::io::ErrorKind::AlreadyExists, "output folder exists and is not empty")));
+    if out.exists()
+        && std::fs::read_dir(out)
+            .map_err(|e| HullError::io(out, e))?
+            .next()
+            .is_some()
+    {
+        return Err(HullError::io(
+            out,
+            std::io::Error::new(
+                std::io::ErrorKind::AlreadyExists,
+                "output folder exists and is not empty",
+            ),
+        ));
     }
     Ok(())
 }
 
 /// Fill a temporary sibling of `out` with `fill`, then rename it to `out` (which must be absent
 /// or empty); on error the temporary folder is removed.
-pub(crate) fn write_folder(out: &Path, fill: impl FnOnce(&Path) -> Result<(), HullError>) -> Result<(), HullError> {
+pub(crate) fn write_folder(
+    out: &Path,
+    fill: impl FnOnce(&Path) -> Result<(), HullError>,
+) -> Result<(), HullError> {
     check_output(out)?;
-    let parent = out.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let name = out.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let parent = out
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let name = out
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
     let tmp = parent.join(format!(".{name}.partial-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&tmp);
     std::fs::create_dir_all(&tmp).map_err(|e| HullError::io(&tmp, e))?;
@@ -183,7 +237,10 @@ pub(crate) fn write_folder(out: &Path, fill: impl FnOnce(&Path) -> Result<(), Hu
 pub fn load_model(dir: &Path) -> Result<HullModel, HullError> {
     let mpath = dir.join("hull.json");
     let text = std::fs::read_to_string(&mpath).map_err(|e| HullError::io(&mpath, e))?;
-    let manifest: Manifest = serde_json::from_str(&text).map_err(|e| HullError::HullFolder { path: mpath.clone(), msg: e.to_string() })?;
+    let manifest: Manifest = serde_json::from_str(&text).map_err(|e| HullError::HullFolder {
+        path: mpath.clone(),
+        msg: e.to_string(),
+    })?;
     let cloud = igi_geometry::read_points_ply(&dir.join("surfels.ply"))?;
     let nv = manifest.views.len();
     let surfels = Surfels::from_cloud(&cloud, nv).ok_or_else(|| HullError::HullFolder {
@@ -194,7 +251,10 @@ pub fn load_model(dir: &Path) -> Result<HullModel, HullError> {
     let mut centres = Vec::with_capacity(nv);
     let mut colors = vec![[0.0f32; 3]; surfels.len() * nv];
     for (v, id) in manifest.views.iter().enumerate() {
-        let rv = rig.view(id).ok_or_else(|| HullError::HullFolder { path: mpath.clone(), msg: format!("view {id:?} is not in {}", rig.path.display()) })?;
+        let rv = rig.view(id).ok_or_else(|| HullError::HullFolder {
+            path: mpath.clone(),
+            msg: format!("view {id:?} is not in {}", rig.path.display()),
+        })?;
         let cam = rig.load_camera(rv)?;
         let photo = read_image(&rv.photo).map_err(|e| rig.view_error(rv, e))?;
         centres.push(cam.center_world());
@@ -204,12 +264,20 @@ pub fn load_model(dir: &Path) -> Result<HullModel, HullError> {
             }
             let p = DVec3::from_array(surfels.positions[s].map(f64::from));
             if let Some(px) = cam.project(p) {
-                colors[s * nv + v] = photo.bilinear(px.x as f32, px.y as f32).unwrap_or_else(|| {
-                    let (x, y) = (px.x.round().clamp(0.0, photo.width as f64 - 1.0), px.y.round().clamp(0.0, photo.height as f64 - 1.0));
-                    photo.get(x as usize, y as usize)
-                });
+                colors[s * nv + v] =
+                    photo.bilinear(px.x as f32, px.y as f32).unwrap_or_else(|| {
+                        let (x, y) = (
+                            px.x.round().clamp(0.0, photo.width as f64 - 1.0),
+                            px.y.round().clamp(0.0, photo.height as f64 - 1.0),
+                        );
+                        photo.get(x as usize, y as usize)
+                    });
             }
         }
     }
-    Ok(HullModel { surfels, centres, colors })
+    Ok(HullModel {
+        surfels,
+        centres,
+        colors,
+    })
 }

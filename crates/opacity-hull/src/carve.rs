@@ -31,12 +31,21 @@ pub struct CellGrid {
 impl CellGrid {
     /// A grid with `n` cells along every axis of the box (cell = box extent / n per axis).
     pub fn new(min: DVec3, max: DVec3, n: usize) -> CellGrid {
-        CellGrid { min, max, dims: [n; 3] }
+        CellGrid {
+            min,
+            max,
+            dims: [n; 3],
+        }
     }
 
     /// Edge lengths of one cell.
     pub fn cell_size(&self) -> DVec3 {
-        (self.max - self.min) / DVec3::new(self.dims[0] as f64, self.dims[1] as f64, self.dims[2] as f64)
+        (self.max - self.min)
+            / DVec3::new(
+                self.dims[0] as f64,
+                self.dims[1] as f64,
+                self.dims[2] as f64,
+            )
     }
 
     /// Centre of cell (i, j, k).
@@ -81,7 +90,10 @@ impl<'a> ViewTable<'a> {
 
     /// Known-background pixels in the inclusive rectangle [x0, x1] x [y0, y1] (clipped).
     fn count(&self, x0: i64, y0: i64, x1: i64, y1: i64) -> (u64, bool) {
-        let (w, h) = (self.view.silhouette.width as i64, self.view.silhouette.height as i64);
+        let (w, h) = (
+            self.view.silhouette.width as i64,
+            self.view.silhouette.height as i64,
+        );
         let inside = x0 >= 0 && y0 >= 0 && x1 < w && y1 < h;
         let (x0, y0, x1, y1) = (x0.max(0), y0.max(0), x1.min(w - 1), y1.min(h - 1));
         if x0 > x1 || y0 > y1 {
@@ -94,9 +106,14 @@ impl<'a> ViewTable<'a> {
 
     /// Does this view carve the cell centred at `p`?
     fn carves_point(&self, p: DVec3) -> bool {
-        let Some(px) = self.view.camera.project(p) else { return false };
+        let Some(px) = self.view.camera.project(p) else {
+            return false;
+        };
         let (x, y) = (px.x.round(), px.y.round());
-        let (w, h) = (self.view.silhouette.width as f64, self.view.silhouette.height as f64);
+        let (w, h) = (
+            self.view.silhouette.width as f64,
+            self.view.silhouette.height as f64,
+        );
         if !(x >= 0.0 && y >= 0.0 && x < w && y < h) {
             return false;
         }
@@ -127,7 +144,12 @@ impl<'a> ViewTable<'a> {
         if r.iter().any(|v| !v.is_finite() || v.abs() > 1e7) {
             return None;
         }
-        let (rx0, ry0, rx1, ry1) = (r[0].floor() as i64, r[1].floor() as i64, r[2].ceil() as i64, r[3].ceil() as i64);
+        let (rx0, ry0, rx1, ry1) = (
+            r[0].floor() as i64,
+            r[1].floor() as i64,
+            r[2].ceil() as i64,
+            r[3].ceil() as i64,
+        );
         let (n, inside) = self.count(rx0, ry0, rx1, ry1);
         let area = ((rx1 - rx0 + 1) * (ry1 - ry0 + 1)) as u64;
         if n == 0 {
@@ -147,7 +169,9 @@ pub fn carve(grid: &CellGrid, views: &[&View]) -> Vec<u8> {
     let tables: Vec<ViewTable> = views.iter().map(|v| ViewTable::new(v)).collect();
     let block = 16usize;
     let nb = grid.dims.map(|d| d.div_ceil(block));
-    let blocks: Vec<[usize; 3]> = (0..nb[2]).flat_map(|k| (0..nb[1]).flat_map(move |j| (0..nb[0]).map(move |i| [i, j, k]))).collect();
+    let blocks: Vec<[usize; 3]> = (0..nb[2])
+        .flat_map(|k| (0..nb[1]).flat_map(move |j| (0..nb[0]).map(move |i| [i, j, k])))
+        .collect();
     let results: Vec<([usize; 3], [usize; 3], Vec<u8>)> = blocks
         .par_iter()
         .map(|b| {
@@ -155,7 +179,7 @@ pub fn carve(grid: &CellGrid, views: &[&View]) -> Vec<u8> {
             let hi = [0, 1, 2].map(|a| ((b[a] + 1) * block).min(grid.dims[a]));
             let size = [0, 1, 2].map(|a| hi[a] - lo[a]);
             let mut local = vec![KEPT; size[0] * size[1] * size[2]];
-            carve_range(grid, &tables, lo, hi, 0, &mut |c, v| {
+            carve_range(grid, &tables, lo, hi, 0, &mut |c: [usize; 3], v: u8| {
                 local[(c[0] - lo[0]) + size[0] * ((c[1] - lo[1]) + size[1] * (c[2] - lo[2]))] = v;
             });
             (lo, size, local)
@@ -166,7 +190,8 @@ pub fn carve(grid: &CellGrid, views: &[&View]) -> Vec<u8> {
         for k in 0..size[2] {
             for j in 0..size[1] {
                 for i in 0..size[0] {
-                    out[grid.index([lo[0] + i, lo[1] + j, lo[2] + k])] = local[i + size[0] * (j + size[1] * k)];
+                    out[grid.index([lo[0] + i, lo[1] + j, lo[2] + k])] =
+                        local[i + size[0] * (j + size[1] * k)];
                 }
             }
         }
@@ -175,7 +200,14 @@ pub fn carve(grid: &CellGrid, views: &[&View]) -> Vec<u8> {
 }
 
 /// Carve the cells in [lo, hi) from view `first` on; `set(cell, view)` records a carve.
-fn carve_range(grid: &CellGrid, tables: &[ViewTable], lo: [usize; 3], hi: [usize; 3], first: usize, set: &mut dyn FnMut([usize; 3], u8)) {
+fn carve_range(
+    grid: &CellGrid,
+    tables: &[ViewTable],
+    lo: [usize; 3],
+    hi: [usize; 3],
+    first: usize,
+    set: &mut dyn FnMut([usize; 3], u8),
+) {
     let cs = grid.cell_size();
     let corner = |c: [usize; 3]| grid.min + DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64) * cs;
     let single = (0..3).all(|a| hi[a] - lo[a] == 1);
@@ -228,9 +260,16 @@ pub fn carve_sets(grid: &CellGrid, views: &[&View]) -> Vec<u64> {
     (0..grid.len())
         .into_par_iter()
         .map(|i| {
-            let c = [i % grid.dims[0], (i / grid.dims[0]) % grid.dims[1], i / (grid.dims[0] * grid.dims[1])];
+            let c = [
+                i % grid.dims[0],
+                (i / grid.dims[0]) % grid.dims[1],
+                i / (grid.dims[0] * grid.dims[1]),
+            ];
             let p = grid.center(c);
-            tables.iter().enumerate().fold(0u64, |acc, (v, t)| acc | ((t.carves_point(p) as u64) << v))
+            tables
+                .iter()
+                .enumerate()
+                .fold(0u64, |acc, (v, t)| acc | ((t.carves_point(p) as u64) << v))
         })
         .collect()
 }

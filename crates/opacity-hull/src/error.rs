@@ -20,13 +20,27 @@ pub enum HullError {
     },
     /// A line of a Middlebury `_par.txt` file that does not parse.
     #[error("{}: line {line}: {msg}", path.display())]
-    ParLine { path: PathBuf, line: usize, msg: String },
+    ParLine {
+        path: PathBuf,
+        line: usize,
+        msg: String,
+    },
     /// A Middlebury rotation too far from a rotation to be a measurement error.
     #[error("{}: line {line} ({image}): R is {distance:.3e} from the nearest rotation (more than {limit:.0e})", path.display())]
-    NotRotation { path: PathBuf, line: usize, image: String, distance: f64, limit: f64 },
+    NotRotation {
+        path: PathBuf,
+        line: usize,
+        image: String,
+        distance: f64,
+        limit: f64,
+    },
     /// A silhouette with nothing (or everything) in it.
     #[error("{}: view {view:?}: the silhouette is {what}", rig.display())]
-    Silhouette { rig: PathBuf, view: String, what: &'static str },
+    Silhouette {
+        rig: PathBuf,
+        view: String,
+        what: &'static str,
+    },
     /// Carving left nothing: `view` removed the last cells.
     #[error("{}: the hull is empty after carving with view {view:?} (its silhouette disagrees with the views before it, or with the bounding box)", rig.display())]
     CarvedEmpty { rig: PathBuf, view: String },
@@ -40,6 +54,9 @@ pub enum HullError {
 
 impl HullError {
     pub(crate) fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
-        HullError::Io { path: path.into(), source }
+        HullError::Io {
+            path: path.into(),
+            source,
+        }
     }
 }

@@ -37,15 +37,26 @@ impl VisualHull {
 /// surface (marching cubes on the occupancy, iso 0.5, closed at the box faces). `rig` names the
 /// capture in errors: when carving leaves nothing the error names the view that removed the
 /// last cells.
-pub fn carve_hull(rig: &Path, views: &[&View], min: DVec3, max: DVec3, resolution: usize) -> Result<VisualHull, HullError> {
+pub fn carve_hull(
+    rig: &Path,
+    views: &[&View],
+    min: DVec3,
+    max: DVec3,
+    resolution: usize,
+) -> Result<VisualHull, HullError> {
     if !(2..=2048).contains(&resolution) {
-        return Err(HullError::InvalidArgument(format!("carving resolution {resolution} must be 2..=2048 cells per axis")));
+        return Err(HullError::InvalidArgument(format!(
+            "carving resolution {resolution} must be 2..=2048 cells per axis"
+        )));
     }
     let grid = CellGrid::new(min, max, resolution);
     let carver = carve(&grid, views);
     if !carver.contains(&KEPT) {
         let last = carver.iter().copied().max().unwrap_or(0) as usize;
-        return Err(HullError::CarvedEmpty { rig: rig.to_path_buf(), view: views[last].id.clone() });
+        return Err(HullError::CarvedEmpty {
+            rig: rig.to_path_buf(),
+            view: views[last].id.clone(),
+        });
     }
     let mesh = occupancy_mesh(&grid, &carver)?;
     Ok(VisualHull { grid, carver, mesh })
@@ -67,7 +78,12 @@ fn occupancy_mesh(grid: &CellGrid, carver: &[u8]) -> Result<TriMesh, HullError> 
     }
     let cs = grid.cell_size();
     let origin = grid.min - cs * 0.5;
-    let g = Grid { values: &values, dims: d, origin: origin.as_vec3().to_array(), spacing: cs.as_vec3().to_array() };
+    let g = Grid {
+        values: &values,
+        dims: d,
+        origin: origin.as_vec3().to_array(),
+        spacing: cs.as_vec3().to_array(),
+    };
     Ok(marching_cubes(&g, 0.5)?)
 }
 
@@ -94,10 +110,21 @@ pub fn reproject(mesh: &TriMesh, view: &View) -> Reprojection {
 }
 
 /// Leave-one-out: for each view, the hull of all the others projected into it.
-pub fn leave_one_out(rig: &Path, views: &[View], min: DVec3, max: DVec3, resolution: usize) -> Result<Vec<Reprojection>, HullError> {
+pub fn leave_one_out(
+    rig: &Path,
+    views: &[View],
+    min: DVec3,
+    max: DVec3,
+    resolution: usize,
+) -> Result<Vec<Reprojection>, HullError> {
     (0..views.len())
         .map(|held| {
-            let others: Vec<&View> = views.iter().enumerate().filter(|(i, _)| *i != held).map(|(_, v)| v).collect();
+            let others: Vec<&View> = views
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| *i != held)
+                .map(|(_, v)| v)
+                .collect();
             let hull = carve_hull(rig, &others, min, max, resolution)?;
             Ok(reproject(&hull.mesh, &views[held]))
         })
@@ -106,7 +133,14 @@ pub fn leave_one_out(rig: &Path, views: &[View], min: DVec3, max: DVec3, resolut
 
 /// Volume (kept cells / cells kept by all views) after the first 1..=n views, for `orders`
 /// random orders of the views (seeded): the curves of Matusik et al.'s Fig. 12.
-pub fn volume_curves(views: &[&View], min: DVec3, max: DVec3, resolution: usize, orders: usize, seed: u64) -> Vec<Vec<f64>> {
+pub fn volume_curves(
+    views: &[&View],
+    min: DVec3,
+    max: DVec3,
+    resolution: usize,
+    orders: usize,
+    seed: u64,
+) -> Vec<Vec<f64>> {
     let grid = CellGrid::new(min, max, resolution);
     let sets = carve_sets(&grid, views);
     let final_volume = sets.iter().filter(|&&s| s == 0).count().max(1) as f64;
@@ -132,22 +166,43 @@ pub fn plot_volume_curves(path: &Path, curves: &[Vec<f64>]) -> Result<(), HullEr
     use plotters::prelude::*;
     igi_imaging::plot::register_fonts();
     let n = curves.first().map_or(1, Vec::len);
-    let ymax = curves.iter().flatten().fold(1.0f64, |a, &b| a.max(b)).min(50.0) * 1.05;
+    let ymax = curves
+        .iter()
+        .flatten()
+        .fold(1.0f64, |a, &b| a.max(b))
+        .min(50.0)
+        * 1.05;
     igi_imaging::io::write_atomic(path, |tmp| {
-        let enc = |e: String| igi_imaging::ImagingError::Encode { path: path.to_path_buf(), msg: e };
+        let enc = |e: String| igi_imaging::ImagingError::Encode {
+            path: path.to_path_buf(),
+            msg: e,
+        };
         let root = BitMapBackend::new(tmp, (800, 500)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| enc(e.to_string()))?;
         let mut chart = ChartBuilder::on(&root)
-            .caption("visual hull volume against views (random orders)", ("sans-serif", 20))
+            .caption(
+                "visual hull volume against views (random orders)",
+                ("sans-serif", 20),
+            )
             .margin(10)
             .x_label_area_size(40)
             .y_label_area_size(60)
             .build_cartesian_2d(1f64..n as f64, 0.9f64..ymax)
             .map_err(|e| enc(e.to_string()))?;
-        chart.configure_mesh().x_desc("number of views").y_desc("volume / final volume").draw().map_err(|e| enc(e.to_string()))?;
+        chart
+            .configure_mesh()
+            .x_desc("number of views")
+            .y_desc("volume / final volume")
+            .draw()
+            .map_err(|e| enc(e.to_string()))?;
         for c in curves {
-            let pts = c.iter().enumerate().map(|(i, &v)| ((i + 1) as f64, v.min(ymax)));
-            chart.draw_series(LineSeries::new(pts, BLUE.mix(0.4).stroke_width(1))).map_err(|e| enc(e.to_string()))?;
+            let pts = c
+                .iter()
+                .enumerate()
+                .map(|(i, &v)| ((i + 1) as f64, v.min(ymax)));
+            chart
+                .draw_series(LineSeries::new(pts, BLUE.mix(0.4).stroke_width(1)))
+                .map_err(|e| enc(e.to_string()))?;
         }
         root.present().map_err(|e| enc(e.to_string()))
     })?;

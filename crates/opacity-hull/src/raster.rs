@@ -17,7 +17,11 @@ pub struct DepthBuffer {
 impl DepthBuffer {
     /// The pixels the mesh covers.
     pub fn coverage(&self) -> Mask {
-        Mask { width: self.width, height: self.height, data: self.depth.iter().map(|d| d.is_finite()).collect() }
+        Mask {
+            width: self.width,
+            height: self.height,
+            data: self.depth.iter().map(|d| d.is_finite()).collect(),
+        }
     }
 }
 
@@ -39,10 +43,20 @@ pub fn rasterize_depth(mesh: &TriMesh, camera: &Camera) -> DepthBuffer {
         })
         .collect();
     for t in &mesh.indices {
-        let (Some(a), Some(b), Some(c)) = (proj[t[0] as usize], proj[t[1] as usize], proj[t[2] as usize]) else { continue };
+        let (Some(a), Some(b), Some(c)) = (
+            proj[t[0] as usize],
+            proj[t[1] as usize],
+            proj[t[2] as usize],
+        ) else {
+            continue;
+        };
         fill_triangle(a, b, c, w, h, &mut depth);
     }
-    DepthBuffer { width: w, height: h, depth }
+    DepthBuffer {
+        width: w,
+        height: h,
+        depth,
+    }
 }
 
 fn fill_triangle(a: [f64; 3], b: [f64; 3], c: [f64; 3], w: usize, h: usize, depth: &mut [f32]) {
@@ -57,11 +71,17 @@ fn fill_triangle(a: [f64; 3], b: [f64; 3], c: [f64; 3], w: usize, h: usize, dept
     if x0 > x1 || y0 > y1 {
         return;
     }
-    let edge = |p: [f64; 3], q: [f64; 3], x: f64, y: f64| (q[0] - p[0]) * (y - p[1]) - (q[1] - p[1]) * (x - p[0]);
+    let edge = |p: [f64; 3], q: [f64; 3], x: f64, y: f64| {
+        (q[0] - p[0]) * (y - p[1]) - (q[1] - p[1]) * (x - p[0])
+    };
     for y in y0 as usize..=y1 as usize {
         for x in x0 as usize..=x1 as usize {
             let (fx, fy) = (x as f64, y as f64);
-            let (w0, w1, w2) = (edge(b, c, fx, fy) / area, edge(c, a, fx, fy) / area, edge(a, b, fx, fy) / area);
+            let (w0, w1, w2) = (
+                edge(b, c, fx, fy) / area,
+                edge(c, a, fx, fy) / area,
+                edge(a, b, fx, fy) / area,
+            );
             if w0 < 0.0 || w1 < 0.0 || w2 < 0.0 {
                 continue;
             }
@@ -117,7 +137,12 @@ mod tests {
         // a 1 x 1 square at z = 2 seen by a camera with f = 100: 50 px wide, centred at (50, 50)
         let cam = Camera::pinhole(100, 100, 100.0, 100.0, 50.0, 50.0);
         let m = TriMesh {
-            positions: vec![[-0.25, -0.25, 2.0], [0.25, -0.25, 2.0], [0.25, 0.25, 2.0], [-0.25, 0.25, 2.0]],
+            positions: vec![
+                [-0.25, -0.25, 2.0],
+                [0.25, -0.25, 2.0],
+                [0.25, 0.25, 2.0],
+                [-0.25, 0.25, 2.0],
+            ],
             indices: vec![[0, 1, 2], [0, 2, 3]],
             ..Default::default()
         };

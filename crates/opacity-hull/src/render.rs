@@ -41,12 +41,22 @@ pub struct RenderOptions {
 
 impl Default for RenderOptions {
     fn default() -> Self {
-        RenderOptions { k: 4, min_radius_px: 0.8, depth_tolerance: 3.0 }
+        RenderOptions {
+            k: 4,
+            min_radius_px: 0.8,
+            depth_tolerance: 3.0,
+        }
     }
 }
 
 /// Eq. 4 weights for one surfel: `(view, weight)` pairs summing to 1, empty if no view sees it.
-pub fn blend_weights(p: DVec3, target: DVec3, centres: &[DVec3], visible: &[bool], k: usize) -> Vec<(usize, f64)> {
+pub fn blend_weights(
+    p: DVec3,
+    target: DVec3,
+    centres: &[DVec3],
+    visible: &[bool],
+    k: usize,
+) -> Vec<(usize, f64)> {
     let dt = (target - p).normalize_or_zero();
     let mut cand: Vec<(f64, usize)> = (0..centres.len())
         .filter(|&v| visible[v])
@@ -65,7 +75,11 @@ pub fn blend_weights(p: DVec3, target: DVec3, centres: &[DVec3], visible: &[bool
         .iter()
         .map(|&(pen, v)| {
             let cos_i = 1.0 - pen;
-            let r = if cos_t < 1.0 { (cos_i - cos_t) / (1.0 - cos_t) } else { 1.0 };
+            let r = if cos_t < 1.0 {
+                (cos_i - cos_t) / (1.0 - cos_t)
+            } else {
+                1.0
+            };
             (v, r.max(0.0) / pen)
         })
         .collect();
@@ -109,7 +123,13 @@ pub fn render(model: &HullModel, camera: &Camera, opts: RenderOptions) -> (HdrIm
             }
             let z = camera.pose.apply(p).z;
             let px = camera.project(p)?;
-            let w = blend_weights(p, target, &model.centres, &s.visible[i * nv..(i + 1) * nv], opts.k);
+            let w = blend_weights(
+                p,
+                target,
+                &model.centres,
+                &s.visible[i * nv..(i + 1) * nv],
+                opts.k,
+            );
             if w.is_empty() {
                 return None;
             }
@@ -119,23 +139,50 @@ pub fn render(model: &HullModel, camera: &Camera, opts: RenderOptions) -> (HdrIm
                 alpha += s.opacity[i * nv + v] * wt as f32;
             }
             let r = (s.radius[i] * fx / z as f32).max(opts.min_radius_px);
-            Some(Splat { x: px.x as f32, y: px.y as f32, z: z as f32, r, color, alpha })
+            Some(Splat {
+                x: px.x as f32,
+                y: px.y as f32,
+                z: z as f32,
+                r,
+                color,
+                alpha,
+            })
         })
         .collect();
-    splat(&splats, camera.width as usize, camera.height as usize, opts.depth_tolerance, &s.radius)
+    splat(
+        &splats,
+        camera.width as usize,
+        camera.height as usize,
+        opts.depth_tolerance,
+        &s.radius,
+    )
 }
 
 fn footprint(sp: &Splat, w: usize, h: usize) -> Option<(usize, usize, usize, usize)> {
     let r = sp.r.min(32.0);
-    let (x0, x1) = ((sp.x - r).ceil().max(0.0), (sp.x + r).floor().min(w as f32 - 1.0));
-    let (y0, y1) = ((sp.y - r).ceil().max(0.0), (sp.y + r).floor().min(h as f32 - 1.0));
+    let (x0, x1) = (
+        (sp.x - r).ceil().max(0.0),
+        (sp.x + r).floor().min(w as f32 - 1.0),
+    );
+    let (y0, y1) = (
+        (sp.y - r).ceil().max(0.0),
+        (sp.y + r).floor().min(h as f32 - 1.0),
+    );
     (x0 <= x1 && y0 <= y1).then_some((x0 as usize, x1 as usize, y0 as usize, y1 as usize))
 }
 
-fn splat(splats: &[Option<Splat>], w: usize, h: usize, tol: f32, radius: &[f32]) -> (HdrImage, Vec<f32>) {
+fn splat(
+    splats: &[Option<Splat>],
+    w: usize,
+    h: usize,
+    tol: f32,
+    radius: &[f32],
+) -> (HdrImage, Vec<f32>) {
     let mut zbuf = vec![f32::INFINITY; w * h];
     for sp in splats.iter().flatten() {
-        let Some((x0, x1, y0, y1)) = footprint(sp, w, h) else { continue };
+        let Some((x0, x1, y0, y1)) = footprint(sp, w, h) else {
+            continue;
+        };
         for y in y0..=y1 {
             for x in x0..=x1 {
                 let d2 = (x as f32 - sp.x).powi(2) + (y as f32 - sp.y).powi(2);
@@ -149,7 +196,9 @@ fn splat(splats: &[Option<Splat>], w: usize, h: usize, tol: f32, radius: &[f32])
     let mut acc = vec![[0.0f32; 5]; w * h];
     for (i, sp) in splats.iter().enumerate() {
         let Some(sp) = sp else { continue };
-        let Some((x0, x1, y0, y1)) = footprint(sp, w, h) else { continue };
+        let Some((x0, x1, y0, y1)) = footprint(sp, w, h) else {
+            continue;
+        };
         let ztol = tol * radius[i];
         for y in y0..=y1 {
             for x in x0..=x1 {
@@ -187,10 +236,15 @@ mod tests {
     #[test]
     fn eq4_weights() {
         let p = DVec3::ZERO;
-        let centres: Vec<DVec3> = (0..6).map(|i| DVec3::new((i as f64 * 0.3).cos(), (i as f64 * 0.3).sin(), 0.0) * 2.0).collect();
+        let centres: Vec<DVec3> = (0..6)
+            .map(|i| DVec3::new((i as f64 * 0.3).cos(), (i as f64 * 0.3).sin(), 0.0) * 2.0)
+            .collect();
         let vis = vec![true; 6];
         // the new camera is view 2: all weight there
-        assert_eq!(blend_weights(p, centres[2], &centres, &vis, 4), vec![(2, 1.0)]);
+        assert_eq!(
+            blend_weights(p, centres[2], &centres, &vis, 4),
+            vec![(2, 1.0)]
+        );
         // between views 1 and 2: the two nearest dominate, weights sum to 1, the 4th gets 0
         let t = DVec3::new((0.4f64).cos(), (0.4f64).sin(), 0.0) * 3.0;
         let w = blend_weights(p, t, &centres, &vis, 4);
@@ -203,6 +257,8 @@ mod tests {
         // invisible views are never used
         let mut vis = vis;
         vis[1] = false;
-        assert!(blend_weights(p, t, &centres, &vis, 4).iter().all(|x| x.0 != 1));
+        assert!(blend_weights(p, t, &centres, &vis, 4)
+            .iter()
+            .all(|x| x.0 != 1));
     }
 }

@@ -45,16 +45,28 @@ impl Surfels {
             let vals = (0..n)
                 .map(|s| {
                     (0..BITS_PER_WORD)
-                        .filter(|b| w * BITS_PER_WORD + b < self.views && self.visible[s * self.views + w * BITS_PER_WORD + b])
+                        .filter(|b| {
+                            w * BITS_PER_WORD + b < self.views
+                                && self.visible[s * self.views + w * BITS_PER_WORD + b]
+                        })
                         .fold(0u32, |acc, b| acc | 1 << b) as f32
                 })
                 .collect();
             properties.push((format!("vis{w}"), vals));
         }
         for v in 0..self.views {
-            properties.push((format!("alpha_v{v}"), (0..n).map(|s| self.opacity[s * self.views + v]).collect()));
+            properties.push((
+                format!("alpha_v{v}"),
+                (0..n).map(|s| self.opacity[s * self.views + v]).collect(),
+            ));
         }
-        PointCloud { positions: self.positions.clone(), normals: Some(self.normals.clone()), colors: None, radii: Some(self.radius.clone()), properties }
+        PointCloud {
+            positions: self.positions.clone(),
+            normals: Some(self.normals.clone()),
+            colors: None,
+            radii: Some(self.radius.clone()),
+            properties,
+        }
     }
 
     /// Back from [`Surfels::to_cloud`]; `None` when a property is missing.
@@ -77,7 +89,14 @@ impl Surfels {
                 opacity[s * views + v] = a[s];
             }
         }
-        Some(Surfels { positions: c.positions.clone(), normals: c.normals.clone()?, radius: c.radii.clone()?, views, visible, opacity })
+        Some(Surfels {
+            positions: c.positions.clone(),
+            normals: c.normals.clone()?,
+            radius: c.radii.clone()?,
+            views,
+            visible,
+            opacity,
+        })
     }
 }
 
@@ -86,14 +105,28 @@ impl Surfels {
 /// visible.
 pub fn make_surfels(mesh: &TriMesh, radius: f32, depth_tolerance: f64, views: &[View]) -> Surfels {
     let n = mesh.positions.len();
-    let normals = mesh.normals.clone().unwrap_or_else(|| vec![[0.0, 0.0, 1.0]; n]);
+    let normals = mesh
+        .normals
+        .clone()
+        .unwrap_or_else(|| vec![[0.0, 0.0, 1.0]; n]);
     let nv = views.len();
     let per_view: Vec<Vec<(bool, f32)>> = views
         .par_iter()
         .map(|view| {
             let depth = rasterize_depth(mesh, &view.camera);
             let centre = view.camera.center_world();
-            (0..n).map(|s| visibility(&mesh.positions[s], &normals[s], view, &depth, centre, depth_tolerance)).collect()
+            (0..n)
+                .map(|s| {
+                    visibility(
+                        &mesh.positions[s],
+                        &normals[s],
+                        view,
+                        &depth,
+                        centre,
+                        depth_tolerance,
+                    )
+                })
+                .collect()
         })
         .collect();
     let mut visible = vec![false; n * nv];
@@ -104,17 +137,33 @@ pub fn make_surfels(mesh: &TriMesh, radius: f32, depth_tolerance: f64, views: &[
             opacity[s * nv + v] = a;
         }
     }
-    Surfels { positions: mesh.positions.clone(), normals, radius: vec![radius; n], views: nv, visible, opacity }
+    Surfels {
+        positions: mesh.positions.clone(),
+        normals,
+        radius: vec![radius; n],
+        views: nv,
+        visible,
+        opacity,
+    }
 }
 
-fn visibility(p: &[f32; 3], n: &[f32; 3], view: &View, depth: &crate::raster::DepthBuffer, centre: DVec3, tol: f64) -> (bool, f32) {
+fn visibility(
+    p: &[f32; 3],
+    n: &[f32; 3],
+    view: &View,
+    depth: &crate::raster::DepthBuffer,
+    centre: DVec3,
+    tol: f64,
+) -> (bool, f32) {
     let pw = DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64);
     let nw = DVec3::new(n[0] as f64, n[1] as f64, n[2] as f64);
     if nw.dot(centre - pw) <= 0.0 {
         return (false, 0.0);
     }
     let z = view.camera.pose.apply(pw).z;
-    let Some(px) = view.camera.project(pw) else { return (false, 0.0) };
+    let Some(px) = view.camera.project(pw) else {
+        return (false, 0.0);
+    };
     let (x, y) = (px.x.round(), px.y.round());
     if !(x >= 0.0 && y >= 0.0 && x < depth.width as f64 && y < depth.height as f64) {
         return (false, 0.0);
@@ -123,6 +172,10 @@ fn visibility(p: &[f32; 3], n: &[f32; 3], view: &View, depth: &crate::raster::De
     if z > depth.depth[i] as f64 + tol {
         return (false, 0.0);
     }
-    let a = if view.matte.valid[i] { view.matte.alpha[i] } else { 0.0 };
+    let a = if view.matte.valid[i] {
+        view.matte.alpha[i]
+    } else {
+        0.0
+    };
     (true, a)
 }

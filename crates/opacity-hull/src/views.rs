@@ -21,7 +21,10 @@ pub struct MatteOptions {
 
 impl Default for MatteOptions {
     fn default() -> Self {
-        MatteOptions { alpha_threshold: 0.05, min_signal: 0.02 }
+        MatteOptions {
+            alpha_threshold: 0.05,
+            min_signal: 0.02,
+        }
     }
 }
 
@@ -62,30 +65,73 @@ pub fn load_view(rig: &Rig, v: &RigView, opts: MatteOptions) -> Result<View, Hul
         let img = read_image(p).map_err(|e| rig.view_error(v, e))?;
         if (img.width, img.height) != (w, h) {
             return Err(rig
-                .view_message(v, format!("{} is {}x{} but the view's camera is {w}x{h}", p.display(), img.width, img.height))
+                .view_message(
+                    v,
+                    format!(
+                        "{} is {}x{} but the view's camera is {w}x{h}",
+                        p.display(),
+                        img.width,
+                        img.height
+                    ),
+                )
                 .into());
         }
         Ok(img)
     };
-    let photo = read(&v.photo)?;
+    let photo = read(v.photo.as_path())?;
     let matte = if !v.backdrops.is_empty() {
         matte_from_backdrops(rig, v, (w, h), opts, &read)?
     } else if let Some(m) = &v.mask {
-        let mask = Mask::threshold(&read(m)?, 0.0);
-        Matte { width: w, height: h, alpha: mask.data.iter().map(|&b| b as u8 as f32).collect(), valid: vec![true; w * h] }
+        let mask = Mask::threshold(&read(m.as_path())?, 0.0);
+        Matte {
+            width: w,
+            height: h,
+            alpha: mask.data.iter().map(|&b| b as u8 as f32).collect(),
+            valid: vec![true; w * h],
+        }
     } else {
-        return Err(rig.view_message(v, "has neither a mask nor matting captures (backdrops)").into());
+        return Err(rig
+            .view_message(v, "has neither a mask nor matting captures (backdrops)")
+            .into());
     };
-    let silhouette = Mask { width: w, height: h, data: matte.alpha.iter().zip(&matte.valid).map(|(&a, &ok)| ok && a > opts.alpha_threshold).collect() };
-    let known = Mask { width: w, height: h, data: matte.valid.clone() };
+    let silhouette = Mask {
+        width: w,
+        height: h,
+        data: matte
+            .alpha
+            .iter()
+            .zip(&matte.valid)
+            .map(|(&a, &ok)| ok && a > opts.alpha_threshold)
+            .collect(),
+    };
+    let known = Mask {
+        width: w,
+        height: h,
+        data: matte.valid.clone(),
+    };
     let fg = silhouette.count();
     if fg == 0 {
-        return Err(HullError::Silhouette { rig: rig.path.clone(), view: v.id.clone(), what: "empty (no pixel is the object)" });
+        return Err(HullError::Silhouette {
+            rig: rig.path.clone(),
+            view: v.id.clone(),
+            what: "empty (no pixel is the object)",
+        });
     }
     if fg == w * h {
-        return Err(HullError::Silhouette { rig: rig.path.clone(), view: v.id.clone(), what: "full (every pixel is the object)" });
+        return Err(HullError::Silhouette {
+            rig: rig.path.clone(),
+            view: v.id.clone(),
+            what: "full (every pixel is the object)",
+        });
     }
-    Ok(View { id: v.id.clone(), camera, photo, matte, silhouette, known })
+    Ok(View {
+        id: v.id.clone(),
+        camera,
+        photo,
+        matte,
+        silhouette,
+        known,
+    })
 }
 
 /// Eq. 2 per lambda on the view's (n = +1, n = -1) pairs, maximum over lambda.
@@ -107,7 +153,13 @@ fn matte_from_backdrops(
             })
         };
         let (p, m) = (find(1)?, find(-1)?);
-        let matte = alpha_from_pair(&read(&p.object)?, &read(&m.object)?, &read(&p.backdrop)?, &read(&m.backdrop)?, opts.min_signal);
+        let matte = alpha_from_pair(
+            &read(p.object.as_path())?,
+            &read(m.object.as_path())?,
+            &read(p.backdrop.as_path())?,
+            &read(m.backdrop.as_path())?,
+            opts.min_signal,
+        );
         out.max_with(&matte);
     }
     Ok(out)
