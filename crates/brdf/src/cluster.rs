@@ -263,7 +263,7 @@ pub fn cluster(
     let ctx = Ctx {
         locals: &locals,
         floor: mean.map(|m| opts.rel_floor * m + 1e-12),
-        model: Model { max_n: opts.max_n },
+        model: Model::plain(opts.max_n),
         opts,
     };
 

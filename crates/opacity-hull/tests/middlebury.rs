@@ -9,17 +9,28 @@ use igi_opacity_hull::views::{load_views, MatteOptions, View};
 fn dino() -> (tempfile::TempDir, Rig, Vec<View>) {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("rig");
-    let report = igi_opacity_hull::middlebury::import(&igi_testkit::shared_data("multiview/dinoSparseRing"), &out).unwrap();
+    let report = igi_opacity_hull::middlebury::import(
+        &igi_testkit::shared_data("multiview/dinoSparseRing"),
+        &out,
+    )
+    .unwrap();
     assert_eq!(report.views, 15);
     assert_eq!(report.skipped, vec!["dinoSR0006.png".to_string()]);
-    assert!(report.max_rotation_correction > 0.0 && report.max_rotation_correction < 1e-4, "{}", report.max_rotation_correction);
+    assert!(
+        report.max_rotation_correction > 0.0 && report.max_rotation_correction < 1e-4,
+        "{}",
+        report.max_rotation_correction
+    );
     let rig = Rig::load(&out.join("rig.toml")).unwrap();
     let views = load_views(&rig, MatteOptions::default()).unwrap();
     (dir, rig, views)
 }
 
 fn bbox(rig: &Rig) -> (DVec3, DVec3) {
-    (DVec3::from_array(rig.object.bbox_min), DVec3::from_array(rig.object.bbox_max))
+    (
+        DVec3::from_array(rig.object.bbox_min),
+        DVec3::from_array(rig.object.bbox_max),
+    )
 }
 
 #[test]
@@ -34,7 +45,11 @@ fn dino_hull_reprojects_onto_every_silhouette() {
     }
     let min = reps.iter().map(|r| r.iou).fold(1.0, f64::min);
     let mean = reps.iter().map(|r| r.iou).sum::<f64>() / reps.len() as f64;
-    eprintln!("IoU min {min:.4} mean {mean:.4}, {} triangles, volume {:.3e}", hull.mesh.triangle_count(), hull.volume());
+    eprintln!(
+        "IoU min {min:.4} mean {mean:.4}, {} triangles, volume {:.3e}",
+        hull.mesh.triangle_count(),
+        hull.volume()
+    );
     assert!(min >= 0.97, "min IoU {min}");
     assert!(mean >= 0.98, "mean IoU {mean}");
 }
@@ -45,7 +60,10 @@ fn dino_leave_one_out() {
     let (lo, hi) = bbox(&rig);
     let reps = leave_one_out(&rig.path, &views, lo, hi, 256).unwrap();
     for r in &reps {
-        eprintln!("held out {}: IoU {:.4} uncovered {:.4}", r.view, r.iou, r.uncovered);
+        eprintln!(
+            "held out {}: IoU {:.4} uncovered {:.4}",
+            r.view, r.iou, r.uncovered
+        );
     }
     let worst = reps.iter().map(|r| r.uncovered).fold(0.0, f64::max);
     let mean = reps.iter().map(|r| r.iou).sum::<f64>() / reps.len() as f64;
