@@ -183,6 +183,14 @@ impl CameraToWorld {
     }
 }
 
+/// RMS pixel distance between where two cameras project the same world points (the points in
+/// front of both); `None` when no point is. The reprojection error of an estimated pose
+/// against the true one.
+pub fn reprojection_rms(a: &Camera, b: &Camera, points: &[DVec3]) -> Option<f64> {
+    let d2: Vec<f64> = points.iter().filter_map(|p| Some(a.project(*p)?.distance_squared(b.project(*p)?))).collect();
+    (!d2.is_empty()).then(|| (d2.iter().sum::<f64>() / d2.len() as f64).sqrt())
+}
+
 /// A calibrated camera with its pose.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Camera {

@@ -18,6 +18,8 @@ pub enum ImagingError {
     BadPixels { path: PathBuf, msg: String },
     #[error("{}: invalid camera file: {msg}", path.display())]
     Camera { path: PathBuf, msg: String },
+    #[error("{}: invalid camera radiometry file: {msg}", path.display())]
+    Radiometry { path: PathBuf, msg: String },
     #[error("{}: exif: {msg}", path.display())]
     Exif { path: PathBuf, msg: String },
     #[error("{}: {msg}", path.display())]

@@ -1,7 +1,11 @@
-//! Radiometric calibration helpers: lens falloff (vignetting) and 3x3 colour matrices.
+//! Radiometric calibration: lens falloff (vignetting), 3x3 colour matrices, the colour checker
+//! (reference values and patch sampling from its four corners), and the camera radiometry file
+//! that `igi camera radiometry` writes and surveys apply to every photograph on load.
 
 use crate::{HdrImage, ImagingError};
+use glam::DVec2;
 use nalgebra::{DMatrix, DVector, Matrix3};
+use std::path::Path;
 
 /// Radial falloff `f(r) = 1 + a2 r^2 + a4 r^4 + a6 r^6`, `r` = distance from the image
 /// centre divided by the half-diagonal (so r = 1 at the corners), f(0) = 1.
@@ -89,6 +93,18 @@ impl Falloff {
         Self::fit(&samples)
     }
 
+    /// The forward model: multiply `img` by the falloff in place (what the lens does; for
+    /// synthetic photographs).
+    pub fn vignette(&self, img: &mut HdrImage) {
+        for y in 0..img.height {
+            for x in 0..img.width {
+                let f = self.eval(Self::radius(x as f64, y as f64, img.width, img.height)).max(0.0) as f32;
+                let i = img.index(x, y);
+                img.pixels[i] = img.pixels[i].map(|c| c * f);
+            }
+        }
+    }
+
     /// Divide the falloff out of `img` in place (pixels where f(r) <= 0 become invalid).
     pub fn apply(&self, img: &mut HdrImage) {
         for y in 0..img.height {
@@ -167,6 +183,358 @@ pub fn apply_color_matrix(img: &mut HdrImage, m: &[[f64; 3]; 3]) {
     }
 }
 
+/// Fit one falloff to several flat-field photographs of the same lens setting: each is
+/// normalised by its own fitted centre value, then all samples are fitted together (every
+/// `stride`-th pixel so that at most about 200 000 samples are used). Returns the falloff and
+/// the RMS of the relative residual `v / (s f(r)) - 1`.
+pub fn fit_falloff_flats(flats: &[HdrImage]) -> Result<(Falloff, f64), ImagingError> {
+    let first = flats
+        .first()
+        .ok_or_else(|| ImagingError::InvalidInput("falloff fit needs at least one flat field".into()))?;
+    if let Some(k) = flats.iter().position(|f| f.width != first.width || f.height != first.height) {
+        return Err(ImagingError::InvalidInput(format!(
+            "flat field {} is {}x{} but the first is {}x{}",
+            k + 1,
+            flats[k].width,
+            flats[k].height,
+            first.width,
+            first.height
+        )));
+    }
+    let n = first.width * first.height;
+    let stride = (n * flats.len()).div_ceil(200_000).max(1);
+    let mut samples = Vec::new();
+    for flat in flats {
+        let (_, s) = Falloff::fit_image(flat)?;
+        for i in (0..n).step_by(stride) {
+            if flat.valid[i] {
+                let (x, y) = ((i % flat.width) as f64, (i / flat.width) as f64);
+                let p = flat.pixels[i];
+                let v = (p[0] as f64 + p[1] as f64 + p[2] as f64) / 3.0;
+                samples.push((Falloff::radius(x, y, flat.width, flat.height), v / s));
+            }
+        }
+    }
+    let (f, s) = Falloff::fit(&samples)?;
+    let ss: f64 = samples.iter().map(|(r, v)| (v / (s * f.eval(*r)) - 1.0).powi(2)).sum();
+    Ok((f, (ss / samples.len() as f64).sqrt()))
+}
+
+/// The 24 patches of the ColorChecker Classic in reading order (row 0 from dark skin to
+/// bluish green, ..., row 3 from white to black), as 8-bit sRGB (the published D50-adapted
+/// sRGB values); [`checker_reference`] linearises them.
+const CHECKER_SRGB8: [[u8; 3]; 24] = [
+    [115, 82, 68],
+    [194, 150, 130],
+    [98, 122, 157],
+    [87, 108, 67],
+    [133, 128, 177],
+    [103, 189, 170],
+    [214, 126, 44],
+    [80, 91, 166],
+    [193, 90, 99],
+    [94, 60, 108],
+    [157, 188, 64],
+    [224, 163, 46],
+    [56, 61, 150],
+    [70, 148, 73],
+    [175, 54, 60],
+    [231, 199, 31],
+    [187, 86, 149],
+    [8, 133, 161],
+    [243, 243, 242],
+    [200, 200, 200],
+    [160, 160, 160],
+    [122, 122, 121],
+    [85, 85, 85],
+    [52, 52, 52],
+];
+
+/// Columns and rows of the ColorChecker Classic patch grid.
+pub const CHECKER_COLS: usize = 6;
+pub const CHECKER_ROWS: usize = 4;
+
+/// Linear-RGB reflectance of the 24 ColorChecker Classic patches in reading order.
+pub fn checker_reference() -> [[f64; 3]; 24] {
+    CHECKER_SRGB8.map(|p| p.map(|c| crate::io::srgb_to_linear(c as f32 / 255.0) as f64))
+}
+
+/// Chart coordinates (patch pitches, x along a row, y down the columns) of the patch grid's
+/// outer corners in the order top-left (dark skin), top-right (bluish green), bottom-right
+/// (black), bottom-left (white).
+fn checker_grid_corners() -> [DVec2; 4] {
+    let (w, h) = (CHECKER_COLS as f64, CHECKER_ROWS as f64);
+    [DVec2::ZERO, DVec2::new(w, 0.0), DVec2::new(w, h), DVec2::new(0.0, h)]
+}
+
+/// Mean camera RGB of each of the 24 patches, given the image positions of the patch grid's
+/// four outer corners (top-left at dark skin, top-right, bottom-right at black, bottom-left at
+/// white). Each patch is sampled on a 9 x 9 grid over its central 60 % (away from the black
+/// gaps); a patch with fewer than half of its samples valid and inside the image is an error.
+pub fn sample_checker(img: &HdrImage, corners: &[DVec2; 4]) -> Result<Vec<[f64; 3]>, ImagingError> {
+    let h = crate::planar::homography_dlt(&checker_grid_corners(), corners)?;
+    let mut out = Vec::with_capacity(24);
+    for k in 0..CHECKER_COLS * CHECKER_ROWS {
+        let centre = DVec2::new((k % CHECKER_COLS) as f64 + 0.5, (k / CHECKER_COLS) as f64 + 0.5);
+        let (mut sum, mut n) = ([0.0f64; 3], 0usize);
+        for j in 0..9 {
+            for i in 0..9 {
+                let q = centre + 0.3 * DVec2::new(i as f64 / 4.0 - 1.0, j as f64 / 4.0 - 1.0);
+                let v = crate::planar::apply_homography(&h, q).and_then(|p| img.bilinear(p.x as f32, p.y as f32));
+                if let Some(v) = v {
+                    for c in 0..3 {
+                        sum[c] += v[c] as f64;
+                    }
+                    n += 1;
+                }
+            }
+        }
+        if n < 41 {
+            return Err(ImagingError::InvalidInput(format!(
+                "colour checker patch {} ({} of 81 samples usable): is it inside the image and unsaturated?",
+                k + 1,
+                n
+            )));
+        }
+        out.push(sum.map(|s| s / n as f64));
+    }
+    Ok(out)
+}
+
+/// A synthetic photograph of the ColorChecker Classic for tests: a `w` x `h` image of
+/// `background` radiance with the 24 patches (each `reference * white`, 80 % of its cell, the
+/// rest black gap) inside the grid whose outer corners are `corners` (see [`sample_checker`]).
+/// Each pixel is the mean of 4 x 4 sub-samples.
+pub fn render_checker(w: usize, h: usize, corners: &[DVec2; 4], white: f64, background: f64) -> Result<HdrImage, ImagingError> {
+    let to_chart = crate::planar::homography_dlt(corners, &checker_grid_corners())?;
+    let reference = checker_reference();
+    let mut img = HdrImage::new(w, h);
+    for y in 0..h {
+        for x in 0..w {
+            let mut sum = [0.0f64; 3];
+            for s in 0..16 {
+                let p = DVec2::new(x as f64 + ((s % 4) as f64 + 0.5) / 4.0 - 0.5, y as f64 + ((s / 4) as f64 + 0.5) / 4.0 - 0.5);
+                let v = match crate::planar::apply_homography(&to_chart, p) {
+                    Some(q) if q.x >= 0.0 && q.y >= 0.0 && q.x < CHECKER_COLS as f64 && q.y < CHECKER_ROWS as f64 => {
+                        let (fx, fy) = (q.x.fract(), q.y.fract());
+                        if (0.1..0.9).contains(&fx) && (0.1..0.9).contains(&fy) {
+                            reference[q.y as usize * CHECKER_COLS + q.x as usize].map(|c| c * white)
+                        } else {
+                            [0.01 * white; 3]
+                        }
+                    }
+                    _ => [background; 3],
+                };
+                for c in 0..3 {
+                    sum[c] += v[c] / 16.0;
+                }
+            }
+            img.set(x, y, sum.map(|c| c as f32));
+        }
+    }
+    Ok(img)
+}
+
+/// The neutral patches (white to black) of the ColorChecker Classic, by index.
+const CHECKER_NEUTRALS: std::ops::Range<usize> = 18..24;
+
+/// Rec. 709 luminance of a linear RGB triple.
+fn luminance(c: &[f64; 3]) -> f64 {
+    0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
+}
+
+/// The colour matrix from the camera RGB of the 24 patches. With `white` (the radiance a
+/// perfect white diffuser shows under the chart's light, in the units the photographs should
+/// have), the matrix maps camera RGB to absolute radiance: `reference * white`. Without it the
+/// chart's brightness is unknown, and the matrix is scaled so that the neutral patches keep
+/// their luminance (colour is corrected, exposure left alone). Returns the matrix and the RMS
+/// relative error of the corrected patches.
+pub fn fit_checker_matrix(camera_rgb: &[[f64; 3]], white: Option<f64>) -> Result<([[f64; 3]; 3], f64), ImagingError> {
+    if camera_rgb.len() != CHECKER_COLS * CHECKER_ROWS {
+        return Err(ImagingError::InvalidInput(format!("colour checker: {} patches, expected 24", camera_rgb.len())));
+    }
+    if let Some(w) = white {
+        if !(w > 0.0) || !w.is_finite() {
+            return Err(ImagingError::InvalidInput(format!("colour checker white radiance {w} must be positive")));
+        }
+    }
+    let reference = checker_reference();
+    let target: Vec<[f64; 3]> = reference.iter().map(|r| r.map(|c| c * white.unwrap_or(1.0))).collect();
+    let mut m = fit_color_matrix(camera_rgb, &target)?;
+    if white.is_none() {
+        let (mut before, mut after) = (0.0, 0.0);
+        for k in CHECKER_NEUTRALS {
+            before += luminance(&camera_rgb[k]);
+            after += luminance(&mat_vec(&m, &camera_rgb[k]));
+        }
+        if !(after > 0.0) || !(before > 0.0) {
+            return Err(ImagingError::InvalidInput("colour checker: the neutral patches are black".into()));
+        }
+        m = m.map(|row| row.map(|v| v * before / after));
+    }
+    let scale = luminance(&mat_vec(&m, &camera_rgb[18])) / luminance(&reference[18]);
+    let ss: f64 = camera_rgb
+        .iter()
+        .zip(&reference)
+        .flat_map(|(s, r)| {
+            let c = mat_vec(&m, s);
+            (0..3).map(move |i| ((c[i] - r[i] * scale) / (r[i] * scale).max(1e-3 * scale)).powi(2))
+        })
+        .sum();
+    Ok((m, (ss / (3.0 * camera_rgb.len() as f64)).sqrt()))
+}
+
+fn mat_vec(m: &[[f64; 3]; 3], v: &[f64; 3]) -> [f64; 3] {
+    [0, 1, 2].map(|r| m[r][0] * v[0] + m[r][1] * v[1] + m[r][2] * v[2])
+}
+
+/// A camera's radiometric calibration (the camera radiometry file, JSON): the lens falloff
+/// divided out first, then the colour matrix applied (`corrected = M * (raw / f(r))`).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraRadiometry {
+    /// Image size the calibration was fitted at; photographs must have the same aspect ratio
+    /// (the falloff's radius is normalised by the half-diagonal, so any size of that shape works).
+    pub width: usize,
+    pub height: usize,
+    pub falloff: Option<Falloff>,
+    pub color_matrix: Option<[[f64; 3]; 3]>,
+    /// How the fit went (informative; ignored when applying).
+    #[serde(default)]
+    pub fit: RadiometryFit,
+}
+
+/// Diagnostics of a radiometry fit, stored in the file.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RadiometryFit {
+    pub flat_fields: usize,
+    /// RMS relative residual of the flat fields after the falloff fit.
+    pub falloff_rms: Option<f64>,
+    /// RMS relative error of the 24 corrected checker patches.
+    pub color_rms: Option<f64>,
+    /// The chart's white radiance when given (absolute calibration), else null.
+    pub white: Option<f64>,
+}
+
+impl CameraRadiometry {
+    /// Reads and validates a camera radiometry file (naming it in every error).
+    pub fn load(path: &Path) -> Result<CameraRadiometry, ImagingError> {
+        let bad = |msg: String| ImagingError::Radiometry { path: path.to_path_buf(), msg };
+        let text = std::fs::read_to_string(path).map_err(|e| ImagingError::io(path, e))?;
+        let r: CameraRadiometry = serde_json::from_str(&text).map_err(|e| bad(format!("not a camera radiometry file: {e}")))?;
+        r.validate().map_err(bad)?;
+        Ok(r)
+    }
+
+    fn validate(&self) -> Result<(), String> {
+        if self.width == 0 || self.height == 0 {
+            return Err(format!("image size {}x{} is empty", self.width, self.height));
+        }
+        if self.falloff.is_none() && self.color_matrix.is_none() {
+            return Err("holds neither a falloff nor a colour matrix".into());
+        }
+        if let Some(f) = &self.falloff {
+            if ![f.a2, f.a4, f.a6].iter().all(|v| v.is_finite()) {
+                return Err("falloff coefficients are not finite".into());
+            }
+            if let Some(r) = (0..=100).map(|i| i as f64 / 100.0).find(|r| !(f.eval(*r) > 1e-3)) {
+                return Err(format!("falloff f(r) is not positive at r = {r} (f = {})", f.eval(r)));
+            }
+        }
+        if let Some(m) = &self.color_matrix {
+            if !m.iter().flatten().all(|v| v.is_finite()) {
+                return Err("colour matrix holds a non-finite value".into());
+            }
+            if Matrix3::from_fn(|r, c| m[r][c]).determinant().abs() < 1e-9 {
+                return Err("colour matrix is singular".into());
+            }
+        }
+        Ok(())
+    }
+
+    /// Writes the file atomically (pretty JSON).
+    pub fn save(&self, path: &Path) -> Result<(), ImagingError> {
+        self.validate()
+            .map_err(|msg| ImagingError::Radiometry { path: path.to_path_buf(), msg })?;
+        let text = serde_json::to_string_pretty(self).expect("radiometry serialises");
+        crate::io::write_text_atomic(path, &(text + "\n"))
+    }
+
+    /// Whether an image of `w` x `h` has the calibration's aspect ratio (within 1 %).
+    pub fn fits_size(&self, w: usize, h: usize) -> bool {
+        let a = (w as f64 / h as f64) / (self.width as f64 / self.height as f64);
+        (a - 1.0).abs() < 0.01
+    }
+
+    /// Corrects a photograph in place: falloff divided out, then the colour matrix.
+    /// Negative values the matrix may produce (noise in dark pixels) are clamped to zero.
+    pub fn apply(&self, img: &mut HdrImage) {
+        if let Some(f) = &self.falloff {
+            f.apply(img);
+        }
+        if let Some(m) = &self.color_matrix {
+            apply_color_matrix(img, m);
+            for p in &mut img.pixels {
+                *p = p.map(|c| c.max(0.0));
+            }
+        }
+    }
+}
+
+/// The inputs of a radiometry fit: flat fields (any number, possibly none) and a photographed
+/// colour checker with its four patch-grid corners (optional).
+pub struct RadiometryInputs<'a> {
+    pub flats: &'a [HdrImage],
+    pub checker: Option<(&'a HdrImage, [DVec2; 4])>,
+    /// Radiance of a perfect white under the chart's light (absolute calibration), if known.
+    pub white: Option<f64>,
+}
+
+/// Fits the falloff (from the flat fields) and the colour matrix (from the checker, after the
+/// falloff is divided out of it). At least one of the two must be given; all images must have
+/// the same size.
+pub fn fit_radiometry(inputs: &RadiometryInputs) -> Result<CameraRadiometry, ImagingError> {
+    let size = match (inputs.flats.first(), &inputs.checker) {
+        (Some(f), _) => (f.width, f.height),
+        (None, Some((c, _))) => (c.width, c.height),
+        (None, None) => {
+            return Err(ImagingError::InvalidInput("radiometry needs flat fields, a colour checker, or both".into()))
+        }
+    };
+    if let Some((c, _)) = &inputs.checker {
+        if (c.width, c.height) != size {
+            return Err(ImagingError::InvalidInput(format!(
+                "the colour checker photograph is {}x{} but the flat fields are {}x{}",
+                c.width, c.height, size.0, size.1
+            )));
+        }
+    }
+    let (falloff, falloff_rms) = match inputs.flats.is_empty() {
+        true => (None, None),
+        false => fit_falloff_flats(inputs.flats).map(|(f, rms)| (Some(f), Some(rms)))?,
+    };
+    let (color_matrix, color_rms) = match &inputs.checker {
+        None => (None, None),
+        Some((img, corners)) => {
+            let mut img = (*img).clone();
+            if let Some(f) = &falloff {
+                f.apply(&mut img);
+            }
+            let patches = sample_checker(&img, corners)?;
+            let (m, rms) = fit_checker_matrix(&patches, inputs.white)?;
+            (Some(m), Some(rms))
+        }
+    };
+    Ok(CameraRadiometry {
+        width: size.0,
+        height: size.1,
+        falloff,
+        color_matrix,
+        fit: RadiometryFit { flat_fields: inputs.flats.len(), falloff_rms, color_rms, white: inputs.white },
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -207,6 +575,106 @@ mod tests {
             assert!((p[0] / 0.7 - 1.0).abs() < 0.006, "{p:?}");
         }
         assert!(Falloff::fit(&[(0.0, 1.0)]).is_err());
+    }
+
+    fn noisy(img: &mut HdrImage, rel: f64, seed: u64) {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+        for p in &mut img.pixels {
+            *p = p.map(|c| (c as f64 * (1.0 + rng.gen_range(-rel..rel))) as f32);
+        }
+    }
+
+    /// Flat fields and a checker photographed through a vignetting lens with colour crosstalk:
+    /// the fit recovers the falloff and the inverse of the crosstalk, and the calibration file
+    /// corrects a photograph back to the truth.
+    #[test]
+    fn radiometry_fit_recovers_falloff_and_inverse_crosstalk() {
+        let truth = Falloff { a2: -0.4, a4: 0.1, a6: -0.05 };
+        let mix = [[0.8, 0.15, 0.05], [0.1, 0.75, 0.15], [0.05, 0.2, 0.7]];
+        let camera = |img: &mut HdrImage| {
+            truth.vignette(img);
+            apply_color_matrix(img, &mix);
+        };
+        let (w, h) = (160, 120);
+        let mut flats = Vec::new();
+        for (k, level) in [0.4f32, 0.9].iter().enumerate() {
+            let mut f = HdrImage::new(w, h);
+            f.pixels.iter_mut().for_each(|p| *p = [*level; 3]);
+            camera(&mut f);
+            noisy(&mut f, 0.003, k as u64);
+            flats.push(f);
+        }
+        let corners = [DVec2::new(20.0, 18.0), DVec2::new(145.0, 25.0), DVec2::new(140.0, 105.0), DVec2::new(15.0, 98.0)];
+        let white = 2.5;
+        let mut checker = render_checker(w, h, &corners, white, 0.3).unwrap();
+        camera(&mut checker);
+        noisy(&mut checker, 0.003, 9);
+        let cal = fit_radiometry(&RadiometryInputs { flats: &flats, checker: Some((&checker, corners)), white: Some(white) }).unwrap();
+        let f = cal.falloff.unwrap();
+        for r in [0.0, 0.5, 0.8, 1.0] {
+            assert!((f.eval(r) - truth.eval(r)).abs() < 3e-3, "falloff at {r}: {} vs {}", f.eval(r), truth.eval(r));
+        }
+        let inv = Matrix3::from_fn(|r, c| mix[r][c]).try_inverse().unwrap();
+        let m = cal.color_matrix.unwrap();
+        for r in 0..3 {
+            for c in 0..3 {
+                assert!((m[r][c] - inv[(r, c)]).abs() < 0.03, "matrix {m:?} vs inverse {inv}");
+            }
+        }
+        assert!(cal.fit.color_rms.unwrap() < 0.03 && cal.fit.falloff_rms.unwrap() < 0.003, "{:?}", cal.fit);
+        // a photograph through the same camera is corrected back to within 1 %
+        let mut scene = HdrImage::new(w, h);
+        for (i, p) in scene.pixels.iter_mut().enumerate() {
+            *p = [0.2 + 0.5 * (i % w) as f32 / w as f32, 0.6, 0.1 + 0.6 * (i / w) as f32 / h as f32];
+        }
+        let mut photo = scene.clone();
+        camera(&mut photo);
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("radiometry.json");
+        cal.save(&file).unwrap();
+        let back = CameraRadiometry::load(&file).unwrap();
+        let (bm, cm) = (back.color_matrix.unwrap(), cal.color_matrix.unwrap());
+        assert!(bm.iter().flatten().zip(cm.iter().flatten()).all(|(a, b)| (a - b).abs() < 1e-12), "JSON round trip");
+        assert_eq!(back.falloff, cal.falloff);
+        back.apply(&mut photo);
+        for (a, b) in photo.pixels.iter().zip(&scene.pixels) {
+            for c in 0..3 {
+                assert!((a[c] / b[c] - 1.0).abs() < 0.02, "{a:?} vs {b:?}");
+            }
+        }
+        // without the white radiance the matrix keeps the grey patches' luminance
+        let rel = fit_radiometry(&RadiometryInputs { flats: &flats, checker: Some((&checker, corners)), white: None }).unwrap();
+        let cm = rel.color_matrix.unwrap();
+        let g = [0.3, 0.3, 0.3];
+        let mixed = mat_vec(&mix, &g);
+        assert!((luminance(&mat_vec(&cm, &mixed)) / luminance(&mixed) - 1.0).abs() < 0.03);
+    }
+
+    #[test]
+    fn radiometry_rejects_bad_inputs_and_files() {
+        assert!(fit_radiometry(&RadiometryInputs { flats: &[], checker: None, white: None }).is_err());
+        let flats = [HdrImage::new(10, 10), HdrImage::new(12, 10)];
+        assert!(fit_falloff_flats(&flats).is_err());
+        // a chart outside the image
+        let img = HdrImage::new(40, 30);
+        let far = [DVec2::new(100.0, 100.0), DVec2::new(160.0, 100.0), DVec2::new(160.0, 140.0), DVec2::new(100.0, 140.0)];
+        assert!(sample_checker(&img, &far).is_err());
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("r.json");
+        for bad in [
+            "{",
+            r#"{"width": 4, "height": 3, "falloff": null, "color_matrix": null}"#,
+            r#"{"width": 4, "height": 3, "falloff": {"a2": -2.0, "a4": 0.0, "a6": 0.0}, "color_matrix": null}"#,
+            r#"{"width": 4, "height": 3, "falloff": null, "color_matrix": [[1,0,0],[0,1,0],[0,0,0]]}"#,
+            r#"{"width": 4, "height": 3, "falloff": null, "color_matrix": [[1,0,0],[0,1,0],[0,0,1]], "extra": 1}"#,
+        ] {
+            std::fs::write(&p, bad).unwrap();
+            let e = CameraRadiometry::load(&p).unwrap_err().to_string();
+            assert!(e.contains("r.json"), "{e}");
+        }
+        std::fs::write(&p, r#"{"width": 4, "height": 3, "falloff": null, "color_matrix": [[1,0,0],[0,1,0],[0,0,1]]}"#).unwrap();
+        let ok = CameraRadiometry::load(&p).unwrap();
+        assert!(ok.fits_size(400, 300) && !ok.fits_size(400, 400));
     }
 
     #[test]
