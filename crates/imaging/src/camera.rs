@@ -187,7 +187,10 @@ impl CameraToWorld {
 /// front of both); `None` when no point is. The reprojection error of an estimated pose
 /// against the true one.
 pub fn reprojection_rms(a: &Camera, b: &Camera, points: &[DVec3]) -> Option<f64> {
-    let d2: Vec<f64> = points.iter().filter_map(|p| Some(a.project(*p)?.distance_squared(b.project(*p)?))).collect();
+    let d2: Vec<f64> = points
+        .iter()
+        .filter_map(|p| Some(a.project(*p)?.distance_squared(b.project(*p)?)))
+        .collect();
     (!d2.is_empty()).then(|| (d2.iter().sum::<f64>() / d2.len() as f64).sqrt())
 }
 
