@@ -5,7 +5,6 @@
 //! and the solver loads, per voxel, only the levels that voxel's solve needs.
 
 use crate::ReflectError;
-use glam::{Vec2, Vec3};
 use igi_geometry::atlas::{build_atlas, AtlasOptions};
 use igi_geometry::{SiteStore, TriMesh, VoxelId};
 use igi_imaging::HdrImage;
