@@ -279,7 +279,7 @@ mod tests {
         let diag = [Vec3::new(2.0, 1.0, 4.0), Vec3::new(1.0, 3.0, 0.5)];
         let mut x = vec![Vec3::ZERO; 2];
         conjugate_gradients(
-            &mut |v, o| {
+            &mut |v: &[Vec3], o: &mut [Vec3]| {
                 o[0] = v[0] * diag[0];
                 o[1] = v[1] * diag[1];
             },

@@ -13,6 +13,8 @@
 //! Grid points are the covered texels of an `igi-geometry` atlas of the mesh (standing in for
 //! the paper's base-mesh parameterisation). Never depends on the solver (`igi-reflect`).
 
+#![allow(clippy::neg_cmp_op_on_partial_ord, clippy::nonminimal_bool)]
+
 pub mod build;
 pub mod data;
 pub mod field;
@@ -51,7 +53,7 @@ pub enum LightFieldError {
     BadLambda(f32),
     #[error("the codebook size must be a power of two (got {0})")]
     BadCodebookSize(usize),
-    #[error("{path}: the image is {got_w} x {got_h} but its camera is {want_w} x {want_h}")]
+    #[error("{}: the image is {got_w} x {got_h} but its camera is {want_w} x {want_h}", path.display())]
     ImageSize {
         path: PathBuf,
         got_w: usize,
@@ -59,9 +61,9 @@ pub enum LightFieldError {
         want_w: u32,
         want_h: u32,
     },
-    #[error("{path}: {msg}")]
+    #[error("{}: {msg}", path.display())]
     Format { path: PathBuf, msg: String },
-    #[error("{path}: {source}")]
+    #[error("{}: {source}", path.display())]
     Io {
         path: PathBuf,
         #[source]

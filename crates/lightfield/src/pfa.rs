@@ -409,7 +409,7 @@ pub fn regular_simplex(q: usize) -> Vec<Vec<f32>> {
     let centred: Vec<Vec<f32>> = (0..k)
         .map(|i| {
             (0..k)
-                .map(|j| if i == j { 1.0 } else { 0.0 } - 1.0 / k as f32)
+                .map(|j| (if i == j { 1.0 } else { 0.0 }) - 1.0 / k as f32)
                 .collect()
         })
         .collect();

@@ -331,7 +331,7 @@ pub fn load(dir: &Path) -> Result<(SurfaceLightField, TriMesh), LightFieldError>
                 .map(|c| c.to_vec())
                 .collect();
             let wide = k > 1 << 16;
-            let b = read(dir, "indices.bin", if wide { 4 } else { 2 } * p)?;
+            let b = read(dir, "indices.bin", (if wide { 4 } else { 2 }) * p)?;
             let index: Vec<u32> = if wide {
                 b.chunks(4)
                     .map(|c| u32::from_le_bytes(c.try_into().unwrap()))

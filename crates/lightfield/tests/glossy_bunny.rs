@@ -24,7 +24,7 @@ fn synth() -> &'static Synth {
 }
 
 fn prepare(s: &Synth, keep: impl Fn(Vec3) -> bool) -> Prepared {
-    let rt = RtScene::new(&[(&s.atlas.mesh.positions, &s.atlas.mesh.indices)]).unwrap();
+    let rt = RtScene::new(&[(s.atlas.mesh.positions.as_slice(), s.atlas.mesh.indices.as_slice())]).unwrap();
     let views: Vec<View> = s
         .views
         .iter()

@@ -86,7 +86,7 @@ pub fn make(n_views: usize, held_out_dirs: &[Vec3], size: u32, spp: u32, truth_s
     let atlas = build_atlas(
         &mesh,
         AtlasOptions {
-            resolution: 128,
+            resolution: 96,
             gutter: 2,
         },
     )
