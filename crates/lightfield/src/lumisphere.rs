@@ -204,7 +204,7 @@ impl Octahedron {
                 weights: [1.0, 0.0, 0.0],
             };
         }
-        if fa + fb <= 1.0 {
+        if fa + fb <= 1.0 || i + j + 2 > n {
             let ws = [1.0 - fa - fb, fa, fb];
             Bary {
                 vertices: [v(i, j), v(i + 1, j), v(i, j + 1)],
