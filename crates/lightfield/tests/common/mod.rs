@@ -86,8 +86,8 @@ pub fn make(n_views: usize, held_out_dirs: &[Vec3], size: u32, spp: u32, truth_s
     let atlas = build_atlas(
         &mesh,
         AtlasOptions {
-            resolution: 96,
-            gutter: 2,
+            resolution: 192,
+            gutter: 1,
         },
     )
     .expect("atlas");
