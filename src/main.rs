@@ -52,6 +52,9 @@ enum Command {
     Sample(cmd::solve::SampleArgs),
     /// Export a recovered site as PLY, OBJ or a Mitsuba 3 scene.
     Export(cmd::solve::ExportArgs),
+    /// Surface light fields (Wood et al. 2000): render a stored field, edit it.
+    #[command(subcommand)]
+    Slf(cmd::slf::SlfCmd),
     /// The embedded default: a procedural site photographed under three skies, solved, re-lit.
     Demo(cmd::demo::DemoArgs),
 }
@@ -73,6 +76,7 @@ fn main() {
         Command::Sample(a) => cmd::solve::run_sample(a, &ctx),
         Command::Export(a) => cmd::solve::run_export(a, &ctx),
         Command::Demo(a) => cmd::demo::run(a, &ctx),
+        Command::Slf(c) => cmd::slf::run(c, &ctx),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

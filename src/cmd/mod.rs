@@ -8,4 +8,5 @@ pub mod hdr;
 pub mod prepare;
 pub mod probe;
 pub mod render;
+pub mod slf;
 pub mod solve;

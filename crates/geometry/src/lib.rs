@@ -13,6 +13,8 @@
 //!   voxels share bit-identical boundary vertices).
 //! - [`atlas`]: per-voxel texture atlases (projected charts, shelf packing) and the world
 //!   position / normal texel caches.
+//! - [`texels`]: the covered texels of an atlas (texel centres on the surface) and the
+//!   dilation of texel values into neighbours (hole filling, gutters).
 //! - [`levels`]: multiresolution levels by meshoptimizer edge collapse with the voxel faces locked.
 //! - [`store`]: `prepare` writes a site folder; [`store::SiteStore`] loads "this voxel high,
 //!   neighbours medium, the rest low".
@@ -32,6 +34,7 @@ pub mod points;
 pub mod procedural;
 pub mod repair;
 pub mod store;
+pub mod texels;
 pub mod voxel;
 
 pub use error::GeometryError;

@@ -9,53 +9,7 @@
 
 use glam::Vec3;
 
-/// Grows `known` values into `target` texels that are not yet known, ring by ring (8-neighbour
-/// mean of known texels). Returns how many texels were filled.
-pub fn dilate(
-    values: &mut [Vec3],
-    known: &mut [bool],
-    target: &[bool],
-    res: usize,
-    rings: usize,
-) -> usize {
-    let mut filled = 0;
-    for _ in 0..rings {
-        let prev = known.to_vec();
-        let mut changed = false;
-        for y in 0..res {
-            for x in 0..res {
-                let i = y * res + x;
-                if prev[i] || !target[i] {
-                    continue;
-                }
-                let (mut s, mut n) = (Vec3::ZERO, 0.0f32);
-                for dy in -1i64..=1 {
-                    for dx in -1i64..=1 {
-                        let (xx, yy) = (x as i64 + dx, y as i64 + dy);
-                        if xx < 0 || yy < 0 || xx >= res as i64 || yy >= res as i64 {
-                            continue;
-                        }
-                        let j = yy as usize * res + xx as usize;
-                        if prev[j] {
-                            s += values[j];
-                            n += 1.0;
-                        }
-                    }
-                }
-                if n > 0.0 {
-                    values[i] = s / n;
-                    known[i] = true;
-                    filled += 1;
-                    changed = true;
-                }
-            }
-        }
-        if !changed {
-            break;
-        }
-    }
-    filled
-}
+pub use igi_geometry::texels::dilate;
 
 /// Applies the fill rule to one part's albedo atlas. `seen[i]`: texel i got a value from the
 /// photos; `covered[i]`: texel centre on the surface; `gutter[i]`: dilated border texel.
