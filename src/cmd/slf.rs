@@ -43,15 +43,24 @@ pub fn run(c: SlfCmd, ctx: &Ctx) -> anyhow::Result<()> {
 
 fn render(a: RenderArgs, _ctx: &Ctx) -> anyhow::Result<()> {
     if !(a.bias > 0.0 && a.bias < 1.0) || !(a.white > 0.0 && a.white.is_finite()) {
-        anyhow::bail!("--bias must lie in (0, 1) and --white be positive (got {} and {})", a.bias, a.white);
+        anyhow::bail!(
+            "--bias must lie in (0, 1) and --white be positive (got {} and {})",
+            a.bias,
+            a.white
+        );
     }
     let camera = igi_imaging::Camera::load(&a.camera)?;
-    let (field, stored) = igi_lightfield::store::load(&a.slf_dir).with_context(|| format!("reading {}", a.slf_dir.display()))?;
+    let (field, stored) = igi_lightfield::store::load(&a.slf_dir)
+        .with_context(|| format!("reading {}", a.slf_dir.display()))?;
     let mesh = match &a.mesh {
         Some(p) => {
             let mut m = igi_geometry::read_mesh(p)?;
             if m.positions.len() != stored.positions.len() || m.indices != stored.indices {
-                anyhow::bail!("{}: not a deformed copy of {} (vertex count or triangles differ)", p.display(), a.slf_dir.join("mesh.ply").display());
+                anyhow::bail!(
+                    "{}: not a deformed copy of {} (vertex count or triangles differ)",
+                    p.display(),
+                    a.slf_dir.join("mesh.ply").display()
+                );
             }
             if m.uvs.is_none() {
                 m.uvs = stored.uvs.clone();
@@ -62,14 +71,29 @@ fn render(a: RenderArgs, _ctx: &Ctx) -> anyhow::Result<()> {
         None => stored,
     };
     let t = std::time::Instant::now();
-    let (mut img, alpha) = field.render(&mesh, &camera, &RenderSlfOptions { bias: a.bias, white: a.white })?;
+    let (mut img, alpha) = field.render(
+        &mesh,
+        &camera,
+        &RenderSlfOptions {
+            bias: a.bias,
+            white: a.white,
+        },
+    )?;
     let seconds = t.elapsed().as_secs_f64();
     img.valid = alpha.iter().map(|a| *a > 0.5).collect();
     igi_imaging::write_exr(&a.output, &img)?;
     if a.json {
-        print_json(&serde_json::json!({ "seconds": seconds, "width": img.width, "height": img.height }))?;
+        print_json(
+            &serde_json::json!({ "seconds": seconds, "width": img.width, "height": img.height }),
+        )?;
     } else {
-        println!("rendered {} x {} in {:.3} s -> {}", img.width, img.height, seconds, a.output.display());
+        println!(
+            "rendered {} x {} in {:.3} s -> {}",
+            img.width,
+            img.height,
+            seconds,
+            a.output.display()
+        );
     }
     Ok(())
 }

@@ -181,12 +181,27 @@ mod tests {
     #[test]
     fn bad_options_are_refused_before_any_work() {
         let o = BuildOptions::default();
-        assert!(matches!(o.validate(Method::Pfa { q: 0 }), Err(LightFieldError::BadQ(0))));
-        assert!(matches!(o.validate(Method::Fq { codewords: 300 }), Err(LightFieldError::BadCodebookSize(300))));
-        assert!(o.validate(Method::Fq { codewords: 256 }).is_ok() && o.validate(Method::Pfa { q: 2 }).is_ok());
+        assert!(matches!(
+            o.validate(Method::Pfa { q: 0 }),
+            Err(LightFieldError::BadQ(0))
+        ));
+        assert!(matches!(
+            o.validate(Method::Fq { codewords: 300 }),
+            Err(LightFieldError::BadCodebookSize(300))
+        ));
+        assert!(
+            o.validate(Method::Fq { codewords: 256 }).is_ok()
+                && o.validate(Method::Pfa { q: 2 }).is_ok()
+        );
         for l in [0.0, -1.0, f32::NAN, f32::INFINITY] {
             let bad = BuildOptions { lambda: l, ..o };
-            assert!(matches!(bad.validate(Method::Fair), Err(LightFieldError::BadLambda(_))), "lambda {l}");
+            assert!(
+                matches!(
+                    bad.validate(Method::Fair),
+                    Err(LightFieldError::BadLambda(_))
+                ),
+                "lambda {l}"
+            );
         }
     }
 }

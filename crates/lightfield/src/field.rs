@@ -141,8 +141,8 @@ impl SurfaceLightField {
         opts: &RenderSlfOptions,
     ) -> Result<(HdrImage, Vec<f32>), LightFieldError> {
         let (uvs, normals) = render_attributes(mesh)?;
-        let scene =
-            RtScene::new(&[(mesh.positions.as_slice(), mesh.indices.as_slice())]).map_err(LightFieldError::Render)?;
+        let scene = RtScene::new(&[(mesh.positions.as_slice(), mesh.indices.as_slice())])
+            .map_err(LightFieldError::Render)?;
         let (w, h) = (camera.width as usize, camera.height as usize);
         let rows: Vec<Vec<([f32; 3], f32)>> = (0..h)
             .into_par_iter()

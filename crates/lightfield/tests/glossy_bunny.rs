@@ -24,7 +24,11 @@ fn synth() -> &'static Synth {
 }
 
 fn prepare(s: &Synth, keep: impl Fn(Vec3) -> bool) -> Prepared {
-    let rt = RtScene::new(&[(s.atlas.mesh.positions.as_slice(), s.atlas.mesh.indices.as_slice())]).unwrap();
+    let rt = RtScene::new(&[(
+        s.atlas.mesh.positions.as_slice(),
+        s.atlas.mesh.indices.as_slice(),
+    )])
+    .unwrap();
     let views: Vec<View> = s
         .views
         .iter()
@@ -99,28 +103,45 @@ fn compression_of_pfa_q2_and_quantisation_after_storage() {
     let prep = prepare(s, |_| true);
     let dir = tempfile::tempdir().unwrap();
     let mut rows = Vec::new();
-    for (name, m) in [("fair", Method::Fair), ("pfa2", Method::Pfa { q: 2 }), ("pfa5", Method::Pfa { q: 5 }), ("fq256", Method::Fq { codewords: 256 })] {
+    for (name, m) in [
+        ("fair", Method::Fair),
+        ("pfa2", Method::Pfa { q: 2 }),
+        ("pfa5", Method::Pfa { q: 5 }),
+        ("fq256", Method::Fq { codewords: 256 }),
+    ] {
         let f = prep.fit(m, &opts()).unwrap();
         let out = dir.path().join(name);
-        let rep = igi_lightfield::store::save(&out, &f, &s.atlas.mesh, serde_json::json!({})).unwrap();
+        let rep =
+            igi_lightfield::store::save(&out, &f, &s.atlas.mesh, serde_json::json!({})).unwrap();
         let (loaded, mesh) = igi_lightfield::store::load(&out).unwrap();
         assert_eq!(mesh.indices, s.atlas.mesh.indices);
         let p_mem = held_out_psnr(s, &f, &[0, 1, 2]);
         let p_disk = held_out_psnr(s, &loaded, &[0, 1, 2]);
         eprintln!("{name}: colour {} B, geometry {} B, ratio {:.1}:1, PSNR {p_mem:.2} dB (stored 8-bit: {p_disk:.2} dB)", rep.colour_bytes, rep.geometry_bytes, rep.compression_ratio);
-        assert!((p_mem - p_disk).abs() < 1.0, "{name}: 8-bit storage costs {:.2} dB", p_mem - p_disk);
+        assert!(
+            (p_mem - p_disk).abs() < 1.0,
+            "{name}: 8-bit storage costs {:.2} dB",
+            p_mem - p_disk
+        );
         rows.push((name, rep.compression_ratio, p_disk));
     }
     let pfa2 = rows.iter().find(|r| r.0 == "pfa2").unwrap();
     assert!(pfa2.1 >= 70.0, "PFA q=2 compression {:.1}:1", pfa2.1);
-    assert!(!dir.path().join("pfa2.partial").exists(), "nothing half-written left behind");
+    assert!(
+        !dir.path().join("pfa2.partial").exists(),
+        "nothing half-written left behind"
+    );
 }
 
 #[test]
 fn missing_directions_around_a_held_out_view() {
     let s = synth();
     let d0 = held_out_dirs()[0];
-    let full = held_out_psnr(s, &prepare(s, |_| true).fit(Method::Fair, &opts()).unwrap(), &[0]);
+    let full = held_out_psnr(
+        s,
+        &prepare(s, |_| true).fit(Method::Fair, &opts()).unwrap(),
+        &[0],
+    );
     let mut res = Vec::new();
     for deg in [10.0f32, 20.0] {
         let cos = deg.to_radians().cos();
@@ -132,18 +153,49 @@ fn missing_directions_around_a_held_out_view() {
         assert!(removed > 0, "the cone must remove views");
         res.push((fair, pfa3));
     }
-    assert!(res[0].0 >= full - 1.0, "10 degrees: fairing loses {:.2} dB", full - res[0].0);
-    assert!(res[1].1 >= res[1].0, "20 degrees: PFA q=3 {:.2} dB vs fairing {:.2} dB", res[1].1, res[1].0);
+    assert!(
+        res[0].0 >= full - 1.0,
+        "10 degrees: fairing loses {:.2} dB",
+        full - res[0].0
+    );
+    assert!(
+        res[1].1 >= res[1].0,
+        "20 degrees: PFA q=3 {:.2} dB vs fairing {:.2} dB",
+        res[1].1,
+        res[1].0
+    );
 }
 
 #[test]
 fn bias_one_half_is_the_identity() {
     let s = synth();
-    let f = prepare(s, |_| true).fit(Method::Pfa { q: 2 }, &opts()).unwrap();
+    let f = prepare(s, |_| true)
+        .fit(Method::Pfa { q: 2 }, &opts())
+        .unwrap();
     let cam = &s.held_out[0].0;
-    let (a, _) = f.render(&s.atlas.mesh, cam, &RenderSlfOptions::default()).unwrap();
-    let (b, _) = f.render(&s.atlas.mesh, cam, &RenderSlfOptions { bias: 0.5, white: 3.0 }).unwrap();
+    let (a, _) = f
+        .render(&s.atlas.mesh, cam, &RenderSlfOptions::default())
+        .unwrap();
+    let (b, _) = f
+        .render(
+            &s.atlas.mesh,
+            cam,
+            &RenderSlfOptions {
+                bias: 0.5,
+                white: 3.0,
+            },
+        )
+        .unwrap();
     assert_eq!(a.pixels, b.pixels);
-    let (c, _) = f.render(&s.atlas.mesh, cam, &RenderSlfOptions { bias: 0.3, white: 3.0 }).unwrap();
+    let (c, _) = f
+        .render(
+            &s.atlas.mesh,
+            cam,
+            &RenderSlfOptions {
+                bias: 0.3,
+                white: 3.0,
+            },
+        )
+        .unwrap();
     assert_ne!(a.pixels, c.pixels, "another bias changes the picture");
 }
