@@ -33,7 +33,9 @@ pub use error::GeometryError;
 pub use mesh::TriMesh;
 pub use obj::{read_obj, write_obj};
 pub use ply::{read_ply, write_ply};
-pub use store::{prepare, Manifest, PrepareOptions, SiteStore};
+pub use store::{
+    check_prepare_output, prepare, prepare_run, Manifest, PrepareOptions, PrepareRun, SiteStore,
+};
 pub use voxel::{VoxelGrid, VoxelId};
 
 use std::path::Path;

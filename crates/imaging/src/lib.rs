@@ -14,6 +14,8 @@
 //! * [`radiometry`]: lens falloff (vignetting) polynomial fit and 3x3 colour matrices.
 //! * [`planar`]: pure-Rust homography (normalised DLT) and the pose of a plane from four or
 //!   more points (no OpenCV needed).
+//! * [`run`]: run manifests (`run.json`): input fingerprints and result-changing options, so
+//!   a resumed command never mixes two runs' work.
 //! * [`plot`]: font registration for plotters (diagnostic plots).
 //! * [`cv`]: OpenCV-backed calibration, PnP, homography and ArUco detection (cargo feature
 //!   `opencv`; without it the same functions return [`ImagingError::NoOpenCv`]).
@@ -34,8 +36,10 @@ pub mod latlong;
 pub mod planar;
 pub mod plot;
 pub mod radiometry;
+pub mod run;
 
 pub use camera::{Camera, CameraToWorld, Distortion, Intrinsics, WorldToCamera};
 pub use error::ImagingError;
 pub use image::HdrImage;
 pub use io::{read_image, write_exr, write_hdr, write_png_tonemapped};
+pub use run::{Fingerprint, RunManifest};
