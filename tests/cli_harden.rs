@@ -21,7 +21,7 @@ fn solve_args<'a>(survey: &'a str, out: &'a str, extra: &[&'a str]) -> Vec<&'a s
         "-o",
         out,
         "--atlas",
-        "16",
+        "32",
         "--spp",
         "2",
         "--indirect",
@@ -316,7 +316,7 @@ fn huge_camera_and_tiny_voxels_are_refused_before_allocating() {
     let bunny = shared_data("meshes/stanford_bunny/reconstruction/bun_zipper_res4.ply");
     let t0 = std::time::Instant::now();
     let o = igi().run(&["prepare", s(&bunny), "-o", s(&site), "--voxel", "1e-6"]);
-    assert_failed(&o, "1e-6", "--max-memory", d.path(), &[cam.clone()]);
+    assert_failed(&o, "voxels", "--max-memory", d.path(), &[cam.clone()]);
     assert!(t0.elapsed().as_secs_f64() < 10.0);
 }
 
