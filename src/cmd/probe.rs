@@ -261,6 +261,20 @@ pub fn run(a: ProbeArgs, ctx: &Ctx) -> anyhow::Result<()> {
     else {
         bail!("igi probe needs --camera, --board and -o (or a subcommand)");
     };
+    // the lighting file and its siblings: checked before any work
+    if output
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .as_deref()
+        != Some("toml")
+    {
+        bail!(
+            "{}: -o names the lighting file written (.toml); its maps are written beside it",
+            output.display()
+        );
+    }
+    igi_imaging::io::check_output_file(output)?;
     let pb = ctx.progress(4, "probe");
     let camera = Camera::load(camera_path)?;
     let spec = BoardSpec::load(board_path)?;

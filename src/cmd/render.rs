@@ -35,6 +35,20 @@ pub struct RenderArgs {
     pub output: PathBuf,
 }
 
+fn check_image_name(path: &Path) -> anyhow::Result<()> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    if !matches!(ext.as_deref(), Some("exr" | "hdr" | "png")) {
+        bail!(
+            "{}: unknown output format (use .exr, .hdr or .png)",
+            path.display()
+        );
+    }
+    Ok(())
+}
+
 fn write_any(path: &Path, img: &igi_imaging::HdrImage) -> anyhow::Result<()> {
     let ext = path
         .extension()
@@ -69,12 +83,21 @@ pub fn run(a: RenderArgs, ctx: &Ctx) -> anyhow::Result<()> {
     if a.spp == 0 {
         bail!("--spp must be at least 1");
     }
+    // the outputs are checked before the render, not after it
+    for out in std::iter::once(&a.output).chain(a.stderr.as_ref()) {
+        check_image_name(out)?;
+        igi_imaging::io::check_output_file(out)?;
+    }
     let t0 = Instant::now();
     let (scene, scene_lighting) = Scene::load(&scene_file)?;
     let lighting = match &a.lighting {
         Some(p) => Lighting::load(p)?,
         None => scene_lighting,
     };
+    lighting.check_lights_something()?;
+    for w in lighting.warnings() {
+        eprintln!("warning: {w}");
+    }
     let camera = igi_imaging::Camera::load(&a.camera)?;
     let load_s = t0.elapsed().as_secs_f64();
     tracing::info!(

@@ -52,9 +52,16 @@ fn parse_err(path: &Path, line: usize, msg: impl Into<String>) -> BrdfError {
     }
 }
 
+/// The largest BRDF value a sample may have (sr^-1): a mirror-like lobe of exponent 10^5
+/// peaks near 10^4; larger values can only be unit mistakes and would overflow the fit.
+pub const MAX_BRDF: f32 = 1e6;
+
 /// Non-empty, non-comment lines with their 1-based line numbers.
 fn lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
-    text.lines()
+    // a UTF-8 byte-order mark (spreadsheet exports) is not part of the first column's name
+    text.strip_prefix('\u{feff}')
+        .unwrap_or(text)
+        .lines()
         .enumerate()
         .map(|(i, l)| (i + 1, l.trim()))
         .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'))
@@ -185,6 +192,13 @@ pub fn parse_samples(text: &str, path: &Path) -> Result<Vec<BrdfSample>, BrdfErr
                     path,
                     line,
                     format!("negative reflectance {}", v[k]),
+                ));
+            }
+            if v[k] > MAX_BRDF {
+                return Err(parse_err(
+                    path,
+                    line,
+                    format!("BRDF value {} is beyond {MAX_BRDF:e} sr^-1 (no measured surface comes near; check the units)", v[k]),
                 ));
             }
         }

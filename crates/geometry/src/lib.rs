@@ -43,7 +43,9 @@ pub use mesh::TriMesh;
 pub use obj::{read_obj, write_obj};
 pub use ply::{read_ply, write_ply};
 pub use points::{read_points_ply, write_points_ply, PointCloud};
-pub use store::{prepare, Manifest, PrepareOptions, SiteStore};
+pub use store::{
+    check_prepare_output, prepare, prepare_run, Manifest, PrepareOptions, PrepareRun, SiteStore,
+};
 pub use voxel::{VoxelGrid, VoxelId};
 
 use std::path::Path;

@@ -276,6 +276,10 @@ pub fn check_rotation(r: &DMat3) -> Result<(), String> {
     Ok(())
 }
 
+/// The most pixels a camera file may have: 2^29 (536 Mpixel); an HDR image that size needs
+/// 6.5 GiB. Larger sizes are refused when the camera is read, before any allocation.
+pub const MAX_CAMERA_PIXELS: u64 = 1 << 29;
+
 impl Camera {
     /// Camera without distortion and identity pose.
     pub fn pinhole(width: u32, height: u32, fx: f64, fy: f64, cx: f64, cy: f64) -> Self {
@@ -308,6 +312,14 @@ impl Camera {
         };
         let width = dim(&j.width, "width")?;
         let height = dim(&j.height, "height")?;
+        if width as u64 * height as u64 > MAX_CAMERA_PIXELS {
+            return Err(err(format!(
+                "{width}x{height} is {} Mpixel, beyond the limit of {} Mpixel (an image that size needs more than {} GiB)",
+                width as u64 * height as u64 / 1_000_000,
+                MAX_CAMERA_PIXELS / 1_000_000,
+                MAX_CAMERA_PIXELS * 13 >> 30
+            )));
+        }
         let k = json_matrix3(&j.K, "K").map_err(err)?;
         let kr = rows_of(&k);
         if kr[0][1] != 0.0 || kr[1][0] != 0.0 || kr[2] != [0.0, 0.0, 1.0] {

@@ -39,6 +39,25 @@ pub enum ImagingError {
     },
     #[error("invalid input: {0}")]
     InvalidInput(String),
+    #[error("{}: is a file, not a folder (cannot write into {})", path.display(), wanted.display())]
+    NotAFolder { path: PathBuf, wanted: PathBuf },
+    #[error("{}: output folder does not exist", path.display())]
+    NoFolder { path: PathBuf },
+    #[error("{}: cannot write into this folder", path.display())]
+    NotWritable {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{}: holds a run with a different {what} (there: {was}; now: {now}); use --restart to start afresh, or another output folder", path.display())]
+    RunMismatch {
+        path: PathBuf,
+        what: String,
+        was: String,
+        now: String,
+    },
+    #[error("{}: unreadable run manifest: {msg}; use --restart to start afresh", path.display())]
+    BadManifest { path: PathBuf, msg: String },
     #[error("built without opencv: rebuild with --features opencv")]
     NoOpenCv,
     #[error("opencv: {0}")]

@@ -481,7 +481,8 @@ pub fn recover_response(
     }
     if !(p.lambda >= 0.0 && p.lambda.is_finite()) || p.samples < 2 {
         return Err(ImagingError::InvalidInput(format!(
-            "bad response parameters {p:?}"
+            "response recovery: smoothness (lambda) must be finite and >= 0 and samples at least 2, got lambda {} and {} samples",
+            p.lambda, p.samples
         )));
     }
     let mut g: [Vec<f64>; 3] = Default::default();

@@ -18,12 +18,7 @@ pub fn write_atomic(
         .ok_or_else(|| ImagingError::InvalidInput(format!("{}: not a file path", path.display())))?
         .to_string_lossy()
         .into_owned();
-    if !dir.is_dir() {
-        return Err(ImagingError::io(
-            path,
-            std::io::Error::new(std::io::ErrorKind::NotFound, "output folder does not exist"),
-        ));
-    }
+    check_folder_path(&dir)?;
     // Keep the extension last so extension-sniffing writers still work.
     static COUNTER: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
     let n = COUNTER.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
@@ -34,6 +29,15 @@ pub fn write_atomic(
         n,
         ext_of(path)
     ));
+    // create it first, so an unwritable folder is reported as such (not as an encoder error)
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&tmp)
+        .map_err(|e| ImagingError::NotWritable {
+            path: dir.clone(),
+            source: e,
+        })?;
     let result = write(&tmp);
     match result {
         Ok(()) => std::fs::rename(&tmp, path).map_err(|e| {
@@ -45,6 +49,147 @@ pub fn write_atomic(
             Err(e)
         }
     }
+}
+
+/// Checks that `dir` is, or can become, a writable folder, without creating anything: an
+/// existing `dir` must be a folder we can create files in; otherwise its nearest existing
+/// ancestor must be a writable folder (not a file). Call it before the first byte of work.
+pub fn check_output_folder(dir: &Path) -> Result<(), ImagingError> {
+    let dir = if dir.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        dir
+    };
+    let mut at = dir;
+    loop {
+        if at.exists() {
+            break;
+        }
+        match at.parent() {
+            Some(p) if !p.as_os_str().is_empty() => at = p,
+            _ => {
+                at = Path::new(".");
+                break;
+            }
+        }
+    }
+    if !at.is_dir() {
+        return Err(ImagingError::NotAFolder {
+            path: at.to_path_buf(),
+            wanted: dir.to_path_buf(),
+        });
+    }
+    let probe = at.join(format!(".igi-probe.tmp{}-0.", std::process::id()));
+    match std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&probe)
+    {
+        Ok(_) => {
+            let _ = std::fs::remove_file(&probe);
+            Ok(())
+        }
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => Ok(()),
+        Err(e) => Err(ImagingError::NotWritable {
+            path: at.to_path_buf(),
+            source: e,
+        }),
+    }
+}
+
+/// Checks, before any work, that a file can be written at `path`: its folder exists, is a
+/// folder and is writable, and `path` is not itself a folder.
+pub fn check_output_file(path: &Path) -> Result<(), ImagingError> {
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    check_folder_path(&dir)?;
+    if path.is_dir() {
+        return Err(ImagingError::InvalidInput(format!(
+            "{}: is a folder, not a file name",
+            path.display()
+        )));
+    }
+    check_output_folder(&dir)
+}
+
+/// The folder a file is written into must exist and be a folder.
+fn check_folder_path(dir: &Path) -> Result<(), ImagingError> {
+    if dir.is_dir() {
+        return Ok(());
+    }
+    let mut at = dir;
+    while let Some(p) = at.parent() {
+        if p.as_os_str().is_empty() {
+            break;
+        }
+        if p.exists() && !p.is_dir() {
+            return Err(ImagingError::NotAFolder {
+                path: p.to_path_buf(),
+                wanted: dir.to_path_buf(),
+            });
+        }
+        at = p;
+    }
+    if dir.exists() {
+        return Err(ImagingError::NotAFolder {
+            path: dir.to_path_buf(),
+            wanted: dir.to_path_buf(),
+        });
+    }
+    Err(ImagingError::NoFolder {
+        path: dir.to_path_buf(),
+    })
+}
+
+/// Removes the temporary files that [`write_atomic`] left in `dir` (and, with `recursive`, in
+/// its sub-folders) when its process was killed: names `.NAME.tmpPID-N.EXT` whose process is no
+/// longer running (judged by `/proc/PID`; where there is no `/proc`, every such file counts as
+/// dead, except those of this process). Returns how many were removed.
+pub fn remove_dead_temps(dir: &Path, recursive: bool) -> Result<usize, ImagingError> {
+    let mut removed = 0;
+    let entries = match std::fs::read_dir(dir) {
+        Ok(e) => e,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(0),
+        Err(e) => return Err(ImagingError::io(dir, e)),
+    };
+    for entry in entries {
+        let entry = entry.map_err(|e| ImagingError::io(dir, e))?;
+        let path = entry.path();
+        let kind = entry.file_type().map_err(|e| ImagingError::io(&path, e))?;
+        if kind.is_dir() {
+            if recursive {
+                removed += remove_dead_temps(&path, true)?;
+            }
+            continue;
+        }
+        let name = entry.file_name().to_string_lossy().into_owned();
+        if let Some(pid) = temp_owner(&name) {
+            let alive =
+                pid == std::process::id() || Path::new("/proc").join(pid.to_string()).exists();
+            if !alive {
+                std::fs::remove_file(&path).map_err(|e| ImagingError::io(&path, e))?;
+                removed += 1;
+            }
+        }
+    }
+    Ok(removed)
+}
+
+/// The process id in a [`write_atomic`] temp name `.NAME.tmpPID-N.EXT`, if `name` is one.
+fn temp_owner(name: &str) -> Option<u32> {
+    if !name.starts_with('.') {
+        return None;
+    }
+    let at = name.rfind(".tmp")?;
+    let rest = &name[at + 4..];
+    let (pid, rest) = rest.split_once('-')?;
+    let n = rest.split('.').next()?;
+    if pid.is_empty() || n.is_empty() || !n.bytes().all(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    pid.parse().ok()
 }
 
 /// Write text to `path` atomically (see [`write_atomic`]).
@@ -516,6 +661,25 @@ mod tests {
         let q = dir.path().join("out.exr");
         assert!(write_exr(&q, &im).is_err());
         assert!(!q.exists());
+    }
+
+    #[test]
+    fn dead_temps_are_removed_and_live_ones_kept() {
+        let dir = tempfile::tempdir().unwrap();
+        let sub = dir.path().join("voxels/0_0_0");
+        std::fs::create_dir_all(&sub).unwrap();
+        // pid 4194305 exceeds Linux's pid_max (2^22), so it is never running
+        let dead = sub.join(".level0.ply.tmp4194305-3.ply");
+        let mine = sub.join(format!(".a.exr.tmp{}-0.exr", std::process::id()));
+        let other = sub.join(".notes.tmp-draft");
+        for p in [&dead, &mine, &other] {
+            std::fs::write(p, "x").unwrap();
+        }
+        assert_eq!(remove_dead_temps(dir.path(), false).unwrap(), 0);
+        assert_eq!(remove_dead_temps(dir.path(), true).unwrap(), 1);
+        assert!(!dead.exists() && mine.exists() && other.exists());
+        assert_eq!(temp_owner(".x.tmp12-7."), Some(12));
+        assert_eq!(temp_owner("x.tmp12-7.exr"), None);
     }
 
     #[test]

@@ -18,6 +18,8 @@
 //!   against its folder.
 //! * [`mask`]: binary masks (threshold, disk dilation and erosion, hole filling up to an area,
 //!   frame contact, IoU).
+//! * [`run`]: run manifests (`run.json`): input fingerprints and result-changing options, so
+//!   a resumed command never mixes two runs' work.
 //! * [`plot`]: font registration for plotters (diagnostic plots).
 //! * [`cv`]: OpenCV-backed calibration, PnP, homography and ArUco detection (cargo feature
 //!   `opencv`; without it the same functions return [`ImagingError::NoOpenCv`]).
@@ -40,6 +42,7 @@ pub mod planar;
 pub mod plot;
 pub mod radiometry;
 pub mod rig;
+pub mod run;
 
 pub use camera::{Camera, CameraToWorld, Distortion, Intrinsics, WorldToCamera};
 pub use error::ImagingError;
@@ -49,3 +52,4 @@ pub use io::{
 };
 pub use mask::Mask;
 pub use rig::Rig;
+pub use run::{Fingerprint, RunManifest};

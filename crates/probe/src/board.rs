@@ -200,6 +200,23 @@ impl BoardSpec {
                     )));
                 }
             }
+            // two real spheres cannot interpenetrate: overlapping ones are a typo in the file
+            for (k, o) in j.spheres[..i].iter().enumerate() {
+                for (a, b) in [(s.center, o.center), (s.center_board, o.center_board)] {
+                    if let (Some(a), Some(b)) = (a, b) {
+                        let d = DVec3::from_array(a).distance(DVec3::from_array(b));
+                        if d < s.radius + o.radius {
+                            return Err(bad(format!(
+                                "spheres {k} ({}) and {i} ({}) overlap: centres {d:.4} apart, radii {} + {}",
+                                o.kind.name(),
+                                s.kind.name(),
+                                o.radius,
+                                s.radius
+                            )));
+                        }
+                    }
+                }
+            }
             spec.spheres[slot] = Some(SphereSpec {
                 center_cam: s.center.map(DVec3::from_array),
                 center_board: s.center_board.map(DVec3::from_array),

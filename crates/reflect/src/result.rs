@@ -452,18 +452,22 @@ pub fn sample_albedo(
         .fold(f32::INFINITY, f32::min)
         * 0.5)
         .clamp(1e-3, 0.05);
-    Ok(points
+    // a point farther than this from every texel has no albedo that could mean anything
+    let far = res
+        .parts
         .iter()
-        .map(|&(p, n)| {
+        .map(|p| 20.0 * p.texel_size as f32)
+        .fold(0.5f32, f32::max);
+    points
+        .iter()
+        .enumerate()
+        .map(|(k, &(p, n))| {
             let n = n.normalize_or(Vec3::Z);
             for d in [n, -n] {
                 if let Some(h) = scene.intersect(p + d * reach, -d) {
                     if h.t <= 2.0 * reach {
                         let sp = scene.surface_point(&h);
-                        return scene.objects[sp.object as usize]
-                            .material
-                            .brdf_at(sp.uv)
-                            .rho_d;
+                        return Ok(scene.objects[sp.object as usize].material.brdf_at(sp.uv).rho_d);
                     }
                 }
             }
@@ -477,9 +481,19 @@ pub fn sample_albedo(
                     }
                 }
             }
-            best.1
+            if !(best.0.sqrt() <= far) {
+                return Err(ReflectError::Invalid(format!(
+                    "point {} ({}, {}, {}) is {:.3e} m from the nearest surface of the result (at most {far:.2} m)",
+                    k + 1,
+                    p.x,
+                    p.y,
+                    p.z,
+                    best.0.sqrt()
+                )));
+            }
+            Ok(best.1)
         })
-        .collect())
+        .collect()
 }
 
 /// Reads `x,y,z,nx,ny,nz` rows (a header row is allowed) for [`sample_albedo`].
@@ -487,7 +501,12 @@ pub fn read_points(path: &Path) -> Result<Vec<(Vec3, Vec3)>, ReflectError> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| ReflectError::file(path, format!("cannot read: {e}")))?;
     let mut out = Vec::new();
-    for (ln, line) in text.lines().enumerate() {
+    for (ln, line) in text
+        .strip_prefix('\u{feff}')
+        .unwrap_or(&text)
+        .lines()
+        .enumerate()
+    {
         let line = line.trim();
         if line.is_empty() || line.starts_with('#') {
             continue;

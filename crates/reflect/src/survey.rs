@@ -35,6 +35,8 @@ pub struct PhotoSpec {
 pub struct Survey {
     /// The folder holding `survey.toml`.
     pub root: PathBuf,
+    /// The survey file itself.
+    pub file: PathBuf,
     pub meshes: Vec<PathBuf>,
     /// A prepared site (`igi prepare` output) in place of meshes: `[site] prepared = "site.igi"`,
     /// or a `mesh` that names such a folder.
@@ -184,6 +186,7 @@ impl Survey {
         };
         Ok(Survey {
             root,
+            file,
             meshes,
             prepared,
             photos,

@@ -58,9 +58,9 @@ impl Environment {
         let mut texels = Vec::with_capacity(img.pixels.len());
         for (i, p) in img.pixels.iter().enumerate() {
             let v = Vec3::from_array(*p) * scale;
-            if !v.is_finite() || v.min_element() < 0.0 {
+            if !v.is_finite() || v.min_element() < 0.0 || v.max_element() > MAX_RADIANCE {
                 return Err(RenderError::Invalid(format!(
-                    "environment map pixel (row {}, column {}) is {:?}: radiance must be finite and >= 0",
+                    "environment map pixel (row {}, column {}) is {:?} (times scale {scale}): radiance must be finite, >= 0 and at most {MAX_RADIANCE:e}",
                     i / img.width,
                     i % img.width,
                     p
@@ -243,9 +243,12 @@ impl Sun {
                 "sun direction {direction:?} is not a non-zero finite vector"
             )));
         }
-        if !radiance.is_finite() || radiance.min_element() < 0.0 {
+        if !radiance.is_finite()
+            || radiance.min_element() < 0.0
+            || radiance.max_element() > MAX_RADIANCE
+        {
             return Err(RenderError::Invalid(format!(
-                "sun radiance {radiance:?} must be finite and >= 0"
+                "sun radiance {radiance:?} must be finite, >= 0 and at most {MAX_RADIANCE:e} (larger values overflow f32 in the estimates)"
             )));
         }
         if !(angular_diameter_deg > 0.0 && angular_diameter_deg < 180.0) {
@@ -306,6 +309,10 @@ impl Sun {
         }
     }
 }
+
+/// The largest radiance a light may have: products of radiance, solid angles, albedos and
+/// path weights stay inside `f32` (3.4e38) with a wide margin.
+pub const MAX_RADIANCE: f32 = 1e15;
 
 /// Environment plus sun. Either may be absent (black sky / hidden sun).
 #[derive(Clone, Debug, Default)]
@@ -380,7 +387,45 @@ impl Lighting {
                 .map_err(|err| file_err(format!("[sun]: {err}")))?,
             ),
         };
+        if environment.is_none() && sun.is_none() {
+            return Err(file_err(
+                "names neither [environment] nor [sun]: nothing would light the scene".into(),
+            ));
+        }
         Ok(Lighting { environment, sun })
+    }
+
+    /// Refuses lighting that can only render black: none at all (a scene file without
+    /// `lighting`, and no other lighting given).
+    pub fn check_lights_something(&self) -> Result<(), RenderError> {
+        if self.environment.is_none() && self.sun.is_none() {
+            return Err(RenderError::Invalid(
+                "no lighting: the scene names no lighting file and none was given (--lighting)"
+                    .into(),
+            ));
+        }
+        Ok(())
+    }
+
+    /// What may not mean what the user wants, for stderr and reports: a sun below the horizon
+    /// (it lights nothing above the ground plane), an environment that is black everywhere.
+    pub fn warnings(&self) -> Vec<String> {
+        let mut w = Vec::new();
+        if let Some(s) = &self.sun {
+            if s.direction.z < 0.0 {
+                let elev = s.direction.z.asin().to_degrees();
+                w.push(format!("the sun is below the horizon (elevation {elev:.1} deg): it lights only what faces downward"));
+            }
+            if s.radiance.max_element() == 0.0 {
+                w.push("the sun has zero radiance".into());
+            }
+        }
+        if let Some(e) = &self.environment {
+            if !e.is_nonzero() {
+                w.push("the environment map is black everywhere".into());
+            }
+        }
+        w
     }
 
     /// A uniform sky of radiance `l` and no sun.
@@ -610,9 +655,30 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("missing.toml"), "{e}");
-        // No sections: black sky, no sun.
+        // No sections: nothing would light the scene, an error (it was a silent black render).
         std::fs::write(&p, "").unwrap();
-        let l = Lighting::load(&p).unwrap();
-        assert!(l.environment.is_none() && l.sun.is_none());
+        let e = Lighting::load(&p).unwrap_err().to_string();
+        assert!(
+            e.contains("noon.toml") && e.contains("neither [environment] nor [sun]"),
+            "{e}"
+        );
+        // a sun of 1e30 overflows the estimates: refused; one below the horizon is a warning
+        std::fs::write(
+            &p,
+            "[sun]\ndirection = [0, 0, 1]\nradiance = [1e30, 1, 1]\n",
+        )
+        .unwrap();
+        let e = Lighting::load(&p).unwrap_err().to_string();
+        assert!(e.contains("noon.toml") && e.contains("at most 1e15"), "{e}");
+        std::fs::write(
+            &p,
+            "[sun]\ndirection = [0, 1, -0.5]\nradiance = [1, 1, 1]\n",
+        )
+        .unwrap();
+        let w = Lighting::load(&p).unwrap().warnings();
+        assert!(
+            w.len() == 1 && w[0].contains("below the horizon (elevation -26.6 deg)"),
+            "{w:?}"
+        );
     }
 }

@@ -538,7 +538,10 @@ struct LobeMapSpec {
 }
 
 #[derive(Deserialize)]
-#[serde(untagged)]
+#[serde(
+    untagged,
+    expecting = "an albedo: three numbers [r, g, b] or the path of a texture image"
+)]
 enum AlbedoSpec {
     Constant([f32; 3]),
     Texture(PathBuf),
