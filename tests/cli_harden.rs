@@ -309,14 +309,20 @@ fn huge_camera_and_tiny_voxels_are_refused_before_allocating() {
         "huge.json",
         "beyond the limit",
         d.path(),
-        &[cam.clone()],
+        std::slice::from_ref(&cam),
     );
 
     let site = d.path().join("site.igi");
     let bunny = shared_data("meshes/stanford_bunny/reconstruction/bun_zipper_res4.ply");
     let t0 = std::time::Instant::now();
     let o = igi().run(&["prepare", s(&bunny), "-o", s(&site), "--voxel", "1e-6"]);
-    assert_failed(&o, "voxels", "--max-memory", d.path(), &[cam.clone()]);
+    assert_failed(
+        &o,
+        "voxels",
+        "--max-memory",
+        d.path(),
+        std::slice::from_ref(&cam),
+    );
     assert!(t0.elapsed().as_secs_f64() < 10.0);
 }
 
@@ -428,10 +434,11 @@ fn render_refuses_black_lighting_and_warns_of_a_sunken_sun() {
     copy_dir(&src, &sc);
     let cam = sc.join("camera.json");
     let out = d.path().join("o.exr");
+    let scene = sc.join("scene.toml");
     let render = |extra: &[&str]| {
         let mut a = vec![
             "render",
-            s(&sc.join("scene.toml")),
+            s(&scene),
             "--camera",
             s(&cam),
             "--spp",
@@ -610,7 +617,13 @@ fn probe_refuses_overlapping_spheres_and_a_non_toml_output() {
         "-o",
         s(&toml),
     ]);
-    assert_failed(&o, "overlap.json", "overlap", d.path(), &[board.clone()]);
+    assert_failed(
+        &o,
+        "overlap.json",
+        "overlap",
+        d.path(),
+        std::slice::from_ref(&board),
+    );
 }
 
 #[test]

@@ -95,11 +95,14 @@ unsafe impl GlobalAlloc for CountingAlloc {
 }
 
 /// One parser under test: where its input goes and how it is called.
+/// Prepares a target's work folder (from the fixtures folder) and returns its seed corpus.
+type SetupFn = fn(&Path, &Path) -> Result<Vec<Vec<u8>>, String>;
+
 pub struct Target {
     pub name: &'static str,
     /// File name of the input inside the target's work folder (may be in a sub-folder).
     input: &'static str,
-    setup: fn(&Path, &Path) -> Result<Vec<Vec<u8>>, String>,
+    setup: SetupFn,
     run: fn(&Path) -> Result<(), String>,
 }
 

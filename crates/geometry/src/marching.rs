@@ -94,7 +94,7 @@ fn triangulate_case(case: usize) -> Vec<[u8; 3]> {
     let mut tris = Vec::new();
     let mut starts: Vec<usize> = next.keys().copied().collect();
     starts.sort_unstable();
-    let mut used = vec![false; 12];
+    let mut used = [false; 12];
     for s in starts {
         if used[s] {
             continue;

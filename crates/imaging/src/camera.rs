@@ -317,7 +317,7 @@ impl Camera {
                 "{width}x{height} is {} Mpixel, beyond the limit of {} Mpixel (an image that size needs more than {} GiB)",
                 width as u64 * height as u64 / 1_000_000,
                 MAX_CAMERA_PIXELS / 1_000_000,
-                MAX_CAMERA_PIXELS * 13 >> 30
+                (MAX_CAMERA_PIXELS * 13) >> 30
             )));
         }
         let k = json_matrix3(&j.K, "K").map_err(err)?;
