@@ -26,10 +26,11 @@ fn solve_args<'a>(survey: &'a str, out: &'a str, extra: &[&'a str]) -> Vec<&'a s
         "2",
         "--indirect",
         "0",
-        "--iterations",
-        "1",
     ];
     v.extend_from_slice(extra);
+    if !extra.contains(&"--iterations") {
+        v.extend_from_slice(&["--iterations", "1"]);
+    }
     v
 }
 
@@ -136,7 +137,7 @@ fn prepare_resume_refuses_another_source_mesh() {
         "-o",
         s(&out),
         "--atlas",
-        "16",
+        "64",
         "--voxel",
         "20",
     ]);
@@ -147,7 +148,7 @@ fn prepare_resume_refuses_another_source_mesh() {
         "-o",
         s(&out),
         "--atlas",
-        "16",
+        "64",
         "--voxel",
         "20",
     ]);
@@ -166,7 +167,7 @@ fn prepare_resume_refuses_another_source_mesh() {
         "-o",
         s(&out),
         "--atlas",
-        "32",
+        "128",
         "--voxel",
         "20",
     ]);
@@ -177,7 +178,7 @@ fn prepare_resume_refuses_another_source_mesh() {
         "-o",
         s(&out),
         "--atlas",
-        "16",
+        "64",
         "--voxel",
         "20",
         "--restart",
@@ -201,7 +202,7 @@ fn prepare_checks_before_writing_anything() {
         "-o",
         s(&out),
         "--atlas",
-        "16",
+        "64",
         "--voxel",
         "20",
     ]);
@@ -364,7 +365,7 @@ fn prepare_resume_removes_dead_temps_and_manifests_are_deterministic() {
             "--voxel",
             "0.05",
             "--atlas",
-            "32",
+            "128",
         ]
         .iter()
         .map(|x| x.to_string())
