@@ -3,35 +3,12 @@
 //! output file left behind) on bad input.
 
 use igi_imaging::{read_image, write_exr, write_png_tonemapped, Camera, Distortion, HdrImage};
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use igi_testkit::{assert_failed, s, Cli};
+use std::path::Path;
+use std::process::Output;
 
 fn igi(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_igi"))
-        .arg("--quiet")
-        .args(args)
-        .output()
-        .expect("run igi")
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-/// Fails unless the command failed, stderr names `file` and contains `problem`, and `dir`
-/// holds nothing but `keep` (no output, no temp file).
-fn assert_failed(out: &Output, file: &str, problem: &str, dir: &Path, keep: &[PathBuf]) {
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "expected failure, stderr: {err}");
-    assert!(err.contains(file), "stderr does not name {file}: {err}");
-    assert!(
-        err.contains(problem),
-        "stderr does not say {problem:?}: {err}"
-    );
-    for e in std::fs::read_dir(dir).unwrap() {
-        let p = e.unwrap().path();
-        assert!(keep.contains(&p), "left behind: {}", p.display());
-    }
+    Cli::new(env!("CARGO_BIN_EXE_igi")).run(args)
 }
 
 fn gray_png(path: &Path, w: usize, h: usize, v: f32) {
