@@ -175,47 +175,13 @@ pub fn check_prepare_output(
     opts.check()?;
     igi_imaging::io::check_output_folder(out)?;
     let manifest = run.manifest(opts, has_terrain)?;
-    if !out.exists() || run.restart {
-        return Ok(manifest);
-    }
-    match RunManifest::read(out)? {
-        Some(old) => manifest.check_resume(&old, out)?,
-        None => {
-            let empty = out
-                .read_dir()
-                .map(|mut d| d.next().is_none())
-                .map_err(|e| GeometryError::io(out, e))?;
-            if out.join("settings.json").exists() {
-                return Err(GeometryError::format(
-                    out,
-                    "holds a site prepared without a run manifest (older igi); use --restart to prepare it afresh",
-                ));
-            }
-            if !empty {
-                return Err(GeometryError::format(
-                    out,
-                    "exists and is not a site folder; choose another output",
-                ));
-            }
-        }
-    }
+    manifest.check_folder(out, run.restart, "settings.json", "site")?;
     Ok(manifest)
 }
 
 /// Removes what an earlier prepare wrote into `out` (only the names a prepare writes).
 fn remove_site_entries(out: &Path) -> Result<(), GeometryError> {
-    for name in SITE_ENTRIES {
-        let p = out.join(name);
-        let r = if p.is_dir() {
-            std::fs::remove_dir_all(&p)
-        } else if p.exists() {
-            std::fs::remove_file(&p)
-        } else {
-            Ok(())
-        };
-        r.map_err(|e| GeometryError::io(&p, e))?;
-    }
-    Ok(())
+    Ok(igi_imaging::run::remove_entries(out, &SITE_ENTRIES)?)
 }
 
 const FORMAT: &str = "igi-site-1";

@@ -56,6 +56,8 @@ pub enum ImagingError {
         was: String,
         now: String,
     },
+    #[error("{}: {msg}", path.display())]
+    NotARunFolder { path: PathBuf, msg: String },
     #[error("{}: unreadable run manifest: {msg}; use --restart to start afresh", path.display())]
     BadManifest { path: PathBuf, msg: String },
     #[error("built without opencv: rebuild with --features opencv")]

@@ -92,6 +92,32 @@ pub fn fnv1a64(bytes: &[u8]) -> u64 {
     h
 }
 
+/// What [`RunManifest::check_folder`] found in an output folder.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FolderState {
+    /// Nothing of an earlier run (or `--restart`): start afresh.
+    Fresh,
+    /// An identical run's manifest: continue its work.
+    Resume,
+}
+
+/// Removes the entries `names` of `dir` that a command writes (files or folders), as a
+/// `--restart` does; other entries are left alone.
+pub fn remove_entries(dir: &Path, names: &[&str]) -> Result<(), ImagingError> {
+    for name in names {
+        let p = dir.join(name);
+        let r = if p.is_dir() {
+            std::fs::remove_dir_all(&p)
+        } else if p.exists() {
+            std::fs::remove_file(&p)
+        } else {
+            Ok(())
+        };
+        r.map_err(|e| ImagingError::io(&p, e))?;
+    }
+    Ok(())
+}
+
 /// What a resumable run was started with (see the module overview).
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct RunManifest {
@@ -145,6 +171,47 @@ impl RunManifest {
     pub fn write(&self, dir: &Path) -> Result<(), ImagingError> {
         let text = serde_json::to_string_pretty(self).expect("serialisable") + "\n";
         crate::io::write_text_atomic(&dir.join(RUN_FILE), &text)
+    }
+
+    /// Checks an existing output folder `dir` for this run (call after
+    /// [`crate::io::check_output_folder`]): a folder holding an identical manifest resumes
+    /// ([`FolderState::Resume`]), a different manifest is an error naming the difference; a
+    /// folder without a manifest must be empty, and one holding `legacy` (the result of an
+    /// older igi, which wrote no manifest) is refused with a `--restart` hint. A missing folder,
+    /// or `restart`, is [`FolderState::Fresh`]. `kind` names the folder in messages ("site").
+    pub fn check_folder(
+        &self,
+        dir: &Path,
+        restart: bool,
+        legacy: &str,
+        kind: &str,
+    ) -> Result<FolderState, ImagingError> {
+        if !dir.exists() || restart {
+            return Ok(FolderState::Fresh);
+        }
+        if let Some(old) = RunManifest::read(dir)? {
+            self.check_resume(&old, dir)?;
+            return Ok(FolderState::Resume);
+        }
+        let refuse = |msg: String| ImagingError::NotARunFolder {
+            path: dir.to_path_buf(),
+            msg,
+        };
+        if dir.join(legacy).exists() {
+            return Err(refuse(format!(
+                "holds a {kind} without a run manifest (another command or an older igi); use --restart to start afresh"
+            )));
+        }
+        let empty = dir
+            .read_dir()
+            .map(|mut d| d.next().is_none())
+            .map_err(|e| ImagingError::io(dir, e))?;
+        if !empty {
+            return Err(refuse(format!(
+                "exists and is not a {kind} folder; choose another output"
+            )));
+        }
+        Ok(FolderState::Fresh)
     }
 
     /// `Ok` when `old` (the manifest found in `dir`) was made by an identical run; otherwise
@@ -275,5 +342,48 @@ mod tests {
         let mut b = RunManifest::new("prepare");
         b.input("mesh", &g).unwrap();
         b.check_resume(&a, dir.path()).unwrap();
+    }
+
+    #[test]
+    fn folders_without_a_manifest_must_be_empty_and_restart_clears_only_our_names() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("out");
+        let mut m = RunManifest::new("solve");
+        m.option("--spp", 4);
+        let check =
+            |m: &RunManifest, restart| m.check_folder(&dir, restart, "report.json", "result");
+        assert_eq!(
+            check(&m, false).unwrap(),
+            FolderState::Fresh,
+            "missing folder"
+        );
+        std::fs::create_dir(&dir).unwrap();
+        assert_eq!(
+            check(&m, false).unwrap(),
+            FolderState::Fresh,
+            "empty folder"
+        );
+        std::fs::write(dir.join("notes.txt"), "mine").unwrap();
+        let e = check(&m, false).unwrap_err().to_string();
+        assert!(e.contains("is not a result folder"), "{e}");
+        std::fs::write(dir.join("report.json"), "{}").unwrap();
+        let e = check(&m, false).unwrap_err().to_string();
+        assert!(
+            e.contains("without a run manifest") && e.contains("--restart"),
+            "{e}"
+        );
+        assert_eq!(check(&m, true).unwrap(), FolderState::Fresh, "restart");
+        m.write(&dir).unwrap();
+        assert_eq!(check(&m, false).unwrap(), FolderState::Resume);
+        let mut other = m.clone();
+        other.option("--spp", 8);
+        let e = check(&other, false).unwrap_err().to_string();
+        assert!(
+            e.contains("option --spp") && e.contains("there: 4; now: 8"),
+            "{e}"
+        );
+        remove_entries(&dir, &["report.json", RUN_FILE, "absent"]).unwrap();
+        assert!(dir.join("notes.txt").exists() && !dir.join("report.json").exists());
+        assert!(!dir.join(RUN_FILE).exists());
     }
 }

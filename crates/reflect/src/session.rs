@@ -19,7 +19,7 @@ use crate::result::SolveResult;
 use crate::solver::SolveOptions;
 use crate::survey::{LightingSource, Survey};
 use crate::ReflectError;
-use igi_imaging::run::RUN_FILE;
+use igi_imaging::run::{FolderState, RUN_FILE};
 use igi_imaging::RunManifest;
 use std::path::{Path, PathBuf};
 
@@ -51,33 +51,8 @@ impl SolveSession {
         opts.validate()?;
         igi_imaging::io::check_output_folder(dir)?;
         let manifest = run_manifest(survey, opts)?;
-        let mut resume = false;
-        if dir.exists() && !restart {
-            match RunManifest::read(dir)? {
-                Some(old) => {
-                    manifest.check_resume(&old, dir)?;
-                    resume = dir.join("report.json").is_file();
-                }
-                None => {
-                    let empty = dir
-                        .read_dir()
-                        .map(|mut d| d.next().is_none())
-                        .map_err(|e| ReflectError::file(dir, format!("cannot read folder: {e}")))?;
-                    if dir.join("report.json").exists() {
-                        return Err(ReflectError::file(
-                            dir,
-                            "holds a result without a run manifest (an older igi, or `igi demo`); use --restart to solve afresh into it",
-                        ));
-                    }
-                    if !empty {
-                        return Err(ReflectError::file(
-                            dir,
-                            "exists and is not a result folder; choose another output",
-                        ));
-                    }
-                }
-            }
-        }
+        let state = manifest.check_folder(dir, restart, "report.json", "result")?;
+        let resume = state == FolderState::Resume && dir.join("report.json").is_file();
         Ok(SolveSession {
             dir: dir.to_path_buf(),
             manifest,
@@ -108,17 +83,7 @@ impl SolveSession {
     ) -> Result<SolveResult, ReflectError> {
         crate::solver::check_selection(&parts, opts)?;
         if self.restart {
-            for name in RESULT_ENTRIES {
-                let p = self.dir.join(name);
-                let r = if p.is_dir() {
-                    std::fs::remove_dir_all(&p)
-                } else if p.exists() {
-                    std::fs::remove_file(&p)
-                } else {
-                    Ok(())
-                };
-                r.map_err(|e| ReflectError::file(&p, format!("cannot remove: {e}")))?;
-            }
+            igi_imaging::run::remove_entries(&self.dir, &RESULT_ENTRIES)?;
         }
         std::fs::create_dir_all(&self.dir)
             .map_err(|e| ReflectError::file(&self.dir, format!("cannot create folder: {e}")))?;
