@@ -21,13 +21,16 @@ SURVEY=datasets/fixtures/survey
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 
-prepare() { "$IGI" -q prepare "$MESH" --voxel 0.02 --atlas 64 -o "$1"; }
-solve() { "$IGI" -q solve "$SURVEY" --atlas 32 --spp 4,8 --iterations 3 --tolerance 0 --indirect 1 -o "$1" >/dev/null; }
+# each runs igi by `exec`, always inside a subshell `( ... )`, so that the pid of a background
+# run is igi's own and SIGKILL reaches igi (killing a shell function's subshell would leave igi
+# running on, and the next run would then write the same folder beside it)
+prepare() { exec "$IGI" -q prepare "$MESH" --voxel 0.02 --atlas 64 -o "$1" >/dev/null; }
+solve() { exec "$IGI" -q solve "$SURVEY" --atlas 32 --spp 4,8 --iterations 3 --tolerance 0 --indirect 1 -o "$1" >/dev/null; }
 
 # seconds (float) of an uninterrupted run
 timed() {
   local t0 t1
-  t0=$(date +%s.%N); "$@"; t1=$(date +%s.%N)
+  t0=$(date +%s.%N); ( "$@" ) 2>/dev/null; t1=$(date +%s.%N)
   python3 -c "print($t1 - $t0)"
 }
 
@@ -64,7 +67,7 @@ for kind in prepare solve; do
     out="$work/$kind-$trials"
     for _ in $(seq 1 $((1 + RANDOM % 3))); do
       delay=$(python3 -c "import random; random.seed($RANDOM); print(round(random.uniform(0.02, $secs), 3))")
-      $kind "$out" 2>/dev/null &
+      ( $kind "$out" ) 2>/dev/null &
       pid=$!
       sleep "$delay"
       if kill -0 "$pid" 2>/dev/null; then
@@ -72,7 +75,7 @@ for kind in prepare solve; do
       fi
       wait "$pid" 2>/dev/null || true
     done
-    $kind "$out"
+    ( $kind "$out" ) 2>/dev/null || { echo "resume of $out failed"; exit 1; }
     compare "$kind" "$ref" "$out"
     rm -rf "$out"
   done

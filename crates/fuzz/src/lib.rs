@@ -537,13 +537,11 @@ pub fn fuzz(t: &Target, cfg: &Config) -> Result<Stats, FuzzError> {
         if i >= corpus.len() as u64 || i > 16 {
             mutate(&mut rng, &mut data, &corpus);
         }
-        std::fs::write(&input, &data).map_err(io(&input))?;
-        PEAK.store(LIVE.load(Ordering::Relaxed), Ordering::Relaxed);
-        let base = LIVE.load(Ordering::Relaxed);
-        let ti = Instant::now();
-        let r = std::panic::catch_unwind(AssertUnwindSafe(|| (t.run)(&input)));
-        let ms = ti.elapsed().as_secs_f64() * 1e3;
-        let peak = PEAK.load(Ordering::Relaxed).saturating_sub(base);
+        let Execution {
+            result: r,
+            ms,
+            peak,
+        } = execute(t, &input, &data)?;
         st.executions += 1;
         st.slowest_ms = st.slowest_ms.max(ms);
         st.peak_bytes = st.peak_bytes.max(peak);
@@ -578,6 +576,40 @@ pub fn fuzz(t: &Target, cfg: &Config) -> Result<Stats, FuzzError> {
     st.corpus = corpus.len();
     st.wall_s = t0.elapsed().as_secs_f64();
     Ok(st)
+}
+
+/// One run of a parser: its result (`Err` for a panic), time and peak heap above the start.
+pub struct Execution {
+    pub result: std::thread::Result<Result<(), String>>,
+    pub ms: f64,
+    pub peak: usize,
+}
+
+/// Writes `data` to the target's `input` file and runs the parser on it once.
+fn execute(t: &Target, input: &Path, data: &[u8]) -> Result<Execution, FuzzError> {
+    std::fs::write(input, data).map_err(io(input))?;
+    PEAK.store(LIVE.load(Ordering::Relaxed), Ordering::Relaxed);
+    let base = LIVE.load(Ordering::Relaxed);
+    let ti = Instant::now();
+    let result = std::panic::catch_unwind(AssertUnwindSafe(|| (t.run)(input)));
+    Ok(Execution {
+        result,
+        ms: ti.elapsed().as_secs_f64() * 1e3,
+        peak: PEAK.load(Ordering::Relaxed).saturating_sub(base),
+    })
+}
+
+/// Runs target `t` once on the saved input `file` (a crash, hang or memory case), in a work
+/// folder prepared as [`fuzz`] prepares it, so that a finding can be reproduced and debugged.
+pub fn replay(t: &Target, cfg: &Config, file: &Path) -> Result<Execution, FuzzError> {
+    let work = cfg.work.join(t.name);
+    std::fs::create_dir_all(&work).map_err(io(&work))?;
+    (t.setup)(&cfg.fixtures, &work).map_err(|msg| FuzzError::Setup {
+        target: t.name.into(),
+        msg,
+    })?;
+    let data = std::fs::read(file).map_err(io(file))?;
+    execute(t, &work.join(t.input), &data)
 }
 
 fn save(dir: &Path, t: &Target, kind: &str, n: u64, data: &[u8]) -> Result<(), FuzzError> {

@@ -1,8 +1,9 @@
 //! `igi-fuzz TARGET|all [--runs N] [--seed S] [--work DIR] [--crashes DIR] [--fixtures DIR]`:
 //! fuzz parsers for a fixed number of executions and print one line of counts per target.
 //! Exit status 1 when any target crashed, hung (> 1 s) or went over 2 GiB of heap.
+//! `igi-fuzz TARGET --replay FILE`: run the parser once on a saved input and say what happened.
 
-use igi_fuzz::{fuzz, target, targets, Config, CountingAlloc};
+use igi_fuzz::{fuzz, replay, target, targets, Config, CountingAlloc};
 use std::path::PathBuf;
 
 #[global_allocator]
@@ -17,7 +18,7 @@ fn main() {
             .cloned()
     };
     let Some(which) = args.first().cloned() else {
-        eprintln!("usage: igi-fuzz TARGET|all [--runs N] [--seed S] [--work DIR] [--crashes DIR] [--fixtures DIR]");
+        eprintln!("usage: igi-fuzz TARGET|all [--runs N] [--seed S] [--work DIR] [--crashes DIR] [--fixtures DIR] | igi-fuzz TARGET --replay FILE");
         std::process::exit(2);
     };
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
@@ -31,6 +32,10 @@ fn main() {
         time_limit_ms: 1000.0,
         memory_limit: 2 << 30,
     };
+    if let Some(file) = value("--replay") {
+        replay_one(&which, &cfg, &PathBuf::from(file));
+        return;
+    }
     let list = if which == "all" {
         targets()
     } else {
@@ -72,4 +77,28 @@ fn main() {
     if failed {
         std::process::exit(1);
     }
+}
+
+/// `--replay`: one execution, its outcome, time and peak heap; exit 1 when it failed a limit.
+fn replay_one(which: &str, cfg: &Config, file: &std::path::Path) {
+    let run = target(which).and_then(|t| replay(&t, cfg, file));
+    let e = match run {
+        Ok(e) => e,
+        Err(e) => {
+            eprintln!("error: {e}");
+            std::process::exit(2);
+        }
+    };
+    let outcome = match &e.result {
+        Ok(Ok(())) => "accepted".to_string(),
+        Ok(Err(msg)) => format!("error: {msg}"),
+        Err(_) => "PANIC".to_string(),
+    };
+    println!(
+        "{outcome}\n{:.1} ms, peak heap {:.1} MiB",
+        e.ms,
+        e.peak as f64 / (1 << 20) as f64
+    );
+    let failed = e.result.is_err() || e.ms > cfg.time_limit_ms || e.peak > cfg.memory_limit;
+    std::process::exit(i32::from(failed));
 }

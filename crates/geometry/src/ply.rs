@@ -377,8 +377,22 @@ pub(crate) type ExtraProperties = Vec<(String, Vec<f32>)>;
 
 /// Read a PLY file without validating the mesh (a point cloud has no faces); also returns the
 /// vertex element's other scalar properties.
+/// How many elements of `el` to reserve room for: its declared count, but never more than a
+/// file of `file_len` bytes can hold (each element takes at least its fixed-size fields in
+/// binary, or a digit and a separator per property in ASCII), so a header that lies about its
+/// counts cannot make the reader allocate beyond the file's size.
+fn capacity_for(el: &Element, enc: Encoding, file_len: u64) -> usize {
+    let min_bytes = match enc {
+        Encoding::Ascii => 2 * el.props.len(),
+        _ => el.props.iter().map(|p| p.list.unwrap_or(p.ty).size()).sum(),
+    };
+    let fits = file_len / min_bytes.max(1) as u64;
+    el.count.min(usize::try_from(fits).unwrap_or(usize::MAX))
+}
+
 pub(crate) fn read_ply_unchecked(path: &Path) -> Result<(TriMesh, ExtraProperties), GeometryError> {
     let f = std::fs::File::open(path).map_err(|e| GeometryError::io(path, e))?;
+    let file_len = f.metadata().map_err(|e| GeometryError::io(path, e))?.len();
     let mut r = BufReader::with_capacity(1 << 20, f);
     let header = read_header(&mut r, path)?;
     let mut src = match header.enc {
@@ -415,10 +429,11 @@ pub(crate) fn read_ply_unchecked(path: &Path) -> Result<(TriMesh, ExtraPropertie
                 let has_n = l.nrm.iter().all(Option::is_some);
                 let has_uv = l.uv.iter().all(Option::is_some);
                 let has_c = l.col.iter().all(Option::is_some);
-                mesh.positions.reserve_exact(el.count);
-                let mut normals = Vec::with_capacity(if has_n { el.count } else { 0 });
-                let mut uvs = Vec::with_capacity(if has_uv { el.count } else { 0 });
-                let mut colors = Vec::with_capacity(if has_c { el.count } else { 0 });
+                let cap = capacity_for(el, header.enc, file_len);
+                mesh.positions.reserve_exact(cap);
+                let mut normals = Vec::with_capacity(if has_n { cap } else { 0 });
+                let mut uvs = Vec::with_capacity(if has_uv { cap } else { 0 });
+                let mut colors = Vec::with_capacity(if has_c { cap } else { 0 });
                 let fixed = el.props.iter().all(|p| p.list.is_none());
                 let mut vals = vec![0.0f64; el.props.len()];
                 let offsets: Vec<usize> = el
@@ -436,7 +451,7 @@ pub(crate) fn read_ply_unchecked(path: &Path) -> Result<(TriMesh, ExtraPropertie
                 extras = l
                     .extra
                     .iter()
-                    .map(|&k| (el.props[k].name.clone(), Vec::with_capacity(el.count)))
+                    .map(|&k| (el.props[k].name.clone(), Vec::with_capacity(cap)))
                     .collect();
                 for i in 0..el.count {
                     if fixed && enc != Encoding::Ascii {
@@ -495,7 +510,7 @@ pub(crate) fn read_ply_unchecked(path: &Path) -> Result<(TriMesh, ExtraPropertie
                     .ok_or_else(|| {
                         GeometryError::format(path, "PLY face element has no vertex_indices list")
                     })?;
-                mesh.indices.reserve(el.count);
+                mesh.indices.reserve(capacity_for(el, header.enc, file_len));
                 let mut poly: Vec<u32> = Vec::with_capacity(8);
                 for i in 0..el.count {
                     for (k, p) in el.props.iter().enumerate() {
@@ -730,6 +745,39 @@ property list uchar uint vertex_index\nproperty list uchar float texcoord\neleme
             assert_eq!(m.uvs.unwrap(), vec![[0.0, 0.5], [0.25, 0.5], [0.5, 0.5]]);
             assert_eq!(m.indices, vec![[0, 1, 2]]);
         }
+    }
+
+    #[test]
+    fn a_header_declaring_billions_of_elements_is_truncated_not_an_allocation() {
+        // found by igi-fuzz: `element vertex 2147483647` made the reader reserve 24 GiB
+        let d = tempfile::tempdir().unwrap();
+        for (name, claim, lie) in [
+            ("v.ply", "element vertex 4", "element vertex 2147483647"),
+            ("f.ply", "element face 1", "element face 2147483647"),
+        ] {
+            let p = write(d.path(), name, ASCII.replace(claim, lie).as_bytes());
+            let e = read_ply(&p).unwrap_err().to_string();
+            assert!(e.contains(name) && e.contains("truncated"), "{e}");
+        }
+        assert_eq!(
+            capacity_for(
+                &Element {
+                    name: "vertex".into(),
+                    count: usize::MAX,
+                    props: vec![
+                        Property {
+                            name: "x".into(),
+                            list: None,
+                            ty: Scalar::F32
+                        };
+                        3
+                    ],
+                },
+                Encoding::BinLe,
+                1200
+            ),
+            100
+        );
     }
 
     #[test]

@@ -276,12 +276,57 @@ fn read_with_image_crate(path: &Path) -> Result<HdrImage, ImagingError> {
     Ok(out)
 }
 
+/// The most a deflate stream (ZIP, the best-compressing EXR codec on uniform data) can shrink
+/// its input, rounded up: 1032:1.
+const MAX_EXR_COMPRESSION: u128 = 1100;
+
+/// Reads the EXR headers and refuses, before the decoder allocates anything, a file that
+/// declares more pixels than [`crate::camera::MAX_CAMERA_PIXELS`] or more uncompressed pixel
+/// bytes than its size could hold at the best compression any EXR codec reaches (a header that
+/// lies about its size would otherwise make the decoder allocate gigabytes for a 1 kB file).
+fn check_exr_header(path: &Path) -> Result<(), ImagingError> {
+    let dec = |msg: String| ImagingError::Decode {
+        path: path.to_path_buf(),
+        msg,
+    };
+    let file_len = std::fs::metadata(path)
+        .map_err(|e| ImagingError::io(path, e))?
+        .len() as u128;
+    let meta = exr::meta::MetaData::read_from_file(path, false).map_err(|e| dec(e.to_string()))?;
+    for h in meta.headers.iter() {
+        if h.deep {
+            return Err(dec("deep-data EXR files are not supported".into()));
+        }
+        let (w, hh) = (h.layer_size.0 as u128, h.layer_size.1 as u128);
+        if w * hh > crate::camera::MAX_CAMERA_PIXELS as u128 {
+            return Err(dec(format!(
+                "declares {w} x {hh} pixels, more than the {} Mpixel limit",
+                crate::camera::MAX_CAMERA_PIXELS / 1_000_000
+            )));
+        }
+        let sample_bytes: u128 = h
+            .channels
+            .list
+            .iter()
+            .map(|c| c.sample_type.bytes_per_sample() as u128)
+            .sum();
+        if w * hh * sample_bytes > MAX_EXR_COMPRESSION * file_len + (1 << 20) {
+            return Err(dec(format!(
+                "declares {w} x {hh} pixels of {} channel(s), more than a file of {file_len} bytes can hold (truncated or corrupt header)",
+                h.channels.list.len()
+            )));
+        }
+    }
+    Ok(())
+}
+
 fn read_exr(path: &Path) -> Result<HdrImage, ImagingError> {
     use exr::prelude::*;
     let dec = |msg: String| ImagingError::Decode {
         path: path.to_path_buf(),
         msg,
     };
+    check_exr_header(path)?;
     let image = read()
         .no_deep_data()
         .largest_resolution_level()
@@ -380,6 +425,7 @@ pub fn write_exr_rgba(path: &Path, img: &HdrImage, alpha: &[f32]) -> Result<(), 
 /// The alpha channel (`A`) of an EXR file, or `None` when it has none.
 pub fn read_exr_alpha(path: &Path) -> Result<Option<Vec<f32>>, ImagingError> {
     use exr::prelude::*;
+    check_exr_header(path)?;
     let image = read()
         .no_deep_data()
         .largest_resolution_level()
@@ -635,6 +681,42 @@ mod tests {
         std::fs::write(&p, b"not a png").unwrap();
         let e = read_image(&p).unwrap_err().to_string();
         assert!(e.contains("garbage.png"), "{e}");
+    }
+
+    #[test]
+    fn exr_headers_that_lie_about_their_size_are_refused_before_decoding() {
+        // found by igi-fuzz: a 660-byte file whose data window made the decoder allocate 23 GB
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("small.exr");
+        write_exr(&p, &HdrImage::new(8, 8)).unwrap();
+        let bytes = std::fs::read(&p).unwrap();
+        let key = b"dataWindow\0box2i\0";
+        let at = bytes.windows(key.len()).position(|w| w == key).unwrap() + key.len() + 4;
+        let patched = |xmax: i32, ymax: i32| {
+            let mut b = bytes.clone();
+            b[at + 8..at + 12].copy_from_slice(&xmax.to_le_bytes());
+            b[at + 12..at + 16].copy_from_slice(&ymax.to_le_bytes());
+            let q = dir.path().join(format!("lie{xmax}.exr"));
+            std::fs::write(&q, b).unwrap();
+            q
+        };
+        assert!(
+            read_image(&patched(7, 7)).is_ok(),
+            "the unpatched window reads"
+        );
+        let e = read_image(&patched(59_999, 59_999))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("lie59999.exr") && e.contains("Mpixel limit"),
+            "{e}"
+        );
+        let e = read_image(&patched(2_999, 2_999)).unwrap_err().to_string();
+        assert!(e.contains("lie2999.exr") && e.contains("can hold"), "{e}");
+        let e = read_exr_alpha(&patched(2_999, 2_999))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("can hold"), "{e}");
     }
 
     #[test]
