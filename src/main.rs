@@ -55,6 +55,9 @@ enum Command {
     /// Surface light fields (Wood et al. 2000): render a stored field, edit it.
     #[command(subcommand)]
     Slf(cmd::slf::SlfCmd),
+    /// Opacity hulls (Matusik et al. 2002): backdrops, Middlebury import, build, render.
+    #[command(subcommand)]
+    Hull(cmd::hull::HullCmd),
     /// The embedded default: a procedural site photographed under three skies, solved, re-lit.
     Demo(cmd::demo::DemoArgs),
 }
@@ -77,6 +80,7 @@ fn main() {
         Command::Export(a) => cmd::solve::run_export(a, &ctx),
         Command::Demo(a) => cmd::demo::run(a, &ctx),
         Command::Slf(c) => cmd::slf::run(c, &ctx),
+        Command::Hull(c) => cmd::hull::run(c, &ctx),
     };
     if let Err(e) = result {
         eprintln!("error: {}", error_chain(&e));

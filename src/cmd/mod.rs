@@ -5,6 +5,7 @@ pub mod camera;
 pub mod compare;
 pub mod demo;
 pub mod hdr;
+pub mod hull;
 pub mod prepare;
 pub mod probe;
 pub mod render;

@@ -43,19 +43,15 @@ pub fn pattern_file_name(lambda: f64, n: i32) -> String {
 }
 
 /// Write the six patterns (three lambdas, n = +-1) as 8-bit RGB PNGs holding the Eq. 1 values
-/// rounded to integers (what a monitor is sent), atomically. Returns the paths written.
+/// rounded to integers (what a monitor is sent), atomically, into `dir` (created after the size
+/// is checked). Returns the paths written.
 pub fn write_patterns(dir: &Path, width: usize, height: usize) -> Result<Vec<PathBuf>, HullError> {
     if width == 0 || height == 0 || width > 1 << 15 || height > 1 << 15 {
         return Err(HullError::InvalidArgument(format!(
             "backdrop size {width}x{height} must be 1..32768 on each side"
         )));
     }
-    if !dir.is_dir() {
-        return Err(HullError::io(
-            dir,
-            std::io::Error::new(std::io::ErrorKind::NotFound, "output folder does not exist"),
-        ));
-    }
+    std::fs::create_dir_all(dir).map_err(|e| HullError::io(dir, e))?;
     let mut out = Vec::new();
     for lambda in LAMBDAS {
         for n in [1, -1] {

@@ -101,8 +101,8 @@ impl Surfels {
 }
 
 /// Surfels on the vertices of `mesh` with splat radius `radius`; `depth_tolerance` is how far
-/// (metres, along the camera axis) a surfel may lie behind the depth buffer and still count as
-/// visible.
+/// (metres, along the camera axis) a surfel may lie behind the depth buffer (the farthest of the
+/// pixel centres around its projection) and still count as visible.
 pub fn make_surfels(mesh: &TriMesh, radius: f32, depth_tolerance: f64, views: &[View]) -> Surfels {
     let n = mesh.positions.len();
     let normals = mesh
@@ -147,6 +147,21 @@ pub fn make_surfels(mesh: &TriMesh, radius: f32, depth_tolerance: f64, views: &[
     }
 }
 
+/// The largest depth at the (up to four) pixel centres around image point (x, y). A point of
+/// a locally planar surface lies within the depths of the centres around it, however grazing
+/// the surface; an occluded point lies behind all of them.
+fn farthest_around(depth: &crate::raster::DepthBuffer, x: f64, y: f64) -> f32 {
+    let (w, h) = (depth.width as i64, depth.height as i64);
+    let (x0, y0) = (x.floor() as i64, y.floor() as i64);
+    let mut far = f32::NEG_INFINITY;
+    for (xi, yi) in [(x0, y0), (x0 + 1, y0), (x0, y0 + 1), (x0 + 1, y0 + 1)] {
+        if xi >= 0 && yi >= 0 && xi < w && yi < h {
+            far = far.max(depth.depth[(yi * w + xi) as usize]);
+        }
+    }
+    far
+}
+
 fn visibility(
     p: &[f32; 3],
     n: &[f32; 3],
@@ -169,7 +184,7 @@ fn visibility(
         return (false, 0.0);
     }
     let i = y as usize * depth.width + x as usize;
-    if z > depth.depth[i] as f64 + tol {
+    if z > farthest_around(depth, px.x, px.y) as f64 + tol {
         return (false, 0.0);
     }
     let a = if view.matte.valid[i] {

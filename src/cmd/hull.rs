@@ -1,6 +1,5 @@
 //! `igi hull`: opacity hulls from multi-view captures (Matusik et al. 2002).
 use crate::report::{print_json, Ctx};
-use anyhow::Context;
 use igi_opacity_hull::build::{build, load_model, BuildOptions, Stage};
 use igi_opacity_hull::render::{render, RenderOptions};
 use std::path::PathBuf;
@@ -48,17 +47,22 @@ pub struct RenderArgs {
     #[arg(short, long)]
     pub output: PathBuf,
     /// Views blended per surfel (Eq. 4).
-    #[arg(long, default_value_t = 4)]
-    pub k: usize,
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u16).range(1..))]
+    pub k: u16,
+    /// Print the timing as JSON.
+    #[arg(long)]
+    pub json: bool,
 }
 
 #[derive(clap::Args, Debug)]
 pub struct BackdropArgs {
+    /// Pattern width in display pixels.
     #[arg(long)]
     pub width: usize,
+    /// Pattern height in display pixels.
     #[arg(long)]
     pub height: usize,
-    /// Output folder (created if missing).
+    /// Output folder (created if missing; the six files in it are replaced).
     #[arg(short, long)]
     pub output: PathBuf,
 }
@@ -80,7 +84,6 @@ pub fn run(c: HullCmd, ctx: &Ctx) -> anyhow::Result<()> {
         HullCmd::Build(a) => run_build(a, ctx),
         HullCmd::Render(a) => run_render(a),
         HullCmd::Backdrops(a) => {
-            std::fs::create_dir_all(&a.output).with_context(|| format!("creating {}", a.output.display()))?;
             for p in igi_opacity_hull::backdrop::write_patterns(&a.output, a.width, a.height)? {
                 println!("{}", p.display());
             }
@@ -91,11 +94,20 @@ pub fn run(c: HullCmd, ctx: &Ctx) -> anyhow::Result<()> {
             if a.json {
                 print_json(&r)?;
             } else {
-                println!("views imported        {} (skipped: {:?})", r.views, r.skipped);
-                println!("rotation corrections  up to {:.2e}", r.max_rotation_correction);
+                println!(
+                    "views imported        {} (skipped: {:?})",
+                    r.views, r.skipped
+                );
+                println!(
+                    "rotation corrections  up to {:.2e}",
+                    r.max_rotation_correction
+                );
                 println!("world up (+Z) was     {}", r.up_axis);
                 println!("masks touching frame  {:?}", r.masks_touching_frame);
-                println!("rig                   {}", a.output.join("rig.toml").display());
+                println!(
+                    "rig                   {}",
+                    a.output.join("rig.toml").display()
+                );
             }
             Ok(())
         }
@@ -104,7 +116,10 @@ pub fn run(c: HullCmd, ctx: &Ctx) -> anyhow::Result<()> {
 
 fn run_build(a: BuildArgs, ctx: &Ctx) -> anyhow::Result<()> {
     let rig = igi_imaging::Rig::load(&a.rig)?;
-    let opts = BuildOptions { resolution: a.resolution, ..Default::default() };
+    let opts = BuildOptions {
+        resolution: a.resolution,
+        ..Default::default()
+    };
     let pb = ctx.progress(6, "hull");
     let mut progress = |s: Stage| {
         pb.set_message(format!("{s:?}").to_lowercase());
@@ -116,20 +131,52 @@ fn run_build(a: BuildArgs, ctx: &Ctx) -> anyhow::Result<()> {
         print_json(&r)?;
     } else {
         for v in &r.views {
-            println!("{:>16}  IoU {:.4}  uncovered {:.4}", v.view, v.iou, v.uncovered);
+            println!(
+                "{:>16}  IoU {:.4}  uncovered {:.4}",
+                v.view, v.iou, v.uncovered
+            );
         }
-        println!("IoU min {:.4} mean {:.4}; {} surfels, {} triangles, volume {:.3e} m^3", r.iou_min, r.iou_mean, r.surfels, r.triangles, r.volume_m3);
+        println!(
+            "IoU min {:.4} mean {:.4}; {} surfels, {} triangles, volume {:.3e} m^3",
+            r.iou_min, r.iou_mean, r.surfels, r.triangles, r.volume_m3
+        );
     }
     Ok(())
 }
 
 fn run_render(a: RenderArgs) -> anyhow::Result<()> {
     if let Some(l) = &a.lighting {
-        anyhow::bail!("{}: relighting from one-light-at-a-time captures is not implemented yet", l.display());
+        anyhow::bail!(
+            "{}: relighting from one-light-at-a-time captures is not implemented yet",
+            l.display()
+        );
     }
     let camera = igi_imaging::Camera::load(&a.camera)?;
     let model = load_model(&a.hull)?;
-    let (img, alpha) = render(&model, &camera, RenderOptions { k: a.k, ..Default::default() });
+    let t = std::time::Instant::now();
+    let opts = RenderOptions {
+        k: a.k as usize,
+        ..Default::default()
+    };
+    let (img, alpha) = render(&model, &camera, opts);
+    let seconds = t.elapsed().as_secs_f64();
     igi_imaging::write_exr_rgba(&a.output, &img, &alpha)?;
+    if a.json {
+        print_json(&serde_json::json!({
+            "seconds": seconds,
+            "width": img.width,
+            "height": img.height,
+            "surfels": model.surfels.len(),
+        }))?;
+    } else {
+        println!(
+            "rendered {} x {} from {} surfels in {:.3} s -> {}",
+            img.width,
+            img.height,
+            model.surfels.len(),
+            seconds,
+            a.output.display()
+        );
+    }
     Ok(())
 }
