@@ -24,6 +24,9 @@ pub struct PhotoSpec {
     pub image: PathBuf,
     pub camera: PathBuf,
     pub lighting: LightingSource,
+    /// The camera radiometry file (`igi camera radiometry`) applied to the image on load: the
+    /// photo's own `radiometry = ...`, else the survey's `[radiometry] camera = ...`, else none.
+    pub radiometry: Option<PathBuf>,
 }
 
 /// A parsed survey: everything is checked to exist, nothing heavy is loaded yet.
@@ -46,6 +49,15 @@ struct SurveyFile {
     #[serde(default)]
     photo: Vec<PhotoEntry>,
     brdf: Option<BrdfSpec>,
+    radiometry: Option<RadiometrySpec>,
+}
+
+/// `[radiometry]`: the camera radiometry file applied to every photograph on load (an
+/// extension of FORMATS.md's survey file).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RadiometrySpec {
+    camera: PathBuf,
 }
 
 #[derive(Deserialize)]
@@ -65,6 +77,7 @@ struct PhotoEntry {
     camera: PathBuf,
     lighting: Option<PathBuf>,
     probe: Option<ProbeEntry>,
+    radiometry: Option<PathBuf>,
 }
 
 /// `[photo.probe]`: a lighting-board capture in place of a lighting file (an extension of
@@ -146,6 +159,10 @@ impl Survey {
         if f.photo.is_empty() {
             return Err(ReflectError::file(&file, "no [[photo]] entries"));
         }
+        let default_radiometry = match &f.radiometry {
+            Some(r) => Some(radiometry_file(exists(&r.camera, "camera radiometry file")?)?),
+            None => None,
+        };
         let mut photos = Vec::new();
         for p in &f.photo {
             if photos.iter().any(|q: &PhotoSpec| q.id == p.id) {
@@ -172,6 +189,10 @@ impl Survey {
                         ))
                     }
                 },
+                radiometry: match &p.radiometry {
+                    Some(r) => Some(radiometry_file(exists(r, &format!("photo `{}` radiometry file", p.id))?)?),
+                    None => default_radiometry.clone(),
+                },
             });
         }
         let brdf_samples = match &f.brdf {
@@ -188,6 +209,12 @@ impl Survey {
     }
 }
 
+/// Checks that a camera radiometry file reads (so that a bad one fails before any work).
+fn radiometry_file(path: PathBuf) -> Result<PathBuf, ReflectError> {
+    igi_imaging::radiometry::CameraRadiometry::load(&path)?;
+    Ok(path)
+}
+
 /// A photograph loaded into memory.
 pub struct Photo {
     pub id: String,
@@ -200,7 +227,7 @@ impl PhotoSpec {
     /// Loads the image, camera and lighting; the image must match the camera's size and hold
     /// only finite, non-negative radiance (saturated pixels stay marked invalid).
     pub fn load(&self) -> Result<Photo, ReflectError> {
-        let image = igi_imaging::read_image(&self.image)?;
+        let mut image = igi_imaging::read_image(&self.image)?;
         let camera = Camera::load(&self.camera)?;
         if image.width != camera.width as usize || image.height != camera.height as usize {
             return Err(ReflectError::file(
@@ -228,6 +255,23 @@ impl PhotoSpec {
                     i / image.width
                 ),
             ));
+        }
+        if let Some(path) = &self.radiometry {
+            let cal = igi_imaging::radiometry::CameraRadiometry::load(path)?;
+            if !cal.fits_size(image.width, image.height) {
+                return Err(ReflectError::file(
+                    &self.image,
+                    format!(
+                        "image is {}x{} but the radiometry {} was fitted at {}x{} (another aspect ratio)",
+                        image.width,
+                        image.height,
+                        path.display(),
+                        cal.width,
+                        cal.height
+                    ),
+                ));
+            }
+            cal.apply(&mut image);
         }
         let lighting = match &self.lighting {
             LightingSource::File(f) => Lighting::load(f)?,
