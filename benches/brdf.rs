@@ -4,7 +4,10 @@
 
 use criterion::{black_box, criterion_group, criterion_main, BatchSize, Criterion, Throughput};
 use glam::{Vec2, Vec3};
-use igi_brdf::{cluster, fit_material, BrdfSample, ClusterOptions, FitOptions, Frame, Lafortune, Lobe, Lumitexel};
+use igi_brdf::{
+    cluster, fit_material, BrdfSample, ClusterOptions, FitOptions, Frame, Lafortune, Lobe,
+    Lumitexel,
+};
 
 fn dir(theta_deg: f32, phi_deg: f32) -> Vec3 {
     let (t, p) = (theta_deg.to_radians(), phi_deg.to_radians());
@@ -15,8 +18,18 @@ fn material(n_spec: f32) -> Lafortune {
     Lafortune {
         rho_d: Vec3::new(0.35, 0.3, 0.22),
         lobes: vec![
-            Lobe { rho: Vec3::new(0.1, 0.09, 0.07), cxy: 0.7, cz: 1.0, n: 5.0 },
-            Lobe { rho: Vec3::splat(0.5 * (n_spec + 2.0) / std::f32::consts::TAU), cxy: -1.0, cz: 1.0, n: n_spec },
+            Lobe {
+                rho: Vec3::new(0.1, 0.09, 0.07),
+                cxy: 0.7,
+                cz: 1.0,
+                n: 5.0,
+            },
+            Lobe {
+                rho: Vec3::splat(0.5 * (n_spec + 2.0) / std::f32::consts::TAU),
+                cxy: -1.0,
+                cz: 1.0,
+                n: n_spec,
+            },
         ],
     }
 }
@@ -67,7 +80,14 @@ fn bench_model(c: &mut Criterion) {
                 let mut s = 0.0;
                 for (i, &(_, v)) in pairs.iter().enumerate() {
                     let u = (i as f32 * 0.618_034).fract();
-                    if let Some(x) = r.sample(v, u, Vec2::new((i as f32 * 0.754_877_7).fract(), (i as f32 * 0.569_84).fract())) {
+                    if let Some(x) = r.sample(
+                        v,
+                        u,
+                        Vec2::new(
+                            (i as f32 * 0.754_877_7).fract(),
+                            (i as f32 * 0.569_84).fract(),
+                        ),
+                    ) {
                         s += x.pdf;
                     }
                 }
@@ -81,20 +101,38 @@ fn bench_model(c: &mut Criterion) {
 fn bench_fit(c: &mut Criterion) {
     let mut g = c.benchmark_group("fit");
     g.sample_size(10);
-    for (name, n, count) in [("glossy n=60, 136 samples", 60.0f32, 136usize), ("stiff n=1e4, 200 samples", 1.0e4, 200)] {
+    for (name, n, count) in [
+        ("glossy n=60, 136 samples", 60.0f32, 136usize),
+        ("stiff n=1e4, 200 samples", 1.0e4, 200),
+    ] {
         let m = material(n);
         let mut pairs = dirs(count - 40);
         for i in 0..40 {
             let t = 10.0 + 1.5 * i as f32;
             let p = 9.0 * i as f32;
-            pairs.push((dir(t, p), dir(t + 0.05 * (i % 7) as f32 - 0.15, p + 180.0 + 0.1 * (i % 5) as f32 - 0.2)));
+            pairs.push((
+                dir(t, p),
+                dir(
+                    t + 0.05 * (i % 7) as f32 - 0.15,
+                    p + 180.0 + 0.1 * (i % 5) as f32 - 0.2,
+                ),
+            ));
         }
         let samples: Vec<BrdfSample> = pairs
             .iter()
-            .map(|&(l, v)| BrdfSample { material: "m".into(), light: l, view: v, value: m.as_ref().eval(l, v) * std::f32::consts::PI })
+            .map(|&(l, v)| BrdfSample {
+                material: "m".into(),
+                light: l,
+                view: v,
+                value: m.as_ref().eval(l, v) * std::f32::consts::PI,
+            })
             .collect();
         g.bench_function(name, |b| {
-            b.iter_batched(|| samples.clone(), |s| black_box(fit_material("m", &s, &FitOptions::default()).unwrap().rms), BatchSize::SmallInput)
+            b.iter_batched(
+                || samples.clone(),
+                |s| black_box(fit_material("m", &s, &FitOptions::default()).unwrap().rms),
+                BatchSize::SmallInput,
+            )
         });
     }
     g.finish();
@@ -105,11 +143,38 @@ fn bench_fit(c: &mut Criterion) {
 /// normals, 3% noise; k = 3, default options (fits capped at 3000 samples).
 fn bench_cluster(c: &mut Criterion) {
     let mats = [
-        Lafortune { rho_d: Vec3::new(0.6, 0.12, 0.1), lobes: vec![Lobe { rho: Vec3::new(0.1, 0.02, 0.02), cxy: 0.9, cz: 1.0, n: 3.0 }] },
-        Lafortune { rho_d: Vec3::new(0.04, 0.06, 0.3), lobes: vec![Lobe { rho: Vec3::splat(6.0), cxy: -1.0, cz: 1.0, n: 80.0 }] },
-        Lafortune { rho_d: Vec3::splat(0.25), lobes: vec![Lobe { rho: Vec3::splat(0.6), cxy: 1.0, cz: 1.0, n: 12.0 }] },
+        Lafortune {
+            rho_d: Vec3::new(0.6, 0.12, 0.1),
+            lobes: vec![Lobe {
+                rho: Vec3::new(0.1, 0.02, 0.02),
+                cxy: 0.9,
+                cz: 1.0,
+                n: 3.0,
+            }],
+        },
+        Lafortune {
+            rho_d: Vec3::new(0.04, 0.06, 0.3),
+            lobes: vec![Lobe {
+                rho: Vec3::splat(6.0),
+                cxy: -1.0,
+                cz: 1.0,
+                n: 80.0,
+            }],
+        },
+        Lafortune {
+            rho_d: Vec3::splat(0.25),
+            lobes: vec![Lobe {
+                rho: Vec3::splat(0.6),
+                cxy: 1.0,
+                cz: 1.0,
+                n: 12.0,
+            }],
+        },
     ];
-    let count: usize = std::env::var("IGI_BENCH_LUMITEXELS").ok().and_then(|v| v.parse().ok()).unwrap_or(10_000);
+    let count: usize = std::env::var("IGI_BENCH_LUMITEXELS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(10_000);
     let q = |i: usize, k: f32| (i as f32 * k).fract();
     let lts: Vec<Lumitexel> = (0..count)
         .map(|t| {
@@ -124,21 +189,35 @@ fn bench_cluster(c: &mut Criterion) {
                     let v = if s % 2 == 0 {
                         dir(80.0 * q(i, 0.281_717), 360.0 * q(i, 0.131_986))
                     } else {
-                        dir((lt + 16.0 * q(i, 0.281_717) - 8.0).clamp(0.0, 85.0), lp + 180.0 + 16.0 * q(i, 0.131_986) - 8.0)
+                        dir(
+                            (lt + 16.0 * q(i, 0.281_717) - 8.0).clamp(0.0, 85.0),
+                            lp + 180.0 + 16.0 * q(i, 0.131_986) - 8.0,
+                        )
                     };
-                    let noise = Vec3::new(q(i, 0.427_8), q(i, 0.912_3), q(i, 0.334_1)) * 2.0 - Vec3::ONE;
-                    let val = m.as_ref().eval(l, v) * std::f32::consts::PI * (Vec3::ONE + 0.03 * noise);
+                    let noise =
+                        Vec3::new(q(i, 0.427_8), q(i, 0.912_3), q(i, 0.334_1)) * 2.0 - Vec3::ONE;
+                    let val =
+                        m.as_ref().eval(l, v) * std::f32::consts::PI * (Vec3::ONE + 0.03 * noise);
                     (f.to_world(l), f.to_world(v), val)
                 })
                 .collect();
-            Lumitexel { position: Vec3::ZERO, normal, samples }
+            Lumitexel {
+                position: Vec3::ZERO,
+                normal,
+                samples,
+            }
         })
         .collect();
-    let opts = ClusterOptions { k: 3, ..ClusterOptions::default() };
+    let opts = ClusterOptions {
+        k: 3,
+        ..ClusterOptions::default()
+    };
     let mut g = c.benchmark_group("cluster");
     g.sample_size(10);
     g.throughput(Throughput::Elements(count as u64));
-    g.bench_function(format!("{count} lumitexels x 10 samples, k=3"), |b| b.iter(|| black_box(cluster(&lts, &opts).unwrap().brdfs.len())));
+    g.bench_function(format!("{count} lumitexels x 10 samples, k=3"), |b| {
+        b.iter(|| black_box(cluster(&lts, &opts).unwrap().brdfs.len()))
+    });
     g.finish();
 }
 

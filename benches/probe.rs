@@ -10,12 +10,17 @@ use igi_probe::{process, Board, ProbeOptions};
 use std::path::PathBuf;
 
 fn fixture() -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/datasets/fixtures/board/sunny"))
+    PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/datasets/fixtures/board/sunny"
+    ))
 }
 
 fn bench(c: &mut Criterion) {
     let dir = fixture();
-    let brackets: Vec<_> = (0..3).map(|i| read_image(&dir.join(format!("bracket_{i}.png"))).unwrap()).collect();
+    let brackets: Vec<_> = (0..3)
+        .map(|i| read_image(&dir.join(format!("bracket_{i}.png"))).unwrap())
+        .collect();
     let times = [0.25, 1.0 / 32.0, 1.0 / 256.0];
     let cam = Camera::load(&dir.join("camera.json")).unwrap();
     let board = Board::load(&dir.join("board.json")).unwrap();

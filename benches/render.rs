@@ -31,7 +31,10 @@ fn load() -> (Scene, Lighting, igi_imaging::Camera) {
     let mut c = igi_imaging::Camera::pinhole(128, 128, 120.0, 120.0, 63.5, 63.5);
     let r = glam::DMat3::from_cols(glam::DVec3::X, -glam::DVec3::Z, glam::DVec3::Y).transpose();
     let r = glam::DMat3::from_cols(r.x_axis, r.y_axis, r.z_axis);
-    c.pose = igi_imaging::WorldToCamera { r, t: -(r * glam::DVec3::new(0.0, -20.0, 3.0)) };
+    c.pose = igi_imaging::WorldToCamera {
+        r,
+        t: -(r * glam::DVec3::new(0.0, -20.0, 3.0)),
+    };
     (s, l, c)
 }
 
@@ -41,18 +44,31 @@ fn make_rays(scene: &Scene, cam: &igi_imaging::Camera, n: usize) -> Vec<ShadowRa
     let mut rng = Rng::new(7, 0);
     let mut rays = Vec::with_capacity(2 * n);
     for _ in 0..n {
-        let (o, d) = cam.pixel_ray(rng.uniform() as f64 * cam.width as f64, rng.uniform() as f64 * cam.height as f64);
+        let (o, d) = cam.pixel_ray(
+            rng.uniform() as f64 * cam.width as f64,
+            rng.uniform() as f64 * cam.height as f64,
+        );
         let (o, d) = (o.as_vec3(), d.as_vec3());
-        rays.push(ShadowRay { origin: o, dir: d, tnear: 0.0, tfar: f32::INFINITY });
+        rays.push(ShadowRay {
+            origin: o,
+            dir: d,
+            tnear: 0.0,
+            tfar: f32::INFINITY,
+        });
         if let Some(sp) = scene.trace_point(o, d) {
             let z = rng.uniform();
-            let phi = 6.283_185 * rng.uniform();
+            let phi = std::f32::consts::TAU * rng.uniform();
             let r = (1.0 - z * z).sqrt();
             let mut w = Vec3::new(r * phi.cos(), r * phi.sin(), z);
             if w.dot(sp.ng) < 0.0 {
                 w = -w;
             }
-            rays.push(ShadowRay { origin: sp.position + sp.ng * 1e-4, dir: w, tnear: 0.0, tfar: f32::INFINITY });
+            rays.push(ShadowRay {
+                origin: sp.position + sp.ng * 1e-4,
+                dir: w,
+                tnear: 0.0,
+                tfar: f32::INFINITY,
+            });
         }
     }
     rays
@@ -69,15 +85,31 @@ fn bench(c: &mut Criterion) {
     g.bench_function("intersect_single_rayon", |b| {
         b.iter(|| {
             rays.par_chunks(256)
-                .map(|ch| ch.iter().filter(|r| rt.intersect(r.origin, r.dir, r.tnear, r.tfar).is_some()).count())
+                .map(|ch| {
+                    ch.iter()
+                        .filter(|r| rt.intersect(r.origin, r.dir, r.tnear, r.tfar).is_some())
+                        .count()
+                })
                 .sum::<usize>()
         })
     });
     g.bench_function("intersect_stream_rayon", |b| {
-        b.iter(|| rays.par_chunks(256).map(|ch| rt.intersect_batch(ch, false).iter().flatten().count()).sum::<usize>())
+        b.iter(|| {
+            rays.par_chunks(256)
+                .map(|ch| rt.intersect_batch(ch, false).iter().flatten().count())
+                .sum::<usize>()
+        })
     });
     g.bench_function("occluded_single_rayon", |b| {
-        b.iter(|| rays.par_chunks(256).map(|ch| ch.iter().filter(|r| rt.occluded(r.origin, r.dir, r.tnear, r.tfar)).count()).sum::<usize>())
+        b.iter(|| {
+            rays.par_chunks(256)
+                .map(|ch| {
+                    ch.iter()
+                        .filter(|r| rt.occluded(r.origin, r.dir, r.tnear, r.tfar))
+                        .count()
+                })
+                .sum::<usize>()
+        })
     });
     g.finish();
 
@@ -89,14 +121,25 @@ fn bench(c: &mut Criterion) {
     small.intrinsics.fy *= 0.5;
     small.intrinsics.cx = 31.5;
     small.intrinsics.cy = 31.5;
-    let opts = RenderOptions { spp: 4, seed: 1, indirect: 2, russian_roulette: false };
-    let rays_per_render = render_image(&scene, &lighting, &small, &opts, &|_| {}).unwrap().rays;
+    let opts = RenderOptions {
+        spp: 4,
+        seed: 1,
+        indirect: 2,
+        russian_roulette: false,
+    };
+    let rays_per_render = render_image(&scene, &lighting, &small, &opts, &|_| {})
+        .unwrap()
+        .rays;
     let mut g = c.benchmark_group("path_tracer");
     g.sample_size(10);
     g.throughput(Throughput::Elements(rays_per_render));
-    g.bench_function("rays_64x64_4spp_K2", |b| b.iter(|| render_image(&scene, &lighting, &small, &opts, &|_| {}).unwrap()));
+    g.bench_function("rays_64x64_4spp_K2", |b| {
+        b.iter(|| render_image(&scene, &lighting, &small, &opts, &|_| {}).unwrap())
+    });
     g.throughput(Throughput::Elements(64 * 64 * 4));
-    g.bench_function("samples_64x64_4spp_K2", |b| b.iter(|| render_image(&scene, &lighting, &small, &opts, &|_| {}).unwrap()));
+    g.bench_function("samples_64x64_4spp_K2", |b| {
+        b.iter(|| render_image(&scene, &lighting, &small, &opts, &|_| {}).unwrap())
+    });
     g.finish();
 }
 

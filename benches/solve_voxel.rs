@@ -25,19 +25,31 @@ use std::time::Instant;
 const VOXEL: f32 = 4.3;
 
 fn height(x: f32, y: f32) -> f32 {
-    0.08 * (3.1 * x).sin() * (2.3 * y).cos() + 0.03 * (11.0 * x + 0.5).sin() * (9.0 * y).sin() + 0.015 * (37.0 * x).cos() * (31.0 * y + 1.0).sin()
+    0.08 * (3.1 * x).sin() * (2.3 * y).cos()
+        + 0.03 * (11.0 * x + 0.5).sin() * (9.0 * y).sin()
+        + 0.015 * (37.0 * x).cos() * (31.0 * y + 1.0).sin()
 }
 
 /// A height field over the voxel at (i, j) with `n x n` quads (2 n^2 triangles); the voxel at
 /// (0, 0) also gets a low wall (two faces) so it has occlusion and interreflection.
 fn voxel_mesh(i: i32, j: i32, n: usize, wall: bool) -> TriMesh {
-    let (x0, y0) = (i as f32 * VOXEL - VOXEL / 2.0, j as f32 * VOXEL - VOXEL / 2.0);
-    let mut m = TriMesh { positions: vec![], normals: None, uvs: None, colors: None, indices: vec![] };
+    let (x0, y0) = (
+        i as f32 * VOXEL - VOXEL / 2.0,
+        j as f32 * VOXEL - VOXEL / 2.0,
+    );
+    let mut m = TriMesh {
+        positions: vec![],
+        normals: None,
+        uvs: None,
+        colors: None,
+        indices: vec![],
+    };
     let grid = |m: &mut TriMesh, n: usize, f: &dyn Fn(f32, f32) -> [f32; 3]| {
         let base = m.positions.len() as u32;
         for b in 0..=n {
             for a in 0..=n {
-                m.positions.push(f(a as f32 / n as f32, b as f32 / n as f32));
+                m.positions
+                    .push(f(a as f32 / n as f32, b as f32 / n as f32));
             }
         }
         let w = (n + 1) as u32;
@@ -75,7 +87,11 @@ fn voxel_mesh(i: i32, j: i32, n: usize, wall: bool) -> TriMesh {
 
 fn albedo(p: Vec3) -> Vec3 {
     let s = |f: f32| 0.5 + 0.5 * f.sin();
-    Vec3::new(0.2 + 0.5 * s(1.3 * p.x + 0.4 * p.z), 0.2 + 0.4 * s(1.1 * p.y - 0.7 * p.z + 1.0), 0.15 + 0.3 * s(0.9 * (p.x + p.y) + 2.0))
+    Vec3::new(
+        0.2 + 0.5 * s(1.3 * p.x + 0.4 * p.z),
+        0.2 + 0.4 * s(1.1 * p.y - 0.7 * p.z + 1.0),
+        0.15 + 0.3 * s(0.9 * (p.x + p.y) + 2.0),
+    )
 }
 
 fn main() {
@@ -118,21 +134,58 @@ fn main() {
             let camera = look_at_camera(eye, Vec3::new(0.0, 0.0, 0.4), 320, 240, 55.0).unwrap();
             let sun = sun_direction(25.0 + 4.0 * k as f32, 15.0 + 30.0 * k as f32);
             let lighting = Lighting {
-                environment: Some(Environment::from_image(&clear_sky(64, 32, sun, 0.6, Vec3::splat(0.08)), 1.0).unwrap()),
+                environment: Some(
+                    Environment::from_image(&clear_sky(64, 32, sun, 0.6, Vec3::splat(0.08)), 1.0)
+                        .unwrap(),
+                ),
                 sun: Some(Sun::new(sun, Vec3::new(6.0e4, 5.7e4, 5.2e4), 0.53).unwrap()),
             };
-            let opts = RenderOptions { spp: 64, seed: 100 + k as u64, indirect: 2, russian_roulette: false };
-            let image = render_image(&truth_scene, &lighting, &camera, &opts, &|_| {}).unwrap().mean;
-            Photo { id: format!("p{k:02}"), image, camera, lighting }
+            let opts = RenderOptions {
+                spp: 64,
+                seed: 100 + k as u64,
+                indirect: 2,
+                russian_roulette: false,
+            };
+            let image = render_image(&truth_scene, &lighting, &camera, &opts, &|_| {})
+                .unwrap()
+                .mean;
+            Photo {
+                id: format!("p{k:02}"),
+                image,
+                camera,
+                lighting,
+            }
         })
         .collect();
-    eprintln!("photos rendered in {:.1} s", t_photo.elapsed().as_secs_f64());
+    eprintln!(
+        "photos rendered in {:.1} s",
+        t_photo.elapsed().as_secs_f64()
+    );
     let gt: Truth = parts
         .iter()
         .enumerate()
-        .map(|(i, p)| p.cache.texels.iter().map(|t| if i == 0 { Some(albedo(t.position)) } else { None }).collect())
+        .map(|(i, p)| {
+            p.cache
+                .texels
+                .iter()
+                .map(|t| {
+                    if i == 0 {
+                        Some(albedo(t.position))
+                    } else {
+                        None
+                    }
+                })
+                .collect()
+        })
         .collect();
-    let schedules: Vec<(Vec<u32>, u32)> = vec![(vec![4], 1), (vec![4, 16], 2), (vec![8, 32], 2), (vec![4, 16, 64], 3), (vec![16, 64], 2), (vec![16, 64, 256], 3)];
+    let schedules: Vec<(Vec<u32>, u32)> = vec![
+        (vec![4], 1),
+        (vec![4, 16], 2),
+        (vec![8, 32], 2),
+        (vec![4, 16, 64], 3),
+        (vec![16, 64], 2),
+        (vec![16, 64, 256], 3),
+    ];
     let mut rows = Vec::new();
     for (spp, iters) in schedules {
         let opts = SolveOptions {
@@ -146,11 +199,19 @@ fn main() {
         let ids = photos.iter().map(|p| p.id.clone()).collect();
         // the other voxels keep the true albedo (as if already solved)
         let mut start = SolveResult::fresh(parts.clone(), ids, &opts);
-        for i in 1..start.rho.len() {
-            start.rho[i] = truth[i].clone();
-        }
+        let n = start.rho.len();
+        start.rho[1..].clone_from_slice(&truth[1..n]);
         let t = Instant::now();
-        let r = igi_reflect::solve(start, &photos, None, Some(&gt), &opts, &NoProgress, &mut |_| Ok(())).unwrap();
+        let r = igi_reflect::solve(
+            start,
+            &photos,
+            None,
+            Some(&gt),
+            &opts,
+            &NoProgress,
+            &mut |_| Ok(()),
+        )
+        .unwrap();
         let wall = t.elapsed().as_secs_f64();
         let mut curve = Vec::new();
         for it in &r.report.iterations {
@@ -169,8 +230,17 @@ fn main() {
             );
             curve.push(serde_json::json!({"iteration": it.iteration, "spp": it.spp, "cumulative_s": it.cumulative_s, "observations": it.observations, "mae": mae, "rms": it.truth_rms}));
         }
-        println!("schedule {spp:?} x {iters}: {wall:.1} s, final RMS {:.4}", r.report.iterations.last().and_then(|i| i.truth_rms).unwrap_or(f32::NAN));
-        rows.push(serde_json::json!({"spp": spp, "iterations": iters, "wall_s": wall, "curve": curve}));
+        println!(
+            "schedule {spp:?} x {iters}: {wall:.1} s, final RMS {:.4}",
+            r.report
+                .iterations
+                .last()
+                .and_then(|i| i.truth_rms)
+                .unwrap_or(f32::NAN)
+        );
+        rows.push(
+            serde_json::json!({"spp": spp, "iterations": iters, "wall_s": wall, "curve": curve}),
+        );
     }
     let out = serde_json::json!({
         "voxel_triangles": t0, "other_triangles": t_other, "atlas": atlas,
@@ -181,4 +251,3 @@ fn main() {
     std::fs::write(&path, serde_json::to_string_pretty(&out).unwrap()).unwrap();
     eprintln!("wrote {}", path.display());
 }
-

@@ -1,9 +1,17 @@
 #!/usr/bin/env bash
 # Installs the system packages igi builds against, only when they are missing (idempotent).
-# Debian/Ubuntu: Embree 3 (ray tracing), OpenCV with contrib (calibration, PnP, ArUco) and
-# clang/libclang (the opencv crate generates its bindings with libclang).
+# Usage: bash scripts/deps.sh [demo|test]
+#   demo: what the default build needs (Embree 3 for ray tracing, a font for plot labels)
+#   test: also OpenCV with contrib and clang/libclang (the `opencv` feature generates its
+#         bindings with libclang), everything the test command builds and runs
 set -euo pipefail
-pkgs=(libembree-dev libopencv-dev clang libclang-dev pkg-config fonts-dejavu-core)
+profile="${1:-test}"
+pkgs=(libembree-dev pkg-config fonts-dejavu-core)
+case "$profile" in
+  demo) ;;
+  test) pkgs+=(libopencv-dev clang libclang-dev) ;;
+  *) echo "igi: deps.sh: unknown profile '$profile' (demo or test)" >&2; exit 2 ;;
+esac
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

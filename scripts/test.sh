@@ -1,9 +1,20 @@
 #!/usr/bin/env bash
-# Runs every test of the workspace, with every feature (OpenCV included).
+# Runs every CI gate and every test of the workspace, with every feature (OpenCV included).
 # Installs the system packages it needs first. Usage: bash scripts/test.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/deps.sh
-# compile every target (benches and examples too, in test mode) so none can rot, then run the tests
+bash scripts/deps.sh test
+stage() { echo "== $1 ($(date -u +%H:%M:%S))"; }
+stage "format"
+cargo fmt --all --check
+stage "clippy, every target and feature"
+cargo clippy --workspace --all-targets --all-features -- -D warnings
+stage "build without default features"
+cargo check --workspace --no-default-features
+stage "docs"
+RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --all-features
+stage "compile every target (benches and examples too, in test mode) so none can rot"
 cargo test --workspace --all-features --all-targets --no-run
+stage "tests"
 cargo test --workspace --all-features
+stage "done"

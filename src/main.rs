@@ -52,6 +52,9 @@ enum Command {
     Sample(cmd::solve::SampleArgs),
     /// Export a recovered site as PLY, OBJ or a Mitsuba 3 scene.
     Export(cmd::solve::ExportArgs),
+    /// Surface light fields (Wood et al. 2000): render a stored field, edit it.
+    #[command(subcommand)]
+    Slf(cmd::slf::SlfCmd),
     /// The embedded default: a procedural site photographed under three skies, solved, re-lit.
     Demo(cmd::demo::DemoArgs),
 }
@@ -73,9 +76,27 @@ fn main() {
         Command::Sample(a) => cmd::solve::run_sample(a, &ctx),
         Command::Export(a) => cmd::solve::run_export(a, &ctx),
         Command::Demo(a) => cmd::demo::run(a, &ctx),
+        Command::Slf(c) => cmd::slf::run(c, &ctx),
     };
     if let Err(e) = result {
-        eprintln!("error: {e:#}");
+        eprintln!("error: {}", error_chain(&e));
         std::process::exit(1);
     }
+}
+
+/// The error and its causes joined by ": ", leaving out a cause its parent already shows
+/// (error types that print their source would otherwise repeat it).
+fn error_chain(e: &anyhow::Error) -> String {
+    let mut msg = String::new();
+    for cause in e.chain() {
+        let text = cause.to_string();
+        if msg.contains(&text) {
+            continue;
+        }
+        if !msg.is_empty() {
+            msg.push_str(": ");
+        }
+        msg.push_str(&text);
+    }
+    msg
 }

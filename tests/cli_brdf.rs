@@ -8,7 +8,10 @@ use glam::Vec3;
 use igi_brdf::{Lafortune, Lobe};
 
 fn igi(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_igi")).args(args).output().expect("run igi")
+    Command::new(env!("CARGO_BIN_EXE_igi"))
+        .args(args)
+        .output()
+        .expect("run igi")
 }
 
 fn dir(theta_deg: f32, phi_deg: f32) -> Vec3 {
@@ -20,8 +23,18 @@ fn truth() -> Lafortune {
     Lafortune {
         rho_d: Vec3::new(0.35, 0.3, 0.22),
         lobes: vec![
-            Lobe { rho: Vec3::new(0.1, 0.09, 0.07), cxy: 0.7, cz: 1.0, n: 5.0 },
-            Lobe { rho: Vec3::new(4.0, 4.0, 4.2), cxy: -1.0, cz: 1.0, n: 90.0 },
+            Lobe {
+                rho: Vec3::new(0.1, 0.09, 0.07),
+                cxy: 0.7,
+                cz: 1.0,
+                n: 5.0,
+            },
+            Lobe {
+                rho: Vec3::new(4.0, 4.0, 4.2),
+                cxy: -1.0,
+                cz: 1.0,
+                n: 90.0,
+            },
         ],
     }
 }
@@ -32,9 +45,18 @@ fn pairs() -> Vec<(Vec3, Vec3)> {
     for lt in [0.0f32, 30.0, 50.0, 75.0] {
         for k in 0..31 {
             let vt = -84.0 + 5.6 * k as f32;
-            v.push((dir(lt, 180.0), dir(vt.abs(), if vt < 0.0 { 180.0 } else { 0.0 })));
+            v.push((
+                dir(lt, 180.0),
+                dir(vt.abs(), if vt < 0.0 { 180.0 } else { 0.0 }),
+            ));
         }
-        for (vt, vp) in [(20.0, 60.0), (45.0, 100.0), (70.0, 30.0), (60.0, 150.0), (35.0, -40.0)] {
+        for (vt, vp) in [
+            (20.0, 60.0),
+            (45.0, 100.0),
+            (70.0, 30.0),
+            (60.0, 150.0),
+            (35.0, -40.0),
+        ] {
             v.push((dir(lt, 180.0), dir(vt, vp)));
         }
     }
@@ -45,7 +67,10 @@ fn write_samples(path: &Path, name: &str, m: &Lafortune, pairs: &[(Vec3, Vec3)])
     let mut s = String::from("material,light_x,light_y,light_z,view_x,view_y,view_z,r,g,b\n");
     for &(l, v) in pairs {
         let f = m.as_ref().eval(l, v) * std::f32::consts::PI;
-        s.push_str(&format!("{name},{},{},{},{},{},{},{},{},{}\n", l.x, l.y, l.z, v.x, v.y, v.z, f.x, f.y, f.z));
+        s.push_str(&format!(
+            "{name},{},{},{},{},{},{},{},{},{}\n",
+            l.x, l.y, l.z, v.x, v.y, v.z, f.x, f.y, f.z
+        ));
     }
     std::fs::write(path, s).unwrap();
 }
@@ -58,41 +83,83 @@ fn fit_then_eval_round_trip_reproduces_the_material() {
     write_samples(&samples, "stone", &t, &pairs());
     let mats = tmp.path().join("materials.json");
     let fig = tmp.path().join("fig.png");
-    let out = igi(&["brdf", "fit", samples.to_str().unwrap(), "-o", mats.to_str().unwrap(), "--plot", fig.to_str().unwrap()]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = igi(&[
+        "brdf",
+        "fit",
+        samples.to_str().unwrap(),
+        "-o",
+        mats.to_str().unwrap(),
+        "--plot",
+        fig.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     assert!(std::fs::read(&fig).unwrap().starts_with(b"\x89PNG"));
 
     // the JSON has the documented layout and the recovered parameters
-    let j: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&mats).unwrap()).unwrap();
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&mats).unwrap()).unwrap();
     let m = &j["materials"]["stone"];
     let f = |v: &serde_json::Value| v.as_f64().unwrap() as f32;
     for c in 0..3 {
         assert!((f(&m["rho_d"][c]) - t.rho_d[c]).abs() < 0.005, "{m}");
     }
     let spec = &m["lobes"][1];
-    assert!((f(&spec["n"]) - 90.0).abs() < 1.0 && (f(&spec["cxy"]) + 1.0).abs() < 0.01, "{spec}");
-    assert!((f(&m["lobes"][0]["cxy"]) - 0.7).abs() < 0.03 && (f(&m["lobes"][0]["n"]) - 5.0).abs() < 0.3, "{m}");
+    assert!(
+        (f(&spec["n"]) - 90.0).abs() < 1.0 && (f(&spec["cxy"]) + 1.0).abs() < 0.01,
+        "{spec}"
+    );
+    assert!(
+        (f(&m["lobes"][0]["cxy"]) - 0.7).abs() < 0.03 && (f(&m["lobes"][0]["n"]) - 5.0).abs() < 0.3,
+        "{m}"
+    );
     assert!(f(&m["rms"]) < 0.01);
     assert!(m["stderr"]["lobes"][1]["n"].as_f64().unwrap() < 1.0, "{m}");
 
     // eval at held-out pairs, with a pass-through column
     let held: Vec<(Vec3, Vec3)> = (0..50)
-        .map(|i| (dir(5.0 + 1.5 * i as f32, 200.0 + 7.0 * i as f32), dir(80.0 - 1.4 * i as f32, 20.0 + 7.0 * i as f32)))
+        .map(|i| {
+            (
+                dir(5.0 + 1.5 * i as f32, 200.0 + 7.0 * i as f32),
+                dir(80.0 - 1.4 * i as f32, 20.0 + 7.0 * i as f32),
+            )
+        })
         .collect();
     let pairs_csv = tmp.path().join("pairs.csv");
     let mut s = String::from("id,light_x,light_y,light_z,view_x,view_y,view_z\n");
     for (i, (l, v)) in held.iter().enumerate() {
-        s.push_str(&format!("p{i},{},{},{},{},{},{}\n", l.x, l.y, l.z, v.x, v.y, v.z));
+        s.push_str(&format!(
+            "p{i},{},{},{},{},{},{}\n",
+            l.x, l.y, l.z, v.x, v.y, v.z
+        ));
     }
     std::fs::write(&pairs_csv, s).unwrap();
     let values = tmp.path().join("values.csv");
     let out = igi(&[
-        "brdf", "eval", mats.to_str().unwrap(), "--material", "stone", "--pairs", pairs_csv.to_str().unwrap(), "-o", values.to_str().unwrap(),
+        "brdf",
+        "eval",
+        mats.to_str().unwrap(),
+        "--material",
+        "stone",
+        "--pairs",
+        pairs_csv.to_str().unwrap(),
+        "-o",
+        values.to_str().unwrap(),
     ]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let text = std::fs::read_to_string(&values).unwrap();
     let mut lines = text.lines();
-    assert_eq!(lines.next().unwrap(), "id,light_x,light_y,light_z,view_x,view_y,view_z,r,g,b");
+    assert_eq!(
+        lines.next().unwrap(),
+        "id,light_x,light_y,light_z,view_x,view_y,view_z,r,g,b"
+    );
     let mut n = 0;
     for (i, line) in lines.enumerate() {
         let cells: Vec<&str> = line.split(',').collect();
@@ -101,15 +168,29 @@ fn fit_then_eval_round_trip_reproduces_the_material() {
         let want = t.as_ref().eval(l, v) * std::f32::consts::PI;
         for c in 0..3 {
             let got: f32 = cells[7 + c].parse().unwrap();
-            assert!((got - want[c]).abs() <= 0.01 * want[c] + 1e-4, "pair {i}: {got} vs {}", want[c]);
+            assert!(
+                (got - want[c]).abs() <= 0.01 * want[c] + 1e-4,
+                "pair {i}: {got} vs {}",
+                want[c]
+            );
         }
         n += 1;
     }
     assert_eq!(n, 50);
 
     // infer from the single fitted material: lobes of that material, rho_d as asked
-    let out = igi(&["brdf", "infer", mats.to_str().unwrap(), "--rho", "0.35,0.3,0.22"]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = igi(&[
+        "brdf",
+        "infer",
+        mats.to_str().unwrap(),
+        "--rho",
+        "0.35,0.3,0.22",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let inf = &j["materials"]["inferred"];
     assert!((f(&inf["rho_d"][0]) - 0.35).abs() < 1e-6);
@@ -120,41 +201,117 @@ fn fit_then_eval_round_trip_reproduces_the_material() {
 fn bad_input_gives_clear_errors() {
     let tmp = tempfile::tempdir().unwrap();
     let bad = tmp.path().join("bad.csv");
-    std::fs::write(&bad, "material,light_x,light_y,light_z,view_x,view_y,view_z,r,g,b\na,0,0,1,0,0,1,0.5,oops,0.5\n").unwrap();
-    let out = igi(&["brdf", "fit", bad.to_str().unwrap(), "-o", tmp.path().join("m.json").to_str().unwrap()]);
+    std::fs::write(
+        &bad,
+        "material,light_x,light_y,light_z,view_x,view_y,view_z,r,g,b\na,0,0,1,0,0,1,0.5,oops,0.5\n",
+    )
+    .unwrap();
+    let out = igi(&[
+        "brdf",
+        "fit",
+        bad.to_str().unwrap(),
+        "-o",
+        tmp.path().join("m.json").to_str().unwrap(),
+    ]);
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("bad.csv:2") && err.contains("`g` = `oops` is not a number"), "{err}");
+    assert!(
+        err.contains("bad.csv:2") && err.contains("`g` = `oops` is not a number"),
+        "{err}"
+    );
     assert!(!tmp.path().join("m.json").exists(), "no output on failure");
 
     // too few samples for a material
     let few = tmp.path().join("few.csv");
     write_samples(&few, "tiny", &truth(), &pairs()[..3]);
-    let out = igi(&["brdf", "fit", few.to_str().unwrap(), "-o", tmp.path().join("m.json").to_str().unwrap()]);
+    let out = igi(&[
+        "brdf",
+        "fit",
+        few.to_str().unwrap(),
+        "-o",
+        tmp.path().join("m.json").to_str().unwrap(),
+    ]);
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("`tiny`") && err.contains("3 samples are too few"), "{err}");
+    assert!(
+        err.contains("`tiny`") && err.contains("3 samples are too few"),
+        "{err}"
+    );
 
     // unknown material and missing file
     let mats = tmp.path().join("m.json");
-    std::fs::write(&mats, r#"{"materials":{"stone":{"rho_d":[0.1,0.1,0.1],"lobes":[]}}}"#).unwrap();
+    std::fs::write(
+        &mats,
+        r#"{"materials":{"stone":{"rho_d":[0.1,0.1,0.1],"lobes":[]}}}"#,
+    )
+    .unwrap();
     let pairs_csv = tmp.path().join("p.csv");
-    std::fs::write(&pairs_csv, "light_x,light_y,light_z,view_x,view_y,view_z\n0,0,1,0,0,1\n").unwrap();
-    let out = igi(&["brdf", "eval", mats.to_str().unwrap(), "--material", "wood", "--pairs", pairs_csv.to_str().unwrap(), "-o", "/tmp/x.csv"]);
+    std::fs::write(
+        &pairs_csv,
+        "light_x,light_y,light_z,view_x,view_y,view_z\n0,0,1,0,0,1\n",
+    )
+    .unwrap();
+    let out = igi(&[
+        "brdf",
+        "eval",
+        mats.to_str().unwrap(),
+        "--material",
+        "wood",
+        "--pairs",
+        pairs_csv.to_str().unwrap(),
+        "-o",
+        "/tmp/x.csv",
+    ]);
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("no material `wood` (have: stone)"), "{err}");
-    let out = igi(&["brdf", "eval", "/nonexistent/m.json", "--material", "a", "--pairs", pairs_csv.to_str().unwrap(), "-o", "/tmp/x.csv"]);
+    let out = igi(&[
+        "brdf",
+        "eval",
+        "/nonexistent/m.json",
+        "--material",
+        "a",
+        "--pairs",
+        pairs_csv.to_str().unwrap(),
+        "-o",
+        "/tmp/x.csv",
+    ]);
     assert!(String::from_utf8_lossy(&out.stderr).contains("/nonexistent/m.json"));
     // a lambertian material evaluates to rho_d at any pair above the surface
     let vals = tmp.path().join("v.csv");
-    let out = igi(&["brdf", "eval", mats.to_str().unwrap(), "--material", "stone", "--pairs", pairs_csv.to_str().unwrap(), "-o", vals.to_str().unwrap()]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = igi(&[
+        "brdf",
+        "eval",
+        mats.to_str().unwrap(),
+        "--material",
+        "stone",
+        "--pairs",
+        pairs_csv.to_str().unwrap(),
+        "-o",
+        vals.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let v = std::fs::read_to_string(&vals).unwrap();
-    let last: Vec<f32> = v.lines().nth(1).unwrap().split(',').map(|c| c.parse().unwrap()).collect();
+    let last: Vec<f32> = v
+        .lines()
+        .nth(1)
+        .unwrap()
+        .split(',')
+        .map(|c| c.parse().unwrap())
+        .collect();
     assert!((last[6] - 0.1).abs() < 1e-6, "{v}");
     // infer with a bad colour
-    let out = igi(&["brdf", "infer", mats.to_str().unwrap(), "--rho", "0.1,-2,0.3"]);
+    let out = igi(&[
+        "brdf",
+        "infer",
+        mats.to_str().unwrap(),
+        "--rho",
+        "0.1,-2,0.3",
+    ]);
     assert!(!out.status.success());
 }
 
@@ -162,23 +319,52 @@ fn bad_input_gives_clear_errors() {
 fn cluster_two_materials_from_csv() {
     let tmp = tempfile::tempdir().unwrap();
     let a = Lafortune::lambertian(Vec3::new(0.7, 0.2, 0.1));
-    let b = Lafortune { rho_d: Vec3::new(0.05, 0.1, 0.4), lobes: vec![Lobe { rho: Vec3::splat(5.0), cxy: -1.0, cz: 1.0, n: 40.0 }] };
-    let mut s = String::from("id,px,py,pz,nx,ny,nz,light_x,light_y,light_z,view_x,view_y,view_z,r,g,b\n");
+    let b = Lafortune {
+        rho_d: Vec3::new(0.05, 0.1, 0.4),
+        lobes: vec![Lobe {
+            rho: Vec3::splat(5.0),
+            cxy: -1.0,
+            cz: 1.0,
+            n: 40.0,
+        }],
+    };
+    let mut s =
+        String::from("id,px,py,pz,nx,ny,nz,light_x,light_y,light_z,view_x,view_y,view_z,r,g,b\n");
     for t in 0..40 {
         let m = if t % 2 == 0 { &a } else { &b };
         for k in 0..10 {
             let l = dir(10.0 + 6.0 * k as f32, 37.0 * (t + k) as f32);
-            let v = if k % 2 == 0 { dir(10.0 + 6.0 * k as f32 + 3.0, 37.0 * (t + k) as f32 + 182.0) } else { dir(70.0 - 5.0 * k as f32, 53.0 * t as f32) };
+            let v = if k % 2 == 0 {
+                dir(10.0 + 6.0 * k as f32 + 3.0, 37.0 * (t + k) as f32 + 182.0)
+            } else {
+                dir(70.0 - 5.0 * k as f32, 53.0 * t as f32)
+            };
             let f = m.as_ref().eval(l, v) * std::f32::consts::PI;
-            s.push_str(&format!("t{t},{t},0,0,0,0,1,{},{},{},{},{},{},{},{},{}\n", l.x, l.y, l.z, v.x, v.y, v.z, f.x, f.y, f.z));
+            s.push_str(&format!(
+                "t{t},{t},0,0,0,0,1,{},{},{},{},{},{},{},{},{}\n",
+                l.x, l.y, l.z, v.x, v.y, v.z, f.x, f.y, f.z
+            ));
         }
     }
     let csv = tmp.path().join("lt.csv");
     std::fs::write(&csv, s).unwrap();
     let out_json = tmp.path().join("c.json");
-    let out = igi(&["brdf", "cluster", csv.to_str().unwrap(), "-k", "2", "-o", out_json.to_str().unwrap()]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let j: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&out_json).unwrap()).unwrap();
+    let out = igi(&[
+        "brdf",
+        "cluster",
+        csv.to_str().unwrap(),
+        "-k",
+        "2",
+        "-o",
+        out_json.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out_json).unwrap()).unwrap();
     assert_eq!(j["brdfs"].as_array().unwrap().len(), 2);
     let lts = j["lumitexels"].as_array().unwrap();
     assert_eq!(lts.len(), 40);
@@ -189,7 +375,11 @@ fn cluster_two_materials_from_csv() {
         assert_eq!(c == c0, t % 2 == 0, "lumitexel {t} in cluster {c}");
         // its weight on its own cluster is about 1
         let w = l["weights"][c as usize].as_f64().unwrap();
-        assert!((w - 1.0).abs() < 0.05, "lumitexel {t}: weights {}", l["weights"]);
+        assert!(
+            (w - 1.0).abs() < 0.05,
+            "lumitexel {t}: weights {}",
+            l["weights"]
+        );
     }
 }
 

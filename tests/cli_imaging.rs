@@ -3,30 +3,12 @@
 //! output file left behind) on bad input.
 
 use igi_imaging::{read_image, write_exr, write_png_tonemapped, Camera, Distortion, HdrImage};
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data");
+use igi_testkit::{assert_failed, s, Cli};
+use std::path::Path;
+use std::process::Output;
 
 fn igi(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_igi")).arg("--quiet").args(args).output().expect("run igi")
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-/// Fails unless the command failed, stderr names `file` and contains `problem`, and `dir`
-/// holds nothing but `keep` (no output, no temp file).
-fn assert_failed(out: &Output, file: &str, problem: &str, dir: &Path, keep: &[PathBuf]) {
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "expected failure, stderr: {err}");
-    assert!(err.contains(file), "stderr does not name {file}: {err}");
-    assert!(err.contains(problem), "stderr does not say {problem:?}: {err}");
-    for e in std::fs::read_dir(dir).unwrap() {
-        let p = e.unwrap().path();
-        assert!(keep.contains(&p), "left behind: {}", p.display());
-    }
+    Cli::new(env!("CARGO_BIN_EXE_igi")).run(args)
 }
 
 fn gray_png(path: &Path, w: usize, h: usize, v: f32) {
@@ -40,19 +22,29 @@ fn gray_png(path: &Path, w: usize, h: usize, v: f32) {
 
 #[test]
 fn merge_memorial_brackets_writes_readable_exr() {
-    let dir = Path::new(DATA).join("hdr_bracketed/memorial");
-    if !dir.exists() {
-        eprintln!("skipping: {} absent", dir.display());
-        return;
-    }
+    let dir = igi_testkit::shared_data("hdr_bracketed/memorial");
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("memorial.exr");
     let resp = tmp.path().join("resp.csv");
-    let imgs: Vec<String> = (61..=76).map(|k| dir.join(format!("memorial{k:04}.png")).to_string_lossy().into_owned()).collect();
+    let imgs: Vec<String> = (61..=76)
+        .map(|k| {
+            dir.join(format!("memorial{k:04}.png"))
+                .to_string_lossy()
+                .into_owned()
+        })
+        .collect();
     let mut args = vec!["hdr", "merge"];
     args.extend(imgs.iter().map(|s| s.as_str()));
     let tf = dir.join("shutter_times.txt");
-    args.extend(["--times-file", s(&tf), "--response-out", s(&resp), "--json", "-o", s(&out)]);
+    args.extend([
+        "--times-file",
+        s(&tf),
+        "--response-out",
+        s(&resp),
+        "--json",
+        "-o",
+        s(&out),
+    ]);
     let o = igi(&args);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
@@ -61,7 +53,10 @@ fn merge_memorial_brackets_writes_readable_exr() {
     assert!(j["valid_fraction"].as_f64().unwrap() > 0.99, "{j}");
     let im = read_image(&out).unwrap();
     assert_eq!((im.width, im.height), (512, 768));
-    assert!(im.pixels.iter().all(|p| p.iter().all(|v| v.is_finite() && *v > 0.0)));
+    assert!(im
+        .pixels
+        .iter()
+        .all(|p| p.iter().all(|v| v.is_finite() && *v > 0.0)));
     // huge dynamic range: the stained-glass windows vs the dark interior
     let mut lum: Vec<f32> = im.pixels.iter().map(|p| p[1]).collect();
     lum.sort_by(|a, b| a.partial_cmp(b).unwrap());
@@ -72,7 +67,10 @@ fn merge_memorial_brackets_writes_readable_exr() {
     assert!(csv.starts_with("z,g_r,g_g,g_b"));
     // times as arguments (fractions) give the same result
     let out2 = tmp.path().join("m2.exr");
-    let times = ["32", "16", "8", "4", "2", "1", "1/2", "1/4", "1/8", "1/16", "1/32", "1/64", "1/128", "1/256", "1/512", "1/1024"];
+    let times = [
+        "32", "16", "8", "4", "2", "1", "1/2", "1/4", "1/8", "1/16", "1/32", "1/64", "1/128",
+        "1/256", "1/512", "1/1024",
+    ];
     let mut args = vec!["hdr", "merge"];
     args.extend(imgs.iter().map(|s| s.as_str()));
     args.push("--times");
@@ -90,12 +88,44 @@ fn merge_errors_missing_file_and_unknown_format() {
     gray_png(&a, 8, 6, 0.5);
     let out = tmp.path().join("out.exr");
     let missing = tmp.path().join("nothere.png");
-    let o = igi(&["hdr", "merge", s(&a), s(&missing), "--times", "1", "2", "-o", s(&out)]);
-    assert_failed(&o, "nothere.png", "not found", tmp.path(), &[a.clone()]);
+    let o = igi(&[
+        "hdr",
+        "merge",
+        s(&a),
+        s(&missing),
+        "--times",
+        "1",
+        "2",
+        "-o",
+        s(&out),
+    ]);
+    assert_failed(
+        &o,
+        "nothere.png",
+        "not found",
+        tmp.path(),
+        std::slice::from_ref(&a),
+    );
     let bmp = tmp.path().join("b.bmp");
     std::fs::write(&bmp, b"BM....").unwrap();
-    let o = igi(&["hdr", "merge", s(&a), s(&bmp), "--times", "1", "2", "-o", s(&out)]);
-    assert_failed(&o, "b.bmp", "unknown image format", tmp.path(), &[a.clone(), bmp.clone()]);
+    let o = igi(&[
+        "hdr",
+        "merge",
+        s(&a),
+        s(&bmp),
+        "--times",
+        "1",
+        "2",
+        "-o",
+        s(&out),
+    ]);
+    assert_failed(
+        &o,
+        "b.bmp",
+        "unknown image format",
+        tmp.path(),
+        &[a.clone(), bmp.clone()],
+    );
 }
 
 #[test]
@@ -109,19 +139,67 @@ fn merge_errors_sizes_times_and_missing_times() {
     gray_png(&c, 9, 6, 0.9);
     let keep = [a.clone(), b.clone(), c.clone()];
     let out = tmp.path().join("out.exr");
-    let o = igi(&["hdr", "merge", s(&a), s(&b), s(&c), "--times", "1", "2", "4", "-o", s(&out)]);
+    let o = igi(&[
+        "hdr",
+        "merge",
+        s(&a),
+        s(&b),
+        s(&c),
+        "--times",
+        "1",
+        "2",
+        "4",
+        "-o",
+        s(&out),
+    ]);
     assert_failed(&o, "c.png", "different sizes", tmp.path(), &keep);
-    let o = igi(&["hdr", "merge", s(&a), s(&b), "--times", "2", "2", "-o", s(&out)]);
+    let o = igi(&[
+        "hdr",
+        "merge",
+        s(&a),
+        s(&b),
+        "--times",
+        "2",
+        "2",
+        "-o",
+        s(&out),
+    ]);
     assert_failed(&o, "b.png", "strictly monotonic", tmp.path(), &keep);
-    let o = igi(&["hdr", "merge", s(&a), s(&b), "--times", "1", "0", "-o", s(&out)]);
+    let o = igi(&[
+        "hdr",
+        "merge",
+        s(&a),
+        s(&b),
+        "--times",
+        "1",
+        "0",
+        "-o",
+        s(&out),
+    ]);
     assert_failed(&o, "\"0\"", "positive", tmp.path(), &keep);
     let o = igi(&["hdr", "merge", s(&a), s(&b), "--times", "1", "-o", s(&out)]);
-    assert_failed(&o, "2 image(s) but 1 time(s)", "missing exposure times", tmp.path(), &keep);
+    assert_failed(
+        &o,
+        "2 image(s) but 1 time(s)",
+        "missing exposure times",
+        tmp.path(),
+        &keep,
+    );
     // no times and no EXIF in the PNGs
     let o = igi(&["hdr", "merge", s(&a), s(&b), "-o", s(&out)]);
     assert_failed(&o, "a.png", "missing exposure times", tmp.path(), &keep);
     // a good merge of the same files works (sanity check of the fixture)
-    let o = igi(&["hdr", "merge", s(&a), s(&b), "--times", "1", "2", "-o", s(&out)]);
+    let o = igi(&[
+        "hdr",
+        "merge",
+        s(&a),
+        s(&b),
+        "--times",
+        "1",
+        "2",
+        "-o",
+        s(&out),
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(out.exists());
 }
@@ -134,9 +212,37 @@ fn merge_rejects_nan_and_inf_in_float_input() {
     let out = tmp.path().join("out.exr");
     for (name, bad) in [("nan.exr", f32::NAN), ("inf.exr", f32::INFINITY)] {
         let p = tmp.path().join(name);
-        exr::prelude::write_rgb_file(&p, 4, 4, |x, y| if (x, y) == (1, 2) { (0.5, bad, 0.5) } else { (0.5, 0.5, 0.5) }).unwrap();
-        let o = igi(&["hdr", "merge", "--linear", s(&good), s(&p), "--times", "1", "2", "-o", s(&out)]);
-        assert_failed(&o, name, "NaN or infinite", tmp.path(), &[good.clone(), tmp.path().join("nan.exr"), tmp.path().join("inf.exr")]);
+        exr::prelude::write_rgb_file(&p, 4, 4, |x, y| {
+            if (x, y) == (1, 2) {
+                (0.5, bad, 0.5)
+            } else {
+                (0.5, 0.5, 0.5)
+            }
+        })
+        .unwrap();
+        let o = igi(&[
+            "hdr",
+            "merge",
+            "--linear",
+            s(&good),
+            s(&p),
+            "--times",
+            "1",
+            "2",
+            "-o",
+            s(&out),
+        ]);
+        assert_failed(
+            &o,
+            name,
+            "NaN or infinite",
+            tmp.path(),
+            &[
+                good.clone(),
+                tmp.path().join("nan.exr"),
+                tmp.path().join("inf.exr"),
+            ],
+        );
     }
 }
 
@@ -158,10 +264,25 @@ fn camera_undistort_and_bad_rotation() {
     }
     write_exr(&img, &im).unwrap();
     let cam = tmp.path().join("cam.json");
-    test_camera(Distortion { k1: 0.15, ..Default::default() }).save(&cam).unwrap();
+    test_camera(Distortion {
+        k1: 0.15,
+        ..Default::default()
+    })
+    .save(&cam)
+    .unwrap();
     let out = tmp.path().join("und.exr");
     let cout = tmp.path().join("und.json");
-    let o = igi(&["camera", "undistort", s(&img), "--camera", s(&cam), "--camera-out", s(&cout), "-o", s(&out)]);
+    let o = igi(&[
+        "camera",
+        "undistort",
+        s(&img),
+        "--camera",
+        s(&cam),
+        "--camera-out",
+        s(&cout),
+        "-o",
+        s(&out),
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let u = read_image(&out).unwrap();
     assert_eq!((u.width, u.height), (64, 48));
@@ -174,12 +295,27 @@ fn camera_undistort_and_bad_rotation() {
     assert!(Camera::load(&cout).unwrap().intrinsics.dist.is_zero());
 
     let bad = tmp.path().join("bad_r.json");
-    let mut j: serde_json::Value = serde_json::from_str(&test_camera(Distortion::default()).to_json_string()).unwrap();
+    let mut j: serde_json::Value =
+        serde_json::from_str(&test_camera(Distortion::default()).to_json_string()).unwrap();
     j["R"][0][0] = serde_json::json!(1.01);
     std::fs::write(&bad, j.to_string()).unwrap();
     let out2 = tmp.path().join("und2.exr");
-    let o = igi(&["camera", "undistort", s(&img), "--camera", s(&bad), "-o", s(&out2)]);
-    let keep = [img.clone(), cam.clone(), out.clone(), cout.clone(), bad.clone()];
+    let o = igi(&[
+        "camera",
+        "undistort",
+        s(&img),
+        "--camera",
+        s(&bad),
+        "-o",
+        s(&out2),
+    ]);
+    let keep = [
+        img.clone(),
+        cam.clone(),
+        out.clone(),
+        cout.clone(),
+        bad.clone(),
+    ];
     assert_failed(&o, "bad_r.json", "not orthonormal", tmp.path(), &keep);
 }
 
@@ -190,28 +326,65 @@ fn camera_pose_from_correspondences() {
     truth.pose.r = glam::DMat3::from_rotation_x(0.3) * glam::DMat3::from_rotation_z(-0.4);
     truth.pose.t = glam::DVec3::new(0.1, 0.2, 5.0);
     let cam = tmp.path().join("cam.json");
-    Camera::pinhole(640, 480, 500.0, 500.0, 320.0, 240.0).save(&cam).unwrap();
+    Camera::pinhole(640, 480, 500.0, 500.0, 320.0, 240.0)
+        .save(&cam)
+        .unwrap();
     let mut csv = String::from("u,v,x,y,z\n");
     for k in 0..20 {
-        let p = glam::DVec3::new((k % 5) as f64 * 0.5 - 1.0, (k / 5) as f64 * 0.5 - 0.8, ((k * 7) % 5) as f64 * 0.3 - 0.6);
+        let p = glam::DVec3::new(
+            (k % 5) as f64 * 0.5 - 1.0,
+            (k / 5) as f64 * 0.5 - 0.8,
+            ((k * 7) % 5) as f64 * 0.3 - 0.6,
+        );
         let q = truth.project(p).unwrap();
         csv.push_str(&format!("{},{},{},{},{}\n", q.x, q.y, p.x, p.y, p.z));
     }
     let pts = tmp.path().join("corr.csv");
     std::fs::write(&pts, csv).unwrap();
     let out = tmp.path().join("posed.json");
-    let o = igi(&["camera", "pose", "--camera", s(&cam), "--points", s(&pts), "--json", "-o", s(&out)]);
+    let o = igi(&[
+        "camera",
+        "pose",
+        "--camera",
+        s(&cam),
+        "--points",
+        s(&pts),
+        "--json",
+        "-o",
+        s(&out),
+    ]);
     if cfg!(feature = "opencv") {
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let c = Camera::load(&out).unwrap();
         assert!((c.center_world() - truth.center_world()).length() < 1e-3);
     } else {
-        assert_failed(&o, "corr.csv", "built without opencv", tmp.path(), &[cam.clone(), pts.clone()]);
+        assert_failed(
+            &o,
+            "corr.csv",
+            "built without opencv",
+            tmp.path(),
+            &[cam.clone(), pts.clone()],
+        );
     }
     // malformed CSV names the file and line
     std::fs::write(&pts, "u,v,x,y,z\n1,2,3,4\n").unwrap();
-    let o = igi(&["camera", "pose", "--camera", s(&cam), "--points", s(&pts), "-o", s(&out)]);
-    assert_failed(&o, "corr.csv", "line 2", tmp.path(), &[cam.clone(), pts.clone(), out.clone()]);
+    let o = igi(&[
+        "camera",
+        "pose",
+        "--camera",
+        s(&cam),
+        "--points",
+        s(&pts),
+        "-o",
+        s(&out),
+    ]);
+    assert_failed(
+        &o,
+        "corr.csv",
+        "line 2",
+        tmp.path(),
+        &[cam.clone(), pts.clone(), out.clone()],
+    );
 }
 
 #[test]
@@ -244,6 +417,10 @@ fn merge_linear_exr_brackets_recovers_radiance() {
     let m = read_image(&out).unwrap();
     for x in 0..32 {
         let got = m.get(x, 0)[0];
-        assert!((got / field(x) - 1.0).abs() < 1e-5, "x={x}: {got} vs {}", field(x));
+        assert!(
+            (got / field(x) - 1.0).abs() < 1e-5,
+            "x={x}: {got} vs {}",
+            field(x)
+        );
     }
 }

@@ -13,7 +13,12 @@ fn write_scene(dir: &Path, textured: bool) {
     std::fs::create_dir_all(dir.join("geometry")).unwrap();
     std::fs::create_dir_all(dir.join("lighting")).unwrap();
     let mesh = igi_geometry::TriMesh {
-        positions: vec![[-20.0, -20.0, 0.0], [20.0, -20.0, 0.0], [20.0, 20.0, 0.0], [-20.0, 20.0, 0.0]],
+        positions: vec![
+            [-20.0, -20.0, 0.0],
+            [20.0, -20.0, 0.0],
+            [20.0, 20.0, 0.0],
+            [-20.0, 20.0, 0.0],
+        ],
         normals: None,
         uvs: Some(vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]),
         colors: None,
@@ -70,14 +75,21 @@ fn render_matches_analytic_sunlit_plane_and_writes_stderr() {
         .arg(&out)
         .output()
         .unwrap();
-    assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
     let img = igi_imaging::read_image(&out).unwrap();
     let se_img = igi_imaging::read_image(&se).unwrap();
     assert_eq!((img.width, img.height), (16, 12));
     let expect = 0.5 / std::f64::consts::PI * e_sun();
     for (p, s) in img.pixels.iter().zip(&se_img.pixels) {
         for c in 0..3 {
-            assert!(((p[c] as f64) - expect).abs() < 2e-3 * expect, "{p:?} vs {expect}");
+            assert!(
+                ((p[c] as f64) - expect).abs() < 2e-3 * expect,
+                "{p:?} vs {expect}"
+            );
             assert!(s[c].is_finite() && (s[c] as f64) < 2e-3 * expect);
         }
     }
@@ -128,7 +140,11 @@ fn textured_plane_and_compare_with_noise_rmse() {
             .arg(&out)
             .output()
             .unwrap();
-        assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
+        assert!(
+            st.status.success(),
+            "{}",
+            String::from_utf8_lossy(&st.stderr)
+        );
         (out, se)
     };
     let (a, sa) = render("8", "1", "a");
@@ -143,7 +159,10 @@ fn textured_plane_and_compare_with_noise_rmse() {
         let expect = rho / std::f64::consts::PI * e_sun();
         let got = img.get(col, 6)[1] as f64;
         // 2 % tolerance: the pixel box filter averages rho over 0.5 m (linear, so exact) and MC noise.
-        assert!((got - expect).abs() < 0.01 * expect, "col {col}: {got} vs {expect}");
+        assert!(
+            (got - expect).abs() < 0.01 * expect,
+            "col {col}: {got} vs {expect}"
+        );
     }
     let c = igi()
         .arg("compare")
@@ -157,7 +176,10 @@ fn textured_plane_and_compare_with_noise_rmse() {
         .unwrap();
     assert!(c.status.success(), "{}", String::from_utf8_lossy(&c.stderr));
     let text = String::from_utf8_lossy(&c.stdout);
-    assert!(text.contains("RMSE") && text.contains("explained by noise") && text.contains("PSNR"), "{text}");
+    assert!(
+        text.contains("RMSE") && text.contains("explained by noise") && text.contains("PSNR"),
+        "{text}"
+    );
 }
 
 #[test]
@@ -171,16 +193,41 @@ fn bad_inputs_give_clear_errors() {
     };
     let cam = dir.path().join("camera.json");
     let out = dir.path().join("o.exr");
-    let e = run(&[dir.path().as_os_str(), "--camera".as_ref(), cam.as_os_str(), "-o".as_ref(), out.as_os_str()]);
+    let e = run(&[
+        dir.path().as_os_str(),
+        "--camera".as_ref(),
+        cam.as_os_str(),
+        "-o".as_ref(),
+        out.as_os_str(),
+    ]);
     // A folder is taken as a solve result, which needs --lighting.
-    assert!(e.contains(&dir.path().display().to_string()) && e.contains("--lighting"), "{e}");
+    assert!(
+        e.contains(&dir.path().display().to_string()) && e.contains("--lighting"),
+        "{e}"
+    );
     let missing = dir.path().join("nocam.json");
     let scene = dir.path().join("scene.toml");
-    let e = run(&[scene.as_os_str(), "--camera".as_ref(), missing.as_os_str(), "-o".as_ref(), out.as_os_str()]);
+    let e = run(&[
+        scene.as_os_str(),
+        "--camera".as_ref(),
+        missing.as_os_str(),
+        "-o".as_ref(),
+        out.as_os_str(),
+    ]);
     assert!(e.contains("nocam.json"), "{e}");
-    std::fs::write(dir.path().join("broken.toml"), "[[object]]\nmesh = \"geometry/ground.ply\"\n").unwrap();
+    std::fs::write(
+        dir.path().join("broken.toml"),
+        "[[object]]\nmesh = \"geometry/ground.ply\"\n",
+    )
+    .unwrap();
     let broken = dir.path().join("broken.toml");
-    let e = run(&[broken.as_os_str(), "--camera".as_ref(), cam.as_os_str(), "-o".as_ref(), out.as_os_str()]);
+    let e = run(&[
+        broken.as_os_str(),
+        "--camera".as_ref(),
+        cam.as_os_str(),
+        "-o".as_ref(),
+        out.as_os_str(),
+    ]);
     assert!(e.contains("broken.toml") && e.contains("albedo"), "{e}");
     let o = igi().arg("compare").arg(&cam).arg(&cam).output().unwrap();
     assert!(!o.status.success());

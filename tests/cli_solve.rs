@@ -10,7 +10,12 @@ fn igi() -> Command {
 
 fn run_ok(cmd: &mut Command) -> String {
     let out = cmd.output().expect("igi runs");
-    assert!(out.status.success(), "igi failed: {}\n{}", String::from_utf8_lossy(&out.stderr), String::from_utf8_lossy(&out.stdout));
+    assert!(
+        out.status.success(),
+        "igi failed: {}\n{}",
+        String::from_utf8_lossy(&out.stderr),
+        String::from_utf8_lossy(&out.stdout)
+    );
     String::from_utf8(out.stdout).unwrap()
 }
 
@@ -22,11 +27,26 @@ fn json(s: &str) -> serde_json::Value {
 fn demo_then_solve_resume_relight_export_and_sample() {
     let tmp = tempfile::tempdir().unwrap();
     let demo = tmp.path().join("demo");
-    let d = json(&run_ok(igi().args(["demo", "--quick", "--quiet", "--json", "-o"]).arg(&demo)));
+    let d = json(&run_ok(
+        igi()
+            .args(["demo", "--quick", "--quiet", "--json", "-o"])
+            .arg(&demo),
+    ));
     assert_eq!(d["photos"], 8);
-    let mae = d["albedo_mae"].as_array().expect("demo reports the albedo error");
-    assert!(mae.iter().all(|m| m.as_f64().unwrap() < 0.15), "quick demo albedo MAE {mae:?}");
-    for f in ["demo.json", "pictures/relit.png", "pictures/convergence.png", "result/report.json", "survey/survey.toml"] {
+    let mae = d["albedo_mae"]
+        .as_array()
+        .expect("demo reports the albedo error");
+    assert!(
+        mae.iter().all(|m| m.as_f64().unwrap() < 0.15),
+        "quick demo albedo MAE {mae:?}"
+    );
+    for f in [
+        "demo.json",
+        "pictures/relit.png",
+        "pictures/convergence.png",
+        "result/report.json",
+        "survey/survey.toml",
+    ] {
         assert!(demo.join(f).is_file(), "{f}");
     }
 
@@ -40,7 +60,17 @@ fn demo_then_solve_resume_relight_export_and_sample() {
                 .arg(&survey)
                 .arg("-o")
                 .arg(&res)
-                .args(["--atlas", "32", "--spp", "8,32", "--iterations", iters, "--quiet", "--json", "--truth"])
+                .args([
+                    "--atlas",
+                    "32",
+                    "--spp",
+                    "8,32",
+                    "--iterations",
+                    iters,
+                    "--quiet",
+                    "--json",
+                    "--truth",
+                ])
                 .arg(survey.join("truth/scene.toml")),
         ))
     };
@@ -48,10 +78,22 @@ fn demo_then_solve_resume_relight_export_and_sample() {
     assert_eq!(r1["iterations"].as_array().unwrap().len(), 1);
     let r2 = solve("3");
     let its = r2["iterations"].as_array().unwrap();
-    assert!(its.len() >= 2, "resumed and continued: {} iterations", its.len());
-    assert_eq!(its[0]["observations"], r1["iterations"][0]["observations"], "iteration 1 was kept, not redone");
+    assert!(
+        its.len() >= 2,
+        "resumed and continued: {} iterations",
+        its.len()
+    );
+    assert_eq!(
+        its[0]["observations"], r1["iterations"][0]["observations"],
+        "iteration 1 was kept, not redone"
+    );
     let err = |i: &serde_json::Value| i["truth_rms"].as_f64().unwrap();
-    assert!(err(its.last().unwrap()) < err(&its[0]), "rho_d error falls: {} -> {}", err(&its[0]), err(its.last().unwrap()));
+    assert!(
+        err(its.last().unwrap()) < err(&its[0]),
+        "rho_d error falls: {} -> {}",
+        err(&its[0]),
+        err(its.last().unwrap())
+    );
 
     // re-light the result
     let relit = tmp.path().join("relit.exr");
@@ -67,11 +109,27 @@ fn demo_then_solve_resume_relight_export_and_sample() {
             .arg(&relit),
     );
     let img = igi_imaging::read_image(&relit).unwrap();
-    assert!(img.pixels.iter().all(|p| p.iter().all(|c| c.is_finite() && *c >= 0.0)));
-    let mean: f64 = img.pixels.iter().map(|p| (p[0] + p[1] + p[2]) as f64).sum::<f64>() / (3 * img.pixels.len()) as f64;
+    assert!(img
+        .pixels
+        .iter()
+        .all(|p| p.iter().all(|c| c.is_finite() && *c >= 0.0)));
+    let mean: f64 = img
+        .pixels
+        .iter()
+        .map(|p| (p[0] + p[1] + p[2]) as f64)
+        .sum::<f64>()
+        / (3 * img.pixels.len()) as f64;
     assert!(mean > 0.0);
     // without --lighting a result folder is refused clearly
-    let out = igi().arg("render").arg(&res).arg("--camera").arg(survey.join("cameras/held-out.json")).arg("-o").arg(tmp.path().join("x.exr")).output().unwrap();
+    let out = igi()
+        .arg("render")
+        .arg(&res)
+        .arg("--camera")
+        .arg(survey.join("cameras/held-out.json"))
+        .arg("-o")
+        .arg(tmp.path().join("x.exr"))
+        .output()
+        .unwrap();
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("--lighting"));
     assert!(!tmp.path().join("x.exr").exists());
@@ -79,11 +137,21 @@ fn demo_then_solve_resume_relight_export_and_sample() {
     // export: every file the Mitsuba scene names exists
     for fmt in ["ply", "obj", "mitsuba"] {
         let dir = tmp.path().join(format!("export-{fmt}"));
-        run_ok(igi().arg("export").arg(&res).args(["--format", fmt, "-o"]).arg(&dir));
+        run_ok(
+            igi()
+                .arg("export")
+                .arg(&res)
+                .args(["--format", fmt, "-o"])
+                .arg(&dir),
+        );
         assert!(dir.join("terrain_albedo.exr").is_file(), "{fmt}");
         if fmt == "mitsuba" {
             let xml = std::fs::read_to_string(dir.join("scene.xml")).unwrap();
-            for name in xml.split("value=\"").skip(1).map(|s| s.split('"').next().unwrap()) {
+            for name in xml
+                .split("value=\"")
+                .skip(1)
+                .map(|s| s.split('"').next().unwrap())
+            {
                 if name.ends_with(".ply") || name.ends_with(".exr") {
                     assert!(dir.join(name).is_file(), "scene.xml names {name}");
                 }
@@ -94,41 +162,107 @@ fn demo_then_solve_resume_relight_export_and_sample() {
     // sample: points on the surface get the albedo of the texel under them
     let result = igi_reflect::SolveResult::load(&res).unwrap();
     let part = result.parts.iter().position(|p| p.name == "wall").unwrap();
-    let texels: Vec<_> = result.parts[part].cache.texels.iter().step_by(37).take(5).copied().collect();
+    let texels: Vec<_> = result.parts[part]
+        .cache
+        .texels
+        .iter()
+        .step_by(37)
+        .take(5)
+        .copied()
+        .collect();
     let mut csv = String::from("x,y,z,nx,ny,nz\n");
     for t in &texels {
-        csv.push_str(&format!("{},{},{},{},{},{}\n", t.position.x, t.position.y, t.position.z, t.normal.x, t.normal.y, t.normal.z));
+        csv.push_str(&format!(
+            "{},{},{},{},{},{}\n",
+            t.position.x, t.position.y, t.position.z, t.normal.x, t.normal.y, t.normal.z
+        ));
     }
     let pts = tmp.path().join("points.csv");
     std::fs::write(&pts, csv).unwrap();
     let vals = tmp.path().join("values.csv");
-    run_ok(igi().arg("sample").arg(&res).arg("--points").arg(&pts).arg("-o").arg(&vals));
+    run_ok(
+        igi()
+            .arg("sample")
+            .arg(&res)
+            .arg("--points")
+            .arg(&pts)
+            .arg("-o")
+            .arg(&vals),
+    );
     let text = std::fs::read_to_string(&vals).unwrap();
     for (line, t) in text.lines().skip(1).zip(&texels) {
         let v: Vec<f32> = line.split(',').map(|s| s.parse().unwrap()).collect();
         let want = result.rho[part][t.index as usize];
         // bilinear lookup at the texel centre returns the texel itself
-        assert!((v[6] - want.x).abs() < 2e-3 && (v[7] - want.y).abs() < 2e-3 && (v[8] - want.z).abs() < 2e-3, "{line} vs {want}");
+        assert!(
+            (v[6] - want.x).abs() < 2e-3
+                && (v[7] - want.y).abs() < 2e-3
+                && (v[8] - want.z).abs() < 2e-3,
+            "{line} vs {want}"
+        );
     }
 
     // a prepared site: `igi prepare` the stylobate (with the terrain), name it in a copy of
     // the survey, and solve one voxel of it (--voxels); the others are not touched
     let site = tmp.path().join("site.igi");
-    run_ok(igi().arg("-q").arg("prepare").arg(survey.join("geometry/stylobate.ply")).arg("--terrain").arg(survey.join("geometry/terrain.ply")).args(["--atlas", "32", "-o"]).arg(&site));
+    run_ok(
+        igi()
+            .arg("-q")
+            .arg("prepare")
+            .arg(survey.join("geometry/stylobate.ply"))
+            .arg("--terrain")
+            .arg(survey.join("geometry/terrain.ply"))
+            .args(["--atlas", "32", "-o"])
+            .arg(&site),
+    );
     let text = std::fs::read_to_string(survey.join("survey.toml")).unwrap();
     let photos = &text[text.find("[[photo]]").unwrap()..];
     let prepared_survey = survey.join("prepared.toml");
-    std::fs::write(&prepared_survey, format!("[site]\nprepared = {:?}\n\n{photos}", site.display().to_string())).unwrap();
-    let man: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(site.join("manifest.json")).unwrap()).unwrap();
+    std::fs::write(
+        &prepared_survey,
+        format!(
+            "[site]\nprepared = {:?}\n\n{photos}",
+            site.display().to_string()
+        ),
+    )
+    .unwrap();
+    let man: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(site.join("manifest.json")).unwrap())
+            .unwrap();
     let v = &man["voxels"][0]["voxel"];
     let name = format!("{}_{}_{}", v[0], v[1], v[2]);
     let pres = tmp.path().join("prepared-result");
-    let r = json(&run_ok(igi().arg("solve").arg(&prepared_survey).arg("-o").arg(&pres).args(["--spp", "4", "--iterations", "1", "--quiet", "--json", "--voxels", &name])));
+    let r = json(&run_ok(
+        igi()
+            .arg("solve")
+            .arg(&prepared_survey)
+            .arg("-o")
+            .arg(&pres)
+            .args([
+                "--spp",
+                "4",
+                "--iterations",
+                "1",
+                "--quiet",
+                "--json",
+                "--voxels",
+                &name,
+            ]),
+    ));
     let parts = r["parts"].as_array().unwrap();
-    assert_eq!(parts.len(), man["voxels"].as_array().unwrap().len() + 1, "every voxel and the terrain");
+    assert_eq!(
+        parts.len(),
+        man["voxels"].as_array().unwrap().len() + 1,
+        "every voxel and the terrain"
+    );
     for p in parts {
         let solved = p["name"] == name.as_str();
-        assert_eq!(p["scene_triangles"].as_u64().unwrap() > 0, solved, "{}", p["name"]);
+        assert_eq!(
+            p["scene_triangles"].as_u64().unwrap() > 0,
+            solved,
+            "{}",
+            p["name"]
+        );
         if !solved {
             assert_eq!(p["seen_texels"], 0, "{}", p["name"]);
         }
@@ -136,7 +270,14 @@ fn demo_then_solve_resume_relight_export_and_sample() {
     assert!(r["site"].as_str().unwrap().ends_with("site.igi"));
     assert!(pres.join(format!("parts/{name}_rho_d.exr")).is_file());
     // an unknown voxel is refused
-    let out = igi().arg("solve").arg(&prepared_survey).arg("-o").arg(tmp.path().join("x")).args(["--voxels", "99_99_99", "--restart"]).output().unwrap();
+    let out = igi()
+        .arg("solve")
+        .arg(&prepared_survey)
+        .arg("-o")
+        .arg(tmp.path().join("x"))
+        .args(["--voxels", "99_99_99", "--restart"])
+        .output()
+        .unwrap();
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("99_99_99"));
 }
@@ -152,14 +293,29 @@ fn bad_surveys_fail_clearly_without_output() {
     let s = tmp.path().join("s");
     write(&s.join("survey.toml"), "[site]\nmesh = \"geometry/site.ply\"\n[[photo]]\nid = \"a\"\nimage = \"photos/a.exr\"\ncamera = \"c.json\"\nlighting = \"l.toml\"\n");
     let out_dir = tmp.path().join("out");
-    let out = igi().arg("solve").arg(&s).arg("-o").arg(&out_dir).output().unwrap();
+    let out = igi()
+        .arg("solve")
+        .arg(&s)
+        .arg("-o")
+        .arg(&out_dir)
+        .output()
+        .unwrap();
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("survey.toml") && err.contains("site.ply") && err.contains("does not exist"), "{err}");
+    assert!(
+        err.contains("survey.toml") && err.contains("site.ply") && err.contains("does not exist"),
+        "{err}"
+    );
     assert!(!out_dir.exists(), "no output folder for a bad survey");
 
     write(&s.join("survey.toml"), "[site]\nmesh = 3\n");
-    let out = igi().arg("solve").arg(&s).arg("-o").arg(&out_dir).output().unwrap();
+    let out = igi()
+        .arg("solve")
+        .arg(&s)
+        .arg("-o")
+        .arg(&out_dir)
+        .output()
+        .unwrap();
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("not a valid survey file"));
     assert!(!out_dir.exists());

@@ -125,13 +125,11 @@ fn assert_heldout(tag: &str, c: &Comparison, per_channel: &[f64; 3]) {
 #[test]
 fn solve_recovers_mitsuba_albedo_and_relights_the_heldout_view() {
     let dir = fixture();
-    if !dir.join("survey.toml").exists() {
-        eprintln!(
-            "SKIPPED: {} is missing (run datasets/mitsuba/survey_reference.py --small)",
-            dir.display()
-        );
-        return;
-    }
+    assert!(
+        dir.join("survey.toml").exists(),
+        "{} is missing (run datasets/mitsuba/survey_reference.py --small)",
+        dir.display()
+    );
     let tmp = tempfile::tempdir().unwrap();
     let truth = dir.join("truth/scene.toml");
 

@@ -29,6 +29,14 @@ the OpenCV camera.json rays; (b) Mitsuba's envmap emitter vs. the FORMATS.md lat
 Mitsuba is only a generator of committed fixtures, never a dependency of igi.
 
 Usage: python3 datasets/mitsuba/board_fixtures.py [--out DIR] [--scale-spp F]
+
+Large boards (issue 16: sun accuracy at the size of a real board photograph):
+
+    python3 datasets/mitsuba/board_fixtures.py --cases sunny --size 1024x768 --fx 766 \
+        --sun-el 14 --out /tmp/board1024/el14 --scale-spp 0.25
+
+renders the sunny case at 1024x768 (spheres about 90 px in radius) with the sun at the given
+elevation (and --sun-az); only the spheres' crops are rendered (the background is black) and no brackets are written.
 """
 
 import argparse
@@ -182,7 +190,7 @@ def sphere_crop(c, r, margin=4):
 def check_camera():
     sensor = mi.load_dict(sensor_dict(1))
     worst = 0.0
-    for (u, v) in [(0, 0), (255, 0), (0, 255), (127.5, 127.5), (40.25, 200.75), (250, 13)]:
+    for (u, v) in [(0, 0), (W - 1, 0), (0, H - 1), (CX, CY), (40.25, H - 55.25), (W - 6, 13)]:
         ray = sensor.sample_ray(0.0, 0.5, mi.Point2f((u + 0.5) / W, (v + 0.5) / H), mi.Point2f(0.5, 0.5))[0]
         dc = R @ np.array(ray.d, dtype=float)
         err = math.hypot(FX * dc[0] / dc[2] + CX - u, FY * dc[1] / dc[2] + CY - v)
@@ -253,6 +261,9 @@ def make_case(out, case, spp_scale):
     spp = {"mirror": int(256 * spp_scale), "black": int(512 * spp_scale), "diffuse": int(4096 * spp_scale)}
     board = np.zeros((H, W, 3))
     first = True
+    large = W * H > 256 * 256
+    if large:  # large boards: the spheres' crops only (black background, small committed files)
+        first = False
     for i, (kind, c, r) in enumerate(SPHERES):
         crop = (0, 0, W, H) if first else sphere_crop(c, r)
         print(f"  rendering {case}/{kind} crop {crop} spp {spp[kind]}", flush=True)
@@ -263,7 +274,7 @@ def make_case(out, case, spp_scale):
     os.remove(env_path)
     assert np.all(np.isfinite(board))
     write_exr(os.path.join(out, "board.exr"), board.astype(np.float32))
-    for i, t in enumerate(TIMES):
+    for i, t in enumerate([] if large else TIMES):
         write_png16(os.path.join(out, f"bracket_{i}.png"), board * t)
     write_text(os.path.join(out, "times.txt"), "".join(f"{t!r}\n" for t in TIMES))
     cam = {"width": W, "height": H, "K": [[FX, 0, CX], [0, FY, CY], [0, 0, 1]], "dist": [0, 0, 0, 0, 0],
@@ -285,7 +296,16 @@ def main():
     ap.add_argument("--out", default=DEFAULT_OUT)
     ap.add_argument("--scale-spp", type=float, default=1.0)
     ap.add_argument("--cases", default="sunny,cloudy")
+    ap.add_argument("--size", default="256x256", help="image WIDTHxHEIGHT")
+    ap.add_argument("--fx", type=float, default=400.0, help="focal length in pixels (fx = fy)")
+    ap.add_argument("--sun-el", type=float, default=35.0)
+    ap.add_argument("--sun-az", type=float, default=200.0)
     a = ap.parse_args()
+    global W, H, FX, FY, CX, CY, SUN_EL_DEG, SUN_AZ_DEG
+    W, H = (int(x) for x in a.size.split("x"))
+    FX = FY = a.fx
+    CX, CY = W / 2 - 0.5, H / 2 - 0.5
+    SUN_EL_DEG, SUN_AZ_DEG = a.sun_el, a.sun_az
     os.makedirs(a.out, exist_ok=True)
     check_conductor(a.out)
     for case in a.cases.split(","):

@@ -5,8 +5,14 @@ BSDF.eval includes the cosine foreshortening of the incident direction, divided 
   datasets/fixtures/brdf/samples.csv  light at 0/30/50/75 deg in the x-z plane, 20 views each,
                                       1 % multiplicative noise (numpy seed 2024)
   datasets/fixtures/brdf/heldout.csv  500 random light/view pairs per material, noise-free
-Usage: python3 datasets/mitsuba/brdf_samples.py"""
-import math, os
+  datasets/fixtures/brdf/lights8.csv  (--lights8) 8 light positions x 20 views per material, 1 %
+                                      noise (numpy seed 2025): the first four are the lights of
+                                      samples.csv, then (elevation, azimuth) (20, 90), (40, 225),
+                                      (60, 135), (65, 300); each light's 20 views are those of
+                                      samples.csv rotated by the light's azimuth (the hand-held
+                                      frame: the camera moves with the light around the sample)
+Usage: python3 datasets/mitsuba/brdf_samples.py [--lights8]"""
+import math, os, sys
 import numpy as np
 import mitsuba as mi
 
@@ -38,8 +44,33 @@ def hemi(rng):
             return d
 
 
+LIGHTS8 = [(0, 0), (30, 0), (50, 0), (75, 0), (20, 90), (40, 225), (60, 135), (65, 300)]
+
+
+def lights8(bsdfs, head):
+    """8 light positions x 20 views, 1 % noise: the fixture of the error-against-lights plot."""
+    rng = np.random.default_rng(2025)
+    rows = []
+    for name, b in bsdfs.items():
+        for lt, la in LIGHTS8:
+            t, a = math.radians(lt), math.radians(la)
+            wl = np.array([math.sin(t) * math.cos(a), math.sin(t) * math.sin(a), math.cos(t)])
+            for k in range(20):
+                vt = math.radians(-80 + 160 * k / 19)
+                vp = math.radians(10.0 * (k % 3)) + a
+                wv = np.array([math.sin(vt) * math.cos(vp), math.sin(vt) * math.sin(vp), math.cos(vt)])
+                val = pi_f(b, wl, wv) * (1 + 0.01 * rng.standard_normal(3))
+                rows.append([name, *wl, *wv, *val])
+    with open(os.path.join(OUT, "lights8.csv"), "w") as f:
+        f.write(head + "".join(",".join([r[0]] + [f"{x:.7g}" for x in r[1:]]) + "\n" for r in rows))
+
+
 def main():
     os.makedirs(OUT, exist_ok=True)
+    if "--lights8" in sys.argv:
+        bsdfs = {k: mi.load_dict(v) for k, v in MATERIALS.items()}
+        lights8(bsdfs, "material,light_x,light_y,light_z,view_x,view_y,view_z,r,g,b\n")
+        return
     rng = np.random.default_rng(2024)
     bsdfs = {k: mi.load_dict(v) for k, v in MATERIALS.items()}
     # sanity: a white diffuse reads 1 (checks the cosine convention)

@@ -7,8 +7,9 @@ use std::path::PathBuf;
 use anyhow::{bail, Context};
 use glam::Vec3;
 use igi_brdf::{
-    cluster, fit_material, plot::plot_fits, plot::write_text_atomic, read_lumitexels, read_pairs, read_samples,
-    samples::group_by_material, samples::pairs_to_csv, Basis, ClusterOptions, FitOptions, MaterialsFile,
+    cluster, fit_material, plot::plot_fits, plot::write_text_atomic, read_lumitexels, read_pairs,
+    read_samples, samples::group_by_material, samples::pairs_to_csv, Basis, ClusterOptions,
+    FitOptions, MaterialsFile,
 };
 use rayon::prelude::*;
 
@@ -47,7 +48,7 @@ pub struct MeasureArgs {
     /// Output samples CSV (material,light_x..view_z,r,g,b with r g b = pi f).
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Also write each photo's orthographic view of the sample as DIR/<photo stem>_ortho.exr.
+    /// Also write each photo's orthographic view of the sample as DIR/STEM_ortho.exr (STEM: the photo's file stem).
     #[arg(long)]
     pub ortho_dir: Option<PathBuf>,
     /// Print the per-photo report (pose, light, gap, highlights, regions) as JSON.
@@ -124,12 +125,16 @@ pub fn run(cmd: BrdfCmd, ctx: &Ctx) -> anyhow::Result<()> {
 fn fit(a: FitArgs, ctx: &Ctx) -> anyhow::Result<()> {
     let samples = read_samples(&a.samples)?;
     let groups = group_by_material(&samples);
-    let opts = FitOptions { max_n: a.max_n, ..Default::default() };
+    let opts = FitOptions {
+        max_n: a.max_n,
+        ..Default::default()
+    };
     let pb = ctx.progress(groups.len() as u64, "fitting");
     let reports: Vec<_> = groups
         .par_iter()
         .map(|(name, s)| {
-            let r = fit_material(name, s, &opts).with_context(|| format!("fitting {}", a.samples.display()));
+            let r = fit_material(name, s, &opts)
+                .with_context(|| format!("fitting {}", a.samples.display()));
             pb.inc(1);
             r
         })
@@ -137,7 +142,10 @@ fn fit(a: FitArgs, ctx: &Ctx) -> anyhow::Result<()> {
     pb.finish_and_clear();
     let file = MaterialsFile::from_reports(&reports);
     write_text_atomic(&a.output, &file.to_json())?;
-    println!("{:<16} {:>7} {:>9} {:>10}  rho_d / lobes (rho, cxy, cz, n)", "material", "samples", "rel.rms", "abs.rms");
+    println!(
+        "{:<16} {:>7} {:>9} {:>10}  rho_d / lobes (rho, cxy, cz, n)",
+        "material", "samples", "rel.rms", "abs.rms"
+    );
     for r in &reports {
         let b = &r.brdf;
         println!(
@@ -164,16 +172,25 @@ fn fit(a: FitArgs, ctx: &Ctx) -> anyhow::Result<()> {
 
 fn eval(a: EvalArgs) -> anyhow::Result<()> {
     let file = MaterialsFile::read(&a.materials)?;
-    let m = file.get(&a.material).with_context(|| format!("in {}", a.materials.display()))?;
+    let m = file
+        .get(&a.material)
+        .with_context(|| format!("in {}", a.materials.display()))?;
     let table = read_pairs(&a.pairs)?;
-    let values: Vec<Vec3> = table.rows.iter().map(|r| m.as_ref().eval(r.light, r.view) * std::f32::consts::PI).collect();
+    let values: Vec<Vec3> = table
+        .rows
+        .iter()
+        .map(|r| m.as_ref().eval(r.light, r.view) * std::f32::consts::PI)
+        .collect();
     write_text_atomic(&a.output, &pairs_to_csv(&table, &values))?;
     Ok(())
 }
 
 fn infer(a: InferArgs) -> anyhow::Result<()> {
     if a.rho.len() != 3 || a.rho.iter().any(|x| !x.is_finite() || *x < 0.0) {
-        bail!("--rho needs three finite non-negative numbers r,g,b (got {:?})", a.rho);
+        bail!(
+            "--rho needs three finite non-negative numbers r,g,b (got {:?})",
+            a.rho
+        );
     }
     let file = MaterialsFile::read(&a.materials)?;
     let basis = Basis::new(file.brdfs())?;
@@ -181,7 +198,14 @@ fn infer(a: InferArgs) -> anyhow::Result<()> {
     let mut out = MaterialsFile::default();
     out.materials.insert(
         "inferred".into(),
-        igi_brdf::MaterialEntry { rho_d: m.rho_d, lobes: m.lobes, rms: None, rms_abs: None, samples: None, stderr: None },
+        igi_brdf::MaterialEntry {
+            rho_d: m.rho_d,
+            lobes: m.lobes,
+            rms: None,
+            rms_abs: None,
+            samples: None,
+            stderr: None,
+        },
     );
     match &a.output {
         Some(p) => write_text_atomic(p, &out.to_json())?,
@@ -206,8 +230,15 @@ struct LumitexelOut {
 
 fn run_cluster(a: ClusterArgs) -> anyhow::Result<()> {
     let (ids, lts) = read_lumitexels(&a.lumitexels)?;
-    let r = cluster(&lts, &ClusterOptions { k: a.k, seed: a.seed, ..Default::default() })
-        .with_context(|| format!("clustering {}", a.lumitexels.display()))?;
+    let r = cluster(
+        &lts,
+        &ClusterOptions {
+            k: a.k,
+            seed: a.seed,
+            ..Default::default()
+        },
+    )
+    .with_context(|| format!("clustering {}", a.lumitexels.display()))?;
     let out = ClusterOut {
         brdfs: r.brdfs.clone(),
         lumitexels: ids
@@ -224,7 +255,10 @@ fn run_cluster(a: ClusterArgs) -> anyhow::Result<()> {
     write_text_atomic(&a.output, &(serde_json::to_string_pretty(&out)? + "\n"))?;
     for (k, b) in r.brdfs.iter().enumerate() {
         let n = r.assignment.iter().filter(|&&x| x == k).count();
-        println!("cluster {k}: {n} lumitexels, rho_d [{:.4}, {:.4}, {:.4}]", b.rho_d.x, b.rho_d.y, b.rho_d.z);
+        println!(
+            "cluster {k}: {n} lumitexels, rho_d [{:.4}, {:.4}, {:.4}]",
+            b.rho_d.x, b.rho_d.y, b.rho_d.z
+        );
     }
     Ok(())
 }

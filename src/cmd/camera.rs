@@ -124,12 +124,18 @@ pub fn run(c: CameraCmd, ctx: &Ctx) -> anyhow::Result<()> {
 }
 
 fn undistort(a: UndistortArgs) -> anyhow::Result<()> {
-    if a.output.extension().map(|e| e.to_string_lossy().to_lowercase()).as_deref() != Some("exr") {
+    if a.output
+        .extension()
+        .map(|e| e.to_string_lossy().to_lowercase())
+        .as_deref()
+        != Some("exr")
+    {
         bail!("{}: output must be .exr", a.output.display());
     }
     let cam = Camera::load(&a.camera)?;
     let img = read_image(&a.image)?;
-    let (out, ocam) = undistort_image(&img, &cam).with_context(|| format!("{}", a.image.display()))?;
+    let (out, ocam) =
+        undistort_image(&img, &cam).with_context(|| format!("{}", a.image.display()))?;
     write_exr(&a.output, &out)?;
     if let Some(p) = &a.camera_out {
         ocam.save(p)?;
@@ -153,7 +159,12 @@ fn read_correspondences(path: &Path) -> anyhow::Result<(Vec<DVec2>, Vec<DVec3>)>
                 world.push(DVec3::new(v[2], v[3], v[4]));
             }
             Err(_) if n == 0 && px.is_empty() => continue, // header
-            _ => bail!("{}: line {}: expected 5 finite numbers u,v,x,y,z, found {:?}", path.display(), n + 1, line),
+            _ => bail!(
+                "{}: line {}: expected 5 finite numbers u,v,x,y,z, found {:?}",
+                path.display(),
+                n + 1,
+                line
+            ),
         }
     }
     Ok((px, world))
@@ -162,8 +173,12 @@ fn read_correspondences(path: &Path) -> anyhow::Result<(Vec<DVec2>, Vec<DVec3>)>
 fn pose(a: PoseArgs) -> anyhow::Result<()> {
     let cam = Camera::load(&a.camera)?;
     let (px, world) = read_correspondences(&a.points)?;
-    let res = cv::solve_pnp(&cam.intrinsics, &world, &px, a.threshold).with_context(|| format!("{}", a.points.display()))?;
-    let out = Camera { pose: res.pose, ..cam };
+    let res = cv::solve_pnp(&cam.intrinsics, &world, &px, a.threshold)
+        .with_context(|| format!("{}", a.points.display()))?;
+    let out = Camera {
+        pose: res.pose,
+        ..cam
+    };
     out.save(&a.output)?;
     if a.json {
         crate::report::print_json(&serde_json::json!({
@@ -181,9 +196,19 @@ fn calibrate(a: CalibrateArgs, ctx: &Ctx) -> anyhow::Result<()> {
     let (cols, rows) = a
         .board
         .split_once(['x', 'X'])
-        .and_then(|(c, r)| Some((c.trim().parse::<usize>().ok()?, r.trim().parse::<usize>().ok()?)))
+        .and_then(|(c, r)| {
+            Some((
+                c.trim().parse::<usize>().ok()?,
+                r.trim().parse::<usize>().ok()?,
+            ))
+        })
         .filter(|&(c, r)| c >= 2 && r >= 2)
-        .with_context(|| format!("--board {:?}: expected COLSxROWS inner corners, e.g. 9x6", a.board))?;
+        .with_context(|| {
+            format!(
+                "--board {:?}: expected COLSxROWS inner corners, e.g. 9x6",
+                a.board
+            )
+        })?;
     if !(a.square > 0.0 && a.square.is_finite()) {
         bail!("--square {}: must be a positive length in metres", a.square);
     }

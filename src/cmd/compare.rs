@@ -25,7 +25,9 @@ pub struct CompareArgs {
 }
 
 pub fn run(a: CompareArgs, _ctx: &Ctx) -> anyhow::Result<()> {
-    let read = |p: &PathBuf| igi_imaging::read_image(p).with_context(|| format!("reading {}", p.display()));
+    let read = |p: &PathBuf| {
+        igi_imaging::read_image(p).with_context(|| format!("reading {}", p.display()))
+    };
     let ia = read(&a.a)?;
     let ib = read(&a.b)?;
     let sa = a.stderr_a.as_ref().map(read).transpose()?;
@@ -42,9 +44,18 @@ pub fn run(a: CompareArgs, _ctx: &Ctx) -> anyhow::Result<()> {
         println!("pixels compared          {}", c.pixels);
         println!("RMSE                     {:.6e}", c.rmse);
         if let Some(n) = c.noise_rmse {
-            println!("RMSE explained by noise  {:.6e}  (ratio {:.3})", n, c.rmse / n);
+            println!(
+                "RMSE explained by noise  {:.6e}  (ratio {:.3})",
+                n,
+                c.rmse / n
+            );
         }
-        println!("relative mean difference {:+.4}%  (mean A {:.6e}, mean B {:.6e})", 100.0 * c.relative_mean_difference, c.mean_a, c.mean_b);
+        println!(
+            "relative mean difference {:+.4}%  (mean A {:.6e}, mean B {:.6e})",
+            100.0 * c.relative_mean_difference,
+            c.mean_a,
+            c.mean_b
+        );
         println!("PSNR (peak = max of B)   {:.2} dB", c.psnr_db);
     }
     Ok(())

@@ -18,7 +18,16 @@ pub struct DemoArgs {
 
 pub fn run(a: DemoArgs, ctx: &Ctx) -> anyhow::Result<()> {
     let opts = if a.quick {
-        DemoOptions { atlas: 32, photo_width: 60, photo_height: 40, photo_spp: 32, solve_spp: vec![8, 16], iterations: 2, relight_spp: 16, ..DemoOptions::default() }
+        DemoOptions {
+            atlas: 32,
+            photo_width: 60,
+            photo_height: 40,
+            photo_spp: 32,
+            solve_spp: vec![8, 16],
+            iterations: 2,
+            relight_spp: 16,
+            ..DemoOptions::default()
+        }
     } else {
         DemoOptions::default()
     };
@@ -33,7 +42,10 @@ pub fn run(a: DemoArgs, ctx: &Ctx) -> anyhow::Result<()> {
     if a.json {
         crate::report::print_json(&report)?;
     } else {
-        println!("procedural site: {} parts, {} triangles; {} photographs in {:.1} s", report.parts, report.triangles, report.photos, report.photo_seconds);
+        println!(
+            "procedural site: {} parts, {} triangles; {} photographs in {:.1} s",
+            report.parts, report.triangles, report.photos, report.photo_seconds
+        );
         for p in &report.probes {
             match (p.sun_direction_error_deg, p.sun_radiance_error) {
                 (Some(d), Some(e)) => println!(
@@ -58,7 +70,11 @@ pub fn run(a: DemoArgs, ctx: &Ctx) -> anyhow::Result<()> {
             c.rmse,
             c.noise_rmse.unwrap_or(f64::NAN)
         );
-        println!("wrote {} (pictures/, result/, survey/, demo.json) in {:.1} s", a.output.display(), report.total_seconds);
+        println!(
+            "wrote {} (pictures/, result/, survey/, demo.json) in {:.1} s",
+            a.output.display(),
+            report.total_seconds
+        );
     }
     Ok(())
 }

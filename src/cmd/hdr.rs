@@ -60,7 +60,11 @@ pub fn run(c: HdrCmd, ctx: &Ctx) -> anyhow::Result<()> {
 }
 
 fn write_output(path: &Path, img: &HdrImage) -> anyhow::Result<()> {
-    match path.extension().map(|e| e.to_string_lossy().to_lowercase()).as_deref() {
+    match path
+        .extension()
+        .map(|e| e.to_string_lossy().to_lowercase())
+        .as_deref()
+    {
         Some("exr") => write_exr(path, img)?,
         Some("hdr") => write_hdr(path, img)?,
         _ => unreachable!("checked before"),
@@ -69,13 +73,19 @@ fn write_output(path: &Path, img: &HdrImage) -> anyhow::Result<()> {
 }
 
 fn merge(a: MergeArgs, ctx: &Ctx) -> anyhow::Result<()> {
-    let ext = a.output.extension().map(|e| e.to_string_lossy().to_lowercase());
+    let ext = a
+        .output
+        .extension()
+        .map(|e| e.to_string_lossy().to_lowercase());
     if !matches!(ext.as_deref(), Some("exr") | Some("hdr")) {
         bail!("{}: output must be .exr or .hdr", a.output.display());
     }
     // exposure times
     let times: Vec<f64> = if !a.times.is_empty() {
-        a.times.iter().map(|t| hdr::parse_time(t)).collect::<Result<_, _>>()?
+        a.times
+            .iter()
+            .map(|t| hdr::parse_time(t))
+            .collect::<Result<_, _>>()?
     } else if let Some(f) = &a.times_file {
         hdr::read_times_file(f)?
     } else {
@@ -101,11 +111,18 @@ fn merge(a: MergeArgs, ctx: &Ctx) -> anyhow::Result<()> {
     hdr::validate_brackets(&images, &times, &a.images)?;
     pb.set_message("merging");
     let (merged, stats, resp) = if a.linear {
-        let p = LinearParams { noise_floor: a.noise_floor, saturation: a.saturation };
+        let p = LinearParams {
+            noise_floor: a.noise_floor,
+            saturation: a.saturation,
+        };
         let (m, s) = hdr::merge_linear(&images, &times, p)?;
         (m, s, None)
     } else {
-        let p = ResponseParams { lambda: a.lambda, samples: a.samples, seed: a.seed };
+        let p = ResponseParams {
+            lambda: a.lambda,
+            samples: a.samples,
+            seed: a.seed,
+        };
         let r = hdr::recover_response(&images, &times, p)?;
         pb.inc(1);
         let (m, s) = hdr::merge_ldr(&images, &times, &r)?;
@@ -135,7 +152,11 @@ fn merge(a: MergeArgs, ctx: &Ctx) -> anyhow::Result<()> {
         }
         crate::report::print_json(&j)?;
     } else {
-        tracing::info!("merged {} exposures, valid fraction {:.4}", stats.exposures, stats.valid_fraction);
+        tracing::info!(
+            "merged {} exposures, valid fraction {:.4}",
+            stats.exposures,
+            stats.valid_fraction
+        );
     }
     Ok(())
 }

@@ -5,7 +5,9 @@ use crate::report::Ctx;
 use anyhow::{bail, Context};
 use igi_geometry::atlas::AtlasOptions;
 use igi_geometry::repair::repair;
-use igi_geometry::{read_mesh, PrepareOptions, SiteStore, VoxelGrid, VoxelId};
+use igi_geometry::{
+    check_prepare_output, read_mesh, PrepareOptions, PrepareRun, SiteStore, VoxelGrid, VoxelId,
+};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
@@ -30,6 +32,13 @@ pub struct PrepareArgs {
     /// Optional terrain mesh, kept apart (not voxelized).
     #[arg(long)]
     pub terrain: Option<PathBuf>,
+    /// Delete an earlier run's files in the output folder and prepare afresh (without it, a
+    /// folder holding a run with other inputs or options is refused).
+    #[arg(long)]
+    pub restart: bool,
+    /// Refuse runs estimated to need more memory than this many GiB.
+    #[arg(long, default_value_t = 8.0)]
+    pub max_memory: f64,
     /// Print the manifest as JSON on stdout.
     #[arg(long)]
     pub json: bool,
@@ -45,6 +54,14 @@ pub struct InfoArgs {
     /// Load the data the solver needs for one voxel ("i,j,k" or "middle") and report the reduction.
     #[arg(long)]
     pub load_voxel: Option<String>,
+}
+
+/// `--max-memory` in GiB as bytes.
+pub fn gib_to_bytes(gib: f64) -> anyhow::Result<u64> {
+    if !(gib.is_finite() && gib > 0.0) {
+        bail!("--max-memory must be a positive number of GiB, got {gib}");
+    }
+    Ok((gib * (1u64 << 30) as f64) as u64)
 }
 
 fn parse_list(s: &str, what: &str) -> anyhow::Result<Vec<f64>> {
@@ -70,21 +87,14 @@ pub fn run_prepare(a: PrepareArgs, ctx: &Ctx) -> anyhow::Result<()> {
             ..Default::default()
         },
         levels: parse_list(&a.levels, "levels")?,
+        max_memory: gib_to_bytes(a.max_memory)?,
     };
-    if a.output.exists() {
-        let is_site = a.output.join("settings.json").exists();
-        let empty = a
-            .output
-            .read_dir()
-            .map(|mut d| d.next().is_none())
-            .unwrap_or(false);
-        if !is_site && !empty {
-            bail!(
-                "{}: exists and is not a site folder; choose another output",
-                a.output.display()
-            );
-        }
-    }
+    let run = PrepareRun {
+        mesh: Some(a.mesh.clone()),
+        terrain: a.terrain.clone(),
+        restart: a.restart,
+    };
+    check_prepare_output(&a.output, &run, &opts, a.terrain.is_some())?;
     // read and check everything before creating the output folder
     let t0 = std::time::Instant::now();
     let mesh = read_mesh(&a.mesh)?;
@@ -115,12 +125,13 @@ pub fn run_prepare(a: PrepareArgs, ctx: &Ctx) -> anyhow::Result<()> {
         pb.set_length(total as u64);
         pb.set_position(done as u64);
     };
-    let man = igi_geometry::prepare(
+    let man = igi_geometry::prepare_run(
         mesh,
         terrain,
         report,
         &a.output,
         &a.mesh.display().to_string(),
+        &run,
         &opts,
         &progress,
     )?;

@@ -5,9 +5,9 @@ use igi_imaging::hdr::{merge_linear, parse_time, LinearParams};
 use igi_imaging::io::{srgb_to_linear, write_text_atomic};
 use igi_imaging::{read_image, write_exr, write_png_tonemapped, Camera, HdrImage, ImagingError};
 use igi_probe::envmap::hemisphere_pixel;
+use igi_probe::fiducial::place_board;
 use igi_probe::fresnel::{fit_mirror_ior, ReflectanceSamples};
 use igi_probe::pipeline::luminance;
-use igi_probe::fiducial::place_board;
 use igi_probe::{process, BoardSpec, ProbeOptions, ProbeResult};
 use std::path::{Path, PathBuf};
 
@@ -75,8 +75,8 @@ pub struct CalibrateMirrorArgs {
 
 fn calibrate_mirror(a: CalibrateMirrorArgs) -> anyhow::Result<()> {
     let samples = ReflectanceSamples::load(&a.samples)?;
-    let fits =
-        fit_mirror_ior(&samples).with_context(|| format!("fitting the complex index to {}", a.samples.display()))?;
+    let fits = fit_mirror_ior(&samples)
+        .with_context(|| format!("fitting the complex index to {}", a.samples.display()))?;
     let ior = fits.map(|f| [f.n, f.k]);
     let json = serde_json::json!({
         "ior": ior,
@@ -85,7 +85,13 @@ fn calibrate_mirror(a: CalibrateMirrorArgs) -> anyhow::Result<()> {
         "samples": samples.angle_deg.len(),
         "source": a.samples.display().to_string(),
     });
-    println!("\"ior\": [{}]", ior.iter().map(|[n, k]| format!("[{n:.4}, {k:.4}]")).collect::<Vec<_>>().join(", "));
+    println!(
+        "\"ior\": [{}]",
+        ior.iter()
+            .map(|[n, k]| format!("[{n:.4}, {k:.4}]"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
     eprintln!(
         "calibrate-mirror: {} samples, RMS residual {:.2e} {:.2e} {:.2e} (R, G, B)",
         samples.angle_deg.len(),
@@ -101,7 +107,10 @@ fn calibrate_mirror(a: CalibrateMirrorArgs) -> anyhow::Result<()> {
 
 fn is_ldr(p: &Path) -> bool {
     matches!(
-        p.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref(),
+        p.extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase)
+            .as_deref(),
         Some("png" | "jpg" | "jpeg" | "tif" | "tiff")
     )
 }
@@ -113,13 +122,22 @@ fn decode_srgb(img: &mut HdrImage) {
 }
 
 fn sibling(out: &Path, suffix: &str) -> PathBuf {
-    let stem = out.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "lighting".into());
+    let stem = out
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "lighting".into());
     out.with_file_name(format!("{stem}_{suffix}"))
 }
 
 /// Exposure that puts the median valid luminance at 0.18.
 fn auto_exposure(img: &HdrImage) -> f32 {
-    let mut l: Vec<f64> = img.pixels.iter().zip(&img.valid).filter(|(_, v)| **v).map(|(p, _)| luminance(*p)).collect();
+    let mut l: Vec<f64> = img
+        .pixels
+        .iter()
+        .zip(&img.valid)
+        .filter(|(_, v)| **v)
+        .map(|(p, _)| luminance(*p))
+        .collect();
     if l.is_empty() {
         return 1.0;
     }
@@ -133,7 +151,12 @@ fn auto_exposure(img: &HdrImage) -> f32 {
 }
 
 /// Tone-mapped picture; invalid (masked) pixels shown in dark magenta.
-fn picture(path: &Path, img: &HdrImage, exposure: f32, mark: Option<(f32, f32)>) -> Result<(), ImagingError> {
+fn picture(
+    path: &Path,
+    img: &HdrImage,
+    exposure: f32,
+    mark: Option<(f32, f32)>,
+) -> Result<(), ImagingError> {
     let mut p = img.clone();
     for (px, v) in p.pixels.iter_mut().zip(p.valid.iter_mut()) {
         if !*v {
@@ -164,7 +187,11 @@ fn load_input(a: &ProbeArgs) -> anyhow::Result<(HdrImage, Option<f32>)> {
                 a.times.len()
             );
         }
-        let times: Vec<f64> = a.times.iter().map(|t| parse_time(t)).collect::<Result<_, _>>()?;
+        let times: Vec<f64> = a
+            .times
+            .iter()
+            .map(|t| parse_time(t))
+            .collect::<Result<_, _>>()?;
         let mut imgs = Vec::new();
         for p in &a.brackets {
             let mut im = read_image(p)?;
@@ -173,15 +200,32 @@ fn load_input(a: &ProbeArgs) -> anyhow::Result<(HdrImage, Option<f32>)> {
             }
             imgs.push(im);
         }
-        let sat = a.saturation.unwrap_or(if a.srgb { srgb_to_linear(0.98) } else { 0.98 });
-        let (merged, stats) = merge_linear(&imgs, &times, LinearParams { noise_floor: 0.002, saturation: sat })
-            .with_context(|| {
-                format!(
-                    "merging brackets {}",
-                    a.brackets.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ")
-                )
-            })?;
-        tracing::info!("merged {} brackets, {:.2}% of pixels valid", stats.exposures, 100.0 * stats.valid_fraction);
+        let sat = a
+            .saturation
+            .unwrap_or(if a.srgb { srgb_to_linear(0.98) } else { 0.98 });
+        let (merged, stats) = merge_linear(
+            &imgs,
+            &times,
+            LinearParams {
+                noise_floor: 0.002,
+                saturation: sat,
+            },
+        )
+        .with_context(|| {
+            format!(
+                "merging brackets {}",
+                a.brackets
+                    .iter()
+                    .map(|p| p.display().to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )
+        })?;
+        tracing::info!(
+            "merged {} brackets, {:.2}% of pixels valid",
+            stats.exposures,
+            100.0 * stats.valid_fraction
+        );
         Ok((merged, None))
     } else {
         let path = a.image.as_ref().expect("clap requires IMAGE or --brackets");
@@ -190,29 +234,58 @@ fn load_input(a: &ProbeArgs) -> anyhow::Result<(HdrImage, Option<f32>)> {
         if a.srgb {
             decode_srgb(&mut im);
         }
-        let sat = a.saturation.or(if ldr { Some(if a.srgb { srgb_to_linear(0.98) } else { 0.98 }) } else { None });
+        let sat = a.saturation.or(if ldr {
+            Some(if a.srgb { srgb_to_linear(0.98) } else { 0.98 })
+        } else {
+            None
+        });
         Ok((im, sat))
     }
 }
 
 fn toml_array(v: &[f64]) -> String {
-    format!("[{}]", v.iter().map(|x| format!("{x:?}")).collect::<Vec<_>>().join(", "))
+    format!(
+        "[{}]",
+        v.iter()
+            .map(|x| format!("{x:?}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    )
 }
 
 pub fn run(a: ProbeArgs, ctx: &Ctx) -> anyhow::Result<()> {
     if let Some(ProbeAction::CalibrateMirror(c)) = a.action {
         return calibrate_mirror(c);
     }
-    let (Some(camera_path), Some(board_path), Some(output)) = (&a.camera, &a.board, &a.output) else {
+    let (Some(camera_path), Some(board_path), Some(output)) = (&a.camera, &a.board, &a.output)
+    else {
         bail!("igi probe needs --camera, --board and -o (or a subcommand)");
     };
+    // the lighting file and its siblings: checked before any work
+    if output
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .as_deref()
+        != Some("toml")
+    {
+        bail!(
+            "{}: -o names the lighting file written (.toml); its maps are written beside it",
+            output.display()
+        );
+    }
+    igi_imaging::io::check_output_file(output)?;
     let pb = ctx.progress(4, "probe");
     let camera = Camera::load(camera_path)?;
     let spec = BoardSpec::load(board_path)?;
     let (image, saturation) = load_input(&a)?;
     // spheres in the camera frame: from the fiducials' pose (opencv feature) or the file
-    let placement = place_board(&spec, &image, &camera)
-        .with_context(|| format!("placing the board {} in the camera frame", board_path.display()))?;
+    let placement = place_board(&spec, &image, &camera).with_context(|| {
+        format!(
+            "placing the board {} in the camera frame",
+            board_path.display()
+        )
+    })?;
     let board = placement.board;
     pb.inc(1);
     let opt = ProbeOptions {
@@ -225,12 +298,21 @@ pub fn run(a: ProbeArgs, ctx: &Ctx) -> anyhow::Result<()> {
         ..ProbeOptions::default()
     };
     let opt = ProbeOptions {
-        conv_width: if a.map_width % opt.conv_width == 0 { opt.conv_width } else { a.map_width },
+        conv_width: if a.map_width % opt.conv_width == 0 {
+            opt.conv_width
+        } else {
+            a.map_width
+        },
         ..opt
     };
-    let src = a.image.as_ref().or(a.brackets.first()).map(|p| p.display().to_string()).unwrap_or_default();
-    let mut r =
-        process(&image, &camera, &board, &opt).with_context(|| format!("processing the board photograph {src}"))?;
+    let src = a
+        .image
+        .as_ref()
+        .or(a.brackets.first())
+        .map(|p| p.display().to_string())
+        .unwrap_or_default();
+    let mut r = process(&image, &camera, &board, &opt)
+        .with_context(|| format!("processing the board photograph {src}"))?;
     r.diagnostics.warnings.extend(placement.warnings);
     if let Some(p) = &placement.pose {
         eprintln!(
@@ -246,7 +328,11 @@ pub fn run(a: ProbeArgs, ctx: &Ctx) -> anyhow::Result<()> {
     let d = &r.diagnostics;
     eprintln!(
         "probe: sun {}{}; check RMS {}; wrote {}",
-        if d.sun_found { "found" } else { "not found (sun solve skipped)" },
+        if d.sun_found {
+            "found"
+        } else {
+            "not found (sun solve skipped)"
+        },
         d.sun
             .as_ref()
             .map(|s| format!(
@@ -258,7 +344,9 @@ pub fn run(a: ProbeArgs, ctx: &Ctx) -> anyhow::Result<()> {
                     .unwrap_or_else(|| "unknown".into())
             ))
             .unwrap_or_default(),
-        d.check_rms_percent.map(|c| format!("{c:.2}%")).unwrap_or_else(|| "n/a (no diffuse sphere)".into()),
+        d.check_rms_percent
+            .map(|c| format!("{c:.2}%"))
+            .unwrap_or_else(|| "n/a (no diffuse sphere)".into()),
         output.display()
     );
     for w in &d.warnings {
@@ -282,15 +370,26 @@ fn write_outputs(out: &Path, r: &ProbeResult) -> anyhow::Result<()> {
     let sun = r.diagnostics.sun.as_ref();
     let sun_v = sun.map(|s| glam::DVec3::from_array(s.direction).as_vec3());
     let hemi_mark = sun_v.and_then(|s| hemisphere_pixel(s, r.mirror_hemi.width));
-    picture(&sibling(out, "mirror_hemi.png"), &r.mirror_hemi, exp, hemi_mark)?;
+    picture(
+        &sibling(out, "mirror_hemi.png"),
+        &r.mirror_hemi,
+        exp,
+        hemi_mark,
+    )?;
     if let Some(b) = &r.black_hemi {
-        picture(&sibling(out, "black_hemi.png"), b, auto_exposure(b), hemi_mark)?;
+        picture(
+            &sibling(out, "black_hemi.png"),
+            b,
+            auto_exposure(b),
+            hemi_mark,
+        )?;
     }
     if let Some(d) = &r.diffuse_hemi {
         picture(&sibling(out, "diffuse_hemi.png"), d, auto_exposure(d), None)?;
     }
-    let ll_mark =
-        sun_v.map(|s| igi_imaging::latlong::direction_to_pixel(s, r.sky_measured.width, r.sky_measured.height));
+    let ll_mark = sun_v.map(|s| {
+        igi_imaging::latlong::direction_to_pixel(s, r.sky_measured.width, r.sky_measured.height)
+    });
     picture(&sibling(out, "sky.png"), &r.sky_measured, exp, ll_mark)?;
     if let Some((dm, model)) = &r.diffuse_compare {
         // D | D' + a D* | 10 x |difference|
@@ -301,14 +400,22 @@ fn write_outputs(out: &Path, r: &ProbeResult) -> anyhow::Result<()> {
                 let k = y * w + x;
                 let ok = dm.valid[k];
                 let diff = [0, 1, 2].map(|c| 10.0 * (dm.pixels[k][c] - model.pixels[k][c]).abs());
-                for (i, v) in [dm.pixels[k], model.pixels[k], diff].into_iter().enumerate() {
+                for (i, v) in [dm.pixels[k], model.pixels[k], diff]
+                    .into_iter()
+                    .enumerate()
+                {
                     let j = y * 3 * w + i * w + x;
                     side.pixels[j] = v;
                     side.valid[j] = ok;
                 }
             }
         }
-        picture(&sibling(out, "diffuse_check.png"), &side, auto_exposure(dm), None)?;
+        picture(
+            &sibling(out, "diffuse_check.png"),
+            &side,
+            auto_exposure(dm),
+            None,
+        )?;
     }
     // diagnostics
     let diag_path = sibling(out, "diagnostics.json");

@@ -35,13 +35,33 @@ pub struct RenderArgs {
     pub output: PathBuf,
 }
 
+fn check_image_name(path: &Path) -> anyhow::Result<()> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    if !matches!(ext.as_deref(), Some("exr" | "hdr" | "png")) {
+        bail!(
+            "{}: unknown output format (use .exr, .hdr or .png)",
+            path.display()
+        );
+    }
+    Ok(())
+}
+
 fn write_any(path: &Path, img: &igi_imaging::HdrImage) -> anyhow::Result<()> {
-    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
     match ext.as_deref() {
         Some("exr") => igi_imaging::write_exr(path, img)?,
         Some("hdr") => igi_imaging::write_hdr(path, img)?,
         Some("png") => igi_imaging::write_png_tonemapped(path, img, 1.0)?,
-        _ => bail!("{}: unknown output format (use .exr, .hdr or .png)", path.display()),
+        _ => bail!(
+            "{}: unknown output format (use .exr, .hdr or .png)",
+            path.display()
+        ),
     }
     Ok(())
 }
@@ -51,7 +71,10 @@ pub fn run(a: RenderArgs, ctx: &Ctx) -> anyhow::Result<()> {
     // lighting, so --lighting is required.
     let scene_file = if a.input.is_dir() {
         if a.lighting.is_none() {
-            bail!("{}: re-lighting a solve result needs --lighting LIGHTING.toml", a.input.display());
+            bail!(
+                "{}: re-lighting a solve result needs --lighting LIGHTING.toml",
+                a.input.display()
+            );
         }
         igi_reflect::load_result_scene(&a.input)?
     } else {
@@ -60,12 +83,21 @@ pub fn run(a: RenderArgs, ctx: &Ctx) -> anyhow::Result<()> {
     if a.spp == 0 {
         bail!("--spp must be at least 1");
     }
+    // the outputs are checked before the render, not after it
+    for out in std::iter::once(&a.output).chain(a.stderr.as_ref()) {
+        check_image_name(out)?;
+        igi_imaging::io::check_output_file(out)?;
+    }
     let t0 = Instant::now();
     let (scene, scene_lighting) = Scene::load(&scene_file)?;
     let lighting = match &a.lighting {
         Some(p) => Lighting::load(p)?,
         None => scene_lighting,
     };
+    lighting.check_lights_something()?;
+    for w in lighting.warnings() {
+        eprintln!("warning: {w}");
+    }
     let camera = igi_imaging::Camera::load(&a.camera)?;
     let load_s = t0.elapsed().as_secs_f64();
     tracing::info!(
@@ -76,7 +108,12 @@ pub fn run(a: RenderArgs, ctx: &Ctx) -> anyhow::Result<()> {
         scene.skipped_triangles,
         load_s
     );
-    let opts = RenderOptions { spp: a.spp, seed: a.seed, indirect: a.indirect, russian_roulette: a.rr };
+    let opts = RenderOptions {
+        spp: a.spp,
+        seed: a.seed,
+        indirect: a.indirect,
+        russian_roulette: a.rr,
+    };
     let pb = ctx.progress(camera.height as u64, "render");
     let t1 = Instant::now();
     let out = render_image(&scene, &lighting, &camera, &opts, &|n| pb.inc(n))
@@ -84,7 +121,10 @@ pub fn run(a: RenderArgs, ctx: &Ctx) -> anyhow::Result<()> {
     pb.finish_and_clear();
     let secs = t1.elapsed().as_secs_f64();
     if out.bad_samples > 0 {
-        tracing::warn!("{} samples were NaN/infinite and were dropped", out.bad_samples);
+        tracing::warn!(
+            "{} samples were NaN/infinite and were dropped",
+            out.bad_samples
+        );
     }
     write_any(&a.output, &out.mean)?;
     if let Some(se) = &a.stderr {

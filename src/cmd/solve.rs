@@ -3,7 +3,7 @@ use crate::report::{Bar, Ctx};
 use anyhow::{bail, Context};
 use igi_reflect::parts::build_parts;
 use igi_reflect::solver::truth_from_scene;
-use igi_reflect::{ExportFormat, SolveOptions, SolveResult, Survey};
+use igi_reflect::{ExportFormat, SolveOptions, SolveSession, Survey};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
@@ -35,13 +35,19 @@ pub struct SolveArgs {
     pub initial: Vec<f32>,
     /// Solve only these parts, comma-separated, to share a site between machines: site meshes
     /// by file stem, or for a prepared site voxels as I_J_K (and `terrain`).
-    #[arg(long, visible_alias = "voxels", value_delimiter = ',', allow_hyphen_values = true)]
+    #[arg(
+        long,
+        visible_alias = "voxels",
+        value_delimiter = ',',
+        allow_hyphen_values = true
+    )]
     pub parts: Option<Vec<String>>,
     /// A scene file with the true albedo over the same geometry: the report then records the
     /// rho_d error per iteration.
     #[arg(long)]
     pub truth: Option<PathBuf>,
-    /// Start afresh even if the output folder holds an unfinished result.
+    /// Start afresh: remove what an earlier solve wrote into the output folder. Without it, a
+    /// folder holding a run with other inputs, options or parts is refused (run.json).
     #[arg(long)]
     pub restart: bool,
     /// Print the report as JSON.
@@ -72,6 +78,25 @@ pub fn run_solve(a: SolveArgs, ctx: &Ctx) -> anyhow::Result<()> {
         parts: a.parts.clone(),
         ..SolveOptions::default()
     };
+    // everything is checked before the first byte of work or output
+    let session = SolveSession::check(&a.output, &survey, &opts, a.restart)?;
+    let basis = match &survey.brdf_samples {
+        None => None,
+        Some(p) => {
+            let samples = igi_brdf::read_samples(p)?;
+            let mut mats = Vec::new();
+            for (name, s) in igi_brdf::samples::group_by_material(&samples) {
+                let fit = igi_brdf::fit_material(&name, &s, &igi_brdf::FitOptions::default())
+                    .with_context(|| format!("{}: fitting material {name}", p.display()))?;
+                mats.push((name, fit.brdf));
+            }
+            Some(igi_brdf::Basis::new(mats)?)
+        }
+    };
+    let truth_scene = match &a.truth {
+        None => None,
+        Some(t) => Some(igi_render::Scene::load(t)?.0),
+    };
     let photo_ids: Vec<String> = survey.photos.iter().map(|p| p.id.clone()).collect();
     let pb = ctx.progress(survey.photos.len() as u64, "photos");
     let photos = survey
@@ -83,16 +108,10 @@ pub fn run_solve(a: SolveArgs, ctx: &Ctx) -> anyhow::Result<()> {
         })
         .collect::<Result<Vec<_>, _>>()?;
     pb.finish_and_clear();
-    let resume = !a.restart && a.output.join("report.json").is_file();
-    let state = if resume {
-        let r = SolveResult::load(&a.output)
+    let state = if session.resumes() {
+        let r = session
+            .load()
             .with_context(|| format!("resuming {}", a.output.display()))?;
-        if r.report.photos != photo_ids || r.report.options.atlas_resolution != atlas {
-            bail!(
-                "{}: holds a result of another survey or atlas resolution; use --restart or another folder",
-                a.output.display()
-            );
-        }
         tracing::info!("resuming after iteration {}", r.report.iterations.len());
         r
     } else {
@@ -110,32 +129,9 @@ pub fn run_solve(a: SolveArgs, ctx: &Ctx) -> anyhow::Result<()> {
                 build_parts(meshes, a.atlas)?
             }
         };
-        std::fs::create_dir_all(&a.output)
-            .with_context(|| format!("{}: cannot create folder", a.output.display()))?;
-        let r = SolveResult::fresh(parts, photo_ids, &opts);
-        r.write_geometry(&a.output)?;
-        r
+        session.start(parts, photo_ids, &opts)?
     };
-    let basis = match &survey.brdf_samples {
-        None => None,
-        Some(p) => {
-            let samples = igi_brdf::read_samples(p)?;
-            let mut mats = Vec::new();
-            for (name, s) in igi_brdf::samples::group_by_material(&samples) {
-                let fit = igi_brdf::fit_material(&name, &s, &igi_brdf::FitOptions::default())
-                    .with_context(|| format!("{}: fitting material {name}", p.display()))?;
-                mats.push((name, fit.brdf));
-            }
-            Some(igi_brdf::Basis::new(mats)?)
-        }
-    };
-    let truth = match &a.truth {
-        None => None,
-        Some(t) => {
-            let (scene, _) = igi_render::Scene::load(t)?;
-            Some(truth_from_scene(&state.parts, &scene))
-        }
-    };
+    let truth = truth_scene.map(|scene| truth_from_scene(&state.parts, &scene));
     let bar = Bar(ctx.progress(1, "solve"));
     let out = a.output.clone();
     let result = igi_reflect::solve(

@@ -25,7 +25,9 @@ pub struct Basis {
 impl Basis {
     pub fn new(materials: Vec<(String, Lafortune)>) -> Result<Self, BrdfError> {
         if materials.is_empty() {
-            return Err(BrdfError::Invalid("a BRDF basis needs at least one material".into()));
+            return Err(BrdfError::Invalid(
+                "a BRDF basis needs at least one material".into(),
+            ));
         }
         let mut m = nalgebra::Matrix3::<f64>::zeros();
         for (_, b) in &materials {
@@ -44,8 +46,13 @@ impl Basis {
             axis = Vec3::ONE.normalize();
         }
         let axis = axis.normalize();
-        let mut materials: Vec<(String, Lafortune, f32)> =
-            materials.into_iter().map(|(n, b)| { let t = b.rho_d.dot(axis); (n, b, t) }).collect();
+        let mut materials: Vec<(String, Lafortune, f32)> = materials
+            .into_iter()
+            .map(|(n, b)| {
+                let t = b.rho_d.dot(axis);
+                (n, b, t)
+            })
+            .collect();
         materials.sort_by(|a, b| a.2.total_cmp(&b.2));
         Ok(Basis { materials, axis })
     }
@@ -63,16 +70,28 @@ impl Basis {
         let (a, b, w) = if ms.len() == 1 {
             (0, 0, 0.0)
         } else {
-            let hi = ms.iter().position(|m| m.2 >= t).unwrap_or(ms.len() - 1).max(1);
+            let hi = ms
+                .iter()
+                .position(|m| m.2 >= t)
+                .unwrap_or(ms.len() - 1)
+                .max(1);
             let lo = hi - 1;
             let span = ms[hi].2 - ms[lo].2;
-            let w = if span > 0.0 { ((t - ms[lo].2) / span).clamp(0.0, 1.0) } else { 0.5 };
+            let w = if span > 0.0 {
+                ((t - ms[lo].2) / span).clamp(0.0, 1.0)
+            } else {
+                0.5
+            };
             (lo, hi, w)
         };
         let (la, lb) = (&ms[a].1.lobes, &ms[b].1.lobes);
         let lerp = |x: f32, y: f32| x + (y - x) * w;
         let proj = self.axis * t;
-        let scale = Vec3::new(ratio(rho_d.x, proj.x), ratio(rho_d.y, proj.y), ratio(rho_d.z, proj.z));
+        let scale = Vec3::new(
+            ratio(rho_d.x, proj.x),
+            ratio(rho_d.y, proj.y),
+            ratio(rho_d.z, proj.z),
+        );
         let lobes = la
             .iter()
             .zip(lb.iter())
@@ -110,8 +129,18 @@ mod tests {
         Lafortune {
             rho_d,
             lobes: vec![
-                Lobe { rho: rho_d * 0.2, cxy: 0.7, cz: 1.0, n: retro_n },
-                Lobe { rho: Vec3::splat(1.5), cxy: spec_cxy, cz: 1.0, n: spec_n },
+                Lobe {
+                    rho: rho_d * 0.2,
+                    cxy: 0.7,
+                    cz: 1.0,
+                    n: retro_n,
+                },
+                Lobe {
+                    rho: Vec3::splat(1.5),
+                    cxy: spec_cxy,
+                    cz: 1.0,
+                    n: spec_n,
+                },
             ],
         }
     }
@@ -143,7 +172,12 @@ mod tests {
             assert_eq!(got.rho_d, m.rho_d);
             for (g, w) in got.lobes.iter().zip(&m.lobes) {
                 assert!((g.rho - w.rho).abs().max_element() < 1e-5, "{g:?} vs {w:?}");
-                assert!((g.cxy - w.cxy).abs() < 1e-5 && (g.cz - w.cz).abs() < 1e-5 && (g.n - w.n).abs() < 1e-3, "{g:?} vs {w:?}");
+                assert!(
+                    (g.cxy - w.cxy).abs() < 1e-5
+                        && (g.cz - w.cz).abs() < 1e-5
+                        && (g.n - w.n).abs() < 1e-3,
+                    "{g:?} vs {w:?}"
+                );
             }
         }
     }
@@ -174,7 +208,12 @@ mod tests {
         let got = b.infer(rho);
         // interpolated retro colour on the axis is 0.2 * proj (rho = 0.2 rho_d in every basis
         // material, which is linear in t); scaled by rho / proj it becomes 0.2 * rho
-        assert!((got.lobes[0].rho - rho * 0.2).abs().max_element() < 1e-4, "{:?} vs {:?}", got.lobes[0].rho, proj);
+        assert!(
+            (got.lobes[0].rho - rho * 0.2).abs().max_element() < 1e-4,
+            "{:?} vs {:?}",
+            got.lobes[0].rho,
+            proj
+        );
         // the specular colour is not scaled
         assert!((got.lobes[1].rho - Vec3::splat(1.5)).abs().max_element() < 1e-5);
     }

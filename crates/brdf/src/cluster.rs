@@ -47,7 +47,14 @@ pub struct ClusterOptions {
 
 impl Default for ClusterOptions {
     fn default() -> Self {
-        ClusterOptions { k: 2, max_rounds: 12, max_fit_samples: 3000, rel_floor: 0.05, max_n: 2.0e4, seed: 1 }
+        ClusterOptions {
+            k: 2,
+            max_rounds: 12,
+            max_fit_samples: 3000,
+            rel_floor: 0.05,
+            max_n: 2.0e4,
+            seed: 1,
+        }
     }
 }
 
@@ -72,13 +79,20 @@ struct Local {
 
 fn to_local(lt: &Lumitexel) -> Local {
     let n = lt.normal.normalize_or_zero();
-    let mut out = Local { light: vec![], view: vec![], value: vec![] };
+    let mut out = Local {
+        light: vec![],
+        view: vec![],
+        value: vec![],
+    };
     if n == Vec3::ZERO {
         return out;
     }
     let f = Frame::from_normal(n);
     for &(l, v, rgb) in &lt.samples {
-        let (l, v) = (f.to_local(l.normalize_or_zero()), f.to_local(v.normalize_or_zero()));
+        let (l, v) = (
+            f.to_local(l.normalize_or_zero()),
+            f.to_local(v.normalize_or_zero()),
+        );
         if l.z > 0.0 && v.z > 0.0 && rgb.is_finite() {
             let d = |x: Vec3| [x.x as f64, x.y as f64, x.z as f64];
             out.light.push(d(l));
@@ -98,15 +112,26 @@ struct Ctx<'a> {
 
 impl Ctx<'_> {
     fn data_of(&self, members: &[usize]) -> Data {
-        let mut idx: Vec<(usize, usize)> =
-            members.iter().flat_map(|&t| (0..self.locals[t].light.len()).map(move |i| (t, i))).collect();
+        let mut idx: Vec<(usize, usize)> = members
+            .iter()
+            .flat_map(|&t| (0..self.locals[t].light.len()).map(move |i| (t, i)))
+            .collect();
         if idx.len() > self.opts.max_fit_samples {
             let mut rng = rand_pcg::Pcg64::seed_from_u64(self.opts.seed ^ idx.len() as u64);
             idx.shuffle(&mut rng);
             idx.truncate(self.opts.max_fit_samples);
         }
-        let g = |f: &dyn Fn(&Local, usize) -> [f64; 3]| idx.iter().map(|&(t, i)| f(&self.locals[t], i)).collect::<Vec<_>>();
-        Data::new(g(&|l, i| l.light[i]), g(&|l, i| l.view[i]), g(&|l, i| l.value[i]), self.floor)
+        let g = |f: &dyn Fn(&Local, usize) -> [f64; 3]| {
+            idx.iter()
+                .map(|&(t, i)| f(&self.locals[t], i))
+                .collect::<Vec<_>>()
+        };
+        Data::new(
+            g(&|l, i| l.light[i]),
+            g(&|l, i| l.view[i]),
+            g(&|l, i| l.value[i]),
+            self.floor,
+        )
     }
     fn data_one(&self, t: usize) -> Data {
         let l = &self.locals[t];
@@ -136,17 +161,34 @@ impl Ctx<'_> {
     fn split(&self, p: &[f64; NP], members: &[usize]) -> Option<([f64; NP], [f64; NP], Vec<f64>)> {
         let all: Vec<usize> = (0..NP).collect();
         let pooled = self.data_of(members);
-        let pj = Problem { model: &self.model, data: &pooled, p: *p, free: all.clone() }.jacobian_at(p, &all);
+        let pj = Problem {
+            model: &self.model,
+            data: &pooled,
+            p: *p,
+            free: all.clone(),
+        }
+        .jacobian_at(p, &all);
         let jtj = pj.transpose() * &pj;
         let per = pooled.light.len().max(1) as f64;
         // damping: the average per-sample curvature times a typical lumitexel's sample count
-        let avg_n = members.iter().map(|&t| self.locals[t].light.len()).sum::<usize>() as f64 / members.len() as f64;
+        let avg_n = members
+            .iter()
+            .map(|&t| self.locals[t].light.len())
+            .sum::<usize>() as f64
+            / members.len() as f64;
         let tr = (0..NP).map(|i| jtj[(i, i)]).sum::<f64>() / NP as f64;
-        let damp: Vec<f64> = (0..NP).map(|i| (jtj[(i, i)] / per * avg_n).max(1e-9 * tr / per * avg_n + 1e-12)).collect();
+        let damp: Vec<f64> = (0..NP)
+            .map(|i| (jtj[(i, i)] / per * avg_n).max(1e-9 * tr / per * avg_n + 1e-12))
+            .collect();
         let mut steps: Vec<DVector<f64>> = Vec::new();
         for &t in members {
             let d = self.data_one(t);
-            let prob = Problem { model: &self.model, data: &d, p: *p, free: all.clone() };
+            let prob = Problem {
+                model: &self.model,
+                data: &d,
+                p: *p,
+                free: all.clone(),
+            };
             let j = prob.jacobian_at(p, &all);
             let r = prob.residuals_at(p);
             let mut a = j.transpose() * &j;
@@ -188,12 +230,19 @@ impl Ctx<'_> {
 }
 
 /// Split clustering of lumitexels into `opts.k` BRDFs, then per-lumitexel basis weights.
-pub fn cluster(lumitexels: &[Lumitexel], opts: &ClusterOptions) -> Result<ClusterResult, BrdfError> {
+pub fn cluster(
+    lumitexels: &[Lumitexel],
+    opts: &ClusterOptions,
+) -> Result<ClusterResult, BrdfError> {
     if opts.k == 0 {
-        return Err(BrdfError::Invalid("the number of clusters k must be at least 1".into()));
+        return Err(BrdfError::Invalid(
+            "the number of clusters k must be at least 1".into(),
+        ));
     }
     let locals: Vec<Local> = lumitexels.iter().map(to_local).collect();
-    let usable: Vec<usize> = (0..locals.len()).filter(|&t| !locals[t].light.is_empty()).collect();
+    let usable: Vec<usize> = (0..locals.len())
+        .filter(|&t| !locals[t].light.is_empty())
+        .collect();
     let total: usize = usable.iter().map(|&t| locals[t].light.len()).sum();
     if usable.len() < opts.k || total < 5 * opts.k {
         return Err(BrdfError::Invalid(format!(
@@ -211,7 +260,12 @@ pub fn cluster(lumitexels: &[Lumitexel], opts: &ClusterOptions) -> Result<Cluste
             }
         }
     }
-    let ctx = Ctx { locals: &locals, floor: mean.map(|m| opts.rel_floor * m + 1e-12), model: Model { max_n: opts.max_n }, opts };
+    let ctx = Ctx {
+        locals: &locals,
+        floor: mean.map(|m| opts.rel_floor * m + 1e-12),
+        model: Model::plain(opts.max_n),
+        opts,
+    };
 
     let (p0, _, _) = fit_data(&ctx.model, &ctx.data_of(&usable));
     let mut params: Vec<[f64; NP]> = vec![p0];
@@ -220,30 +274,47 @@ pub fn cluster(lumitexels: &[Lumitexel], opts: &ClusterOptions) -> Result<Cluste
         // the cluster with the largest total error
         let mut worst = (0usize, -1.0f64);
         for k in 0..params.len() {
-            let e: f64 = usable.iter().filter(|&&t| assignment[t] == k).map(|&t| ctx.err(t, &params[k])).sum();
+            let e: f64 = usable
+                .iter()
+                .filter(|&&t| assignment[t] == k)
+                .map(|&t| ctx.err(t, &params[k]))
+                .sum();
             let members = usable.iter().filter(|&&t| assignment[t] == k).count();
             if members >= 2 && e > worst.1 {
                 worst = (k, e);
             }
         }
         let k = worst.0;
-        let members: Vec<usize> = usable.iter().copied().filter(|&t| assignment[t] == k).collect();
+        let members: Vec<usize> = usable
+            .iter()
+            .copied()
+            .filter(|&t| assignment[t] == k)
+            .collect();
         let (a, b, proj) = ctx.split(&params[k], &members).ok_or_else(|| {
-            BrdfError::Invalid(format!("cluster {k} cannot be split further ({} members agree)", members.len()))
+            BrdfError::Invalid(format!(
+                "cluster {k} cannot be split further ({} members agree)",
+                members.len()
+            ))
         })?;
         let kb = params.len();
         params[k] = a;
         params.push(b);
         assignment = ctx.assign(&usable, &params);
         // a degenerate split (one child empty): fall back to the sign of the projection
-        if !usable.iter().any(|&t| assignment[t] == kb) || !usable.iter().any(|&t| assignment[t] == k) {
+        if !usable.iter().any(|&t| assignment[t] == kb)
+            || !usable.iter().any(|&t| assignment[t] == k)
+        {
             for (m, &t) in members.iter().enumerate() {
                 assignment[t] = if proj[m] >= 0.0 { k } else { kb };
             }
         }
         for _round in 0..opts.max_rounds {
             for (c, p) in params.iter_mut().enumerate() {
-                let mem: Vec<usize> = usable.iter().copied().filter(|&t| assignment[t] == c).collect();
+                let mem: Vec<usize> = usable
+                    .iter()
+                    .copied()
+                    .filter(|&t| assignment[t] == c)
+                    .collect();
                 if !mem.is_empty() {
                     *p = refine(&ctx.model, &ctx.data_of(&mem), *p).0;
                 }
@@ -258,8 +329,12 @@ pub fn cluster(lumitexels: &[Lumitexel], opts: &ClusterOptions) -> Result<Cluste
     }
     // final full refit of every cluster from scratch (multi-start), then a last assignment
     for (c, p) in params.iter_mut().enumerate() {
-        let mem: Vec<usize> = usable.iter().copied().filter(|&t| assignment[t] == c).collect();
-        if mem.len() >= 1 {
+        let mem: Vec<usize> = usable
+            .iter()
+            .copied()
+            .filter(|&t| assignment[t] == c)
+            .collect();
+        if !mem.is_empty() {
             let d = ctx.data_of(&mem);
             let (q, cost, _) = fit_data(&ctx.model, &d);
             if cost <= d.cost(&ctx.model, p) {
@@ -269,11 +344,25 @@ pub fn cluster(lumitexels: &[Lumitexel], opts: &ClusterOptions) -> Result<Cluste
     }
     assignment = ctx.assign(&usable, &params);
     let brdfs: Vec<Lafortune> = params.iter().map(|p| ctx.model.to_lafortune(p)).collect();
-    let weights = lumitexels.iter().map(|lt| basis_weights(&brdfs, lt)).collect();
-    let errors = (0..locals.len())
-        .map(|t| if assignment[t] == usize::MAX { 0.0 } else { ctx.err(t, &params[assignment[t]]).sqrt() })
+    let weights = lumitexels
+        .iter()
+        .map(|lt| basis_weights(&brdfs, lt))
         .collect();
-    Ok(ClusterResult { brdfs, assignment, weights, errors })
+    let errors = (0..locals.len())
+        .map(|t| {
+            if assignment[t] == usize::MAX {
+                0.0
+            } else {
+                ctx.err(t, &params[assignment[t]]).sqrt()
+            }
+        })
+        .collect();
+    Ok(ClusterResult {
+        brdfs,
+        assignment,
+        weights,
+        errors,
+    })
 }
 
 /// Least-squares weights `w` with `rgb ~ sum_k w_k pi f_k(light, view)` over the lumitexel's
@@ -303,9 +392,100 @@ pub fn basis_weights(brdfs: &[Lafortune], lt: &Lumitexel) -> Vec<f32> {
     let svd = a.svd(true, true);
     let eps = svd.singular_values.max() * 1e-9;
     match svd.solve(&b, eps) {
-        Ok(x) => x.iter().map(|v| if v.is_finite() { *v as f32 } else { 0.0 }).collect(),
+        Ok(x) => x
+            .iter()
+            .map(|v| if v.is_finite() { *v as f32 } else { 0.0 })
+            .collect(),
         Err(_) => vec![0.0; brdfs.len()],
     }
+}
+
+/// Lumitexels CSV: `id,px,py,pz,nx,ny,nz,light_x,light_y,light_z,view_x,view_y,view_z,r,g,b`,
+/// one row per sample, rows of one lumitexel share `id` (world directions, r g b = pi f).
+/// Returns the ids (in order of first appearance) and the lumitexels.
+pub fn read_lumitexels(path: &std::path::Path) -> Result<(Vec<String>, Vec<Lumitexel>), BrdfError> {
+    let text = std::fs::read_to_string(path).map_err(|source| BrdfError::Io {
+        path: path.into(),
+        source,
+    })?;
+    let perr = |line: usize, msg: String| BrdfError::Parse {
+        path: path.into(),
+        line,
+        msg,
+    };
+    let mut it = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| (i + 1, l.trim()))
+        .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'));
+    let (hl, header) = it.next().ok_or_else(|| BrdfError::File {
+        path: path.into(),
+        msg: "empty file (no header)".into(),
+    })?;
+    let header: Vec<&str> = header.split(',').map(|c| c.trim()).collect();
+    const COLS: [&str; 15] = [
+        "px", "py", "pz", "nx", "ny", "nz", "light_x", "light_y", "light_z", "view_x", "view_y",
+        "view_z", "r", "g", "b",
+    ];
+    let col = |name: &str| {
+        header
+            .iter()
+            .position(|h| h.eq_ignore_ascii_case(name))
+            .ok_or_else(|| perr(hl, format!("header lacks column `{name}`")))
+    };
+    let iid = col("id")?;
+    let idx: Vec<usize> = COLS.iter().map(|c| col(c)).collect::<Result<_, _>>()?;
+    let mut ids: Vec<String> = Vec::new();
+    let mut lts: Vec<Lumitexel> = Vec::new();
+    let mut index = std::collections::HashMap::new();
+    for (line, l) in it {
+        let cells: Vec<&str> = l.split(',').map(|c| c.trim()).collect();
+        if cells.len() != header.len() {
+            return Err(perr(
+                line,
+                format!("{} cells, header has {}", cells.len(), header.len()),
+            ));
+        }
+        let mut v = [0.0f32; 15];
+        for k in 0..15 {
+            let cell = cells[idx[k]];
+            v[k] = cell
+                .parse()
+                .map_err(|_| perr(line, format!("`{}` = `{cell}` is not a number", COLS[k])))?;
+            if !v[k].is_finite() {
+                return Err(perr(
+                    line,
+                    format!("`{}` = `{cell}` is not finite", COLS[k]),
+                ));
+            }
+        }
+        let normal = Vec3::new(v[3], v[4], v[5]);
+        if normal.length() < 1e-6 {
+            return Err(perr(line, "zero normal".into()));
+        }
+        let id = cells[iid].to_string();
+        let t = *index.entry(id.clone()).or_insert_with(|| {
+            ids.push(id);
+            lts.push(Lumitexel {
+                position: Vec3::new(v[0], v[1], v[2]),
+                normal: normal.normalize(),
+                samples: vec![],
+            });
+            lts.len() - 1
+        });
+        lts[t].samples.push((
+            Vec3::new(v[6], v[7], v[8]),
+            Vec3::new(v[9], v[10], v[11]),
+            Vec3::new(v[12], v[13], v[14]),
+        ));
+    }
+    if lts.is_empty() {
+        return Err(BrdfError::File {
+            path: path.into(),
+            msg: "no lumitexel rows after the header".into(),
+        });
+    }
+    Ok((ids, lts))
 }
 
 #[cfg(test)]
@@ -320,23 +500,44 @@ mod tests {
             // matte red with a weak retro lobe
             Lafortune {
                 rho_d: Vec3::new(0.6, 0.12, 0.1),
-                lobes: vec![Lobe { rho: Vec3::new(0.1, 0.02, 0.02), cxy: 0.9, cz: 1.0, n: 3.0 }],
+                lobes: vec![Lobe {
+                    rho: Vec3::new(0.1, 0.02, 0.02),
+                    cxy: 0.9,
+                    cz: 1.0,
+                    n: 3.0,
+                }],
             },
             // glossy dark blue
             Lafortune {
                 rho_d: Vec3::new(0.04, 0.06, 0.3),
-                lobes: vec![Lobe { rho: Vec3::splat(6.0), cxy: -1.0, cz: 1.0, n: 80.0 }],
+                lobes: vec![Lobe {
+                    rho: Vec3::splat(6.0),
+                    cxy: -1.0,
+                    cz: 1.0,
+                    n: 80.0,
+                }],
             },
             // grey, strongly retroreflective
             Lafortune {
                 rho_d: Vec3::splat(0.25),
-                lobes: vec![Lobe { rho: Vec3::splat(0.6), cxy: 1.0, cz: 1.0, n: 12.0 }],
+                lobes: vec![Lobe {
+                    rho: Vec3::splat(0.6),
+                    cxy: 1.0,
+                    cz: 1.0,
+                    n: 12.0,
+                }],
             },
         ]
     }
 
     /// `n_per` lumitexels per weight vector, `samples` random (light, view) pairs each, random normals.
-    fn lumitexels(mix: &[Vec<f32>], n_per: usize, samples: usize, noise: f32, seed: u64) -> Vec<(Lumitexel, usize)> {
+    fn lumitexels(
+        mix: &[Vec<f32>],
+        n_per: usize,
+        samples: usize,
+        noise: f32,
+        seed: u64,
+    ) -> Vec<(Lumitexel, usize)> {
         let mats = materials();
         let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
         let mut out = Vec::new();
@@ -353,16 +554,30 @@ mod tests {
                     } else {
                         let t = l.z.acos().to_degrees();
                         let p = l.y.atan2(l.x).to_degrees();
-                        dir((t + rng.gen_range(-8.0..8.0)).clamp(0.0, 85.0), p + 180.0 + rng.gen_range(-8.0..8.0))
+                        dir(
+                            (t + rng.gen_range(-8.0..8.0)).clamp(0.0, 85.0),
+                            p + 180.0 + rng.gen_range(-8.0..8.0),
+                        )
                     };
                     let mut val = Vec3::ZERO;
                     for (k, m) in mats.iter().enumerate() {
                         val += w[k] * m.as_ref().eval(l, v) * std::f32::consts::PI;
                     }
-                    let nz = Vec3::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0));
+                    let nz = Vec3::new(
+                        rng.gen_range(-1.0..1.0),
+                        rng.gen_range(-1.0..1.0),
+                        rng.gen_range(-1.0..1.0),
+                    );
                     s.push((f.to_world(l), f.to_world(v), val * (Vec3::ONE + noise * nz)));
                 }
-                out.push((Lumitexel { position: Vec3::ZERO, normal, samples: s }, label));
+                out.push((
+                    Lumitexel {
+                        position: Vec3::ZERO,
+                        normal,
+                        samples: s,
+                    },
+                    label,
+                ));
             }
         }
         out
@@ -370,10 +585,21 @@ mod tests {
 
     #[test]
     fn three_materials_cluster_with_high_purity() {
-        let eye = vec![vec![1.0, 0.0, 0.0], vec![0.0, 1.0, 0.0], vec![0.0, 0.0, 1.0]];
+        let eye = vec![
+            vec![1.0, 0.0, 0.0],
+            vec![0.0, 1.0, 0.0],
+            vec![0.0, 0.0, 1.0],
+        ];
         let data = lumitexels(&eye, 60, 10, 0.03, 5);
         let lts: Vec<Lumitexel> = data.iter().map(|d| d.0.clone()).collect();
-        let r = cluster(&lts, &ClusterOptions { k: 3, ..Default::default() }).unwrap();
+        let r = cluster(
+            &lts,
+            &ClusterOptions {
+                k: 3,
+                ..Default::default()
+            },
+        )
+        .unwrap();
         assert_eq!(r.brdfs.len(), 3);
         // purity: each cluster counted by its majority label
         let mut counts = [[0usize; 3]; 3];
@@ -389,25 +615,43 @@ mod tests {
         let mut seen = [false; 3];
         for (k, c) in counts.iter().enumerate() {
             let label = (0..3).max_by_key(|&i| c[i]).unwrap();
-            assert!(!seen[label], "two clusters for material {label}: {counts:?}");
+            assert!(
+                !seen[label],
+                "two clusters for material {label}: {counts:?}"
+            );
             seen[label] = true;
             let d = (r.brdfs[k].rho_d - mats[label].rho_d).abs().max_element();
-            assert!(d < 0.05, "cluster {k} rho_d {:?} vs {:?}", r.brdfs[k].rho_d, mats[label].rho_d);
+            assert!(
+                d < 0.05,
+                "cluster {k} rho_d {:?} vs {:?}",
+                r.brdfs[k].rho_d,
+                mats[label].rho_d
+            );
         }
         assert!(r.errors.iter().all(|e| e.is_finite()));
     }
 
     #[test]
     fn known_mixtures_are_recovered_within_5_percent() {
-        let mix = vec![vec![0.3, 0.7, 0.0], vec![0.5, 0.0, 0.5], vec![0.2, 0.3, 0.5]];
+        let mix = vec![
+            vec![0.3, 0.7, 0.0],
+            vec![0.5, 0.0, 0.5],
+            vec![0.2, 0.3, 0.5],
+        ];
         let data = lumitexels(&mix, 10, 15, 0.01, 9);
         let mats = materials();
         let mut worst = 0.0f32;
         for (lt, label) in &data {
             let w = basis_weights(&mats, lt);
-            worst = (0..3).map(|k| (w[k] - mix[*label][k]).abs()).fold(worst, f32::max);
+            worst = (0..3)
+                .map(|k| (w[k] - mix[*label][k]).abs())
+                .fold(worst, f32::max);
             for k in 0..3 {
-                assert!((w[k] - mix[*label][k]).abs() < 0.05, "weights {w:?} vs {:?}", mix[*label]);
+                assert!(
+                    (w[k] - mix[*label][k]).abs() < 0.05,
+                    "weights {w:?} vs {:?}",
+                    mix[*label]
+                );
             }
         }
         eprintln!("mixtures: largest weight error {worst:.4}");
@@ -416,58 +660,30 @@ mod tests {
     #[test]
     fn bad_input_is_reported() {
         assert!(cluster(&[], &ClusterOptions::default()).is_err());
-        let lt = Lumitexel { position: Vec3::ZERO, normal: Vec3::Z, samples: vec![(Vec3::Z, -Vec3::Z, Vec3::ONE)] };
-        let e = cluster(&[lt.clone(), lt], &ClusterOptions { k: 2, ..Default::default() }).unwrap_err().to_string();
+        let lt = Lumitexel {
+            position: Vec3::ZERO,
+            normal: Vec3::Z,
+            samples: vec![(Vec3::Z, -Vec3::Z, Vec3::ONE)],
+        };
+        let e = cluster(
+            &[lt.clone(), lt],
+            &ClusterOptions {
+                k: 2,
+                ..Default::default()
+            },
+        )
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("0 samples above the surface"), "{e}");
-        assert!(cluster(&[], &ClusterOptions { k: 0, ..Default::default() }).unwrap_err().to_string().contains("at least 1"));
-    }
-}
-
-/// Lumitexels CSV: `id,px,py,pz,nx,ny,nz,light_x,light_y,light_z,view_x,view_y,view_z,r,g,b`,
-/// one row per sample, rows of one lumitexel share `id` (world directions, r g b = pi f).
-/// Returns the ids (in order of first appearance) and the lumitexels.
-pub fn read_lumitexels(path: &std::path::Path) -> Result<(Vec<String>, Vec<Lumitexel>), BrdfError> {
-    let text = std::fs::read_to_string(path).map_err(|source| BrdfError::Io { path: path.into(), source })?;
-    let perr = |line: usize, msg: String| BrdfError::Parse { path: path.into(), line, msg };
-    let mut it = text.lines().enumerate().map(|(i, l)| (i + 1, l.trim())).filter(|(_, l)| !l.is_empty() && !l.starts_with('#'));
-    let (hl, header) = it.next().ok_or_else(|| BrdfError::File { path: path.into(), msg: "empty file (no header)".into() })?;
-    let header: Vec<&str> = header.split(',').map(|c| c.trim()).collect();
-    const COLS: [&str; 15] = ["px", "py", "pz", "nx", "ny", "nz", "light_x", "light_y", "light_z", "view_x", "view_y", "view_z", "r", "g", "b"];
-    let col = |name: &str| {
-        header.iter().position(|h| h.eq_ignore_ascii_case(name)).ok_or_else(|| perr(hl, format!("header lacks column `{name}`")))
-    };
-    let iid = col("id")?;
-    let idx: Vec<usize> = COLS.iter().map(|c| col(c)).collect::<Result<_, _>>()?;
-    let mut ids: Vec<String> = Vec::new();
-    let mut lts: Vec<Lumitexel> = Vec::new();
-    let mut index = std::collections::HashMap::new();
-    for (line, l) in it {
-        let cells: Vec<&str> = l.split(',').map(|c| c.trim()).collect();
-        if cells.len() != header.len() {
-            return Err(perr(line, format!("{} cells, header has {}", cells.len(), header.len())));
-        }
-        let mut v = [0.0f32; 15];
-        for k in 0..15 {
-            let cell = cells[idx[k]];
-            v[k] = cell.parse().map_err(|_| perr(line, format!("`{}` = `{cell}` is not a number", COLS[k])))?;
-            if !v[k].is_finite() {
-                return Err(perr(line, format!("`{}` = `{cell}` is not finite", COLS[k])));
+        assert!(cluster(
+            &[],
+            &ClusterOptions {
+                k: 0,
+                ..Default::default()
             }
-        }
-        let normal = Vec3::new(v[3], v[4], v[5]);
-        if normal.length() < 1e-6 {
-            return Err(perr(line, "zero normal".into()));
-        }
-        let id = cells[iid].to_string();
-        let t = *index.entry(id.clone()).or_insert_with(|| {
-            ids.push(id);
-            lts.push(Lumitexel { position: Vec3::new(v[0], v[1], v[2]), normal: normal.normalize(), samples: vec![] });
-            lts.len() - 1
-        });
-        lts[t].samples.push((Vec3::new(v[6], v[7], v[8]), Vec3::new(v[9], v[10], v[11]), Vec3::new(v[12], v[13], v[14])));
+        )
+        .unwrap_err()
+        .to_string()
+        .contains("at least 1"));
     }
-    if lts.is_empty() {
-        return Err(BrdfError::File { path: path.into(), msg: "no lumitexel rows after the header".into() });
-    }
-    Ok((ids, lts))
 }

@@ -35,15 +35,58 @@ pub struct FitOptions {
     pub max_n: f64,
     /// Relative-residual floor as a fraction of the channel's mean value.
     pub rel_floor: f64,
+    /// Weight of the energy bound: residuals `w (albedo - 1)` wherever the directional albedo
+    /// (Lambertian plus lobes, per channel) exceeds 1 at an incidence angle; 0 turns it off.
+    pub energy_weight: f64,
+    /// Weights of the smoothness prior `ln|Cxy| ~ 0` (lobes that neither grow nor shrink toward
+    /// grazing unless the samples demand it) among which the cross-validation chooses; without
+    /// cross-validation the first is used.
+    pub smooth: Vec<f64>,
+    /// With at least this many distinct light directions, choose between one lobe (specular)
+    /// and two, and among [`FitOptions::smooth`], by leave-one-light-out cross-validation;
+    /// 0 = never (always two lobes).
+    pub cv_min_lights: usize,
 }
 
 impl Default for FitOptions {
+    /// The plain weighted least squares (no energy bound, no prior, no model selection).
     fn default() -> Self {
         FitOptions {
             max_n: 2.0e4,
             rel_floor: 0.05,
+            energy_weight: 0.0,
+            smooth: vec![0.0],
+            cv_min_lights: 0,
         }
     }
+}
+
+impl FitOptions {
+    /// The plain weighted least squares: the default.
+    pub fn plain() -> Self {
+        FitOptions::default()
+    }
+
+    /// For sparse samples (issue 16): the energy bound, a choice among smoothness weights, and
+    /// one or two lobes, by leave-one-light-out cross-validation.
+    pub fn regularised() -> Self {
+        FitOptions {
+            energy_weight: 10.0,
+            smooth: vec![0.0, 0.1, 1.0],
+            cv_min_lights: 3,
+            ..FitOptions::default()
+        }
+    }
+}
+
+/// One candidate of the cross-validation and its score.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CvScore {
+    /// 1 (specular only) or 2 (retroreflective and specular).
+    pub lobes: usize,
+    pub smooth: f64,
+    /// RMS of the weighted residuals of each left-out light's samples under the fit to the others.
+    pub score: f64,
 }
 
 /// Standard errors in the units of the fitted parameters (`cz` is fixed, so it has none).
@@ -73,8 +116,60 @@ pub struct FitReport {
     pub rms_abs: f64,
     pub stderr: Stderr,
     pub samples: usize,
+    /// Lobes the model selection kept: 1 (the retro lobe's colour is zero) or 2.
+    pub lobes_used: usize,
+    /// The cross-validation's candidates and scores (empty without cross-validation).
+    pub cv: Vec<CvScore>,
     /// How the final Levenberg-Marquardt stage ended.
     pub termination: String,
+    /// Fitted parameters (the layout of [`Model`]) and their covariance (`sigma^2 (J^T J)^+`,
+    /// prior rows included), for [`FitReport::value_stderr`].
+    params: [f64; NP],
+    covariance: DMatrix<f64>,
+    max_n: f64,
+    retro: bool,
+}
+
+impl FitReport {
+    /// Standard error of the fitted `pi f` at the direction pair `(light, view)`, per channel:
+    /// `sqrt(g^T C g)` with `g` the gradient of the model value in the parameters and `C` their
+    /// covariance. Small where the samples constrain the model, growing away from them (a lobe
+    /// shape the samples never saw has a large variance, and so has every value it reaches).
+    pub fn value_stderr(&self, light: Vec3, view: Vec3) -> Vec3 {
+        let d3 = |v: Vec3| {
+            let v = v.normalize_or_zero();
+            [v.x as f64, v.y as f64, v.z as f64]
+        };
+        let (l, v) = (d3(light), d3(view));
+        if l[2] <= 0.0 || v[2] <= 0.0 {
+            return Vec3::ZERO;
+        }
+        let model = Model {
+            retro: self.retro,
+            ..Model::plain(self.max_n)
+        };
+        let mut g = DMatrix::zeros(NP, 3);
+        for i in 0..NP {
+            let h = 1e-6 * (1.0 + self.params[i].abs());
+            let (mut a, mut b) = (self.params, self.params);
+            a[i] += h;
+            b[i] -= h;
+            let (fa, fb) = (model.value(&a, &l, &v), model.value(&b, &l, &v));
+            for c in 0..3 {
+                g[(i, c)] = (fa[c] - fb[c]) / (2.0 * h);
+            }
+        }
+        let var = g.transpose() * &self.covariance * &g;
+        let se = |c: usize| {
+            let x = var[(c, c)].abs().sqrt();
+            if x.is_finite() {
+                x.min(1e30) as f32
+            } else {
+                1e30
+            }
+        };
+        Vec3::new(se(0), se(1), se(2))
+    }
 }
 
 pub(crate) const NP: usize = 13;
@@ -108,11 +203,82 @@ fn shape(cxy: f64, n: f64, l: &[f64; 3], v: &[f64; 3]) -> f64 {
 
 pub(crate) struct Model {
     pub(crate) max_n: f64,
+    /// With the retroreflective lobe (false: Lambertian + specular lobe only; the retro colour
+    /// is held at zero and its parameters are not optimised).
+    pub(crate) retro: bool,
+    /// Weight of the energy bound's residuals (directional albedo above 1), 0 = off.
+    pub(crate) energy: f64,
+    /// Weight of the smoothness prior `ln|Cxy| ~ 0` on both lobes (a lobe that neither grows
+    /// nor shrinks toward grazing unless the data ask for it), 0 = only the weak [`PRIOR`].
+    pub(crate) smooth: f64,
 }
 
+/// Most folds of the cross-validation over light positions.
+const CV_FOLDS: usize = 8;
+
+/// Incidence angles (degrees) at which the energy bound is enforced.
+const ENERGY_THETAS: [f64; 7] = [0.0, 30.0, 50.0, 65.0, 75.0, 82.0, 87.0];
+
+/// Number of prior rows after the data residuals.
+pub(crate) const N_PRIOR: usize = 2 + 3 * ENERGY_THETAS.len();
+
 impl Model {
+    /// The plain least-squares model (no energy bound, no smoothness prior; both lobes).
+    pub(crate) fn plain(max_n: f64) -> Self {
+        Model {
+            max_n,
+            retro: true,
+            energy: 0.0,
+            smooth: 0.0,
+        }
+    }
+
+    /// Parameters the optimiser may change (all but the retro lobe's without it).
+    pub(crate) fn free_all(&self) -> Vec<usize> {
+        (0..NP)
+            .filter(|&i| self.retro || !(RR..=RM).contains(&i))
+            .collect()
+    }
+
+    /// Directional albedo per channel at incidence `theta` of the Lambertian term plus both
+    /// lobes, with the closed form of a lobe over the whole sphere: `rho |c|^N 2 pi / (N + 2) a_z`
+    /// (`c = (Cxy sin, 0, cos)`, `a = c / |c|`; `a_z` floored at `1/sqrt(N + 1)`, the lobe's
+    /// width, so a lobe lying on the horizon still counts about half its energy).
+    fn albedo(&self, p: &[f64], theta: f64) -> [f64; 3] {
+        let (d, r, s) = self.lobes(p);
+        let (st, ct) = theta.sin_cos();
+        let lobe = |l: &LobeF64| {
+            let len = (l.cxy * l.cxy * st * st + ct * ct).sqrt();
+            let az = (ct / len).max(1.0 / (l.n + 1.0).sqrt());
+            (l.n * len.ln()).min(300.0).exp() * std::f64::consts::TAU / (l.n + 2.0) * az
+        };
+        let (kr, ks) = (lobe(&r), lobe(&s));
+        [0, 1, 2].map(|c| d[c] + r.rho[c] * kr + s.rho[c] * ks)
+    }
+
+    /// The prior rows: the weak `ln|Cxy|` prior (stronger with [`Model::smooth`]) and the energy
+    /// bound (albedo above 1 at [`ENERGY_THETAS`], weighted by [`Model::energy`]).
+    fn prior(&self, p: &[f64], out: &mut [f64]) {
+        let w = PRIOR + self.smooth;
+        out[0] = if self.retro { w * p[RA] } else { 0.0 };
+        out[1] = w * p[SA];
+        for (k, t) in ENERGY_THETAS.iter().enumerate() {
+            let a = if self.energy > 0.0 {
+                self.albedo(p, t.to_radians())
+            } else {
+                [0.0; 3]
+            };
+            for c in 0..3 {
+                out[2 + 3 * k + c] = self.energy * (a[c] - 1.0).max(0.0);
+            }
+        }
+    }
+
     fn lobes(&self, p: &[f64]) -> ([f64; 3], LobeF64, LobeF64) {
         let col = |i: usize| {
+            if !self.retro && i == RR {
+                return [0.0; 3];
+            }
             [
                 p[i].clamp(-40.0, 20.0).exp(),
                 p[i + 1].clamp(-40.0, 20.0).exp(),
@@ -214,7 +380,7 @@ pub(crate) struct Problem<'a> {
 impl Problem<'_> {
     pub(crate) fn residuals_at(&self, p: &[f64]) -> DVector<f64> {
         let m = self.data.light.len();
-        let mut r = DVector::zeros(3 * m + 2);
+        let mut r = DVector::zeros(3 * m + N_PRIOR);
         for i in 0..m {
             let f = self.model.value(p, &self.data.light[i], &self.data.view[i]);
             for c in 0..3 {
@@ -223,15 +389,15 @@ impl Problem<'_> {
         }
         // A weak prior |Cxy| ~ 1 (ln|Cxy| ~ 0): keeps the Cxy of a lobe the data do not support at
         // a sane value instead of drifting to the clamp; negligible wherever the data constrain it.
-        r[3 * m] = PRIOR * p[RA];
-        r[3 * m + 1] = PRIOR * p[SA];
+        // Then the smoothness prior and the energy bound of the model's options.
+        self.model.prior(p, r.as_mut_slice()[3 * m..].as_mut());
         r
     }
     fn cost(&self) -> f64 {
         self.residuals_at(&self.p).norm_squared()
     }
     pub(crate) fn jacobian_at(&self, p: &[f64; NP], free: &[usize]) -> DMatrix<f64> {
-        let m = 3 * self.data.light.len() + 2;
+        let m = 3 * self.data.light.len() + N_PRIOR;
         let mut j = DMatrix::zeros(m, free.len());
         for (k, &i) in free.iter().enumerate() {
             let h = 1e-6 * (1.0 + p[i].abs());
@@ -584,14 +750,24 @@ fn fit_staged(model: &Model, data: &Data, grid: bool) -> ([f64; NP], f64, String
     }
     p0[RM] = 1.0f64.ln();
     p0[SM] = 9.0f64.ln();
-    let all: Vec<usize> = (0..NP).collect();
+    let all = model.free_all();
 
     // Stages 2-3 in the paper's order (retro, then specular), and the other order as a second
     // candidate; stage 4: all parameters jointly. Keep the better joint fit.
     let mut best: Option<([f64; NP], f64, String)> = None;
-    for order in [[0, 1], [1, 0]] {
+    let orders: &[[usize; 2]] = if model.retro {
+        &[[0, 1], [1, 0]]
+    } else {
+        &[[1, 1]]
+    };
+    for order in orders {
         let mut p = p0;
-        for which in order {
+        let once = if order[0] == order[1] {
+            &order[..1]
+        } else {
+            &order[..]
+        };
+        for &which in once {
             p = if which == 0 {
                 fit_lobe(model, data, p, RR, RA, RM, grid)
             } else {
@@ -608,9 +784,98 @@ fn fit_staged(model: &Model, data: &Data, grid: bool) -> ([f64; NP], f64, String
 
 /// Joint LM over all parameters from `p` (warm start).
 pub(crate) fn refine(model: &Model, data: &Data, p: [f64; NP]) -> ([f64; NP], f64) {
-    let all: Vec<usize> = (0..NP).collect();
+    let all = model.free_all();
     let (p, cost, _) = lm(model, data, p, &all);
     (p, cost)
+}
+
+impl Data {
+    /// The samples at `idx`, with their weights.
+    fn subset(&self, idx: &[usize]) -> Data {
+        Data {
+            light: idx.iter().map(|&i| self.light[i]).collect(),
+            view: idx.iter().map(|&i| self.view[i]).collect(),
+            value: idx.iter().map(|&i| self.value[i]).collect(),
+            weight: idx.iter().map(|&i| self.weight[i]).collect(),
+        }
+    }
+
+    /// Sample indices grouped by light direction (directions within about 0.1 degree are one).
+    fn light_groups(&self) -> Vec<Vec<usize>> {
+        let mut groups: Vec<([f64; 3], Vec<usize>)> = Vec::new();
+        for (i, l) in self.light.iter().enumerate() {
+            let same = |g: &[f64; 3]| g[0] * l[0] + g[1] * l[1] + g[2] * l[2] > 1.0 - 2e-6;
+            match groups.iter_mut().find(|g| same(&g.0)) {
+                Some(g) => g.1.push(i),
+                None => groups.push((*l, vec![i])),
+            }
+        }
+        groups.into_iter().map(|g| g.1).collect()
+    }
+}
+
+/// The model of `opts`: one or two lobes and the smoothness weight, by leave-one-light-out
+/// cross-validation when the samples have at least `opts.cv_min_lights` light directions (each
+/// candidate fitted to all lights but one, scored by the weighted residuals of the one left out).
+fn select_model(data: &Data, opts: &FitOptions) -> (Model, Vec<CvScore>) {
+    let smooth0 = opts.smooth.first().copied().unwrap_or(0.0);
+    let base = Model {
+        max_n: opts.max_n,
+        retro: true,
+        energy: opts.energy_weight,
+        smooth: smooth0,
+    };
+    let lights = data.light_groups();
+    if opts.cv_min_lights == 0 || lights.len() < opts.cv_min_lights.max(2) {
+        return (base, Vec::new());
+    }
+    // at most CV_FOLDS folds: light k goes to fold k mod CV_FOLDS
+    let folds = lights.len().min(CV_FOLDS);
+    let mut groups = vec![Vec::new(); folds];
+    for (k, g) in lights.into_iter().enumerate() {
+        groups[k % folds].extend(g);
+    }
+    let mut scores = Vec::new();
+    for retro in [false, true] {
+        for &smooth in &opts.smooth {
+            let model = Model {
+                retro,
+                smooth,
+                ..base
+            };
+            let (mut se, mut n) = (0.0, 0usize);
+            for k in 0..groups.len() {
+                let train: Vec<usize> = groups
+                    .iter()
+                    .enumerate()
+                    .filter(|(g, _)| *g != k)
+                    .flat_map(|(_, v)| v.iter().copied())
+                    .collect();
+                let (p, _, _) = fit_staged(&model, &data.subset(&train), false);
+                let test = data.subset(&groups[k]);
+                se += test.cost(&model, &p);
+                n += 3 * groups[k].len();
+            }
+            let score = (se / n.max(1) as f64).sqrt();
+            scores.push(CvScore {
+                lobes: if retro { 2 } else { 1 },
+                smooth,
+                score: if score.is_finite() { score } else { f64::MAX },
+            });
+        }
+    }
+    let best = scores
+        .iter()
+        .min_by(|a, b| a.score.total_cmp(&b.score))
+        .expect("candidates");
+    (
+        Model {
+            retro: best.lobes == 2,
+            smooth: best.smooth,
+            ..base
+        },
+        scores,
+    )
 }
 
 /// Fit Lambertian + retroreflective + specular lobes to one material's samples.
@@ -654,7 +919,7 @@ pub fn fit_material(
         value,
         floor,
     );
-    let model = Model { max_n: opts.max_n };
+    let (model, cv) = select_model(&data, opts);
     let (p, cost, termination) = fit_staged(&model, &data, true);
     if !cost.is_finite() || p.iter().any(|x| !x.is_finite()) {
         return Err(fail("the optimiser produced non-finite values".into()));
@@ -727,6 +992,12 @@ pub fn fit_material(
         stderr,
         samples: samples.len(),
         termination,
+        params: p,
+        covariance: cov * sigma2,
+        max_n: opts.max_n,
+        retro: model.retro,
+        lobes_used: if model.retro { 2 } else { 1 },
+        cv,
     })
 }
 

@@ -55,7 +55,10 @@ mod tests {
             assert!(f.s.dot(f.t).abs() < 1e-5);
             assert!(f.s.dot(n).abs() < 1e-5);
             assert!(f.t.dot(n).abs() < 1e-5);
-            assert!((f.s.cross(f.t) - n).length() < 1e-5, "right-handed for {n:?}");
+            assert!(
+                (f.s.cross(f.t) - n).length() < 1e-5,
+                "right-handed for {n:?}"
+            );
             let v = Vec3::new(0.2, -0.7, 0.5);
             assert!((f.to_world(f.to_local(v)) - v).length() < 1e-5);
             assert!((f.to_local(n) - Vec3::Z).length() < 1e-5);

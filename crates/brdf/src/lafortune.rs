@@ -137,7 +137,13 @@ fn finite_dir(v: Vec3) -> bool {
 /// Replace non-finite components by 0 (NaN) or the largest finite value (+inf).
 #[inline]
 fn sanitize(v: Vec3) -> Vec3 {
-    let f = |x: f32| if x.is_nan() { 0.0 } else { x.clamp(-f32::MAX, f32::MAX) };
+    let f = |x: f32| {
+        if x.is_nan() {
+            0.0
+        } else {
+            x.clamp(-f32::MAX, f32::MAX)
+        }
+    };
     Vec3::new(f(v.x), f(v.y), f(v.z))
 }
 
@@ -244,7 +250,11 @@ impl<'a> LafortuneRef<'a> {
         if !(pdf > 0.0) {
             return None;
         }
-        Some(BsdfSample { wi, value: self.eval(wi, wo), pdf })
+        Some(BsdfSample {
+            wi,
+            value: self.eval(wi, wo),
+            pdf,
+        })
     }
 
     /// Directional albedo `integral f(wi, wo) cos(wi) dwi` by importance sampling (seeded).
@@ -289,12 +299,18 @@ impl Lafortune {
     /// Borrow as the allocation-free evaluator.
     #[allow(clippy::should_implement_trait)]
     pub fn as_ref(&self) -> LafortuneRef<'_> {
-        LafortuneRef { rho_d: self.rho_d, lobes: &self.lobes }
+        LafortuneRef {
+            rho_d: self.rho_d,
+            lobes: &self.lobes,
+        }
     }
 
     /// A pure Lambertian material.
     pub fn lambertian(rho_d: Vec3) -> Self {
-        Lafortune { rho_d, lobes: Vec::new() }
+        Lafortune {
+            rho_d,
+            lobes: Vec::new(),
+        }
     }
 
     /// Per channel, the largest directional albedo over 32 view elevations from normal to

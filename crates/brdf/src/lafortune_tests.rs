@@ -10,34 +10,88 @@ const PI: f32 = std::f32::consts::PI;
 
 /// A specular lobe (Cxy = -1, Cz = 1) normalised so that its albedo at normal incidence is `k`.
 fn spec(k: Vec3, n: f32) -> Lobe {
-    Lobe { rho: k * (n + 2.0) / (2.0 * PI), cxy: -1.0, cz: 1.0, n }
+    Lobe {
+        rho: k * (n + 2.0) / (2.0 * PI),
+        cxy: -1.0,
+        cz: 1.0,
+        n,
+    }
 }
 /// A retroreflective lobe (Cxy = Cz = 1, axis = wo), albedo about `k` at normal incidence.
 fn retro(k: Vec3, n: f32) -> Lobe {
-    Lobe { rho: k * (n + 2.0) / (2.0 * PI), cxy: 1.0, cz: 1.0, n }
+    Lobe {
+        rho: k * (n + 2.0) / (2.0 * PI),
+        cxy: 1.0,
+        cz: 1.0,
+        n,
+    }
 }
 
 fn materials() -> Vec<(&'static str, Lafortune)> {
     let s = Vec3::splat;
     vec![
         ("diffuse", Lafortune::lambertian(Vec3::new(0.5, 0.6, 0.7))),
-        ("specular n=30", Lafortune { rho_d: s(0.2), lobes: vec![spec(Vec3::new(0.5, 0.4, 0.3), 30.0)] }),
-        ("off-specular cxy=-0.8", Lafortune {
-            rho_d: s(0.1),
-            lobes: vec![Lobe { rho: s(0.5) * 22.0 / (2.0 * PI), cxy: -0.8, cz: 1.0, n: 20.0 }],
-        }),
-        ("retroreflective n=10", Lafortune { rho_d: s(0.3), lobes: vec![retro(s(0.4), 10.0)] }),
-        ("mix diffuse+spec+retro", Lafortune {
-            rho_d: Vec3::new(0.3, 0.25, 0.2),
-            lobes: vec![spec(s(0.3), 50.0), retro(s(0.2), 8.0)],
-        }),
-        ("stiff specular n=1000", Lafortune { rho_d: s(0.1), lobes: vec![spec(s(0.8), 1000.0)] }),
-        ("stiff specular n=1e4", Lafortune { rho_d: s(0.05), lobes: vec![spec(s(0.9), 1.0e4)] }),
-        ("pure lobe n=1e4, no diffuse", Lafortune { rho_d: Vec3::ZERO, lobes: vec![spec(s(0.9), 1.0e4)] }),
-        ("stiff retro n=1000 + spec", Lafortune {
-            rho_d: s(0.05),
-            lobes: vec![retro(s(0.3), 1000.0), spec(s(0.5), 200.0)],
-        }),
+        (
+            "specular n=30",
+            Lafortune {
+                rho_d: s(0.2),
+                lobes: vec![spec(Vec3::new(0.5, 0.4, 0.3), 30.0)],
+            },
+        ),
+        (
+            "off-specular cxy=-0.8",
+            Lafortune {
+                rho_d: s(0.1),
+                lobes: vec![Lobe {
+                    rho: s(0.5) * 22.0 / (2.0 * PI),
+                    cxy: -0.8,
+                    cz: 1.0,
+                    n: 20.0,
+                }],
+            },
+        ),
+        (
+            "retroreflective n=10",
+            Lafortune {
+                rho_d: s(0.3),
+                lobes: vec![retro(s(0.4), 10.0)],
+            },
+        ),
+        (
+            "mix diffuse+spec+retro",
+            Lafortune {
+                rho_d: Vec3::new(0.3, 0.25, 0.2),
+                lobes: vec![spec(s(0.3), 50.0), retro(s(0.2), 8.0)],
+            },
+        ),
+        (
+            "stiff specular n=1000",
+            Lafortune {
+                rho_d: s(0.1),
+                lobes: vec![spec(s(0.8), 1000.0)],
+            },
+        ),
+        (
+            "stiff specular n=1e4",
+            Lafortune {
+                rho_d: s(0.05),
+                lobes: vec![spec(s(0.9), 1.0e4)],
+            },
+        ),
+        (
+            "pure lobe n=1e4, no diffuse",
+            Lafortune {
+                rho_d: Vec3::ZERO,
+                lobes: vec![spec(s(0.9), 1.0e4)],
+            },
+        ),
+        (
+            "stiff retro n=1000 + spec",
+            Lafortune {
+                rho_d: s(0.05),
+                lobes: vec![retro(s(0.3), 1000.0), spec(s(0.5), 200.0)],
+            },
+        ),
     ]
 }
 
@@ -148,14 +202,24 @@ impl Binning {
         }
         e.sort_by(|a, b| a.partial_cmp(b).unwrap());
         e.dedup_by(|a, b| (*a - *b).abs() < 1e-9);
-        Binning { frame: Frame::from_normal(axis), c_edges: e, n_phi: 16 }
+        Binning {
+            frame: Frame::from_normal(axis),
+            c_edges: e,
+            n_phi: 16,
+        }
     }
     fn n_bins(&self) -> usize {
         (self.c_edges.len() - 1) * self.n_phi
     }
     fn dir(&self, c: f64, phi: f64) -> Vec3 {
         let s = (1.0 - c * c).max(0.0).sqrt();
-        self.frame.to_world(Vec3::new((s * phi.cos()) as f32, (s * phi.sin()) as f32, c as f32)).normalize()
+        self.frame
+            .to_world(Vec3::new(
+                (s * phi.cos()) as f32,
+                (s * phi.sin()) as f32,
+                c as f32,
+            ))
+            .normalize()
     }
     fn bin_of(&self, w: Vec3) -> usize {
         let l = self.frame.to_local(w);
@@ -169,7 +233,8 @@ impl Binning {
             Some(i) => i - 1,
             None => self.c_edges.len() - 2,
         };
-        let ip = ((phi / (2.0 * std::f64::consts::PI) * self.n_phi as f64) as usize).min(self.n_phi - 1);
+        let ip =
+            ((phi / (2.0 * std::f64::consts::PI) * self.n_phi as f64) as usize).min(self.n_phi - 1);
         ic * self.n_phi + ip
     }
     /// Integrate `g` over every bin: midpoint rule on sub-cells whose c edges are the union of
@@ -180,7 +245,9 @@ impl Binning {
         let sub_c = 24;
         for ic in 0..self.c_edges.len() - 1 {
             let (a, b) = (self.c_edges[ic], self.c_edges[ic + 1]);
-            let mut sub: Vec<f64> = (0..=sub_c).map(|i| a + (b - a) * i as f64 / sub_c as f64).collect();
+            let mut sub: Vec<f64> = (0..=sub_c)
+                .map(|i| a + (b - a) * i as f64 / sub_c as f64)
+                .collect();
             if a >= 0.0 {
                 let (wa, wb) = (a.powf(m + 1.0), b.powf(m + 1.0));
                 for i in 1..sub_c {
@@ -259,7 +326,10 @@ fn chi2_test(m: &Lafortune, wo: Vec3, n_samples: usize, seed: u64) -> (f64, f64,
     let total: f64 = pdf_int.iter().sum();
     let mut alb = [0.0f64; 3];
     for c in 0..3 {
-        alb[c] = bins.integrate(expo, |w| (r.eval(w, wo)[c] * w.z.max(0.0)) as f64).iter().sum();
+        alb[c] = bins
+            .integrate(expo, |w| (r.eval(w, wo)[c] * w.z.max(0.0)) as f64)
+            .iter()
+            .sum();
     }
     let mut expected: Vec<f64> = pdf_int.iter().map(|p| p * n_samples as f64).collect();
     expected.push((1.0 - total).max(0.0) * n_samples as f64);
@@ -273,14 +343,25 @@ fn chi2_test(m: &Lafortune, wo: Vec3, n_samples: usize, seed: u64) -> (f64, f64,
             pool_e += e;
             pool_o += o;
         } else {
-            if std::env::var("CHI_DEBUG").is_ok() && (o - e) * (o - e) / e > 20.0 { eprintln!("bin {bi} ic {} ip {} e={e} o={o} edges {:?}", bi / bins.n_phi, bi % bins.n_phi, bins.c_edges); }
+            if std::env::var("CHI_DEBUG").is_ok() && (o - e) * (o - e) / e > 20.0 {
+                eprintln!(
+                    "bin {bi} ic {} ip {} e={e} o={o} edges {:?}",
+                    bi / bins.n_phi,
+                    bi % bins.n_phi,
+                    bins.c_edges
+                );
+            }
             chi2 += (o - e) * (o - e) / e;
             dof += 1;
         }
     }
     if pool_e > 0.0 || pool_o > 0.0 {
         if pool_e < 5.0 && pool_o > 2.0 * pool_e + 25.0 {
-            return (0.0, total, Vec3::new(alb[0] as f32, alb[1] as f32, alb[2] as f32));
+            return (
+                0.0,
+                total,
+                Vec3::new(alb[0] as f32, alb[1] as f32, alb[2] as f32),
+            );
         }
         if pool_e > 0.0 {
             chi2 += (pool_o - pool_e) * (pool_o - pool_e) / pool_e;
@@ -288,7 +369,11 @@ fn chi2_test(m: &Lafortune, wo: Vec3, n_samples: usize, seed: u64) -> (f64, f64,
         }
     }
     let p = gamma_q((dof as f64 - 1.0) / 2.0, chi2 / 2.0);
-    (p, total, Vec3::new(alb[0] as f32, alb[1] as f32, alb[2] as f32))
+    (
+        p,
+        total,
+        Vec3::new(alb[0] as f32, alb[1] as f32, alb[2] as f32),
+    )
 }
 
 #[test]
@@ -299,7 +384,10 @@ fn sampler_passes_chi_square_for_every_material_and_view() {
             seed += 1;
             let (p, total, quad_albedo) = chi2_test(&m, wo, 200_000, seed);
             assert!(p > 1e-4, "{name}, wo = {wo:?}: chi-square p-value {p:.3e}");
-            assert!(total <= 1.0 + 2e-3 && total > 0.3, "{name}, wo = {wo:?}: pdf integrates to {total}");
+            assert!(
+                total <= 1.0 + 2e-3 && total > 0.3,
+                "{name}, wo = {wo:?}: pdf integrates to {total}"
+            );
             // eval/pdf consistency: the estimator E[f cos / pdf] equals the quadrature albedo
             let mc = m.as_ref().albedo(wo, 200_000, seed + 1000);
             for c in 0..3 {
@@ -309,7 +397,10 @@ fn sampler_passes_chi_square_for_every_material_and_view() {
                     "{name}, wo = {wo:?}: MC albedo {mc:?} vs quadrature {quad_albedo:?}"
                 );
             }
-            assert!(quad_albedo.max_element() <= 1.0, "{name}: albedo {quad_albedo:?} > 1");
+            assert!(
+                quad_albedo.max_element() <= 1.0,
+                "{name}: albedo {quad_albedo:?} > 1"
+            );
         }
     }
 }
@@ -330,9 +421,15 @@ fn lambertian_albedo_is_exact_and_pdf_is_cosine() {
 fn normalised_specular_albedo_at_normal_incidence_matches_analytic() {
     // (n+2)/(2pi) * integral cos^(n+1) = 1 at wo = z, for n from 1 to 1e4.
     for n in [1.0f32, 30.0, 1000.0, 1.0e4] {
-        let m = Lafortune { rho_d: Vec3::ZERO, lobes: vec![spec(Vec3::new(0.9, 0.5, 0.1), n)] };
+        let m = Lafortune {
+            rho_d: Vec3::ZERO,
+            lobes: vec![spec(Vec3::new(0.9, 0.5, 0.1), n)],
+        };
         let a = m.as_ref().albedo(Vec3::Z, 100_000, 11);
-        assert!((a - Vec3::new(0.9, 0.5, 0.1)).abs().max_element() < 0.01, "n = {n}: {a:?}");
+        assert!(
+            (a - Vec3::new(0.9, 0.5, 0.1)).abs().max_element() < 0.01,
+            "n = {n}: {a:?}"
+        );
     }
 }
 
@@ -352,7 +449,11 @@ fn reciprocity_holds_exactly() {
 
 fn random_upper(rng: &mut impl Rng) -> Vec3 {
     loop {
-        let v = Vec3::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0), rng.gen_range(0.0..1.0));
+        let v = Vec3::new(
+            rng.gen_range(-1.0..1.0),
+            rng.gen_range(-1.0..1.0),
+            rng.gen_range(0.0..1.0),
+        );
         let l = v.length();
         if l > 0.1 && l <= 1.0 && v.z > 0.0 {
             return v / l;
@@ -370,7 +471,12 @@ fn test_materials_conserve_energy_and_check_detects_violation() {
     // |C| > 1: |c(wo)|^N grows as 1.2^100 ~ 8e7 -> far above 1.
     let bad = Lafortune {
         rho_d: Vec3::splat(0.1),
-        lobes: vec![Lobe { rho: Vec3::splat(1.0), cxy: -1.2, cz: 1.2, n: 100.0 }],
+        lobes: vec![Lobe {
+            rho: Vec3::splat(1.0),
+            cxy: -1.2,
+            cz: 1.2,
+            n: 100.0,
+        }],
     };
     assert!(bad.max_albedo().max_element() > 10.0);
     assert!(!bad.is_energy_conserving());
@@ -389,8 +495,16 @@ fn below_horizon_and_degenerate_inputs_give_zero() {
     assert_eq!(r.pdf(down, up), 0.0);
     assert!(r.sample(down, 0.5, Vec2::splat(0.5)).is_none());
     assert!(r.sample(Vec3::X, 0.5, Vec2::splat(0.5)).is_none()); // wo.z = 0
-    // zero albedo: finite zeros, samples still valid
-    let z = Lafortune { rho_d: Vec3::ZERO, lobes: vec![Lobe { rho: Vec3::ZERO, cxy: -1.0, cz: 1.0, n: 1e4 }] };
+                                                                 // zero albedo: finite zeros, samples still valid
+    let z = Lafortune {
+        rho_d: Vec3::ZERO,
+        lobes: vec![Lobe {
+            rho: Vec3::ZERO,
+            cxy: -1.0,
+            cz: 1.0,
+            n: 1e4,
+        }],
+    };
     let s = z.as_ref().sample(up, 0.3, Vec2::new(0.2, 0.9)).unwrap();
     assert_eq!(s.value, Vec3::ZERO);
     assert!(s.pdf > 0.0 && s.pdf.is_finite());
@@ -410,8 +524,20 @@ mod prop {
             .prop_map(|(x, y, z)| Vec3::new(x, y, z).normalize())
     }
     fn lobe() -> impl Strategy<Value = Lobe> {
-        (0.0f32..10.0, 0.0f32..10.0, 0.0f32..10.0, -2.0f32..2.0, -2.0f32..2.0, prop_oneof![0.0f32..10.0, 0.0f32..1.0e4])
-            .prop_map(|(r, g, b, cxy, cz, n)| Lobe { rho: Vec3::new(r, g, b), cxy, cz, n })
+        (
+            0.0f32..10.0,
+            0.0f32..10.0,
+            0.0f32..10.0,
+            -2.0f32..2.0,
+            -2.0f32..2.0,
+            prop_oneof![0.0f32..10.0, 0.0f32..1.0e4],
+        )
+            .prop_map(|(r, g, b, cxy, cz, n)| Lobe {
+                rho: Vec3::new(r, g, b),
+                cxy,
+                cz,
+                n,
+            })
     }
 
     proptest! {

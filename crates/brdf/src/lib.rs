@@ -11,8 +11,8 @@
 pub mod basis;
 pub mod cluster;
 pub mod error;
-pub mod frame;
 pub mod fit;
+pub mod frame;
 pub mod lafortune;
 pub mod materials;
 pub mod measure;
@@ -20,10 +20,12 @@ pub mod plot;
 pub mod samples;
 
 pub use basis::Basis;
-pub use cluster::{basis_weights, cluster, read_lumitexels, ClusterOptions, ClusterResult, Lumitexel};
+pub use cluster::{
+    basis_weights, cluster, read_lumitexels, ClusterOptions, ClusterResult, Lumitexel,
+};
 pub use error::BrdfError;
-pub use frame::Frame;
 pub use fit::{fit_material, FitOptions, FitReport, LobeStderr, Stderr};
+pub use frame::Frame;
 pub use lafortune::{luminance, BsdfSample, Lafortune, LafortuneRef, Lobe};
 pub use materials::{MaterialEntry, MaterialsFile};
 pub use measure::{measure_photo, MeasureOptions, PhotoMeasurement, PoseInput, SampleFrame};

@@ -28,7 +28,10 @@ pub struct MaterialEntry {
 
 impl MaterialEntry {
     pub fn brdf(&self) -> Lafortune {
-        Lafortune { rho_d: self.rho_d, lobes: self.lobes.clone() }
+        Lafortune {
+            rho_d: self.rho_d,
+            lobes: self.lobes.clone(),
+        }
     }
 }
 
@@ -53,30 +56,52 @@ pub struct MaterialsFile {
 
 impl MaterialsFile {
     pub fn from_reports(reports: &[FitReport]) -> Self {
-        MaterialsFile { materials: reports.iter().map(|r| (r.material.clone(), MaterialEntry::from(r))).collect() }
+        MaterialsFile {
+            materials: reports
+                .iter()
+                .map(|r| (r.material.clone(), MaterialEntry::from(r)))
+                .collect(),
+        }
     }
 
     /// Read and validate (finite, non-negative colours, non-negative exponents, at least one material).
     pub fn read(path: &Path) -> Result<Self, BrdfError> {
-        let text = std::fs::read_to_string(path).map_err(|source| BrdfError::Io { path: path.into(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|source| BrdfError::Io {
+            path: path.into(),
+            source,
+        })?;
         Self::parse(&text, path)
     }
 
     /// [`Self::read`] on text in memory (`path` names it in errors).
     pub fn parse(text: &str, path: &Path) -> Result<Self, BrdfError> {
-        let err = |msg: String| BrdfError::File { path: path.into(), msg };
-        let m: MaterialsFile = serde_json::from_str(text).map_err(|e| err(format!("not a materials JSON: {e}")))?;
+        let err = |msg: String| BrdfError::File {
+            path: path.into(),
+            msg,
+        };
+        let m: MaterialsFile =
+            serde_json::from_str(text).map_err(|e| err(format!("not a materials JSON: {e}")))?;
         if m.materials.is_empty() {
             return Err(err("no materials".into()));
         }
         for (name, e) in &m.materials {
             if !e.rho_d.is_finite() || e.rho_d.min_element() < 0.0 {
-                return Err(err(format!("material `{name}`: rho_d {:?} must be finite and non-negative", e.rho_d)));
+                return Err(err(format!(
+                    "material `{name}`: rho_d {:?} must be finite and non-negative",
+                    e.rho_d
+                )));
             }
             for (i, l) in e.lobes.iter().enumerate() {
-                let ok = l.rho.is_finite() && l.rho.min_element() >= 0.0 && l.cxy.is_finite() && l.cz.is_finite() && l.n.is_finite() && l.n >= 0.0;
+                let ok = l.rho.is_finite()
+                    && l.rho.min_element() >= 0.0
+                    && l.cxy.is_finite()
+                    && l.cz.is_finite()
+                    && l.n.is_finite()
+                    && l.n >= 0.0;
                 if !ok {
-                    return Err(err(format!("material `{name}`, lobe {i}: {l:?} needs finite values, rho >= 0, n >= 0")));
+                    return Err(err(format!(
+                        "material `{name}`, lobe {i}: {l:?} needs finite values, rho >= 0, n >= 0"
+                    )));
                 }
             }
         }
@@ -92,14 +117,21 @@ impl MaterialsFile {
         self.materials.get(name).map(|e| e.brdf()).ok_or_else(|| {
             BrdfError::Invalid(format!(
                 "no material `{name}` (have: {})",
-                self.materials.keys().cloned().collect::<Vec<_>>().join(", ")
+                self.materials
+                    .keys()
+                    .cloned()
+                    .collect::<Vec<_>>()
+                    .join(", ")
             ))
         })
     }
 
     /// All materials as (name, BRDF), sorted by name.
     pub fn brdfs(&self) -> Vec<(String, Lafortune)> {
-        self.materials.iter().map(|(k, e)| (k.clone(), e.brdf())).collect()
+        self.materials
+            .iter()
+            .map(|(k, e)| (k.clone(), e.brdf()))
+            .collect()
     }
 }
 
@@ -114,7 +146,12 @@ mod tests {
             "marble".into(),
             MaterialEntry {
                 rho_d: Vec3::new(0.5, 0.4, 0.3),
-                lobes: vec![Lobe { rho: Vec3::splat(2.0), cxy: -1.0, cz: 1.0, n: 30.0 }],
+                lobes: vec![Lobe {
+                    rho: Vec3::splat(2.0),
+                    cxy: -1.0,
+                    cz: 1.0,
+                    n: 30.0,
+                }],
                 rms: Some(0.01),
                 rms_abs: None,
                 samples: Some(80),
@@ -123,9 +160,20 @@ mod tests {
         );
         let text = f.to_json();
         let v: serde_json::Value = serde_json::from_str(&text).unwrap();
-        assert_eq!(v["materials"]["marble"]["rho_d"][1].as_f64().unwrap() as f32, 0.4);
-        assert_eq!(v["materials"]["marble"]["lobes"][0]["n"].as_f64().unwrap(), 30.0);
-        assert_eq!(v["materials"]["marble"]["lobes"][0]["cxy"].as_f64().unwrap(), -1.0);
+        assert_eq!(
+            v["materials"]["marble"]["rho_d"][1].as_f64().unwrap() as f32,
+            0.4
+        );
+        assert_eq!(
+            v["materials"]["marble"]["lobes"][0]["n"].as_f64().unwrap(),
+            30.0
+        );
+        assert_eq!(
+            v["materials"]["marble"]["lobes"][0]["cxy"]
+                .as_f64()
+                .unwrap(),
+            -1.0
+        );
         assert_eq!(MaterialsFile::parse(&text, Path::new("m.json")).unwrap(), f);
         assert_eq!(f.get("marble").unwrap().lobes.len(), 1);
         assert!(f.get("x").unwrap_err().to_string().contains("have: marble"));
@@ -136,9 +184,16 @@ mod tests {
         let p = Path::new("m.json");
         let e = MaterialsFile::parse("{", p).unwrap_err().to_string();
         assert!(e.starts_with("m.json: not a materials JSON"), "{e}");
-        let e = MaterialsFile::parse(r#"{"materials":{}}"#, p).unwrap_err().to_string();
+        let e = MaterialsFile::parse(r#"{"materials":{}}"#, p)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("no materials"), "{e}");
-        let e = MaterialsFile::parse(r#"{"materials":{"a":{"rho_d":[0.1,-0.2,0.3],"lobes":[]}}}"#, p).unwrap_err().to_string();
+        let e = MaterialsFile::parse(
+            r#"{"materials":{"a":{"rho_d":[0.1,-0.2,0.3],"lobes":[]}}}"#,
+            p,
+        )
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("material `a`: rho_d"), "{e}");
         let e = MaterialsFile::parse(
             r#"{"materials":{"a":{"rho_d":[0.1,0.2,0.3],"lobes":[{"rho":[1,1,1],"cxy":-1,"cz":1,"n":-3}]}}}"#,

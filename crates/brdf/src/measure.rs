@@ -63,7 +63,10 @@ pub struct FrameSphere {
 
 /// A reflectance: one number (grey) or per channel.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(untagged)]
+#[serde(
+    untagged,
+    expecting = "a reflectance: one number (grey) or three [r, g, b]"
+)]
 pub enum Reflectance {
     Grey(f64),
     Rgb([f64; 3]),

@@ -48,7 +48,11 @@ fn in_plane_groups(samples: &[BrdfSample]) -> Vec<Group> {
         };
         match groups.iter_mut().find(|g| g.0 == key) {
             Some(g) => g.2.push((signed, s.value)),
-            None => groups.push((key, if lt < 1.0 { 0.0 } else { phi_l }, vec![(signed, s.value)])),
+            None => groups.push((
+                key,
+                if lt < 1.0 { 0.0 } else { phi_l },
+                vec![(signed, s.value)],
+            )),
         }
     }
     groups.sort_by_key(|g| g.0);
@@ -56,17 +60,30 @@ fn in_plane_groups(samples: &[BrdfSample]) -> Vec<Group> {
 }
 
 /// Draw the figure for `materials` = (name, samples, fitted BRDF) into a PNG (atomic write).
-pub fn plot_fits(path: &Path, materials: &[(String, Vec<BrdfSample>, Lafortune)]) -> Result<(), BrdfError> {
+pub fn plot_fits(
+    path: &Path,
+    materials: &[(String, Vec<BrdfSample>, Lafortune)],
+) -> Result<(), BrdfError> {
     igi_imaging::plot::register_fonts();
     let rows = materials.len().max(1);
     let (w, h) = (1500u32, 380 * rows as u32);
-    let perr = |e: String| BrdfError::File { path: path.into(), msg: format!("cannot draw the plot: {e}") };
+    let perr = |e: String| BrdfError::File {
+        path: path.into(),
+        msg: format!("cannot draw the plot: {e}"),
+    };
     igi_imaging::io::write_atomic(path, |tmp| {
         let draw = || -> Result<(), Box<dyn std::error::Error>> {
             let root = BitMapBackend::new(tmp, (w, h)).into_drawing_area();
             root.fill(&WHITE)?;
             let panels = root.split_evenly((rows, 3));
-            let palette = [RGBColor(31, 119, 180), RGBColor(255, 127, 14), RGBColor(44, 160, 44), RGBColor(214, 39, 40), RGBColor(148, 103, 189), RGBColor(140, 86, 75)];
+            let palette = [
+                RGBColor(31, 119, 180),
+                RGBColor(255, 127, 14),
+                RGBColor(44, 160, 44),
+                RGBColor(214, 39, 40),
+                RGBColor(148, 103, 189),
+                RGBColor(140, 86, 75),
+            ];
             for (r, (name, samples, brdf)) in materials.iter().enumerate() {
                 let groups = in_plane_groups(samples);
                 for c in 0..3 {
@@ -77,39 +94,73 @@ pub fn plot_fits(path: &Path, materials: &[(String, Vec<BrdfSample>, Lafortune)]
                         .max(1e-6)
                         * 1.15;
                     let mut chart = ChartBuilder::on(&panels[r * 3 + c])
-                        .caption(format!("{name} - {}", ["red", "green", "blue"][c]), ("sans-serif", 18))
+                        .caption(
+                            format!("{name} - {}", ["red", "green", "blue"][c]),
+                            ("sans-serif", 18),
+                        )
                         .margin(8)
                         .x_label_area_size(30)
                         .y_label_area_size(50)
                         .build_cartesian_2d(-90f32..90f32, 0f32..ymax)?;
-                    chart.configure_mesh().x_desc("view angle (deg, + = mirror side)").y_desc("pi f").draw()?;
+                    chart
+                        .configure_mesh()
+                        .x_desc("view angle (deg, + = mirror side)")
+                        .y_desc("pi f")
+                        .draw()?;
                     for (gi, (lt, phi_l, pts)) in groups.iter().enumerate() {
                         let col = palette[gi % palette.len()];
-                        let light = Vec3::new((*lt as f32).to_radians().sin() * phi_l.cos(), (*lt as f32).to_radians().sin() * phi_l.sin(), (*lt as f32).to_radians().cos());
+                        let light = Vec3::new(
+                            (*lt as f32).to_radians().sin() * phi_l.cos(),
+                            (*lt as f32).to_radians().sin() * phi_l.sin(),
+                            (*lt as f32).to_radians().cos(),
+                        );
                         let curve = (0..=360).map(|k| {
                             let a = -89.5 + 179.0 * k as f32 / 360.0;
-                            let phi = if a < 0.0 { *phi_l } else { phi_l + std::f32::consts::PI };
+                            let phi = if a < 0.0 {
+                                *phi_l
+                            } else {
+                                phi_l + std::f32::consts::PI
+                            };
                             let t = a.abs().to_radians();
                             let v = Vec3::new(t.sin() * phi.cos(), t.sin() * phi.sin(), t.cos());
-                            (a, (brdf.as_ref().eval(light, v)[c] * std::f32::consts::PI).min(ymax))
+                            (
+                                a,
+                                (brdf.as_ref().eval(light, v)[c] * std::f32::consts::PI).min(ymax),
+                            )
                         });
-                        chart.draw_series(LineSeries::new(curve, col.stroke_width(2)))?.label(format!("light {lt} deg")).legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], col));
-                        chart.draw_series(pts.iter().map(|(a, v)| Circle::new((*a, v[c].min(ymax)), 3, col.filled())))?;
+                        chart
+                            .draw_series(LineSeries::new(curve, col.stroke_width(2)))?
+                            .label(format!("light {lt} deg"))
+                            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], col));
+                        chart
+                            .draw_series(pts.iter().map(|(a, v)| {
+                                Circle::new((*a, v[c].min(ymax)), 3, col.filled())
+                            }))?;
                     }
-                    chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw()?;
+                    chart
+                        .configure_series_labels()
+                        .background_style(WHITE.mix(0.8))
+                        .border_style(BLACK)
+                        .draw()?;
                 }
             }
             root.present()?;
             Ok(())
         };
-        draw().map_err(|e| igi_imaging::ImagingError::Encode { path: tmp.to_path_buf(), msg: e.to_string() })
+        draw().map_err(|e| igi_imaging::ImagingError::Encode {
+            path: tmp.to_path_buf(),
+            msg: e.to_string(),
+        })
     })
     .map_err(|e| perr(e.to_string()))
 }
 
 /// Write text to `path` atomically (temp file in the same folder, then rename).
 pub fn write_text_atomic(path: &Path, text: &str) -> Result<(), BrdfError> {
-    igi_imaging::io::write_text_atomic(path, text).map_err(|e| BrdfError::File { path: path.into(), msg: format!("cannot write: {e}") })
+    igi_imaging::io::write_text_atomic(path, text).map_err(|e| BrdfError::File {
+        path: path.into(),
+        msg: format!("cannot write: {e}"),
+    })
 }
 
 #[cfg(test)]
@@ -120,14 +171,30 @@ mod tests {
 
     #[test]
     fn groups_samples_in_the_plane_and_draws_a_png() {
-        let m = Lafortune { rho_d: Vec3::splat(0.3), lobes: vec![Lobe { rho: Vec3::splat(2.0), cxy: -1.0, cz: 1.0, n: 30.0 }] };
+        let m = Lafortune {
+            rho_d: Vec3::splat(0.3),
+            lobes: vec![Lobe {
+                rho: Vec3::splat(2.0),
+                cxy: -1.0,
+                cz: 1.0,
+                n: 30.0,
+            }],
+        };
         let s = synth(&m, "m", &paper_pairs(), 0.0, 0);
         let g = in_plane_groups(&s);
         assert_eq!(g.iter().map(|x| x.0).collect::<Vec<_>>(), [0, 30, 50, 75]);
         // 21 in-plane views per light; the 3 out-of-plane views (60 deg azimuth) are dropped
-        assert!(g.iter().all(|x| x.2.len() == 21), "{:?}", g.iter().map(|x| x.2.len()).collect::<Vec<_>>());
+        assert!(
+            g.iter().all(|x| x.2.len() == 21),
+            "{:?}",
+            g.iter().map(|x| x.2.len()).collect::<Vec<_>>()
+        );
         // light at 30 deg: the mirror view (+30) carries the peak
-        let peak = g[1].2.iter().max_by(|a, b| a.1.x.total_cmp(&b.1.x)).unwrap();
+        let peak = g[1]
+            .2
+            .iter()
+            .max_by(|a, b| a.1.x.total_cmp(&b.1.x))
+            .unwrap();
         assert!((peak.0 - 32.0).abs() <= 4.0, "{peak:?}");
         let dir = tempfile_dir();
         let p = dir.join("fig.png");

@@ -33,19 +33,35 @@ pub struct PairRow {
     pub view: Vec3,
 }
 
-const DIR_COLS: [&str; 6] = ["light_x", "light_y", "light_z", "view_x", "view_y", "view_z"];
+const DIR_COLS: [&str; 6] = [
+    "light_x", "light_y", "light_z", "view_x", "view_y", "view_z",
+];
 
 fn read_text(path: &Path) -> Result<String, BrdfError> {
-    std::fs::read_to_string(path).map_err(|source| BrdfError::Io { path: path.to_path_buf(), source })
+    std::fs::read_to_string(path).map_err(|source| BrdfError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
 }
 
 fn parse_err(path: &Path, line: usize, msg: impl Into<String>) -> BrdfError {
-    BrdfError::Parse { path: path.to_path_buf(), line, msg: msg.into() }
+    BrdfError::Parse {
+        path: path.to_path_buf(),
+        line,
+        msg: msg.into(),
+    }
 }
+
+/// The largest BRDF value a sample may have (sr^-1): a mirror-like lobe of exponent 10^5
+/// peaks near 10^4; larger values can only be unit mistakes and would overflow the fit.
+pub const MAX_BRDF: f32 = 1e6;
 
 /// Non-empty, non-comment lines with their 1-based line numbers.
 fn lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
-    text.lines()
+    // a UTF-8 byte-order mark (spreadsheet exports) is not part of the first column's name
+    text.strip_prefix('\u{feff}')
+        .unwrap_or(text)
+        .lines()
         .enumerate()
         .map(|(i, l)| (i + 1, l.trim()))
         .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'))
@@ -59,16 +75,38 @@ fn column(path: &Path, line: usize, header: &[&str], name: &str) -> Result<usize
     header
         .iter()
         .position(|h| h.eq_ignore_ascii_case(name))
-        .ok_or_else(|| parse_err(path, line, format!("header lacks column `{name}` (have: {})", header.join(","))))
+        .ok_or_else(|| {
+            parse_err(
+                path,
+                line,
+                format!("header lacks column `{name}` (have: {})", header.join(",")),
+            )
+        })
 }
 
-fn number(path: &Path, line: usize, cells: &[&str], idx: usize, name: &str) -> Result<f32, BrdfError> {
-    let cell = cells
-        .get(idx)
-        .ok_or_else(|| parse_err(path, line, format!("missing value for `{name}` ({} cells)", cells.len())))?;
-    let v: f32 = cell.parse().map_err(|_| parse_err(path, line, format!("`{name}` = `{cell}` is not a number")))?;
+fn number(
+    path: &Path,
+    line: usize,
+    cells: &[&str],
+    idx: usize,
+    name: &str,
+) -> Result<f32, BrdfError> {
+    let cell = cells.get(idx).ok_or_else(|| {
+        parse_err(
+            path,
+            line,
+            format!("missing value for `{name}` ({} cells)", cells.len()),
+        )
+    })?;
+    let v: f32 = cell
+        .parse()
+        .map_err(|_| parse_err(path, line, format!("`{name}` = `{cell}` is not a number")))?;
     if !v.is_finite() {
-        return Err(parse_err(path, line, format!("`{name}` = `{cell}` is not finite")));
+        return Err(parse_err(
+            path,
+            line,
+            format!("`{name}` = `{cell}` is not finite"),
+        ));
     }
     Ok(v)
 }
@@ -76,12 +114,21 @@ fn number(path: &Path, line: usize, cells: &[&str], idx: usize, name: &str) -> R
 fn direction(path: &Path, line: usize, v: Vec3, what: &str) -> Result<Vec3, BrdfError> {
     let len = v.length();
     if (len - 1.0).abs() > 0.02 {
-        return Err(parse_err(path, line, format!("{what} direction {v:?} is not a unit vector (length {len:.4})")));
+        return Err(parse_err(
+            path,
+            line,
+            format!("{what} direction {v:?} is not a unit vector (length {len:.4})"),
+        ));
     }
     Ok(v / len)
 }
 
-fn read_dirs(path: &Path, line: usize, cells: &[&str], idx: &[usize]) -> Result<(Vec3, Vec3), BrdfError> {
+fn read_dirs(
+    path: &Path,
+    line: usize,
+    cells: &[&str],
+    idx: &[usize],
+) -> Result<(Vec3, Vec3), BrdfError> {
     let mut d = [0.0f32; 6];
     for k in 0..6 {
         d[k] = number(path, line, cells, idx[k], DIR_COLS[k])?;
@@ -101,16 +148,29 @@ pub fn read_samples(path: &Path) -> Result<Vec<BrdfSample>, BrdfError> {
 /// [`read_samples`] on text already in memory (`path` is used in error messages).
 pub fn parse_samples(text: &str, path: &Path) -> Result<Vec<BrdfSample>, BrdfError> {
     let mut it = lines(text);
-    let (hl, header) = it.next().ok_or_else(|| BrdfError::File { path: path.into(), msg: "empty file (no header)".into() })?;
+    let (hl, header) = it.next().ok_or_else(|| BrdfError::File {
+        path: path.into(),
+        msg: "empty file (no header)".into(),
+    })?;
     let header = split(header);
     let im = column(path, hl, &header, "material")?;
-    let idx: Vec<usize> = DIR_COLS.iter().map(|c| column(path, hl, &header, c)).collect::<Result<_, _>>()?;
-    let ic: Vec<usize> = ["r", "g", "b"].iter().map(|c| column(path, hl, &header, c)).collect::<Result<_, _>>()?;
+    let idx: Vec<usize> = DIR_COLS
+        .iter()
+        .map(|c| column(path, hl, &header, c))
+        .collect::<Result<_, _>>()?;
+    let ic: Vec<usize> = ["r", "g", "b"]
+        .iter()
+        .map(|c| column(path, hl, &header, c))
+        .collect::<Result<_, _>>()?;
     let mut out = Vec::new();
     for (line, l) in it {
         let cells = split(l);
         if cells.len() != header.len() {
-            return Err(parse_err(path, line, format!("{} cells, header has {}", cells.len(), header.len())));
+            return Err(parse_err(
+                path,
+                line,
+                format!("{} cells, header has {}", cells.len(), header.len()),
+            ));
         }
         let material = cells[im].to_string();
         if material.is_empty() {
@@ -118,19 +178,42 @@ pub fn parse_samples(text: &str, path: &Path) -> Result<Vec<BrdfSample>, BrdfErr
         }
         let (light, view) = read_dirs(path, line, &cells, &idx)?;
         if light.z <= 0.0 || view.z <= 0.0 {
-            return Err(parse_err(path, line, "light or view direction below the surface (z <= 0)"));
+            return Err(parse_err(
+                path,
+                line,
+                "light or view direction below the surface (z <= 0)",
+            ));
         }
         let mut v = [0.0f32; 3];
         for k in 0..3 {
             v[k] = number(path, line, &cells, ic[k], ["r", "g", "b"][k])?;
             if v[k] < 0.0 {
-                return Err(parse_err(path, line, format!("negative reflectance {}", v[k])));
+                return Err(parse_err(
+                    path,
+                    line,
+                    format!("negative reflectance {}", v[k]),
+                ));
+            }
+            if v[k] > MAX_BRDF {
+                return Err(parse_err(
+                    path,
+                    line,
+                    format!("BRDF value {} is beyond {MAX_BRDF:e} sr^-1 (no measured surface comes near; check the units)", v[k]),
+                ));
             }
         }
-        out.push(BrdfSample { material, light, view, value: Vec3::from(v) });
+        out.push(BrdfSample {
+            material,
+            light,
+            view,
+            value: Vec3::from(v),
+        });
     }
     if out.is_empty() {
-        return Err(BrdfError::File { path: path.into(), msg: "no samples after the header".into() });
+        return Err(BrdfError::File {
+            path: path.into(),
+            msg: "no samples after the header".into(),
+        });
     }
     Ok(out)
 }
@@ -152,21 +235,40 @@ pub fn group_by_material(samples: &[BrdfSample]) -> Vec<(String, Vec<BrdfSample>
 pub fn read_pairs(path: &Path) -> Result<PairTable, BrdfError> {
     let text = read_text(path)?;
     let mut it = lines(&text);
-    let (hl, header) = it.next().ok_or_else(|| BrdfError::File { path: path.into(), msg: "empty file (no header)".into() })?;
+    let (hl, header) = it.next().ok_or_else(|| BrdfError::File {
+        path: path.into(),
+        msg: "empty file (no header)".into(),
+    })?;
     let header = split(header);
-    let idx: Vec<usize> = DIR_COLS.iter().map(|c| column(path, hl, &header, c)).collect::<Result<_, _>>()?;
+    let idx: Vec<usize> = DIR_COLS
+        .iter()
+        .map(|c| column(path, hl, &header, c))
+        .collect::<Result<_, _>>()?;
     let is_value = |h: &str| ["r", "g", "b"].iter().any(|c| h.eq_ignore_ascii_case(c));
-    let keep: Vec<usize> = (0..header.len()).filter(|i| !idx.contains(i) && !is_value(header[*i])).collect();
+    let keep: Vec<usize> = (0..header.len())
+        .filter(|i| !idx.contains(i) && !is_value(header[*i]))
+        .collect();
     let mut rows = Vec::new();
     for (line, l) in it {
         let cells = split(l);
         if cells.len() != header.len() {
-            return Err(parse_err(path, line, format!("{} cells, header has {}", cells.len(), header.len())));
+            return Err(parse_err(
+                path,
+                line,
+                format!("{} cells, header has {}", cells.len(), header.len()),
+            ));
         }
         let (light, view) = read_dirs(path, line, &cells, &idx)?;
-        rows.push(PairRow { extra: keep.iter().map(|&i| cells[i].to_string()).collect(), light, view });
+        rows.push(PairRow {
+            extra: keep.iter().map(|&i| cells[i].to_string()).collect(),
+            light,
+            view,
+        });
     }
-    Ok(PairTable { extra_header: keep.iter().map(|&i| header[i].to_string()).collect(), rows })
+    Ok(PairTable {
+        extra_header: keep.iter().map(|&i| header[i].to_string()).collect(),
+        rows,
+    })
 }
 
 /// Write the pairs with `r, g, b` values (pi times the BRDF) as CSV text.
@@ -230,18 +332,41 @@ mod tests {
     fn errors_name_file_line_and_problem() {
         let h = "material,light_x,light_y,light_z,view_x,view_y,view_z,r,g,b\n";
         let cases = [
-            (format!("{h}a,0,0,1,0,0,1,0.5,x,0.5\n"), "x.csv:2: `g` = `x` is not a number"),
-            (format!("{h}a,0,0,1,0,0,1,0.5,0.5\n"), "x.csv:2: 9 cells, header has 10"),
-            (format!("{h}a,0,0,2,0,0,1,0.5,0.5,0.5\n"), "x.csv:2: light direction"),
-            (format!("{h}a,0,0,1,0,0,-1,0.5,0.5,0.5\n"), "x.csv:2: light or view direction below"),
-            (format!("{h}a,0,0,1,0,0,1,-0.5,0.5,0.5\n"), "x.csv:2: negative reflectance"),
-            (format!("{h}\na,0,0,1,0,0,1,NaN,0.5,0.5\n"), "x.csv:3: `r` = `NaN` is not finite"),
-            ("material,light_x,light_y,view_x,view_y,view_z,r,g,b\n".to_string(), "x.csv:1: header lacks column `light_z`"),
+            (
+                format!("{h}a,0,0,1,0,0,1,0.5,x,0.5\n"),
+                "x.csv:2: `g` = `x` is not a number",
+            ),
+            (
+                format!("{h}a,0,0,1,0,0,1,0.5,0.5\n"),
+                "x.csv:2: 9 cells, header has 10",
+            ),
+            (
+                format!("{h}a,0,0,2,0,0,1,0.5,0.5,0.5\n"),
+                "x.csv:2: light direction",
+            ),
+            (
+                format!("{h}a,0,0,1,0,0,-1,0.5,0.5,0.5\n"),
+                "x.csv:2: light or view direction below",
+            ),
+            (
+                format!("{h}a,0,0,1,0,0,1,-0.5,0.5,0.5\n"),
+                "x.csv:2: negative reflectance",
+            ),
+            (
+                format!("{h}\na,0,0,1,0,0,1,NaN,0.5,0.5\n"),
+                "x.csv:3: `r` = `NaN` is not finite",
+            ),
+            (
+                "material,light_x,light_y,view_x,view_y,view_z,r,g,b\n".to_string(),
+                "x.csv:1: header lacks column `light_z`",
+            ),
             (h.to_string(), "x.csv: no samples"),
             (String::new(), "x.csv: empty file"),
         ];
         for (text, want) in cases {
-            let e = parse_samples(&text, Path::new("x.csv")).unwrap_err().to_string();
+            let e = parse_samples(&text, Path::new("x.csv"))
+                .unwrap_err()
+                .to_string();
             assert!(e.starts_with(want), "got `{e}`, want `{want}`");
         }
     }

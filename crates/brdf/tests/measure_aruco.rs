@@ -64,7 +64,11 @@ fn aruco_pose_recovers_pose_light_and_brdf() {
         )
         .unwrap_or_else(|e| panic!("theta_v {tv}, phi_v {pv}, theta_l {tl}: {e}"));
         // three or four of the markers (id 1 is missed on this rendering: jagged edges)
-        assert!(m.pose_source.starts_with("aruco ids [0"), "{}", m.pose_source);
+        assert!(
+            m.pose_source.starts_with("aruco ids [0"),
+            "{}",
+            m.pose_source
+        );
         let ang = rotation_angle_between(&m.pose().r, &cam.pose.r).to_degrees();
         let pos = (DVec3::from_array(m.camera_center) - cam.center_world()).length();
         let lerr = (m.light_position() - s.light).length() / (s.light - TARGET).length();
@@ -105,7 +109,10 @@ fn aruco_pose_recovers_pose_light_and_brdf() {
     // measured 0.16 deg / 1.7 mm, light 3.9 %, pi f 7.3 % (a lobe of exponent 25 amplifies the
     // light's direction error; with 0.5 px corner noise the four-corner path gives 0.22 deg and
     // up to 11 %)
-    assert!(worst_ang < 0.3 && worst_pos < 3e-3, "pose {worst_ang} deg / {worst_pos} m");
+    assert!(
+        worst_ang < 0.3 && worst_pos < 3e-3,
+        "pose {worst_ang} deg / {worst_pos} m"
+    );
     assert!(worst_light < 0.06, "light {worst_light}");
     assert!(worst_val < 0.12, "pi f {worst_val}");
 }

@@ -24,6 +24,9 @@ pub enum GeometryError {
     /// A bad argument (voxel size, level list, voxel id...).
     #[error("invalid argument: {0}")]
     InvalidArgument(String),
+    /// A run whose estimated size is beyond the limits (checked before allocating).
+    #[error("too large: {what}")]
+    TooLarge { what: String },
     /// An error from the imaging layer (EXR caches, atomic writes).
     #[error(transparent)]
     Imaging(#[from] igi_imaging::ImagingError),

@@ -3,6 +3,9 @@
 //! - [`TriMesh`], the indexed triangle mesh every crate shares, with [`read_mesh`] (PLY ASCII
 //!   and binary of either byte order, OBJ), [`write_ply`] (binary little endian) and
 //!   [`write_obj`]; writes are atomic (temp file + rename).
+//! - [`points`]: [`PointCloud`] (points or surfels: normal, colour, radius, named scalar
+//!   properties) with PLY I/O for vertex-only files.
+//! - [`marching`]: marching cubes from a scalar grid to a [`TriMesh`].
 //! - [`procedural`]: the embedded default site (terrain, steps, columns, wall, architrave) at any
 //!   tessellation density.
 //! - [`repair`]: degenerate and duplicate triangles removed, non-manifold edges counted.
@@ -10,6 +13,8 @@
 //!   voxels share bit-identical boundary vertices).
 //! - [`atlas`]: per-voxel texture atlases (projected charts, shelf packing) and the world
 //!   position / normal texel caches.
+//! - [`texels`]: the covered texels of an atlas (texel centres on the surface) and the
+//!   dilation of texel values into neighbours (hole filling, gutters).
 //! - [`levels`]: multiresolution levels by meshoptimizer edge collapse with the voxel faces locked.
 //! - [`store`]: `prepare` writes a site folder; [`store::SiteStore`] loads "this voxel high,
 //!   neighbours medium, the rest low".
@@ -21,19 +26,26 @@ pub mod atlas;
 mod atomic;
 pub mod error;
 pub mod levels;
+pub mod marching;
 pub mod mesh;
 pub mod obj;
 pub mod ply;
+pub mod points;
 pub mod procedural;
 pub mod repair;
 pub mod store;
+pub mod texels;
 pub mod voxel;
 
 pub use error::GeometryError;
+pub use marching::{marching_cubes, Grid};
 pub use mesh::TriMesh;
 pub use obj::{read_obj, write_obj};
 pub use ply::{read_ply, write_ply};
-pub use store::{prepare, Manifest, PrepareOptions, SiteStore};
+pub use points::{read_points_ply, write_points_ply, PointCloud};
+pub use store::{
+    check_prepare_output, prepare, prepare_run, Manifest, PrepareOptions, PrepareRun, SiteStore,
+};
 pub use voxel::{VoxelGrid, VoxelId};
 
 use std::path::Path;

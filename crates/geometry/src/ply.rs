@@ -220,6 +220,8 @@ struct VertexLayout {
     uv: [Option<usize>; 2],
     col: [Option<usize>; 3],
     col_scale: [f64; 3],
+    /// Every other scalar property (index into the record).
+    extra: Vec<usize>,
 }
 
 fn vertex_layout(el: &Element, path: &Path) -> Result<VertexLayout, GeometryError> {
@@ -249,7 +251,12 @@ fn vertex_layout(el: &Element, path: &Path) -> Result<VertexLayout, GeometryErro
                 l.col_scale[2] = p.ty.color_scale();
                 &mut l.col[2]
             }
-            _ => continue,
+            _ => {
+                if p.list.is_none() {
+                    l.extra.push(i);
+                }
+                continue;
+            }
         };
         if p.list.is_some() {
             return Err(GeometryError::format(
@@ -283,7 +290,7 @@ enum Source<R: BufRead> {
 }
 
 enum Eof {
-    Eof,
+    End,
     Io(std::io::Error),
     Bad(String),
 }
@@ -296,7 +303,7 @@ impl<R: BufRead> Source<R> {
                     line.clear();
                     let n = r.read_line(line).map_err(Eof::Io)?;
                     if n == 0 {
-                        return Err(Eof::Eof);
+                        return Err(Eof::End);
                     }
                     *toks = line.split_whitespace().map(str::to_string).collect();
                     *pos = 0;
@@ -311,7 +318,7 @@ impl<R: BufRead> Source<R> {
                 let n = ty.size();
                 r.read_exact(&mut b[..n]).map_err(|e| {
                     if e.kind() == std::io::ErrorKind::UnexpectedEof {
-                        Eof::Eof
+                        Eof::End
                     } else {
                         Eof::Io(e)
                     }
@@ -326,7 +333,7 @@ impl<R: BufRead> Source<R> {
         match self {
             Source::Binary { r, .. } => r.read_exact(buf).map_err(|e| {
                 if e.kind() == std::io::ErrorKind::UnexpectedEof {
-                    Eof::Eof
+                    Eof::End
                 } else {
                     Eof::Io(e)
                 }
@@ -360,6 +367,17 @@ impl<R: BufRead> Source<R> {
 /// Read a PLY file (ASCII or binary, either byte order). Unknown elements and properties are
 /// skipped; polygons are fan-triangulated; the result is validated.
 pub fn read_ply(path: &Path) -> Result<TriMesh, GeometryError> {
+    let (mesh, _) = read_ply_unchecked(path)?;
+    mesh.validate().map_err(|e| e.in_file(path))?;
+    Ok(mesh)
+}
+
+/// Extra scalar vertex properties by name (those that are not positions, normals, UVs or colours).
+pub(crate) type ExtraProperties = Vec<(String, Vec<f32>)>;
+
+/// Read a PLY file without validating the mesh (a point cloud has no faces); also returns the
+/// vertex element's other scalar properties.
+pub(crate) fn read_ply_unchecked(path: &Path) -> Result<(TriMesh, ExtraProperties), GeometryError> {
     let f = std::fs::File::open(path).map_err(|e| GeometryError::io(path, e))?;
     let mut r = BufReader::with_capacity(1 << 20, f);
     let header = read_header(&mut r, path)?;
@@ -373,12 +391,13 @@ pub fn read_ply(path: &Path) -> Result<TriMesh, GeometryError> {
         enc => Source::Binary { r, enc },
     };
     let mut mesh = TriMesh::default();
+    let mut extras: ExtraProperties = Vec::new();
     let mut saw_vertex = false;
     let mut saw_face = false;
     for el in &header.elements {
         let what = |e: Eof, i: usize| {
             match e {
-            Eof::Eof => GeometryError::format(
+            Eof::End => GeometryError::format(
                 path,
                 format!(
                     "truncated PLY: the header declares {} {} elements but the data ends in element {i}",
@@ -414,6 +433,11 @@ pub fn read_ply(path: &Path) -> Result<TriMesh, GeometryError> {
                 let rec_size: usize = el.props.iter().map(|p| p.ty.size()).sum();
                 let mut buf = vec![0u8; rec_size];
                 let enc = header.enc;
+                extras = l
+                    .extra
+                    .iter()
+                    .map(|&k| (el.props[k].name.clone(), Vec::with_capacity(el.count)))
+                    .collect();
                 for i in 0..el.count {
                     if fixed && enc != Encoding::Ascii {
                         src.record(&mut buf).map_err(|e| what(e, i))?;
@@ -445,6 +469,9 @@ pub fn read_ply(path: &Path) -> Result<TriMesh, GeometryError> {
                     if has_uv {
                         uvs.push([g(l.uv[0]) as f32, g(l.uv[1]) as f32]);
                     }
+                    for (e, &k) in extras.iter_mut().zip(&l.extra) {
+                        e.1.push(vals[k] as f32);
+                    }
                     if has_c {
                         colors.push([
                             (g(l.col[0]) / l.col_scale[0]) as f32,
@@ -474,7 +501,7 @@ pub fn read_ply(path: &Path) -> Result<TriMesh, GeometryError> {
                     for (k, p) in el.props.iter().enumerate() {
                         if let Some(ct) = p.list {
                             let n = src.scalar(ct).map_err(|e| what(e, i))?;
-                            if n < 0.0 || n > 1e6 {
+                            if !(0.0..=1e6).contains(&n) {
                                 return Err(GeometryError::format(
                                     path,
                                     format!("face {i}: bad list length {n}"),
@@ -542,8 +569,7 @@ pub fn read_ply(path: &Path) -> Result<TriMesh, GeometryError> {
             "data continues after the last element the header declares: the element counts do not match the data",
         ));
     }
-    mesh.validate().map_err(|e| e.in_file(path))?;
-    Ok(mesh)
+    Ok((mesh, extras))
 }
 
 /// Write a binary little-endian PLY (x y z, then nx ny nz, u v, red green blue as floats when
@@ -686,9 +712,7 @@ property list uchar uint vertex_index\nproperty list uchar float texcoord\neleme
         }
         for n in [2i32, 0] {
             put!(n);
-            for _ in 0..n {
-                b.push(1);
-            }
+            b.extend(std::iter::repeat_n(1, n as usize));
         }
         b
     }

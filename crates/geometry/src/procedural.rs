@@ -63,7 +63,7 @@ impl Builder {
         (self.p.len() - 1) as u32
     }
 
-    /// A planar rectangle `o + s*ex + t*ey`, s,t in [0,1], split into `nu x nv` quads,
+    /// A planar rectangle `o + s*ex + t*ey`, s,t in [0, 1], split into `nu x nv` quads,
     /// facing `ex x ey`.
     fn grid(&mut self, o: [f64; 3], ex: [f64; 3], ey: [f64; 3], nu: usize, nv: usize, r: Rect) {
         let n = normalize(crate::mesh::cross(ex, ey));

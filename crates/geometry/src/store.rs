@@ -3,14 +3,17 @@
 //! Layout of a site folder:
 //! ```text
 //! site.igi/manifest.json            bounds, grid, counts per level, texel sizes, coverage
-//! site.igi/settings.json            the options the folder was prepared with (for resuming)
+//! site.igi/run.json                 run manifest: input fingerprints and options (for resuming)
 //! site.igi/voxels/I_J_K/level0.ply  binary PLY per level (0 = full resolution), with atlas UVs
 //! site.igi/voxels/I_J_K/position.exr, normal.exr, coverage.exr   texel caches
 //! site.igi/voxels/I_J_K/done.json   written last: the voxel's statistics
 //! site.igi/terrain/...              the same for the optional terrain mesh (not voxelized)
 //! ```
 //! Every file is written atomically; a voxel whose `done.json` and level files exist is skipped
-//! when `prepare` runs again on the same folder with the same settings.
+//! when `prepare` runs again on the same folder with the same run manifest (the same source
+//! files, by content hash, and the same options; see `igi_imaging::run`). A different one is
+//! refused with the differing option named, unless the run asks to restart. Temporary files of
+//! killed runs are removed on resume.
 
 use crate::atlas::{build_atlas, AtlasOptions};
 use crate::error::GeometryError;
@@ -18,6 +21,8 @@ use crate::levels::simplify;
 use crate::mesh::TriMesh;
 use crate::repair::RepairReport;
 use crate::voxel::{partition, VoxelGrid, VoxelId};
+use igi_imaging::run::RUN_FILE;
+use igi_imaging::RunManifest;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -29,6 +34,8 @@ pub struct PrepareOptions {
     pub atlas: AtlasOptions,
     /// Triangle fractions per level, first = 1.0 (full resolution), decreasing.
     pub levels: Vec<f64>,
+    /// Refuse runs estimated to need more memory than this, in bytes.
+    pub max_memory: u64,
 }
 
 impl Default for PrepareOptions {
@@ -40,6 +47,7 @@ impl Default for PrepareOptions {
             },
             atlas: AtlasOptions::default(),
             levels: vec![1.0, 0.2, 0.05],
+            max_memory: DEFAULT_MAX_MEMORY,
         }
     }
 }
@@ -47,6 +55,12 @@ impl Default for PrepareOptions {
 impl PrepareOptions {
     fn check(&self) -> Result<(), GeometryError> {
         VoxelGrid::new(self.grid.origin, self.grid.size)?;
+        if self.atlas.resolution < 8 || self.atlas.resolution > MAX_ATLAS {
+            return Err(GeometryError::InvalidArgument(format!(
+                "atlas resolution {} is outside 8..={MAX_ATLAS}",
+                self.atlas.resolution
+            )));
+        }
         let l = &self.levels;
         if l.is_empty()
             || l[0] != 1.0
@@ -102,16 +116,148 @@ pub struct Manifest {
     pub terrain: Option<PartEntry>,
 }
 
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-struct Settings {
-    grid: VoxelGrid,
-    levels: Vec<f64>,
-    atlas_resolution: u32,
-    atlas_gutter: u32,
+/// The input files and the restart choice of a [`prepare_run`]; the files are fingerprinted
+/// into the run manifest (`run.json`).
+#[derive(Clone, Debug, Default)]
+pub struct PrepareRun {
+    /// The site mesh file (named in the manifest and fingerprinted), if it came from a file.
+    pub mesh: Option<PathBuf>,
+    pub terrain: Option<PathBuf>,
+    /// Delete an earlier run's files in the output folder instead of resuming it.
+    pub restart: bool,
+}
+
+impl PrepareRun {
+    fn manifest(
+        &self,
+        opts: &PrepareOptions,
+        has_terrain: bool,
+    ) -> Result<RunManifest, GeometryError> {
+        let mut m = RunManifest::new("prepare");
+        let g = &opts.grid;
+        m.option("--voxel", format!("{:?}", g.size))
+            .option(
+                "--origin",
+                format!("{:?},{:?},{:?}", g.origin[0], g.origin[1], g.origin[2]),
+            )
+            .option("--levels", format!("{:?}", opts.levels))
+            .option("--atlas", opts.atlas.resolution)
+            .option("atlas gutter", opts.atlas.gutter)
+            .option("--terrain", has_terrain);
+        if let Some(p) = &self.mesh {
+            m.input("mesh", p)?;
+        }
+        if let Some(p) = &self.terrain {
+            m.input("terrain", p)?;
+        }
+        Ok(m)
+    }
+}
+
+/// The files and folders a prepare run writes into its output folder (what `restart` removes).
+const SITE_ENTRIES: [&str; 5] = [
+    "voxels",
+    "terrain",
+    "manifest.json",
+    "settings.json",
+    RUN_FILE,
+];
+
+/// Checks, before any work or output, that `out` can take this prepare run: the options are
+/// valid, `out` is (or can become) a writable folder, and it is empty, or holds a run with an
+/// identical manifest (resumed), or `run.restart` is set. Returns the run manifest.
+pub fn check_prepare_output(
+    out: &Path,
+    run: &PrepareRun,
+    opts: &PrepareOptions,
     has_terrain: bool,
+) -> Result<RunManifest, GeometryError> {
+    opts.check()?;
+    igi_imaging::io::check_output_folder(out)?;
+    let manifest = run.manifest(opts, has_terrain)?;
+    if !out.exists() || run.restart {
+        return Ok(manifest);
+    }
+    match RunManifest::read(out)? {
+        Some(old) => manifest.check_resume(&old, out)?,
+        None => {
+            let empty = out
+                .read_dir()
+                .map(|mut d| d.next().is_none())
+                .map_err(|e| GeometryError::io(out, e))?;
+            if out.join("settings.json").exists() {
+                return Err(GeometryError::format(
+                    out,
+                    "holds a site prepared without a run manifest (older igi); use --restart to prepare it afresh",
+                ));
+            }
+            if !empty {
+                return Err(GeometryError::format(
+                    out,
+                    "exists and is not a site folder; choose another output",
+                ));
+            }
+        }
+    }
+    Ok(manifest)
+}
+
+/// Removes what an earlier prepare wrote into `out` (only the names a prepare writes).
+fn remove_site_entries(out: &Path) -> Result<(), GeometryError> {
+    for name in SITE_ENTRIES {
+        let p = out.join(name);
+        let r = if p.is_dir() {
+            std::fs::remove_dir_all(&p)
+        } else if p.exists() {
+            std::fs::remove_file(&p)
+        } else {
+            Ok(())
+        };
+        r.map_err(|e| GeometryError::io(&p, e))?;
+    }
+    Ok(())
 }
 
 const FORMAT: &str = "igi-site-1";
+
+/// The largest atlas side (texels) a prepare accepts: 16384^2 texels are 3 GiB per cache.
+pub const MAX_ATLAS: u32 = 16384;
+
+/// Bytes a prepare may use by default (see [`PrepareOptions::max_memory`]).
+pub const DEFAULT_MAX_MEMORY: u64 = 8 << 30;
+
+/// Refuses, before any allocation, a prepare whose voxel count or memory would explode (a
+/// voxel edge far below the mesh's scale): non-empty voxels are estimated as the surface area
+/// over the voxel face, memory as the voxel pieces plus one atlas with
+/// its three caches per worker thread.
+fn check_resources(
+    site: &TriMesh,
+    terrain: Option<&TriMesh>,
+    opts: &PrepareOptions,
+) -> Result<(), GeometryError> {
+    let size = opts.grid.size;
+    let area = site.total_area();
+    let voxels = area / (size * size);
+    let res = opts.atlas.resolution as f64;
+    let threads = rayon::current_num_threads() as f64 + f64::from(u8::from(terrain.is_some()));
+    // a clipped piece: 3 indices, ~2 new vertices with position, normal and uv, per voxel crossed
+    let pieces = (site.indices.len() as f64 + 4.0 * voxels) * 96.0;
+    let atlases = threads * res * res * 3.0 * 16.0;
+    let bytes = pieces + atlases;
+    if voxels > MAX_VOXELS as f64 || bytes > opts.max_memory as f64 {
+        return Err(GeometryError::TooLarge {
+            what: format!(
+                "a {size} m voxel over {area:.3} m^2 of surface gives about {voxels:.3e} voxels (limit {MAX_VOXELS}) and needs about {:.1} GiB (limit {:.1} GiB, see --max-memory)",
+                bytes / (1u64 << 30) as f64,
+                opts.max_memory as f64 / (1u64 << 30) as f64
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// The most non-empty voxels a prepare accepts.
+pub const MAX_VOXELS: u64 = 10_000_000;
 
 fn voxel_dir(v: VoxelId) -> String {
     format!("voxels/{}_{}_{}", v[0], v[1], v[2])
@@ -201,7 +347,8 @@ fn process_part(
 }
 
 /// Voxelize a (repaired) site mesh and write the store into `out`. `progress(done, total)` is
-/// called after each part. Resumes an interrupted run with the same settings.
+/// called after each part. Resumes an interrupted run with the same settings (meshes given in
+/// memory are not fingerprinted; see [`prepare_run`]).
 pub fn prepare(
     site: TriMesh,
     terrain: Option<TriMesh>,
@@ -211,30 +358,35 @@ pub fn prepare(
     opts: &PrepareOptions,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<Manifest, GeometryError> {
-    opts.check()?;
+    let run = PrepareRun::default();
+    prepare_run(site, terrain, repair, out, source, &run, opts, progress)
+}
+
+/// [`prepare`] with the source files fingerprinted into the run manifest, so that a resume on
+/// another mesh or with other options is refused (or, with `run.restart`, starts afresh).
+#[allow(clippy::too_many_arguments)]
+pub fn prepare_run(
+    site: TriMesh,
+    terrain: Option<TriMesh>,
+    repair: RepairReport,
+    out: &Path,
+    source: &str,
+    run: &PrepareRun,
+    opts: &PrepareOptions,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<Manifest, GeometryError> {
     site.validate()?;
     if let Some(t) = &terrain {
         t.validate()?;
     }
-    let settings = Settings {
-        grid: opts.grid,
-        levels: opts.levels.clone(),
-        atlas_resolution: opts.atlas.resolution,
-        atlas_gutter: opts.atlas.gutter,
-        has_terrain: terrain.is_some(),
-    };
-    let settings_path = out.join("settings.json");
-    if settings_path.exists() {
-        let old: Settings = read_json(&settings_path)?;
-        if old != settings {
-            return Err(GeometryError::format(
-                &settings_path,
-                "this folder was prepared with different settings; choose another output folder or delete it",
-            ));
-        }
+    let manifest = check_prepare_output(out, run, opts, terrain.is_some())?;
+    check_resources(&site, terrain.as_ref(), opts)?;
+    if run.restart {
+        remove_site_entries(out)?;
     }
     mkdir(&out.join("voxels"))?;
-    write_json(&settings_path, &settings)?;
+    igi_imaging::io::remove_dead_temps(out, true)?;
+    manifest.write(out)?;
     let (mut lo, mut hi) = site.bounds().expect("validated mesh has vertices");
     if let Some((tl, th)) = terrain.as_ref().and_then(|t| t.bounds()) {
         for k in 0..3 {
@@ -517,6 +669,7 @@ mod tests {
                 gutter: 2,
             },
             levels: vec![1.0, 0.2, 0.05],
+            ..Default::default()
         };
         let man = prepare(
             m.clone(),
@@ -746,7 +899,10 @@ mod tests {
         let e = prepare(m, None, rep, &out, "bunny", &other, &|_, _| {})
             .unwrap_err()
             .to_string();
-        assert!(e.contains("different settings"), "{e}");
+        assert!(
+            e.contains("option --voxel") && e.contains("--restart"),
+            "{e}"
+        );
     }
 
     #[test]
@@ -808,8 +964,10 @@ mod tests {
 
     #[test]
     fn bad_levels_are_refused() {
-        let mut o = PrepareOptions::default();
-        o.levels = vec![0.5, 0.2];
+        let mut o = PrepareOptions {
+            levels: vec![0.5, 0.2],
+            ..Default::default()
+        };
         assert!(o.check().is_err());
         o.levels = vec![1.0, 0.2, 0.3];
         assert!(o.check().is_err());

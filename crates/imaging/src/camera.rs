@@ -28,7 +28,13 @@ impl Distortion {
     }
 
     pub fn from_array(a: [f64; 5]) -> Self {
-        Distortion { k1: a[0], k2: a[1], p1: a[2], p2: a[3], k3: a[4] }
+        Distortion {
+            k1: a[0],
+            k2: a[1],
+            p1: a[2],
+            p2: a[3],
+            k3: a[4],
+        }
     }
 
     /// Distort a normalised image point (x/z, y/z) with the OpenCV model.
@@ -77,7 +83,10 @@ impl Distortion {
                 return None;
             }
             // solve J dp = -res
-            let dp = DVec2::new(c1.y * -res.x - c1.x * -res.y, -c0.y * -res.x + c0.x * -res.y) / det;
+            let dp = DVec2::new(
+                c1.y * -res.x - c1.x * -res.y,
+                -c0.y * -res.x + c0.x * -res.y,
+            ) / det;
             let mut step = 1.0;
             loop {
                 let q = p + dp * step;
@@ -113,11 +122,18 @@ impl Intrinsics {
 
     /// Pixel -> undistorted normalised point (None if undistortion fails).
     pub fn to_normalized(&self, px: DVec2) -> Option<DVec2> {
-        self.dist.undistort(DVec2::new((px.x - self.cx) / self.fx, (px.y - self.cy) / self.fy))
+        self.dist.undistort(DVec2::new(
+            (px.x - self.cx) / self.fx,
+            (px.y - self.cy) / self.fy,
+        ))
     }
 
     pub fn k_matrix(&self) -> [[f64; 3]; 3] {
-        [[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]]
+        [
+            [self.fx, 0.0, self.cx],
+            [0.0, self.fy, self.cy],
+            [0.0, 0.0, 1.0],
+        ]
     }
 }
 
@@ -137,14 +153,20 @@ pub struct CameraToWorld {
 
 impl WorldToCamera {
     pub fn identity() -> Self {
-        WorldToCamera { r: DMat3::IDENTITY, t: DVec3::ZERO }
+        WorldToCamera {
+            r: DMat3::IDENTITY,
+            t: DVec3::ZERO,
+        }
     }
     pub fn apply(&self, p_world: DVec3) -> DVec3 {
         self.r * p_world + self.t
     }
     pub fn inverse(&self) -> CameraToWorld {
         let rt = self.r.transpose();
-        CameraToWorld { r: rt, t: -(rt * self.t) }
+        CameraToWorld {
+            r: rt,
+            t: -(rt * self.t),
+        }
     }
 }
 
@@ -154,7 +176,10 @@ impl CameraToWorld {
     }
     pub fn inverse(&self) -> WorldToCamera {
         let rt = self.r.transpose();
-        WorldToCamera { r: rt, t: -(rt * self.t) }
+        WorldToCamera {
+            r: rt,
+            t: -(rt * self.t),
+        }
     }
 }
 
@@ -162,7 +187,10 @@ impl CameraToWorld {
 /// front of both); `None` when no point is. The reprojection error of an estimated pose
 /// against the true one.
 pub fn reprojection_rms(a: &Camera, b: &Camera, points: &[DVec3]) -> Option<f64> {
-    let d2: Vec<f64> = points.iter().filter_map(|p| Some(a.project(*p)?.distance_squared(b.project(*p)?))).collect();
+    let d2: Vec<f64> = points
+        .iter()
+        .filter_map(|p| Some(a.project(*p)?.distance_squared(b.project(*p)?)))
+        .collect();
     (!d2.is_empty()).then(|| (d2.iter().sum::<f64>() / d2.len() as f64).sqrt())
 }
 
@@ -188,14 +216,21 @@ struct CameraJson {
 }
 
 fn json_numbers(v: &serde_json::Value, what: &str) -> Result<Vec<f64>, String> {
-    let arr = v.as_array().ok_or_else(|| format!("{what} must be an array of numbers"))?;
+    let arr = v
+        .as_array()
+        .ok_or_else(|| format!("{what} must be an array of numbers"))?;
     arr.iter()
-        .map(|x| x.as_f64().ok_or_else(|| format!("{what} contains a non-number: {x}")))
+        .map(|x| {
+            x.as_f64()
+                .ok_or_else(|| format!("{what} contains a non-number: {x}"))
+        })
         .collect()
 }
 
 fn json_matrix3(v: &serde_json::Value, what: &str) -> Result<DMat3, String> {
-    let rows = v.as_array().ok_or_else(|| format!("{what} must be a 3x3 array of rows"))?;
+    let rows = v
+        .as_array()
+        .ok_or_else(|| format!("{what} must be a 3x3 array of rows"))?;
     if rows.len() != 3 {
         return Err(format!("{what} must have 3 rows, found {}", rows.len()));
     }
@@ -203,7 +238,10 @@ fn json_matrix3(v: &serde_json::Value, what: &str) -> Result<DMat3, String> {
     for (i, r) in rows.iter().enumerate() {
         let r = json_numbers(r, what)?;
         if r.len() != 3 {
-            return Err(format!("{what} row {i} must have 3 entries, found {}", r.len()));
+            return Err(format!(
+                "{what} row {i} must have 3 entries, found {}",
+                r.len()
+            ));
         }
         m[i] = [r[0], r[1], r[2]];
     }
@@ -225,14 +263,22 @@ pub fn check_rotation(r: &DMat3) -> Result<(), String> {
     let e = r.transpose() * *r - DMat3::IDENTITY;
     let max = e.to_cols_array().iter().fold(0.0f64, |a, x| a.max(x.abs()));
     if max > 1e-6 {
-        return Err(format!("R is not orthonormal: max |R^T R - I| = {max:.3e} > 1e-6"));
+        return Err(format!(
+            "R is not orthonormal: max |R^T R - I| = {max:.3e} > 1e-6"
+        ));
     }
     let det = r.determinant();
     if (det - 1.0).abs() > 1e-6 {
-        return Err(format!("R is not a rotation: det(R) = {det:.6} (must be +1)"));
+        return Err(format!(
+            "R is not a rotation: det(R) = {det:.6} (must be +1)"
+        ));
     }
     Ok(())
 }
+
+/// The most pixels a camera file may have: 2^29 (536 Mpixel); an HDR image that size needs
+/// 6.5 GiB. Larger sizes are refused when the camera is read, before any allocation.
+pub const MAX_CAMERA_PIXELS: u64 = 1 << 29;
 
 impl Camera {
     /// Camera without distortion and identity pose.
@@ -240,14 +286,23 @@ impl Camera {
         Camera {
             width,
             height,
-            intrinsics: Intrinsics { fx, fy, cx, cy, dist: Distortion::default() },
+            intrinsics: Intrinsics {
+                fx,
+                fy,
+                cx,
+                cy,
+                dist: Distortion::default(),
+            },
             pose: WorldToCamera::identity(),
         }
     }
 
     /// Parse and validate a camera from FORMATS.md JSON text; `path` is used in errors.
     pub fn from_json_str(text: &str, path: &Path) -> Result<Camera, ImagingError> {
-        let err = |msg: String| ImagingError::Camera { path: path.to_path_buf(), msg };
+        let err = |msg: String| ImagingError::Camera {
+            path: path.to_path_buf(),
+            msg,
+        };
         let j: CameraJson = serde_json::from_str(text).map_err(|e| err(e.to_string()))?;
         let dim = |v: &serde_json::Value, what: &str| -> Result<u32, ImagingError> {
             v.as_u64()
@@ -257,6 +312,14 @@ impl Camera {
         };
         let width = dim(&j.width, "width")?;
         let height = dim(&j.height, "height")?;
+        if width as u64 * height as u64 > MAX_CAMERA_PIXELS {
+            return Err(err(format!(
+                "{width}x{height} is {} Mpixel, beyond the limit of {} Mpixel (an image that size needs more than {} GiB)",
+                width as u64 * height as u64 / 1_000_000,
+                MAX_CAMERA_PIXELS / 1_000_000,
+                (MAX_CAMERA_PIXELS * 13) >> 30
+            )));
+        }
         let k = json_matrix3(&j.K, "K").map_err(err)?;
         let kr = rows_of(&k);
         if kr[0][1] != 0.0 || kr[1][0] != 0.0 || kr[2] != [0.0, 0.0, 1.0] {
@@ -266,19 +329,30 @@ impl Camera {
         }
         let (fx, fy, cx, cy) = (kr[0][0], kr[1][1], kr[0][2], kr[1][2]);
         if !(fx > 0.0 && fy > 0.0) {
-            return Err(err(format!("focal lengths must be positive, found fx={fx}, fy={fy}")));
+            return Err(err(format!(
+                "focal lengths must be positive, found fx={fx}, fy={fy}"
+            )));
         }
         let dist = match &j.dist {
             None | Some(serde_json::Value::Null) => Distortion::default(),
             Some(v) => {
                 let d = json_numbers(v, "dist").map_err(err)?;
                 if !(d.len() == 4 || d.len() == 5) {
-                    return Err(err(format!("dist must have 5 entries [k1, k2, p1, p2, k3] (or 4), found {}", d.len())));
+                    return Err(err(format!(
+                        "dist must have 5 entries [k1, k2, p1, p2, k3] (or 4), found {}",
+                        d.len()
+                    )));
                 }
                 if d.iter().any(|x| !x.is_finite()) {
                     return Err(err("dist has a non-finite entry".into()));
                 }
-                Distortion { k1: d[0], k2: d[1], p1: d[2], p2: d[3], k3: d.get(4).copied().unwrap_or(0.0) }
+                Distortion {
+                    k1: d[0],
+                    k2: d[1],
+                    p1: d[2],
+                    p2: d[3],
+                    k3: d.get(4).copied().unwrap_or(0.0),
+                }
             }
         };
         let r = json_matrix3(&j.R, "R").map_err(err)?;
@@ -293,8 +367,17 @@ impl Camera {
         Ok(Camera {
             width,
             height,
-            intrinsics: Intrinsics { fx, fy, cx, cy, dist },
-            pose: WorldToCamera { r, t: DVec3::new(t[0], t[1], t[2]) },
+            intrinsics: Intrinsics {
+                fx,
+                fy,
+                cx,
+                cy,
+                dist,
+            },
+            pose: WorldToCamera {
+                r,
+                t: DVec3::new(t[0], t[1], t[2]),
+            },
         })
     }
 
@@ -330,7 +413,10 @@ impl Camera {
         if !(pc.z > 0.0) {
             return None;
         }
-        Some(self.intrinsics.to_pixel(DVec2::new(pc.x / pc.z, pc.y / pc.z)))
+        Some(
+            self.intrinsics
+                .to_pixel(DVec2::new(pc.x / pc.z, pc.y / pc.z)),
+        )
     }
 
     /// World-space ray (origin = camera centre, unit direction) through pixel (u, v).
@@ -398,7 +484,9 @@ mod tests {
     use rand::{Rng, SeedableRng};
 
     fn test_camera() -> Camera {
-        let r = DMat3::from_rotation_z(0.3) * DMat3::from_rotation_x(-1.2) * DMat3::from_rotation_y(0.1);
+        let r = DMat3::from_rotation_z(0.3)
+            * DMat3::from_rotation_x(-1.2)
+            * DMat3::from_rotation_y(0.1);
         Camera {
             width: 640,
             height: 480,
@@ -407,15 +495,30 @@ mod tests {
                 fy: 510.0,
                 cx: 320.5,
                 cy: 239.0,
-                dist: Distortion { k1: -0.2, k2: 0.05, p1: 0.001, p2: -0.0005, k3: 0.0 },
+                dist: Distortion {
+                    k1: -0.2,
+                    k2: 0.05,
+                    p1: 0.001,
+                    p2: -0.0005,
+                    k3: 0.0,
+                },
             },
-            pose: WorldToCamera { r, t: DVec3::new(0.1, -0.2, 3.0) },
+            pose: WorldToCamera {
+                r,
+                t: DVec3::new(0.1, -0.2, 3.0),
+            },
         }
     }
 
     #[test]
     fn distort_matches_opencv_formula_by_hand() {
-        let d = Distortion { k1: 0.1, k2: 0.01, p1: 0.001, p2: 0.002, k3: 0.001 };
+        let d = Distortion {
+            k1: 0.1,
+            k2: 0.01,
+            p1: 0.001,
+            p2: 0.002,
+            k3: 0.001,
+        };
         let p = d.distort(DVec2::new(0.5, -0.25));
         // r2 = 0.3125; radial = 1 + 0.03125 + 0.0009765625 + 0.000030517578125
         let radial = 1.032_257_080_078_125;
@@ -428,11 +531,29 @@ mod tests {
     fn undistort_round_trip_moderate_and_strong() {
         let mut rng = rand_pcg::Pcg64::seed_from_u64(7);
         let cases = [
-            Distortion { k1: -0.2, k2: 0.05, p1: 0.001, p2: -0.0005, k3: 0.0 },
+            Distortion {
+                k1: -0.2,
+                k2: 0.05,
+                p1: 0.001,
+                p2: -0.0005,
+                k3: 0.0,
+            },
             // strong barrel (fisheye-like) distortion
-            Distortion { k1: -0.45, k2: 0.25, p1: 0.004, p2: -0.003, k3: -0.06 },
+            Distortion {
+                k1: -0.45,
+                k2: 0.25,
+                p1: 0.004,
+                p2: -0.003,
+                k3: -0.06,
+            },
             // strong pincushion
-            Distortion { k1: 0.6, k2: 0.4, p1: -0.01, p2: 0.01, k3: 0.2 },
+            Distortion {
+                k1: 0.6,
+                k2: 0.4,
+                p1: -0.01,
+                p2: 0.01,
+                k3: 0.2,
+            },
         ];
         let f = 800.0;
         for d in cases {
@@ -491,34 +612,54 @@ mod tests {
         cam.save(&p).unwrap();
         let back = Camera::load(&p).unwrap();
         // serde_json parses floats to within 1 ulp
-        assert!(back.pose.r.abs_diff_eq(cam.pose.r, 1e-15) && back.pose.t.abs_diff_eq(cam.pose.t, 1e-15));
+        assert!(
+            back.pose.r.abs_diff_eq(cam.pose.r, 1e-15)
+                && back.pose.t.abs_diff_eq(cam.pose.t, 1e-15)
+        );
         assert_eq!(back.intrinsics, cam.intrinsics);
         assert_eq!((back.width, back.height), (640, 480));
         let text = r#"{"width": 4, "height": 3, "K": [[2,0,1.5],[0,2,1],[0,0,1]],
                        "R": [[1,0,0],[0,1,0],[0,0,1]], "t": [0,0,0]}"#;
         let c = Camera::from_json_str(text, &p).unwrap();
         assert!(c.intrinsics.dist.is_zero());
-        assert_eq!(c.project(DVec3::new(0.0, 0.0, 1.0)), Some(DVec2::new(1.5, 1.0)));
+        assert_eq!(
+            c.project(DVec3::new(0.0, 0.0, 1.0)),
+            Some(DVec2::new(1.5, 1.0))
+        );
     }
 
     #[test]
     fn json_rejects_bad_rotation_shapes_and_values() {
         let p = Path::new("/some/cam.json");
         let base = |r: &str, extra: &str| {
-            format!(r#"{{"width": 4, "height": 3, "K": [[2,0,1.5],[0,2,1],[0,0,1]], "R": {r}, "t": [0,0,0]{extra}}}"#)
+            format!(
+                r#"{{"width": 4, "height": 3, "K": [[2,0,1.5],[0,2,1],[0,0,1]], "R": {r}, "t": [0,0,0]{extra}}}"#
+            )
         };
         let check = |text: String, needle: &str| {
             let e = Camera::from_json_str(&text, p).unwrap_err().to_string();
-            assert!(e.contains("/some/cam.json") && e.contains(needle), "{e} (wanted {needle})");
+            assert!(
+                e.contains("/some/cam.json") && e.contains(needle),
+                "{e} (wanted {needle})"
+            );
         };
         check(base("[[1,0,0],[0,1,0],[0,0,1.001]]", ""), "not orthonormal");
         check(base("[[1,0,0],[0,1,0],[0,0,-1]]", ""), "det(R)");
         check(base("[[1,0,0],[0,1,0]]", ""), "3 rows");
         check(base("[[1,0,0],[0,1],[0,0,1]]", ""), "row 1");
         check(base("[[1,0,0],[0,1,0],[0,0,null]]", ""), "non-number");
-        check(base("[[1,0,0],[0,1,0],[0,0,1]]", r#", "dist": [0.1, 0.2]"#), "dist");
-        check(base("[[1,0,0],[0,1,0],[0,0,1]]", "").replace("\"t\": [0,0,0]", "\"t\": [0,0]"), "t must have 3");
-        check(base("[[1,0,0],[0,1,0],[0,0,1]]", "").replace("\"width\": 4", "\"width\": -4"), "width");
+        check(
+            base("[[1,0,0],[0,1,0],[0,0,1]]", r#", "dist": [0.1, 0.2]"#),
+            "dist",
+        );
+        check(
+            base("[[1,0,0],[0,1,0],[0,0,1]]", "").replace("\"t\": [0,0,0]", "\"t\": [0,0]"),
+            "t must have 3",
+        );
+        check(
+            base("[[1,0,0],[0,1,0],[0,0,1]]", "").replace("\"width\": 4", "\"width\": -4"),
+            "width",
+        );
         check("{ not json".into(), "invalid camera file");
         // 1e-7 perturbation is accepted (within tolerance)
         assert!(Camera::from_json_str(&base("[[1,0,0],[0,1,0],[0,0,1.0000001]]", ""), p).is_ok());
@@ -529,14 +670,27 @@ mod tests {
         // Render a smooth pattern seen through a distorted camera; undistorting it must give
         // the pattern as seen by the distortion-free camera.
         let mut cam = Camera::pinhole(160, 120, 120.0, 120.0, 79.5, 59.5);
-        cam.intrinsics.dist = Distortion { k1: 0.2, k2: 0.02, p1: 0.002, p2: -0.001, k3: 0.0 };
+        cam.intrinsics.dist = Distortion {
+            k1: 0.2,
+            k2: 0.02,
+            p1: 0.002,
+            p2: -0.001,
+            k3: 0.0,
+        };
         let pattern = |xn: DVec2| -> [f32; 3] {
-            [(1.0 + (3.0 * xn.x).sin() * (2.0 * xn.y).cos()) as f32, (xn.x + 2.0) as f32, (xn.y * xn.y) as f32]
+            [
+                (1.0 + (3.0 * xn.x).sin() * (2.0 * xn.y).cos()) as f32,
+                (xn.x + 2.0) as f32,
+                (xn.y * xn.y) as f32,
+            ]
         };
         let mut distorted = HdrImage::new(160, 120);
         for y in 0..120 {
             for x in 0..160 {
-                let xn = cam.intrinsics.to_normalized(DVec2::new(x as f64, y as f64)).unwrap();
+                let xn = cam
+                    .intrinsics
+                    .to_normalized(DVec2::new(x as f64, y as f64))
+                    .unwrap();
                 distorted.set(x, y, pattern(xn));
             }
         }
@@ -586,13 +740,24 @@ mod look_at_tests {
 
     #[test]
     fn look_at_puts_the_target_at_the_principal_point_and_up_at_the_top() {
-        let pose = WorldToCamera::look_at(DVec3::new(1.0, -5.0, 2.0), DVec3::new(0.0, 0.0, 1.0), DVec3::Z).unwrap();
+        let pose = WorldToCamera::look_at(
+            DVec3::new(1.0, -5.0, 2.0),
+            DVec3::new(0.0, 0.0, 1.0),
+            DVec3::Z,
+        )
+        .unwrap();
         let mut cam = Camera::pinhole(100, 80, 90.0, 90.0, 49.5, 39.5);
         cam.pose = pose;
         let c = cam.project(DVec3::new(0.0, 0.0, 1.0)).unwrap();
-        assert!((c.x - 49.5).abs() < 1e-9 && (c.y - 39.5).abs() < 1e-9, "{c}");
+        assert!(
+            (c.x - 49.5).abs() < 1e-9 && (c.y - 39.5).abs() < 1e-9,
+            "{c}"
+        );
         let above = cam.project(DVec3::new(0.0, 0.0, 1.5)).unwrap();
-        assert!(above.y < c.y, "a point above the target is higher in the image");
+        assert!(
+            above.y < c.y,
+            "a point above the target is higher in the image"
+        );
         assert!(check_rotation(&cam.pose.r).is_ok());
         assert!((cam.center_world() - DVec3::new(1.0, -5.0, 2.0)).length() < 1e-12);
     }

@@ -101,13 +101,27 @@ pub fn rotation_angle_between(a: &DMat3, b: &DMat3) -> f64 {
 #[cfg(not(feature = "opencv"))]
 mod imp {
     use super::*;
-    pub fn solve_pnp(_: &Intrinsics, _: &[DVec3], _: &[DVec2], _: f64) -> Result<PnpResult, ImagingError> {
+    pub fn solve_pnp(
+        _: &Intrinsics,
+        _: &[DVec3],
+        _: &[DVec2],
+        _: f64,
+    ) -> Result<PnpResult, ImagingError> {
         Err(ImagingError::NoOpenCv)
     }
-    pub fn calibrate_from_points(_: &[Vec<DVec3>], _: &[Vec<DVec2>], _: u32, _: u32) -> Result<Calibration, ImagingError> {
+    pub fn calibrate_from_points(
+        _: &[Vec<DVec3>],
+        _: &[Vec<DVec2>],
+        _: u32,
+        _: u32,
+    ) -> Result<Calibration, ImagingError> {
         Err(ImagingError::NoOpenCv)
     }
-    pub fn find_checkerboard_corners(_: &HdrImage, _: usize, _: usize) -> Result<Option<Vec<DVec2>>, ImagingError> {
+    pub fn find_checkerboard_corners(
+        _: &HdrImage,
+        _: usize,
+        _: usize,
+    ) -> Result<Option<Vec<DVec2>>, ImagingError> {
         Err(ImagingError::NoOpenCv)
     }
     pub fn find_homography(_: &[DVec2], _: &[DVec2], _: f64) -> Result<DMat3, ImagingError> {
@@ -116,10 +130,18 @@ mod imp {
     pub fn detect_aruco(_: &HdrImage, _: ArucoDict) -> Result<Vec<ArucoMarker>, ImagingError> {
         Err(ImagingError::NoOpenCv)
     }
-    pub fn detect_aruco_subpix(_: &HdrImage, _: ArucoDict) -> Result<Vec<ArucoMarker>, ImagingError> {
+    pub fn detect_aruco_subpix(
+        _: &HdrImage,
+        _: ArucoDict,
+    ) -> Result<Vec<ArucoMarker>, ImagingError> {
         Err(ImagingError::NoOpenCv)
     }
-    pub fn solve_pnp_matched(_: &Intrinsics, _: &[DVec3], _: &[DVec2], _: f64) -> Result<PnpResult, ImagingError> {
+    pub fn solve_pnp_matched(
+        _: &Intrinsics,
+        _: &[DVec3],
+        _: &[DVec2],
+        _: f64,
+    ) -> Result<PnpResult, ImagingError> {
         Err(ImagingError::NoOpenCv)
     }
     pub fn aruco_marker_image(_: ArucoDict, _: i32, _: usize) -> Result<Vec<u8>, ImagingError> {
@@ -143,7 +165,9 @@ mod imp {
     }
 
     fn dist_mat(i: &Intrinsics) -> Result<Mat, ImagingError> {
-        Mat::from_slice(&i.dist.to_array()).map_err(cv_err).and_then(|m| m.try_clone().map_err(cv_err))
+        Mat::from_slice(&i.dist.to_array())
+            .map_err(cv_err)
+            .and_then(|m| m.try_clone().map_err(cv_err))
     }
 
     fn vec3(m: &Mat) -> Result<DVec3, ImagingError> {
@@ -155,33 +179,66 @@ mod imp {
     }
 
     fn pose_of(rvec: &Mat, tvec: &Mat) -> Result<WorldToCamera, ImagingError> {
-        Ok(WorldToCamera { r: rotation_from_rodrigues(vec3(rvec)?), t: vec3(tvec)? })
+        Ok(WorldToCamera {
+            r: rotation_from_rodrigues(vec3(rvec)?),
+            t: vec3(tvec)?,
+        })
     }
 
     fn p3(v: &[DVec3]) -> Vector<Point3f> {
-        v.iter().map(|p| Point3f::new(p.x as f32, p.y as f32, p.z as f32)).collect()
+        v.iter()
+            .map(|p| Point3f::new(p.x as f32, p.y as f32, p.z as f32))
+            .collect()
     }
 
     fn p2(v: &[DVec2]) -> Vector<Point2f> {
-        v.iter().map(|p| Point2f::new(p.x as f32, p.y as f32)).collect()
+        v.iter()
+            .map(|p| Point2f::new(p.x as f32, p.y as f32))
+            .collect()
     }
 
     fn gray8(img: &HdrImage) -> Result<Mat, ImagingError> {
-        let g: Vec<f32> = img.pixels.iter().map(|p| (p[0] + p[1] + p[2]) / 3.0).collect();
+        let g: Vec<f32> = img
+            .pixels
+            .iter()
+            .map(|p| (p[0] + p[1] + p[2]) / 3.0)
+            .collect();
         let mut sorted = g.clone();
         sorted.sort_by(|a, b| a.partial_cmp(b).unwrap_or(std::cmp::Ordering::Equal));
-        let hi = sorted.get(sorted.len() * 99 / 100).copied().unwrap_or(1.0).max(1e-12);
-        let bytes: Vec<u8> = g.iter().map(|v| ((v / hi) * 255.0).round().clamp(0.0, 255.0) as u8).collect();
+        let hi = sorted
+            .get(sorted.len() * 99 / 100)
+            .copied()
+            .unwrap_or(1.0)
+            .max(1e-12);
+        let bytes: Vec<u8> = g
+            .iter()
+            .map(|v| ((v / hi) * 255.0).round().clamp(0.0, 255.0) as u8)
+            .collect();
         let m = Mat::from_slice(&bytes).map_err(cv_err)?;
-        m.reshape(1, img.height as i32).map_err(cv_err)?.try_clone().map_err(cv_err)
+        m.reshape(1, img.height as i32)
+            .map_err(cv_err)?
+            .try_clone()
+            .map_err(cv_err)
     }
 
-    pub fn solve_pnp(intr: &Intrinsics, world: &[DVec3], pixels: &[DVec2], threshold_px: f64) -> Result<PnpResult, ImagingError> {
+    pub fn solve_pnp(
+        intr: &Intrinsics,
+        world: &[DVec3],
+        pixels: &[DVec2],
+        threshold_px: f64,
+    ) -> Result<PnpResult, ImagingError> {
         if world.len() != pixels.len() {
-            return Err(ImagingError::InvalidInput(format!("PnP: {} world points but {} pixels", world.len(), pixels.len())));
+            return Err(ImagingError::InvalidInput(format!(
+                "PnP: {} world points but {} pixels",
+                world.len(),
+                pixels.len()
+            )));
         }
         if world.len() < 6 {
-            return Err(ImagingError::InvalidInput(format!("PnP needs at least 6 correspondences, got {}", world.len())));
+            return Err(ImagingError::InvalidInput(format!(
+                "PnP needs at least 6 correspondences, got {}",
+                world.len()
+            )));
         }
         let (obj, imgp) = (p3(world), p2(pixels));
         let (k, d) = (k_mat(intr)?, dist_mat(intr)?);
@@ -189,12 +246,24 @@ mod imp {
         let mut tvec = Mat::default();
         let mut inl = Mat::default();
         let ok = calib3d::solve_pnp_ransac(
-            &obj, &imgp, &k, &d, &mut rvec, &mut tvec, false, 1000, threshold_px as f32, 0.999, &mut inl,
+            &obj,
+            &imgp,
+            &k,
+            &d,
+            &mut rvec,
+            &mut tvec,
+            false,
+            1000,
+            threshold_px as f32,
+            0.999,
+            &mut inl,
             calib3d::SOLVEPNP_ITERATIVE,
         )
         .map_err(cv_err)?;
         if !ok {
-            return Err(ImagingError::InvalidInput("PnP RANSAC found no consistent pose".into()));
+            return Err(ImagingError::InvalidInput(
+                "PnP RANSAC found no consistent pose".into(),
+            ));
         }
         let mut inliers = Vec::new();
         for k in 0..inl.total() as i32 {
@@ -202,52 +271,111 @@ mod imp {
         }
         let io: Vector<Point3f> = inliers.iter().map(|&i| obj.get(i).unwrap()).collect();
         let ii: Vector<Point2f> = inliers.iter().map(|&i| imgp.get(i).unwrap()).collect();
-        let crit = core::TermCriteria::new(core::TermCriteria_COUNT + core::TermCriteria_EPS, 50, 1e-12).map_err(cv_err)?;
-        calib3d::solve_pnp_refine_lm(&io, &ii, &k, &d, &mut rvec, &mut tvec, crit).map_err(cv_err)?;
+        let crit =
+            core::TermCriteria::new(core::TermCriteria_COUNT + core::TermCriteria_EPS, 50, 1e-12)
+                .map_err(cv_err)?;
+        calib3d::solve_pnp_refine_lm(&io, &ii, &k, &d, &mut rvec, &mut tvec, crit)
+            .map_err(cv_err)?;
         let pose = pose_of(&rvec, &tvec)?;
-        let cam = Camera { width: 1, height: 1, intrinsics: *intr, pose };
+        let cam = Camera {
+            width: 1,
+            height: 1,
+            intrinsics: *intr,
+            pose,
+        };
         let mut se = 0.0;
         for &i in &inliers {
-            let p = cam.project(world[i]).map(|q| (q - pixels[i]).length_squared()).unwrap_or(f64::INFINITY);
+            let p = cam
+                .project(world[i])
+                .map(|q| (q - pixels[i]).length_squared())
+                .unwrap_or(f64::INFINITY);
             se += p;
         }
         let rms_px = (se / inliers.len().max(1) as f64).sqrt();
-        Ok(PnpResult { pose, inliers, rms_px })
+        Ok(PnpResult {
+            pose,
+            inliers,
+            rms_px,
+        })
     }
 
     /// Reprojection errors (pixels) of `world` under `pose`.
-    fn reprojection_errors(intr: &Intrinsics, pose: WorldToCamera, world: &[DVec3], pixels: &[DVec2]) -> Vec<f64> {
-        let cam = Camera { width: 1, height: 1, intrinsics: *intr, pose };
-        world.iter().zip(pixels).map(|(w, p)| cam.project(*w).map_or(f64::INFINITY, |q| (q - *p).length())).collect()
+    fn reprojection_errors(
+        intr: &Intrinsics,
+        pose: WorldToCamera,
+        world: &[DVec3],
+        pixels: &[DVec2],
+    ) -> Vec<f64> {
+        let cam = Camera {
+            width: 1,
+            height: 1,
+            intrinsics: *intr,
+            pose,
+        };
+        world
+            .iter()
+            .zip(pixels)
+            .map(|(w, p)| cam.project(*w).map_or(f64::INFINITY, |q| (q - *p).length()))
+            .collect()
     }
 
-    pub fn solve_pnp_matched(intr: &Intrinsics, world: &[DVec3], pixels: &[DVec2], threshold_px: f64) -> Result<PnpResult, ImagingError> {
+    pub fn solve_pnp_matched(
+        intr: &Intrinsics,
+        world: &[DVec3],
+        pixels: &[DVec2],
+        threshold_px: f64,
+    ) -> Result<PnpResult, ImagingError> {
         if world.len() != pixels.len() {
-            return Err(ImagingError::InvalidInput(format!("PnP: {} world points but {} pixels", world.len(), pixels.len())));
+            return Err(ImagingError::InvalidInput(format!(
+                "PnP: {} world points but {} pixels",
+                world.len(),
+                pixels.len()
+            )));
         }
         if world.len() < 4 {
-            return Err(ImagingError::InvalidInput(format!("PnP needs at least 4 correspondences, got {}", world.len())));
+            return Err(ImagingError::InvalidInput(format!(
+                "PnP needs at least 4 correspondences, got {}",
+                world.len()
+            )));
         }
         let (k, d) = (k_mat(intr)?, dist_mat(intr)?);
-        let crit = core::TermCriteria::new(core::TermCriteria_COUNT + core::TermCriteria_EPS, 50, 1e-12).map_err(cv_err)?;
+        let crit =
+            core::TermCriteria::new(core::TermCriteria_COUNT + core::TermCriteria_EPS, 50, 1e-12)
+                .map_err(cv_err)?;
         let solve = |idx: &[usize]| -> Result<WorldToCamera, ImagingError> {
             let w: Vec<DVec3> = idx.iter().map(|&i| world[i]).collect();
             let p: Vec<DVec2> = idx.iter().map(|&i| pixels[i]).collect();
             let (obj, imgp) = (p3(&w), p2(&p));
             let mut rvec = Mat::default();
             let mut tvec = Mat::default();
-            let ok = calib3d::solve_pnp(&obj, &imgp, &k, &d, &mut rvec, &mut tvec, false, calib3d::SOLVEPNP_SQPNP)
-                .map_err(cv_err)?;
+            let ok = calib3d::solve_pnp(
+                &obj,
+                &imgp,
+                &k,
+                &d,
+                &mut rvec,
+                &mut tvec,
+                false,
+                calib3d::SOLVEPNP_SQPNP,
+            )
+            .map_err(cv_err)?;
             if !ok {
-                return Err(ImagingError::InvalidInput("PnP (SQPnP) found no pose".into()));
+                return Err(ImagingError::InvalidInput(
+                    "PnP (SQPnP) found no pose".into(),
+                ));
             }
-            calib3d::solve_pnp_refine_lm(&obj, &imgp, &k, &d, &mut rvec, &mut tvec, crit).map_err(cv_err)?;
+            calib3d::solve_pnp_refine_lm(&obj, &imgp, &k, &d, &mut rvec, &mut tvec, crit)
+                .map_err(cv_err)?;
             pose_of(&rvec, &tvec)
         };
         let all: Vec<usize> = (0..world.len()).collect();
         let mut pose = solve(&all)?;
-        let mut inliers: Vec<usize> =
-            reprojection_errors(intr, pose, world, pixels).iter().enumerate().filter(|(_, e)| **e <= threshold_px).map(|(i, _)| i).collect();
+        let mut inliers: Vec<usize> = reprojection_errors(intr, pose, world, pixels)
+            .iter()
+            .enumerate()
+            .filter(|(_, e)| **e <= threshold_px)
+            .map(|(i, _)| i)
+            .collect();
         if inliers.len() < world.len() {
             if inliers.len() < 4 {
                 return Err(ImagingError::InvalidInput(format!(
@@ -265,11 +393,22 @@ mod imp {
                 .collect();
         }
         let errs = reprojection_errors(intr, pose, world, pixels);
-        let rms_px = (inliers.iter().map(|&i| errs[i] * errs[i]).sum::<f64>() / inliers.len().max(1) as f64).sqrt();
-        Ok(PnpResult { pose, inliers, rms_px })
+        let rms_px = (inliers.iter().map(|&i| errs[i] * errs[i]).sum::<f64>()
+            / inliers.len().max(1) as f64)
+            .sqrt();
+        Ok(PnpResult {
+            pose,
+            inliers,
+            rms_px,
+        })
     }
 
-    pub fn calibrate_from_points(object: &[Vec<DVec3>], image: &[Vec<DVec2>], width: u32, height: u32) -> Result<Calibration, ImagingError> {
+    pub fn calibrate_from_points(
+        object: &[Vec<DVec3>],
+        image: &[Vec<DVec2>],
+        width: u32,
+        height: u32,
+    ) -> Result<Calibration, ImagingError> {
         if object.len() != image.len() || object.len() < 3 {
             return Err(ImagingError::InvalidInput(format!(
                 "calibration needs at least 3 views with matching point lists ({} object, {} image)",
@@ -283,9 +422,22 @@ mod imp {
         let mut d = Mat::default();
         let mut rvecs: Vector<Mat> = Vector::new();
         let mut tvecs: Vector<Mat> = Vector::new();
-        let crit = core::TermCriteria::new(core::TermCriteria_COUNT + core::TermCriteria_EPS, 100, 1e-12).map_err(cv_err)?;
+        let crit = core::TermCriteria::new(
+            core::TermCriteria_COUNT + core::TermCriteria_EPS,
+            100,
+            1e-12,
+        )
+        .map_err(cv_err)?;
         let rms = calib3d::calibrate_camera(
-            &obj, &imgp, core::Size::new(width as i32, height as i32), &mut k, &mut d, &mut rvecs, &mut tvecs, 0, crit,
+            &obj,
+            &imgp,
+            core::Size::new(width as i32, height as i32),
+            &mut k,
+            &mut d,
+            &mut rvecs,
+            &mut tvecs,
+            0,
+            crit,
         )
         .map_err(cv_err)?;
         let kk = |r: i32, c: i32| k.at_2d::<f64>(r, c).copied().map_err(cv_err);
@@ -302,12 +454,28 @@ mod imp {
         };
         let mut poses = Vec::new();
         for i in 0..rvecs.len() {
-            poses.push(pose_of(&rvecs.get(i).map_err(cv_err)?, &tvecs.get(i).map_err(cv_err)?)?);
+            poses.push(pose_of(
+                &rvecs.get(i).map_err(cv_err)?,
+                &tvecs.get(i).map_err(cv_err)?,
+            )?);
         }
-        Ok(Calibration { camera: Camera { width, height, intrinsics, pose: poses[0] }, rms_px: rms, poses })
+        Ok(Calibration {
+            camera: Camera {
+                width,
+                height,
+                intrinsics,
+                pose: poses[0],
+            },
+            rms_px: rms,
+            poses,
+        })
     }
 
-    pub fn find_checkerboard_corners(img: &HdrImage, cols: usize, rows: usize) -> Result<Option<Vec<DVec2>>, ImagingError> {
+    pub fn find_checkerboard_corners(
+        img: &HdrImage,
+        cols: usize,
+        rows: usize,
+    ) -> Result<Option<Vec<DVec2>>, ImagingError> {
         let g = gray8(img)?;
         let mut corners: Vector<Point2f> = Vector::new();
         let found = calib3d::find_chessboard_corners(
@@ -320,12 +488,30 @@ mod imp {
         if !found {
             return Ok(None);
         }
-        let crit = core::TermCriteria::new(core::TermCriteria_COUNT + core::TermCriteria_EPS, 50, 1e-4).map_err(cv_err)?;
-        imgproc::corner_sub_pix(&g, &mut corners, core::Size::new(5, 5), core::Size::new(-1, -1), crit).map_err(cv_err)?;
-        Ok(Some(corners.iter().map(|p| DVec2::new(p.x as f64, p.y as f64)).collect()))
+        let crit =
+            core::TermCriteria::new(core::TermCriteria_COUNT + core::TermCriteria_EPS, 50, 1e-4)
+                .map_err(cv_err)?;
+        imgproc::corner_sub_pix(
+            &g,
+            &mut corners,
+            core::Size::new(5, 5),
+            core::Size::new(-1, -1),
+            crit,
+        )
+        .map_err(cv_err)?;
+        Ok(Some(
+            corners
+                .iter()
+                .map(|p| DVec2::new(p.x as f64, p.y as f64))
+                .collect(),
+        ))
     }
 
-    pub fn find_homography(src: &[DVec2], dst: &[DVec2], threshold_px: f64) -> Result<DMat3, ImagingError> {
+    pub fn find_homography(
+        src: &[DVec2],
+        dst: &[DVec2],
+        threshold_px: f64,
+    ) -> Result<DMat3, ImagingError> {
         if src.len() != dst.len() || src.len() < 4 {
             return Err(ImagingError::InvalidInput(format!(
                 "homography needs at least 4 matching points ({} and {})",
@@ -334,7 +520,9 @@ mod imp {
             )));
         }
         let mut mask = Mat::default();
-        let h = calib3d::find_homography(&p2(src), &p2(dst), &mut mask, calib3d::RANSAC, threshold_px).map_err(cv_err)?;
+        let h =
+            calib3d::find_homography(&p2(src), &p2(dst), &mut mask, calib3d::RANSAC, threshold_px)
+                .map_err(cv_err)?;
         if h.empty() {
             return Err(ImagingError::InvalidInput("no homography found".into()));
         }
@@ -362,31 +550,49 @@ mod imp {
         detect_with(img, dict, false)
     }
 
-    pub fn detect_aruco_subpix(img: &HdrImage, dict: ArucoDict) -> Result<Vec<ArucoMarker>, ImagingError> {
+    pub fn detect_aruco_subpix(
+        img: &HdrImage,
+        dict: ArucoDict,
+    ) -> Result<Vec<ArucoMarker>, ImagingError> {
         detect_with(img, dict, true)
     }
 
-    pub fn aruco_marker_image(dict: ArucoDict, id: i32, side_px: usize) -> Result<Vec<u8>, ImagingError> {
+    pub fn aruco_marker_image(
+        dict: ArucoDict,
+        id: i32,
+        side_px: usize,
+    ) -> Result<Vec<u8>, ImagingError> {
         let d = dictionary(dict)?;
         let mut m = Mat::default();
         aruco::draw_marker(&d, id, side_px as i32, &mut m, 1).map_err(cv_err)?;
         let bytes = m.data_bytes().map_err(cv_err)?.to_vec();
         if bytes.len() != side_px * side_px {
-            return Err(ImagingError::OpenCv(format!("draw_marker gave {} bytes for a {side_px} px marker", bytes.len())));
+            return Err(ImagingError::OpenCv(format!(
+                "draw_marker gave {} bytes for a {side_px} px marker",
+                bytes.len()
+            )));
         }
         Ok(bytes)
     }
 
-    fn detect_with(img: &HdrImage, dict: ArucoDict, subpix: bool) -> Result<Vec<ArucoMarker>, ImagingError> {
+    fn detect_with(
+        img: &HdrImage,
+        dict: ArucoDict,
+        subpix: bool,
+    ) -> Result<Vec<ArucoMarker>, ImagingError> {
         let d = dictionary(dict)?;
         let g = gray8(img)?;
         let mut corners: Vector<Vector<Point2f>> = Vector::new();
         let mut ids: Vector<i32> = Vector::new();
         if subpix {
             let mut params = aruco::DetectorParameters::create().map_err(cv_err)?;
-            aruco::DetectorParametersTrait::set_corner_refinement_method(&mut params, aruco::CORNER_REFINE_SUBPIX);
+            aruco::DetectorParametersTrait::set_corner_refinement_method(
+                &mut params,
+                aruco::CORNER_REFINE_SUBPIX,
+            );
             let mut rejected: Vector<Vector<Point2f>> = Vector::new();
-            aruco::detect_markers(&g, &d, &mut corners, &mut ids, &params, &mut rejected).map_err(cv_err)?;
+            aruco::detect_markers(&g, &d, &mut corners, &mut ids, &params, &mut rejected)
+                .map_err(cv_err)?;
         } else {
             aruco::detect_markers_def(&g, &d, &mut corners, &mut ids).map_err(cv_err)?;
         }
@@ -405,23 +611,42 @@ mod imp {
 
 /// Camera pose from 2D-3D correspondences: RANSAC PnP (`threshold_px` inlier threshold) then
 /// Levenberg-Marquardt refinement on the inliers.
-pub fn solve_pnp(intr: &Intrinsics, world: &[DVec3], pixels: &[DVec2], threshold_px: f64) -> Result<PnpResult, ImagingError> {
+pub fn solve_pnp(
+    intr: &Intrinsics,
+    world: &[DVec3],
+    pixels: &[DVec2],
+    threshold_px: f64,
+) -> Result<PnpResult, ImagingError> {
     imp::solve_pnp(intr, world, pixels, threshold_px)
 }
 
 /// Zhang calibration from per-view object points (board frame) and detected pixels.
-pub fn calibrate_from_points(object: &[Vec<DVec3>], image: &[Vec<DVec2>], width: u32, height: u32) -> Result<Calibration, ImagingError> {
+pub fn calibrate_from_points(
+    object: &[Vec<DVec3>],
+    image: &[Vec<DVec2>],
+    width: u32,
+    height: u32,
+) -> Result<Calibration, ImagingError> {
     imp::calibrate_from_points(object, image, width, height)
 }
 
 /// Checkerboard inner corners (`cols` x `rows`), refined to sub-pixel; `None` if not found.
-pub fn find_checkerboard_corners(img: &HdrImage, cols: usize, rows: usize) -> Result<Option<Vec<DVec2>>, ImagingError> {
+pub fn find_checkerboard_corners(
+    img: &HdrImage,
+    cols: usize,
+    rows: usize,
+) -> Result<Option<Vec<DVec2>>, ImagingError> {
     imp::find_checkerboard_corners(img, cols, rows)
 }
 
 /// Calibrate from checkerboard photographs (views where the board is not found are skipped;
 /// at least 3 are needed). Returns the calibration and the indices of the views used.
-pub fn calibrate_checkerboard(images: &[HdrImage], cols: usize, rows: usize, square: f64) -> Result<(Calibration, Vec<usize>), ImagingError> {
+pub fn calibrate_checkerboard(
+    images: &[HdrImage],
+    cols: usize,
+    rows: usize,
+    square: f64,
+) -> Result<(Calibration, Vec<usize>), ImagingError> {
     if images.is_empty() {
         return Err(ImagingError::InvalidInput("no calibration images".into()));
     }
@@ -432,7 +657,9 @@ pub fn calibrate_checkerboard(images: &[HdrImage], cols: usize, rows: usize, squ
     let mut used = Vec::new();
     for (i, im) in images.iter().enumerate() {
         if (im.width, im.height) != (w, h) {
-            return Err(ImagingError::InvalidInput(format!("calibration image {i} has a different size")));
+            return Err(ImagingError::InvalidInput(format!(
+                "calibration image {i} has a different size"
+            )));
         }
         if let Some(c) = find_checkerboard_corners(im, cols, rows)? {
             objs.push(obj.clone());
@@ -447,11 +674,18 @@ pub fn calibrate_checkerboard(images: &[HdrImage], cols: usize, rows: usize, squ
             images.len()
         )));
     }
-    Ok((calibrate_from_points(&objs, &imgs, w as u32, h as u32)?, used))
+    Ok((
+        calibrate_from_points(&objs, &imgs, w as u32, h as u32)?,
+        used,
+    ))
 }
 
 /// Homography `dst ~ H src` (RANSAC with `threshold_px`).
-pub fn find_homography(src: &[DVec2], dst: &[DVec2], threshold_px: f64) -> Result<DMat3, ImagingError> {
+pub fn find_homography(
+    src: &[DVec2],
+    dst: &[DVec2],
+    threshold_px: f64,
+) -> Result<DMat3, ImagingError> {
     imp::find_homography(src, dst, threshold_px)
 }
 
@@ -465,13 +699,21 @@ pub fn detect_aruco(img: &HdrImage, dict: ArucoDict) -> Result<Vec<ArucoMarker>,
 /// Levenberg-Marquardt refinement; points reprojecting beyond `threshold_px` are dropped and
 /// the pose solved again from the rest. [`solve_pnp`]'s RANSAC (OpenCV 4.6) fails on coplanar
 /// points, which fiducials on a flat board are.
-pub fn solve_pnp_matched(intr: &Intrinsics, world: &[DVec3], pixels: &[DVec2], threshold_px: f64) -> Result<PnpResult, ImagingError> {
+pub fn solve_pnp_matched(
+    intr: &Intrinsics,
+    world: &[DVec3],
+    pixels: &[DVec2],
+    threshold_px: f64,
+) -> Result<PnpResult, ImagingError> {
     imp::solve_pnp_matched(intr, world, pixels, threshold_px)
 }
 
 /// [`detect_aruco`] with OpenCV's sub-pixel corner refinement (`CORNER_REFINE_SUBPIX`), for
 /// poses from the marker corners.
-pub fn detect_aruco_subpix(img: &HdrImage, dict: ArucoDict) -> Result<Vec<ArucoMarker>, ImagingError> {
+pub fn detect_aruco_subpix(
+    img: &HdrImage,
+    dict: ArucoDict,
+) -> Result<Vec<ArucoMarker>, ImagingError> {
     imp::detect_aruco_subpix(img, dict)
 }
 
@@ -479,7 +721,11 @@ pub fn detect_aruco_subpix(img: &HdrImage, dict: ArucoDict) -> Result<Vec<ArucoM
 /// white, with a one-cell black border (OpenCV `drawMarker`). Its corners in
 /// [`ArucoMarker::corners`] order are the image's top-left, top-right, bottom-right and
 /// bottom-left corners.
-pub fn aruco_marker_image(dict: ArucoDict, id: i32, side_px: usize) -> Result<Vec<u8>, ImagingError> {
+pub fn aruco_marker_image(
+    dict: ArucoDict,
+    id: i32,
+    side_px: usize,
+) -> Result<Vec<u8>, ImagingError> {
     imp::aruco_marker_image(dict, id, side_px)
 }
 
@@ -492,17 +738,40 @@ mod tests {
     fn without_opencv_functions_say_so() {
         let i = Camera::pinhole(10, 10, 10.0, 10.0, 5.0, 5.0).intrinsics;
         let e = solve_pnp(&i, &[], &[], 2.0).unwrap_err().to_string();
-        assert!(e.contains("built without opencv") && e.contains("--features opencv"), "{e}");
-        assert!(matches!(find_homography(&[], &[], 1.0), Err(ImagingError::NoOpenCv)));
-        assert!(matches!(detect_aruco(&HdrImage::new(2, 2), ArucoDict::Dict4x4_50), Err(ImagingError::NoOpenCv)));
-        assert!(matches!(detect_aruco_subpix(&HdrImage::new(2, 2), ArucoDict::Dict4x4_50), Err(ImagingError::NoOpenCv)));
-        assert!(matches!(aruco_marker_image(ArucoDict::Dict4x4_50, 0, 60), Err(ImagingError::NoOpenCv)));
-        assert!(matches!(solve_pnp_matched(&i, &[], &[], 2.0), Err(ImagingError::NoOpenCv)));
+        assert!(
+            e.contains("built without opencv") && e.contains("--features opencv"),
+            "{e}"
+        );
+        assert!(matches!(
+            find_homography(&[], &[], 1.0),
+            Err(ImagingError::NoOpenCv)
+        ));
+        assert!(matches!(
+            detect_aruco(&HdrImage::new(2, 2), ArucoDict::Dict4x4_50),
+            Err(ImagingError::NoOpenCv)
+        ));
+        assert!(matches!(
+            detect_aruco_subpix(&HdrImage::new(2, 2), ArucoDict::Dict4x4_50),
+            Err(ImagingError::NoOpenCv)
+        ));
+        assert!(matches!(
+            aruco_marker_image(ArucoDict::Dict4x4_50, 0, 60),
+            Err(ImagingError::NoOpenCv)
+        ));
+        assert!(matches!(
+            solve_pnp_matched(&i, &[], &[], 2.0),
+            Err(ImagingError::NoOpenCv)
+        ));
     }
 
     #[test]
     fn aruco_dictionary_names() {
-        for d in [ArucoDict::Dict4x4_50, ArucoDict::Dict5x5_100, ArucoDict::Dict6x6_250, ArucoDict::Original] {
+        for d in [
+            ArucoDict::Dict4x4_50,
+            ArucoDict::Dict5x5_100,
+            ArucoDict::Dict6x6_250,
+            ArucoDict::Original,
+        ] {
             assert_eq!(ArucoDict::from_name(d.name()), Some(d));
         }
         assert_eq!(ArucoDict::from_name("4x4_50"), Some(ArucoDict::Dict4x4_50));
@@ -513,7 +782,10 @@ mod tests {
     fn rodrigues_and_angle() {
         let r = rotation_from_rodrigues(DVec3::new(0.0, 0.0, std::f64::consts::FRAC_PI_2));
         assert!((r * DVec3::X - DVec3::Y).length() < 1e-12);
-        assert!((rotation_angle_between(&DMat3::IDENTITY, &r) - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+        assert!(
+            (rotation_angle_between(&DMat3::IDENTITY, &r) - std::f64::consts::FRAC_PI_2).abs()
+                < 1e-12
+        );
     }
 
     #[cfg(feature = "opencv")]
@@ -534,12 +806,27 @@ mod tests {
         }
 
         fn truth() -> Camera {
-            let r = DMat3::from_rotation_x(0.4) * DMat3::from_rotation_y(-0.3) * DMat3::from_rotation_z(0.2);
+            let r = DMat3::from_rotation_x(0.4)
+                * DMat3::from_rotation_y(-0.3)
+                * DMat3::from_rotation_z(0.2);
             Camera {
                 width: 1280,
                 height: 960,
-                intrinsics: Intrinsics { fx: 1000.0, fy: 1000.0, cx: 640.0, cy: 480.0, dist: Distortion { k1: -0.1, k2: 0.02, ..Default::default() } },
-                pose: WorldToCamera { r, t: DVec3::new(0.2, -0.1, 6.0) },
+                intrinsics: Intrinsics {
+                    fx: 1000.0,
+                    fy: 1000.0,
+                    cx: 640.0,
+                    cy: 480.0,
+                    dist: Distortion {
+                        k1: -0.1,
+                        k2: 0.02,
+                        ..Default::default()
+                    },
+                },
+                pose: WorldToCamera {
+                    r,
+                    t: DVec3::new(0.2, -0.1, 6.0),
+                },
             }
         }
 
@@ -550,7 +837,11 @@ mod tests {
             let mut world = Vec::new();
             let mut px = Vec::new();
             while world.len() < 15 {
-                let p = DVec3::new(rng.gen_range(-2.0..2.0), rng.gen_range(-2.0..2.0), rng.gen_range(-1.0..1.0));
+                let p = DVec3::new(
+                    rng.gen_range(-2.0..2.0),
+                    rng.gen_range(-2.0..2.0),
+                    rng.gen_range(-1.0..1.0),
+                );
                 if let Some(q) = cam.project(p) {
                     if q.x > 0.0 && q.y > 0.0 && q.x < 1279.0 && q.y < 959.0 {
                         world.push(p);
@@ -577,18 +868,31 @@ mod tests {
                 let r = DMat3::from_rotation_x(rng.gen_range(-0.5..0.5))
                     * DMat3::from_rotation_y(rng.gen_range(-0.5..0.5))
                     * DMat3::from_rotation_z(rng.gen_range(-0.3..0.3));
-                let t = DVec3::new(-0.2 + 0.03 * (v % 3) as f64, -0.12 + 0.02 * (v % 4) as f64, rng.gen_range(0.6..1.0));
-                let c = Camera { pose: WorldToCamera { r, t }, ..cam.clone() };
+                let t = DVec3::new(
+                    -0.2 + 0.03 * (v % 3) as f64,
+                    -0.12 + 0.02 * (v % 4) as f64,
+                    rng.gen_range(0.6..1.0),
+                );
+                let c = Camera {
+                    pose: WorldToCamera { r, t },
+                    ..cam.clone()
+                };
                 let px: Vec<DVec2> = board
                     .iter()
-                    .map(|p| c.project(*p).unwrap() + DVec2::new(0.2 * normal(&mut rng), 0.2 * normal(&mut rng)))
+                    .map(|p| {
+                        c.project(*p).unwrap()
+                            + DVec2::new(0.2 * normal(&mut rng), 0.2 * normal(&mut rng))
+                    })
                     .collect();
                 objs.push(board.clone());
                 imgs.push(px);
             }
             let cal = calibrate_from_points(&objs, &imgs, 1280, 960).unwrap();
             let i = cal.camera.intrinsics;
-            eprintln!("calibration: fx {:.2} fy {:.2} cx {:.2} cy {:.2} k1 {:.4} rms {:.3}", i.fx, i.fy, i.cx, i.cy, i.dist.k1, cal.rms_px);
+            eprintln!(
+                "calibration: fx {:.2} fy {:.2} cx {:.2} cy {:.2} k1 {:.4} rms {:.3}",
+                i.fx, i.fy, i.cx, i.cy, i.dist.k1, cal.rms_px
+            );
             assert!((i.fx / 1000.0 - 1.0).abs() < 0.01 && (i.fy / 1000.0 - 1.0).abs() < 0.01);
             assert!(cal.rms_px < 0.5);
         }
@@ -609,14 +913,20 @@ mod tests {
                             let fy = y as f64 + (sy as f64 + 0.5) / 4.0 - 0.5 - oy;
                             let (i, j) = ((fx / sq).floor() as i64, (fy / sq).floor() as i64);
                             let inside = (-1..=7).contains(&i) && (-1..=4).contains(&j);
-                            acc += if inside && (i + j).rem_euclid(2) == 0 { 0.05 } else { 0.9 };
+                            acc += if inside && (i + j).rem_euclid(2) == 0 {
+                                0.05
+                            } else {
+                                0.9
+                            };
                         }
                     }
                     let v = acc as f32 / 16.0;
                     img.set(x, y, [v, v, v]);
                 }
             }
-            let c = find_checkerboard_corners(&img, 8, 5).unwrap().expect("board found");
+            let c = find_checkerboard_corners(&img, 8, 5)
+                .unwrap()
+                .expect("board found");
             assert_eq!(c.len(), 40);
             // corners lie at (ox + i sq, oy + j sq), i = 0..8, j = 0..5 (in some OpenCV order)
             for p in &c {
@@ -630,7 +940,10 @@ mod tests {
         #[test]
         fn aruco_marker_detected_with_id_and_corners() {
             use opencv::prelude::*;
-            let dict = opencv::aruco::get_predefined_dictionary(opencv::aruco::PREDEFINED_DICTIONARY_NAME::DICT_4X4_50).unwrap();
+            let dict = opencv::aruco::get_predefined_dictionary(
+                opencv::aruco::PREDEFINED_DICTIONARY_NAME::DICT_4X4_50,
+            )
+            .unwrap();
             let mut m = opencv::core::Mat::default();
             opencv::aruco::draw_marker(&dict, 7, 120, &mut m, 1).unwrap();
             let bytes = m.data_bytes().unwrap().to_vec();
@@ -652,9 +965,15 @@ mod tests {
             // outer corners at the pixel edges: 89.5 .. 209.5 (pixel centres at integers)
             let expect = [(89.5, 59.5), (209.5, 59.5), (209.5, 179.5), (89.5, 179.5)];
             for (c, e) in found[0].corners.iter().zip(expect) {
-                assert!((*c - DVec2::new(e.0, e.1)).length() < 1.5, "{:?}", found[0].corners);
+                assert!(
+                    (*c - DVec2::new(e.0, e.1)).length() < 1.5,
+                    "{:?}",
+                    found[0].corners
+                );
             }
-            assert!(detect_aruco(&HdrImage::new(50, 50), ArucoDict::Dict4x4_50).unwrap().is_empty());
+            assert!(detect_aruco(&HdrImage::new(50, 50), ArucoDict::Dict4x4_50)
+                .unwrap()
+                .is_empty());
         }
 
         #[test]
@@ -675,8 +994,16 @@ mod tests {
             assert_eq!(found[0].id, 42);
             let (x0, y0, x1) = (ox as f64 - 0.5, oy as f64 - 0.5, (ox + side) as f64 - 0.5);
             let y1 = (oy + side) as f64 - 0.5;
-            for (c, e) in found[0].corners.iter().zip([(x0, y0), (x1, y0), (x1, y1), (x0, y1)]) {
-                assert!((*c - DVec2::new(e.0, e.1)).length() < 0.3, "{:?}", found[0].corners);
+            for (c, e) in found[0]
+                .corners
+                .iter()
+                .zip([(x0, y0), (x1, y0), (x1, y1), (x0, y1)])
+            {
+                assert!(
+                    (*c - DVec2::new(e.0, e.1)).length() < 0.3,
+                    "{:?}",
+                    found[0].corners
+                );
             }
         }
 
@@ -684,26 +1011,55 @@ mod tests {
         fn pnp_matched_on_coplanar_points_with_an_outlier() {
             let mut cam = Camera::pinhole(960, 720, 900.0, 900.0, 479.5, 359.5);
             let tilt = DMat3::from_rotation_y(0.4) * DMat3::from_rotation_x(-0.2);
-            cam.pose = WorldToCamera { r: tilt * DMat3::from_cols(DVec3::X, -DVec3::Y, -DVec3::Z), t: DVec3::new(0.02, 0.03, 1.0) };
-            let world: Vec<DVec3> = (0..16).map(|k| DVec3::new((k % 4) as f64 * 0.2 - 0.3, (k / 4) as f64 * 0.15 - 0.2, 0.0)).collect();
+            cam.pose = WorldToCamera {
+                r: tilt * DMat3::from_cols(DVec3::X, -DVec3::Y, -DVec3::Z),
+                t: DVec3::new(0.02, 0.03, 1.0),
+            };
+            let world: Vec<DVec3> = (0..16)
+                .map(|k| DVec3::new((k % 4) as f64 * 0.2 - 0.3, (k / 4) as f64 * 0.15 - 0.2, 0.0))
+                .collect();
             let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
-            let mut px: Vec<DVec2> =
-                world.iter().map(|p| cam.project(*p).unwrap() + 0.1 * DVec2::new(normal(&mut rng), normal(&mut rng))).collect();
+            let mut px: Vec<DVec2> = world
+                .iter()
+                .map(|p| {
+                    cam.project(*p).unwrap() + 0.1 * DVec2::new(normal(&mut rng), normal(&mut rng))
+                })
+                .collect();
             px[5] += DVec2::new(12.0, -7.0);
             let res = solve_pnp_matched(&cam.intrinsics, &world, &px, 2.0).unwrap();
             let ang = rotation_angle_between(&res.pose.r, &cam.pose.r).to_degrees();
             let dt = (res.pose.t - cam.pose.t).length();
-            assert!(ang < 0.05 && dt < 1e-3, "rotation {ang} deg, translation {dt} m");
+            assert!(
+                ang < 0.05 && dt < 1e-3,
+                "rotation {ang} deg, translation {dt} m"
+            );
             assert_eq!(res.inliers.len(), 15);
-            assert!(!res.inliers.contains(&5) && res.rms_px < 0.3, "{:?} {}", res.inliers, res.rms_px);
+            assert!(
+                !res.inliers.contains(&5) && res.rms_px < 0.3,
+                "{:?} {}",
+                res.inliers,
+                res.rms_px
+            );
             assert!(solve_pnp_matched(&cam.intrinsics, &world[..3], &px[..3], 2.0).is_err());
         }
 
         #[test]
         fn homography_recovers_known_matrix() {
-            let hm = DMat3::from_cols_array_2d(&[[1.1, 0.05, 0.0002], [-0.03, 0.95, 0.0001], [12.0, -7.0, 1.0]]);
-            let src: Vec<DVec2> = (0..20).map(|k| DVec2::new((k % 5) as f64 * 50.0, (k / 5) as f64 * 40.0)).collect();
-            let dst: Vec<DVec2> = src.iter().map(|p| { let q = hm * DVec3::new(p.x, p.y, 1.0); DVec2::new(q.x / q.z, q.y / q.z) }).collect();
+            let hm = DMat3::from_cols_array_2d(&[
+                [1.1, 0.05, 0.0002],
+                [-0.03, 0.95, 0.0001],
+                [12.0, -7.0, 1.0],
+            ]);
+            let src: Vec<DVec2> = (0..20)
+                .map(|k| DVec2::new((k % 5) as f64 * 50.0, (k / 5) as f64 * 40.0))
+                .collect();
+            let dst: Vec<DVec2> = src
+                .iter()
+                .map(|p| {
+                    let q = hm * DVec3::new(p.x, p.y, 1.0);
+                    DVec2::new(q.x / q.z, q.y / q.z)
+                })
+                .collect();
             let h = find_homography(&src, &dst, 1.0).unwrap();
             let h = h / h.z_axis.z;
             assert!(h.abs_diff_eq(hm, 1e-5), "{h}"); // f32 point transfer

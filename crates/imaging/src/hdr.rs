@@ -24,13 +24,22 @@ pub const LEVELS: usize = 256;
 /// Parse an exposure time: a decimal number of seconds or a fraction such as `1/250`.
 pub fn parse_time(s: &str) -> Result<f64, ImagingError> {
     let s = s.trim();
-    let bad = || ImagingError::InvalidInput(format!("cannot parse exposure time {s:?} (want seconds, e.g. 0.004 or 1/250)"));
+    let bad = || {
+        ImagingError::InvalidInput(format!(
+            "cannot parse exposure time {s:?} (want seconds, e.g. 0.004 or 1/250)"
+        ))
+    };
     let v = match s.split_once('/') {
-        Some((a, b)) => a.trim().parse::<f64>().map_err(|_| bad())? / b.trim().parse::<f64>().map_err(|_| bad())?,
+        Some((a, b)) => {
+            a.trim().parse::<f64>().map_err(|_| bad())?
+                / b.trim().parse::<f64>().map_err(|_| bad())?
+        }
         None => s.parse::<f64>().map_err(|_| bad())?,
     };
     if !(v.is_finite() && v > 0.0) {
-        return Err(ImagingError::InvalidInput(format!("exposure time {s:?} must be positive and finite")));
+        return Err(ImagingError::InvalidInput(format!(
+            "exposure time {s:?} must be positive and finite"
+        )));
     }
     Ok(v)
 }
@@ -39,25 +48,41 @@ pub fn parse_time(s: &str) -> Result<f64, ImagingError> {
 pub fn read_times_file(path: &Path) -> Result<Vec<f64>, ImagingError> {
     let text = std::fs::read_to_string(path).map_err(|e| ImagingError::io(path, e))?;
     text.split_whitespace()
-        .map(|t| parse_time(t).map_err(|e| ImagingError::InvalidInput(format!("{}: {e}", path.display()))))
+        .map(|t| {
+            parse_time(t)
+                .map_err(|e| ImagingError::InvalidInput(format!("{}: {e}", path.display())))
+        })
         .collect()
 }
 
 /// The EXIF `ExposureTime` of an image file (JPEG/TIFF/PNG/...).
 pub fn exif_exposure_time(path: &Path) -> Result<f64, ImagingError> {
-    let err = |msg: String| ImagingError::Exif { path: path.to_path_buf(), msg };
+    let err = |msg: String| ImagingError::Exif {
+        path: path.to_path_buf(),
+        msg,
+    };
     let f = std::fs::File::open(path).map_err(|e| ImagingError::io(path, e))?;
     let mut r = std::io::BufReader::new(f);
     let ex = exif::Reader::new()
         .read_from_container(&mut r)
-        .map_err(|e| err(format!("no EXIF data ({e}); give the exposure times explicitly")))?;
+        .map_err(|e| {
+            err(format!(
+                "no EXIF data ({e}); give the exposure times explicitly"
+            ))
+        })?;
     let field = ex
         .get_field(exif::Tag::ExposureTime, exif::In::PRIMARY)
-        .ok_or_else(|| err("EXIF has no ExposureTime; give the exposure times explicitly".into()))?;
+        .ok_or_else(|| {
+            err("EXIF has no ExposureTime; give the exposure times explicitly".into())
+        })?;
     let v = match &field.value {
         exif::Value::Rational(v) if !v.is_empty() => v[0].to_f64(),
         exif::Value::SRational(v) if !v.is_empty() => v[0].to_f64(),
-        other => return Err(err(format!("ExposureTime has an unexpected type: {other:?}"))),
+        other => {
+            return Err(err(format!(
+                "ExposureTime has an unexpected type: {other:?}"
+            )))
+        }
     };
     if !(v.is_finite() && v > 0.0) {
         return Err(err(format!("ExposureTime {v} is not a positive number")));
@@ -68,8 +93,17 @@ pub fn exif_exposure_time(path: &Path) -> Result<f64, ImagingError> {
 /// Check a bracket set: at least one image, all the same size, one positive finite time per
 /// image, times strictly monotonic (increasing or decreasing; no duplicates).
 /// `names` label the images in error messages.
-pub fn validate_brackets(images: &[HdrImage], times: &[f64], names: &[PathBuf]) -> Result<(), ImagingError> {
-    let name = |i: usize| names.get(i).map(|p| p.display().to_string()).unwrap_or_else(|| format!("bracket {i}"));
+pub fn validate_brackets(
+    images: &[HdrImage],
+    times: &[f64],
+    names: &[PathBuf],
+) -> Result<(), ImagingError> {
+    let name = |i: usize| {
+        names
+            .get(i)
+            .map(|p| p.display().to_string())
+            .unwrap_or_else(|| format!("bracket {i}"))
+    };
     if images.is_empty() {
         return Err(ImagingError::InvalidInput("no brackets given".into()));
     }
@@ -96,13 +130,20 @@ pub fn validate_brackets(images: &[HdrImage], times: &[f64], names: &[PathBuf]) 
     }
     for (i, &t) in times.iter().enumerate() {
         if !(t.is_finite() && t > 0.0) {
-            return Err(ImagingError::InvalidInput(format!("{}: exposure time {t} must be positive and finite", name(i))));
+            return Err(ImagingError::InvalidInput(format!(
+                "{}: exposure time {t} must be positive and finite",
+                name(i)
+            )));
         }
     }
     if times.len() > 1 {
         let inc = times[1] > times[0];
         for i in 1..times.len() {
-            let ok = if inc { times[i] > times[i - 1] } else { times[i] < times[i - 1] };
+            let ok = if inc {
+                times[i] > times[i - 1]
+            } else {
+                times[i] < times[i - 1]
+            };
             if !ok {
                 return Err(ImagingError::InvalidInput(format!(
                     "{}: exposure times must be strictly monotonic with no duplicates (sort the brackets): {} follows {}",
@@ -127,7 +168,10 @@ pub struct LinearParams {
 
 impl Default for LinearParams {
     fn default() -> Self {
-        LinearParams { noise_floor: 0.002, saturation: 0.98 }
+        LinearParams {
+            noise_floor: 0.002,
+            saturation: 0.98,
+        }
     }
 }
 
@@ -169,7 +213,11 @@ pub struct MergeStats {
 }
 
 /// Merge linear-sensor brackets (see the module docs).
-pub fn merge_linear(images: &[HdrImage], times: &[f64], p: LinearParams) -> Result<(HdrImage, MergeStats), ImagingError> {
+pub fn merge_linear(
+    images: &[HdrImage],
+    times: &[f64],
+    p: LinearParams,
+) -> Result<(HdrImage, MergeStats), ImagingError> {
     validate_brackets(images, times, &[])?;
     if !(p.noise_floor < p.saturation) {
         return Err(ImagingError::InvalidInput(format!(
@@ -208,8 +256,99 @@ pub fn merge_linear(images: &[HdrImage], times: &[f64], p: LinearParams) -> Resu
         }
         out.valid[i] = ok;
     }
-    let stats = MergeStats { exposures: images.len(), width: w, height: h, valid_fraction: out.valid_fraction() };
+    let stats = MergeStats {
+        exposures: images.len(),
+        width: w,
+        height: h,
+        valid_fraction: out.valid_fraction(),
+    };
     Ok((out, stats))
+}
+
+/// Usable range for [`merge_slope`], in the images' own units (for a 10-bit sensor stored as
+/// [0, 1]: 5/1023 .. 1000/1023, the paper's 5..1000).
+#[derive(Clone, Copy, Debug)]
+pub struct SlopeParams {
+    pub lo: f32,
+    pub hi: f32,
+}
+
+impl Default for SlopeParams {
+    fn default() -> Self {
+        SlopeParams {
+            lo: 5.0 / 1023.0,
+            hi: 1000.0 / 1023.0,
+        }
+    }
+}
+
+/// Matusik et al. 2002's turntable HDR: per pixel and channel, the least-squares line
+/// `value = offset + slope * time` through the brackets whose value lies in `[lo, hi]`; the
+/// slope is the radiance. With a single usable bracket the line goes through the origin
+/// (`value / time`); with none the pixel is invalid (its value the shortest exposure's
+/// `value / time` for saturated pixels, else 0).
+pub fn merge_slope(
+    images: &[HdrImage],
+    times: &[f64],
+    p: SlopeParams,
+) -> Result<(HdrImage, MergeStats), ImagingError> {
+    validate_brackets(images, times, &[])?;
+    if !(p.lo < p.hi) {
+        return Err(ImagingError::InvalidInput(format!(
+            "slope merge range [{}, {}] is empty",
+            p.lo, p.hi
+        )));
+    }
+    let (w, h) = (images[0].width, images[0].height);
+    let (short, _) = extreme_indices(times);
+    let mut out = HdrImage::new(w, h);
+    for i in 0..w * h {
+        let mut ok = true;
+        for c in 0..3 {
+            let pts: Vec<(f64, f64)> = images
+                .iter()
+                .zip(times)
+                .filter(|(im, _)| im.valid[i] && (p.lo..=p.hi).contains(&im.pixels[i][c]))
+                .map(|(im, &t)| (t, im.pixels[i][c] as f64))
+                .collect();
+            out.pixels[i][c] = match slope_through(&pts) {
+                Some(s) => s as f32,
+                None => {
+                    ok = false;
+                    let zs = images[short].pixels[i][c];
+                    if zs > p.hi {
+                        (zs as f64 / times[short]) as f32
+                    } else {
+                        0.0
+                    }
+                }
+            };
+        }
+        out.valid[i] = ok;
+    }
+    let stats = MergeStats {
+        exposures: images.len(),
+        width: w,
+        height: h,
+        valid_fraction: out.valid_fraction(),
+    };
+    Ok((out, stats))
+}
+
+/// Least-squares slope of `v = a + b t` through the points (through the origin for one point).
+fn slope_through(pts: &[(f64, f64)]) -> Option<f64> {
+    match pts.len() {
+        0 => None,
+        1 => Some(pts[0].1 / pts[0].0),
+        n => {
+            let n = n as f64;
+            let mt = pts.iter().map(|p| p.0).sum::<f64>() / n;
+            let mv = pts.iter().map(|p| p.1).sum::<f64>() / n;
+            let stt: f64 = pts.iter().map(|p| (p.0 - mt) * (p.0 - mt)).sum();
+            let stv: f64 = pts.iter().map(|p| (p.0 - mt) * (p.1 - mv)).sum();
+            (stt > 0.0).then(|| stv / stt)
+        }
+    }
 }
 
 /// Debevec-Malik weight of an 8-bit code value (0 at 0 and 255, peak in the middle).
@@ -239,13 +378,20 @@ pub struct Response {
 impl Response {
     /// The identity-like response of a linear 8-bit sensor, `g(z) = ln(z / 128)` (z >= 1).
     pub fn linear() -> Self {
-        let g: Vec<f64> = (0..LEVELS).map(|z| ((z.max(1)) as f64 / 128.0).ln()).collect();
-        Response { g: [g.clone(), g.clone(), g], lambda: 0.0 }
+        let g: Vec<f64> = (0..LEVELS)
+            .map(|z| ((z.max(1)) as f64 / 128.0).ln())
+            .collect();
+        Response {
+            g: [g.clone(), g.clone(), g],
+            lambda: 0.0,
+        }
     }
 
     /// True if every channel's `g` is non-decreasing over codes `lo..=hi`.
     pub fn is_monotonic_in(&self, lo: u8, hi: u8) -> bool {
-        self.g.iter().all(|g| (lo as usize..hi as usize).all(|z| g[z + 1] >= g[z]))
+        self.g
+            .iter()
+            .all(|g| (lo as usize..hi as usize).all(|z| g[z + 1] >= g[z]))
     }
 
     /// True if every channel's `g` is non-decreasing over all 256 codes.
@@ -262,7 +408,10 @@ impl Response {
     pub fn write_csv(&self, path: &Path) -> Result<(), ImagingError> {
         let mut s = String::from("z,g_r,g_g,g_b\n");
         for z in 0..LEVELS {
-            s.push_str(&format!("{z},{},{},{}\n", self.g[0][z], self.g[1][z], self.g[2][z]));
+            s.push_str(&format!(
+                "{z},{},{},{}\n",
+                self.g[0][z], self.g[1][z], self.g[2][z]
+            ));
         }
         crate::io::write_text_atomic(path, &s)
     }
@@ -281,7 +430,11 @@ pub struct ResponseParams {
 
 impl Default for ResponseParams {
     fn default() -> Self {
-        ResponseParams { lambda: 50.0, samples: 1000, seed: 1 }
+        ResponseParams {
+            lambda: 50.0,
+            samples: 1000,
+            seed: 1,
+        }
     }
 }
 
@@ -297,7 +450,8 @@ fn select_samples(images: &[HdrImage], times: &[f64], c: usize, n: usize, seed: 
             buckets[code_value(mid.pixels[i][c]) as usize].push(i);
         }
     }
-    let mut rng = rand_pcg::Pcg64::seed_from_u64(seed ^ (c as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15));
+    let mut rng =
+        rand_pcg::Pcg64::seed_from_u64(seed ^ (c as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15));
     let nonempty: Vec<usize> = (0..LEVELS).filter(|&z| !buckets[z].is_empty()).collect();
     if nonempty.is_empty() {
         return Vec::new();
@@ -314,13 +468,22 @@ fn select_samples(images: &[HdrImage], times: &[f64], c: usize, n: usize, seed: 
 }
 
 /// Recover the camera response from 8-bit brackets (Debevec & Malik 1997), per channel.
-pub fn recover_response(images: &[HdrImage], times: &[f64], p: ResponseParams) -> Result<Response, ImagingError> {
+pub fn recover_response(
+    images: &[HdrImage],
+    times: &[f64],
+    p: ResponseParams,
+) -> Result<Response, ImagingError> {
     validate_brackets(images, times, &[])?;
     if images.len() < 2 {
-        return Err(ImagingError::InvalidInput("response recovery needs at least 2 brackets".into()));
+        return Err(ImagingError::InvalidInput(
+            "response recovery needs at least 2 brackets".into(),
+        ));
     }
     if !(p.lambda >= 0.0 && p.lambda.is_finite()) || p.samples < 2 {
-        return Err(ImagingError::InvalidInput(format!("bad response parameters {p:?}")));
+        return Err(ImagingError::InvalidInput(format!(
+            "response recovery: smoothness (lambda) must be finite and >= 0 and samples at least 2, got lambda {} and {} samples",
+            p.lambda, p.samples
+        )));
     }
     let mut g: [Vec<f64>; 3] = Default::default();
     for (c, gc) in g.iter_mut().enumerate() {
@@ -368,23 +531,31 @@ pub fn recover_response(images: &[HdrImage], times: &[f64], p: ResponseParams) -
                 }
             }
         }
-        let x = s_mat
-            .svd(true, true)
-            .solve(&rhs, 1e-12)
-            .map_err(|e| ImagingError::InvalidInput(format!("response least squares failed: {e}")))?;
+        let x = s_mat.svd(true, true).solve(&rhs, 1e-12).map_err(|e| {
+            ImagingError::InvalidInput(format!("response least squares failed: {e}"))
+        })?;
         // The data and smoothness rows are invariant under g += const; the weighted g(128) = 0
         // row picks the constant only approximately, so impose it exactly.
         let g128 = x[128];
         *gc = x.iter().take(LEVELS).map(|v| v - g128).collect();
         if gc.iter().any(|v| !v.is_finite()) {
-            return Err(ImagingError::InvalidInput("response recovery produced non-finite values".into()));
+            return Err(ImagingError::InvalidInput(
+                "response recovery produced non-finite values".into(),
+            ));
         }
     }
-    Ok(Response { g, lambda: p.lambda })
+    Ok(Response {
+        g,
+        lambda: p.lambda,
+    })
 }
 
 /// Merge 8-bit brackets with a known response (see the module docs).
-pub fn merge_ldr(images: &[HdrImage], times: &[f64], resp: &Response) -> Result<(HdrImage, MergeStats), ImagingError> {
+pub fn merge_ldr(
+    images: &[HdrImage],
+    times: &[f64],
+    resp: &Response,
+) -> Result<(HdrImage, MergeStats), ImagingError> {
     validate_brackets(images, times, &[])?;
     let (w, h) = (images[0].width, images[0].height);
     let (short, long) = extreme_indices(times);
@@ -418,15 +589,51 @@ pub fn merge_ldr(images: &[HdrImage], times: &[f64], resp: &Response) -> Result<
         }
         out.valid[i] = ok;
     }
-    let stats = MergeStats { exposures: images.len(), width: w, height: h, valid_fraction: out.valid_fraction() };
+    let stats = MergeStats {
+        exposures: images.len(),
+        width: w,
+        height: h,
+        valid_fraction: out.valid_fraction(),
+    };
     Ok((out, stats))
 }
 
 #[cfg(test)]
 mod tests {
-    use super::*;
+    #[test]
+    fn slope_merge_recovers_radiance_despite_a_dark_offset_and_saturation() {
+        // 10-bit sensor: value = (offset + L t) quantised, clipped at 1023
+        let times = [1.0, 4.0, 16.0, 64.0];
+        let radiance = [0.5f64, 5.0, 40.0];
+        let offset = 3.0;
+        let imgs: Vec<HdrImage> = times
+            .iter()
+            .map(|&t| {
+                let mut im = HdrImage::new(3, 1);
+                for (x, &l) in radiance.iter().enumerate() {
+                    let code = ((offset + l * t).round()).min(1023.0);
+                    im.set(x, 0, [(code / 1023.0) as f32; 3]);
+                }
+                im
+            })
+            .collect();
+        let (out, stats) = merge_slope(&imgs, &times, SlopeParams::default()).unwrap();
+        assert_eq!(stats.valid_fraction, 1.0);
+        for (x, &l) in radiance.iter().enumerate() {
+            let got = out.get(x, 0)[0] as f64 * 1023.0;
+            assert!((got / l - 1.0).abs() < 0.02, "pixel {x}: {got} vs {l}");
+        }
+        // a pixel saturated in every bracket is invalid, not NaN
+        let mut sat = imgs.clone();
+        for im in &mut sat {
+            im.set(0, 0, [1.0; 3]);
+        }
+        let (out, _) = merge_slope(&sat, &times, SlopeParams::default()).unwrap();
+        assert!(!out.is_valid(0, 0) && out.get(0, 0)[0].is_finite());
+        assert!(merge_slope(&imgs, &times, SlopeParams { lo: 0.5, hi: 0.1 }).is_err());
+    }
 
-    const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data");
+    use super::*;
 
     /// Smooth radiance field spanning ~2300:1 (11 stops), different per channel. Every pixel
     /// reaches a code of at least ~170 in the longest of the 12 brackets (a pixel whose best
@@ -495,7 +702,8 @@ mod tests {
             for y in 0..h {
                 for x in 0..w {
                     if merged.is_valid(x, y) {
-                        let r = (merged.get(x, y)[c] as f64 * s / radiance(x, y, w, h)[c] - 1.0).abs();
+                        let r =
+                            (merged.get(x, y)[c] as f64 * s / radiance(x, y, w, h)[c] - 1.0).abs();
                         worst = worst.max(r);
                         errs.push(r);
                     }
@@ -504,7 +712,10 @@ mod tests {
         }
         errs.sort_by(|a, b| a.partial_cmp(b).unwrap());
         let p99 = errs[errs.len() * 99 / 100];
-        eprintln!("synthetic Debevec: valid {:.4}, max rel err {worst:.4}, p99 {p99:.4}", stats.valid_fraction);
+        eprintln!(
+            "synthetic Debevec: valid {:.4}, max rel err {worst:.4}, p99 {p99:.4}",
+            stats.valid_fraction
+        );
         assert!(stats.valid_fraction > 0.95);
         // reached: max 1.43 %, p99 0.79 % (lambda 50, 1000 samples, seed 1)
         assert!(worst < 0.02, "max relative error {worst}");
@@ -532,10 +743,12 @@ mod tests {
         let (m, stats) = merge_linear(&imgs, &times, p).unwrap();
         for x in 0..w {
             let e = field(x);
-            let usable = |k: f64| (0..3).all(|i| {
-                let z = (e * k * times[i]).min(1.0);
-                z > p.noise_floor as f64 && z < p.saturation as f64
-            });
+            let usable = |k: f64| {
+                (0..3).all(|i| {
+                    let z = (e * k * times[i]).min(1.0);
+                    z > p.noise_floor as f64 && z < p.saturation as f64
+                })
+            };
             // valid iff every channel is usable in at least one bracket
             let expect_valid = (0..3).all(|c| {
                 let k = [1.0, 0.5, 0.25][c];
@@ -549,7 +762,10 @@ mod tests {
             if expect_valid {
                 let got = m.get(x, 0);
                 for (c, k) in [1.0, 0.5, 0.25].iter().enumerate() {
-                    assert!((got[c] as f64 / (e * k) - 1.0).abs() < 1e-5, "x={x} c={c} got {got:?} e {e}");
+                    assert!(
+                        (got[c] as f64 / (e * k) - 1.0).abs() < 1e-5,
+                        "x={x} c={c} got {got:?} e {e}"
+                    );
                 }
             }
             assert!(m.get(x, 0).iter().all(|v| v.is_finite()));
@@ -563,16 +779,30 @@ mod tests {
     fn bracket_validation_errors() {
         let a = HdrImage::new(4, 4);
         let b = HdrImage::new(4, 5);
-        let names = vec![PathBuf::from("a.png"), PathBuf::from("b.png"), PathBuf::from("c.png")];
-        let e = validate_brackets(&[a.clone(), b], &[1.0, 2.0], &names).unwrap_err().to_string();
+        let names = vec![
+            PathBuf::from("a.png"),
+            PathBuf::from("b.png"),
+            PathBuf::from("c.png"),
+        ];
+        let e = validate_brackets(&[a.clone(), b], &[1.0, 2.0], &names)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("b.png") && e.contains("different sizes"), "{e}");
-        let e = validate_brackets(&[a.clone(), a.clone(), a.clone()], &[1.0, 2.0, 2.0], &names).unwrap_err().to_string();
+        let e = validate_brackets(&[a.clone(), a.clone(), a.clone()], &[1.0, 2.0, 2.0], &names)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("c.png") && e.contains("monotonic"), "{e}");
-        let e = validate_brackets(&[a.clone(), a.clone(), a.clone()], &[1.0, 0.5, 2.0], &names).unwrap_err().to_string();
+        let e = validate_brackets(&[a.clone(), a.clone(), a.clone()], &[1.0, 0.5, 2.0], &names)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("c.png") && e.contains("monotonic"), "{e}");
-        let e = validate_brackets(&[a.clone(), a.clone()], &[1.0], &names).unwrap_err().to_string();
+        let e = validate_brackets(&[a.clone(), a.clone()], &[1.0], &names)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("missing exposure times"), "{e}");
-        let e = validate_brackets(&[a.clone(), a.clone()], &[1.0, -2.0], &names).unwrap_err().to_string();
+        let e = validate_brackets(&[a.clone(), a.clone()], &[1.0, -2.0], &names)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("b.png") && e.contains("positive"), "{e}");
         assert!(validate_brackets(&[a.clone(), a.clone(), a], &[4.0, 2.0, 1.0], &names).is_ok());
         assert!((parse_time("1/1024").unwrap() - 1.0 / 1024.0).abs() < 1e-15);
@@ -581,27 +811,23 @@ mod tests {
 
     #[test]
     fn exif_exposure_time_of_real_jpegs() {
-        let dir = Path::new(DATA).join("mirror_ball_ldr/uiuc_cs445_kagrawal_iphone7");
-        if !dir.exists() {
-            eprintln!("skipping: {} absent", dir.display());
-            return;
-        }
-        for (f, t) in [("ball_10.JPG", 0.1), ("ball_40.JPG", 0.025), ("ball_160.JPG", 0.00625)] {
+        let dir = igi_testkit::shared_data("mirror_ball_ldr/uiuc_cs445_kagrawal_iphone7");
+        for (f, t) in [
+            ("ball_10.JPG", 0.1),
+            ("ball_40.JPG", 0.025),
+            ("ball_160.JPG", 0.00625),
+        ] {
             let got = exif_exposure_time(&dir.join(f)).unwrap();
             assert!((got - t).abs() < 1e-9, "{f}: {got}");
         }
-        let png = Path::new(DATA).join("hdr_bracketed/memorial/memorial0061.png");
+        let png = igi_testkit::shared_data("hdr_bracketed/memorial/memorial0061.png");
         let e = exif_exposure_time(&png).unwrap_err().to_string();
         assert!(e.contains("memorial0061.png"), "{e}");
     }
 
     #[test]
     fn memorial_church_response_and_consistency() {
-        let dir = Path::new(DATA).join("hdr_bracketed/memorial");
-        if !dir.exists() {
-            eprintln!("skipping: {} absent", dir.display());
-            return;
-        }
+        let dir = igi_testkit::shared_data("hdr_bracketed/memorial");
         let times = read_times_file(&dir.join("shutter_times.txt")).unwrap();
         assert_eq!(times.len(), 16);
         let imgs: Vec<HdrImage> = (61..=76)
@@ -656,12 +882,23 @@ mod tests {
             worst_global = worst_global.max(global);
             worst_block_median = worst_block_median.max(med);
         }
-        eprintln!("memorial: worst global {worst_global:.4}, worst block median {worst_block_median:.4}");
-        assert!(worst_global < 0.05, "global relative difference {worst_global}");
-        assert!(worst_block_median < 0.05, "block median relative difference {worst_block_median}");
+        eprintln!(
+            "memorial: worst global {worst_global:.4}, worst block median {worst_block_median:.4}"
+        );
+        assert!(
+            worst_global < 0.05,
+            "global relative difference {worst_global}"
+        );
+        assert!(
+            worst_block_median < 0.05,
+            "block median relative difference {worst_block_median}"
+        );
         let (merged, stats) = merge_ldr(&imgs, &times, &resp).unwrap();
         eprintln!("memorial merge: valid fraction {:.4}", stats.valid_fraction);
         assert!(stats.valid_fraction > 0.99);
-        assert!(merged.pixels.iter().all(|p| p.iter().all(|v| v.is_finite() && *v > 0.0)));
+        assert!(merged
+            .pixels
+            .iter()
+            .all(|p| p.iter().all(|v| v.is_finite() && *v > 0.0)));
     }
 }

@@ -13,7 +13,12 @@ pub struct HdrImage {
 impl HdrImage {
     /// Black image, all pixels valid.
     pub fn new(width: usize, height: usize) -> Self {
-        HdrImage { width, height, pixels: vec![[0.0; 3]; width * height], valid: vec![true; width * height] }
+        HdrImage {
+            width,
+            height,
+            pixels: vec![[0.0; 3]; width * height],
+            valid: vec![true; width * height],
+        }
     }
 
     #[inline]
@@ -109,7 +114,9 @@ mod tests {
             }
         }
         let v = im.bilinear(1.25, 0.5).unwrap();
-        assert!((v[0] - 1.25).abs() < 1e-6 && (v[1] - 0.5).abs() < 1e-6 && (v[2] - 4.0).abs() < 1e-5);
+        assert!(
+            (v[0] - 1.25).abs() < 1e-6 && (v[1] - 0.5).abs() < 1e-6 && (v[2] - 4.0).abs() < 1e-5
+        );
         // Exactly on the last pixel centre is inside.
         let v = im.bilinear(3.0, 2.0).unwrap();
         assert_eq!(v, [3.0, 2.0, 12.0]);

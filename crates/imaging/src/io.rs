@@ -18,16 +18,26 @@ pub fn write_atomic(
         .ok_or_else(|| ImagingError::InvalidInput(format!("{}: not a file path", path.display())))?
         .to_string_lossy()
         .into_owned();
-    if !dir.is_dir() {
-        return Err(ImagingError::io(
-            path,
-            std::io::Error::new(std::io::ErrorKind::NotFound, "output folder does not exist"),
-        ));
-    }
+    check_folder_path(&dir)?;
     // Keep the extension last so extension-sniffing writers still work.
     static COUNTER: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
     let n = COUNTER.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-    let tmp = dir.join(format!(".{}.tmp{}-{}.{}", name, std::process::id(), n, ext_of(path)));
+    let tmp = dir.join(format!(
+        ".{}.tmp{}-{}.{}",
+        name,
+        std::process::id(),
+        n,
+        ext_of(path)
+    ));
+    // create it first, so an unwritable folder is reported as such (not as an encoder error)
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&tmp)
+        .map_err(|e| ImagingError::NotWritable {
+            path: dir.clone(),
+            source: e,
+        })?;
     let result = write(&tmp);
     match result {
         Ok(()) => std::fs::rename(&tmp, path).map_err(|e| {
@@ -41,13 +51,158 @@ pub fn write_atomic(
     }
 }
 
+/// Checks that `dir` is, or can become, a writable folder, without creating anything: an
+/// existing `dir` must be a folder we can create files in; otherwise its nearest existing
+/// ancestor must be a writable folder (not a file). Call it before the first byte of work.
+pub fn check_output_folder(dir: &Path) -> Result<(), ImagingError> {
+    let dir = if dir.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        dir
+    };
+    let mut at = dir;
+    loop {
+        if at.exists() {
+            break;
+        }
+        match at.parent() {
+            Some(p) if !p.as_os_str().is_empty() => at = p,
+            _ => {
+                at = Path::new(".");
+                break;
+            }
+        }
+    }
+    if !at.is_dir() {
+        return Err(ImagingError::NotAFolder {
+            path: at.to_path_buf(),
+            wanted: dir.to_path_buf(),
+        });
+    }
+    let probe = at.join(format!(".igi-probe.tmp{}-0.", std::process::id()));
+    match std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&probe)
+    {
+        Ok(_) => {
+            let _ = std::fs::remove_file(&probe);
+            Ok(())
+        }
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => Ok(()),
+        Err(e) => Err(ImagingError::NotWritable {
+            path: at.to_path_buf(),
+            source: e,
+        }),
+    }
+}
+
+/// Checks, before any work, that a file can be written at `path`: its folder exists, is a
+/// folder and is writable, and `path` is not itself a folder.
+pub fn check_output_file(path: &Path) -> Result<(), ImagingError> {
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    check_folder_path(&dir)?;
+    if path.is_dir() {
+        return Err(ImagingError::InvalidInput(format!(
+            "{}: is a folder, not a file name",
+            path.display()
+        )));
+    }
+    check_output_folder(&dir)
+}
+
+/// The folder a file is written into must exist and be a folder.
+fn check_folder_path(dir: &Path) -> Result<(), ImagingError> {
+    if dir.is_dir() {
+        return Ok(());
+    }
+    let mut at = dir;
+    while let Some(p) = at.parent() {
+        if p.as_os_str().is_empty() {
+            break;
+        }
+        if p.exists() && !p.is_dir() {
+            return Err(ImagingError::NotAFolder {
+                path: p.to_path_buf(),
+                wanted: dir.to_path_buf(),
+            });
+        }
+        at = p;
+    }
+    if dir.exists() {
+        return Err(ImagingError::NotAFolder {
+            path: dir.to_path_buf(),
+            wanted: dir.to_path_buf(),
+        });
+    }
+    Err(ImagingError::NoFolder {
+        path: dir.to_path_buf(),
+    })
+}
+
+/// Removes the temporary files that [`write_atomic`] left in `dir` (and, with `recursive`, in
+/// its sub-folders) when its process was killed: names `.NAME.tmpPID-N.EXT` whose process is no
+/// longer running (judged by `/proc/PID`; where there is no `/proc`, every such file counts as
+/// dead, except those of this process). Returns how many were removed.
+pub fn remove_dead_temps(dir: &Path, recursive: bool) -> Result<usize, ImagingError> {
+    let mut removed = 0;
+    let entries = match std::fs::read_dir(dir) {
+        Ok(e) => e,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(0),
+        Err(e) => return Err(ImagingError::io(dir, e)),
+    };
+    for entry in entries {
+        let entry = entry.map_err(|e| ImagingError::io(dir, e))?;
+        let path = entry.path();
+        let kind = entry.file_type().map_err(|e| ImagingError::io(&path, e))?;
+        if kind.is_dir() {
+            if recursive {
+                removed += remove_dead_temps(&path, true)?;
+            }
+            continue;
+        }
+        let name = entry.file_name().to_string_lossy().into_owned();
+        if let Some(pid) = temp_owner(&name) {
+            let alive =
+                pid == std::process::id() || Path::new("/proc").join(pid.to_string()).exists();
+            if !alive {
+                std::fs::remove_file(&path).map_err(|e| ImagingError::io(&path, e))?;
+                removed += 1;
+            }
+        }
+    }
+    Ok(removed)
+}
+
+/// The process id in a [`write_atomic`] temp name `.NAME.tmpPID-N.EXT`, if `name` is one.
+fn temp_owner(name: &str) -> Option<u32> {
+    if !name.starts_with('.') {
+        return None;
+    }
+    let at = name.rfind(".tmp")?;
+    let rest = &name[at + 4..];
+    let (pid, rest) = rest.split_once('-')?;
+    let n = rest.split('.').next()?;
+    if pid.is_empty() || n.is_empty() || !n.bytes().all(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    pid.parse().ok()
+}
+
 /// Write text to `path` atomically (see [`write_atomic`]).
 pub fn write_text_atomic(path: &Path, text: &str) -> Result<(), ImagingError> {
-    write_atomic(path, |tmp| std::fs::write(tmp, text).map_err(|e| ImagingError::io(path, e)))
+    write_atomic(path, |tmp| {
+        std::fs::write(tmp, text).map_err(|e| ImagingError::io(path, e))
+    })
 }
 
 fn ext_of(path: &Path) -> String {
-    path.extension().map(|e| e.to_string_lossy().to_lowercase()).unwrap_or_default()
+    path.extension()
+        .map(|e| e.to_string_lossy().to_lowercase())
+        .unwrap_or_default()
 }
 
 /// Read an image as linear `f32` RGB. EXR (RGB, RGBA, B/G/R in any order, half or float, any
@@ -58,7 +213,12 @@ pub fn read_image(path: &Path) -> Result<HdrImage, ImagingError> {
     let ext = ext_of(path);
     match ext.as_str() {
         "exr" | "hdr" | "png" | "jpg" | "jpeg" | "tif" | "tiff" => {}
-        _ => return Err(ImagingError::UnknownFormat { path: path.to_path_buf(), ext }),
+        _ => {
+            return Err(ImagingError::UnknownFormat {
+                path: path.to_path_buf(),
+                ext,
+            })
+        }
     }
     if !path.exists() {
         return Err(ImagingError::io(
@@ -66,7 +226,11 @@ pub fn read_image(path: &Path) -> Result<HdrImage, ImagingError> {
             std::io::Error::new(std::io::ErrorKind::NotFound, "file not found"),
         ));
     }
-    let img = if ext == "exr" { read_exr(path)? } else { read_with_image_crate(path)? };
+    let img = if ext == "exr" {
+        read_exr(path)?
+    } else {
+        read_with_image_crate(path)?
+    };
     check_finite(path, &img)?;
     Ok(img)
 }
@@ -85,14 +249,19 @@ fn check_finite(path: &Path, img: &HdrImage) -> Result<(), ImagingError> {
     if let Some((x, y, v)) = first {
         return Err(ImagingError::BadPixels {
             path: path.to_path_buf(),
-            msg: format!("{bad} pixel(s) with NaN or infinite values, first at (x={x}, y={y}) = {v:?}"),
+            msg: format!(
+                "{bad} pixel(s) with NaN or infinite values, first at (x={x}, y={y}) = {v:?}"
+            ),
         });
     }
     Ok(())
 }
 
 fn read_with_image_crate(path: &Path) -> Result<HdrImage, ImagingError> {
-    let dec = |e: ::image::ImageError| ImagingError::Decode { path: path.to_path_buf(), msg: e.to_string() };
+    let dec = |e: ::image::ImageError| ImagingError::Decode {
+        path: path.to_path_buf(),
+        msg: e.to_string(),
+    };
     let reader = ::image::ImageReader::open(path)
         .map_err(|e| ImagingError::io(path, e))?
         .with_guessed_format()
@@ -109,7 +278,10 @@ fn read_with_image_crate(path: &Path) -> Result<HdrImage, ImagingError> {
 
 fn read_exr(path: &Path) -> Result<HdrImage, ImagingError> {
     use exr::prelude::*;
-    let dec = |msg: String| ImagingError::Decode { path: path.to_path_buf(), msg };
+    let dec = |msg: String| ImagingError::Decode {
+        path: path.to_path_buf(),
+        msg,
+    };
     let image = read()
         .no_deep_data()
         .largest_resolution_level()
@@ -118,9 +290,8 @@ fn read_exr(path: &Path) -> Result<HdrImage, ImagingError> {
         .all_attributes()
         .from_file(path)
         .map_err(|e| dec(e.to_string()))?;
-    let base = |name: &str| -> String {
-        name.rsplit('.').next().unwrap_or(name).to_ascii_lowercase()
-    };
+    let base =
+        |name: &str| -> String { name.rsplit('.').next().unwrap_or(name).to_ascii_lowercase() };
     for layer in &image.layer_data {
         let chans = &layer.channel_data.list;
         let find = |n: &str| chans.iter().find(|c| base(&c.name.to_string()) == n);
@@ -134,7 +305,12 @@ fn read_exr(path: &Path) -> Result<HdrImage, ImagingError> {
         let mut out = HdrImage::new(w, h);
         for (c, ch) in [r, g, b].into_iter().enumerate() {
             if ch.sample_data.len() != n {
-                return Err(dec(format!("channel {} has {} samples, expected {}", ch.name, ch.sample_data.len(), n)));
+                return Err(dec(format!(
+                    "channel {} has {} samples, expected {}",
+                    ch.name,
+                    ch.sample_data.len(),
+                    n
+                )));
             }
             for (i, v) in ch.sample_data.values_as_f32().enumerate() {
                 out.pixels[i][c] = v;
@@ -154,16 +330,25 @@ fn read_exr(path: &Path) -> Result<HdrImage, ImagingError> {
         .iter()
         .flat_map(|l| l.channel_data.list.iter().map(|c| c.name.to_string()))
         .collect();
-    Err(dec(format!("no R,G,B or Y channels found (channels: {names:?})")))
+    Err(dec(format!(
+        "no R,G,B or Y channels found (channels: {names:?})"
+    )))
 }
 
 fn check_dims(path: &Path, img: &HdrImage) -> Result<(), ImagingError> {
-    if img.width == 0 || img.height == 0 || img.pixels.len() != img.width * img.height || img.valid.len() != img.pixels.len() {
+    if img.width == 0
+        || img.height == 0
+        || img.pixels.len() != img.width * img.height
+        || img.valid.len() != img.pixels.len()
+    {
         return Err(ImagingError::Encode {
             path: path.to_path_buf(),
             msg: format!(
                 "inconsistent image: {}x{} with {} pixels and {} mask entries",
-                img.width, img.height, img.pixels.len(), img.valid.len()
+                img.width,
+                img.height,
+                img.pixels.len(),
+                img.valid.len()
             ),
         });
     }
@@ -173,19 +358,75 @@ fn check_dims(path: &Path, img: &HdrImage) -> Result<(), ImagingError> {
 /// Write a linear `f32` RGB OpenEXR file (ZIP compression), atomically. If any pixel is invalid an
 /// extra channel `valid` (0/1) carries the mask. Non-finite values are refused.
 pub fn write_exr(path: &Path, img: &HdrImage) -> Result<(), ImagingError> {
+    write_exr_channels(path, img, None)
+}
+
+/// Write an RGBA OpenEXR file (FORMATS.md: colour premultiplied by alpha, the EXR convention;
+/// the caller passes premultiplied colour), atomically. `alpha` has one value per pixel.
+pub fn write_exr_rgba(path: &Path, img: &HdrImage, alpha: &[f32]) -> Result<(), ImagingError> {
+    if alpha.len() != img.pixels.len() || alpha.iter().any(|a| !a.is_finite()) {
+        return Err(ImagingError::Encode {
+            path: path.to_path_buf(),
+            msg: format!(
+                "alpha has {} finite values for {} pixels",
+                alpha.iter().filter(|a| a.is_finite()).count(),
+                img.pixels.len()
+            ),
+        });
+    }
+    write_exr_channels(path, img, Some(alpha))
+}
+
+/// The alpha channel (`A`) of an EXR file, or `None` when it has none.
+pub fn read_exr_alpha(path: &Path) -> Result<Option<Vec<f32>>, ImagingError> {
+    use exr::prelude::*;
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_file(path)
+        .map_err(|e| ImagingError::Decode {
+            path: path.to_path_buf(),
+            msg: e.to_string(),
+        })?;
+    let chans = &image.layer_data.channel_data.list;
+    Ok(chans
+        .iter()
+        .find(|c| c.name.to_string().rsplit('.').next() == Some("A"))
+        .map(|c| c.sample_data.values_as_f32().collect()))
+}
+
+fn write_exr_channels(
+    path: &Path,
+    img: &HdrImage,
+    alpha: Option<&[f32]>,
+) -> Result<(), ImagingError> {
     use exr::prelude::*;
     check_dims(path, img)?;
     check_finite(path, img)?;
     let mut list: Vec<AnyChannel<FlatSamples>> = (0..3)
         .map(|c| {
             let name = ["R", "G", "B"][c];
-            AnyChannel::new(name, FlatSamples::F32(img.pixels.iter().map(|p| p[c]).collect()))
+            AnyChannel::new(
+                name,
+                FlatSamples::F32(img.pixels.iter().map(|p| p[c]).collect()),
+            )
         })
         .collect();
+    if let Some(a) = alpha {
+        list.push(AnyChannel::new("A", FlatSamples::F32(a.to_vec())));
+    }
     if img.valid.iter().any(|v| !v) {
         list.push(AnyChannel::new(
             "valid",
-            FlatSamples::F32(img.valid.iter().map(|&v| if v { 1.0 } else { 0.0 }).collect()),
+            FlatSamples::F32(
+                img.valid
+                    .iter()
+                    .map(|&v| if v { 1.0 } else { 0.0 })
+                    .collect(),
+            ),
         ));
     }
     let layer = Layer::new(
@@ -199,7 +440,10 @@ pub fn write_exr(path: &Path, img: &HdrImage) -> Result<(), ImagingError> {
         image
             .write()
             .to_file(tmp)
-            .map_err(|e| ImagingError::Encode { path: path.to_path_buf(), msg: e.to_string() })
+            .map_err(|e| ImagingError::Encode {
+                path: path.to_path_buf(),
+                msg: e.to_string(),
+            })
     })
 }
 
@@ -207,18 +451,24 @@ pub fn write_exr(path: &Path, img: &HdrImage) -> Result<(), ImagingError> {
 pub fn write_hdr(path: &Path, img: &HdrImage) -> Result<(), ImagingError> {
     check_dims(path, img)?;
     check_finite(path, img)?;
-    let data: Vec<::image::Rgb<f32>> =
-        img.pixels.iter().map(|p| ::image::Rgb([p[0].max(0.0), p[1].max(0.0), p[2].max(0.0)])).collect();
+    let data: Vec<::image::Rgb<f32>> = img
+        .pixels
+        .iter()
+        .map(|p| ::image::Rgb([p[0].max(0.0), p[1].max(0.0), p[2].max(0.0)]))
+        .collect();
     write_atomic(path, |tmp| {
         let f = std::fs::File::create(tmp).map_err(|e| ImagingError::io(path, e))?;
         let w = std::io::BufWriter::new(f);
         ::image::codecs::hdr::HdrEncoder::new(w)
             .encode(&data, img.width, img.height)
-            .map_err(|e| ImagingError::Encode { path: path.to_path_buf(), msg: e.to_string() })
+            .map_err(|e| ImagingError::Encode {
+                path: path.to_path_buf(),
+                msg: e.to_string(),
+            })
     })
 }
 
-/// sRGB transfer function (linear [0,1] -> encoded [0,1]).
+/// sRGB transfer function (linear [0, 1] -> encoded [0, 1]).
 pub fn linear_to_srgb(x: f32) -> f32 {
     let x = x.clamp(0.0, 1.0);
     if x <= 0.003_130_8 {
@@ -228,7 +478,7 @@ pub fn linear_to_srgb(x: f32) -> f32 {
     }
 }
 
-/// Inverse sRGB transfer function (encoded [0,1] -> linear).
+/// Inverse sRGB transfer function (encoded [0, 1] -> linear).
 pub fn srgb_to_linear(x: f32) -> f32 {
     let x = x.clamp(0.0, 1.0);
     if x <= 0.040_45 {
@@ -239,10 +489,17 @@ pub fn srgb_to_linear(x: f32) -> f32 {
 }
 
 /// Write an 8-bit sRGB PNG preview: pixel * `exposure`, clipped to [0, 1], sRGB-encoded.
-pub fn write_png_tonemapped(path: &Path, img: &HdrImage, exposure: f32) -> Result<(), ImagingError> {
+pub fn write_png_tonemapped(
+    path: &Path,
+    img: &HdrImage,
+    exposure: f32,
+) -> Result<(), ImagingError> {
     check_dims(path, img)?;
     if !exposure.is_finite() {
-        return Err(ImagingError::InvalidInput(format!("{}: exposure {exposure} is not finite", path.display())));
+        return Err(ImagingError::InvalidInput(format!(
+            "{}: exposure {exposure} is not finite",
+            path.display()
+        )));
     }
     let mut buf = Vec::with_capacity(img.pixels.len() * 3);
     for p in &img.pixels {
@@ -260,21 +517,46 @@ pub fn write_png_tonemapped(path: &Path, img: &HdrImage, exposure: f32) -> Resul
             ::image::ExtendedColorType::Rgb8,
             ::image::ImageFormat::Png,
         )
-        .map_err(|e| ImagingError::Encode { path: path.to_path_buf(), msg: e.to_string() })
+        .map_err(|e| ImagingError::Encode {
+            path: path.to_path_buf(),
+            msg: e.to_string(),
+        })
     })
 }
 
 #[cfg(test)]
 mod tests {
-    use super::*;
+    #[test]
+    fn rgba_exr_round_trips_alpha() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("a.exr");
+        let mut img = HdrImage::new(3, 2);
+        img.set(1, 0, [0.25, 0.5, 0.125]);
+        let alpha = vec![0.0, 0.5, 1.0, 0.25, 0.0, 1.0];
+        write_exr_rgba(&p, &img, &alpha).unwrap();
+        assert_eq!(read_exr_alpha(&p).unwrap(), Some(alpha));
+        assert_eq!(read_image(&p).unwrap(), img);
+        assert!(write_exr_rgba(&p, &img, &[0.0; 5]).is_err());
+        let q = dir.path().join("b.exr");
+        write_exr(&q, &img).unwrap();
+        assert_eq!(read_exr_alpha(&q).unwrap(), None);
+    }
 
-    const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data");
+    use super::*;
 
     fn test_image() -> HdrImage {
         let mut im = HdrImage::new(5, 3);
         for y in 0..3 {
             for x in 0..5 {
-                im.set(x, y, [x as f32 * 0.5, y as f32 * 100.0 + 0.25, 1e-3 * (x + y) as f32]);
+                im.set(
+                    x,
+                    y,
+                    [
+                        x as f32 * 0.5,
+                        y as f32 * 100.0 + 0.25,
+                        1e-3 * (x + y) as f32,
+                    ],
+                );
             }
         }
         im
@@ -308,7 +590,10 @@ mod tests {
             let m = a.iter().cloned().fold(0.0f32, f32::max);
             for c in 0..3 {
                 // RGBE: 8-bit mantissa relative to the largest channel
-                assert!((a[c] - b[c]).abs() <= m * 1.0 / 128.0 + 1e-6, "{a:?} vs {b:?}");
+                assert!(
+                    (a[c] - b[c]).abs() <= m * 1.0 / 128.0 + 1e-6,
+                    "{a:?} vs {b:?}"
+                );
             }
         }
     }
@@ -331,10 +616,20 @@ mod tests {
 
     #[test]
     fn errors_name_file_and_problem() {
-        let e = read_image(Path::new("/nonexistent/x.exr")).unwrap_err().to_string();
-        assert!(e.contains("/nonexistent/x.exr") && e.contains("not found"), "{e}");
-        let e = read_image(Path::new("/tmp/foo.bmpx")).unwrap_err().to_string();
-        assert!(e.contains("foo.bmpx") && e.contains("unknown image format"), "{e}");
+        let e = read_image(Path::new("/nonexistent/x.exr"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("/nonexistent/x.exr") && e.contains("not found"),
+            "{e}"
+        );
+        let e = read_image(Path::new("/tmp/foo.bmpx"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("foo.bmpx") && e.contains("unknown image format"),
+            "{e}"
+        );
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("garbage.png");
         std::fs::write(&p, b"not a png").unwrap();
@@ -347,15 +642,44 @@ mod tests {
         use exr::prelude::*;
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("nan.exr");
-        write_rgb_file(&p, 4, 4, |x, y| if (x, y) == (2, 1) { (f32::NAN, 0.0, 0.0) } else { (1.0, 1.0, 1.0) }).unwrap();
+        write_rgb_file(&p, 4, 4, |x, y| {
+            if (x, y) == (2, 1) {
+                (f32::NAN, 0.0, 0.0)
+            } else {
+                (1.0, 1.0, 1.0)
+            }
+        })
+        .unwrap();
         let e = read_image(&p).unwrap_err().to_string();
-        assert!(e.contains("nan.exr") && e.contains("NaN") && e.contains("x=2, y=1"), "{e}");
+        assert!(
+            e.contains("nan.exr") && e.contains("NaN") && e.contains("x=2, y=1"),
+            "{e}"
+        );
         // and we refuse to write such data, leaving nothing behind
         let mut im = HdrImage::new(2, 2);
         im.pixels[0][1] = f32::INFINITY;
         let q = dir.path().join("out.exr");
         assert!(write_exr(&q, &im).is_err());
         assert!(!q.exists());
+    }
+
+    #[test]
+    fn dead_temps_are_removed_and_live_ones_kept() {
+        let dir = tempfile::tempdir().unwrap();
+        let sub = dir.path().join("voxels/0_0_0");
+        std::fs::create_dir_all(&sub).unwrap();
+        // pid 4194305 exceeds Linux's pid_max (2^22), so it is never running
+        let dead = sub.join(".level0.ply.tmp4194305-3.ply");
+        let mine = sub.join(format!(".a.exr.tmp{}-0.exr", std::process::id()));
+        let other = sub.join(".notes.tmp-draft");
+        for p in [&dead, &mine, &other] {
+            std::fs::write(p, "x").unwrap();
+        }
+        assert_eq!(remove_dead_temps(dir.path(), false).unwrap(), 0);
+        assert_eq!(remove_dead_temps(dir.path(), true).unwrap(), 1);
+        assert!(!dead.exists() && mine.exists() && other.exists());
+        assert_eq!(temp_owner(".x.tmp12-7."), Some(12));
+        assert_eq!(temp_owner("x.tmp12-7.exr"), None);
     }
 
     #[test]
@@ -368,26 +692,33 @@ mod tests {
         });
         assert!(r.is_err());
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
-        write_atomic(&p, |tmp| std::fs::write(tmp, "ok").map_err(|e| ImagingError::io(tmp, e))).unwrap();
+        write_atomic(&p, |tmp| {
+            std::fs::write(tmp, "ok").map_err(|e| ImagingError::io(tmp, e))
+        })
+        .unwrap();
         assert_eq!(std::fs::read_to_string(&p).unwrap(), "ok");
     }
 
     #[test]
     fn reads_real_bgr_half_piz_exr_and_rgbe_probe() {
-        let exr = Path::new(DATA).join("light_probes/pbrt_v2/grace_latlong.exr");
-        if !exr.exists() {
-            eprintln!("skipping: {} absent", exr.display());
-            return;
-        }
+        let exr = igi_testkit::shared_data("light_probes/pbrt_v2/grace_latlong.exr");
         let im = read_image(&exr).unwrap();
         assert_eq!((im.width, im.height), (1024, 512));
-        let mean: f64 = im.pixels.iter().map(|p| (p[0] + p[1] + p[2]) as f64 / 3.0).sum::<f64>() / im.pixels.len() as f64;
+        let mean: f64 = im
+            .pixels
+            .iter()
+            .map(|p| (p[0] + p[1] + p[2]) as f64 / 3.0)
+            .sum::<f64>()
+            / im.pixels.len() as f64;
         assert!(mean > 0.01 && mean < 100.0, "mean {mean}");
         assert!(im.pixels.iter().all(|p| p.iter().all(|c| *c >= 0.0)));
         // Grace cathedral is warm (tungsten-lit): R channel mean exceeds B: checks channel order
-        let (r, b): (f64, f64) = im.pixels.iter().fold((0.0, 0.0), |a, p| (a.0 + p[0] as f64, a.1 + p[2] as f64));
+        let (r, b): (f64, f64) = im
+            .pixels
+            .iter()
+            .fold((0.0, 0.0), |a, p| (a.0 + p[0] as f64, a.1 + p[2] as f64));
         assert!(r > b * 1.1, "r {r} b {b}");
-        let hdr = Path::new(DATA).join("light_probes/probulator_latlong_256x128/grace.hdr");
+        let hdr = igi_testkit::shared_data("light_probes/probulator_latlong_256x128/grace.hdr");
         let im2 = read_image(&hdr).unwrap();
         assert_eq!((im2.width, im2.height), (256, 128));
     }

@@ -37,7 +37,10 @@ pub fn uv_to_direction(u: f32, v: f32) -> Vec3 {
 
 /// Direction of the centre of the pixel in row `i_row`, column `j_col` of a `w` x `h` map.
 pub fn pixel_center_direction(i_row: usize, j_col: usize, w: usize, h: usize) -> Vec3 {
-    uv_to_direction((j_col as f32 + 0.5) / w as f32, (i_row as f32 + 0.5) / h as f32)
+    uv_to_direction(
+        (j_col as f32 + 0.5) / w as f32,
+        (i_row as f32 + 0.5) / h as f32,
+    )
 }
 
 /// Continuous pixel coordinates (x, y) of a direction in a `w` x `h` map.
@@ -73,7 +76,9 @@ mod tests {
         let d = pixel_center_direction(0, 0, 8, 4);
         let th = PI * 0.5 / 4.0;
         let ph = 2.0 * PI * 0.5 / 8.0;
-        assert!((d - Vec3::new(th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos())).length() < 1e-6);
+        assert!(
+            (d - Vec3::new(th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos())).length() < 1e-6
+        );
     }
 
     #[test]
@@ -83,7 +88,10 @@ mod tests {
                 let d = pixel_center_direction(i, j, 32, 16);
                 assert!((d.length() - 1.0).abs() < 1e-5);
                 let (x, y) = direction_to_pixel(d, 32, 16);
-                assert!((x - j as f32).abs() < 1e-3 && (y - i as f32).abs() < 1e-3, "{i} {j} {x} {y}");
+                assert!(
+                    (x - j as f32).abs() < 1e-3 && (y - i as f32).abs() < 1e-3,
+                    "{i} {j} {x} {y}"
+                );
             }
         }
         let total: f32 = (0..16).map(|i| 32.0 * pixel_solid_angle(i, 32, 16)).sum();

@@ -9,11 +9,17 @@
 //! * [`camera`]: OpenCV pinhole camera with (k1, k2, p1, p2, k3) distortion, typed poses
 //!   ([`WorldToCamera`], [`CameraToWorld`]), JSON load/save, projection, pixel rays and
 //!   image undistortion.
-//! * [`hdr`]: merging exposure brackets (linear sensors, or LDR via Debevec & Malik 1997
-//!   response recovery), EXIF exposure times.
+//! * [`hdr`]: merging exposure brackets (linear sensors, the least-squares slope of Matusik
+//!   et al. 2002, or LDR via Debevec & Malik 1997 response recovery), EXIF exposure times.
 //! * [`radiometry`]: lens falloff (vignetting) polynomial fit and 3x3 colour matrices.
 //! * [`planar`]: pure-Rust homography (normalised DLT) and the pose of a plane from four or
 //!   more points (no OpenCV needed).
+//! * [`rig`]: the multi-view capture file `rig.toml` (FORMATS.md) with paths resolved
+//!   against its folder.
+//! * [`mask`]: binary masks (threshold, disk dilation and erosion, hole filling up to an area,
+//!   frame contact, IoU).
+//! * [`run`]: run manifests (`run.json`): input fingerprints and result-changing options, so
+//!   a resumed command never mixes two runs' work.
 //! * [`plot`]: font registration for plotters (diagnostic plots).
 //! * [`cv`]: OpenCV-backed calibration, PnP, homography and ArUco detection (cargo feature
 //!   `opencv`; without it the same functions return [`ImagingError::NoOpenCv`]).
@@ -31,11 +37,19 @@ pub mod hdr;
 mod image;
 pub mod io;
 pub mod latlong;
+pub mod mask;
 pub mod planar;
 pub mod plot;
 pub mod radiometry;
+pub mod rig;
+pub mod run;
 
 pub use camera::{Camera, CameraToWorld, Distortion, Intrinsics, WorldToCamera};
 pub use error::ImagingError;
 pub use image::HdrImage;
-pub use io::{read_image, write_exr, write_hdr, write_png_tonemapped};
+pub use io::{
+    read_exr_alpha, read_image, write_exr, write_exr_rgba, write_hdr, write_png_tonemapped,
+};
+pub use mask::Mask;
+pub use rig::Rig;
+pub use run::{Fingerprint, RunManifest};

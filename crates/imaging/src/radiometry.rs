@@ -34,10 +34,18 @@ impl Falloff {
     /// Returns the falloff and `s`.
     pub fn fit(samples: &[(f64, f64)]) -> Result<(Falloff, f64), ImagingError> {
         if samples.len() < 4 {
-            return Err(ImagingError::InvalidInput(format!("falloff fit needs at least 4 samples, got {}", samples.len())));
+            return Err(ImagingError::InvalidInput(format!(
+                "falloff fit needs at least 4 samples, got {}",
+                samples.len()
+            )));
         }
-        if samples.iter().any(|(r, v)| !r.is_finite() || !v.is_finite()) {
-            return Err(ImagingError::InvalidInput("falloff samples contain NaN or infinite values".into()));
+        if samples
+            .iter()
+            .any(|(r, v)| !r.is_finite() || !v.is_finite())
+        {
+            return Err(ImagingError::InvalidInput(
+                "falloff samples contain NaN or infinite values".into(),
+            ));
         }
         let mut a = DMatrix::<f64>::zeros(samples.len(), 4);
         let mut b = DVector::<f64>::zeros(samples.len());
@@ -49,15 +57,23 @@ impl Falloff {
             a[(i, 3)] = r2 * r2 * r2;
             b[i] = v;
         }
-        let x = a
-            .svd(true, true)
-            .solve(&b, 1e-12)
-            .map_err(|e| ImagingError::InvalidInput(format!("falloff least squares failed: {e}")))?;
+        let x = a.svd(true, true).solve(&b, 1e-12).map_err(|e| {
+            ImagingError::InvalidInput(format!("falloff least squares failed: {e}"))
+        })?;
         let s = x[0];
         if !(s.abs() > 0.0) || !s.is_finite() {
-            return Err(ImagingError::InvalidInput("falloff fit: centre value is zero (flat field too dark?)".into()));
+            return Err(ImagingError::InvalidInput(
+                "falloff fit: centre value is zero (flat field too dark?)".into(),
+            ));
         }
-        Ok((Falloff { a2: x[1] / s, a4: x[2] / s, a6: x[3] / s }, s))
+        Ok((
+            Falloff {
+                a2: x[1] / s,
+                a4: x[2] / s,
+                a6: x[3] / s,
+            },
+            s,
+        ))
     }
 
     /// Fit to a flat-field image (mean of the three channels of every valid pixel).
@@ -82,7 +98,9 @@ impl Falloff {
     pub fn vignette(&self, img: &mut HdrImage) {
         for y in 0..img.height {
             for x in 0..img.width {
-                let f = self.eval(Self::radius(x as f64, y as f64, img.width, img.height)).max(0.0) as f32;
+                let f = self
+                    .eval(Self::radius(x as f64, y as f64, img.width, img.height))
+                    .max(0.0) as f32;
                 let i = img.index(x, y);
                 img.pixels[i] = img.pixels[i].map(|c| c * f);
             }
@@ -111,7 +129,10 @@ impl Falloff {
 /// Least-squares 3x3 colour matrix `M` with `target ~= M * source` (e.g. camera RGB of
 /// colour-checker patches -> their reference linear RGB). Needs at least 3 pairs spanning
 /// colour space.
-pub fn fit_color_matrix(source: &[[f64; 3]], target: &[[f64; 3]]) -> Result<[[f64; 3]; 3], ImagingError> {
+pub fn fit_color_matrix(
+    source: &[[f64; 3]],
+    target: &[[f64; 3]],
+) -> Result<[[f64; 3]; 3], ImagingError> {
     if source.len() != target.len() {
         return Err(ImagingError::InvalidInput(format!(
             "colour matrix: {} source patches but {} targets",
@@ -120,10 +141,19 @@ pub fn fit_color_matrix(source: &[[f64; 3]], target: &[[f64; 3]]) -> Result<[[f6
         )));
     }
     if source.len() < 3 {
-        return Err(ImagingError::InvalidInput("colour matrix needs at least 3 patches".into()));
+        return Err(ImagingError::InvalidInput(
+            "colour matrix needs at least 3 patches".into(),
+        ));
     }
-    if source.iter().chain(target).flatten().any(|v| !v.is_finite()) {
-        return Err(ImagingError::InvalidInput("colour patches contain NaN or infinite values".into()));
+    if source
+        .iter()
+        .chain(target)
+        .flatten()
+        .any(|v| !v.is_finite())
+    {
+        return Err(ImagingError::InvalidInput(
+            "colour patches contain NaN or infinite values".into(),
+        ));
     }
     let n = source.len();
     let a = DMatrix::<f64>::from_fn(n, 3, |i, j| source[i][j]);
@@ -131,14 +161,16 @@ pub fn fit_color_matrix(source: &[[f64; 3]], target: &[[f64; 3]]) -> Result<[[f6
     let sv = &svd.singular_values;
     let (smax, smin) = (sv.max(), sv.min());
     if !(smin > smax * 1e-9) {
-        return Err(ImagingError::InvalidInput("colour patches are degenerate (do not span RGB)".into()));
+        return Err(ImagingError::InvalidInput(
+            "colour patches are degenerate (do not span RGB)".into(),
+        ));
     }
     let mut m = [[0.0; 3]; 3];
     for r in 0..3 {
         let b = DVector::<f64>::from_fn(n, |i, _| target[i][r]);
-        let x = svd
-            .solve(&b, 1e-12)
-            .map_err(|e| ImagingError::InvalidInput(format!("colour matrix least squares failed: {e}")))?;
+        let x = svd.solve(&b, 1e-12).map_err(|e| {
+            ImagingError::InvalidInput(format!("colour matrix least squares failed: {e}"))
+        })?;
         m[r] = [x[0], x[1], x[2]];
     }
     Ok(m)
@@ -158,10 +190,13 @@ pub fn apply_color_matrix(img: &mut HdrImage, m: &[[f64; 3]; 3]) {
 /// `stride`-th pixel so that at most about 200 000 samples are used). Returns the falloff and
 /// the RMS of the relative residual `v / (s f(r)) - 1`.
 pub fn fit_falloff_flats(flats: &[HdrImage]) -> Result<(Falloff, f64), ImagingError> {
-    let first = flats
-        .first()
-        .ok_or_else(|| ImagingError::InvalidInput("falloff fit needs at least one flat field".into()))?;
-    if let Some(k) = flats.iter().position(|f| f.width != first.width || f.height != first.height) {
+    let first = flats.first().ok_or_else(|| {
+        ImagingError::InvalidInput("falloff fit needs at least one flat field".into())
+    })?;
+    if let Some(k) = flats
+        .iter()
+        .position(|f| f.width != first.width || f.height != first.height)
+    {
         return Err(ImagingError::InvalidInput(format!(
             "flat field {} is {}x{} but the first is {}x{}",
             k + 1,
@@ -186,7 +221,10 @@ pub fn fit_falloff_flats(flats: &[HdrImage]) -> Result<(Falloff, f64), ImagingEr
         }
     }
     let (f, s) = Falloff::fit(&samples)?;
-    let ss: f64 = samples.iter().map(|(r, v)| (v / (s * f.eval(*r)) - 1.0).powi(2)).sum();
+    let ss: f64 = samples
+        .iter()
+        .map(|(r, v)| (v / (s * f.eval(*r)) - 1.0).powi(2))
+        .sum();
     Ok((f, (ss / samples.len() as f64).sqrt()))
 }
 
@@ -234,7 +272,12 @@ pub fn checker_reference() -> [[f64; 3]; 24] {
 /// (black), bottom-left (white).
 fn checker_grid_corners() -> [DVec2; 4] {
     let (w, h) = (CHECKER_COLS as f64, CHECKER_ROWS as f64);
-    [DVec2::ZERO, DVec2::new(w, 0.0), DVec2::new(w, h), DVec2::new(0.0, h)]
+    [
+        DVec2::ZERO,
+        DVec2::new(w, 0.0),
+        DVec2::new(w, h),
+        DVec2::new(0.0, h),
+    ]
 }
 
 /// Mean camera RGB of each of the 24 patches, given the image positions of the patch grid's
@@ -245,12 +288,16 @@ pub fn sample_checker(img: &HdrImage, corners: &[DVec2; 4]) -> Result<Vec<[f64; 
     let h = crate::planar::homography_dlt(&checker_grid_corners(), corners)?;
     let mut out = Vec::with_capacity(24);
     for k in 0..CHECKER_COLS * CHECKER_ROWS {
-        let centre = DVec2::new((k % CHECKER_COLS) as f64 + 0.5, (k / CHECKER_COLS) as f64 + 0.5);
+        let centre = DVec2::new(
+            (k % CHECKER_COLS) as f64 + 0.5,
+            (k / CHECKER_COLS) as f64 + 0.5,
+        );
         let (mut sum, mut n) = ([0.0f64; 3], 0usize);
         for j in 0..9 {
             for i in 0..9 {
                 let q = centre + 0.3 * DVec2::new(i as f64 / 4.0 - 1.0, j as f64 / 4.0 - 1.0);
-                let v = crate::planar::apply_homography(&h, q).and_then(|p| img.bilinear(p.x as f32, p.y as f32));
+                let v = crate::planar::apply_homography(&h, q)
+                    .and_then(|p| img.bilinear(p.x as f32, p.y as f32));
                 if let Some(v) = v {
                     for c in 0..3 {
                         sum[c] += v[c] as f64;
@@ -275,7 +322,13 @@ pub fn sample_checker(img: &HdrImage, corners: &[DVec2; 4]) -> Result<Vec<[f64; 
 /// `background` radiance with the 24 patches (each `reference * white`, 80 % of its cell, the
 /// rest black gap) inside the grid whose outer corners are `corners` (see [`sample_checker`]).
 /// Each pixel is the mean of 4 x 4 sub-samples.
-pub fn render_checker(w: usize, h: usize, corners: &[DVec2; 4], white: f64, background: f64) -> Result<HdrImage, ImagingError> {
+pub fn render_checker(
+    w: usize,
+    h: usize,
+    corners: &[DVec2; 4],
+    white: f64,
+    background: f64,
+) -> Result<HdrImage, ImagingError> {
     let to_chart = crate::planar::homography_dlt(corners, &checker_grid_corners())?;
     let reference = checker_reference();
     let mut img = HdrImage::new(w, h);
@@ -283,9 +336,17 @@ pub fn render_checker(w: usize, h: usize, corners: &[DVec2; 4], white: f64, back
         for x in 0..w {
             let mut sum = [0.0f64; 3];
             for s in 0..16 {
-                let p = DVec2::new(x as f64 + ((s % 4) as f64 + 0.5) / 4.0 - 0.5, y as f64 + ((s / 4) as f64 + 0.5) / 4.0 - 0.5);
+                let p = DVec2::new(
+                    x as f64 + ((s % 4) as f64 + 0.5) / 4.0 - 0.5,
+                    y as f64 + ((s / 4) as f64 + 0.5) / 4.0 - 0.5,
+                );
                 let v = match crate::planar::apply_homography(&to_chart, p) {
-                    Some(q) if q.x >= 0.0 && q.y >= 0.0 && q.x < CHECKER_COLS as f64 && q.y < CHECKER_ROWS as f64 => {
+                    Some(q)
+                        if q.x >= 0.0
+                            && q.y >= 0.0
+                            && q.x < CHECKER_COLS as f64
+                            && q.y < CHECKER_ROWS as f64 =>
+                    {
                         let (fx, fy) = (q.x.fract(), q.y.fract());
                         if (0.1..0.9).contains(&fx) && (0.1..0.9).contains(&fy) {
                             reference[q.y as usize * CHECKER_COLS + q.x as usize].map(|c| c * white)
@@ -319,17 +380,28 @@ fn luminance(c: &[f64; 3]) -> f64 {
 /// chart's brightness is unknown, and the matrix is scaled so that the neutral patches keep
 /// their luminance (colour is corrected, exposure left alone). Returns the matrix and the RMS
 /// relative error of the corrected patches.
-pub fn fit_checker_matrix(camera_rgb: &[[f64; 3]], white: Option<f64>) -> Result<([[f64; 3]; 3], f64), ImagingError> {
+pub fn fit_checker_matrix(
+    camera_rgb: &[[f64; 3]],
+    white: Option<f64>,
+) -> Result<([[f64; 3]; 3], f64), ImagingError> {
     if camera_rgb.len() != CHECKER_COLS * CHECKER_ROWS {
-        return Err(ImagingError::InvalidInput(format!("colour checker: {} patches, expected 24", camera_rgb.len())));
+        return Err(ImagingError::InvalidInput(format!(
+            "colour checker: {} patches, expected 24",
+            camera_rgb.len()
+        )));
     }
     if let Some(w) = white {
         if !(w > 0.0) || !w.is_finite() {
-            return Err(ImagingError::InvalidInput(format!("colour checker white radiance {w} must be positive")));
+            return Err(ImagingError::InvalidInput(format!(
+                "colour checker white radiance {w} must be positive"
+            )));
         }
     }
     let reference = checker_reference();
-    let target: Vec<[f64; 3]> = reference.iter().map(|r| r.map(|c| c * white.unwrap_or(1.0))).collect();
+    let target: Vec<[f64; 3]> = reference
+        .iter()
+        .map(|r| r.map(|c| c * white.unwrap_or(1.0)))
+        .collect();
     let mut m = fit_color_matrix(camera_rgb, &target)?;
     if white.is_none() {
         let (mut before, mut after) = (0.0, 0.0);
@@ -338,7 +410,9 @@ pub fn fit_checker_matrix(camera_rgb: &[[f64; 3]], white: Option<f64>) -> Result
             after += luminance(&mat_vec(&m, &camera_rgb[k]));
         }
         if !(after > 0.0) || !(before > 0.0) {
-            return Err(ImagingError::InvalidInput("colour checker: the neutral patches are black".into()));
+            return Err(ImagingError::InvalidInput(
+                "colour checker: the neutral patches are black".into(),
+            ));
         }
         m = m.map(|row| row.map(|v| v * before / after));
     }
@@ -390,16 +464,23 @@ pub struct RadiometryFit {
 impl CameraRadiometry {
     /// Reads and validates a camera radiometry file (naming it in every error).
     pub fn load(path: &Path) -> Result<CameraRadiometry, ImagingError> {
-        let bad = |msg: String| ImagingError::Radiometry { path: path.to_path_buf(), msg };
+        let bad = |msg: String| ImagingError::Radiometry {
+            path: path.to_path_buf(),
+            msg,
+        };
         let text = std::fs::read_to_string(path).map_err(|e| ImagingError::io(path, e))?;
-        let r: CameraRadiometry = serde_json::from_str(&text).map_err(|e| bad(format!("not a camera radiometry file: {e}")))?;
+        let r: CameraRadiometry = serde_json::from_str(&text)
+            .map_err(|e| bad(format!("not a camera radiometry file: {e}")))?;
         r.validate().map_err(bad)?;
         Ok(r)
     }
 
     fn validate(&self) -> Result<(), String> {
         if self.width == 0 || self.height == 0 {
-            return Err(format!("image size {}x{} is empty", self.width, self.height));
+            return Err(format!(
+                "image size {}x{} is empty",
+                self.width, self.height
+            ));
         }
         if self.falloff.is_none() && self.color_matrix.is_none() {
             return Err("holds neither a falloff nor a colour matrix".into());
@@ -408,8 +489,14 @@ impl CameraRadiometry {
             if ![f.a2, f.a4, f.a6].iter().all(|v| v.is_finite()) {
                 return Err("falloff coefficients are not finite".into());
             }
-            if let Some(r) = (0..=100).map(|i| i as f64 / 100.0).find(|r| !(f.eval(*r) > 1e-3)) {
-                return Err(format!("falloff f(r) is not positive at r = {r} (f = {})", f.eval(r)));
+            if let Some(r) = (0..=100)
+                .map(|i| i as f64 / 100.0)
+                .find(|r| !(f.eval(*r) > 1e-3))
+            {
+                return Err(format!(
+                    "falloff f(r) is not positive at r = {r} (f = {})",
+                    f.eval(r)
+                ));
             }
         }
         if let Some(m) = &self.color_matrix {
@@ -425,8 +512,10 @@ impl CameraRadiometry {
 
     /// Writes the file atomically (pretty JSON).
     pub fn save(&self, path: &Path) -> Result<(), ImagingError> {
-        self.validate()
-            .map_err(|msg| ImagingError::Radiometry { path: path.to_path_buf(), msg })?;
+        self.validate().map_err(|msg| ImagingError::Radiometry {
+            path: path.to_path_buf(),
+            msg,
+        })?;
         let text = serde_json::to_string_pretty(self).expect("radiometry serialises");
         crate::io::write_text_atomic(path, &(text + "\n"))
     }
@@ -469,7 +558,9 @@ pub fn fit_radiometry(inputs: &RadiometryInputs) -> Result<CameraRadiometry, Ima
         (Some(f), _) => (f.width, f.height),
         (None, Some((c, _))) => (c.width, c.height),
         (None, None) => {
-            return Err(ImagingError::InvalidInput("radiometry needs flat fields, a colour checker, or both".into()))
+            return Err(ImagingError::InvalidInput(
+                "radiometry needs flat fields, a colour checker, or both".into(),
+            ))
         }
     };
     if let Some((c, _)) = &inputs.checker {
@@ -501,7 +592,12 @@ pub fn fit_radiometry(inputs: &RadiometryInputs) -> Result<CameraRadiometry, Ima
         height: size.1,
         falloff,
         color_matrix,
-        fit: RadiometryFit { flat_fields: inputs.flats.len(), falloff_rms, color_rms, white: inputs.white },
+        fit: RadiometryFit {
+            flat_fields: inputs.flats.len(),
+            falloff_rms,
+            color_rms,
+            white: inputs.white,
+        },
     })
 }
 
@@ -512,7 +608,11 @@ mod tests {
 
     #[test]
     fn falloff_fit_recovers_known_polynomial() {
-        let truth = Falloff { a2: -0.35, a4: 0.08, a6: -0.03 };
+        let truth = Falloff {
+            a2: -0.35,
+            a4: 0.08,
+            a6: -0.03,
+        };
         let (w, h) = (120, 80);
         let mut flat = HdrImage::new(w, h);
         let mut rng = rand_pcg::Pcg64::seed_from_u64(11);
@@ -526,7 +626,12 @@ mod tests {
         let (fit, s) = Falloff::fit_image(&flat).unwrap();
         assert!((s - 0.7).abs() < 1e-3, "{s}");
         for r in [0.0, 0.3, 0.6, 0.9, 1.0] {
-            assert!((fit.eval(r) - truth.eval(r)).abs() < 2e-3, "r={r}: {} vs {}", fit.eval(r), truth.eval(r));
+            assert!(
+                (fit.eval(r) - truth.eval(r)).abs() < 2e-3,
+                "r={r}: {} vs {}",
+                fit.eval(r),
+                truth.eval(r)
+            );
         }
         assert!((fit.a2 - truth.a2).abs() < 0.02, "{fit:?}");
         // corners: r = 1 exactly at the outer pixel corner; the corner pixel centre is just inside
@@ -550,7 +655,11 @@ mod tests {
     /// corrects a photograph back to the truth.
     #[test]
     fn radiometry_fit_recovers_falloff_and_inverse_crosstalk() {
-        let truth = Falloff { a2: -0.4, a4: 0.1, a6: -0.05 };
+        let truth = Falloff {
+            a2: -0.4,
+            a4: 0.1,
+            a6: -0.05,
+        };
         let mix = [[0.8, 0.15, 0.05], [0.1, 0.75, 0.15], [0.05, 0.2, 0.7]];
         let camera = |img: &mut HdrImage| {
             truth.vignette(img);
@@ -565,28 +674,54 @@ mod tests {
             noisy(&mut f, 0.003, k as u64);
             flats.push(f);
         }
-        let corners = [DVec2::new(20.0, 18.0), DVec2::new(145.0, 25.0), DVec2::new(140.0, 105.0), DVec2::new(15.0, 98.0)];
+        let corners = [
+            DVec2::new(20.0, 18.0),
+            DVec2::new(145.0, 25.0),
+            DVec2::new(140.0, 105.0),
+            DVec2::new(15.0, 98.0),
+        ];
         let white = 2.5;
         let mut checker = render_checker(w, h, &corners, white, 0.3).unwrap();
         camera(&mut checker);
         noisy(&mut checker, 0.003, 9);
-        let cal = fit_radiometry(&RadiometryInputs { flats: &flats, checker: Some((&checker, corners)), white: Some(white) }).unwrap();
+        let cal = fit_radiometry(&RadiometryInputs {
+            flats: &flats,
+            checker: Some((&checker, corners)),
+            white: Some(white),
+        })
+        .unwrap();
         let f = cal.falloff.unwrap();
         for r in [0.0, 0.5, 0.8, 1.0] {
-            assert!((f.eval(r) - truth.eval(r)).abs() < 3e-3, "falloff at {r}: {} vs {}", f.eval(r), truth.eval(r));
+            assert!(
+                (f.eval(r) - truth.eval(r)).abs() < 3e-3,
+                "falloff at {r}: {} vs {}",
+                f.eval(r),
+                truth.eval(r)
+            );
         }
         let inv = Matrix3::from_fn(|r, c| mix[r][c]).try_inverse().unwrap();
         let m = cal.color_matrix.unwrap();
         for r in 0..3 {
             for c in 0..3 {
-                assert!((m[r][c] - inv[(r, c)]).abs() < 0.03, "matrix {m:?} vs inverse {inv}");
+                assert!(
+                    (m[r][c] - inv[(r, c)]).abs() < 0.03,
+                    "matrix {m:?} vs inverse {inv}"
+                );
             }
         }
-        assert!(cal.fit.color_rms.unwrap() < 0.03 && cal.fit.falloff_rms.unwrap() < 0.003, "{:?}", cal.fit);
+        assert!(
+            cal.fit.color_rms.unwrap() < 0.03 && cal.fit.falloff_rms.unwrap() < 0.003,
+            "{:?}",
+            cal.fit
+        );
         // a photograph through the same camera is corrected back to within 1 %
         let mut scene = HdrImage::new(w, h);
         for (i, p) in scene.pixels.iter_mut().enumerate() {
-            *p = [0.2 + 0.5 * (i % w) as f32 / w as f32, 0.6, 0.1 + 0.6 * (i / w) as f32 / h as f32];
+            *p = [
+                0.2 + 0.5 * (i % w) as f32 / w as f32,
+                0.6,
+                0.1 + 0.6 * (i / w) as f32 / h as f32,
+            ];
         }
         let mut photo = scene.clone();
         camera(&mut photo);
@@ -595,7 +730,13 @@ mod tests {
         cal.save(&file).unwrap();
         let back = CameraRadiometry::load(&file).unwrap();
         let (bm, cm) = (back.color_matrix.unwrap(), cal.color_matrix.unwrap());
-        assert!(bm.iter().flatten().zip(cm.iter().flatten()).all(|(a, b)| (a - b).abs() < 1e-12), "JSON round trip");
+        assert!(
+            bm.iter()
+                .flatten()
+                .zip(cm.iter().flatten())
+                .all(|(a, b)| (a - b).abs() < 1e-12),
+            "JSON round trip"
+        );
         assert_eq!(back.falloff, cal.falloff);
         back.apply(&mut photo);
         for (a, b) in photo.pixels.iter().zip(&scene.pixels) {
@@ -604,7 +745,12 @@ mod tests {
             }
         }
         // without the white radiance the matrix keeps the grey patches' luminance
-        let rel = fit_radiometry(&RadiometryInputs { flats: &flats, checker: Some((&checker, corners)), white: None }).unwrap();
+        let rel = fit_radiometry(&RadiometryInputs {
+            flats: &flats,
+            checker: Some((&checker, corners)),
+            white: None,
+        })
+        .unwrap();
         let cm = rel.color_matrix.unwrap();
         let g = [0.3, 0.3, 0.3];
         let mixed = mat_vec(&mix, &g);
@@ -613,12 +759,22 @@ mod tests {
 
     #[test]
     fn radiometry_rejects_bad_inputs_and_files() {
-        assert!(fit_radiometry(&RadiometryInputs { flats: &[], checker: None, white: None }).is_err());
+        assert!(fit_radiometry(&RadiometryInputs {
+            flats: &[],
+            checker: None,
+            white: None
+        })
+        .is_err());
         let flats = [HdrImage::new(10, 10), HdrImage::new(12, 10)];
         assert!(fit_falloff_flats(&flats).is_err());
         // a chart outside the image
         let img = HdrImage::new(40, 30);
-        let far = [DVec2::new(100.0, 100.0), DVec2::new(160.0, 100.0), DVec2::new(160.0, 140.0), DVec2::new(100.0, 140.0)];
+        let far = [
+            DVec2::new(100.0, 100.0),
+            DVec2::new(160.0, 100.0),
+            DVec2::new(160.0, 140.0),
+            DVec2::new(100.0, 140.0),
+        ];
         assert!(sample_checker(&img, &far).is_err());
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("r.json");
@@ -645,10 +801,15 @@ mod tests {
         let mut src = Vec::new();
         let mut dst = Vec::new();
         for _ in 0..24 {
-            let s = [rng.gen_range(0.02..0.9), rng.gen_range(0.02..0.9), rng.gen_range(0.02..0.9)];
+            let s = [
+                rng.gen_range(0.02..0.9),
+                rng.gen_range(0.02..0.9),
+                rng.gen_range(0.02..0.9),
+            ];
             let mut t = [0.0; 3];
             for r in 0..3 {
-                t[r] = (0..3).map(|c| m[r][c] * s[c]).sum::<f64>() * (1.0 + rng.gen_range(-0.005..0.005));
+                t[r] = (0..3).map(|c| m[r][c] * s[c]).sum::<f64>()
+                    * (1.0 + rng.gen_range(-0.005..0.005));
             }
             src.push(s);
             dst.push(t);

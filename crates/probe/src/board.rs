@@ -135,17 +135,26 @@ pub struct BoardSpec {
 
 impl BoardSpec {
     pub fn load(path: &Path) -> Result<BoardSpec, ProbeError> {
-        let text = std::fs::read_to_string(path).map_err(|e| ProbeError::Io { path: path.to_path_buf(), source: e })?;
+        let text = std::fs::read_to_string(path).map_err(|e| ProbeError::Io {
+            path: path.to_path_buf(),
+            source: e,
+        })?;
         BoardSpec::from_json_str(&text, path)
     }
 
     fn bad(&self, msg: String) -> ProbeError {
-        ProbeError::Board { path: self.path.clone(), msg }
+        ProbeError::Board {
+            path: self.path.clone(),
+            msg,
+        }
     }
 
     /// Parse board JSON; `path` names the file in errors.
     pub fn from_json_str(text: &str, path: &Path) -> Result<BoardSpec, ProbeError> {
-        let bad = |msg: String| ProbeError::Board { path: path.to_path_buf(), msg };
+        let bad = |msg: String| ProbeError::Board {
+            path: path.to_path_buf(),
+            msg,
+        };
         let j: BoardJson = serde_json::from_str(text).map_err(|e| bad(e.to_string()))?;
         let mut spec = BoardSpec {
             path: path.to_path_buf(),
@@ -158,11 +167,21 @@ impl BoardSpec {
         for (i, s) in j.spheres.iter().enumerate() {
             let slot = s.kind as usize;
             if spec.spheres[slot].is_some() {
-                return Err(bad(format!("sphere {i}: a second '{}' sphere (one of each kind)", s.kind.name())));
+                return Err(bad(format!(
+                    "sphere {i}: a second '{}' sphere (one of each kind)",
+                    s.kind.name()
+                )));
             }
             let finite = |c: &Option<[f64; 3]>| c.is_none_or(|c| c.iter().all(|v| v.is_finite()));
-            if !finite(&s.center) || !finite(&s.center_board) || !s.radius.is_finite() || s.radius <= 0.0 {
-                return Err(bad(format!("sphere {i} ({}): centre must be finite and radius positive", s.kind.name())));
+            if !finite(&s.center)
+                || !finite(&s.center_board)
+                || !s.radius.is_finite()
+                || s.radius <= 0.0
+            {
+                return Err(bad(format!(
+                    "sphere {i} ({}): centre must be finite and radius positive",
+                    s.kind.name()
+                )));
             }
             if s.center.is_none() && s.center_board.is_none() {
                 return Err(bad(format!(
@@ -181,6 +200,23 @@ impl BoardSpec {
                     )));
                 }
             }
+            // two real spheres cannot interpenetrate: overlapping ones are a typo in the file
+            for (k, o) in j.spheres[..i].iter().enumerate() {
+                for (a, b) in [(s.center, o.center), (s.center_board, o.center_board)] {
+                    if let (Some(a), Some(b)) = (a, b) {
+                        let d = DVec3::from_array(a).distance(DVec3::from_array(b));
+                        if d < s.radius + o.radius {
+                            return Err(bad(format!(
+                                "spheres {k} ({}) and {i} ({}) overlap: centres {d:.4} apart, radii {} + {}",
+                                o.kind.name(),
+                                s.kind.name(),
+                                o.radius,
+                                s.radius
+                            )));
+                        }
+                    }
+                }
+            }
             spec.spheres[slot] = Some(SphereSpec {
                 center_cam: s.center.map(DVec3::from_array),
                 center_board: s.center_board.map(DVec3::from_array),
@@ -195,14 +231,22 @@ impl BoardSpec {
                         if arr.iter().flatten().any(|x| !(x.is_finite() && *x >= 0.0))
                             || arr.iter().any(|p| p[0] <= 0.0)
                         {
-                            return Err(bad(format!("sphere {i} (mirror): ior entries must be finite, n > 0, k >= 0")));
+                            return Err(bad(format!(
+                                "sphere {i} (mirror): ior entries must be finite, n > 0, k >= 0"
+                            )));
                         }
-                        spec.mirror_ior = [(arr[0][0], arr[0][1]), (arr[1][0], arr[1][1]), (arr[2][0], arr[2][1])];
+                        spec.mirror_ior = [
+                            (arr[0][0], arr[0][1]),
+                            (arr[1][0], arr[1][1]),
+                            (arr[2][0], arr[2][1]),
+                        ];
                     }
                 }
                 SphereKind::Black => {
                     if let Some(v) = &s.ior {
-                        let n = v.as_f64().ok_or_else(|| bad(format!("sphere {i} (black): ior must be a number")))?;
+                        let n = v.as_f64().ok_or_else(|| {
+                            bad(format!("sphere {i} (black): ior must be a number"))
+                        })?;
                         if !(n.is_finite() && n > 1.0) {
                             return Err(bad(format!("sphere {i} (black): ior {n} must be > 1")));
                         }
@@ -212,7 +256,9 @@ impl BoardSpec {
                 SphereKind::Diffuse => {
                     if let Some(r) = s.reflectance {
                         if r.iter().any(|x| !(x.is_finite() && *x > 0.0 && *x <= 1.0)) {
-                            return Err(bad(format!("sphere {i} (diffuse): reflectance {r:?} must be in (0, 1]")));
+                            return Err(bad(format!(
+                                "sphere {i} (diffuse): reflectance {r:?} must be in (0, 1]"
+                            )));
                         }
                         spec.diffuse_reflectance = r;
                     }
@@ -225,7 +271,9 @@ impl BoardSpec {
                 )));
             }
             if s.kind == SphereKind::Diffuse && s.ior.is_some() {
-                return Err(bad(format!("sphere {i} (diffuse): 'ior' applies to mirror and black spheres only")));
+                return Err(bad(format!(
+                    "sphere {i} (diffuse): 'ior' applies to mirror and black spheres only"
+                )));
             }
         }
         if spec.spheres[SphereKind::Mirror as usize].is_none() {
@@ -252,13 +300,25 @@ impl BoardSpec {
                 let c = m.corners.map(DVec3::from_array);
                 let degenerate = (0..4).any(|k| c[k].distance(c[(k + 1) % 4]) <= 0.0);
                 if m.corners.iter().flatten().any(|v| !v.is_finite()) || degenerate {
-                    return Err(bad(format!("fiducials: marker {} corners must be finite and distinct", m.id)));
+                    return Err(bad(format!(
+                        "fiducials: marker {} corners must be finite and distinct",
+                        m.id
+                    )));
                 }
-                markers.push(FiducialMarker { id: m.id, corners: c });
+                markers.push(FiducialMarker {
+                    id: m.id,
+                    corners: c,
+                });
             }
-            spec.fiducials = Some(Fiducials { dictionary, markers });
-        } else if let Some((i, _)) =
-            spec.spheres.iter().enumerate().find(|(_, s)| s.is_some_and(|s| s.center_cam.is_none()))
+            spec.fiducials = Some(Fiducials {
+                dictionary,
+                markers,
+            });
+        } else if let Some((i, _)) = spec
+            .spheres
+            .iter()
+            .enumerate()
+            .find(|(_, s)| s.is_some_and(|s| s.center_cam.is_none()))
         {
             return Err(bad(format!(
                 "the {} sphere has only 'center_board': board-frame centres need 'fiducials' to place them",
@@ -275,7 +335,10 @@ impl BoardSpec {
         let get = |k: SphereKind| -> Result<Option<BoardSphere>, ProbeError> {
             match &self.spheres[k as usize] {
                 None => Ok(None),
-                Some(s) => Ok(Some(BoardSphere { center_cam: center(k, s)?, radius: s.radius })),
+                Some(s) => Ok(Some(BoardSphere {
+                    center_cam: center(k, s)?,
+                    radius: s.radius,
+                })),
             }
         };
         let board = Board {
@@ -286,7 +349,10 @@ impl BoardSpec {
             black_ior: self.black_ior,
             diffuse_reflectance: self.diffuse_reflectance,
         };
-        for s in std::iter::once(&board.mirror).chain(board.black.iter()).chain(board.diffuse.iter()) {
+        for s in std::iter::once(&board.mirror)
+            .chain(board.black.iter())
+            .chain(board.diffuse.iter())
+        {
             if s.center_cam.z <= s.radius {
                 return Err(self.bad(format!(
                     "a sphere placed at {:?} (camera frame) is not in front of the camera by more than its radius",
@@ -316,20 +382,31 @@ impl BoardSpec {
     /// (`x_cam = R x_board + t`).
     pub fn with_pose(&self, board_to_camera: &WorldToCamera) -> Result<Board, ProbeError> {
         self.board_with(|k, s| {
-            s.center_board.map(|c| board_to_camera.apply(c)).ok_or_else(|| {
-                self.bad(format!("the {} sphere has no 'center_board' to place with the fiducials' pose", k.name()))
-            })
+            s.center_board
+                .map(|c| board_to_camera.apply(c))
+                .ok_or_else(|| {
+                    self.bad(format!(
+                        "the {} sphere has no 'center_board' to place with the fiducials' pose",
+                        k.name()
+                    ))
+                })
         })
     }
 
     /// Whether every sphere has a board-frame centre (so the fiducials' pose can place them).
     pub fn has_board_centres(&self) -> bool {
-        self.spheres.iter().flatten().all(|s| s.center_board.is_some())
+        self.spheres
+            .iter()
+            .flatten()
+            .all(|s| s.center_board.is_some())
     }
 
     /// Whether every sphere has a camera-frame centre.
     pub fn has_camera_centres(&self) -> bool {
-        self.spheres.iter().flatten().all(|s| s.center_cam.is_some())
+        self.spheres
+            .iter()
+            .flatten()
+            .all(|s| s.center_cam.is_some())
     }
 }
 
@@ -358,7 +435,8 @@ impl Board {
 
     /// Reflectance of the mirror sphere per channel at incidence cosine `cos_i`.
     pub fn mirror_reflectance(&self, cos_i: f64) -> [f64; 3] {
-        self.mirror_ior.map(|(n, k)| crate::fresnel::conductor(cos_i, n, k))
+        self.mirror_ior
+            .map(|(n, k)| crate::fresnel::conductor(cos_i, n, k))
     }
 
     /// Reflectance of the black sphere (grey) at incidence cosine `cos_i`.
@@ -384,8 +462,11 @@ mod tests {
         assert_eq!(b.mirror_ior[2], (2.3, 3.2));
         assert_eq!(b.black_ior, 1.6);
         assert_eq!(b.diffuse_reflectance, [0.2, 0.25, 0.3]);
-        let d = Board::from_json_str(r#"{"spheres":[{"kind":"mirror","center":[0,0,1],"radius":0.1}]}"#, Path::new(P))
-            .unwrap();
+        let d = Board::from_json_str(
+            r#"{"spheres":[{"kind":"mirror","center":[0,0,1],"radius":0.1}]}"#,
+            Path::new(P),
+        )
+        .unwrap();
         assert_eq!(d.mirror_ior, MIRROR_IOR);
         assert!(d.black.is_none() && d.diffuse.is_none());
         let r = d.mirror_reflectance(1.0);
@@ -396,17 +477,31 @@ mod tests {
     fn bad_boards_name_file_and_problem() {
         let cases = [
             (r#"{"spheres":[]}"#, "no 'mirror'"),
-            (r#"{"spheres":[{"kind":"mirror","center":[0,0,1],"radius":-1}]}"#, "radius positive"),
-            (r#"{"spheres":[{"kind":"mirror","center":[0,0,-1],"radius":0.1}]}"#, "in front of the camera"),
-            (r#"{"spheres":[{"kind":"chrome","center":[0,0,1],"radius":0.1}]}"#, "unknown variant"),
+            (
+                r#"{"spheres":[{"kind":"mirror","center":[0,0,1],"radius":-1}]}"#,
+                "radius positive",
+            ),
+            (
+                r#"{"spheres":[{"kind":"mirror","center":[0,0,-1],"radius":0.1}]}"#,
+                "in front of the camera",
+            ),
+            (
+                r#"{"spheres":[{"kind":"chrome","center":[0,0,1],"radius":0.1}]}"#,
+                "unknown variant",
+            ),
             (
                 r#"{"spheres":[{"kind":"mirror","center":[0,0,1],"radius":0.1},{"kind":"mirror","center":[0,0,2],"radius":0.1}]}"#,
                 "second",
             ),
-            (r#"{"spheres":[{"kind":"mirror","center":[0,0,1],"radius":0.1,"ior":1.5}]}"#, "ior must be"),
+            (
+                r#"{"spheres":[{"kind":"mirror","center":[0,0,1],"radius":0.1,"ior":1.5}]}"#,
+                "ior must be",
+            ),
         ];
         for (t, want) in cases {
-            let e = Board::from_json_str(t, Path::new(P)).unwrap_err().to_string();
+            let e = Board::from_json_str(t, Path::new(P))
+                .unwrap_err()
+                .to_string();
             assert!(e.contains("board.json") && e.contains(want), "{e}");
         }
     }

@@ -20,9 +20,12 @@ pub fn latlong_lookup(map: &HdrImage, d: Vec3) -> Option<[f32; 3]> {
     let y0 = y0f as usize;
     let y1 = (y0 + 1).min(h - 1);
     let mut out = [0.0f32; 3];
-    for (xx, yy, wt) in
-        [(x0, y0, (1.0 - fx) * (1.0 - fy)), (x1, y0, fx * (1.0 - fy)), (x0, y1, (1.0 - fx) * fy), (x1, y1, fx * fy)]
-    {
+    for (xx, yy, wt) in [
+        (x0, y0, (1.0 - fx) * (1.0 - fy)),
+        (x1, y0, fx * (1.0 - fy)),
+        (x0, y1, (1.0 - fx) * fy),
+        (x1, y1, fx * fy),
+    ] {
         if wt <= 0.0 {
             continue;
         }
@@ -54,7 +57,11 @@ pub fn hemisphere_direction_at(x: f32, y: f32, size: usize) -> Option<Vec3> {
     }
     let theta = r * std::f32::consts::FRAC_PI_2;
     let phi = b.atan2(a);
-    Some(Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos()))
+    Some(Vec3::new(
+        theta.sin() * phi.cos(),
+        theta.sin() * phi.sin(),
+        theta.cos(),
+    ))
 }
 
 /// Continuous pixel coordinates of direction `d` (z >= 0) in the hemisphere map.
@@ -67,7 +74,10 @@ pub fn hemisphere_pixel(d: Vec3, size: usize) -> Option<(f32, f32)> {
     let r = theta / std::f32::consts::FRAC_PI_2;
     let phi = d.y.atan2(d.x);
     let (a, b) = (r * phi.cos(), r * phi.sin());
-    Some(((a + 1.0) * 0.5 * size as f32 - 0.5, (1.0 - b) * 0.5 * size as f32 - 0.5))
+    Some((
+        (a + 1.0) * 0.5 * size as f32 - 0.5,
+        (1.0 - b) * 0.5 * size as f32 - 0.5,
+    ))
 }
 
 /// Fill invalid pixels of a lat-long map from their valid neighbours, ring by ring (onion
@@ -245,7 +255,12 @@ mod tests {
         let mut m = HdrImage::new(w, h);
         m.pixels.iter_mut().for_each(|p| *p = [1.0, 2.0, 0.5]);
         let int = Integrator::new(&m);
-        for n in [Vec3::Z, Vec3::X, Vec3::new(0.3, -0.5, 0.8).normalize(), -Vec3::Z] {
+        for n in [
+            Vec3::Z,
+            Vec3::X,
+            Vec3::new(0.3, -0.5, 0.8).normalize(),
+            -Vec3::Z,
+        ] {
             let e = int.irradiance(n);
             for (c, want) in [1.0, 2.0, 0.5].iter().enumerate() {
                 assert!((e[c] / (PI * want) - 1.0).abs() < 2e-3, "{n} {e:?}");
@@ -256,7 +271,12 @@ mod tests {
             *p = if i / w < h / 2 { [1.0; 3] } else { [0.0; 3] };
         }
         let int = Integrator::new(&m);
-        for n in [Vec3::Z, Vec3::X, Vec3::new(0.6, 0.0, -0.8), Vec3::new(0.0, 0.6, 0.8)] {
+        for n in [
+            Vec3::Z,
+            Vec3::X,
+            Vec3::new(0.6, 0.0, -0.8),
+            Vec3::new(0.0, 0.6, 0.8),
+        ] {
             let want = PI * (1.0 + n.z) / 2.0;
             let e = int.irradiance(n)[0];
             assert!((e - want).abs() < 4e-3 * PI, "{n}: {e} vs {want}");
@@ -307,7 +327,7 @@ mod tests {
         let d = igi_imaging::latlong::uv_to_direction(0.9999, 0.5);
         let v = latlong_lookup(&m, d).unwrap()[0];
         assert!((v - 3.5).abs() < 0.01, "{v}");
-        m.valid[2 * 8 + 0] = false;
+        m.valid[2 * 8] = false;
         assert!(latlong_lookup(&m, d).is_none());
         let a = disk_cosine_solid_angle(0.53);
         let cap = 2.0 * std::f64::consts::PI * (1.0 - 0.265f64.to_radians().cos());

@@ -31,12 +31,19 @@ pub struct BoardPose {
 
 impl BoardPose {
     pub fn board_to_camera(&self) -> WorldToCamera {
-        WorldToCamera { r: glam::DMat3::from_cols_array_2d(&self.r).transpose(), t: DVec3::from_array(self.t) }
+        WorldToCamera {
+            r: glam::DMat3::from_cols_array_2d(&self.r).transpose(),
+            t: DVec3::from_array(self.t),
+        }
     }
 }
 
 /// Detect the board's markers in `image` and solve for the board-to-camera pose.
-pub fn estimate_board_pose(image: &HdrImage, camera: &Camera, fid: &Fiducials) -> Result<BoardPose, ProbeError> {
+pub fn estimate_board_pose(
+    image: &HdrImage,
+    camera: &Camera,
+    fid: &Fiducials,
+) -> Result<BoardPose, ProbeError> {
     let found = cv::detect_aruco_subpix(image, fid.dictionary)?;
     let (mut world, mut pixels) = (Vec::<DVec3>::new(), Vec::<DVec2>::new());
     let (mut ids_found, mut ids_missing) = (Vec::new(), Vec::new());
@@ -88,9 +95,17 @@ pub struct Placement {
 /// and every sphere has a board-frame centre (needs the `opencv` feature), else from the
 /// camera-frame centres (FORMATS.md). Without OpenCV a board that has camera-frame centres
 /// falls back to them with a warning; one that has not is an error saying the feature is needed.
-pub fn place_board(spec: &BoardSpec, image: &HdrImage, camera: &Camera) -> Result<Placement, ProbeError> {
+pub fn place_board(
+    spec: &BoardSpec,
+    image: &HdrImage,
+    camera: &Camera,
+) -> Result<Placement, ProbeError> {
     let Some(fid) = spec.fiducials.as_ref().filter(|_| spec.has_board_centres()) else {
-        return Ok(Placement { board: spec.in_camera_frame()?, pose: None, warnings: Vec::new() });
+        return Ok(Placement {
+            board: spec.in_camera_frame()?,
+            pose: None,
+            warnings: Vec::new(),
+        });
     };
     match estimate_board_pose(image, camera, fid) {
         Ok(pose) => {

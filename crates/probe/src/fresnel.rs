@@ -48,7 +48,9 @@ impl IorProblem<'_> {
     fn res_at(&self, p: &Vector2<f64>) -> DVector<f64> {
         DVector::from_iterator(
             self.samples.len(),
-            self.samples.iter().map(|&(theta, r)| conductor(theta.cos(), p[0], p[1]) - r),
+            self.samples
+                .iter()
+                .map(|&(theta, r)| conductor(theta.cos(), p[0], p[1]) - r),
         )
     }
 }
@@ -88,24 +90,42 @@ impl LeastSquaresProblem<f64, Dyn, U2> for IorProblem<'_> {
 /// grazing make `n` and `k` separable (normal incidence alone fixes only one combination).
 pub fn fit_complex_ior(samples: &[(f64, f64)], init: (f64, f64)) -> Result<IorFit, ProbeError> {
     if samples.len() < 3 {
-        return Err(ProbeError::Fit(format!("need at least 3 reflectance samples, got {}", samples.len())));
+        return Err(ProbeError::Fit(format!(
+            "need at least 3 reflectance samples, got {}",
+            samples.len()
+        )));
     }
     if let Some(s) = samples.iter().find(|(t, r)| {
-        !(t.is_finite() && r.is_finite() && *t >= 0.0 && *t < std::f64::consts::FRAC_PI_2 && (0.0..=1.0).contains(r))
+        !(t.is_finite()
+            && r.is_finite()
+            && *t >= 0.0
+            && *t < std::f64::consts::FRAC_PI_2
+            && (0.0..=1.0).contains(r))
     }) {
         return Err(ProbeError::Fit(format!(
             "bad sample (angle {} rad, reflectance {}): want angle in [0, pi/2) and reflectance in [0, 1]",
             s.0, s.1
         )));
     }
-    let problem = IorProblem { samples, p: Vector2::new(init.0, init.1) };
+    let problem = IorProblem {
+        samples,
+        p: Vector2::new(init.0, init.1),
+    };
     let (problem, report) = LevenbergMarquardt::new().minimize(problem);
     if !report.termination.was_successful() {
-        return Err(ProbeError::Fit(format!("Levenberg-Marquardt stopped: {:?}", report.termination)));
+        return Err(ProbeError::Fit(format!(
+            "Levenberg-Marquardt stopped: {:?}",
+            report.termination
+        )));
     }
     let p = problem.p;
     let rms = (problem.res_at(&p).norm_squared() / samples.len() as f64).sqrt();
-    Ok(IorFit { n: p[0], k: p[1].abs(), rms, evaluations: report.number_of_evaluations })
+    Ok(IorFit {
+        n: p[0],
+        k: p[1].abs(),
+        rms,
+        evaluations: report.number_of_evaluations,
+    })
 }
 
 /// Reflectance-versus-angle samples of one sphere: incidence angle in degrees and the measured
@@ -118,41 +138,72 @@ pub struct ReflectanceSamples {
 
 impl ReflectanceSamples {
     pub fn load(path: &Path) -> Result<Self, ProbeError> {
-        let text = std::fs::read_to_string(path).map_err(|e| ProbeError::Io { path: path.to_path_buf(), source: e })?;
-        Self::from_csv_str(&text).map_err(|msg| ProbeError::Samples { path: path.to_path_buf(), msg })
+        let text = std::fs::read_to_string(path).map_err(|e| ProbeError::Io {
+            path: path.to_path_buf(),
+            source: e,
+        })?;
+        Self::from_csv_str(&text).map_err(|msg| ProbeError::Samples {
+            path: path.to_path_buf(),
+            msg,
+        })
     }
 
     /// Parse the CSV text; blank lines and lines starting with `#` are skipped.
     pub fn from_csv_str(text: &str) -> Result<Self, String> {
-        let mut lines =
-            text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
-        let (_, header) = lines.next().ok_or("empty file (want the header angle_deg,r,g,b)")?;
+        let mut lines = text
+            .lines()
+            .enumerate()
+            .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
+        let (_, header) = lines
+            .next()
+            .ok_or("empty file (want the header angle_deg,r,g,b)")?;
         let names: Vec<&str> = header.split(',').map(str::trim).collect();
         let col = |n: &str| {
             names
                 .iter()
                 .position(|h| h.eq_ignore_ascii_case(n))
-                .ok_or(format!("the header '{header}' has no column '{n}' (want angle_deg,r,g,b)"))
+                .ok_or(format!(
+                    "the header '{header}' has no column '{n}' (want angle_deg,r,g,b)"
+                ))
         };
         let cols = [col("angle_deg")?, col("r")?, col("g")?, col("b")?];
-        let mut out = ReflectanceSamples { angle_deg: Vec::new(), rgb: Vec::new() };
+        let mut out = ReflectanceSamples {
+            angle_deg: Vec::new(),
+            rgb: Vec::new(),
+        };
         for (i, line) in lines {
             let f: Vec<&str> = line.split(',').map(str::trim).collect();
             let v = cols.map(|c| f.get(c).and_then(|s| s.parse::<f64>().ok()));
             let [Some(a), Some(r), Some(g), Some(b)] = v else {
-                return Err(format!("line {}: want {} numbers, got '{line}'", i + 1, names.len()));
+                return Err(format!(
+                    "line {}: want {} numbers, got '{line}'",
+                    i + 1,
+                    names.len()
+                ));
             };
             if !(a.is_finite() && (0.0..90.0).contains(&a)) {
-                return Err(format!("line {}: angle {a} degrees is not in [0, 90)", i + 1));
+                return Err(format!(
+                    "line {}: angle {a} degrees is not in [0, 90)",
+                    i + 1
+                ));
             }
-            if [r, g, b].iter().any(|x| !(x.is_finite() && (0.0..=1.0).contains(x))) {
-                return Err(format!("line {}: reflectance ({r}, {g}, {b}) is not in [0, 1]", i + 1));
+            if [r, g, b]
+                .iter()
+                .any(|x| !(x.is_finite() && (0.0..=1.0).contains(x)))
+            {
+                return Err(format!(
+                    "line {}: reflectance ({r}, {g}, {b}) is not in [0, 1]",
+                    i + 1
+                ));
             }
             out.angle_deg.push(a);
             out.rgb.push([r, g, b]);
         }
         if out.angle_deg.len() < 3 {
-            return Err(format!("{} samples; the fit needs at least 3", out.angle_deg.len()));
+            return Err(format!(
+                "{} samples; the fit needs at least 3",
+                out.angle_deg.len()
+            ));
         }
         Ok(out)
     }
@@ -163,8 +214,12 @@ impl ReflectanceSamples {
 pub fn fit_mirror_ior(samples: &ReflectanceSamples) -> Result<[IorFit; 3], ProbeError> {
     let mut fits = Vec::with_capacity(3);
     for c in 0..3 {
-        let s: Vec<(f64, f64)> =
-            samples.angle_deg.iter().zip(&samples.rgb).map(|(a, v)| (a.to_radians(), v[c])).collect();
+        let s: Vec<(f64, f64)> = samples
+            .angle_deg
+            .iter()
+            .zip(&samples.rgb)
+            .map(|(a, v)| (a.to_radians(), v[c]))
+            .collect();
         fits.push(fit_complex_ior(&s, crate::board::MIRROR_IOR[c])?);
     }
     Ok([fits[0], fits[1], fits[2]])
@@ -214,7 +269,10 @@ mod tests {
                 })
                 .collect();
             let fit = fit_complex_ior(&samples, (1.5, 2.0)).unwrap();
-            assert!((fit.n - n).abs() < 0.03 && (fit.k - k).abs() < 0.03, "{fit:?} vs {n} {k}");
+            assert!(
+                (fit.n - n).abs() < 0.03 && (fit.k - k).abs() < 0.03,
+                "{fit:?} vs {n} {k}"
+            );
             assert!(fit.rms < 2e-4);
         }
     }

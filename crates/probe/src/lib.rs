@@ -38,6 +38,6 @@ pub mod resample;
 pub mod sphere;
 pub mod synth;
 
-pub use board::{Board, BoardSphere, BoardSpec, SphereKind};
+pub use board::{Board, BoardSpec, BoardSphere, SphereKind};
 pub use error::ProbeError;
 pub use pipeline::{process, Diagnostics, ProbeOptions, ProbeResult, SunEstimate};

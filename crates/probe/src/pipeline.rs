@@ -146,7 +146,12 @@ fn sphere_pixels(view: &SphereView, min_cos: f64) -> Vec<SpherePixel> {
             if let Some((_, n, d)) = view.hit_pixel(x as f64, y as f64) {
                 let cos_i = n.dot(-d);
                 if cos_i >= min_cos {
-                    out.push(SpherePixel { x, y, normal: n, cos_i });
+                    out.push(SpherePixel {
+                        x,
+                        y,
+                        normal: n,
+                        cos_i,
+                    });
                 }
             }
         }
@@ -167,7 +172,10 @@ fn hemisphere_map(size: usize, f: &(dyn Fn(DVec3) -> Option<[f32; 3]> + Sync)) -
         .into_par_iter()
         .map(|y| {
             (0..size)
-                .map(|x| envmap::hemisphere_direction(x, y, size).and_then(|d| f(d.as_dvec3().normalize())))
+                .map(|x| {
+                    envmap::hemisphere_direction(x, y, size)
+                        .and_then(|d| f(d.as_dvec3().normalize()))
+                })
                 .collect()
         })
         .collect();
@@ -185,7 +193,9 @@ fn hemisphere_map(size: usize, f: &(dyn Fn(DVec3) -> Option<[f32; 3]> + Sync)) -
 }
 
 fn sphere_saturated(img: &HdrImage, px: &[SpherePixel]) -> Vec<usize> {
-    (0..px.len()).filter(|&i| !img.valid[px[i].y * img.width + px[i].x]).collect()
+    (0..px.len())
+        .filter(|&i| !img.valid[px[i].y * img.width + px[i].x])
+        .collect()
 }
 
 /// Process one board photograph.
@@ -201,7 +211,11 @@ pub fn process(
             image.width, image.height, camera.width, camera.height
         )));
     }
-    if opt.map_width < 8 || opt.map_width % 2 != 0 || opt.conv_width == 0 || opt.map_width % opt.conv_width != 0 {
+    if opt.map_width < 8
+        || opt.map_width % 2 != 0
+        || opt.conv_width == 0
+        || opt.map_width % opt.conv_width != 0
+    {
         return Err(ProbeError::InvalidInput(format!(
             "map width {} must be even and a multiple of the convolution width {}",
             opt.map_width, opt.conv_width
@@ -222,10 +236,19 @@ pub fn process(
     }
 
     let mirror = SphereView::new(camera, SphereKind::Mirror, &board.mirror);
-    let black = board.black.as_ref().map(|s| SphereView::new(camera, SphereKind::Black, s));
-    let diffuse = board.diffuse.as_ref().map(|s| SphereView::new(camera, SphereKind::Diffuse, s));
+    let black = board
+        .black
+        .as_ref()
+        .map(|s| SphereView::new(camera, SphereKind::Black, s));
+    let diffuse = board
+        .diffuse
+        .as_ref()
+        .map(|s| SphereView::new(camera, SphereKind::Diffuse, s));
     let mut radii = Vec::new();
-    for v in std::iter::once(&mirror).chain(black.iter()).chain(diffuse.iter()) {
+    for v in std::iter::once(&mirror)
+        .chain(black.iter())
+        .chain(diffuse.iter())
+    {
         let r = v.check_in_image()?;
         if r < opt.min_radius_px {
             let m = format!(
@@ -247,13 +270,27 @@ pub fn process(
     let mirror_px = sphere_pixels(&mirror, min_cos);
     let mirror_sat = sphere_saturated(&img, &mirror_px);
     let spot_view = black.as_ref().unwrap_or(&mirror);
-    let spot_refl: &dyn Fn(f64) -> [f64; 3] = if black.is_some() { &black_refl } else { &mirror_refl };
-    let spot_px = if black.is_some() { sphere_pixels(spot_view, min_cos) } else { mirror_px.clone() };
+    let spot_refl: &dyn Fn(f64) -> [f64; 3] = if black.is_some() {
+        &black_refl
+    } else {
+        &mirror_refl
+    };
+    let spot_px = if black.is_some() {
+        sphere_pixels(spot_view, min_cos)
+    } else {
+        mirror_px.clone()
+    };
     let spot_sat = sphere_saturated(&img, &spot_px);
-    let spot_val: Vec<f64> =
-        spot_px.iter().map(|p| luminance(img.pixels[p.y * img.width + p.x]) / spot_refl(p.cos_i)[1]).collect();
-    let mut valid_vals: Vec<f64> =
-        spot_px.iter().zip(&spot_val).filter(|(p, _)| img.valid[p.y * img.width + p.x]).map(|(_, v)| *v).collect();
+    let spot_val: Vec<f64> = spot_px
+        .iter()
+        .map(|p| luminance(img.pixels[p.y * img.width + p.x]) / spot_refl(p.cos_i)[1])
+        .collect();
+    let mut valid_vals: Vec<f64> = spot_px
+        .iter()
+        .zip(&spot_val)
+        .filter(|(p, _)| img.valid[p.y * img.width + p.x])
+        .map(|(_, v)| *v)
+        .collect();
     let med = median(&mut valid_vals);
     let (mut peak_i, mut peak_v) = (None, f64::MIN);
     for (i, v) in spot_val.iter().enumerate() {
@@ -264,8 +301,9 @@ pub fn process(
     }
     let peak_ratio = if med > 0.0 { Some(peak_v / med) } else { None };
     let black_sat_count = if black.is_some() { spot_sat.len() } else { 0 };
-    let sun_found =
-        !mirror_sat.is_empty() || !spot_sat.is_empty() || peak_ratio.is_some_and(|r| r > opt.sun_peak_ratio);
+    let sun_found = !mirror_sat.is_empty()
+        || !spot_sat.is_empty()
+        || peak_ratio.is_some_and(|r| r > opt.sun_peak_ratio);
     let decision = format!(
         "{} saturated mirror pixels, {} saturated {} pixels, brightest spot {} x median (threshold {}) -> sun {}",
         mirror_sat.len(),
@@ -288,11 +326,16 @@ pub fn process(
                 spot_sat.iter().map(|&i| spot_px[i].y as f64).sum::<f64>() / n,
             )
         } else {
-            let i = peak_i.ok_or_else(|| ProbeError::InvalidInput("the sun sphere has no usable pixels".into()))?;
+            let i = peak_i.ok_or_else(|| {
+                ProbeError::InvalidInput("the sun sphere has no usable pixels".into())
+            })?;
             (spot_px[i].x as f64, spot_px[i].y as f64)
         };
-        let lookup: std::collections::HashMap<(usize, usize), usize> =
-            spot_px.iter().enumerate().map(|(i, p)| ((p.x, p.y), i)).collect();
+        let lookup: std::collections::HashMap<(usize, usize), usize> = spot_px
+            .iter()
+            .enumerate()
+            .map(|(i, p)| ((p.x, p.y), i))
+            .collect();
         let mut ring: Vec<f64> = spot_px
             .iter()
             .zip(&spot_val)
@@ -319,11 +362,16 @@ pub fn process(
                 }
             }
         }
-        let (ux, uy) = if sw > 0.0 { (sx / sw, sy / sw) } else { (px, py) };
+        let (ux, uy) = if sw > 0.0 {
+            (sx / sw, sy / sw)
+        } else {
+            (px, py)
+        };
         spot_pixel = [ux, uy];
         match spot_view.hit_pixel(ux, uy) {
             Some((_, n, d)) => sun_dir = Some(reflect(d, n).normalize()),
-            None => warnings.push("the sun spot's centre does not lie on the sphere; sun ignored".into()),
+            None => warnings
+                .push("the sun spot's centre does not lie on the sphere; sun ignored".into()),
         }
     }
 
@@ -341,8 +389,14 @@ pub fn process(
         if let Some(rp) = mirror.reflection_point(s) {
             mirror_pixel = Some([rp.pixel.x, rp.pixel.y]);
             let r = opt.sun_mask_px;
-            let (x0, x1) = ((rp.pixel.x - r).floor().max(0.0) as usize, (rp.pixel.x + r).ceil() as usize);
-            let (y0, y1) = ((rp.pixel.y - r).floor().max(0.0) as usize, (rp.pixel.y + r).ceil() as usize);
+            let (x0, x1) = (
+                (rp.pixel.x - r).floor().max(0.0) as usize,
+                (rp.pixel.x + r).ceil() as usize,
+            );
+            let (y0, y1) = (
+                (rp.pixel.y - r).floor().max(0.0) as usize,
+                (rp.pixel.y + r).ceil() as usize,
+            );
             for y in y0..=y1.min(img.height - 1) {
                 for x in x0..=x1.min(img.width - 1) {
                     if DVec2::new(x as f64, y as f64).distance(rp.pixel) <= r {
@@ -353,15 +407,33 @@ pub fn process(
         }
     }
     let (mw, ms) = (opt.map_width, opt.map_supersample);
-    let mirror_reader = Reflector { img: &mirror_img, view: &mirror, refl: &mirror_refl, min_cos, cam_cos };
-    let sky_measured = resample::resample(&mirror_reader, &resample::latlong_layout(mw, mw / 2), mw, mw / 2, ms);
+    let mirror_reader = Reflector {
+        img: &mirror_img,
+        view: &mirror,
+        refl: &mirror_refl,
+        min_cos,
+        cam_cos,
+    };
+    let sky_measured = resample::resample(
+        &mirror_reader,
+        &resample::latlong_layout(mw, mw / 2),
+        mw,
+        mw / 2,
+        ms,
+    );
     let mut sky = sky_measured.clone();
     envmap::fill_invalid_latlong(&mut sky);
     sky.valid.iter_mut().for_each(|v| *v = true);
     let hemi = resample::hemisphere_layout(opt.hemi_size);
     let mirror_hemi = resample::resample(&mirror_reader, &hemi, opt.hemi_size, opt.hemi_size, ms);
     let black_hemi = black.as_ref().map(|b| {
-        let reader = Reflector { img: &img, view: b, refl: &black_refl, min_cos, cam_cos };
+        let reader = Reflector {
+            img: &img,
+            view: b,
+            refl: &black_refl,
+            min_cos,
+            cam_cos,
+        };
         resample::resample(&reader, &hemi, opt.hemi_size, opt.hemi_size, ms)
     });
 
@@ -376,11 +448,16 @@ pub fn process(
         let rho = board.diffuse_reflectance;
         let dmin = opt.diffuse_max_incidence_deg.to_radians().cos();
         let px = sphere_pixels(dv, dmin);
-        let good: Vec<&SpherePixel> = px.iter().filter(|p| img.valid[p.y * img.width + p.x]).collect();
+        let good: Vec<&SpherePixel> = px
+            .iter()
+            .filter(|p| img.valid[p.y * img.width + p.x])
+            .collect();
         used = good.len();
         masked = px.len() - used;
         if masked > 0 {
-            tracing::info!("{masked} saturated/invalid diffuse sphere pixels left out of the solve");
+            tracing::info!(
+                "{masked} saturated/invalid diffuse sphere pixels left out of the solve"
+            );
         }
         if used < 10 {
             return Err(ProbeError::InvalidInput(format!(
@@ -391,18 +468,26 @@ pub fn process(
             .iter()
             .map(|p| {
                 let v = img.pixels[p.y * img.width + p.x];
-                [v[0] as f64 / rho[0], v[1] as f64 / rho[1], v[2] as f64 / rho[2]]
+                [
+                    v[0] as f64 / rho[0],
+                    v[1] as f64 / rho[1],
+                    v[2] as f64 / rho[2],
+                ]
             })
             .collect();
         let normals: Vec<Vec3> = good.iter().map(|p| to_v3(p.normal)).collect();
         let conv = envmap::downsample_latlong(&sky, opt.map_width / opt.conv_width);
         let integ = Integrator::new(&conv);
-        let d_prime: Vec<[f64; 3]> =
-            integ.irradiance_many(&normals).into_iter().map(|e| e.map(|v| v as f64 / std::f64::consts::PI)).collect();
+        let d_prime: Vec<[f64; 3]> = integ
+            .irradiance_many(&normals)
+            .into_iter()
+            .map(|e| e.map(|v| v as f64 / std::f64::consts::PI))
+            .collect();
         let mut a = [0.0f64; 3];
         let d_star: Vec<f64> = match (solve_sun, sun_dir) {
             (true, Some(s)) => {
-                let k = envmap::disk_cosine_solid_angle(opt.sun_diameter_deg) / std::f64::consts::PI;
+                let k =
+                    envmap::disk_cosine_solid_angle(opt.sun_diameter_deg) / std::f64::consts::PI;
                 good.iter().map(|p| k * p.normal.dot(s).max(0.0)).collect()
             }
             _ => vec![0.0; good.len()],
@@ -410,25 +495,46 @@ pub fn process(
         if solve_sun {
             let ss: f64 = d_star.iter().map(|v| v * v).sum();
             if ss <= 0.0 {
-                warnings.push("the sun lights no visible part of the diffuse sphere: radiance not solvable".into());
+                warnings.push(
+                    "the sun lights no visible part of the diffuse sphere: radiance not solvable"
+                        .into(),
+                );
             } else {
                 for c in 0..3 {
-                    let num: f64 =
-                        d_star.iter().zip(&d_meas).zip(&d_prime).map(|((s, d), dp)| s * (d[c] - dp[c])).sum();
+                    let num: f64 = d_star
+                        .iter()
+                        .zip(&d_meas)
+                        .zip(&d_prime)
+                        .map(|((s, d), dp)| s * (d[c] - dp[c]))
+                        .sum();
                     a[c] = num / ss;
                     if a[c] < 0.0 {
-                        warnings.push(format!("negative sun radiance in channel {c} ({:.3e}) clamped to 0", a[c]));
+                        warnings.push(format!(
+                            "negative sun radiance in channel {c} ({:.3e}) clamped to 0",
+                            a[c]
+                        ));
                         a[c] = 0.0;
                     }
                 }
                 sun_radiance = Some(a.map(|v| v as f32));
             }
         }
-        let mean_d: f64 = d_meas.iter().map(|d| (d[0] + d[1] + d[2]) / 3.0).sum::<f64>() / used as f64;
-        let model: Vec<[f64; 3]> =
-            d_prime.iter().zip(&d_star).map(|(dp, s)| [dp[0] + a[0] * s, dp[1] + a[1] * s, dp[2] + a[2] * s]).collect();
+        let mean_d: f64 = d_meas
+            .iter()
+            .map(|d| (d[0] + d[1] + d[2]) / 3.0)
+            .sum::<f64>()
+            / used as f64;
+        let model: Vec<[f64; 3]> = d_prime
+            .iter()
+            .zip(&d_star)
+            .map(|(dp, s)| [dp[0] + a[0] * s, dp[1] + a[1] * s, dp[2] + a[2] * s])
+            .collect();
         let rms = |m: &[[f64; 3]]| {
-            let se: f64 = m.iter().zip(&d_meas).map(|(m, d)| (0..3).map(|c| (m[c] - d[c]).powi(2)).sum::<f64>()).sum();
+            let se: f64 = m
+                .iter()
+                .zip(&d_meas)
+                .map(|(m, d)| (0..3).map(|c| (m[c] - d[c]).powi(2)).sum::<f64>())
+                .sum();
             100.0 * (se / (3.0 * used as f64)).sqrt() / mean_d.max(1e-30)
         };
         if sun_radiance.is_some() {
@@ -448,7 +554,11 @@ pub fn process(
             }
             let px = dview.camera.project(p)?;
             let q = img.bilinear(px.x as f32, px.y as f32)?;
-            Some([(q[0] as f64 / rho[0]) as f32, (q[1] as f64 / rho[1]) as f32, (q[2] as f64 / rho[2]) as f32])
+            Some([
+                (q[0] as f64 / rho[0]) as f32,
+                (q[1] as f64 / rho[1]) as f32,
+                (q[2] as f64 / rho[2]) as f32,
+            ])
         }));
         let (x0, y0, x1, y1) = dv.pixel_bbox();
         let (cw, ch) = (x1 - x0 + 1, y1 - y0 + 1);
@@ -480,7 +590,9 @@ pub fn process(
     let sky_valid_fraction = sky_measured.valid_fraction();
     for p in sky.pixels.iter().chain(mirror_hemi.pixels.iter()) {
         if p.iter().any(|c| !c.is_finite()) {
-            return Err(ProbeError::InvalidInput("non-finite value in the unwarped map".into()));
+            return Err(ProbeError::InvalidInput(
+                "non-finite value in the unwarped map".into(),
+            ));
         }
     }
     Ok(ProbeResult {

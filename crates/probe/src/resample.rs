@@ -71,7 +71,11 @@ fn corner_pixels(r: &Reflector, layout: &Layout, w: usize, h: usize) -> Vec<Opti
     (0..=h)
         .into_par_iter()
         .flat_map_iter(|i| {
-            (0..=w).map(move |j| layout(j as f64, i as f64).and_then(|(d, _)| r.locate(d)).map(|(p, _)| p))
+            (0..=w).map(move |j| {
+                layout(j as f64, i as f64)
+                    .and_then(|(d, _)| r.locate(d))
+                    .map(|(p, _)| p)
+            })
         })
         .collect()
 }
@@ -91,13 +95,22 @@ fn subsamples(c: [Option<DVec2>; 4], min_sub: usize) -> (usize, usize) {
 /// The solid-angle-weighted mean of [`Reflector::radiance`] over texel `(j, i)` by `nu` x `nv`
 /// sub-directions; `None` if the texel's centre is outside the layout or any sub-direction
 /// inside it is masked.
-pub fn texel(r: &Reflector, layout: &Layout, j: usize, i: usize, (nu, nv): (usize, usize)) -> Option<[f32; 3]> {
+pub fn texel(
+    r: &Reflector,
+    layout: &Layout,
+    j: usize,
+    i: usize,
+    (nu, nv): (usize, usize),
+) -> Option<[f32; 3]> {
     let (x, y) = (j as f64, i as f64);
     layout(x + 0.5, y + 0.5)?;
     let (mut acc, mut wsum) = ([0.0f64; 3], 0.0f64);
     for sy in 0..nv {
         for sx in 0..nu {
-            let Some((d, wt)) = layout(x + (sx as f64 + 0.5) / nu as f64, y + (sy as f64 + 0.5) / nv as f64) else {
+            let Some((d, wt)) = layout(
+                x + (sx as f64 + 0.5) / nu as f64,
+                y + (sy as f64 + 0.5) / nv as f64,
+            ) else {
                 continue;
             };
             let v = r.radiance(d)?;
@@ -121,7 +134,12 @@ pub fn resample(r: &Reflector, layout: &Layout, w: usize, h: usize, min_sub: usi
             (0..w)
                 .map(|j| {
                     let k = i * (w + 1) + j;
-                    let c = [corners[k], corners[k + 1], corners[k + w + 1], corners[k + w + 2]];
+                    let c = [
+                        corners[k],
+                        corners[k + 1],
+                        corners[k + w + 1],
+                        corners[k + w + 2],
+                    ];
                     texel(r, layout, j, i, subsamples(c, min_sub))
                 })
                 .collect()
@@ -144,7 +162,9 @@ pub fn resample(r: &Reflector, layout: &Layout, w: usize, h: usize, min_sub: usi
 pub fn latlong_layout(w: usize, h: usize) -> impl Fn(f64, f64) -> Option<(DVec3, f64)> + Sync {
     move |x, y| {
         let (u, v) = (x / w as f64, y / h as f64);
-        let d = igi_imaging::latlong::uv_to_direction(u as f32, v as f32).as_dvec3().normalize();
+        let d = igi_imaging::latlong::uv_to_direction(u as f32, v as f32)
+            .as_dvec3()
+            .normalize();
         Some((d, (std::f64::consts::PI * v).sin()))
     }
 }
@@ -153,9 +173,18 @@ pub fn latlong_layout(w: usize, h: usize) -> impl Fn(f64, f64) -> Option<(DVec3,
 /// `size` map (equal-angle polar: solid angle density `sin theta / theta`).
 pub fn hemisphere_layout(size: usize) -> impl Fn(f64, f64) -> Option<(DVec3, f64)> + Sync {
     move |x, y| {
-        let d = crate::envmap::hemisphere_direction_at(x as f32 - 0.5, y as f32 - 0.5, size)?.as_dvec3().normalize();
+        let d = crate::envmap::hemisphere_direction_at(x as f32 - 0.5, y as f32 - 0.5, size)?
+            .as_dvec3()
+            .normalize();
         let theta = d.z.clamp(-1.0, 1.0).acos();
-        Some((d, if theta > 1e-9 { theta.sin() / theta } else { 1.0 }))
+        Some((
+            d,
+            if theta > 1e-9 {
+                theta.sin() / theta
+            } else {
+                1.0
+            },
+        ))
     }
 }
 
@@ -169,23 +198,36 @@ mod tests {
 
     /// Solid angle of the spherical triangle (a, b, c) (Van Oosterom and Strackee).
     fn triangle(a: DVec3, b: DVec3, c: DVec3) -> f64 {
-        2.0 * a.dot(b.cross(c)).abs().atan2(1.0 + a.dot(b) + b.dot(c) + c.dot(a))
+        2.0 * a
+            .dot(b.cross(c))
+            .abs()
+            .atan2(1.0 + a.dot(b) + b.dot(c) + c.dot(a))
     }
 
     #[test]
     fn one_bright_pixel_keeps_its_light_and_its_footprint() {
         let mut cam = Camera::pinhole(200, 200, 600.0, 600.0, 99.5, 99.5);
         cam.pose = WorldToCamera {
-            r: DMat3::from_cols_array_2d(&[[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]]).transpose(),
+            r: DMat3::from_cols_array_2d(&[[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
+                .transpose(),
             t: DVec3::ZERO,
         };
-        let s = BoardSphere { center_cam: DVec3::new(0.0, 0.0, 1.0), radius: 0.1 };
+        let s = BoardSphere {
+            center_cam: DVec3::new(0.0, 0.0, 1.0),
+            radius: 0.1,
+        };
         let view = SphereView::new(&cam, SphereKind::Mirror, &s);
         let mut img = HdrImage::new(200, 200);
         let (px, py) = (125usize, 80usize);
         img.set(px, py, [1.0, 2.0, 3.0]);
         let unit = |_: f64| [1.0; 3];
-        let r = Reflector { img: &img, view: &view, refl: &unit, min_cos: 0.0, cam_cos: 1.0 };
+        let r = Reflector {
+            img: &img,
+            view: &view,
+            refl: &unit,
+            min_cos: 0.0,
+            cam_cos: 1.0,
+        };
         let (w, h) = (512, 256);
         let map = resample(&r, &latlong_layout(w, h), w, h, 2);
         // the pixel's footprint in directions: its four corners traced and reflected
@@ -194,14 +236,21 @@ mod tests {
             reflect(d, n).normalize()
         };
         let (x, y) = (px as f64, py as f64);
-        let c = [dir(x - 0.5, y - 0.5), dir(x + 0.5, y - 0.5), dir(x + 0.5, y + 0.5), dir(x - 0.5, y + 0.5)];
+        let c = [
+            dir(x - 0.5, y - 0.5),
+            dir(x + 0.5, y - 0.5),
+            dir(x + 0.5, y + 0.5),
+            dir(x - 0.5, y + 0.5),
+        ];
         let omega = triangle(c[0], c[1], c[2]) + triangle(c[0], c[2], c[3]);
         let (mut energy, mut far, mut inner) = (0.0f64, 0.0f64, 0usize);
         for i in 0..h {
             let sa = latlong::pixel_solid_angle(i, w, h) as f64;
             for j in 0..w {
                 let v = map.pixels[i * w + j];
-                let at = r.locate(latlong::pixel_center_direction(i, j, w, h).as_dvec3()).map(|(p, _)| p);
+                let at = r
+                    .locate(latlong::pixel_center_direction(i, j, w, h).as_dvec3())
+                    .map(|(p, _)| p);
                 let cheb = at.map_or(f64::MAX, |p| (p.x - x).abs().max((p.y - y).abs()));
                 if v[0] > 0.0 {
                     energy += sa * v[0] as f64;
@@ -210,16 +259,28 @@ mod tests {
                 }
                 if cheb < 0.3 {
                     // texels well inside the pixel's footprint see exactly its value
-                    assert!((v[0] - 1.0).abs() < 1e-6, "texel {i},{j} at {cheb:.2} px: {v:?}");
+                    assert!(
+                        (v[0] - 1.0).abs() < 1e-6,
+                        "texel {i},{j} at {cheb:.2} px: {v:?}"
+                    );
                     inner += 1;
                 }
             }
         }
         // light lands only on texels overlapping the footprint (bilinear interpolation would
         // spread it to texels whose centres are up to 1 px away) and its total is preserved
-        eprintln!("{inner} texels inside, farthest lit texel {far:.3} px, energy / footprint {:.4}", energy / omega);
+        eprintln!(
+            "{inner} texels inside, farthest lit texel {far:.3} px, energy / footprint {:.4}",
+            energy / omega
+        );
         assert!(inner >= 2, "{inner}");
-        assert!(far < 0.8, "light reached a texel {far:.2} px from the pixel");
-        assert!((energy / omega - 1.0).abs() < 0.03, "energy {energy:.4e} vs footprint {omega:.4e}");
+        assert!(
+            far < 0.8,
+            "light reached a texel {far:.2} px from the pixel"
+        );
+        assert!(
+            (energy / omega - 1.0).abs() < 0.03,
+            "energy {energy:.4e} vs footprint {omega:.4e}"
+        );
     }
 }

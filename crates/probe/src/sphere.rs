@@ -33,7 +33,13 @@ impl<'a> SphereView<'a> {
     /// `s` is given in the camera frame (as in the board file).
     pub fn new(camera: &'a Camera, kind: SphereKind, s: &BoardSphere) -> Self {
         let c2w = camera.pose.inverse();
-        SphereView { camera, kind, center: c2w.apply(s.center_cam), radius: s.radius, eye: camera.center_world() }
+        SphereView {
+            camera,
+            kind,
+            center: c2w.apply(s.center_cam),
+            radius: s.radius,
+            eye: camera.center_world(),
+        }
     }
 
     /// Unit vector from the sphere's centre toward the camera.
@@ -111,7 +117,12 @@ impl<'a> SphereView<'a> {
             return None;
         }
         let pixel = self.camera.project(point)?;
-        Some(ReflectionPoint { point, normal: n, cos_i, pixel })
+        Some(ReflectionPoint {
+            point,
+            normal: n,
+            cos_i,
+            pixel,
+        })
     }
 
     /// Apparent radius in pixels (mean focal length times the angular radius).
@@ -150,23 +161,42 @@ impl<'a> SphereView<'a> {
             y1 = y1.max(p.y);
         }
         let cl = |v: f64, m: f64| v.clamp(0.0, m - 1.0) as usize;
-        (cl(x0.floor() - 1.0, w), cl(y0.floor() - 1.0, h), cl(x1.ceil() + 1.0, w), cl(y1.ceil() + 1.0, h))
+        (
+            cl(x0.floor() - 1.0, w),
+            cl(y0.floor() - 1.0, h),
+            cl(x1.ceil() + 1.0, w),
+            cl(y1.ceil() + 1.0, h),
+        )
     }
 
     /// Error if the sphere does not lie fully inside the image; its apparent radius otherwise.
     pub fn check_in_image(&self) -> Result<f64, ProbeError> {
         let kind = self.kind.name().to_string();
         if self.center.distance(self.eye) <= self.radius * 1.0001 {
-            return Err(ProbeError::BadSphere { kind, center: self.center.to_array(), radius: self.radius });
+            return Err(ProbeError::BadSphere {
+                kind,
+                center: self.center.to_array(),
+                radius: self.radius,
+            });
         }
         let pts = self.outline(256);
         if pts.len() < 256 {
-            return Err(ProbeError::BadSphere { kind, center: self.center.to_array(), radius: self.radius });
+            return Err(ProbeError::BadSphere {
+                kind,
+                center: self.center.to_array(),
+                radius: self.radius,
+            });
         }
         let (w, h) = (self.camera.width, self.camera.height);
         for p in pts {
             if !(p.x >= -0.5 && p.y >= -0.5 && p.x <= w as f64 - 0.5 && p.y <= h as f64 - 0.5) {
-                return Err(ProbeError::OutsideImage { kind, width: w, height: h, x: p.x, y: p.y });
+                return Err(ProbeError::OutsideImage {
+                    kind,
+                    width: w,
+                    height: h,
+                    x: p.x,
+                    y: p.y,
+                });
             }
         }
         Ok(self.pixel_radius())
@@ -187,7 +217,8 @@ mod tests {
     fn camera() -> Camera {
         let mut c = Camera::pinhole(256, 256, 400.0, 400.0, 127.5, 127.5);
         // camera x right = world -Y, y down = world -Z, z forward = world +X, centre at (1, 2, 3)
-        let r = DMat3::from_cols_array_2d(&[[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]]).transpose();
+        let r = DMat3::from_cols_array_2d(&[[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
+            .transpose();
         let eye = DVec3::new(1.0, 2.0, 3.0);
         c.pose = WorldToCamera { r, t: -(r * eye) };
         c
@@ -196,7 +227,10 @@ mod tests {
     #[test]
     fn reflection_point_inverts_ray_tracing() {
         let cam = camera();
-        let s = BoardSphere { center_cam: DVec3::new(-0.1, 0.05, 0.6), radius: 0.07 };
+        let s = BoardSphere {
+            center_cam: DVec3::new(-0.1, 0.05, 0.6),
+            radius: 0.07,
+        };
         let view = SphereView::new(&cam, SphereKind::Mirror, &s);
         // world centre = eye + R^T c_cam
         let want = DVec3::new(1.0 + 0.6, 2.0 + 0.1, 3.0 - 0.05);
@@ -212,7 +246,11 @@ mod tests {
                 }
                 let w = reflect(d, n);
                 let rp = view.reflection_point(w).expect("visible direction");
-                assert!(rp.pixel.distance(DVec2::new(x as f64, y as f64)) < 1e-6, "{x} {y} -> {:?}", rp.pixel);
+                assert!(
+                    rp.pixel.distance(DVec2::new(x as f64, y as f64)) < 1e-6,
+                    "{x} {y} -> {:?}",
+                    rp.pixel
+                );
                 assert!((rp.cos_i - n.dot(-d)).abs() < 1e-9);
                 checked += 1;
             }
@@ -225,7 +263,10 @@ mod tests {
     #[test]
     fn outline_and_image_checks() {
         let cam = camera();
-        let s = BoardSphere { center_cam: DVec3::new(0.0, 0.0, 0.6), radius: 0.07 };
+        let s = BoardSphere {
+            center_cam: DVec3::new(0.0, 0.0, 0.6),
+            radius: 0.07,
+        };
         let v = SphereView::new(&cam, SphereKind::Diffuse, &s);
         let r = v.check_in_image().unwrap();
         // on axis: f tan(asin(r/d))
@@ -233,8 +274,17 @@ mod tests {
         for p in v.outline(64) {
             assert!((p.distance(DVec2::new(127.5, 127.5)) - r).abs() < 1e-6);
         }
-        let off = BoardSphere { center_cam: DVec3::new(0.35, 0.0, 0.6), radius: 0.07 };
-        let e = SphereView::new(&cam, SphereKind::Black, &off).check_in_image().unwrap_err().to_string();
-        assert!(e.contains("black sphere is partly outside the 256x256 image"), "{e}");
+        let off = BoardSphere {
+            center_cam: DVec3::new(0.35, 0.0, 0.6),
+            radius: 0.07,
+        };
+        let e = SphereView::new(&cam, SphereKind::Black, &off)
+            .check_in_image()
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("black sphere is partly outside the 256x256 image"),
+            "{e}"
+        );
     }
 }

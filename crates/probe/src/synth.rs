@@ -23,7 +23,13 @@ pub struct SynthSun {
 /// Fresnel reflectance; the diffuse sphere shows reflectance * irradiance / pi (irradiance
 /// from the integrated sky plus the sun disk, evaluated at each sub-sample's normal).
 /// `sky` must be fully valid.
-pub fn render_board(camera: &Camera, board: &Board, sky: &HdrImage, sun: Option<SynthSun>, ss: usize) -> HdrImage {
+pub fn render_board(
+    camera: &Camera,
+    board: &Board,
+    sky: &HdrImage,
+    sun: Option<SynthSun>,
+    ss: usize,
+) -> HdrImage {
     render_board_with_panel(camera, board, sky, sun, ss, None)
 }
 
@@ -52,7 +58,10 @@ impl SynthPanel {
         }
         for (c, side, bits) in &self.markers {
             let (a, b) = (c[1] - c[0], c[3] - c[0]);
-            let (s, t) = ((q - c[0]).dot(a) / a.length_squared(), (q - c[0]).dot(b) / b.length_squared());
+            let (s, t) = (
+                (q - c[0]).dot(a) / a.length_squared(),
+                (q - c[0]).dot(b) / b.length_squared(),
+            );
             if (0.0..1.0).contains(&s) && (0.0..1.0).contains(&t) {
                 let (col, row) = ((s * *side as f64) as usize, (t * *side as f64) as usize);
                 let v = bits[row.min(side - 1) * side + col.min(side - 1)] as f32 / 255.0;
@@ -78,7 +87,8 @@ impl SynthPanel {
             return None;
         }
         let q = o + t * d - origin;
-        self.radiance(DVec3::new(q.dot(ex), q.dot(ey), 0.0)).map(|v| (t, v))
+        self.radiance(DVec3::new(q.dot(ex), q.dot(ey), 0.0))
+            .map(|v| (t, v))
     }
 }
 
@@ -93,11 +103,26 @@ pub fn render_board_with_panel(
     panel: Option<&SynthPanel>,
 ) -> HdrImage {
     let ss = ss.max(1);
-    let views: Vec<SphereView> = std::iter::once(SphereView::new(camera, SphereKind::Mirror, &board.mirror))
-        .chain(board.black.iter().map(|b| SphereView::new(camera, SphereKind::Black, b)))
-        .chain(board.diffuse.iter().map(|b| SphereView::new(camera, SphereKind::Diffuse, b)))
-        .collect();
-    let integ = if board.diffuse.is_some() { Some(Integrator::new(sky)) } else { None };
+    let views: Vec<SphereView> =
+        std::iter::once(SphereView::new(camera, SphereKind::Mirror, &board.mirror))
+            .chain(
+                board
+                    .black
+                    .iter()
+                    .map(|b| SphereView::new(camera, SphereKind::Black, b)),
+            )
+            .chain(
+                board
+                    .diffuse
+                    .iter()
+                    .map(|b| SphereView::new(camera, SphereKind::Diffuse, b)),
+            )
+            .collect();
+    let integ = if board.diffuse.is_some() {
+        Some(Integrator::new(sky))
+    } else {
+        None
+    };
     let sun_cos = sun.map(|s| (s.diameter_deg * 0.5).to_radians().cos());
     let env = |d: DVec3| -> [f32; 3] {
         let mut v = latlong_lookup(sky, d.as_vec3()).unwrap_or([0.0; 3]);
@@ -153,15 +178,22 @@ pub fn render_board_with_panel(
                                                 board.black_reflectance(cos_i)
                                             };
                                             let l = env(reflect(d, n));
-                                            [r[0] * l[0] as f64, r[1] * l[1] as f64, r[2] * l[2] as f64]
+                                            [
+                                                r[0] * l[0] as f64,
+                                                r[1] * l[1] as f64,
+                                                r[2] * l[2] as f64,
+                                            ]
                                         }
                                         SphereKind::Diffuse => {
-                                            let e =
-                                                integ.as_ref().map(|i| i.irradiance(n.as_vec3())).unwrap_or([0.0; 3]);
+                                            let e = integ
+                                                .as_ref()
+                                                .map(|i| i.irradiance(n.as_vec3()))
+                                                .unwrap_or([0.0; 3]);
                                             let mut e = e.map(|v| v as f64);
                                             if let Some(s) = sun {
-                                                let k = crate::envmap::disk_cosine_solid_angle(s.diameter_deg)
-                                                    * n.dot(s.direction).max(0.0);
+                                                let k = crate::envmap::disk_cosine_solid_angle(
+                                                    s.diameter_deg,
+                                                ) * n.dot(s.direction).max(0.0);
                                                 for c in 0..3 {
                                                     e[c] += k * s.radiance[c] as f64;
                                                 }
@@ -195,4 +227,52 @@ pub fn render_board_with_panel(
 pub fn direction_from_angles(elevation_deg: f64, azimuth_deg: f64) -> DVec3 {
     let (e, a) = (elevation_deg.to_radians(), azimuth_deg.to_radians());
     DVec3::new(e.cos() * a.cos(), e.cos() * a.sin(), e.sin())
+}
+
+/// A lens's blur for [`render_board`] output: separable Gaussian of standard deviation `sigma`
+/// pixels (truncated at 4 sigma, renormalised at the image border), like Mitsuba's default
+/// reconstruction filter (sigma 0.5 px). Sub-pixel suns spread over a few pixels, so their
+/// centroids carry sub-pixel information, as in a real photograph.
+pub fn gaussian_blur(img: &HdrImage, sigma: f64) -> HdrImage {
+    if sigma <= 0.0 {
+        return img.clone();
+    }
+    let r = (4.0 * sigma).ceil() as i64;
+    let k: Vec<f64> = (-r..=r)
+        .map(|d| (-(d * d) as f64 / (2.0 * sigma * sigma)).exp())
+        .collect();
+    let (w, h) = (img.width as i64, img.height as i64);
+    let pass = |src: &HdrImage, dx: i64, dy: i64| -> HdrImage {
+        let rows: Vec<Vec<[f32; 3]>> = (0..h)
+            .into_par_iter()
+            .map(|y| {
+                (0..w)
+                    .map(|x| {
+                        let (mut acc, mut ws) = ([0.0f64; 3], 0.0);
+                        for (i, kv) in k.iter().enumerate() {
+                            let o = i as i64 - r;
+                            let (sx, sy) = (x + o * dx, y + o * dy);
+                            if sx < 0 || sy < 0 || sx >= w || sy >= h {
+                                continue;
+                            }
+                            let p = src.get(sx as usize, sy as usize);
+                            for c in 0..3 {
+                                acc[c] += kv * p[c] as f64;
+                            }
+                            ws += kv;
+                        }
+                        acc.map(|v| (v / ws) as f32)
+                    })
+                    .collect()
+            })
+            .collect();
+        let mut out = HdrImage::new(w as usize, h as usize);
+        for (y, row) in rows.into_iter().enumerate() {
+            for (x, p) in row.into_iter().enumerate() {
+                out.set(x, y, p);
+            }
+        }
+        out
+    };
+    pass(&pass(img, 1, 0), 0, 1)
 }

@@ -9,14 +9,19 @@ use igi_probe::BoardSpec;
 use std::path::{Path, PathBuf};
 
 fn fixture(rel: &str) -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../datasets/fixtures/board")).join(rel)
+    PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../datasets/fixtures/board"
+    ))
+    .join(rel)
 }
 
 /// Camera at the world origin looking along +X (x right = world -Y, y down = world -Z).
 fn camera() -> Camera {
     let mut c = Camera::pinhole(960, 720, 900.0, 900.0, 479.5, 359.5);
     c.pose = WorldToCamera {
-        r: DMat3::from_cols_array_2d(&[[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]]).transpose(),
+        r: DMat3::from_cols_array_2d(&[[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
+            .transpose(),
         t: DVec3::ZERO,
     };
     c
@@ -26,8 +31,12 @@ fn camera() -> Camera {
 /// camera's y axis and 12 degrees about its x axis, centre 1.0 m ahead.
 fn true_pose() -> WorldToCamera {
     let base = DMat3::from_cols(DVec3::X, -DVec3::Y, -DVec3::Z);
-    let tilt = DMat3::from_rotation_y(25f64.to_radians()) * DMat3::from_rotation_x(-12f64.to_radians());
-    WorldToCamera { r: tilt * base, t: DVec3::new(0.02, 0.03, 1.0) }
+    let tilt =
+        DMat3::from_rotation_y(25f64.to_radians()) * DMat3::from_rotation_x(-12f64.to_radians());
+    WorldToCamera {
+        r: tilt * base,
+        t: DVec3::new(0.02, 0.03, 1.0),
+    }
 }
 
 const MARKER: f64 = 0.09;
@@ -77,16 +86,28 @@ fn fiducials_give_the_board_pose_and_the_same_lighting() {
             (
                 marker_corners(i),
                 120,
-                igi_imaging::cv::aruco_marker_image(spec.fiducials.as_ref().unwrap().dictionary, i as i32, 120)
-                    .unwrap(),
+                igi_imaging::cv::aruco_marker_image(
+                    spec.fiducials.as_ref().unwrap().dictionary,
+                    i as i32,
+                    120,
+                )
+                .unwrap(),
             )
         })
         .collect();
-    let panel =
-        SynthPanel { board_to_camera: pose, extent: [-0.4, -0.27, 0.4, 0.27], white: 0.8, black: 0.04, markers };
+    let panel = SynthPanel {
+        board_to_camera: pose,
+        extent: [-0.4, -0.27, 0.4, 0.27],
+        white: 0.8,
+        black: 0.04,
+        markers,
+    };
     let sky = read_image(&fixture("sunny/sky_truth.exr")).unwrap();
-    let sun =
-        SynthSun { direction: direction_from_angles(35.0, 200.0), radiance: [3.0e4, 2.9e4, 2.7e4], diameter_deg: 3.0 };
+    let sun = SynthSun {
+        direction: direction_from_angles(35.0, 200.0),
+        radiance: [3.0e4, 2.9e4, 2.7e4],
+        diameter_deg: 3.0,
+    };
     let img = render_board_with_panel(&cam, &board_true, &sky, Some(sun), 3, Some(&panel));
 
     let placed = place_board(&spec, &img, &cam).unwrap();
@@ -96,9 +117,23 @@ fn fiducials_give_the_board_pose_and_the_same_lighting() {
     let rot_err = igi_imaging::cv::rotation_angle_between(&p.r, &pose.r).to_degrees();
     let t_err = (p.t - pose.t).length();
     let centre_err = [
-        placed.board.mirror.center_cam.distance(board_true.mirror.center_cam),
-        placed.board.black.unwrap().center_cam.distance(board_true.black.unwrap().center_cam),
-        placed.board.diffuse.unwrap().center_cam.distance(board_true.diffuse.unwrap().center_cam),
+        placed
+            .board
+            .mirror
+            .center_cam
+            .distance(board_true.mirror.center_cam),
+        placed
+            .board
+            .black
+            .unwrap()
+            .center_cam
+            .distance(board_true.black.unwrap().center_cam),
+        placed
+            .board
+            .diffuse
+            .unwrap()
+            .center_cam
+            .distance(board_true.diffuse.unwrap().center_cam),
     ];
     eprintln!(
         "board pose: rotation error {rot_err:.4} deg, translation error {:.3} mm, sphere centres {:.3} / {:.3} / {:.3} mm, \
@@ -118,11 +153,20 @@ fn fiducials_give_the_board_pose_and_the_same_lighting() {
 
     // the lighting from the fiducial placement against the lighting from the known pose
     // a 3 degree sun: the 0.53 degree disk would cover a tenth of a pixel of the 54 px black sphere
-    let opt = ProbeOptions { sun_diameter_deg: 3.0, ..ProbeOptions::default() };
+    let opt = ProbeOptions {
+        sun_diameter_deg: 3.0,
+        ..ProbeOptions::default()
+    };
     let a = process(&img, &cam, &board_true, &opt).unwrap();
     let b = process(&img, &cam, &placed.board, &opt).unwrap();
-    let (sa, sb) = (a.diagnostics.sun.as_ref().unwrap(), b.diagnostics.sun.as_ref().unwrap());
-    let (da, db) = (DVec3::from_array(sa.direction), DVec3::from_array(sb.direction));
+    let (sa, sb) = (
+        a.diagnostics.sun.as_ref().unwrap(),
+        b.diagnostics.sun.as_ref().unwrap(),
+    );
+    let (da, db) = (
+        DVec3::from_array(sa.direction),
+        DVec3::from_array(sb.direction),
+    );
     let sun_angle = da.angle_between(db).to_degrees();
     let truth_angle = da.angle_between(sun.direction).to_degrees();
     let (ra, rb) = (sa.radiance.unwrap(), sb.radiance.unwrap());
@@ -132,9 +176,14 @@ fn fiducials_give_the_board_pose_and_the_same_lighting() {
     for k in 0..a.sky_measured.pixels.len() {
         if a.sky_measured.valid[k] && b.sky_measured.valid[k] {
             let i = k / a.sky_measured.width;
-            let w = igi_imaging::latlong::pixel_solid_angle(i, a.sky_measured.width, a.sky_measured.height) as f64;
+            let w = igi_imaging::latlong::pixel_solid_angle(
+                i,
+                a.sky_measured.width,
+                a.sky_measured.height,
+            ) as f64;
             for c in 0..3 {
-                se += w * (a.sky_measured.pixels[k][c] - b.sky_measured.pixels[k][c]).powi(2) as f64;
+                se +=
+                    w * (a.sky_measured.pixels[k][c] - b.sky_measured.pixels[k][c]).powi(2) as f64;
                 st += w * (a.sky_measured.pixels[k][c] as f64).powi(2);
             }
         }
@@ -148,7 +197,10 @@ fn fiducials_give_the_board_pose_and_the_same_lighting() {
     // a black-sphere centre off by dc tilts the normal at the sun's spot by about dc / r and
     // the reflected sun direction by twice that (0.33 deg for 0.17 mm on a 60 mm sphere)
     let bound = (1.5 * 2.0 * centre_err[1] / 0.06).to_degrees();
-    assert!(sun_angle < bound.min(0.5), "sun directions {sun_angle} deg apart (bound {bound})");
+    assert!(
+        sun_angle < bound.min(0.5),
+        "sun directions {sun_angle} deg apart (bound {bound})"
+    );
     assert!(rad_rel.iter().all(|r| r.abs() < 0.01), "{rad_rel:?}");
     assert!(sky_rel < 0.02, "sky maps differ by {sky_rel}");
 }
@@ -159,7 +211,10 @@ fn without_opencv_a_board_frame_board_says_the_feature_is_needed() {
     let spec = BoardSpec::from_json_str(&board_json(), Path::new("board.json")).unwrap();
     let img = igi_imaging::HdrImage::new(960, 720);
     let e = place_board(&spec, &img, &camera()).unwrap_err().to_string();
-    assert!(e.contains("board.json") && e.contains("opencv feature") && e.contains("center_board"), "{e}");
+    assert!(
+        e.contains("board.json") && e.contains("opencv feature") && e.contains("center_board"),
+        "{e}"
+    );
     // with camera-frame centres too, the board falls back to them with a warning
     let both = board_json()
         .replace(

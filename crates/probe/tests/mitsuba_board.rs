@@ -10,7 +10,11 @@ use igi_probe::{process, Board, ProbeOptions, ProbeResult};
 use std::path::PathBuf;
 
 fn dir(case: &str) -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../datasets/fixtures/board")).join(case)
+    PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../datasets/fixtures/board"
+    ))
+    .join(case)
 }
 
 struct Truth {
@@ -20,13 +24,17 @@ struct Truth {
 
 fn truth(case: &str) -> Truth {
     let d = dir(case);
-    let j: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(d.join("truth.json")).unwrap()).unwrap();
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("truth.json")).unwrap()).unwrap();
     let sun = j.get("sun").map(|s| {
         let v: Vec<f64> = serde_json::from_value(s["direction"].clone()).unwrap();
         let r: Vec<f64> = serde_json::from_value(s["radiance"].clone()).unwrap();
         (DVec3::new(v[0], v[1], v[2]), [r[0], r[1], r[2]])
     });
-    Truth { sky: read_image(&d.join("sky_truth.exr")).unwrap(), sun }
+    Truth {
+        sky: read_image(&d.join("sky_truth.exr")).unwrap(),
+        sun,
+    }
 }
 
 fn run(case: &str, brackets: bool) -> ProbeResult {
@@ -34,8 +42,16 @@ fn run(case: &str, brackets: bool) -> ProbeResult {
     let cam = Camera::load(&d.join("camera.json")).unwrap();
     let board = Board::load(&d.join("board.json")).unwrap();
     let img = if brackets {
-        let imgs: Vec<HdrImage> = (0..3).map(|i| read_image(&d.join(format!("bracket_{i}.png"))).unwrap()).collect();
-        merge_linear(&imgs, &[0.25, 1.0 / 32.0, 1.0 / 256.0], LinearParams::default()).unwrap().0
+        let imgs: Vec<HdrImage> = (0..3)
+            .map(|i| read_image(&d.join(format!("bracket_{i}.png"))).unwrap())
+            .collect();
+        merge_linear(
+            &imgs,
+            &[0.25, 1.0 / 32.0, 1.0 / 256.0],
+            LinearParams::default(),
+        )
+        .unwrap()
+        .0
     } else {
         read_image(&d.join("board.exr")).unwrap()
     };
@@ -66,7 +82,13 @@ fn sky_error(r: &ProbeResult, t: &HdrImage) -> (f64, f64) {
         .map(|i| {
             let sa = latlong::pixel_solid_angle(i, t.width, t.height) as f64;
             (0..t.width)
-                .filter(|&j| latlong_lookup(&r.sky_measured, latlong::pixel_center_direction(i, j, t.width, t.height)).is_some())
+                .filter(|&j| {
+                    latlong_lookup(
+                        &r.sky_measured,
+                        latlong::pixel_center_direction(i, j, t.width, t.height),
+                    )
+                    .is_some()
+                })
                 .count() as f64
                 * sa
         })
@@ -92,11 +114,19 @@ fn check_sunny(brackets: bool) {
     assert!(d.sun_found);
     assert!(ang < 0.25, "sun direction off by {ang} deg");
     for c in 0..3 {
-        assert!(rel[c].abs() < 0.02, "sun radiance channel {c} off by {:.2}%", 100.0 * rel[c]);
+        assert!(
+            rel[c].abs() < 0.02,
+            "sun radiance channel {c} off by {:.2}%",
+            100.0 * rel[c]
+        );
     }
     assert!(sky_rms < 0.03, "sky relative RMS {sky_rms}");
     assert!(cov > 0.6, "valid directions cover only {cov}");
-    assert!(d.check_rms_percent.unwrap() < 2.0, "check RMS {:?}", d.check_rms_percent);
+    assert!(
+        d.check_rms_percent.unwrap() < 2.0,
+        "check RMS {:?}",
+        d.check_rms_percent
+    );
     for p in r.sky.pixels.iter() {
         assert!(p.iter().all(|v| v.is_finite() && *v >= 0.0));
     }
@@ -119,13 +149,19 @@ fn check_cloudy(brackets: bool) {
     let (sky_rms, cov) = sky_error(&r, &t.sky);
     eprintln!(
         "cloudy brackets={brackets}: sky rel RMS {sky_rms:.4} over {:.1}%, check {:?}; {}",
-        100.0 * cov, d.check_rms_percent, d.sun_decision
+        100.0 * cov,
+        d.check_rms_percent,
+        d.sun_decision
     );
     assert!(!d.sun_found, "{}", d.sun_decision);
     assert!(d.sun.is_none());
     assert!(sky_rms < 0.03, "sky relative RMS {sky_rms}");
     assert!(cov > 0.6);
-    assert!(d.check_rms_percent.unwrap() < 2.0, "check RMS {:?}", d.check_rms_percent);
+    assert!(
+        d.check_rms_percent.unwrap() < 2.0,
+        "check RMS {:?}",
+        d.check_rms_percent
+    );
 }
 
 #[test]
@@ -154,7 +190,9 @@ fn mirror_index_fitted_from_the_rendered_sphere() {
     let mut samples: Vec<Vec<(f64, f64)>> = vec![Vec::new(); 3];
     for y in y0..=y1 {
         for x in x0..=x1 {
-            let Some((_, n, dv)) = view.hit_pixel(x as f64, y as f64) else { continue };
+            let Some((_, n, dv)) = view.hit_pixel(x as f64, y as f64) else {
+                continue;
+            };
             let cos_i = n.dot(-dv);
             if cos_i < 0.35 {
                 continue;
@@ -169,8 +207,17 @@ fn mirror_index_fitted_from_the_rendered_sphere() {
     let want = [(2.40, 2.98), (2.40, 3.02), (2.40, 3.02)];
     for c in 0..3 {
         let fit = igi_probe::fresnel::fit_complex_ior(&samples[c], (1.5, 2.0)).unwrap();
-        eprintln!("channel {c}: n {:.3} k {:.3} (rms {:.4}, {} samples)", fit.n, fit.k, fit.rms, samples[c].len());
-        assert!((fit.n - want[c].0).abs() < 0.05 && (fit.k - want[c].1).abs() < 0.05, "{fit:?}");
+        eprintln!(
+            "channel {c}: n {:.3} k {:.3} (rms {:.4}, {} samples)",
+            fit.n,
+            fit.k,
+            fit.rms,
+            samples[c].len()
+        );
+        assert!(
+            (fit.n - want[c].0).abs() < 0.05 && (fit.k - want[c].1).abs() < 0.05,
+            "{fit:?}"
+        );
         let r0 = igi_probe::fresnel::conductor(1.0, fit.n, fit.k);
         let r0_want = igi_probe::fresnel::conductor(1.0, want[c].0, want[c].1);
         assert!((r0 - r0_want).abs() < 0.005, "{r0} vs {r0_want}");

@@ -10,14 +10,15 @@ use igi_probe::{process, Board, ProbeOptions};
 use std::path::PathBuf;
 
 fn data(rel: &str) -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data")).join(rel)
+    igi_testkit::shared_data(rel)
 }
 
 /// Camera at the world origin looking along +X (x right = world -Y, y down = world -Z).
 fn camera(w: u32, h: u32, f: f64) -> Camera {
     let mut c = Camera::pinhole(w, h, f, f, (w as f64 - 1.0) / 2.0, (h as f64 - 1.0) / 2.0);
     c.pose = WorldToCamera {
-        r: DMat3::from_cols_array_2d(&[[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]]).transpose(),
+        r: DMat3::from_cols_array_2d(&[[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
+            .transpose(),
         t: DVec3::ZERO,
     };
     c
@@ -43,7 +44,9 @@ fn area_average(probe: &HdrImage, w: usize) -> HdrImage {
                     let u = (j as f32 + (sx as f32 + 0.5) / n as f32) / w as f32;
                     let v = (i as f32 + (sy as f32 + 0.5) / n as f32) / h as f32;
                     let wt = (std::f64::consts::PI * v as f64).sin();
-                    let p = igi_probe::envmap::latlong_lookup(probe, latlong::uv_to_direction(u, v)).unwrap();
+                    let p =
+                        igi_probe::envmap::latlong_lookup(probe, latlong::uv_to_direction(u, v))
+                            .unwrap();
                     for c in 0..3 {
                         acc[c] += wt * p[c] as f64;
                     }
@@ -60,13 +63,20 @@ fn area_average(probe: &HdrImage, w: usize) -> HdrImage {
 /// along the polar angle (the sampling rate of the ball image relative to the probe's own).
 fn pixels_per_probe_texel(probe: &HdrImage, view: &igi_probe::sphere::SphereView) -> (f64, f64) {
     let lum = |p: [f32; 3]| p[0] + p[1] + p[2];
-    let k = (0..probe.pixels.len()).max_by(|a, b| lum(probe.pixels[*a]).total_cmp(&lum(probe.pixels[*b]))).unwrap();
+    let k = (0..probe.pixels.len())
+        .max_by(|a, b| lum(probe.pixels[*a]).total_cmp(&lum(probe.pixels[*b])))
+        .unwrap();
     let (i, j, w, h) = (k / probe.width, k % probe.width, probe.width, probe.height);
     let at = |i: usize, j: usize| {
-        view.reflection_point(latlong::pixel_center_direction(i, j % w, w, h).as_dvec3()).unwrap().pixel
+        view.reflection_point(latlong::pixel_center_direction(i, j % w, w, h).as_dvec3())
+            .unwrap()
+            .pixel
     };
     let c = at(i, j);
-    (c.distance(at(i, j + 1)), c.distance(at((i + 1).min(h - 1), j)))
+    (
+        c.distance(at(i, j + 1)),
+        c.distance(at((i + 1).min(h - 1), j)),
+    )
 }
 
 #[test]
@@ -78,15 +88,24 @@ fn latlong_probe_round_trip_through_a_mirror_ball() {
     // neighbouring comparison texels (8 % relative RMS); 600 px gives 1.44 px per texel.
     // docs/PROBE.md, "Resolution", has the error against the ball radius.
     for name in ["pisa", "uffizi", "wells", "ennis", "grace"] {
-        let probe = read_image(&data(&format!("light_probes/probulator_latlong_256x128/{name}.hdr"))).unwrap();
+        let probe = read_image(&data(&format!(
+            "light_probes/probulator_latlong_256x128/{name}.hdr"
+        )))
+        .unwrap();
         assert_eq!((probe.width, probe.height), (256, 128));
         let cam = camera(1232, 1232, 6000.0);
         // ball of radius 0.1 m at 1.0 m: 603 px in radius
         let board = Board::mirror_only(DVec3::new(0.0, 0.0, 1.0), 0.1);
-        let view = igi_probe::sphere::SphereView::new(&cam, igi_probe::SphereKind::Mirror, &board.mirror);
+        let view =
+            igi_probe::sphere::SphereView::new(&cam, igi_probe::SphereKind::Mirror, &board.mirror);
         let (pu, pv) = pixels_per_probe_texel(&probe, &view);
         let img = render_board(&cam, &board, &probe, None, 2);
-        let opt = ProbeOptions { map_width: 512, conv_width: 128, hemi_size: 64, ..ProbeOptions::default() };
+        let opt = ProbeOptions {
+            map_width: 512,
+            conv_width: 128,
+            hemi_size: 64,
+            ..ProbeOptions::default()
+        };
         let r = process(&img, &cam, &board, &opt).unwrap();
         assert!(!r.diagnostics.sun_found || r.diagnostics.sun.as_ref().unwrap().radiance.is_none());
         // compare at 64x32 (5.6 degree texels): the recovered 512x256 map box-averaged, the
@@ -128,23 +147,47 @@ fn latlong_probe_round_trip_through_a_mirror_ball() {
 fn check_chrome_ball(name: &str, imgs: &[HdrImage], times: &[f64], radius: f64) {
     let (w, h) = (imgs[0].width, imgs[0].height);
     let sat = srgb_to_linear(0.98);
-    let (merged, _) = merge_linear(imgs, times, LinearParams { noise_floor: 0.002, saturation: sat }).unwrap();
+    let (merged, _) = merge_linear(
+        imgs,
+        times,
+        LinearParams {
+            noise_floor: 0.002,
+            saturation: sat,
+        },
+    )
+    .unwrap();
     let f = 10000.0;
     let cam = camera(w as u32, h as u32, f);
     let board = Board::mirror_only(DVec3::new(0.0, 0.0, f / radius), 1.0);
     let r = process(&merged, &cam, &board, &ProbeOptions::default()).unwrap();
     let m = &r.sky_measured;
-    assert!(r.sky.pixels.iter().flatten().all(|v| v.is_finite() && *v >= 0.0), "{name}");
-    assert!(m.valid_fraction() > 0.5, "{name}: valid fraction {}", m.valid_fraction());
+    assert!(
+        r.sky
+            .pixels
+            .iter()
+            .flatten()
+            .all(|v| v.is_finite() && *v >= 0.0),
+        "{name}"
+    );
+    assert!(
+        m.valid_fraction() > 0.5,
+        "{name}: valid fraction {}",
+        m.valid_fraction()
+    );
     let mut idx: Vec<usize> = (0..m.pixels.len()).filter(|&k| m.valid[k]).collect();
     let lum = |p: [f32; 3]| 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
     idx.sort_by(|a, b| lum(m.pixels[*b]).total_cmp(&lum(m.pixels[*a])));
     let top = &idx[..idx.len() / 200];
     let median = lum(m.pixels[idx[idx.len() / 2]]);
-    let mirror = igi_probe::sphere::SphereView::new(&cam, igi_probe::SphereKind::Mirror, &board.mirror);
+    let mirror =
+        igi_probe::sphere::SphereView::new(&cam, igi_probe::SphereKind::Mirror, &board.mirror);
     // where the ball shows them, the longest exposure is clipped (checked where it reaches 255
     // at all: the iPhone set's longest bracket peaks at 0.97, its lamps are not clipped)
-    let long_max = imgs[0].pixels.iter().flatten().fold(0.0f32, |a, b| a.max(*b));
+    let long_max = imgs[0]
+        .pixels
+        .iter()
+        .flatten()
+        .fold(0.0f32, |a, b| a.max(*b));
     let (mut up, mut clipped) = (0, 0);
     for &k in top {
         let d = latlong::pixel_center_direction(k / m.width, k % m.width, m.width, m.height);
@@ -169,16 +212,30 @@ fn check_chrome_ball(name: &str, imgs: &[HdrImage], times: &[f64], radius: f64) 
          (max {long_max}); weakest of them {weakest}, median {median}",
         top.len()
     );
-    assert!(weakest > 10.0 * median, "{name}: the lamps are only {} x the median", weakest / median);
+    assert!(
+        weakest > 10.0 * median,
+        "{name}: the lamps are only {} x the median",
+        weakest / median
+    );
     if long_max >= 0.999 {
-        assert!(clipped as f64 > 0.8 * top.len() as f64, "{name}: {clipped} of {} clipped", top.len());
+        assert!(
+            clipped as f64 > 0.8 * top.len() as f64,
+            "{name}: {clipped} of {} clipped",
+            top.len()
+        );
     }
-    assert!(up as f64 > 0.8 * top.len() as f64, "{name}: {up} of {} above the horizon (ceiling lamps)", top.len());
+    assert!(
+        up as f64 > 0.8 * top.len() as f64,
+        "{name}: {up} of {} above the horizon (ceiling lamps)",
+        top.len()
+    );
 }
 
 fn srgb_image(rel: &str) -> HdrImage {
     let mut im = read_image(&data(rel)).unwrap();
-    im.pixels.iter_mut().for_each(|p| *p = p.map(srgb_to_linear));
+    im.pixels
+        .iter_mut()
+        .for_each(|p| *p = p.map(srgb_to_linear));
     im
 }
 
@@ -186,8 +243,10 @@ fn srgb_image(rel: &str) -> HdrImage {
 fn real_chrome_ball_brackets_merge_and_unwarp() {
     // 147x147 crops of the same ball at 0.1, 0.025, 0.00625 s (sRGB JPEGs); the ball fills the
     // crop: centre (73, 73), radius about 71.5 px.
-    let imgs: Vec<HdrImage> =
-        ["rec1.jpg", "rec2.jpg", "rec3.jpg"].iter().map(|n| srgb_image(&format!("mirror_ball_ldr/olapietka_sony_a6400/{n}"))).collect();
+    let imgs: Vec<HdrImage> = ["rec1.jpg", "rec2.jpg", "rec3.jpg"]
+        .iter()
+        .map(|n| srgb_image(&format!("mirror_ball_ldr/olapietka_sony_a6400/{n}")))
+        .collect();
     check_chrome_ball("olapietka", &imgs, &[0.1, 0.025, 0.00625], 71.5);
 }
 
@@ -203,7 +262,10 @@ fn second_real_chrome_ball_hand_cropped_brackets_are_registered_merged_and_unwar
         .iter()
         .map(|n| {
             let src = srgb_image(&format!("mirror_ball_ldr/uiuc_cs445_kagrawal_iphone7/{n}"));
-            let (cx, cy) = ((src.width as f32 - 1.0) / 2.0, (src.height as f32 - 1.0) / 2.0);
+            let (cx, cy) = (
+                (src.width as f32 - 1.0) / 2.0,
+                (src.height as f32 - 1.0) / 2.0,
+            );
             let src_r = 0.98 * src.width.min(src.height) as f32 / 2.0;
             let c = (side as f32 - 1.0) / 2.0;
             let mut out = HdrImage::new(side, side);

@@ -8,12 +8,19 @@ use igi_probe::{process, Board, ProbeError, ProbeOptions};
 use std::path::PathBuf;
 
 fn fixture(case: &str) -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../datasets/fixtures/board")).join(case)
+    PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../datasets/fixtures/board"
+    ))
+    .join(case)
 }
 
 fn cam_board() -> (Camera, Board) {
     let d = fixture("sunny");
-    (Camera::load(&d.join("camera.json")).unwrap(), Board::load(&d.join("board.json")).unwrap())
+    (
+        Camera::load(&d.join("camera.json")).unwrap(),
+        Board::load(&d.join("board.json")).unwrap(),
+    )
 }
 
 /// A smooth analytic sky (lat-long 128x64).
@@ -24,7 +31,15 @@ fn sky() -> HdrImage {
         for j in 0..w {
             let d = igi_imaging::latlong::pixel_center_direction(i, j, w, h);
             let up = d.z.max(0.0);
-            m.set(j, i, [0.5 + 0.4 * up + 0.1 * d.x, 0.6 + 0.3 * up, 0.9 - 0.2 * up + 0.05 * d.y]);
+            m.set(
+                j,
+                i,
+                [
+                    0.5 + 0.4 * up + 0.1 * d.x,
+                    0.6 + 0.3 * up,
+                    0.9 - 0.2 * up + 0.05 * d.y,
+                ],
+            );
         }
     }
     m
@@ -36,17 +51,35 @@ fn sun_of_a_few_pixels() {
     // a few pixels by box-filtered supersampled rendering (no lens blur)
     let (cam, board) = cam_board();
     let s = direction_from_angles(40.0, 165.0);
-    let sun = SynthSun { direction: s, radiance: [2.0e4, 1.9e4, 1.7e4], diameter_deg: 2.5 };
+    let sun = SynthSun {
+        direction: s,
+        radiance: [2.0e4, 1.9e4, 1.7e4],
+        diameter_deg: 2.5,
+    };
     let img = render_board(&cam, &board, &sky(), Some(sun), 8);
-    let opt = ProbeOptions { sun_diameter_deg: 2.5, ..ProbeOptions::default() };
+    let opt = ProbeOptions {
+        sun_diameter_deg: 2.5,
+        ..ProbeOptions::default()
+    };
     let r = process(&img, &cam, &board, &opt).unwrap();
     let est = r.diagnostics.sun.as_ref().expect("sun found");
-    let ang = DVec3::from_array(est.direction).dot(s).clamp(-1.0, 1.0).acos().to_degrees();
+    let ang = DVec3::from_array(est.direction)
+        .dot(s)
+        .clamp(-1.0, 1.0)
+        .acos()
+        .to_degrees();
     let rad = est.radiance.unwrap();
-    eprintln!("few-pixel sun: {ang:.3} deg, radiance {rad:?}, check {:?}", r.diagnostics.check_rms_percent);
+    eprintln!(
+        "few-pixel sun: {ang:.3} deg, radiance {rad:?}, check {:?}",
+        r.diagnostics.check_rms_percent
+    );
     assert!(ang < 0.25, "{ang}");
     for c in 0..3 {
-        assert!((rad[c] / sun.radiance[c] - 1.0).abs() < 0.02, "channel {c}: {}", rad[c]);
+        assert!(
+            (rad[c] / sun.radiance[c] - 1.0).abs() < 0.02,
+            "channel {c}: {}",
+            rad[c]
+        );
     }
     assert!(r.diagnostics.check_rms_percent.unwrap() < 2.0);
 }
@@ -55,7 +88,8 @@ fn sun_of_a_few_pixels() {
 fn clipped_diffuse_highlight_is_masked_out_of_the_solve() {
     let d = fixture("sunny");
     let (cam, board) = cam_board();
-    let truth: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(d.join("truth.json")).unwrap()).unwrap();
+    let truth: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("truth.json")).unwrap()).unwrap();
     let rad_t: Vec<f64> = serde_json::from_value(truth["sun"]["radiance"].clone()).unwrap();
     let img = read_image(&d.join("board.exr")).unwrap();
     // clip the brightest part of the diffuse sphere (rows >= 139 hold only that sphere)
@@ -78,33 +112,62 @@ fn clipped_diffuse_highlight_is_masked_out_of_the_solve() {
     let r = process(&clipped, &cam, &board, &opt).unwrap();
     let rad = r.diagnostics.sun.as_ref().unwrap().radiance.unwrap();
     // (n also counts rim and background pixels, which the solve does not use anyway)
-    assert!(r.diagnostics.diffuse_pixels_masked >= 1000, "{} of {n}", r.diagnostics.diffuse_pixels_masked);
+    assert!(
+        r.diagnostics.diffuse_pixels_masked >= 1000,
+        "{} of {n}",
+        r.diagnostics.diffuse_pixels_masked
+    );
     for c in 0..3 {
-        assert!((rad[c] as f64 / rad_t[c] - 1.0).abs() < 0.02, "masked: channel {c} {}", rad[c]);
+        assert!(
+            (rad[c] as f64 / rad_t[c] - 1.0).abs() < 0.02,
+            "masked: channel {c} {}",
+            rad[c]
+        );
     }
     // the same clipped values used as if they were good bias the sun low
     let bad = process(&unmasked, &cam, &board, &opt).unwrap();
     let rad_bad = bad.diagnostics.sun.as_ref().unwrap().radiance.unwrap();
     eprintln!("clipped diffuse: masked {rad:?}, unmasked {rad_bad:?}, truth {rad_t:?}");
-    let worst = (0..3).map(|c| (rad_bad[c] as f64 / rad_t[c] - 1.0).abs()).fold(0.0, f64::max);
-    assert!(worst > 0.02, "clipping should matter: worst unmasked error {worst}");
+    let worst = (0..3)
+        .map(|c| (rad_bad[c] as f64 / rad_t[c] - 1.0).abs())
+        .fold(0.0, f64::max);
+    assert!(
+        worst > 0.02,
+        "clipping should matter: worst unmasked error {worst}"
+    );
     // and the saturation option masks them too
-    let opt2 = ProbeOptions { saturation: Some(clip), ..ProbeOptions::default() };
+    let opt2 = ProbeOptions {
+        saturation: Some(clip),
+        ..ProbeOptions::default()
+    };
     let r2 = process(&unmasked, &cam, &board, &opt2).unwrap();
-    assert_eq!(r2.diagnostics.diffuse_pixels_masked, r.diagnostics.diffuse_pixels_masked);
+    assert_eq!(
+        r2.diagnostics.diffuse_pixels_masked,
+        r.diagnostics.diffuse_pixels_masked
+    );
 }
 
 #[test]
 fn small_sphere_warns_and_cut_off_sphere_errors() {
     let (cam, mut board) = cam_board();
     // shrink the spheres to about 15 px
-    for s in [Some(&mut board.mirror), board.black.as_mut(), board.diffuse.as_mut()].into_iter().flatten() {
+    for s in [
+        Some(&mut board.mirror),
+        board.black.as_mut(),
+        board.diffuse.as_mut(),
+    ]
+    .into_iter()
+    .flatten()
+    {
         s.radius *= 15.0 / 47.0;
     }
     let img = render_board(&cam, &board, &sky(), None, 2);
     let r = process(&img, &cam, &board, &ProbeOptions::default()).unwrap();
     let w = r.diagnostics.warnings.join("\n");
-    assert!(w.contains("mirror sphere is only") && w.contains("under 20 px"), "{w}");
+    assert!(
+        w.contains("mirror sphere is only") && w.contains("under 20 px"),
+        "{w}"
+    );
     assert!(r.sky.pixels.iter().flatten().all(|v| v.is_finite()));
 
     let (cam, mut board) = cam_board();
@@ -113,10 +176,15 @@ fn small_sphere_warns_and_cut_off_sphere_errors() {
     let e = process(&img, &cam, &board, &ProbeOptions::default()).unwrap_err();
     assert!(matches!(e, ProbeError::OutsideImage { .. }));
     let msg = e.to_string();
-    assert!(msg.contains("diffuse sphere is partly outside the 256x256 image"), "{msg}");
+    assert!(
+        msg.contains("diffuse sphere is partly outside the 256x256 image"),
+        "{msg}"
+    );
 
     let wrong = HdrImage::new(100, 100);
-    let e = process(&wrong, &cam, &cam_board().1, &ProbeOptions::default()).unwrap_err().to_string();
+    let e = process(&wrong, &cam, &cam_board().1, &ProbeOptions::default())
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("100x100") && e.contains("256x256"), "{e}");
 }
 

@@ -18,7 +18,10 @@
 use crate::parts::build_parts;
 use crate::result::{write_text, SolveResult};
 use crate::solver::{truth_from_scene, Progress, SolveOptions};
-use crate::synth::{albedo_pattern, look_at_camera, scene_with_albedo, truth_atlas, write_survey, LightingSpec, ShotSpec};
+use crate::synth::{
+    albedo_pattern, look_at_camera, scene_with_albedo, truth_atlas, write_survey, LightingSpec,
+    ShotSpec,
+};
 use crate::{ReflectError, Survey};
 use glam::Vec3;
 use igi_imaging::{write_exr, write_png_tonemapped, HdrImage};
@@ -95,31 +98,68 @@ const BOARD: &str = r#"{ "spheres": [
   { "kind": "diffuse", "center": [ 0.15, 0.0, 0.6], "radius": 0.06 } ] }"#;
 
 /// Photographs the board under `truth` and recovers a lighting from it, as `igi probe` does.
-fn probe_capture(truth: &LightingSpec, pictures: &Path) -> Result<(LightingSpec, ProbeSummary), ReflectError> {
+fn probe_capture(
+    truth: &LightingSpec,
+    pictures: &Path,
+) -> Result<(LightingSpec, ProbeSummary), ReflectError> {
     use igi_probe::synth::{render_board, SynthSun};
     let board = igi_probe::Board::from_json_str(BOARD, Path::new("demo board"))?;
-    let cam = look_at_camera(Vec3::new(0.0, 0.0, 1.5), Vec3::new(0.0, 1.0, 1.5), 640, 480, 40.0)?;
-    let sun = truth.sun.map(|(d, l)| SynthSun { direction: d.normalize().as_dvec3(), radiance: l.to_array(), diameter_deg: 0.53 });
+    let cam = look_at_camera(
+        Vec3::new(0.0, 0.0, 1.5),
+        Vec3::new(0.0, 1.0, 1.5),
+        640,
+        480,
+        40.0,
+    )?;
+    let sun = truth.sun.map(|(d, l)| SynthSun {
+        direction: d.normalize().as_dvec3(),
+        radiance: l.to_array(),
+        diameter_deg: 0.53,
+    });
     let image = render_board(&cam, &board, &truth.sky, sun, 4);
-    write_png_tonemapped(&pictures.join(format!("board-{}.png", truth.name)), &image, 1.0)?;
+    write_png_tonemapped(
+        &pictures.join(format!("board-{}.png", truth.name)),
+        &image,
+        1.0,
+    )?;
     let r = igi_probe::process(&image, &cam, &board, &igi_probe::ProbeOptions::default())?;
     tracing::info!("probe {}: {}", truth.name, r.diagnostics.sun_decision);
     let est = r.diagnostics.sun.as_ref();
-    let rec_sun = est.and_then(|s| s.radiance.map(|l| (glam::DVec3::from_array(s.direction).as_vec3(), Vec3::from_array(l))));
+    let rec_sun = est.and_then(|s| {
+        s.radiance.map(|l| {
+            (
+                glam::DVec3::from_array(s.direction).as_vec3(),
+                Vec3::from_array(l),
+            )
+        })
+    });
     let summary = ProbeSummary {
         name: truth.name.clone(),
         sun_found: r.diagnostics.sun_found,
         sun_direction_error_deg: match (rec_sun, truth.sun) {
-            (Some((a, _)), Some((b, _))) => Some((a.dot(b.normalize()).clamp(-1.0, 1.0) as f64).acos().to_degrees()),
+            (Some((a, _)), Some((b, _))) => Some(
+                (a.dot(b.normalize()).clamp(-1.0, 1.0) as f64)
+                    .acos()
+                    .to_degrees(),
+            ),
             _ => None,
         },
         sun_radiance_error: match (rec_sun, truth.sun) {
-            (Some((_, a)), Some((_, b))) => Some(std::array::from_fn(|k| (a[k] as f64 - b[k] as f64) / b[k] as f64)),
+            (Some((_, a)), Some((_, b))) => Some(std::array::from_fn(|k| {
+                (a[k] as f64 - b[k] as f64) / b[k] as f64
+            })),
             _ => None,
         },
         check_rms_percent: r.diagnostics.check_rms_percent,
     };
-    Ok((LightingSpec { name: truth.name.clone(), sky: r.sky, sun: rec_sun }, summary))
+    Ok((
+        LightingSpec {
+            name: truth.name.clone(),
+            sky: r.sky,
+            sun: rec_sun,
+        },
+        summary,
+    ))
 }
 
 fn lightings() -> Vec<LightingSpec> {
@@ -136,14 +176,26 @@ fn lightings() -> Vec<LightingSpec> {
             sky: clear_sky(128, 64, low, 0.35, Vec3::new(0.04, 0.035, 0.03)),
             sun: Some((low, Vec3::new(3.6e4, 2.7e4, 1.8e4))),
         },
-        LightingSpec { name: "overcast".into(), sky: overcast_sky(128, 64, 1.6, Vec3::new(0.12, 0.11, 0.1)), sun: None },
+        LightingSpec {
+            name: "overcast".into(),
+            sky: overcast_sky(128, 64, 1.6, Vec3::new(0.12, 0.11, 0.1)),
+            sun: None,
+        },
     ]
 }
 
 /// Runs the demo into `out` (created). `progress(stage)` reports the stage names.
-pub fn run_demo(out: &Path, opts: &DemoOptions, progress: &dyn Progress, stage: &dyn Fn(&str)) -> Result<DemoReport, ReflectError> {
+pub fn run_demo(
+    out: &Path,
+    opts: &DemoOptions,
+    progress: &dyn Progress,
+    stage: &dyn Fn(&str),
+) -> Result<DemoReport, ReflectError> {
     let t0 = Instant::now();
-    let mk = |p: &Path| std::fs::create_dir_all(p).map_err(|e| ReflectError::file(p, format!("cannot create folder: {e}")));
+    let mk = |p: &Path| {
+        std::fs::create_dir_all(p)
+            .map_err(|e| ReflectError::file(p, format!("cannot create folder: {e}")))
+    };
     mk(out)?;
     let pictures = out.join("pictures");
     mk(&pictures)?;
@@ -151,7 +203,10 @@ pub fn run_demo(out: &Path, opts: &DemoOptions, progress: &dyn Progress, stage: 
     let site = igi_geometry::procedural::colonnade_site(opts.seed, 1);
     let triangles = site.iter().map(|(_, m)| m.indices.len()).sum();
     let parts = build_parts(site, opts.atlas)?;
-    let truth: Vec<Vec<Vec3>> = parts.iter().map(|p| truth_atlas(p, albedo_pattern)).collect();
+    let truth: Vec<Vec<Vec3>> = parts
+        .iter()
+        .map(|p| truth_atlas(p, albedo_pattern))
+        .collect();
     let lights = lightings();
     let (w, h) = (opts.photo_width, opts.photo_height);
     let target = Vec3::new(0.0, 0.0, 1.8);
@@ -171,7 +226,11 @@ pub fn run_demo(out: &Path, opts: &DemoOptions, progress: &dyn Progress, stage: 
         .map(|(k, &(az, dist, z, l))| {
             let a = az.to_radians();
             let eye = Vec3::new(dist * a.cos(), dist * a.sin(), z);
-            Ok(ShotSpec { id: format!("view{k}-{}", lights[l].name), camera: look_at_camera(eye, target, w, h, 65.0)?, lighting: l })
+            Ok(ShotSpec {
+                id: format!("view{k}-{}", lights[l].name),
+                camera: look_at_camera(eye, target, w, h, 65.0)?,
+                lighting: l,
+            })
         })
         .collect::<Result<_, ReflectError>>()?;
     stage("recovering the lighting from probe captures");
@@ -186,17 +245,32 @@ pub fn run_demo(out: &Path, opts: &DemoOptions, progress: &dyn Progress, stage: 
     let survey_dir = out.join("survey");
     let tp = Instant::now();
     progress.begin("photographs", shots.len() as u64);
-    write_survey(&survey_dir, &parts, &truth, &lights, &recorded, &shots, opts.photo_spp, opts.seed, &|_, _| progress.advance(1))?;
+    write_survey(
+        &survey_dir,
+        &parts,
+        &truth,
+        &lights,
+        &recorded,
+        &shots,
+        opts.photo_spp,
+        opts.seed,
+        &|_, _| progress.advance(1),
+    )?;
     progress.finish();
     let photo_seconds = tp.elapsed().as_secs_f64();
     for s in &shots {
-        let img = igi_imaging::read_image(&survey_dir.join("photos").join(format!("{}.exr", s.id)))?;
+        let img =
+            igi_imaging::read_image(&survey_dir.join("photos").join(format!("{}.exr", s.id)))?;
         write_png_tonemapped(&pictures.join(format!("photo-{}.png", s.id)), &img, 1.0)?;
     }
 
     stage("solving for the albedo");
     let survey = Survey::load(&survey_dir)?;
-    let photos = survey.photos.iter().map(|p| p.load()).collect::<Result<Vec<_>, _>>()?;
+    let photos = survey
+        .photos
+        .iter()
+        .map(|p| p.load())
+        .collect::<Result<Vec<_>, _>>()?;
     let solve_opts = SolveOptions {
         atlas_resolution: opts.atlas,
         max_iterations: opts.iterations,
@@ -212,7 +286,15 @@ pub fn run_demo(out: &Path, opts: &DemoOptions, progress: &dyn Progress, stage: 
     let start = SolveResult::fresh(parts, ids, &solve_opts);
     start.write_geometry(&result_dir)?;
     let ts = Instant::now();
-    let result = crate::solve(start, &photos, None, Some(&gt), &solve_opts, progress, &mut |r| r.write_state(&result_dir))?;
+    let result = crate::solve(
+        start,
+        &photos,
+        None,
+        Some(&gt),
+        &solve_opts,
+        progress,
+        &mut |r| r.write_state(&result_dir),
+    )?;
     let solve_seconds = ts.elapsed().as_secs_f64();
 
     stage("re-lighting from a held-out view");
@@ -225,14 +307,33 @@ pub fn run_demo(out: &Path, opts: &DemoOptions, progress: &dyn Progress, stage: 
     held_out.write(&out.join("survey").join("lighting"))?;
     let lighting = held_out.lighting()?;
     let a = 125.0f32.to_radians();
-    let cam = look_at_camera(Vec3::new(19.0 * a.cos(), 19.0 * a.sin(), 7.0), target, w, h, 65.0)?;
+    let cam = look_at_camera(
+        Vec3::new(19.0 * a.cos(), 19.0 * a.sin(), 7.0),
+        target,
+        w,
+        h,
+        65.0,
+    )?;
     cam.save(&out.join("survey").join("cameras").join("held-out.json"))?;
-    let ropts = RenderOptions { spp: opts.relight_spp, seed: opts.seed ^ 0xABCD, indirect: 2, russian_roulette: false };
+    let ropts = RenderOptions {
+        spp: opts.relight_spp,
+        seed: opts.seed ^ 0xABCD,
+        indirect: 2,
+        russian_roulette: false,
+    };
     let recovered = scene_with_albedo(&result.parts, &result.rho)?;
     let relit = render_image(&recovered, &lighting, &cam, &ropts, &|_| {})?;
-    let reference_opts = RenderOptions { seed: opts.seed ^ 0x1234, ..ropts };
+    let reference_opts = RenderOptions {
+        seed: opts.seed ^ 0x1234,
+        ..ropts
+    };
     let reference = render_image(&truth_scene, &lighting, &cam, &reference_opts, &|_| {})?;
-    let cmp = compare_images(&relit.mean, &reference.mean, Some(&relit.stderr), Some(&reference.stderr))?;
+    let cmp = compare_images(
+        &relit.mean,
+        &reference.mean,
+        Some(&relit.stderr),
+        Some(&reference.stderr),
+    )?;
     write_exr(&out.join("relit.exr"), &relit.mean)?;
     write_exr(&out.join("relit-reference.exr"), &reference.mean)?;
     write_png_tonemapped(&pictures.join("relit.png"), &relit.mean, 1.0)?;
@@ -249,10 +350,22 @@ pub fn run_demo(out: &Path, opts: &DemoOptions, progress: &dyn Progress, stage: 
                 side.set(x + r + 4, y, result.rho[i][y * r + x].to_array());
             }
         }
-        write_png_tonemapped(&pictures.join(format!("albedo-{}-truth-vs-recovered.png", p.name)), &side, 1.0)?;
+        write_png_tonemapped(
+            &pictures.join(format!("albedo-{}-truth-vs-recovered.png", p.name)),
+            &side,
+            1.0,
+        )?;
     }
-    std::fs::copy(result_dir.join("convergence.png"), pictures.join("convergence.png"))
-        .map_err(|e| ReflectError::file(result_dir.join("convergence.png"), format!("cannot copy: {e}")))?;
+    std::fs::copy(
+        result_dir.join("convergence.png"),
+        pictures.join("convergence.png"),
+    )
+    .map_err(|e| {
+        ReflectError::file(
+            result_dir.join("convergence.png"),
+            format!("cannot copy: {e}"),
+        )
+    })?;
     let report = DemoReport {
         options: opts.clone(),
         parts: result.parts.len(),
@@ -266,6 +379,9 @@ pub fn run_demo(out: &Path, opts: &DemoOptions, progress: &dyn Progress, stage: 
         relight: cmp,
         total_seconds: t0.elapsed().as_secs_f64(),
     };
-    write_text(&out.join("demo.json"), &serde_json::to_string_pretty(&report).expect("report serialises"))?;
+    write_text(
+        &out.join("demo.json"),
+        &serde_json::to_string_pretty(&report).expect("report serialises"),
+    )?;
     Ok(report)
 }

@@ -9,56 +9,29 @@
 
 use glam::Vec3;
 
-/// Grows `known` values into `target` texels that are not yet known, ring by ring (8-neighbour
-/// mean of known texels). Returns how many texels were filled.
-pub fn dilate(values: &mut [Vec3], known: &mut [bool], target: &[bool], res: usize, rings: usize) -> usize {
-    let mut filled = 0;
-    for _ in 0..rings {
-        let prev = known.to_vec();
-        let mut changed = false;
-        for y in 0..res {
-            for x in 0..res {
-                let i = y * res + x;
-                if prev[i] || !target[i] {
-                    continue;
-                }
-                let (mut s, mut n) = (Vec3::ZERO, 0.0f32);
-                for dy in -1i64..=1 {
-                    for dx in -1i64..=1 {
-                        let (xx, yy) = (x as i64 + dx, y as i64 + dy);
-                        if xx < 0 || yy < 0 || xx >= res as i64 || yy >= res as i64 {
-                            continue;
-                        }
-                        let j = yy as usize * res + xx as usize;
-                        if prev[j] {
-                            s += values[j];
-                            n += 1.0;
-                        }
-                    }
-                }
-                if n > 0.0 {
-                    values[i] = s / n;
-                    known[i] = true;
-                    filled += 1;
-                    changed = true;
-                }
-            }
-        }
-        if !changed {
-            break;
-        }
-    }
-    filled
-}
+pub use igi_geometry::texels::dilate;
 
 /// Applies the fill rule to one part's albedo atlas. `seen[i]`: texel i got a value from the
 /// photos; `covered[i]`: texel centre on the surface; `gutter[i]`: dilated border texel.
 /// Returns the number of covered texels that were filled rather than seen.
-pub fn fill_unseen(values: &mut [Vec3], seen: &[bool], covered: &[bool], gutter: &[bool], res: usize, fallback: Vec3, max_rings: usize) -> usize {
+pub fn fill_unseen(
+    values: &mut [Vec3],
+    seen: &[bool],
+    covered: &[bool],
+    gutter: &[bool],
+    res: usize,
+    fallback: Vec3,
+    max_rings: usize,
+) -> usize {
     let mut known = seen.to_vec();
     let nseen = seen.iter().filter(|s| **s).count();
     let mean = if nseen > 0 {
-        values.iter().zip(seen).filter(|(_, s)| **s).fold(Vec3::ZERO, |a, (v, _)| a + *v) / nseen as f32
+        values
+            .iter()
+            .zip(seen)
+            .filter(|(_, s)| **s)
+            .fold(Vec3::ZERO, |a, (v, _)| a + *v)
+            / nseen as f32
     } else {
         fallback
     };
@@ -101,6 +74,9 @@ mod tests {
         let n = fill_unseen(&mut v, &seen, &covered, &gutter, res, Vec3::splat(0.5), 2);
         assert_eq!(n, 2);
         assert!((v[2 * res + 2].x - 0.4).abs() < 1e-6);
-        assert!((v[7 * res + 7].x - 0.4).abs() < 1e-6, "island gets the part's mean");
+        assert!(
+            (v[7 * res + 7].x - 0.4).abs() < 1e-6,
+            "island gets the part's mean"
+        );
     }
 }

@@ -18,7 +18,7 @@
 //! every iteration, and a killed run resumes after its last finished iteration.
 //!
 //! Modules: [`survey`] (the survey folder of FORMATS.md), [`parts`] (atlases and texel caches
-//! of the site), [`solver`] (the iteration), [`weights`] and [`fill`] (the documented rules),
+//! of the site), [`solver`] (the iteration), [`session`] (the resume rule and run manifest), [`weights`] and [`fill`] (the documented rules),
 //! [`result`] (the result folder: atlases, `scene.toml`, `report.json`, export, sampling).
 
 pub mod demo;
@@ -26,6 +26,7 @@ pub mod fill;
 pub mod parts;
 pub mod plot;
 pub mod result;
+pub mod session;
 pub mod solver;
 pub mod survey;
 pub mod synth;
@@ -35,6 +36,7 @@ use std::path::PathBuf;
 
 pub use parts::{Part, TexelCache};
 pub use result::{export, load_result_scene, sample_albedo, ExportFormat, SolveResult};
+pub use session::SolveSession;
 pub use solver::{solve, IterationRecord, Progress, SolveOptions, SolveReport};
 pub use survey::{lighting_from_probe, LightingSource, PhotoSpec, Survey};
 
@@ -46,6 +48,9 @@ pub enum ReflectError {
     File { path: PathBuf, msg: String },
     #[error("invalid input: {0}")]
     Invalid(String),
+    /// No photograph saw any texel of the parts being solved.
+    #[error("no photograph sees any solved part (0 observations in iteration {0}): check the cameras' poses and sizes against the site, and the part selection")]
+    NoObservations(u32),
     #[error(transparent)]
     Imaging(#[from] igi_imaging::ImagingError),
     #[error(transparent)]
@@ -60,6 +65,9 @@ pub enum ReflectError {
 
 impl ReflectError {
     pub(crate) fn file(path: impl Into<PathBuf>, msg: impl Into<String>) -> Self {
-        ReflectError::File { path: path.into(), msg: msg.into() }
+        ReflectError::File {
+            path: path.into(),
+            msg: msg.into(),
+        }
     }
 }

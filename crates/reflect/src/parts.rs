@@ -5,7 +5,6 @@
 //! and the solver loads, per voxel, only the levels that voxel's solve needs.
 
 use crate::ReflectError;
-use glam::{Vec2, Vec3};
 use igi_geometry::atlas::{build_atlas, AtlasOptions};
 use igi_geometry::{SiteStore, TriMesh, VoxelId};
 use igi_imaging::HdrImage;
@@ -13,45 +12,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
-/// A texel whose centre lies on the surface.
-#[derive(Clone, Copy, Debug)]
-pub struct Texel {
-    /// Index into the atlas image: `row * resolution + column`.
-    pub index: u32,
-    pub position: Vec3,
-    pub normal: Vec3,
-}
-
-/// The covered texels of one atlas.
-#[derive(Clone, Debug)]
-pub struct TexelCache {
-    pub resolution: usize,
-    pub texels: Vec<Texel>,
-}
-
-impl TexelCache {
-    /// The covered texels (coverage 1) of same-size position, normal and coverage caches.
-    pub fn covered_texels(pos: &HdrImage, nrm: &HdrImage, coverage: &HdrImage) -> Vec<Texel> {
-        (0..coverage.width * coverage.height)
-            .filter(|&i| coverage.pixels[i][0] == 1.0)
-            .map(|i| Texel {
-                index: i as u32,
-                position: Vec3::from_array(pos.pixels[i]),
-                normal: Vec3::from_array(nrm.pixels[i]).normalize_or(Vec3::Z),
-            })
-            .collect()
-    }
-
-    /// Texture coordinate of a texel centre (FORMATS.md: row 0 at the top, v up).
-    pub fn uv(&self, index: u32) -> Vec2 {
-        let r = self.resolution;
-        let (x, y) = (index as usize % r, index as usize / r);
-        Vec2::new(
-            (x as f32 + 0.5) / r as f32,
-            1.0 - (y as f32 + 0.5) / r as f32,
-        )
-    }
-}
+pub use igi_geometry::texels::{Texel, TexelCache};
 
 /// Where a part of a prepared site lives.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -198,7 +159,8 @@ pub fn build_parts(
             )
             .map_err(|e| ReflectError::Invalid(format!("atlas of `{name}`: {e}")))?;
             let res = atlas.resolution;
-            let texels = TexelCache::covered_texels(&atlas.position, &atlas.normal, &atlas.coverage);
+            let texels =
+                TexelCache::covered_texels(&atlas.position, &atlas.normal, &atlas.coverage);
             Ok(Part {
                 name,
                 mesh: atlas.mesh,

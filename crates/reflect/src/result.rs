@@ -166,7 +166,10 @@ impl SolveResult {
                 toml_string(&mesh),
                 p.name
             );
-            let per_texel = self.basis.as_ref().map_or(0, |b| b.infer(Vec3::splat(0.5)).lobes.len());
+            let per_texel = self
+                .basis
+                .as_ref()
+                .map_or(0, |b| b.infer(Vec3::splat(0.5)).lobes.len());
             if per_texel > 0 {
                 let maps: Vec<String> = (0..per_texel)
                     .map(|k| format!("{{ rho = \"parts/{0}_lobe{k}_rho.exr\", shape = \"parts/{0}_lobe{k}_shape.exr\" }}", p.name))
@@ -292,14 +295,30 @@ impl SolveResult {
     pub fn lobe_map(&self, i: usize) -> Option<igi_render::LobeMap> {
         let basis = self.basis.as_ref()?;
         let r = self.parts[i].resolution();
-        let per: Vec<Vec<Lobe>> = self.rho[i].iter().map(|rho| basis.infer(*rho).lobes).collect();
+        let per: Vec<Vec<Lobe>> = self.rho[i]
+            .iter()
+            .map(|rho| basis.infer(*rho).lobes)
+            .collect();
         let k = per.iter().map(Vec::len).max().unwrap_or(0);
         if k == 0 {
             return None;
         }
-        let none = Lobe { rho: Vec3::ZERO, cxy: 0.0, cz: 1.0, n: 1.0 };
-        let lobes = per.iter().flat_map(|l| (0..k).map(move |j| l.get(j).copied().unwrap_or(none))).collect();
-        Some(igi_render::LobeMap { width: r, height: r, per_texel: k, lobes })
+        let none = Lobe {
+            rho: Vec3::ZERO,
+            cxy: 0.0,
+            cz: 1.0,
+            n: 1.0,
+        };
+        let lobes = per
+            .iter()
+            .flat_map(|l| (0..k).map(move |j| l.get(j).copied().unwrap_or(none)))
+            .collect();
+        Some(igi_render::LobeMap {
+            width: r,
+            height: r,
+            per_texel: k,
+            lobes,
+        })
     }
 }
 
@@ -433,18 +452,22 @@ pub fn sample_albedo(
         .fold(f32::INFINITY, f32::min)
         * 0.5)
         .clamp(1e-3, 0.05);
-    Ok(points
+    // a point farther than this from every texel has no albedo that could mean anything
+    let far = res
+        .parts
         .iter()
-        .map(|&(p, n)| {
+        .map(|p| 20.0 * p.texel_size as f32)
+        .fold(0.5f32, f32::max);
+    points
+        .iter()
+        .enumerate()
+        .map(|(k, &(p, n))| {
             let n = n.normalize_or(Vec3::Z);
             for d in [n, -n] {
                 if let Some(h) = scene.intersect(p + d * reach, -d) {
                     if h.t <= 2.0 * reach {
                         let sp = scene.surface_point(&h);
-                        return scene.objects[sp.object as usize]
-                            .material
-                            .brdf_at(sp.uv)
-                            .rho_d;
+                        return Ok(scene.objects[sp.object as usize].material.brdf_at(sp.uv).rho_d);
                     }
                 }
             }
@@ -458,9 +481,19 @@ pub fn sample_albedo(
                     }
                 }
             }
-            best.1
+            if !(best.0.sqrt() <= far) {
+                return Err(ReflectError::Invalid(format!(
+                    "point {} ({}, {}, {}) is {:.3e} m from the nearest surface of the result (at most {far:.2} m)",
+                    k + 1,
+                    p.x,
+                    p.y,
+                    p.z,
+                    best.0.sqrt()
+                )));
+            }
+            Ok(best.1)
         })
-        .collect())
+        .collect()
 }
 
 /// Reads `x,y,z,nx,ny,nz` rows (a header row is allowed) for [`sample_albedo`].
@@ -468,7 +501,12 @@ pub fn read_points(path: &Path) -> Result<Vec<(Vec3, Vec3)>, ReflectError> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| ReflectError::file(path, format!("cannot read: {e}")))?;
     let mut out = Vec::new();
-    for (ln, line) in text.lines().enumerate() {
+    for (ln, line) in text
+        .strip_prefix('\u{feff}')
+        .unwrap_or(&text)
+        .lines()
+        .enumerate()
+    {
         let line = line.trim();
         if line.is_empty() || line.starts_with('#') {
             continue;

@@ -59,6 +59,66 @@ impl Default for SolveOptions {
     }
 }
 
+impl SolveOptions {
+    /// Refuses options that cannot mean a solve (checked before any work or output).
+    pub fn validate(&self) -> Result<(), ReflectError> {
+        let bad = |m: String| Err(ReflectError::Invalid(m));
+        if self.max_iterations == 0 {
+            return bad("--iterations 0 would solve nothing; give at least 1".into());
+        }
+        if self.spp.is_empty() || self.spp.contains(&0) {
+            return bad(format!(
+                "--spp: the schedule must be non-empty and positive, got {:?}",
+                self.spp
+            ));
+        }
+        if !(8..=16384).contains(&self.atlas_resolution) {
+            return bad(format!(
+                "--atlas {} is outside 8..=16384",
+                self.atlas_resolution
+            ));
+        }
+        if !(self.tolerance.is_finite() && self.tolerance >= 0.0) {
+            return bad(format!(
+                "--tolerance must be finite and non-negative, got {}",
+                self.tolerance
+            ));
+        }
+        if !self
+            .initial_albedo
+            .iter()
+            .all(|a| a.is_finite() && *a >= 0.0 && *a <= 1.0)
+        {
+            return bad(format!(
+                "--initial: an albedo lies in [0, 1], got {:?}",
+                self.initial_albedo
+            ));
+        }
+        if self.indirect > 64 {
+            return bad(format!(
+                "--indirect {} is more bounces than can matter (at most 64)",
+                self.indirect
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Every name in the part selection must name a part.
+pub fn check_selection(parts: &[Part], opts: &SolveOptions) -> Result<(), ReflectError> {
+    for s in opts.parts.iter().flatten() {
+        if !parts.iter().any(|p| &p.name == s) {
+            let names: Vec<&str> = parts.iter().map(|p| p.name.as_str()).take(12).collect();
+            return Err(ReflectError::Invalid(format!(
+                "--parts: no part named `{s}` in the site (parts: {}{})",
+                names.join(", "),
+                if parts.len() > 12 { ", ..." } else { "" }
+            )));
+        }
+    }
+    Ok(())
+}
+
 /// Progress reporting (the CLI maps it to progress bars).
 pub trait Progress: Sync {
     fn begin(&self, _what: &str, _total: u64) {}
@@ -253,7 +313,12 @@ fn part_lobes(part: &Part, rho: &[Vec3], basis: Option<&Basis>) -> Vec<Lobe> {
         None => Vec::new(),
         Some(b) => {
             let n = part.cache.texels.len().max(1) as f32;
-            let mean = part.cache.texels.iter().fold(Vec3::ZERO, |a, t| a + rho[t.index as usize]) / n;
+            let mean = part
+                .cache
+                .texels
+                .iter()
+                .fold(Vec3::ZERO, |a, t| a + rho[t.index as usize])
+                / n;
             b.infer(mean).lobes
         }
     }
@@ -311,11 +376,8 @@ pub fn solve(
     if photos.is_empty() {
         return Err(ReflectError::Invalid("no photographs to solve from".into()));
     }
-    if opts.spp.is_empty() || opts.spp.contains(&0) {
-        return Err(ReflectError::Invalid(
-            "the spp schedule must be non-empty and positive".into(),
-        ));
-    }
+    opts.validate()?;
+    check_selection(&start.parts, opts)?;
     let solved: Vec<bool> = start
         .parts
         .iter()
@@ -325,19 +387,15 @@ pub fn solve(
                 .is_none_or(|sel| sel.iter().any(|s| s == &p.name))
         })
         .collect();
-    if let Some(sel) = &opts.parts {
-        for s in sel {
-            if !start.parts.iter().any(|p| &p.name == s) {
-                return Err(ReflectError::Invalid(format!(
-                    "no part named `{s}` in the site"
-                )));
-            }
-        }
-    }
     let groups = make_groups(&start.parts, &solved)?;
     start.basis = basis.cloned();
     // kept current: the parts a group updates get new lobes right after it
-    start.lobes = start.parts.iter().zip(&start.rho).map(|(p, r)| part_lobes(p, r, basis)).collect();
+    start.lobes = start
+        .parts
+        .iter()
+        .zip(&start.rho)
+        .map(|(p, r)| part_lobes(p, r, basis))
+        .collect();
     let store = match start.parts.iter().find_map(|p| p.stored.as_ref()) {
         Some(s) => Some(igi_geometry::SiteStore::open(&s.site)?),
         None => None,
@@ -431,7 +489,18 @@ pub fn solve(
             let mut obs: Vec<Obs> = Vec::new();
             for (pi, photo) in photos.iter().enumerate() {
                 obs.extend(observe_photo(
-                    &scene, photo, pi, &texels, offset, &start, &start.lobes, basis, opts, k, spp, progress,
+                    &scene,
+                    photo,
+                    pi,
+                    &texels,
+                    offset,
+                    &start,
+                    &start.lobes,
+                    basis,
+                    opts,
+                    k,
+                    spp,
+                    progress,
                 ));
             }
             drop(scene);
@@ -490,6 +559,10 @@ pub fn solve(
             100.0 * rec.residual_rel_rms,
             delta_rho
         );
+        if rec.observations == 0 {
+            // an albedo from no observation cannot mean what was asked for
+            return Err(ReflectError::NoObservations(rec.iteration));
+        }
         start.report.iterations.push(rec);
         let done = k + 1 >= opts.min_iterations && delta_rho < opts.tolerance;
         start.report.converged = done;
@@ -578,6 +651,10 @@ fn update_parts(
     }
 }
 
+/// One texel's raw observation in a photo: texel index and the per-texel estimates the
+/// ratio update needs (see `observe_photo`).
+type RawObservation = (u32, Vec3, Vec3, Vec3, f32, bool, Vec3);
+
 #[allow(clippy::too_many_arguments)]
 fn observe_photo(
     scene: &Scene,
@@ -665,7 +742,7 @@ fn observe_photo(
     let min_eval = Vec3::splat(opts.min_eval_albedo);
     // Geometric tests and radiance estimates, texel by texel.
     let chunk = 4096;
-    let raw: Vec<Option<(u32, Vec3, Vec3, Vec3, f32, bool, Vec3)>> = texels
+    let raw: Vec<Option<RawObservation>> = texels
         .par_chunks(chunk)
         .enumerate()
         .flat_map_iter(|(ci, ch)| {

@@ -14,7 +14,11 @@ pub enum LightingSource {
     File(PathBuf),
     /// A capture of the lighting board to process first (as `igi probe` does): the board
     /// photograph (linear HDR), its camera and the board file.
-    Probe { image: PathBuf, camera: PathBuf, board: PathBuf },
+    Probe {
+        image: PathBuf,
+        camera: PathBuf,
+        board: PathBuf,
+    },
 }
 
 /// One photograph as listed in `survey.toml` (paths resolved against the survey folder).
@@ -34,6 +38,8 @@ pub struct PhotoSpec {
 pub struct Survey {
     /// The folder holding `survey.toml`.
     pub root: PathBuf,
+    /// The survey file itself.
+    pub file: PathBuf,
     pub meshes: Vec<PathBuf>,
     /// A prepared site (`igi prepare` output) in place of meshes: `[site] prepared = "site.igi"`,
     /// or a `mesh` that names such a folder.
@@ -201,6 +207,7 @@ impl Survey {
         };
         Ok(Survey {
             root,
+            file,
             meshes,
             prepared,
             photos,
@@ -275,14 +282,32 @@ impl PhotoSpec {
         }
         let lighting = match &self.lighting {
             LightingSource::File(f) => Lighting::load(f)?,
-            LightingSource::Probe { image, camera, board } => {
+            LightingSource::Probe {
+                image,
+                camera,
+                board,
+            } => {
                 let img = igi_imaging::read_image(image)?;
                 let cam = Camera::load(camera)?;
                 let spec = igi_probe::BoardSpec::load(board)?;
                 let placement = igi_probe::fiducial::place_board(&spec, &img, &cam)?;
-                let r = igi_probe::process(&img, &cam, &placement.board, &igi_probe::ProbeOptions::default())
-                    .map_err(|e| ReflectError::file(image, format!("processing the probe capture of photo `{}`: {e}", self.id)))?;
-                tracing::info!("photo {}: lighting from its probe capture: {}", self.id, r.diagnostics.sun_decision);
+                let r = igi_probe::process(
+                    &img,
+                    &cam,
+                    &placement.board,
+                    &igi_probe::ProbeOptions::default(),
+                )
+                .map_err(|e| {
+                    ReflectError::file(
+                        image,
+                        format!("processing the probe capture of photo `{}`: {e}", self.id),
+                    )
+                })?;
+                tracing::info!(
+                    "photo {}: lighting from its probe capture: {}",
+                    self.id,
+                    r.diagnostics.sun_decision
+                );
                 lighting_from_probe(&r)?
             }
         };
@@ -298,7 +323,12 @@ impl PhotoSpec {
 /// The lighting a probe capture recovered: its sky map and, when the sun was found and its
 /// radiance solved, the sun disk.
 pub fn lighting_from_probe(r: &igi_probe::ProbeResult) -> Result<Lighting, ReflectError> {
-    let sun = match r.diagnostics.sun.as_ref().and_then(|s| s.radiance.map(|l| (s, l))) {
+    let sun = match r
+        .diagnostics
+        .sun
+        .as_ref()
+        .and_then(|s| s.radiance.map(|l| (s, l)))
+    {
         Some((s, l)) => Some(igi_render::Sun::new(
             glam::DVec3::from_array(s.direction).as_vec3(),
             glam::Vec3::from_array(l),
@@ -306,5 +336,8 @@ pub fn lighting_from_probe(r: &igi_probe::ProbeResult) -> Result<Lighting, Refle
         )?),
         None => None,
     };
-    Ok(Lighting { environment: Some(igi_render::Environment::from_image(&r.sky, 1.0)?), sun })
+    Ok(Lighting {
+        environment: Some(igi_render::Environment::from_image(&r.sky, 1.0)?),
+        sun,
+    })
 }

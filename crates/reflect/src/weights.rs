@@ -70,7 +70,11 @@ impl Default for WeightRules {
 /// (three or more observations), then the weighted mean. Returns the value and the sum of the
 /// kept weights, or `None` when nothing with positive weight remains.
 pub fn combine(proposals: &mut [(Vec3, f32)], rules: &WeightRules) -> Option<(Vec3, f32)> {
-    let mut kept: Vec<(Vec3, f32)> = proposals.iter().copied().filter(|(v, w)| *w > 0.0 && v.is_finite()).collect();
+    let mut kept: Vec<(Vec3, f32)> = proposals
+        .iter()
+        .copied()
+        .filter(|(v, w)| *w > 0.0 && v.is_finite())
+        .collect();
     if kept.is_empty() {
         return None;
     }

@@ -22,7 +22,12 @@ fn a_probe_capture_in_the_survey_gives_the_photo_its_lighting() {
     }
     // the site and the photograph itself (contents do not matter here)
     let quad = igi_geometry::TriMesh {
-        positions: vec![[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [1.0, 1.0, 0.0], [-1.0, 1.0, 0.0]],
+        positions: vec![
+            [-1.0, -1.0, 0.0],
+            [1.0, -1.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [-1.0, 1.0, 0.0],
+        ],
         normals: None,
         uvs: None,
         colors: None,
@@ -40,16 +45,38 @@ fn a_probe_capture_in_the_survey_gives_the_photo_its_lighting() {
     let sky = clear_sky(128, 64, sun, 0.6, Vec3::splat(0.08));
     std::fs::write(d.join("probes/board.json"), BOARD).unwrap();
     let board = igi_probe::Board::load(&d.join("probes/board.json")).unwrap();
-    let board_cam = look_at_camera(Vec3::new(0.0, 0.0, 1.5), Vec3::new(0.0, 1.0, 1.5), 640, 480, 40.0).unwrap();
+    let board_cam = look_at_camera(
+        Vec3::new(0.0, 0.0, 1.5),
+        Vec3::new(0.0, 1.0, 1.5),
+        640,
+        480,
+        40.0,
+    )
+    .unwrap();
     board_cam.save(&d.join("probes/p_camera.json")).unwrap();
-    let s = SynthSun { direction: sun.as_dvec3(), radiance: radiance.to_array(), diameter_deg: 0.53 };
-    write_exr(&d.join("probes/p.exr"), &render_board(&board_cam, &board, &sky, Some(s), 3)).unwrap();
+    let s = SynthSun {
+        direction: sun.as_dvec3(),
+        radiance: radiance.to_array(),
+        diameter_deg: 0.53,
+    };
+    write_exr(
+        &d.join("probes/p.exr"),
+        &render_board(&board_cam, &board, &sky, Some(s), 3),
+    )
+    .unwrap();
     let photo = "[[photo]]\nid = \"p\"\nimage = \"photos/p.exr\"\ncamera = \"cameras/p.json\"\n";
     let probe = "[photo.probe]\nimage = \"probes/p.exr\"\ncamera = \"probes/p_camera.json\"\nboard = \"probes/board.json\"\n";
-    std::fs::write(d.join("survey.toml"), format!("[site]\nmesh = \"geometry/site.ply\"\n\n{photo}{probe}")).unwrap();
+    std::fs::write(
+        d.join("survey.toml"),
+        format!("[site]\nmesh = \"geometry/site.ply\"\n\n{photo}{probe}"),
+    )
+    .unwrap();
 
     let survey = Survey::load(d).unwrap();
-    assert!(matches!(survey.photos[0].lighting, LightingSource::Probe { .. }));
+    assert!(matches!(
+        survey.photos[0].lighting,
+        LightingSource::Probe { .. }
+    ));
     let p = survey.photos[0].load().unwrap();
     let got = p.lighting.sun.as_ref().expect("the probe finds the sun");
     let angle = got.direction.dot(sun).clamp(-1.0, 1.0).acos().to_degrees();
@@ -57,14 +84,24 @@ fn a_probe_capture_in_the_survey_gives_the_photo_its_lighting() {
     // about half a degree (the demo's boards: 0.49 and 0.54; 0.05 on the Mitsuba fixtures)
     assert!(angle < 1.0, "sun direction off by {angle} degrees");
     let rel = (got.radiance - radiance).abs() / radiance;
-    assert!(rel.max_element() < 0.05, "sun radiance {} vs {radiance}", got.radiance);
+    assert!(
+        rel.max_element() < 0.05,
+        "sun radiance {} vs {radiance}",
+        got.radiance
+    );
     assert!(p.lighting.environment.is_some());
 
     // exactly one of a lighting file and a probe capture
     std::fs::write(d.join("l.toml"), "").unwrap();
-    for text in [format!("[site]\nmesh = \"geometry/site.ply\"\n\n{photo}lighting = \"l.toml\"\n{probe}"), format!("[site]\nmesh = \"geometry/site.ply\"\n\n{photo}")] {
+    for text in [
+        format!("[site]\nmesh = \"geometry/site.ply\"\n\n{photo}lighting = \"l.toml\"\n{probe}"),
+        format!("[site]\nmesh = \"geometry/site.ply\"\n\n{photo}"),
+    ] {
         std::fs::write(d.join("survey.toml"), text).unwrap();
         let e = Survey::load(d).unwrap_err().to_string();
-        assert!(e.contains("survey.toml") && e.contains("exactly one"), "{e}");
+        assert!(
+            e.contains("survey.toml") && e.contains("exactly one"),
+            "{e}"
+        );
     }
 }

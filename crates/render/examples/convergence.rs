@@ -10,13 +10,19 @@ use std::time::Instant;
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
-    let dir = args
-        .get(1)
+    let dir = args.get(1).map(PathBuf::from).unwrap_or_else(|| {
+        PathBuf::from(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../datasets/fixtures/outdoor"
+        ))
+    });
+    let reference = args
+        .get(2)
         .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../datasets/fixtures/outdoor")));
-    let reference = args.get(2).map(PathBuf::from).unwrap_or_else(|| dir.join("reference.exr"));
+        .unwrap_or_else(|| dir.join("reference.exr"));
     let (scene, lighting) = Scene::load(&dir.join("scene.toml")).unwrap_or_else(|e| panic!("{e}"));
-    let camera = igi_imaging::Camera::load(&dir.join("camera.json")).unwrap_or_else(|e| panic!("{e}"));
+    let camera =
+        igi_imaging::Camera::load(&dir.join("camera.json")).unwrap_or_else(|e| panic!("{e}"));
     let ref_img = igi_imaging::read_image(&reference).unwrap_or_else(|e| panic!("{e}"));
     let ref_se = igi_imaging::read_image(&reference.with_file_name("reference_stderr.exr")).ok();
     println!("threads: {}", rayon::current_num_threads());
@@ -24,7 +30,12 @@ fn main() {
     println!("|---:|---:|---:|---:|---:|---:|---:|---:|");
     let mut spp = 1;
     while spp <= 256 {
-        let opts = RenderOptions { spp, seed: 7, indirect: 2, russian_roulette: false };
+        let opts = RenderOptions {
+            spp,
+            seed: 7,
+            indirect: 2,
+            russian_roulette: false,
+        };
         let t = Instant::now();
         let out = render_image(&scene, &lighting, &camera, &opts, &|_| {}).unwrap();
         let secs = t.elapsed().as_secs_f64();

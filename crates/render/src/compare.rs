@@ -69,7 +69,9 @@ pub fn compare_images(
         }
     }
     if n == 0 {
-        return Err(RenderError::Invalid("no pixel is valid in both images".into()));
+        return Err(RenderError::Invalid(
+            "no pixel is valid in both images".into(),
+        ));
     }
     let m = (3 * n) as f64;
     let rmse = (se2 / m).sqrt();
@@ -79,18 +81,34 @@ pub fn compare_images(
         height: h,
         pixels: n,
         rmse,
-        relative_mean_difference: if mean_b != 0.0 { (mean_a - mean_b) / mean_b } else { f64::NAN },
+        relative_mean_difference: if mean_b != 0.0 {
+            (mean_a - mean_b) / mean_b
+        } else {
+            f64::NAN
+        },
         mean_a,
         mean_b,
-        psnr_db: if rmse > 0.0 { 20.0 * (peak / rmse).log10() } else { f64::INFINITY },
-        noise_rmse: if se_a.is_some() || se_b.is_some() { Some((noise / m).sqrt()) } else { None },
+        psnr_db: if rmse > 0.0 {
+            20.0 * (peak / rmse).log10()
+        } else {
+            f64::INFINITY
+        },
+        noise_rmse: if se_a.is_some() || se_b.is_some() {
+            Some((noise / m).sqrt())
+        } else {
+            None
+        },
     })
 }
 
 /// A false-colour picture of |a - b| (mean over channels), black -> blue -> red -> yellow ->
 /// white, scaled so that `max_abs` (or the largest difference when `None`) is white. Returned
 /// as linear RGB, ready for `write_png_tonemapped(.., 1.0)`.
-pub fn difference_image(a: &HdrImage, b: &HdrImage, max_abs: Option<f32>) -> Result<HdrImage, RenderError> {
+pub fn difference_image(
+    a: &HdrImage,
+    b: &HdrImage,
+    max_abs: Option<f32>,
+) -> Result<HdrImage, RenderError> {
     check_size("image A", a, b.width, b.height)?;
     let diffs: Vec<f32> = a
         .pixels
@@ -101,9 +119,19 @@ pub fn difference_image(a: &HdrImage, b: &HdrImage, max_abs: Option<f32>) -> Res
         .collect();
     let scale = max_abs.unwrap_or_else(|| diffs.iter().cloned().fold(0.0, f32::max));
     let mut out = HdrImage::new(b.width, b.height);
-    const STOPS: [[f32; 3]; 5] = [[0.0, 0.0, 0.0], [0.1, 0.1, 0.9], [0.9, 0.1, 0.1], [1.0, 0.9, 0.1], [1.0, 1.0, 1.0]];
+    const STOPS: [[f32; 3]; 5] = [
+        [0.0, 0.0, 0.0],
+        [0.1, 0.1, 0.9],
+        [0.9, 0.1, 0.1],
+        [1.0, 0.9, 0.1],
+        [1.0, 1.0, 1.0],
+    ];
     for (i, d) in diffs.iter().enumerate() {
-        let t = if scale > 0.0 { (d / scale).clamp(0.0, 1.0) } else { 0.0 } * 4.0;
+        let t = if scale > 0.0 {
+            (d / scale).clamp(0.0, 1.0)
+        } else {
+            0.0
+        } * 4.0;
         let k = (t.floor() as usize).min(3);
         let f = t - k as f32;
         let srgb: [f32; 3] = std::array::from_fn(|c| STOPS[k][c] * (1.0 - f) + STOPS[k + 1][c] * f);
@@ -148,7 +176,10 @@ mod tests {
         assert_eq!(c2.pixels, 7);
         assert!((c2.rmse - 0.5).abs() < 1e-12);
         let small = img(2, 2, |_| [0.0; 3]);
-        assert!(compare_images(&small, &b, None, None).unwrap_err().to_string().contains("2 x 2"));
+        assert!(compare_images(&small, &b, None, None)
+            .unwrap_err()
+            .to_string()
+            .contains("2 x 2"));
     }
 
     #[test]

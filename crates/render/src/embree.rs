@@ -65,16 +65,23 @@ impl RtScene {
                 .map_err(|e| embree_err("creating a triangle geometry", e))?;
             // Embree needs count >= 1: an empty mesh gets one degenerate triangle at the origin,
             // which Embree never reports as hit.
-            let (pos, idx): (Vec<[f32; 3]>, Vec<[u32; 3]>) = if tris.is_empty() || positions.is_empty() {
-                (vec![[0.0; 3]; 3], vec![[0, 0, 0]])
-            } else {
-                (positions.to_vec(), tris.to_vec())
-            };
+            let (pos, idx): (Vec<[f32; 3]>, Vec<[u32; 3]>) =
+                if tris.is_empty() || positions.is_empty() {
+                    (vec![[0.0; 3]; 3], vec![[0, 0, 0]])
+                } else {
+                    (positions.to_vec(), tris.to_vec())
+                };
             // Vertex buffers need 16 bytes of padding after the last element: allocate one spare
             // vertex (stride 12, count n + 1) and leave it at zero.
             {
                 let mut vb = g
-                    .set_new_buffer::<[f32; 3]>(BufferUsage::VERTEX, 0, Format::FLOAT3, 12, pos.len() + 1)
+                    .set_new_buffer::<[f32; 3]>(
+                        BufferUsage::VERTEX,
+                        0,
+                        Format::FLOAT3,
+                        12,
+                        pos.len() + 1,
+                    )
                     .map_err(|e| embree_err("allocating a vertex buffer", e))?;
                 vb[..pos.len()].copy_from_slice(&pos);
                 vb[pos.len()] = [0.0; 3];
@@ -98,7 +105,11 @@ impl RtScene {
         if err != embree3::Error::NONE {
             return Err(embree_err("committing the Embree scene", err));
         }
-        Ok(RtScene { scene, _device: device, n_meshes: meshes.len() as u32 })
+        Ok(RtScene {
+            scene,
+            _device: device,
+            n_meshes: meshes.len() as u32,
+        })
     }
 
     /// Number of meshes the scene was built from.
@@ -125,7 +136,11 @@ impl RtScene {
 
     /// Closest hits of a batch of rays through Embree's stream API (`rtcIntersect1M`).
     pub fn intersect_batch(&self, rays: &[ShadowRay], coherent: bool) -> Vec<Option<Hit>> {
-        let mut ctx = if coherent { IntersectContext::coherent() } else { IntersectContext::incoherent() };
+        let mut ctx = if coherent {
+            IntersectContext::coherent()
+        } else {
+            IntersectContext::incoherent()
+        };
         let mut rh: Vec<RayHit> = rays
             .iter()
             .enumerate()
@@ -145,11 +160,23 @@ impl RtScene {
 
     /// Occlusion of a batch of rays through Embree's stream API (`rtcOccluded1M`).
     pub fn occluded_batch(&self, rays: &[ShadowRay], coherent: bool) -> Vec<bool> {
-        let mut ctx = if coherent { IntersectContext::coherent() } else { IntersectContext::incoherent() };
+        let mut ctx = if coherent {
+            IntersectContext::coherent()
+        } else {
+            IntersectContext::incoherent()
+        };
         let mut rs: Vec<Ray> = rays
             .iter()
             .enumerate()
-            .map(|(i, r)| Ray::segment_with_id(r.origin.to_array(), r.dir.to_array(), r.tnear, r.tfar, i as u32))
+            .map(|(i, r)| {
+                Ray::segment_with_id(
+                    r.origin.to_array(),
+                    r.dir.to_array(),
+                    r.tnear,
+                    r.tfar,
+                    i as u32,
+                )
+            })
             .collect();
         self.scene.occluded_stream_aos(&mut ctx, &mut rs);
         rs.iter().map(|r| r.tfar == f32::NEG_INFINITY).collect()
@@ -185,7 +212,12 @@ mod tests {
 
     fn quad() -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
         (
-            vec![[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [1.0, 1.0, 0.0], [-1.0, 1.0, 0.0]],
+            vec![
+                [-1.0, -1.0, 0.0],
+                [1.0, -1.0, 0.0],
+                [1.0, 1.0, 0.0],
+                [-1.0, 1.0, 0.0],
+            ],
             vec![[0, 1, 2], [0, 2, 3]],
         )
     }
@@ -194,7 +226,14 @@ mod tests {
     fn hits_a_quad_with_correct_t_barycentrics_and_normal() {
         let (p, t) = quad();
         let s = RtScene::new(&[(&p, &t)]).unwrap();
-        let h = s.intersect(Vec3::new(0.5, -0.25, 2.0), Vec3::new(0.0, 0.0, -1.0), 0.0, f32::INFINITY).unwrap();
+        let h = s
+            .intersect(
+                Vec3::new(0.5, -0.25, 2.0),
+                Vec3::new(0.0, 0.0, -1.0),
+                0.0,
+                f32::INFINITY,
+            )
+            .unwrap();
         assert!((h.t - 2.0).abs() < 1e-6);
         assert_eq!(h.geom, 0);
         assert_eq!(h.prim, 0);
@@ -204,8 +243,12 @@ mod tests {
         assert!((h.bary - Vec2::new(b1, b2)).length() < 1e-5, "{:?}", h.bary);
         assert!(h.ng.normalize().abs_diff_eq(Vec3::Z, 1e-6));
         // Misses outside, respects tfar and tnear.
-        assert!(s.intersect(Vec3::new(1.5, 0.0, 2.0), -Vec3::Z, 0.0, f32::INFINITY).is_none());
-        assert!(s.intersect(Vec3::new(0.0, 0.0, 2.0), -Vec3::Z, 0.0, 1.9).is_none());
+        assert!(s
+            .intersect(Vec3::new(1.5, 0.0, 2.0), -Vec3::Z, 0.0, f32::INFINITY)
+            .is_none());
+        assert!(s
+            .intersect(Vec3::new(0.0, 0.0, 2.0), -Vec3::Z, 0.0, 1.9)
+            .is_none());
         assert!(s.occluded(Vec3::new(0.0, 0.2, 2.0), -Vec3::Z, 0.0, 2.1));
         assert!(!s.occluded(Vec3::new(0.0, 0.2, 2.0), -Vec3::Z, 0.0, 1.9));
         assert!(!s.occluded(Vec3::new(0.0, 0.2, 2.0), -Vec3::Z, 2.1, 10.0));
@@ -221,7 +264,12 @@ mod tests {
             .map(|i| {
                 let x = (i % 8) as f32 * 0.4 - 1.5;
                 let y = (i / 8) as f32 * 0.4 - 1.513; // off the quad diagonal x = y
-                ShadowRay { origin: Vec3::new(x, y, 1.0), dir: -Vec3::Z, tnear: 0.0, tfar: f32::INFINITY }
+                ShadowRay {
+                    origin: Vec3::new(x, y, 1.0),
+                    dir: -Vec3::Z,
+                    tnear: 0.0,
+                    tfar: f32::INFINITY,
+                }
             })
             .collect();
         let hits = s.intersect_batch(&rays, true);

@@ -30,7 +30,12 @@ pub struct RenderOptions {
 
 impl Default for RenderOptions {
     fn default() -> Self {
-        RenderOptions { spp: 16, seed: 0, indirect: 2, russian_roulette: false }
+        RenderOptions {
+            spp: 16,
+            seed: 0,
+            indirect: 2,
+            russian_roulette: false,
+        }
     }
 }
 
@@ -63,8 +68,15 @@ impl Accumulator {
         if self.n == 0 {
             return Estimate::default();
         }
-        let var = if self.n > 1 { (self.m2 / (self.n - 1) as f64).max(DVec3::ZERO) } else { DVec3::ZERO };
-        Estimate { mean: self.mean.as_vec3(), stderr: (var / self.n as f64).map(f64::sqrt).as_vec3() }
+        let var = if self.n > 1 {
+            (self.m2 / (self.n - 1) as f64).max(DVec3::ZERO)
+        } else {
+            DVec3::ZERO
+        };
+        Estimate {
+            mean: self.mean.as_vec3(),
+            stderr: (var / self.n as f64).map(f64::sqrt).as_vec3(),
+        }
     }
 }
 
@@ -128,7 +140,11 @@ impl<'b> Shading<'b> {
             if !(wi.z > 0.0) {
                 return None;
             }
-            Some(BsdfSample { wi, value: self.brdf.rho_d * INV_PI, pdf: wi.z * INV_PI })
+            Some(BsdfSample {
+                wi,
+                value: self.brdf.rho_d * INV_PI,
+                pdf: wi.z * INV_PI,
+            })
         } else {
             self.brdf.sample(wo, u_select, u)
         }
@@ -146,12 +162,24 @@ pub struct PathTracer<'a> {
 
 impl<'a> PathTracer<'a> {
     pub fn new(scene: &'a Scene, lighting: &'a Lighting, opts: &RenderOptions) -> Self {
-        PathTracer { scene, lighting, max_vertices: opts.indirect.saturating_add(1), rr: opts.russian_roulette }
+        PathTracer {
+            scene,
+            lighting,
+            max_vertices: opts.indirect.saturating_add(1),
+            rr: opts.russian_roulette,
+        }
     }
 
     /// Mean and standard error of `spp` samples of [`lo`](Self::lo) (a non-finite sample counts
     /// as zero), drawn from `rng`.
-    pub fn lo_estimate(&self, sp: &SurfacePoint, wo: Vec3, first_brdf: Option<LafortuneRef<'_>>, spp: u32, rng: &mut Rng) -> Estimate {
+    pub fn lo_estimate(
+        &self,
+        sp: &SurfacePoint,
+        wo: Vec3,
+        first_brdf: Option<LafortuneRef<'_>>,
+        spp: u32,
+        rng: &mut Rng,
+    ) -> Estimate {
         let mut acc = Accumulator::default();
         let mut rays = 0;
         for _ in 0..spp {
@@ -177,13 +205,24 @@ impl<'a> PathTracer<'a> {
 
     /// Radiance leaving surface point `sp` in direction `wo` (unit, world). Surfaces emit
     /// nothing. `first_brdf` overrides the material at `sp` only (used by [`irradiance`]).
-    pub fn lo(&self, sp: &SurfacePoint, wo: Vec3, first_brdf: Option<LafortuneRef<'_>>, rng: &mut Rng, rays: &mut u64) -> Vec3 {
+    pub fn lo(
+        &self,
+        sp: &SurfacePoint,
+        wo: Vec3,
+        first_brdf: Option<LafortuneRef<'_>>,
+        rng: &mut Rng,
+        rays: &mut u64,
+    ) -> Vec3 {
         let mut l = Vec3::ZERO;
         let mut beta = Vec3::ONE;
         let mut sp = *sp;
         let mut wo = wo;
         let mut vertex = 1u32;
-        let env = self.lighting.environment.as_ref().filter(|e| e.is_nonzero());
+        let env = self
+            .lighting
+            .environment
+            .as_ref()
+            .filter(|e| e.is_nonzero());
         let sun = self.lighting.sun.as_ref();
         loop {
             // Two-sided surfaces: orient the normals toward the outgoing direction.
@@ -194,7 +233,9 @@ impl<'a> PathTracer<'a> {
             let brdf = Shading {
                 brdf: match (vertex, first_brdf) {
                     (1, Some(b)) => b,
-                    _ => self.scene.objects[sp.object as usize].material.brdf_at(sp.uv),
+                    _ => self.scene.objects[sp.object as usize]
+                        .material
+                        .brdf_at(sp.uv),
                 },
             };
             let origin = offset_origin(sp.position, ng);
@@ -233,7 +274,9 @@ impl<'a> PathTracer<'a> {
             // BSDF sampling: the MIS partner of the light samples and the path continuation.
             let u_sel = rng.uniform();
             let u = rng.uniform2();
-            let Some(bs) = brdf.sample(wo_l, u_sel, u) else { break };
+            let Some(bs) = brdf.sample(wo_l, u_sel, u) else {
+                break;
+            };
             let wi = frame.to_world(bs.wi);
             if !(bs.pdf > 0.0) || wi.dot(ng) <= 0.0 || !wi.is_finite() {
                 break;
@@ -295,7 +338,9 @@ pub fn render_image(
     }
     let (w, h) = (camera.width as usize, camera.height as usize);
     if w == 0 || h == 0 {
-        return Err(RenderError::Invalid(format!("camera image size {w} x {h} is empty")));
+        return Err(RenderError::Invalid(format!(
+            "camera image size {w} x {h} is empty"
+        )));
     }
     let pt = PathTracer::new(scene, lighting, opts);
     let stats = Stats::default();
@@ -311,7 +356,10 @@ pub fn render_image(
                 let mut acc = Accumulator::default();
                 for _ in 0..opts.spp {
                     let jitter = rng.uniform2();
-                    let (o, d) = camera.pixel_ray(x as f64 - 0.5 + jitter.x as f64, y as f64 - 0.5 + jitter.y as f64);
+                    let (o, d) = camera.pixel_ray(
+                        x as f64 - 0.5 + jitter.x as f64,
+                        y as f64 - 0.5 + jitter.y as f64,
+                    );
                     let (o, d) = (o.as_vec3(), d.as_vec3());
                     let mut v = if o.is_finite() && d.is_finite() && d != Vec3::ZERO {
                         pt.li(o, d, &mut rng, &mut rays)
@@ -359,7 +407,11 @@ pub fn radiance_toward(
     opts: &RenderOptions,
 ) -> Result<Vec<Estimate>, RenderError> {
     if points.len() != targets.len() {
-        return Err(RenderError::Invalid(format!("{} points but {} targets", points.len(), targets.len())));
+        return Err(RenderError::Invalid(format!(
+            "{} points but {} targets",
+            points.len(),
+            targets.len()
+        )));
     }
     if opts.spp == 0 {
         return Err(RenderError::Invalid("spp must be at least 1".into()));
@@ -390,13 +442,20 @@ pub fn irradiance(
     opts: &RenderOptions,
 ) -> Result<Vec<Estimate>, RenderError> {
     if points.len() != normals.len() {
-        return Err(RenderError::Invalid(format!("{} points but {} normals", points.len(), normals.len())));
+        return Err(RenderError::Invalid(format!(
+            "{} points but {} normals",
+            points.len(),
+            normals.len()
+        )));
     }
     if opts.spp == 0 {
         return Err(RenderError::Invalid("spp must be at least 1".into()));
     }
     let pt = PathTracer::new(scene, lighting, opts);
-    let white = LafortuneRef { rho_d: Vec3::ONE, lobes: &[] };
+    let white = LafortuneRef {
+        rho_d: Vec3::ONE,
+        lobes: &[],
+    };
     let pi = std::f32::consts::PI;
     Ok(points
         .par_iter()
@@ -408,9 +467,25 @@ pub fn irradiance(
                 return Estimate::default();
             }
             // object/prim/uv are unused at the first vertex (its BRDF is overridden).
-            let sp = SurfacePoint { position: *p, ng: n, ns: n, uv: Vec2::ZERO, object: 0, prim: 0 };
-            let e = pt.lo_estimate(&sp, n, Some(white), opts.spp, &mut Rng::new(opts.seed, i as u64));
-            Estimate { mean: e.mean * pi, stderr: e.stderr * pi }
+            let sp = SurfacePoint {
+                position: *p,
+                ng: n,
+                ns: n,
+                uv: Vec2::ZERO,
+                object: 0,
+                prim: 0,
+            };
+            let e = pt.lo_estimate(
+                &sp,
+                n,
+                Some(white),
+                opts.spp,
+                &mut Rng::new(opts.seed, i as u64),
+            );
+            Estimate {
+                mean: e.mean * pi,
+                stderr: e.stderr * pi,
+            }
         })
         .collect())
 }

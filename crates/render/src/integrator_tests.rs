@@ -12,7 +12,12 @@ use std::f32::consts::PI;
 
 pub(crate) fn quad(z: f32, half: f32) -> TriMesh {
     TriMesh {
-        positions: vec![[-half, -half, z], [half, -half, z], [half, half, z], [-half, half, z]],
+        positions: vec![
+            [-half, -half, z],
+            [half, -half, z],
+            [half, half, z],
+            [-half, half, z],
+        ],
         normals: None,
         uvs: Some(vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]),
         colors: None,
@@ -23,17 +28,43 @@ pub(crate) fn quad(z: f32, half: f32) -> TriMesh {
 /// Axis-aligned box (12 triangles, outward winding).
 pub(crate) fn cube(lo: Vec3, hi: Vec3) -> TriMesh {
     let p = |x: bool, y: bool, z: bool| {
-        [if x { hi.x } else { lo.x }, if y { hi.y } else { lo.y }, if z { hi.z } else { lo.z }]
+        [
+            if x { hi.x } else { lo.x },
+            if y { hi.y } else { lo.y },
+            if z { hi.z } else { lo.z },
+        ]
     };
     let positions = vec![
-        p(false, false, false), p(true, false, false), p(true, true, false), p(false, true, false),
-        p(false, false, true), p(true, false, true), p(true, true, true), p(false, true, true),
+        p(false, false, false),
+        p(true, false, false),
+        p(true, true, false),
+        p(false, true, false),
+        p(false, false, true),
+        p(true, false, true),
+        p(true, true, true),
+        p(false, true, true),
     ];
     let indices = vec![
-        [0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4],
-        [1, 2, 6], [1, 6, 5], [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7],
+        [0, 2, 1],
+        [0, 3, 2],
+        [4, 5, 6],
+        [4, 6, 7],
+        [0, 1, 5],
+        [0, 5, 4],
+        [1, 2, 6],
+        [1, 6, 5],
+        [2, 3, 7],
+        [2, 7, 6],
+        [3, 0, 4],
+        [3, 4, 7],
     ];
-    TriMesh { positions, normals: None, uvs: None, colors: None, indices }
+    TriMesh {
+        positions,
+        normals: None,
+        uvs: None,
+        colors: None,
+        indices,
+    }
 }
 
 /// UV sphere with smooth normals.
@@ -53,17 +84,32 @@ pub(crate) fn sphere(c: Vec3, r: f32, n_theta: u32, n_phi: u32) -> TriMesh {
     let row = n_phi + 1;
     for i in 0..n_theta {
         for j in 0..n_phi {
-            let (a, b, cc, d) = (i * row + j, i * row + j + 1, (i + 1) * row + j, (i + 1) * row + j + 1);
+            let (a, b, cc, d) = (
+                i * row + j,
+                i * row + j + 1,
+                (i + 1) * row + j,
+                (i + 1) * row + j + 1,
+            );
             indices.push([a, cc, d]); // degenerate at the poles: dropped by Scene::new
             indices.push([a, d, b]);
         }
     }
-    TriMesh { positions, normals: Some(normals), uvs: None, colors: None, indices }
+    TriMesh {
+        positions,
+        normals: Some(normals),
+        uvs: None,
+        colors: None,
+        indices,
+    }
 }
 
 /// Camera at `eye` looking straight down (-Z), image x along +X.
 pub(crate) fn down_camera(eye: Vec3, w: u32, h: u32, f: f64) -> Camera {
-    let r = DMat3::from_cols(DVec3::new(1.0, 0.0, 0.0), DVec3::new(0.0, -1.0, 0.0), DVec3::new(0.0, 0.0, -1.0));
+    let r = DMat3::from_cols(
+        DVec3::new(1.0, 0.0, 0.0),
+        DVec3::new(0.0, -1.0, 0.0),
+        DVec3::new(0.0, 0.0, -1.0),
+    );
     let c = eye.as_dvec3();
     let mut cam = Camera::pinhole(w, h, f, f, (w as f64 - 1.0) / 2.0, (h as f64 - 1.0) / 2.0);
     cam.pose = WorldToCamera { r, t: -(r * c) };
@@ -71,12 +117,19 @@ pub(crate) fn down_camera(eye: Vec3, w: u32, h: u32, f: f64) -> Camera {
 }
 
 fn pt_on(scene: &Scene, p: Vec3) -> SurfacePoint {
-    scene.trace_point(p + Vec3::Z * 1.0, -Vec3::Z).expect("point on the surface")
+    scene
+        .trace_point(p + Vec3::Z * 1.0, -Vec3::Z)
+        .expect("point on the surface")
 }
 
 fn sun_from_zenith(angle_deg: f32, radiance: f32) -> Sun {
     let a = angle_deg.to_radians();
-    Sun::new(Vec3::new(a.sin(), 0.0, a.cos()), Vec3::splat(radiance), 0.53).unwrap()
+    Sun::new(
+        Vec3::new(a.sin(), 0.0, a.cos()),
+        Vec3::splat(radiance),
+        0.53,
+    )
+    .unwrap()
 }
 
 #[test]
@@ -85,11 +138,21 @@ fn white_furnace_sphere_under_uniform_sky() {
     // whose shading normal faces away, which legitimately loses energy at the silhouette.
     let mut ball = sphere(Vec3::ZERO, 1.0, 24, 48);
     ball.normals = None;
-    let scene = Scene::new(vec![("sphere".into(), ball, Material::lambertian(Vec3::ONE))]).unwrap();
+    let scene = Scene::new(vec![(
+        "sphere".into(),
+        ball,
+        Material::lambertian(Vec3::ONE),
+    )])
+    .unwrap();
     assert!(scene.skipped_triangles > 0); // the pole triangles
     let lighting = Lighting::uniform(Vec3::ONE);
     let cam = down_camera(Vec3::new(0.0, 0.0, 4.0), 24, 24, 30.0);
-    let opts = RenderOptions { spp: 64, seed: 1, indirect: 2, russian_roulette: false };
+    let opts = RenderOptions {
+        spp: 64,
+        seed: 1,
+        indirect: 2,
+        russian_roulette: false,
+    };
     let out = render_image(&scene, &lighting, &cam, &opts, &|_| {}).unwrap();
     assert_eq!(out.bad_samples, 0);
     // Every pixel (sphere or sky) must be 1 within noise; the sphere is convex, so there are
@@ -102,7 +165,8 @@ fn white_furnace_sphere_under_uniform_sky() {
             assert!((m[c] - 1.0).abs() < 0.2, "pixel {m:?} se {s:?}");
         }
     }
-    let mean: f64 = out.mean.pixels.iter().map(|p| p[1] as f64).sum::<f64>() / out.mean.pixels.len() as f64;
+    let mean: f64 =
+        out.mean.pixels.iter().map(|p| p[1] as f64).sum::<f64>() / out.mean.pixels.len() as f64;
     assert!((mean - 1.0).abs() < 0.005, "mean {mean}");
     assert!(max_dev < 5.0, "max deviation {max_dev} standard errors");
 }
@@ -111,21 +175,41 @@ fn white_furnace_sphere_under_uniform_sky() {
 fn white_furnace_concave_scene_with_many_bounces() {
     // A unit-albedo ground with a box on it: concave corners need many bounces to reach 1.
     let scene = Scene::new(vec![
-        ("ground".into(), quad(0.0, 20.0), Material::lambertian(Vec3::ONE)),
-        ("box".into(), cube(Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 2.0)), Material::lambertian(Vec3::ONE)),
+        (
+            "ground".into(),
+            quad(0.0, 20.0),
+            Material::lambertian(Vec3::ONE),
+        ),
+        (
+            "box".into(),
+            cube(Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 2.0)),
+            Material::lambertian(Vec3::ONE),
+        ),
     ])
     .unwrap();
     let lighting = Lighting::uniform(Vec3::ONE);
-    let points = vec![pt_on(&scene, Vec3::new(1.05, 0.0, 0.0)), pt_on(&scene, Vec3::new(3.0, 2.0, 0.0))];
+    let points = vec![
+        pt_on(&scene, Vec3::new(1.05, 0.0, 0.0)),
+        pt_on(&scene, Vec3::new(3.0, 2.0, 0.0)),
+    ];
     let targets = vec![Vec3::new(3.0, 0.0, 1.0), Vec3::new(0.0, 5.0, 3.0)];
-    let opts = RenderOptions { spp: 4000, seed: 3, indirect: 1000, russian_roulette: true };
+    let opts = RenderOptions {
+        spp: 4000,
+        seed: 3,
+        indirect: 1000,
+        russian_roulette: true,
+    };
     let est = radiance_toward(&scene, &lighting, &points, &targets, &opts).unwrap();
     for e in &est {
         assert!((e.mean.y - 1.0).abs() < 4.0 * e.stderr.y + 1e-3, "{e:?}");
         assert!(e.stderr.y < 0.02, "{e:?}");
     }
     // With direct light only (K = 0) the corner point is clearly darker than 1.
-    let opts0 = RenderOptions { indirect: 0, russian_roulette: false, ..opts };
+    let opts0 = RenderOptions {
+        indirect: 0,
+        russian_roulette: false,
+        ..opts
+    };
     let est0 = radiance_toward(&scene, &lighting, &points[..1], &targets[..1], &opts0).unwrap();
     assert!(est0[0].mean.y < 0.75, "{:?}", est0[0]);
 }
@@ -133,40 +217,71 @@ fn white_furnace_concave_scene_with_many_bounces() {
 #[test]
 fn diffuse_plane_under_the_sun_matches_rho_over_pi_times_e() {
     let rho = Vec3::new(0.2, 0.5, 0.8);
-    let scene = Scene::new(vec![("ground".into(), quad(0.0, 100.0), Material::lambertian(rho))]).unwrap();
+    let scene = Scene::new(vec![(
+        "ground".into(),
+        quad(0.0, 100.0),
+        Material::lambertian(rho),
+    )])
+    .unwrap();
     for zenith in [0.0f32, 30.0, 75.0] {
         let sun = sun_from_zenith(zenith, 1.0e5);
-        let lighting = Lighting { environment: None, sun: Some(sun) };
+        let lighting = Lighting {
+            environment: None,
+            sun: Some(sun),
+        };
         let e_sun = 1.0e5 * sun.solid_angle() * zenith.to_radians().cos();
         let expect = rho / PI * e_sun;
         let p = pt_on(&scene, Vec3::new(0.3, -0.2, 0.0));
         let targets = [Vec3::new(-3.0, 1.0, 2.0)];
-        let opts = RenderOptions { spp: 256, seed: 9, ..Default::default() };
+        let opts = RenderOptions {
+            spp: 256,
+            seed: 9,
+            ..Default::default()
+        };
         let e = radiance_toward(&scene, &lighting, &[p], &targets, &opts).unwrap()[0];
         let rel = ((e.mean - expect) / expect).abs().max_element();
         assert!(rel < 2e-3, "zenith {zenith}: {:?} vs {expect:?}", e.mean);
         // Irradiance query agrees: E = L_sun * omega * cos.
         let ir = irradiance(&scene, &lighting, &[p.position], &[Vec3::Z], &opts).unwrap()[0];
-        assert!((ir.mean.x / e_sun - 1.0).abs() < 2e-3, "{:?} vs {e_sun}", ir.mean);
+        assert!(
+            (ir.mean.x / e_sun - 1.0).abs() < 2e-3,
+            "{:?} vs {e_sun}",
+            ir.mean
+        );
     }
 }
 
 #[test]
 fn glossy_plane_under_the_sun_matches_the_brdf_value() {
-    let lobe = Lobe { rho: Vec3::splat(0.8), cxy: -1.0, cz: 1.0, n: 20.0 };
+    let lobe = Lobe {
+        rho: Vec3::splat(0.8),
+        cxy: -1.0,
+        cz: 1.0,
+        n: 20.0,
+    };
     let mut mat = Material::lambertian(Vec3::splat(0.1));
     mat.lobes = vec![lobe];
     let scene = Scene::new(vec![("ground".into(), quad(0.0, 100.0), mat)]).unwrap();
     let sun = sun_from_zenith(40.0, 1.0e4);
-    let lighting = Lighting { environment: None, sun: Some(sun) };
+    let lighting = Lighting {
+        environment: None,
+        sun: Some(sun),
+    };
     let p = pt_on(&scene, Vec3::ZERO);
     // Near the mirror direction (the sun is at +X): view from -X side, slightly off-specular.
     let a = 45f32.to_radians();
     let wo = Vec3::new(-a.sin(), 0.0, a.cos());
-    let brdf = LafortuneRef { rho_d: Vec3::splat(0.1), lobes: &[lobe] };
+    let brdf = LafortuneRef {
+        rho_d: Vec3::splat(0.1),
+        lobes: &[lobe],
+    };
     let f = brdf.eval(sun.direction, wo);
     let expect = f * 1.0e4 * sun.solid_angle() * sun.direction.z;
-    let opts = RenderOptions { spp: 512, seed: 2, ..Default::default() };
+    let opts = RenderOptions {
+        spp: 512,
+        seed: 2,
+        ..Default::default()
+    };
     let e = radiance_toward(&scene, &lighting, &[p], &[wo * 10.0], &opts).unwrap()[0];
     let rel = ((e.mean - expect) / expect).abs().max_element();
     assert!(rel < 5e-3, "{:?} vs {expect:?}", e.mean);
@@ -174,36 +289,95 @@ fn glossy_plane_under_the_sun_matches_the_brdf_value() {
 
 #[test]
 fn irradiance_under_uniform_sky_and_in_a_corner() {
-    let scene = Scene::new(vec![("ground".into(), quad(0.0, 50.0), Material::lambertian(Vec3::splat(0.5)))]).unwrap();
+    let scene = Scene::new(vec![(
+        "ground".into(),
+        quad(0.0, 50.0),
+        Material::lambertian(Vec3::splat(0.5)),
+    )])
+    .unwrap();
     let lighting = Lighting::uniform(Vec3::splat(2.0));
-    let opts = RenderOptions { spp: 2000, seed: 4, ..Default::default() };
+    let opts = RenderOptions {
+        spp: 2000,
+        seed: 4,
+        ..Default::default()
+    };
     // Facing up just above the ground: E = pi * L.
-    let e = irradiance(&scene, &lighting, &[Vec3::new(0.0, 0.0, 1e-3)], &[Vec3::Z], &opts).unwrap()[0];
-    assert!((e.mean.x - 2.0 * PI).abs() < 4.0 * e.stderr.x + 1e-3, "{e:?}");
+    let e = irradiance(
+        &scene,
+        &lighting,
+        &[Vec3::new(0.0, 0.0, 1e-3)],
+        &[Vec3::Z],
+        &opts,
+    )
+    .unwrap()[0];
+    assert!(
+        (e.mean.x - 2.0 * PI).abs() < 4.0 * e.stderr.x + 1e-3,
+        "{e:?}"
+    );
     // Facing sideways: half sees the sky (L = 2), half the ground (L_out = rho * E_ground / pi
     // = 0.5 * 2 pi / pi = 1, with one bounce, direct-lit ground), so E = pi/2 * 2 + pi/2 * 1.
-    let e = irradiance(&scene, &lighting, &[Vec3::new(0.0, 0.0, 1e-2)], &[Vec3::X], &opts).unwrap()[0];
+    let e = irradiance(
+        &scene,
+        &lighting,
+        &[Vec3::new(0.0, 0.0, 1e-2)],
+        &[Vec3::X],
+        &opts,
+    )
+    .unwrap()[0];
     let expect = PI / 2.0 * 2.0 + PI / 2.0 * 1.0;
-    assert!((e.mean.x - expect).abs() < 4.0 * e.stderr.x + 2e-3 * expect, "{e:?} vs {expect}");
+    assert!(
+        (e.mean.x - expect).abs() < 4.0 * e.stderr.x + 2e-3 * expect,
+        "{e:?} vs {expect}"
+    );
 }
 
 #[test]
 fn bright_sun_over_dim_sky_has_no_fireflies_and_noise_falls_as_one_over_spp() {
     // A glossy ground and a box under a sky of radiance 1 and a sun 1e5 times brighter.
     let mut ground = Material::lambertian(Vec3::splat(0.3));
-    ground.lobes = vec![Lobe { rho: Vec3::splat(0.5), cxy: -1.0, cz: 1.0, n: 50.0 }];
+    ground.lobes = vec![Lobe {
+        rho: Vec3::splat(0.5),
+        cxy: -1.0,
+        cz: 1.0,
+        n: 50.0,
+    }];
     let scene = Scene::new(vec![
         ("ground".into(), quad(0.0, 20.0), ground),
-        ("box".into(), cube(Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 1.5)), Material::lambertian(Vec3::splat(0.6))),
+        (
+            "box".into(),
+            cube(Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 1.5)),
+            Material::lambertian(Vec3::splat(0.6)),
+        ),
     ])
     .unwrap();
-    let lighting = Lighting { environment: Some(Environment::constant(Vec3::ONE)), sun: Some(sun_from_zenith(35.0, 1.0e5)) };
+    let lighting = Lighting {
+        environment: Some(Environment::constant(Vec3::ONE)),
+        sun: Some(sun_from_zenith(35.0, 1.0e5)),
+    };
     let cam = down_camera(Vec3::new(0.0, 0.0, 8.0), 16, 16, 10.0);
     let se_mean = |spp: u32, seed: u64| {
-        let out = render_image(&scene, &lighting, &cam, &RenderOptions { spp, seed, indirect: 2, russian_roulette: false }, &|_| {}).unwrap();
+        let out = render_image(
+            &scene,
+            &lighting,
+            &cam,
+            &RenderOptions {
+                spp,
+                seed,
+                indirect: 2,
+                russian_roulette: false,
+            },
+            &|_| {},
+        )
+        .unwrap();
         assert_eq!(out.bad_samples, 0);
         assert!(out.mean.pixels.iter().flatten().all(|v| v.is_finite()));
-        let var: f64 = out.stderr.pixels.iter().map(|p| (p[1] as f64).powi(2)).sum::<f64>() / out.stderr.pixels.len() as f64;
+        let var: f64 = out
+            .stderr
+            .pixels
+            .iter()
+            .map(|p| (p[1] as f64).powi(2))
+            .sum::<f64>()
+            / out.stderr.pixels.len() as f64;
         let max = out.mean.pixels.iter().map(|p| p[1]).fold(0f32, f32::max);
         (var, max, out)
     };
@@ -216,7 +390,10 @@ fn bright_sun_over_dim_sky_has_no_fireflies_and_noise_falls_as_one_over_spp() {
     // E_sun = 1e5 * 6.7e-5 * cos 35 ~ 5.5; the brightest real value is the lobe's highlight.
     let e_sun = 1.0e5 * lighting.sun.unwrap().solid_angle() * 35f32.to_radians().cos();
     let bound = e_sun * (0.3 / PI + 0.5 * 3.0) + 10.0;
-    assert!(max16 < bound && max256 < bound, "max {max16} {max256} bound {bound}");
+    assert!(
+        max16 < bound && max256 < bound,
+        "max {max16} {max256} bound {bound}"
+    );
     // Independent renders agree within their noise.
     let mut z2 = 0.0;
     for i in 0..a.mean.pixels.len() {
@@ -231,16 +408,38 @@ fn bright_sun_over_dim_sky_has_no_fireflies_and_noise_falls_as_one_over_spp() {
 #[test]
 fn renders_are_deterministic_per_seed() {
     let scene = Scene::new(vec![
-        ("ground".into(), quad(0.0, 5.0), Material::lambertian(Vec3::splat(0.5))),
-        ("box".into(), cube(Vec3::splat(-0.5), Vec3::splat(0.5)), Material::lambertian(Vec3::splat(0.7))),
+        (
+            "ground".into(),
+            quad(0.0, 5.0),
+            Material::lambertian(Vec3::splat(0.5)),
+        ),
+        (
+            "box".into(),
+            cube(Vec3::splat(-0.5), Vec3::splat(0.5)),
+            Material::lambertian(Vec3::splat(0.7)),
+        ),
     ])
     .unwrap();
-    let lighting = Lighting { environment: Some(Environment::constant(Vec3::ONE)), sun: Some(sun_from_zenith(20.0, 1e3)) };
+    let lighting = Lighting {
+        environment: Some(Environment::constant(Vec3::ONE)),
+        sun: Some(sun_from_zenith(20.0, 1e3)),
+    };
     let cam = down_camera(Vec3::new(0.0, 0.0, 5.0), 12, 10, 8.0);
-    let opts = RenderOptions { spp: 4, seed: 42, ..Default::default() };
+    let opts = RenderOptions {
+        spp: 4,
+        seed: 42,
+        ..Default::default()
+    };
     let a = render_image(&scene, &lighting, &cam, &opts, &|_| {}).unwrap();
     let b = render_image(&scene, &lighting, &cam, &opts, &|_| {}).unwrap();
-    let c = render_image(&scene, &lighting, &cam, &RenderOptions { seed: 43, ..opts }, &|_| {}).unwrap();
+    let c = render_image(
+        &scene,
+        &lighting,
+        &cam,
+        &RenderOptions { seed: 43, ..opts },
+        &|_| {},
+    )
+    .unwrap();
     assert_eq!(a.mean.pixels, b.mean.pixels);
     assert_eq!(a.stderr.pixels, b.stderr.pixels);
     assert_ne!(a.mean.pixels, c.mean.pixels);
@@ -257,33 +456,107 @@ fn no_nan_for_grazing_views_zero_albedo_degenerate_triangles_and_extreme_lobes()
     ground.indices.push([0, 2, 4]); // collinear: (-10,-10), (10,10), (1,1)
     let mut shiny = Material::lambertian(Vec3::ZERO);
     shiny.lobes = vec![
-        Lobe { rho: Vec3::splat(1.0), cxy: -1.0, cz: 1.0, n: 5000.0 },
-        Lobe { rho: Vec3::splat(0.5), cxy: 0.9, cz: 0.9, n: 3.0 },
+        Lobe {
+            rho: Vec3::splat(1.0),
+            cxy: -1.0,
+            cz: 1.0,
+            n: 5000.0,
+        },
+        Lobe {
+            rho: Vec3::splat(0.5),
+            cxy: 0.9,
+            cz: 0.9,
+            n: 3.0,
+        },
     ];
     let scene = Scene::new(vec![
         ("ground".into(), ground, Material::lambertian(Vec3::ZERO)),
-        ("box".into(), cube(Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 1.0)), shiny),
-        ("sphere".into(), sphere(Vec3::new(3.0, 0.0, 1.0), 1.0, 8, 16), Material::lambertian(Vec3::ONE)),
+        (
+            "box".into(),
+            cube(Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 1.0)),
+            shiny,
+        ),
+        (
+            "sphere".into(),
+            sphere(Vec3::new(3.0, 0.0, 1.0), 1.0, 8, 16),
+            Material::lambertian(Vec3::ONE),
+        ),
     ])
     .unwrap();
     assert!(scene.skipped_triangles >= 2);
-    let lighting = Lighting { environment: Some(Environment::constant(Vec3::ONE)), sun: Some(sun_from_zenith(89.7, 1e5)) };
+    let lighting = Lighting {
+        environment: Some(Environment::constant(Vec3::ONE)),
+        sun: Some(sun_from_zenith(89.7, 1e5)),
+    };
     // Grazing camera: eye a millimetre above the ground looking along +X (R rows: camera x =
     // -Y, camera y = -Z, camera z = +X; DMat3::from_cols takes the columns of R).
-    let rows = DMat3::from_cols(DVec3::new(0.0, 0.0, 1.0), DVec3::new(-1.0, 0.0, 0.0), DVec3::new(0.0, -1.0, 0.0));
+    let rows = DMat3::from_cols(
+        DVec3::new(0.0, 0.0, 1.0),
+        DVec3::new(-1.0, 0.0, 0.0),
+        DVec3::new(0.0, -1.0, 0.0),
+    );
     let c = DVec3::new(-8.0, 0.0, 1e-3);
     let mut cam = Camera::pinhole(20, 12, 10.0, 10.0, 9.5, 5.5);
-    cam.pose = WorldToCamera { r: rows, t: -(rows * c) };
-    let out = render_image(&scene, &lighting, &cam, &RenderOptions { spp: 16, seed: 5, indirect: 3, russian_roulette: true }, &|_| {}).unwrap();
+    cam.pose = WorldToCamera {
+        r: rows,
+        t: -(rows * c),
+    };
+    let out = render_image(
+        &scene,
+        &lighting,
+        &cam,
+        &RenderOptions {
+            spp: 16,
+            seed: 5,
+            indirect: 3,
+            russian_roulette: true,
+        },
+        &|_| {},
+    )
+    .unwrap();
     assert_eq!(out.bad_samples, 0);
-    assert!(out.mean.pixels.iter().chain(&out.stderr.pixels).flatten().all(|v| v.is_finite() && *v >= 0.0));
+    assert!(out
+        .mean
+        .pixels
+        .iter()
+        .chain(&out.stderr.pixels)
+        .flatten()
+        .all(|v| v.is_finite() && *v >= 0.0));
     // Queries at grazing directions and exactly along the surface.
-    let p = SurfacePoint { position: Vec3::new(5.0, 5.0, 0.0), ng: Vec3::Z, ns: Vec3::Z, uv: Vec2::ZERO, object: 0, prim: 0 };
-    let targets = [Vec3::new(50.0, 5.0, 0.0), Vec3::new(50.0, 5.0, 1e-4), Vec3::new(5.0, 5.0, 0.0)];
-    let est = radiance_toward(&scene, &lighting, &[p, p, p], &targets, &RenderOptions { spp: 8, ..Default::default() }).unwrap();
+    let p = SurfacePoint {
+        position: Vec3::new(5.0, 5.0, 0.0),
+        ng: Vec3::Z,
+        ns: Vec3::Z,
+        uv: Vec2::ZERO,
+        object: 0,
+        prim: 0,
+    };
+    let targets = [
+        Vec3::new(50.0, 5.0, 0.0),
+        Vec3::new(50.0, 5.0, 1e-4),
+        Vec3::new(5.0, 5.0, 0.0),
+    ];
+    let est = radiance_toward(
+        &scene,
+        &lighting,
+        &[p, p, p],
+        &targets,
+        &RenderOptions {
+            spp: 8,
+            ..Default::default()
+        },
+    )
+    .unwrap();
     for e in est {
         assert!(e.mean.is_finite() && e.stderr.is_finite(), "{e:?}");
     }
-    let ir = irradiance(&scene, &lighting, &[Vec3::new(0.0, 0.0, 1.0)], &[Vec3::ZERO], &RenderOptions::default()).unwrap();
+    let ir = irradiance(
+        &scene,
+        &lighting,
+        &[Vec3::new(0.0, 0.0, 1.0)],
+        &[Vec3::ZERO],
+        &RenderOptions::default(),
+    )
+    .unwrap();
     assert_eq!(ir[0].mean, Vec3::ZERO);
 }

@@ -12,7 +12,11 @@
 //! See `docs/RENDER.md` for the lighting model, MIS and lookup rules.
 
 // `!(x > 0.0)` is deliberate throughout: it is true for NaN, which must take the safe branch.
-#![allow(clippy::neg_cmp_op_on_partial_ord, clippy::nonminimal_bool, clippy::type_complexity)]
+#![allow(
+    clippy::neg_cmp_op_on_partial_ord,
+    clippy::nonminimal_bool,
+    clippy::type_complexity
+)]
 
 pub mod compare;
 pub mod embree;
@@ -20,11 +24,13 @@ pub mod integrator;
 pub mod lighting;
 pub mod refine;
 pub mod sampling;
-pub mod sky;
 pub mod scene;
+pub mod sky;
 
 pub use compare::{compare_images, difference_image, Comparison};
-pub use integrator::{irradiance, radiance_toward, render_image, Estimate, PathTracer, RenderOptions, RenderOutput};
+pub use integrator::{
+    irradiance, radiance_toward, render_image, Estimate, PathTracer, RenderOptions, RenderOutput,
+};
 pub use lighting::{Environment, Lighting, Sun};
 pub use scene::{Albedo, LobeMap, Material, Object, Scene, SurfacePoint, Texture};
 

@@ -12,10 +12,10 @@
 //!   with `|d x s|^2 <= sin^2(half angle)`, which keeps full f32 precision for a 0.53 degree disk.
 
 use crate::sampling::{sample_cone_in, Distribution2D};
-use igi_brdf::Frame;
 use crate::RenderError;
 use glam::{Vec2, Vec3};
 use igi_brdf::luminance;
+use igi_brdf::Frame;
 use igi_imaging::{latlong, HdrImage};
 use serde::Deserialize;
 use std::f32::consts::PI;
@@ -51,14 +51,16 @@ impl Environment {
             return Err(RenderError::Invalid("environment map is empty".into()));
         }
         if !(scale.is_finite() && scale >= 0.0) {
-            return Err(RenderError::Invalid(format!("environment scale {scale} is not a finite non-negative number")));
+            return Err(RenderError::Invalid(format!(
+                "environment scale {scale} is not a finite non-negative number"
+            )));
         }
         let mut texels = Vec::with_capacity(img.pixels.len());
         for (i, p) in img.pixels.iter().enumerate() {
             let v = Vec3::from_array(*p) * scale;
-            if !v.is_finite() || v.min_element() < 0.0 {
+            if !v.is_finite() || v.min_element() < 0.0 || v.max_element() > MAX_RADIANCE {
                 return Err(RenderError::Invalid(format!(
-                    "environment map pixel (row {}, column {}) is {:?}: radiance must be finite and >= 0",
+                    "environment map pixel (row {}, column {}) is {:?} (times scale {scale}): radiance must be finite, >= 0 and at most {MAX_RADIANCE:e}",
                     i / img.width,
                     i % img.width,
                     p
@@ -76,7 +78,10 @@ impl Environment {
     }
 
     fn from_texels(w: usize, h: usize, texels: Vec<Vec3>) -> Self {
-        let lum: Vec<f32> = texels.iter().map(|&t| luminance(t).max(t.max_element() * 1e-3)).collect();
+        let lum: Vec<f32> = texels
+            .iter()
+            .map(|&t| luminance(t).max(t.max_element() * 1e-3))
+            .collect();
         let mut func = vec![0f32; w * h];
         for i in 0..h {
             let sin_t = (PI * (i as f32 + 0.5) / h as f32).sin();
@@ -94,7 +99,13 @@ impl Environment {
         }
         let nonzero = func.iter().any(|&f| f > 0.0);
         let dist = Distribution2D::new(&func, w, h);
-        Environment { w, h, texels, dist, nonzero }
+        Environment {
+            w,
+            h,
+            texels,
+            dist,
+            nonzero,
+        }
     }
 
     pub fn width(&self) -> usize {
@@ -134,9 +145,17 @@ impl Environment {
         let (x0f, y0f) = (fl(x), fl(y));
         let (fx, fy) = (x - x0f, y - y0f);
         // x in [-0.5, W - 0.5]: the cell left of column 0 is the last column.
-        let x0 = if x0f < 0.0 { self.w - 1 } else { (x0f as usize).min(self.w - 1) };
+        let x0 = if x0f < 0.0 {
+            self.w - 1
+        } else {
+            (x0f as usize).min(self.w - 1)
+        };
         let x1 = if x0 + 1 == self.w { 0 } else { x0 + 1 };
-        let y0 = if y0f < 0.0 { 0 } else { (y0f as usize).min(self.h - 1) };
+        let y0 = if y0f < 0.0 {
+            0
+        } else {
+            (y0f as usize).min(self.h - 1)
+        };
         let y1 = (y0 + 1).min(self.h - 1);
         let fy = if y0f < 0.0 { 0.0 } else { fy };
         let top = self.texel(y0, x0) * (1.0 - fx) + self.texel(y0, x1) * fx;
@@ -183,7 +202,11 @@ impl Environment {
             return None;
         }
         let pdf = pdf_uv / (2.0 * PI * PI * sin_t);
-        Some(LightSample { wi, radiance: self.eval_uv(uv.x, uv.y), pdf })
+        Some(LightSample {
+            wi,
+            radiance: self.eval_uv(uv.x, uv.y),
+            pdf,
+        })
     }
 
     /// The sampling distribution (for tests and diagnostics).
@@ -209,13 +232,24 @@ pub struct Sun {
 
 impl Sun {
     /// `direction` need not be unit; `angular_diameter_deg` in (0, 180).
-    pub fn new(direction: Vec3, radiance: Vec3, angular_diameter_deg: f32) -> Result<Self, RenderError> {
+    pub fn new(
+        direction: Vec3,
+        radiance: Vec3,
+        angular_diameter_deg: f32,
+    ) -> Result<Self, RenderError> {
         let len = direction.length();
         if !(len.is_finite() && len > 0.0) {
-            return Err(RenderError::Invalid(format!("sun direction {direction:?} is not a non-zero finite vector")));
+            return Err(RenderError::Invalid(format!(
+                "sun direction {direction:?} is not a non-zero finite vector"
+            )));
         }
-        if !radiance.is_finite() || radiance.min_element() < 0.0 {
-            return Err(RenderError::Invalid(format!("sun radiance {radiance:?} must be finite and >= 0")));
+        if !radiance.is_finite()
+            || radiance.min_element() < 0.0
+            || radiance.max_element() > MAX_RADIANCE
+        {
+            return Err(RenderError::Invalid(format!(
+                "sun radiance {radiance:?} must be finite, >= 0 and at most {MAX_RADIANCE:e} (larger values overflow f32 in the estimates)"
+            )));
         }
         if !(angular_diameter_deg > 0.0 && angular_diameter_deg < 180.0) {
             return Err(RenderError::Invalid(format!(
@@ -276,6 +310,10 @@ impl Sun {
     }
 }
 
+/// The largest radiance a light may have: products of radiance, solid angles, albedos and
+/// path weights stay inside `f32` (3.4e38) with a wide margin.
+pub const MAX_RADIANCE: f32 = 1e15;
+
 /// Environment plus sun. Either may be absent (black sky / hidden sun).
 #[derive(Clone, Debug, Default)]
 pub struct Lighting {
@@ -317,35 +355,85 @@ fn sun_diameter() -> f32 {
 impl Lighting {
     /// Reads a lighting TOML file (FORMATS.md); the map path is relative to the file's folder.
     pub fn load(path: &Path) -> Result<Self, RenderError> {
-        let file_err = |msg: String| RenderError::File { path: path.to_path_buf(), msg };
-        let text = std::fs::read_to_string(path).map_err(|e| file_err(format!("cannot read lighting file: {e}")))?;
-        let f: LightingFile = toml::from_str(&text).map_err(|e| file_err(format!("not a valid lighting file: {e}")))?;
+        let file_err = |msg: String| RenderError::File {
+            path: path.to_path_buf(),
+            msg,
+        };
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| file_err(format!("cannot read lighting file: {e}")))?;
+        let f: LightingFile = toml::from_str(&text)
+            .map_err(|e| file_err(format!("not a valid lighting file: {e}")))?;
         let dir = path.parent().unwrap_or(Path::new("."));
         let environment = match f.environment {
             None => None,
             Some(e) => {
                 let map_path = dir.join(&e.map);
-                let img = igi_imaging::read_image(&map_path)
-                    .map_err(|err| file_err(format!("environment map {}: {err}", map_path.display())))?;
-                Some(
-                    Environment::from_image(&img, e.scale)
-                        .map_err(|err| file_err(format!("environment map {}: {err}", map_path.display())))?,
-                )
+                let img = igi_imaging::read_image(&map_path).map_err(|err| {
+                    file_err(format!("environment map {}: {err}", map_path.display()))
+                })?;
+                Some(Environment::from_image(&img, e.scale).map_err(|err| {
+                    file_err(format!("environment map {}: {err}", map_path.display()))
+                })?)
             }
         };
         let sun = match f.sun {
             None => None,
             Some(s) => Some(
-                Sun::new(Vec3::from_array(s.direction), Vec3::from_array(s.radiance), s.angular_diameter_deg)
-                    .map_err(|err| file_err(format!("[sun]: {err}")))?,
+                Sun::new(
+                    Vec3::from_array(s.direction),
+                    Vec3::from_array(s.radiance),
+                    s.angular_diameter_deg,
+                )
+                .map_err(|err| file_err(format!("[sun]: {err}")))?,
             ),
         };
+        if environment.is_none() && sun.is_none() {
+            return Err(file_err(
+                "names neither [environment] nor [sun]: nothing would light the scene".into(),
+            ));
+        }
         Ok(Lighting { environment, sun })
+    }
+
+    /// Refuses lighting that can only render black: none at all (a scene file without
+    /// `lighting`, and no other lighting given).
+    pub fn check_lights_something(&self) -> Result<(), RenderError> {
+        if self.environment.is_none() && self.sun.is_none() {
+            return Err(RenderError::Invalid(
+                "no lighting: the scene names no lighting file and none was given (--lighting)"
+                    .into(),
+            ));
+        }
+        Ok(())
+    }
+
+    /// What may not mean what the user wants, for stderr and reports: a sun below the horizon
+    /// (it lights nothing above the ground plane), an environment that is black everywhere.
+    pub fn warnings(&self) -> Vec<String> {
+        let mut w = Vec::new();
+        if let Some(s) = &self.sun {
+            if s.direction.z < 0.0 {
+                let elev = s.direction.z.asin().to_degrees();
+                w.push(format!("the sun is below the horizon (elevation {elev:.1} deg): it lights only what faces downward"));
+            }
+            if s.radiance.max_element() == 0.0 {
+                w.push("the sun has zero radiance".into());
+            }
+        }
+        if let Some(e) = &self.environment {
+            if !e.is_nonzero() {
+                w.push("the environment map is black everywhere".into());
+            }
+        }
+        w
     }
 
     /// A uniform sky of radiance `l` and no sun.
     pub fn uniform(l: Vec3) -> Self {
-        Lighting { environment: Some(Environment::constant(l)), sun: None }
+        Lighting {
+            environment: Some(Environment::constant(l)),
+            sun: None,
+        }
     }
 
     /// Radiance seen along a ray that leaves the scene: environment plus the sun disk.
@@ -371,7 +459,9 @@ mod tests {
         let mut img = HdrImage::new(w, h);
         for i in 0..h {
             for j in 0..w {
-                let v = 0.1 + ((i * 7 + j * 13) % 10) as f32 + if (i, j) == (3, 5) { 200.0 } else { 0.0 };
+                let v = 0.1
+                    + ((i * 7 + j * 13) % 10) as f32
+                    + if (i, j) == (3, 5) { 200.0 } else { 0.0 };
                 img.set(j, i, [v, 0.5 * v, 0.25 * v]);
             }
         }
@@ -388,8 +478,15 @@ mod tests {
             let th = PI as f64 * (a as f64 + 0.5) / nt as f64;
             for b in 0..np {
                 let ph = 2.0 * PI as f64 * (b as f64 + 0.5) / np as f64;
-                let d = Vec3::new((th.sin() * ph.cos()) as f32, (th.sin() * ph.sin()) as f32, th.cos() as f32);
-                total += env.pdf(d) as f64 * th.sin() * (PI as f64 / nt as f64) * (2.0 * PI as f64 / np as f64);
+                let d = Vec3::new(
+                    (th.sin() * ph.cos()) as f32,
+                    (th.sin() * ph.sin()) as f32,
+                    th.cos() as f32,
+                );
+                total += env.pdf(d) as f64
+                    * th.sin()
+                    * (PI as f64 / nt as f64)
+                    * (2.0 * PI as f64 / np as f64);
             }
         }
         assert!((total - 1.0).abs() < 2e-3, "integral of pdf = {total}");
@@ -417,7 +514,10 @@ mod tests {
             let b = ((u * bp as f32) as usize).min(bp - 1);
             counts[a * bp + b] += 1.0;
         }
-        assert!(mismatched < n / 1000, "{mismatched} samples with pdf != pdf(wi)");
+        assert!(
+            mismatched < n / 1000,
+            "{mismatched} samples with pdf != pdf(wi)"
+        );
         // Expected counts: integrate the pdf over each bin (fine midpoint rule).
         let sub = 16;
         let mut chi2 = 0.0;
@@ -430,8 +530,13 @@ mod tests {
                 for sa in 0..sub {
                     let th = PI as f64 * (a as f64 + (sa as f64 + 0.5) / sub as f64) / bt as f64;
                     for sb in 0..sub {
-                        let ph = 2.0 * PI as f64 * (b as f64 + (sb as f64 + 0.5) / sub as f64) / bp as f64;
-                        let d = Vec3::new((th.sin() * ph.cos()) as f32, (th.sin() * ph.sin()) as f32, th.cos() as f32);
+                        let ph = 2.0 * PI as f64 * (b as f64 + (sb as f64 + 0.5) / sub as f64)
+                            / bp as f64;
+                        let d = Vec3::new(
+                            (th.sin() * ph.cos()) as f32,
+                            (th.sin() * ph.sin()) as f32,
+                            th.cos() as f32,
+                        );
                         p += env.pdf(d) as f64 * th.sin();
                     }
                 }
@@ -452,7 +557,10 @@ mod tests {
         }
         // dof - 1 degrees of freedom; mean dof, sd sqrt(2 dof): allow 5 sd.
         let k = (dof - 1) as f64;
-        assert!(chi2 < k + 5.0 * (2.0 * k).sqrt(), "chi2 = {chi2} with {k} dof");
+        assert!(
+            chi2 < k + 5.0 * (2.0 * k).sqrt(),
+            "chi2 = {chi2} with {k} dof"
+        );
         assert!(dof > 150, "too few bins kept: {dof}");
     }
 
@@ -463,12 +571,20 @@ mod tests {
         for (i, j) in [(0, 0), (3, 5), (7, 15), (4, 8)] {
             let d = latlong::pixel_center_direction(i, j, 16, 8);
             let expect = Vec3::from_array(img.get(j, i)) * 2.0;
-            assert!((env.eval(d) - expect).length() < 1e-3 * expect.length(), "({i},{j})");
+            assert!(
+                (env.eval(d) - expect).length() < 1e-3 * expect.length(),
+                "({i},{j})"
+            );
         }
         // Halfway between the last and the first column (phi = 0): average of the two.
         let d = latlong::uv_to_direction(0.0, (2.5) / 8.0);
-        let expect = (Vec3::from_array(img.get(15, 2)) + Vec3::from_array(img.get(0, 2))) * 0.5 * 2.0;
-        assert!((env.eval(d) - expect).length() < 1e-3 * expect.length(), "{:?} vs {expect:?}", env.eval(d));
+        let expect =
+            (Vec3::from_array(img.get(15, 2)) + Vec3::from_array(img.get(0, 2))) * 0.5 * 2.0;
+        assert!(
+            (env.eval(d) - expect).length() < 1e-3 * expect.length(),
+            "{:?} vs {expect:?}",
+            env.eval(d)
+        );
     }
 
     #[test]
@@ -516,10 +632,15 @@ mod tests {
         let env = l.environment.as_ref().unwrap();
         assert_eq!((env.width(), env.height()), (16, 8));
         let d = latlong::pixel_center_direction(3, 5, 16, 8);
-        assert!((env.eval(d).x - 0.5 * (200.0 + 0.1 + ((3 * 7 + 5 * 13) % 10) as f32)).abs() < 1e-2);
+        assert!(
+            (env.eval(d).x - 0.5 * (200.0 + 0.1 + ((3 * 7 + 5 * 13) % 10) as f32)).abs() < 1e-2
+        );
         let sun = l.sun.unwrap();
         assert!(sun.direction.abs_diff_eq(Vec3::Z, 1e-6));
-        assert_eq!(l.escaped(Vec3::Z), env.eval(Vec3::Z) + Vec3::new(10.0, 20.0, 30.0));
+        assert_eq!(
+            l.escaped(Vec3::Z),
+            env.eval(Vec3::Z) + Vec3::new(10.0, 20.0, 30.0)
+        );
 
         std::fs::write(&p, "[environment]\nmap = \"nope.exr\"\n").unwrap();
         let e = Lighting::load(&p).unwrap_err().to_string();
@@ -530,11 +651,34 @@ mod tests {
         std::fs::write(&p, "[sun]\ndirection = [0, 0, 1]\n").unwrap();
         let e = Lighting::load(&p).unwrap_err().to_string();
         assert!(e.contains("noon.toml") && e.contains("radiance"), "{e}");
-        let e = Lighting::load(&dir.path().join("missing.toml")).unwrap_err().to_string();
+        let e = Lighting::load(&dir.path().join("missing.toml"))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("missing.toml"), "{e}");
-        // No sections: black sky, no sun.
+        // No sections: nothing would light the scene, an error (it was a silent black render).
         std::fs::write(&p, "").unwrap();
-        let l = Lighting::load(&p).unwrap();
-        assert!(l.environment.is_none() && l.sun.is_none());
+        let e = Lighting::load(&p).unwrap_err().to_string();
+        assert!(
+            e.contains("noon.toml") && e.contains("neither [environment] nor [sun]"),
+            "{e}"
+        );
+        // a sun of 1e30 overflows the estimates: refused; one below the horizon is a warning
+        std::fs::write(
+            &p,
+            "[sun]\ndirection = [0, 0, 1]\nradiance = [1e30, 1, 1]\n",
+        )
+        .unwrap();
+        let e = Lighting::load(&p).unwrap_err().to_string();
+        assert!(e.contains("noon.toml") && e.contains("at most 1e15"), "{e}");
+        std::fs::write(
+            &p,
+            "[sun]\ndirection = [0, 1, -0.5]\nradiance = [1, 1, 1]\n",
+        )
+        .unwrap();
+        let w = Lighting::load(&p).unwrap().warnings();
+        assert!(
+            w.len() == 1 && w[0].contains("below the horizon (elevation -26.6 deg)"),
+            "{w:?}"
+        );
     }
 }

@@ -36,7 +36,10 @@ impl Rng {
     /// A generator for stream `index` of run `seed`.
     pub fn new(seed: u64, index: u64) -> Self {
         let h = hash2(seed, index);
-        let mut r = Rng { state: 0, inc: (mix64(h ^ 0xA5A5_A5A5) << 1) | 1 };
+        let mut r = Rng {
+            state: 0,
+            inc: (mix64(h ^ 0xA5A5_A5A5) << 1) | 1,
+        };
         r.next_u32();
         r.state = r.state.wrapping_add(h);
         r.next_u32();
@@ -46,7 +49,9 @@ impl Rng {
     #[inline]
     pub fn next_u32(&mut self) -> u32 {
         let old = self.state;
-        self.state = old.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(self.inc);
+        self.state = old
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(self.inc);
         let xorshifted = (((old >> 18) ^ old) >> 27) as u32;
         let rot = (old >> 59) as u32;
         xorshifted.rotate_right(rot)
@@ -87,7 +92,9 @@ impl Distribution1D {
         let func: Vec<f32> = if func.is_empty() {
             vec![0.0]
         } else {
-            func.iter().map(|&f| if f.is_finite() && f > 0.0 { f } else { 0.0 }).collect()
+            func.iter()
+                .map(|&f| if f.is_finite() && f > 0.0 { f } else { 0.0 })
+                .collect()
         };
         let mut acc = vec![0f64; n + 1];
         for i in 0..n {
@@ -101,9 +108,24 @@ impl Distribution1D {
         };
         let mut cdf = cdf;
         cdf[n] = 1.0;
-        let pdf = func.iter().map(|&f| if integral > 0.0 { (f as f64 / integral) as f32 } else { 1.0 }).collect();
+        let pdf = func
+            .iter()
+            .map(|&f| {
+                if integral > 0.0 {
+                    (f as f64 / integral) as f32
+                } else {
+                    1.0
+                }
+            })
+            .collect();
         let alias = build_alias(&func, integral * n as f64);
-        Distribution1D { func, pdf, cdf, alias, integral }
+        Distribution1D {
+            func,
+            pdf,
+            cdf,
+            alias,
+            integral,
+        }
     }
 
     pub fn len(&self) -> usize {
@@ -126,7 +148,7 @@ impl Distribution1D {
     }
 
     /// Samples x in [0, 1); returns (x, pdf(x), cell index). O(1) through the alias table: the
-    /// cell is chosen with probability func[i] / sum(func), and x is uniform inside it. Not
+    /// cell is chosen with probability `func[i] / sum(func)`, and x is uniform inside it. Not
     /// monotone in `u` (use [`Self::sample_inverse_cdf`] where that matters).
     #[inline]
     pub fn sample(&self, u: f32) -> (f32, f32, usize) {
@@ -138,7 +160,14 @@ impl Distribution1D {
         let (i, du) = if f < keep {
             (j, f / keep)
         } else {
-            (other as usize, if keep < 1.0 { (f - keep) / (1.0 - keep) } else { 0.5 })
+            (
+                other as usize,
+                if keep < 1.0 {
+                    (f - keep) / (1.0 - keep)
+                } else {
+                    0.5
+                },
+            )
         };
         let x = ((i as f32 + du.clamp(0.0, 1.0)) / n as f32).min(1.0 - f32::EPSILON * 0.5);
         (x, self.pdf[i], i)
@@ -147,7 +176,10 @@ impl Distribution1D {
     /// Samples x in [0, 1) by inverting the cdf (monotone in `u`, O(log n)).
     pub fn sample_inverse_cdf(&self, u: f32) -> (f32, f32, usize) {
         let n = self.func.len();
-        let mut i = self.cdf[..n].partition_point(|&c| c <= u).saturating_sub(1).min(n - 1);
+        let mut i = self.cdf[..n]
+            .partition_point(|&c| c <= u)
+            .saturating_sub(1)
+            .min(n - 1);
         // Skip zero-probability cells (u landed exactly on a flat stretch of the cdf).
         while i + 1 < n && self.cdf[i + 1] <= self.cdf[i] {
             i += 1;
@@ -156,7 +188,11 @@ impl Distribution1D {
             i -= 1;
         }
         let width = self.cdf[i + 1] - self.cdf[i];
-        let du = if width > 0.0 { ((u - self.cdf[i]) / width).clamp(0.0, 1.0) } else { 0.5 };
+        let du = if width > 0.0 {
+            ((u - self.cdf[i]) / width).clamp(0.0, 1.0)
+        } else {
+            0.5
+        };
         let x = ((i as f32 + du) / n as f32).min(1.0 - f32::EPSILON * 0.5);
         (x, self.pdf_cell(i), i)
     }
@@ -199,11 +235,17 @@ impl Distribution2D {
     /// `func[row * w + col]`, row-major.
     pub fn new(func: &[f32], w: usize, h: usize) -> Self {
         assert_eq!(func.len(), w * h, "Distribution2D: func has the wrong size");
-        let conditional: Vec<Distribution1D> =
-            (0..h).map(|r| Distribution1D::new(&func[r * w..(r + 1) * w])).collect();
+        let conditional: Vec<Distribution1D> = (0..h)
+            .map(|r| Distribution1D::new(&func[r * w..(r + 1) * w]))
+            .collect();
         let row_int: Vec<f32> = conditional.iter().map(|c| c.integral() as f32).collect();
         let marginal = Distribution1D::new(&row_int);
-        Distribution2D { conditional, marginal, w, h }
+        Distribution2D {
+            conditional,
+            marginal,
+            w,
+            h,
+        }
     }
 
     /// Integral of the unnormalised function over the unit square.
@@ -253,7 +295,9 @@ pub fn sample_cone_in(frame: &Frame, one_minus_cos_max: f32, u: Vec2) -> Vec3 {
     let cos_t = 1.0 - omc;
     let phi = 2.0 * std::f32::consts::PI * u.y;
     let (sp, cp) = phi.sin_cos();
-    frame.to_world(Vec3::new(sin_t * cp, sin_t * sp, cos_t)).normalize()
+    frame
+        .to_world(Vec3::new(sin_t * cp, sin_t * sp, cos_t))
+        .normalize()
 }
 
 /// Power heuristic (beta = 2) weight of strategy `a` against `b`, with one sample each.
@@ -310,14 +354,23 @@ mod tests {
         assert_eq!(counts[3], 0);
         for i in [1, 2, 4] {
             let expect = n as f64 * f[i] as f64 / 8.0;
-            assert!((counts[i] as f64 - expect).abs() < 4.0 * expect.sqrt(), "{i} {counts:?}");
+            assert!(
+                (counts[i] as f64 - expect).abs() < 4.0 * expect.sqrt(),
+                "{i} {counts:?}"
+            );
         }
         // Edge values of u land in cells of non-zero probability, inside [0, 1).
         for u in [0.0, 1e-7, 0.4, 0.6, 0.999_999_9] {
             let (x, _, i) = d.sample(u);
-            assert!(f[i] > 0.0 && (0.0..1.0).contains(&x), "u = {u}: cell {i}, x = {x}");
+            assert!(
+                f[i] > 0.0 && (0.0..1.0).contains(&x),
+                "u = {u}: cell {i}, x = {x}"
+            );
             let (x, _, i) = d.sample_inverse_cdf(u);
-            assert!(f[i] > 0.0 && (0.0..1.0).contains(&x), "u = {u}: cell {i}, x = {x}");
+            assert!(
+                f[i] > 0.0 && (0.0..1.0).contains(&x),
+                "u = {u}: cell {i}, x = {x}"
+            );
         }
         let (x0, _, i0) = d.sample_inverse_cdf(0.0);
         assert_eq!(i0, 1);
@@ -329,7 +382,10 @@ mod tests {
         }
         for i in [1, 2, 4] {
             let expect = n as f64 * f[i] as f64 / 8.0;
-            assert!((c2[i] as f64 - expect).abs() < 4.0 * expect.sqrt(), "{i} {c2:?}");
+            assert!(
+                (c2[i] as f64 - expect).abs() < 4.0 * expect.sqrt(),
+                "{i} {c2:?}"
+            );
         }
         // All-zero function: uniform.
         let z = Distribution1D::new(&[0.0, 0.0]);
@@ -348,7 +404,10 @@ mod tests {
                 let p = d.pdf(uv) as f64;
                 total += p / (w * h) as f64;
                 let expect = f[r * w + c] as f64 / d.integral();
-                assert!((p - expect).abs() < 1e-4 * expect.max(1.0), "{p} vs {expect}");
+                assert!(
+                    (p - expect).abs() < 1e-4 * expect.max(1.0),
+                    "{p} vs {expect}"
+                );
             }
         }
         assert!((total - 1.0).abs() < 1e-5, "{total}");
@@ -380,7 +439,10 @@ mod tests {
         }
         let p = (1.0 - (half / 2f64.sqrt()).cos()) / (1.0 - half.cos());
         let expect = p * n as f64;
-        assert!((inner as f64 - expect).abs() < 4.0 * (expect * (1.0 - p)).sqrt(), "{inner} vs {expect}");
+        assert!(
+            (inner as f64 - expect).abs() < 4.0 * (expect * (1.0 - p)).sqrt(),
+            "{inner} vs {expect}"
+        );
     }
 
     #[test]

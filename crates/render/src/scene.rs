@@ -42,8 +42,16 @@ impl Texture {
     #[inline]
     pub fn lookup(&self, uv: Vec2) -> Vec3 {
         let (w, h) = (self.width, self.height);
-        let u = if uv.x.is_finite() { uv.x.clamp(0.0, 1.0) } else { 0.5 };
-        let v = if uv.y.is_finite() { uv.y.clamp(0.0, 1.0) } else { 0.5 };
+        let u = if uv.x.is_finite() {
+            uv.x.clamp(0.0, 1.0)
+        } else {
+            0.5
+        };
+        let v = if uv.y.is_finite() {
+            uv.y.clamp(0.0, 1.0)
+        } else {
+            0.5
+        };
         let x = (u * w as f32 - 0.5).clamp(0.0, (w - 1) as f32);
         let y = ((1.0 - v) * h as f32 - 0.5).clamp(0.0, (h - 1) as f32);
         let (x0, y0) = (x.floor() as usize, y.floor() as usize);
@@ -81,8 +89,16 @@ impl LobeMap {
     #[inline]
     pub fn at(&self, uv: Vec2) -> &[Lobe] {
         let (w, h) = (self.width, self.height);
-        let u = if uv.x.is_finite() { uv.x.clamp(0.0, 1.0) } else { 0.5 };
-        let v = if uv.y.is_finite() { uv.y.clamp(0.0, 1.0) } else { 0.5 };
+        let u = if uv.x.is_finite() {
+            uv.x.clamp(0.0, 1.0)
+        } else {
+            0.5
+        };
+        let v = if uv.y.is_finite() {
+            uv.y.clamp(0.0, 1.0)
+        } else {
+            0.5
+        };
         let x = ((u * w as f32) as usize).min(w - 1);
         let y = (((1.0 - v) * h as f32) as usize).min(h - 1);
         let i = (y * w + x) * self.per_texel;
@@ -92,7 +108,9 @@ impl LobeMap {
     /// Reads the maps of a scene file's `lobe_maps`: per lobe a `rho` EXR (RGB) and a `shape`
     /// EXR (Cxy, Cz, N in its three channels), all of one size.
     pub fn from_images(maps: &[(HdrImage, HdrImage)]) -> Result<LobeMap, String> {
-        let Some((first, _)) = maps.first() else { return Err("no lobe maps".into()) };
+        let Some((first, _)) = maps.first() else {
+            return Err("no lobe maps".into());
+        };
         let (w, h) = (first.width, first.height);
         if w == 0 || h == 0 {
             return Err("empty lobe map".into());
@@ -100,7 +118,10 @@ impl LobeMap {
         for (k, (rho, shape)) in maps.iter().enumerate() {
             for im in [rho, shape] {
                 if im.width != w || im.height != h {
-                    return Err(format!("lobe {k}: map is {}x{}, the first is {w}x{h}", im.width, im.height));
+                    return Err(format!(
+                        "lobe {k}: map is {}x{}, the first is {w}x{h}",
+                        im.width, im.height
+                    ));
                 }
             }
         }
@@ -110,21 +131,34 @@ impl LobeMap {
             for (li, (rho, shape)) in maps.iter().enumerate() {
                 let r = Vec3::from_array(rho.pixels[i]);
                 let [cxy, cz, n] = shape.pixels[i];
-                let ok = r.is_finite() && r.min_element() >= 0.0 && cxy.is_finite() && cz.is_finite() && n.is_finite() && n >= 0.0;
+                let ok = r.is_finite()
+                    && r.min_element() >= 0.0
+                    && cxy.is_finite()
+                    && cz.is_finite()
+                    && n.is_finite()
+                    && n >= 0.0;
                 if !ok {
                     return Err(format!("lobe {li}: texel {i} has invalid parameters (rho {r}, cxy {cxy}, cz {cz}, n {n})"));
                 }
                 lobes.push(Lobe { rho: r, cxy, cz, n });
             }
         }
-        Ok(LobeMap { width: w, height: h, per_texel: k, lobes })
+        Ok(LobeMap {
+            width: w,
+            height: h,
+            per_texel: k,
+            lobes,
+        })
     }
 
     /// The maps for [`from_images`](Self::from_images): per lobe `(rho, shape)`.
     pub fn to_images(&self) -> Vec<(HdrImage, HdrImage)> {
         (0..self.per_texel)
             .map(|li| {
-                let (mut rho, mut shape) = (HdrImage::new(self.width, self.height), HdrImage::new(self.width, self.height));
+                let (mut rho, mut shape) = (
+                    HdrImage::new(self.width, self.height),
+                    HdrImage::new(self.width, self.height),
+                );
                 for i in 0..self.width * self.height {
                     let l = &self.lobes[i * self.per_texel + li];
                     rho.pixels[i] = l.rho.to_array();
@@ -149,7 +183,11 @@ pub struct Material {
 
 impl Material {
     pub fn lambertian(rho_d: Vec3) -> Self {
-        Material { albedo: Albedo::Constant(rho_d), lobes: Vec::new(), lobe_map: None }
+        Material {
+            albedo: Albedo::Constant(rho_d),
+            lobes: Vec::new(),
+            lobe_map: None,
+        }
     }
 
     /// The BRDF at texture coordinate `uv`.
@@ -213,18 +251,30 @@ impl Scene {
             let nv = mesh.positions.len();
             if let Some(n) = &mesh.normals {
                 if n.len() != nv {
-                    return Err(RenderError::Invalid(format!("{name}: {} normals for {nv} vertices", n.len())));
+                    return Err(RenderError::Invalid(format!(
+                        "{name}: {} normals for {nv} vertices",
+                        n.len()
+                    )));
                 }
             }
             if let Some(t) = &mesh.uvs {
                 if t.len() != nv {
-                    return Err(RenderError::Invalid(format!("{name}: {} UVs for {nv} vertices", t.len())));
+                    return Err(RenderError::Invalid(format!(
+                        "{name}: {} UVs for {nv} vertices",
+                        t.len()
+                    )));
                 }
             }
             if matches!(material.albedo, Albedo::Texture(_)) && mesh.uvs.is_none() {
-                return Err(RenderError::Invalid(format!("{name}: an albedo texture needs UVs, and the mesh has none")));
+                return Err(RenderError::Invalid(format!(
+                    "{name}: an albedo texture needs UVs, and the mesh has none"
+                )));
             }
-            let positions: Vec<Vec3> = mesh.positions.iter().map(|p| Vec3::from_array(*p)).collect();
+            let positions: Vec<Vec3> = mesh
+                .positions
+                .iter()
+                .map(|p| Vec3::from_array(*p))
+                .collect();
             let mut triangles = Vec::with_capacity(mesh.indices.len());
             for (k, tri) in mesh.indices.iter().enumerate() {
                 if tri.iter().any(|&i| i as usize >= nv) {
@@ -234,7 +284,10 @@ impl Scene {
                 }
                 let [a, b, c] = tri.map(|i| positions[i as usize]);
                 let cross = (b - a).cross(c - a);
-                if !(a.is_finite() && b.is_finite() && c.is_finite()) || !(cross.length_squared() > 0.0) || !cross.is_finite() {
+                if !(a.is_finite() && b.is_finite() && c.is_finite())
+                    || !(cross.length_squared() > 0.0)
+                    || !cross.is_finite()
+                {
                     skipped += 1;
                     continue;
                 }
@@ -252,17 +305,37 @@ impl Scene {
                     })
                     .collect()
             });
-            let uvs = mesh.uvs.as_ref().map(|t| t.iter().map(|v| Vec2::from_array(*v)).collect());
-            out.push(Object { name, positions, normals, uvs, triangles, material });
+            let uvs = mesh
+                .uvs
+                .as_ref()
+                .map(|t| t.iter().map(|v| Vec2::from_array(*v)).collect());
+            out.push(Object {
+                name,
+                positions,
+                normals,
+                uvs,
+                triangles,
+                material,
+            });
         }
-        let pos_arrays: Vec<Vec<[f32; 3]>> = out.iter().map(|o| o.positions.iter().map(|p| p.to_array()).collect()).collect();
-        let meshes: Vec<(&[[f32; 3]], &[[u32; 3]])> =
-            out.iter().zip(&pos_arrays).map(|(o, p)| (p.as_slice(), o.triangles.as_slice())).collect();
+        let pos_arrays: Vec<Vec<[f32; 3]>> = out
+            .iter()
+            .map(|o| o.positions.iter().map(|p| p.to_array()).collect())
+            .collect();
+        let meshes: Vec<(&[[f32; 3]], &[[u32; 3]])> = out
+            .iter()
+            .zip(&pos_arrays)
+            .map(|(o, p)| (p.as_slice(), o.triangles.as_slice()))
+            .collect();
         let rt = RtScene::new(&meshes)?;
         if skipped > 0 {
             tracing::info!("skipped {skipped} degenerate triangles");
         }
-        Ok(Scene { objects: out, rt, skipped_triangles: skipped })
+        Ok(Scene {
+            objects: out,
+            rt,
+            skipped_triangles: skipped,
+        })
     }
 
     /// The Embree accelerator (for benchmarks and low-level queries).
@@ -323,23 +396,36 @@ impl Scene {
             Some(t) => t[i0] * b0 + t[i1] * b1 + t[i2] * b2,
             None => Vec2::ZERO,
         };
-        SurfacePoint { position, ng, ns, uv, object, prim }
+        SurfacePoint {
+            position,
+            ng,
+            ns,
+            uv,
+            object,
+            prim,
+        }
     }
 
     /// The first surface point along a ray, if any (for the solver: where a texel's ray lands).
     pub fn trace_point(&self, origin: Vec3, dir: Vec3) -> Option<SurfacePoint> {
-        self.intersect(origin, dir.normalize()).map(|h| self.surface_point(&h))
+        self.intersect(origin, dir.normalize())
+            .map(|h| self.surface_point(&h))
     }
 
     /// Loads a scene file and the lighting file it names. Relative paths are relative to the
     /// scene file's folder.
     pub fn load(path: &Path) -> Result<(Scene, Lighting), RenderError> {
-        let file_err = |msg: String| RenderError::File { path: path.to_path_buf(), msg };
+        let file_err = |msg: String| RenderError::File {
+            path: path.to_path_buf(),
+            msg,
+        };
         if path.is_dir() {
             return Err(file_err("is a directory, not a scene file (re-lighting a solve result is not supported yet)".into()));
         }
-        let text = std::fs::read_to_string(path).map_err(|e| file_err(format!("cannot read scene file: {e}")))?;
-        let f: SceneFile = toml::from_str(&text).map_err(|e| file_err(format!("not a valid scene file: {e}")))?;
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| file_err(format!("cannot read scene file: {e}")))?;
+        let f: SceneFile =
+            toml::from_str(&text).map_err(|e| file_err(format!("not a valid scene file: {e}")))?;
         let dir = path.parent().unwrap_or(Path::new("."));
         let lighting = match &f.lighting {
             Some(l) => Lighting::load(&dir.join(l))?,
@@ -357,15 +443,22 @@ impl Scene {
                 AlbedoSpec::Constant(c) => {
                     let c = Vec3::from_array(*c);
                     if !c.is_finite() || c.min_element() < 0.0 {
-                        return Err(file_err(format!("object {k}: albedo {c:?} must be finite and >= 0")));
+                        return Err(file_err(format!(
+                            "object {k}: albedo {c:?} must be finite and >= 0"
+                        )));
                     }
                     Albedo::Constant(c)
                 }
                 AlbedoSpec::Texture(t) => {
                     let tp = dir.join(t);
-                    let img = igi_imaging::read_image(&tp)
-                        .map_err(|e| file_err(format!("object {k}: albedo texture {}: {e}", tp.display())))?;
-                    if img.pixels.iter().any(|p| p.iter().any(|c| !c.is_finite() || *c < 0.0)) {
+                    let img = igi_imaging::read_image(&tp).map_err(|e| {
+                        file_err(format!("object {k}: albedo texture {}: {e}", tp.display()))
+                    })?;
+                    if img
+                        .pixels
+                        .iter()
+                        .any(|p| p.iter().any(|c| !c.is_finite() || *c < 0.0))
+                    {
                         return Err(file_err(format!(
                             "object {k}: albedo texture {} has negative or non-finite texels",
                             tp.display()
@@ -375,9 +468,16 @@ impl Scene {
                 }
             };
             for (li, l) in o.lobes.iter().enumerate() {
-                let ok = l.rho.is_finite() && l.rho.min_element() >= 0.0 && l.cxy.is_finite() && l.cz.is_finite() && l.n.is_finite() && l.n >= 0.0;
+                let ok = l.rho.is_finite()
+                    && l.rho.min_element() >= 0.0
+                    && l.cxy.is_finite()
+                    && l.cz.is_finite()
+                    && l.n.is_finite()
+                    && l.n >= 0.0;
                 if !ok {
-                    return Err(file_err(format!("object {k}: lobe {li} {l:?} has invalid parameters")));
+                    return Err(file_err(format!(
+                        "object {k}: lobe {li} {l:?} has invalid parameters"
+                    )));
                 }
             }
             let lobe_map = if o.lobe_maps.is_empty() {
@@ -387,13 +487,22 @@ impl Scene {
                 for (li, m) in o.lobe_maps.iter().enumerate() {
                     let read = |p: &PathBuf| {
                         let full = dir.join(p);
-                        igi_imaging::read_image(&full).map_err(|e| file_err(format!("object {k}: lobe map {li} {}: {e}", full.display())))
+                        igi_imaging::read_image(&full).map_err(|e| {
+                            file_err(format!("object {k}: lobe map {li} {}: {e}", full.display()))
+                        })
                     };
                     imgs.push((read(&m.rho)?, read(&m.shape)?));
                 }
-                Some(LobeMap::from_images(&imgs).map_err(|e| file_err(format!("object {k}: {e}")))?)
+                Some(
+                    LobeMap::from_images(&imgs)
+                        .map_err(|e| file_err(format!("object {k}: {e}")))?,
+                )
             };
-            let material = Material { albedo, lobes: o.lobes.clone(), lobe_map };
+            let material = Material {
+                albedo,
+                lobes: o.lobes.clone(),
+                lobe_map,
+            };
             objects.push((mesh_path.display().to_string(), mesh, material));
         }
         let scene = Scene::new(objects).map_err(|e| file_err(e.to_string()))?;
@@ -429,7 +538,10 @@ struct LobeMapSpec {
 }
 
 #[derive(Deserialize)]
-#[serde(untagged)]
+#[serde(
+    untagged,
+    expecting = "an albedo: three numbers [r, g, b] or the path of a texture image"
+)]
 enum AlbedoSpec {
     Constant([f32; 3]),
     Texture(PathBuf),
@@ -441,7 +553,12 @@ mod tests {
 
     pub(crate) fn quad_mesh(z: f32, half: f32) -> TriMesh {
         TriMesh {
-            positions: vec![[-half, -half, z], [half, -half, z], [half, half, z], [-half, half, z]],
+            positions: vec![
+                [-half, -half, z],
+                [half, -half, z],
+                [half, half, z],
+                [-half, half, z],
+            ],
             normals: None,
             uvs: Some(vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]),
             colors: None,
@@ -465,16 +582,30 @@ mod tests {
         assert!(t.lookup(Vec2::new(0.0, 1.0)).abs_diff_eq(Vec3::X, 1e-6));
         assert!(t.lookup(Vec2::new(-3.0, 7.0)).abs_diff_eq(Vec3::X, 1e-6));
         // Centre: average of all four.
-        assert!(t.lookup(Vec2::new(0.5, 0.5)).abs_diff_eq(Vec3::new(0.5, 0.5, 0.5), 1e-6));
+        assert!(t
+            .lookup(Vec2::new(0.5, 0.5))
+            .abs_diff_eq(Vec3::new(0.5, 0.5, 0.5), 1e-6));
         assert!(t.lookup(Vec2::new(f32::NAN, 0.5)).is_finite());
     }
 
     #[test]
     fn lobe_maps_look_up_the_nearest_texel_and_round_trip_through_images() {
-        let lobe = |n: f32| Lobe { rho: Vec3::new(0.1, 0.2, 0.3) * n, cxy: -1.0, cz: 1.0, n };
+        let lobe = |n: f32| Lobe {
+            rho: Vec3::new(0.1, 0.2, 0.3) * n,
+            cxy: -1.0,
+            cz: 1.0,
+            n,
+        };
         // 2x2 texels, two lobes each; texel (row i, column j) gets exponents 10 (2i + j) + 1, + 2
-        let lobes: Vec<Lobe> = (0..4).flat_map(|t| [lobe(10.0 * t as f32 + 1.0), lobe(10.0 * t as f32 + 2.0)]).collect();
-        let m = LobeMap { width: 2, height: 2, per_texel: 2, lobes };
+        let lobes: Vec<Lobe> = (0..4)
+            .flat_map(|t| [lobe(10.0 * t as f32 + 1.0), lobe(10.0 * t as f32 + 2.0)])
+            .collect();
+        let m = LobeMap {
+            width: 2,
+            height: 2,
+            per_texel: 2,
+            lobes,
+        };
         // u right, v up: (0.25, 0.75) is row 0 column 0; (0.75, 0.25) is row 1 column 1
         assert_eq!(m.at(Vec2::new(0.25, 0.75))[0].n, 1.0);
         assert_eq!(m.at(Vec2::new(0.75, 0.75))[1].n, 12.0);
@@ -488,8 +619,16 @@ mod tests {
         let mut imgs = m.to_images();
         imgs[0].1.pixels[0][2] = -1.0;
         assert!(LobeMap::from_images(&imgs).unwrap_err().contains("invalid"));
-        let material = Material { albedo: Albedo::Constant(Vec3::splat(0.5)), lobes: vec![lobe(99.0)], lobe_map: Some(m) };
-        assert_eq!(material.brdf_at(Vec2::new(0.75, 0.25)).lobes[1].n, 32.0, "the map overrides constant lobes");
+        let material = Material {
+            albedo: Albedo::Constant(Vec3::splat(0.5)),
+            lobes: vec![lobe(99.0)],
+            lobe_map: Some(m),
+        };
+        assert_eq!(
+            material.brdf_at(Vec2::new(0.75, 0.25)).lobes[1].n,
+            32.0,
+            "the map overrides constant lobes"
+        );
     }
 
     #[test]
@@ -502,7 +641,12 @@ mod tests {
         m.indices.push([0, 1, 4]); // a valid triangle that uses the extra vertex: kept
         m.indices.push([1, 2, 5]); // NaN corner
         m.indices.push([0, 1, 2]); // duplicate
-        let s = Scene::new(vec![("m".into(), m, Material::lambertian(Vec3::splat(0.5)))]).unwrap();
+        let s = Scene::new(vec![(
+            "m".into(),
+            m,
+            Material::lambertian(Vec3::splat(0.5)),
+        )])
+        .unwrap();
         assert_eq!(s.skipped_triangles, 2);
         assert_eq!(s.triangle_count(), 4);
         let h = s.intersect(Vec3::new(0.3, 0.2, 1.0), -Vec3::Z).unwrap();
@@ -513,7 +657,14 @@ mod tests {
         // Index out of range is a clear error.
         let mut bad = quad_mesh(0.0, 1.0);
         bad.indices.push([0, 1, 9]);
-        let e = Scene::new(vec![("bad.ply".into(), bad, Material::lambertian(Vec3::ONE))]).err().unwrap().to_string();
+        let e = Scene::new(vec![(
+            "bad.ply".into(),
+            bad,
+            Material::lambertian(Vec3::ONE),
+        )])
+        .err()
+        .unwrap()
+        .to_string();
         assert!(e.contains("bad.ply") && e.contains("out of range"), "{e}");
     }
 
@@ -532,7 +683,11 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         std::fs::create_dir_all(dir.path().join("geometry")).unwrap();
         std::fs::create_dir_all(dir.path().join("lighting")).unwrap();
-        igi_geometry::write_ply(&dir.path().join("geometry/ground.ply"), &quad_mesh(0.0, 2.0)).unwrap();
+        igi_geometry::write_ply(
+            &dir.path().join("geometry/ground.ply"),
+            &quad_mesh(0.0, 2.0),
+        )
+        .unwrap();
         let mut tex = HdrImage::new(2, 2);
         tex.set(0, 0, [0.9, 0.1, 0.1]);
         igi_imaging::write_exr(&dir.path().join("geometry/tex.exr"), &tex).unwrap();
@@ -558,23 +713,38 @@ lobes = [ { rho = [0.1, 0.1, 0.1], cxy = -0.9, cz = 1.0, n = 30.0 } ]
         let (s, l) = Scene::load(&p).unwrap();
         assert_eq!(s.objects.len(), 2);
         assert!(l.sun.is_some() && l.environment.is_none());
-        assert!(matches!(s.objects[0].material.albedo, Albedo::Constant(c) if c == Vec3::new(0.2, 0.3, 0.4)));
+        assert!(
+            matches!(s.objects[0].material.albedo, Albedo::Constant(c) if c == Vec3::new(0.2, 0.3, 0.4))
+        );
         assert_eq!(s.objects[1].material.lobes.len(), 1);
         assert_eq!(s.objects[1].material.lobes[0].n, 30.0);
         match &s.objects[1].material.albedo {
-            Albedo::Texture(t) => assert!(t.lookup(Vec2::new(0.0, 1.0)).abs_diff_eq(Vec3::new(0.9, 0.1, 0.1), 1e-6)),
+            Albedo::Texture(t) => assert!(t
+                .lookup(Vec2::new(0.0, 1.0))
+                .abs_diff_eq(Vec3::new(0.9, 0.1, 0.1), 1e-6)),
             _ => panic!("expected a texture"),
         }
         // Errors name the scene file and the problem.
-        std::fs::write(&p, "[[object]]\nmesh = \"geometry/none.ply\"\nalbedo = [1, 1, 1]\n").unwrap();
+        std::fs::write(
+            &p,
+            "[[object]]\nmesh = \"geometry/none.ply\"\nalbedo = [1, 1, 1]\n",
+        )
+        .unwrap();
         let e = Scene::load(&p).err().unwrap().to_string();
         assert!(e.contains("scene.toml") && e.contains("none.ply"), "{e}");
-        std::fs::write(&p, "[[object]]\nmesh = \"geometry/ground.ply\"\nalbedo = [1, -1, 1]\n").unwrap();
+        std::fs::write(
+            &p,
+            "[[object]]\nmesh = \"geometry/ground.ply\"\nalbedo = [1, -1, 1]\n",
+        )
+        .unwrap();
         let e = Scene::load(&p).err().unwrap().to_string();
         assert!(e.contains("scene.toml") && e.contains("albedo"), "{e}");
         std::fs::write(&p, "lighting = 3\n").unwrap();
         let e = Scene::load(&p).err().unwrap().to_string();
-        assert!(e.contains("scene.toml") && e.contains("not a valid scene file"), "{e}");
+        assert!(
+            e.contains("scene.toml") && e.contains("not a valid scene file"),
+            "{e}"
+        );
         let e = Scene::load(dir.path()).err().unwrap().to_string();
         assert!(e.contains("not a scene file"), "{e}");
     }

@@ -24,7 +24,9 @@ pub fn clear_sky(width: usize, height: usize, sun: Vec3, zenith: f32, ground: Ve
                 let horizon = Vec3::new(0.85, 0.90, 1.0) * zenith * 1.6;
                 let t = (1.0 - d.z).powi(3);
                 let gamma = d.dot(sun).clamp(-1.0, 1.0).acos();
-                let glow = Vec3::new(1.0, 0.9, 0.75) * zenith * (2.5 * (-gamma / 0.15).exp() + 0.4 * (-gamma / 0.8).exp());
+                let glow = Vec3::new(1.0, 0.9, 0.75)
+                    * zenith
+                    * (2.5 * (-gamma / 0.15).exp() + 0.4 * (-gamma / 0.8).exp());
                 base * (1.0 - t) + horizon * t + glow
             };
             img.set(j, i, v.to_array());
@@ -39,7 +41,11 @@ pub fn overcast_sky(width: usize, height: usize, zenith: f32, ground: Vec3) -> H
     for i in 0..height {
         for j in 0..width {
             let d = latlong::pixel_center_direction(i, j, width, height);
-            let v = if d.z <= 0.0 { ground } else { Vec3::splat(zenith * (1.0 + 2.0 * d.z) / 3.0) };
+            let v = if d.z <= 0.0 {
+                ground
+            } else {
+                Vec3::splat(zenith * (1.0 + 2.0 * d.z) / 3.0)
+            };
             img.set(j, i, v.to_array());
         }
     }
@@ -61,7 +67,10 @@ mod tests {
     fn skies_are_finite_positive_and_brightest_toward_the_sun() {
         let sun = sun_direction(30.0, 45.0);
         let s = clear_sky(64, 32, sun, 1.0, Vec3::splat(0.1));
-        assert!(s.pixels.iter().all(|p| p.iter().all(|c| c.is_finite() && *c > 0.0)));
+        assert!(s
+            .pixels
+            .iter()
+            .all(|p| p.iter().all(|c| c.is_finite() && *c > 0.0)));
         let (u, v) = latlong::direction_to_uv(sun);
         let at_sun = s.bilinear(u * 64.0 - 0.5, v * 32.0 - 0.5).unwrap();
         let away = s.get(40, 5);

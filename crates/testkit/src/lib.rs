@@ -47,18 +47,28 @@ pub struct Cli {
 impl Cli {
     /// `bin` is `env!("CARGO_BIN_EXE_igi")` of the calling integration test.
     pub fn new(bin: &str) -> Self {
-        Self { bin: PathBuf::from(bin) }
+        Self {
+            bin: PathBuf::from(bin),
+        }
     }
 
     /// Runs `igi --quiet ARGS...` and returns its output.
     pub fn run(&self, args: &[&str]) -> Output {
-        Command::new(&self.bin).arg("--quiet").args(args).output().expect("run igi")
+        Command::new(&self.bin)
+            .arg("--quiet")
+            .args(args)
+            .output()
+            .expect("run igi")
     }
 
     /// Runs it and panics with its stderr unless it succeeded.
     pub fn ok(&self, args: &[&str]) -> Output {
         let o = self.run(args);
-        assert!(o.status.success(), "igi {args:?} failed: {}", String::from_utf8_lossy(&o.stderr));
+        assert!(
+            o.status.success(),
+            "igi {args:?} failed: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
         o
     }
 }
@@ -74,7 +84,10 @@ pub fn assert_failed(out: &Output, file: &str, problem: &str, dir: &Path, keep: 
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "expected failure, stderr: {err}");
     assert!(err.contains(file), "stderr does not name {file}: {err}");
-    assert!(err.contains(problem), "stderr does not say {problem:?}: {err}");
+    assert!(
+        err.contains(problem),
+        "stderr does not say {problem:?}: {err}"
+    );
     for e in std::fs::read_dir(dir).expect("read dir") {
         let p = e.expect("dir entry").path();
         assert!(keep.contains(&p), "left behind: {}", p.display());

@@ -1,0 +1,148 @@
+//! The covered texels of an atlas (texel centres that lie on the surface, with their world
+//! position and normal) and the dilation that grows known texel values into neighbouring texels
+//! (hole filling, atlas gutters). Shared by the inverse solver and the surface light field.
+
+use glam::{Vec2, Vec3};
+use igi_imaging::HdrImage;
+
+/// A texel whose centre lies on the surface.
+#[derive(Clone, Copy, Debug)]
+pub struct Texel {
+    /// Index into the atlas image: `row * resolution + column`.
+    pub index: u32,
+    pub position: Vec3,
+    pub normal: Vec3,
+}
+
+/// The covered texels of one atlas.
+#[derive(Clone, Debug)]
+pub struct TexelCache {
+    pub resolution: usize,
+    pub texels: Vec<Texel>,
+}
+
+impl TexelCache {
+    /// The covered texels (coverage 1) of same-size position, normal and coverage caches.
+    pub fn covered_texels(pos: &HdrImage, nrm: &HdrImage, coverage: &HdrImage) -> Vec<Texel> {
+        (0..coverage.width * coverage.height)
+            .filter(|&i| coverage.pixels[i][0] == 1.0)
+            .map(|i| Texel {
+                index: i as u32,
+                position: Vec3::from_array(pos.pixels[i]),
+                normal: Vec3::from_array(nrm.pixels[i]).normalize_or(Vec3::Z),
+            })
+            .collect()
+    }
+
+    /// Texture coordinate of a texel centre (FORMATS.md: row 0 at the top, v up).
+    pub fn uv(&self, index: u32) -> Vec2 {
+        let r = self.resolution;
+        let (x, y) = (index as usize % r, index as usize / r);
+        Vec2::new(
+            (x as f32 + 0.5) / r as f32,
+            1.0 - (y as f32 + 0.5) / r as f32,
+        )
+    }
+}
+
+/// Grows `known` values into `target` texels that are not yet known, ring by ring (8-neighbour
+/// mean of known texels). Returns how many texels were filled.
+pub fn dilate(
+    values: &mut [Vec3],
+    known: &mut [bool],
+    target: &[bool],
+    res: usize,
+    rings: usize,
+) -> usize {
+    let mut filled = 0;
+    for _ in 0..rings {
+        let prev = known.to_vec();
+        let mut changed = false;
+        for y in 0..res {
+            for x in 0..res {
+                let i = y * res + x;
+                if prev[i] || !target[i] {
+                    continue;
+                }
+                if let Some(mean) = known_neighbour_mean(values, &prev, res, x, y) {
+                    values[i] = mean;
+                    known[i] = true;
+                    filled += 1;
+                    changed = true;
+                }
+            }
+        }
+        if !changed {
+            break;
+        }
+    }
+    filled
+}
+
+/// Mean of the known 8-neighbours of texel (x, y), if any.
+fn known_neighbour_mean(
+    values: &[Vec3],
+    known: &[bool],
+    res: usize,
+    x: usize,
+    y: usize,
+) -> Option<Vec3> {
+    let (mut s, mut n) = (Vec3::ZERO, 0.0f32);
+    for dy in -1i64..=1 {
+        for dx in -1i64..=1 {
+            let (xx, yy) = (x as i64 + dx, y as i64 + dy);
+            if xx < 0 || yy < 0 || xx >= res as i64 || yy >= res as i64 {
+                continue;
+            }
+            let j = yy as usize * res + xx as usize;
+            if known[j] {
+                s += values[j];
+                n += 1.0;
+            }
+        }
+    }
+    (n > 0.0).then(|| s / n)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dilation_grows_one_ring_per_step_with_the_neighbour_mean() {
+        let res = 5;
+        let mut v = vec![Vec3::ZERO; res * res];
+        let mut known = vec![false; res * res];
+        v[12] = Vec3::splat(2.0);
+        known[12] = true;
+        let target = vec![true; res * res];
+        assert_eq!(dilate(&mut v, &mut known, &target, res, 1), 8);
+        assert!(known[6] && !known[0]);
+        assert!((v[6].x - 2.0).abs() < 1e-6);
+        assert_eq!(
+            dilate(&mut v, &mut known, &target, res, 3),
+            16,
+            "the rest in one more ring"
+        );
+    }
+
+    #[test]
+    fn covered_texels_keep_coverage_one_and_normalise_normals() {
+        let mut cov = HdrImage::new(2, 2);
+        let mut pos = HdrImage::new(2, 2);
+        let mut nrm = HdrImage::new(2, 2);
+        cov.pixels[3] = [1.0; 3];
+        cov.pixels[1] = [0.5; 3];
+        pos.pixels[3] = [1.0, 2.0, 3.0];
+        nrm.pixels[3] = [0.0, 0.0, 2.0];
+        let t = TexelCache::covered_texels(&pos, &nrm, &cov);
+        assert_eq!(t.len(), 1);
+        assert_eq!(t[0].index, 3);
+        assert_eq!(t[0].normal, Vec3::Z);
+        let cache = TexelCache {
+            resolution: 2,
+            texels: t,
+        };
+        assert_eq!(cache.uv(3), Vec2::new(0.75, 0.25));
+    }
+}

@@ -1,0 +1,279 @@
+//! Run manifests: what a resumable command was started with, so a resume never mixes work.
+//!
+//! A resumable command (`igi prepare`, `igi solve`) writes a [`RunManifest`] (`run.json`) into
+//! its output folder before the first byte of work: the command, a [`Fingerprint`] of every
+//! input file, every option that changes the result (as text, formatted deterministically:
+//! Rust's shortest round-trip float formatting), and, for a shard, the parts it owns. A later
+//! run on the same folder resumes only when its own manifest is equal; otherwise
+//! [`RunManifest::check_resume`] fails with [`ImagingError::RunMismatch`] naming the first
+//! differing option or input and suggesting `--restart`.
+//!
+//! Shards: a run that solves only some parts records them in `owns`. Two shards never share a
+//! folder (their `owns` differ, so the second is refused): each shard writes its own folder,
+//! and a merge step (not here) combines folders whose `owns` are disjoint.
+//!
+//! Fingerprints: files up to [`HASH_LIMIT`] bytes are hashed (64-bit FNV-1a of the content);
+//! larger files are recorded by size and modification time. Paths are recorded as given
+//! (for messages) but compared only when no content hash is available.
+
+use crate::ImagingError;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// Files up to this size are fingerprinted by a content hash; larger ones by size and mtime.
+pub const HASH_LIMIT: u64 = 64 << 20;
+
+/// The file name of a run manifest inside an output folder.
+pub const RUN_FILE: &str = "run.json";
+
+/// The identity of one input file.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Fingerprint {
+    /// What the file is to the command (`mesh`, `photo v00 image`, ...).
+    pub role: String,
+    pub path: String,
+    pub size: u64,
+    /// `fnv1a64:HEX` of the content, for files up to [`HASH_LIMIT`].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hash: Option<String>,
+    /// Modification time in whole seconds since the epoch, for larger files.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mtime_s: Option<u64>,
+}
+
+impl Fingerprint {
+    /// Fingerprints the file at `path` (an error names the file when it cannot be read).
+    pub fn of(role: &str, path: &Path) -> Result<Fingerprint, ImagingError> {
+        let meta = std::fs::metadata(path).map_err(|e| ImagingError::io(path, e))?;
+        let size = meta.len();
+        let (hash, mtime_s) = if size <= HASH_LIMIT {
+            let bytes = std::fs::read(path).map_err(|e| ImagingError::io(path, e))?;
+            (Some(format!("fnv1a64:{:016x}", fnv1a64(&bytes))), None)
+        } else {
+            let t = meta
+                .modified()
+                .ok()
+                .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
+                .map(|d| d.as_secs());
+            (None, t)
+        };
+        Ok(Fingerprint {
+            role: role.to_string(),
+            path: path.display().to_string(),
+            size,
+            hash,
+            mtime_s,
+        })
+    }
+
+    /// Whether two fingerprints name the same content.
+    fn same_content(&self, other: &Fingerprint) -> bool {
+        match (&self.hash, &other.hash) {
+            (Some(a), Some(b)) => a == b && self.size == other.size,
+            _ => {
+                self.size == other.size && self.mtime_s == other.mtime_s && self.path == other.path
+            }
+        }
+    }
+
+    fn describe(&self) -> String {
+        format!("{} ({} bytes)", self.path, self.size)
+    }
+}
+
+/// 64-bit FNV-1a of `bytes` (8 bytes at a time would not be FNV; this is the plain byte loop).
+pub fn fnv1a64(bytes: &[u8]) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for &b in bytes {
+        h ^= b as u64;
+        h = h.wrapping_mul(0x0000_0100_0000_01b3);
+    }
+    h
+}
+
+/// What a resumable run was started with (see the module overview).
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct RunManifest {
+    pub command: String,
+    pub inputs: Vec<Fingerprint>,
+    /// Every result-changing option, keyed by its command-line name (`--spp`).
+    pub options: BTreeMap<String, String>,
+    /// For a shard: the parts (or voxels) this folder's run solves; `None` for all.
+    #[serde(default)]
+    pub owns: Option<Vec<String>>,
+}
+
+impl RunManifest {
+    pub fn new(command: &str) -> RunManifest {
+        RunManifest {
+            command: command.to_string(),
+            inputs: Vec::new(),
+            options: BTreeMap::new(),
+            owns: None,
+        }
+    }
+
+    /// Records a result-changing option under its command-line name; floats should be given
+    /// as numbers formatted with `{}` or `{:?}` (shortest round-trip, deterministic).
+    pub fn option(&mut self, name: &str, value: impl std::fmt::Display) -> &mut Self {
+        self.options.insert(name.to_string(), value.to_string());
+        self
+    }
+
+    /// Fingerprints an input file and records it under `role`.
+    pub fn input(&mut self, role: &str, path: &Path) -> Result<&mut Self, ImagingError> {
+        self.inputs.push(Fingerprint::of(role, path)?);
+        Ok(self)
+    }
+
+    /// Reads `dir/run.json`, or `None` when there is none.
+    pub fn read(dir: &Path) -> Result<Option<RunManifest>, ImagingError> {
+        let path = dir.join(RUN_FILE);
+        if !path.exists() {
+            return Ok(None);
+        }
+        let text = std::fs::read_to_string(&path).map_err(|e| ImagingError::io(&path, e))?;
+        let m = serde_json::from_str(&text).map_err(|e| ImagingError::BadManifest {
+            path: path.clone(),
+            msg: e.to_string(),
+        })?;
+        Ok(Some(m))
+    }
+
+    /// Writes `dir/run.json` atomically.
+    pub fn write(&self, dir: &Path) -> Result<(), ImagingError> {
+        let text = serde_json::to_string_pretty(self).expect("serialisable") + "\n";
+        crate::io::write_text_atomic(&dir.join(RUN_FILE), &text)
+    }
+
+    /// `Ok` when `old` (the manifest found in `dir`) was made by an identical run; otherwise
+    /// the first difference, in the order command, owned parts, options, inputs.
+    pub fn check_resume(&self, old: &RunManifest, dir: &Path) -> Result<(), ImagingError> {
+        let mismatch = |what: String, was: String, now: String| ImagingError::RunMismatch {
+            path: dir.to_path_buf(),
+            what,
+            was,
+            now,
+        };
+        if old.command != self.command {
+            return Err(mismatch(
+                "command".into(),
+                old.command.clone(),
+                self.command.clone(),
+            ));
+        }
+        if old.owns != self.owns {
+            let show = |o: &Option<Vec<String>>| {
+                o.as_ref().map_or("all parts".to_string(), |v| v.join(","))
+            };
+            return Err(mismatch(
+                "shard (--parts: a folder belongs to one shard)".into(),
+                show(&old.owns),
+                show(&self.owns),
+            ));
+        }
+        let keys: std::collections::BTreeSet<&String> =
+            old.options.keys().chain(self.options.keys()).collect();
+        for k in keys {
+            let (a, b) = (old.options.get(k), self.options.get(k));
+            if a != b {
+                let show = |v: Option<&String>| v.cloned().unwrap_or_else(|| "(unset)".into());
+                return Err(mismatch(format!("option {k}"), show(a), show(b)));
+            }
+        }
+        let roles: std::collections::BTreeSet<&String> = old
+            .inputs
+            .iter()
+            .chain(&self.inputs)
+            .map(|f| &f.role)
+            .collect();
+        for r in roles {
+            let a = old.inputs.iter().find(|f| &f.role == r);
+            let b = self.inputs.iter().find(|f| &f.role == r);
+            let same = match (a, b) {
+                (Some(a), Some(b)) => a.same_content(b),
+                _ => false,
+            };
+            if !same {
+                let show =
+                    |f: Option<&Fingerprint>| f.map_or("(none)".to_string(), |f| f.describe());
+                let changed = matches!((a, b), (Some(x), Some(y)) if x.path == y.path);
+                let what = if changed {
+                    format!("input {r} (the file changed)")
+                } else {
+                    format!("input {r}")
+                };
+                return Err(mismatch(what, show(a), show(b)));
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fnv_matches_reference_values() {
+        // reference values of the FNV-1a 64 specification
+        assert_eq!(fnv1a64(b""), 0xcbf29ce484222325);
+        assert_eq!(fnv1a64(b"a"), 0xaf63dc4c8601ec8c);
+        assert_eq!(fnv1a64(b"foobar"), 0x85944171f73967e8);
+    }
+
+    #[test]
+    fn resume_only_on_exact_match_with_the_difference_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let f = dir.path().join("mesh.ply");
+        std::fs::write(&f, "ply one").unwrap();
+        let mut a = RunManifest::new("solve");
+        a.option("--spp", "16,64")
+            .option("--seed", 1)
+            .input("mesh", &f)
+            .unwrap();
+        a.write(dir.path()).unwrap();
+        let old = RunManifest::read(dir.path()).unwrap().unwrap();
+        assert_eq!(old, a);
+        a.check_resume(&old, dir.path()).unwrap();
+
+        let mut b = a.clone();
+        b.option("--spp", "16,65");
+        let e = b.check_resume(&old, dir.path()).unwrap_err().to_string();
+        assert!(
+            e.contains("--spp")
+                && e.contains("16,64")
+                && e.contains("16,65")
+                && e.contains("--restart"),
+            "{e}"
+        );
+
+        let mut c = a.clone();
+        c.owns = Some(vec!["ground".into()]);
+        let e = c.check_resume(&old, dir.path()).unwrap_err().to_string();
+        assert!(e.contains("shard") && e.contains("ground"), "{e}");
+
+        std::fs::write(&f, "ply two").unwrap();
+        let mut d = RunManifest::new("solve");
+        d.option("--spp", "16,64")
+            .option("--seed", 1)
+            .input("mesh", &f)
+            .unwrap();
+        let e = d.check_resume(&old, dir.path()).unwrap_err().to_string();
+        assert!(e.contains("input mesh (the file changed)"), "{e}");
+    }
+
+    #[test]
+    fn a_moved_but_identical_input_still_resumes() {
+        let dir = tempfile::tempdir().unwrap();
+        let (f, g) = (dir.path().join("a.ply"), dir.path().join("b.ply"));
+        std::fs::write(&f, "same").unwrap();
+        std::fs::write(&g, "same").unwrap();
+        let mut a = RunManifest::new("prepare");
+        a.input("mesh", &f).unwrap();
+        let mut b = RunManifest::new("prepare");
+        b.input("mesh", &g).unwrap();
+        b.check_resume(&a, dir.path()).unwrap();
+    }
+}

@@ -1,0 +1,123 @@
+//! Assembling data lumispheres (Sec. 4.1): for every grid point (a covered atlas texel of the
+//! mesh) the (colour, direction) pairs of the views that see it. Visibility is a ray cast from
+//! the point (offset along its normal) to the camera centre through igi-render's Embree scene
+//! of the mesh; colours are bilinear lookups that fail when any tap is an invalid pixel (so
+//! masked or clipped pixels never contribute). Then the reparameterisation of Eqs. 9-10.
+
+use crate::fit::{DataLumisphere, Sample};
+use crate::lumisphere::{median_rgb, reflect, Octahedron};
+use glam::Vec3;
+use igi_imaging::{Camera, HdrImage};
+use igi_render::embree::RtScene;
+use igi_render::integrator::offset_origin;
+use rayon::prelude::*;
+
+/// One photograph and its camera (image size equal to the camera's; checked by the caller).
+#[derive(Clone, Copy)]
+pub struct View<'a> {
+    pub camera: &'a Camera,
+    pub image: &'a HdrImage,
+}
+
+/// A surface grid point.
+#[derive(Clone, Copy, Debug)]
+pub struct GridPoint {
+    pub position: Vec3,
+    pub normal: Vec3,
+}
+
+/// The raw observations of one grid point: (colour, unit direction toward the camera).
+pub type Observations = Vec<(Vec3, Vec3)>;
+
+/// What the gathering saw.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct GatherReport {
+    pub points: usize,
+    /// Grid points no view sees (their lumisphere stays zero: median only, and the median is 0).
+    pub unseen_points: usize,
+    pub samples: usize,
+    /// Median over observations of the pixel footprint on the surface (metres per pixel at the
+    /// point's distance), to compare with the atlas texel size.
+    pub median_pixel_footprint: f64,
+}
+
+/// Marks pixels of an 8-bit photo whose channel reached the clip level as invalid.
+pub fn mask_clipped(img: &mut HdrImage, clip: f32) {
+    for (p, v) in img.pixels.iter().zip(img.valid.iter_mut()) {
+        if p.iter().any(|c| *c >= clip) {
+            *v = false;
+        }
+    }
+}
+
+/// The observations of every grid point in every view (parallel over points; the order of the
+/// samples is the order of the views, so the result does not depend on the thread count).
+pub fn gather(
+    scene: &RtScene,
+    points: &[GridPoint],
+    views: &[View],
+) -> (Vec<Observations>, GatherReport) {
+    let per_point: Vec<(Observations, Vec<f64>)> = points
+        .par_iter()
+        .map(|p| observe(scene, p, views))
+        .collect();
+    let mut footprints: Vec<f64> = per_point
+        .iter()
+        .flat_map(|(_, f)| f.iter().copied())
+        .collect();
+    footprints.sort_by(|a, b| a.total_cmp(b));
+    let obs: Vec<Observations> = per_point.into_iter().map(|(o, _)| o).collect();
+    let report = GatherReport {
+        points: points.len(),
+        unseen_points: obs.iter().filter(|o| o.is_empty()).count(),
+        samples: obs.iter().map(|o| o.len()).sum(),
+        median_pixel_footprint: footprints.get(footprints.len() / 2).copied().unwrap_or(0.0),
+    };
+    (obs, report)
+}
+
+fn observe(scene: &RtScene, p: &GridPoint, views: &[View]) -> (Observations, Vec<f64>) {
+    let mut out = Vec::new();
+    let mut footprint = Vec::new();
+    let origin = offset_origin(p.position, p.normal);
+    for v in views {
+        let centre = v.camera.center_world().as_vec3();
+        let to_cam = centre - p.position;
+        let dist = to_cam.length();
+        let w = to_cam / dist;
+        if !(dist > 0.0) || w.dot(p.normal) <= 0.0 {
+            continue;
+        }
+        let Some(px) = v.camera.project(p.position.as_dvec3()) else {
+            continue;
+        };
+        let Some(c) = v.image.bilinear(px.x as f32, px.y as f32) else {
+            continue;
+        };
+        if scene.occluded(origin, w, 0.0, dist * 0.999) {
+            continue;
+        }
+        out.push((Vec3::from_array(c), w));
+        footprint.push(dist as f64 / v.camera.intrinsics.fx);
+    }
+    (out, footprint)
+}
+
+/// Eqs. 9-10: the per-point median colour, and the samples with the median removed and their
+/// directions reflected about the normal, located on the lumisphere.
+pub fn reparameterise(
+    oct: &Octahedron,
+    obs: &Observations,
+    normal: Vec3,
+) -> (Vec3, DataLumisphere) {
+    let colours: Vec<Vec3> = obs.iter().map(|(c, _)| *c).collect();
+    let median = median_rgb(&colours);
+    let samples = obs
+        .iter()
+        .map(|(c, w)| Sample {
+            bary: oct.locate(reflect(*w, normal)),
+            colour: *c - median,
+        })
+        .collect();
+    (median, DataLumisphere { samples })
+}

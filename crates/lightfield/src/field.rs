@@ -1,0 +1,276 @@
+//! The surface light field: per grid point (covered atlas texel) a median colour, a normal and
+//! a lumisphere coded one of four ways; rendering (per pixel the surface point, the reflected
+//! view direction, the lumisphere value plus the median) and editing (the bias function on the
+//! output values; a rotated or deformed mesh with the same texture coordinates, whose new
+//! normals reflect the view directions).
+
+use crate::lumisphere::{eval_bary, reflect, Octahedron};
+use crate::pfa::Pfa;
+use crate::quantize::Codebook;
+use crate::LightFieldError;
+use glam::{Vec2, Vec3};
+use igi_geometry::TriMesh;
+use igi_imaging::{Camera, HdrImage};
+use igi_render::embree::RtScene;
+use rayon::prelude::*;
+
+/// How the lumispheres are coded.
+#[derive(Clone, Debug)]
+pub enum Coding {
+    /// Pointwise faired: one lumisphere per point.
+    Faired(Vec<Vec<Vec3>>),
+    /// Function quantization: a codebook and an index per point.
+    Quantized(Codebook),
+    /// Principal function analysis: prototypes and barycentric weights per point.
+    Pfa(Pfa),
+    /// The median (diffuse) texture only.
+    MedianOnly,
+}
+
+impl Coding {
+    pub fn name(&self) -> &'static str {
+        match self {
+            Coding::Faired(_) => "fair",
+            Coding::Quantized(_) => "fq",
+            Coding::Pfa(_) => "pfa",
+            Coding::MedianOnly => "median",
+        }
+    }
+}
+
+/// A surface light field over the covered texels of a mesh's atlas.
+#[derive(Clone, Debug)]
+pub struct SurfaceLightField {
+    pub oct: Octahedron,
+    /// Atlas resolution.
+    pub resolution: usize,
+    /// Atlas texel index (`row * resolution + column`) of every grid point.
+    pub texels: Vec<u32>,
+    pub median: Vec<Vec3>,
+    pub normal: Vec<Vec3>,
+    pub coding: Coding,
+    /// Grid point of every atlas texel (gutters take a neighbouring point; `u32::MAX`: none).
+    point_of_texel: Vec<u32>,
+}
+
+/// Rendering options.
+#[derive(Clone, Copy, Debug)]
+pub struct RenderSlfOptions {
+    /// Perlin's bias b applied to every output value x / white: x^(ln b / ln 0.5) (0.5 is the identity).
+    pub bias: f32,
+    /// The value mapped to 1 before the bias.
+    pub white: f32,
+}
+
+impl Default for RenderSlfOptions {
+    fn default() -> Self {
+        RenderSlfOptions {
+            bias: 0.5,
+            white: 1.0,
+        }
+    }
+}
+
+/// Perlin's bias function on [0, 1] (values outside are clamped): b(0.5) = identity.
+pub fn bias(b: f32, x: f32) -> f32 {
+    let x = if x.is_nan() { 0.0 } else { x.clamp(0.0, 1.0) };
+    if (b - 0.5).abs() < 1e-7 {
+        return x;
+    }
+    x.powf(b.clamp(1e-4, 1.0 - 1e-4).ln() / 0.5f32.ln())
+}
+
+impl SurfaceLightField {
+    pub fn new(
+        oct: Octahedron,
+        resolution: usize,
+        texels: Vec<u32>,
+        median: Vec<Vec3>,
+        normal: Vec<Vec3>,
+        coding: Coding,
+    ) -> Self {
+        let point_of_texel = texel_map(resolution, &texels);
+        SurfaceLightField {
+            oct,
+            resolution,
+            texels,
+            median,
+            normal,
+            coding,
+            point_of_texel,
+        }
+    }
+
+    /// The lumisphere value (median removed) of point `p` in reflected direction `r`.
+    pub fn lumisphere_value(&self, p: usize, r: Vec3) -> Vec3 {
+        match &self.coding {
+            Coding::MedianOnly => Vec3::ZERO,
+            Coding::Faired(f) => self.oct.eval(&f[p], r),
+            Coding::Quantized(c) => self.oct.eval(&c.codewords[c.index[p] as usize], r),
+            Coding::Pfa(pfa) => {
+                let b = self.oct.locate(r);
+                pfa.prototypes
+                    .iter()
+                    .zip(&pfa.coefficients[p])
+                    .map(|(pr, a)| eval_bary(pr, &b) * *a)
+                    .sum()
+            }
+        }
+    }
+
+    /// The outgoing colour of point `p` toward unit direction `w` with surface normal `n`.
+    pub fn radiance(&self, p: usize, w: Vec3, n: Vec3) -> Vec3 {
+        (self.median[p] + self.lumisphere_value(p, reflect(w, n))).max(Vec3::ZERO)
+    }
+
+    /// The grid point at a texture coordinate (nearest texel), if any.
+    pub fn point_at(&self, uv: Vec2) -> Option<usize> {
+        let r = self.resolution;
+        let x = ((uv.x * r as f32).floor() as i64).clamp(0, r as i64 - 1) as usize;
+        let y = (((1.0 - uv.y) * r as f32).floor() as i64).clamp(0, r as i64 - 1) as usize;
+        let p = self.point_of_texel[y * r + x];
+        (p != u32::MAX).then_some(p as usize)
+    }
+
+    /// Renders `mesh` (the atlas mesh, or a rotated / deformed copy with the same triangles and
+    /// UVs) through `camera`. Returns the colour and the alpha (1 where the mesh is hit).
+    pub fn render(
+        &self,
+        mesh: &TriMesh,
+        camera: &Camera,
+        opts: &RenderSlfOptions,
+    ) -> Result<(HdrImage, Vec<f32>), LightFieldError> {
+        let (uvs, normals) = render_attributes(mesh)?;
+        let scene = RtScene::new(&[(mesh.positions.as_slice(), mesh.indices.as_slice())])
+            .map_err(LightFieldError::Render)?;
+        let (w, h) = (camera.width as usize, camera.height as usize);
+        let rows: Vec<Vec<([f32; 3], f32)>> = (0..h)
+            .into_par_iter()
+            .map(|y| {
+                (0..w)
+                    .map(|x| self.shade_pixel(&scene, mesh, uvs, &normals, camera, x, y, opts))
+                    .collect()
+            })
+            .collect();
+        let mut img = HdrImage::new(w, h);
+        let mut alpha = vec![0.0f32; w * h];
+        for (y, row) in rows.into_iter().enumerate() {
+            for (x, (c, a)) in row.into_iter().enumerate() {
+                img.pixels[y * w + x] = c;
+                alpha[y * w + x] = a;
+            }
+        }
+        Ok((img, alpha))
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn shade_pixel(
+        &self,
+        scene: &RtScene,
+        mesh: &TriMesh,
+        uvs: &[[f32; 2]],
+        normals: &[Vec3],
+        camera: &Camera,
+        x: usize,
+        y: usize,
+        opts: &RenderSlfOptions,
+    ) -> ([f32; 3], f32) {
+        let (o, d) = camera.pixel_ray(x as f64, y as f64);
+        let (o, d) = (o.as_vec3(), d.as_vec3());
+        let Some(hit) = scene.intersect(o, d, 0.0, f32::INFINITY) else {
+            return ([0.0; 3], 0.0);
+        };
+        let tri = mesh.indices[hit.prim as usize];
+        let bw = [1.0 - hit.bary.x - hit.bary.y, hit.bary.x, hit.bary.y];
+        let mut uv = Vec2::ZERO;
+        let mut n = Vec3::ZERO;
+        for k in 0..3 {
+            uv += Vec2::from_array(uvs[tri[k] as usize]) * bw[k];
+            n += normals[tri[k] as usize] * bw[k];
+        }
+        let n = n.normalize_or(hit.ng.normalize_or(Vec3::Z));
+        let Some(p) = self.point_at(uv) else {
+            return ([0.0; 3], 1.0);
+        };
+        let c = self.radiance(p, -d, n);
+        let c = if (opts.bias - 0.5).abs() < 1e-7 {
+            c
+        } else {
+            c.to_array()
+                .map(|v| opts.white * bias(opts.bias, v / opts.white))
+                .into()
+        };
+        (c.to_array(), 1.0)
+    }
+}
+
+/// The UVs and unit vertex normals of a mesh to render (normals computed when absent).
+fn render_attributes(mesh: &TriMesh) -> Result<(&[[f32; 2]], Vec<Vec3>), LightFieldError> {
+    let uvs = mesh.uvs.as_deref().ok_or(LightFieldError::MeshWithoutUvs)?;
+    let normals = match &mesh.normals {
+        Some(n) => n
+            .iter()
+            .map(|v| Vec3::from_array(*v).normalize_or(Vec3::Z))
+            .collect(),
+        None => {
+            let mut m = mesh.clone();
+            m.compute_vertex_normals();
+            m.normals
+                .unwrap_or_default()
+                .iter()
+                .map(|v| Vec3::from_array(*v).normalize_or(Vec3::Z))
+                .collect()
+        }
+    };
+    Ok((uvs, normals))
+}
+
+/// Grid point per atlas texel, grown four rings into the gutters (first known 4-neighbour).
+fn texel_map(res: usize, texels: &[u32]) -> Vec<u32> {
+    let mut map = vec![u32::MAX; res * res];
+    for (p, t) in texels.iter().enumerate() {
+        map[*t as usize] = p as u32;
+    }
+    for _ in 0..4 {
+        let prev = map.clone();
+        for y in 0..res {
+            for x in 0..res {
+                if prev[y * res + x] != u32::MAX {
+                    continue;
+                }
+                let nb = [
+                    (x.wrapping_sub(1), y),
+                    (x + 1, y),
+                    (x, y.wrapping_sub(1)),
+                    (x, y + 1),
+                ];
+                if let Some(v) = nb
+                    .iter()
+                    .filter(|(a, b)| *a < res && *b < res)
+                    .map(|(a, b)| prev[b * res + a])
+                    .find(|v| *v != u32::MAX)
+                {
+                    map[y * res + x] = v;
+                }
+            }
+        }
+    }
+    map
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bias_one_half_is_the_identity_and_bias_bends_the_midtones() {
+        for x in [0.0, 0.1, 0.5, 0.9, 1.0] {
+            assert_eq!(bias(0.5, x), x);
+        }
+        assert!((bias(0.25, 0.5) - 0.25).abs() < 1e-6, "b(0.5) = b");
+        assert!((bias(0.8, 0.5) - 0.8).abs() < 1e-6);
+        assert_eq!(bias(0.3, 1.0), 1.0);
+        assert_eq!(bias(0.3, -1.0), 0.0);
+        assert_eq!(bias(0.3, f32::NAN), 0.0, "never NaN");
+    }
+}

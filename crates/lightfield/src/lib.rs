@@ -1,0 +1,72 @@
+//! `igi-lightfield`: surface light fields (Wood et al. 2000, `docs/LIGHTFIELD.md`).
+//!
+//! - [`lumisphere`]: the s-times subdivided octahedron, the map h (Eq. 3), barycentric
+//!   evaluation, the umbrella Laplacian, median removal and reflection about the normal
+//!   (Eqs. 9-10).
+//! - [`data`]: data lumispheres from photographs, cameras and the mesh (ray-cast visibility
+//!   through igi-render's Embree scene, bilinear lookups that skip invalid pixels).
+//! - [`fit`]: pointwise fairing (Eqs. 5-8) by conjugate gradients.
+//! - [`quantize`]: function quantization (Eqs. 11-12).
+//! - [`pfa`]: principal function analysis (Eqs. 13-14).
+//! - [`field`]: the surface light field, rendering and editing.
+//!
+//! Grid points are the covered texels of an `igi-geometry` atlas of the mesh (standing in for
+//! the paper's base-mesh parameterisation). Never depends on the solver (`igi-reflect`).
+
+#![allow(clippy::neg_cmp_op_on_partial_ord, clippy::nonminimal_bool)]
+
+pub mod build;
+pub mod data;
+pub mod field;
+pub mod fit;
+pub mod lumisphere;
+pub mod pfa;
+pub mod quantize;
+pub mod store;
+
+pub use build::{grid_points, BuildOptions, Method, Prepared};
+pub use data::{gather, reparameterise, GatherReport, GridPoint, View};
+pub use field::{Coding, RenderSlfOptions, SurfaceLightField};
+pub use fit::{fair_pointwise, DataLumisphere, FitOptions};
+pub use lumisphere::Octahedron;
+pub use pfa::{fit_pfa, Pfa, PfaOptions};
+pub use quantize::{fit_fq, Codebook, FqOptions};
+
+use std::path::PathBuf;
+
+/// Errors of the surface light field.
+#[derive(Debug, thiserror::Error)]
+pub enum LightFieldError {
+    #[error("rendering the mesh: {0}")]
+    Render(#[source] igi_render::RenderError),
+    #[error(
+        "the mesh has no texture coordinates (render the atlas mesh or a deformed copy of it)"
+    )]
+    MeshWithoutUvs,
+    #[error(transparent)]
+    Imaging(#[from] igi_imaging::ImagingError),
+    #[error(transparent)]
+    Geometry(#[from] igi_geometry::GeometryError),
+    #[error("the subspace dimension q must be at least 1 (got {0})")]
+    BadQ(usize),
+    #[error("lambda must be positive and finite (got {0})")]
+    BadLambda(f32),
+    #[error("the codebook size must be a power of two (got {0})")]
+    BadCodebookSize(usize),
+    #[error("{}: the image is {got_w} x {got_h} but its camera is {want_w} x {want_h}", path.display())]
+    ImageSize {
+        path: PathBuf,
+        got_w: usize,
+        got_h: usize,
+        want_w: u32,
+        want_h: u32,
+    },
+    #[error("{}: {msg}", path.display())]
+    Format { path: PathBuf, msg: String },
+    #[error("{}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+}

@@ -1,0 +1,364 @@
+//! The `SLF_DIR/` folder (FORMATS.md, "Surface light field folder"): `header.json`, the atlas
+//! mesh `mesh.ply`, per-grid-point arrays (`texels.bin` u32, `normals.bin` f32 x 3, `median.bin`
+//! RGB8 with a scale), the coding (`lumispheres.bin` RGB8 per vertex with an offset and scale,
+//! or `prototypes.bin` f32 + `coefficients.bin` u8 per prototype, or `codebook.bin` f32 +
+//! `indices.bin` u16/u32) and `report.json` with the byte counts. All little endian. The folder
+//! is written under a temporary name and renamed, so it is never half-written.
+
+use crate::field::{Coding, SurfaceLightField};
+use crate::lumisphere::Octahedron;
+use crate::pfa::Pfa;
+use crate::quantize::Codebook;
+use crate::LightFieldError;
+use glam::Vec3;
+use igi_geometry::TriMesh;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// `header.json`.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct Header {
+    pub format: String,
+    pub version: u32,
+    pub method: String,
+    pub level: u32,
+    pub resolution: usize,
+    pub points: usize,
+    /// Subspace dimension (PFA) or codebook size (FQ); 0 otherwise.
+    pub q: usize,
+    pub codewords: usize,
+    pub median_scale: f32,
+    pub lumisphere_offset: f32,
+    pub lumisphere_scale: f32,
+}
+
+/// Byte counts of the stored folder (`report.json`).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct StoreReport {
+    pub files: BTreeMap<String, u64>,
+    /// Median texture plus the lumisphere coding.
+    pub colour_bytes: u64,
+    /// Mesh, texel indices, normals.
+    pub geometry_bytes: u64,
+    /// Pointwise-faired RGB8 lumispheres of the same points (points x N_s x 3).
+    pub faired_rgb8_bytes: u64,
+    /// faired_rgb8_bytes / colour_bytes.
+    pub compression_ratio: f64,
+    /// Anything the caller adds (gather report, timings, PSNR).
+    pub extra: serde_json::Value,
+}
+
+fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> LightFieldError + '_ {
+    move |source| LightFieldError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+fn q8(x: f32, lo: f32, scale: f32) -> u8 {
+    if !(scale > 0.0) {
+        return 0;
+    }
+    ((x - lo) / scale * 255.0).round().clamp(0.0, 255.0) as u8
+}
+
+fn dq8(b: u8, lo: f32, scale: f32) -> f32 {
+    lo + b as f32 / 255.0 * scale
+}
+
+fn f32_bytes(v: impl Iterator<Item = f32>) -> Vec<u8> {
+    v.flat_map(|x| x.to_le_bytes()).collect()
+}
+
+/// Saves the field and its atlas mesh to `dir` (replacing it). `extra` goes into report.json.
+pub fn save(
+    dir: &Path,
+    field: &SurfaceLightField,
+    mesh: &TriMesh,
+    extra: serde_json::Value,
+) -> Result<StoreReport, LightFieldError> {
+    let tmp = PathBuf::from(format!("{}.partial", dir.display()));
+    if tmp.exists() {
+        std::fs::remove_dir_all(&tmp).map_err(io_err(&tmp))?;
+    }
+    std::fs::create_dir_all(&tmp).map_err(io_err(&tmp))?;
+    let (header, files) = encode(field);
+    let mut sizes = BTreeMap::new();
+    for (name, bytes) in &files {
+        let p = tmp.join(name);
+        std::fs::write(&p, bytes).map_err(io_err(&p))?;
+        sizes.insert(name.clone(), bytes.len() as u64);
+    }
+    let hp = tmp.join("header.json");
+    std::fs::write(&hp, serde_json::to_string_pretty(&header).expect("header"))
+        .map_err(io_err(&hp))?;
+    igi_geometry::write_ply(&tmp.join("mesh.ply"), mesh)?;
+    sizes.insert(
+        "mesh.ply".into(),
+        std::fs::metadata(tmp.join("mesh.ply"))
+            .map_err(io_err(&hp))?
+            .len(),
+    );
+    let report = report(field, &sizes, extra);
+    let rp = tmp.join("report.json");
+    std::fs::write(&rp, serde_json::to_string_pretty(&report).expect("report"))
+        .map_err(io_err(&rp))?;
+    if dir.exists() {
+        std::fs::remove_dir_all(dir).map_err(io_err(dir))?;
+    }
+    std::fs::rename(&tmp, dir).map_err(io_err(dir))?;
+    Ok(report)
+}
+
+fn report(
+    field: &SurfaceLightField,
+    sizes: &BTreeMap<String, u64>,
+    extra: serde_json::Value,
+) -> StoreReport {
+    let geometry = ["mesh.ply", "texels.bin", "normals.bin"];
+    let geometry_bytes = sizes
+        .iter()
+        .filter(|(k, _)| geometry.contains(&k.as_str()))
+        .map(|(_, v)| v)
+        .sum();
+    let colour_bytes = sizes
+        .iter()
+        .filter(|(k, _)| !geometry.contains(&k.as_str()))
+        .map(|(_, v)| v)
+        .sum::<u64>();
+    let faired = (field.texels.len() * field.oct.len() * 3) as u64;
+    StoreReport {
+        files: sizes.clone(),
+        colour_bytes,
+        geometry_bytes,
+        faired_rgb8_bytes: faired,
+        compression_ratio: faired as f64 / colour_bytes.max(1) as f64,
+        extra,
+    }
+}
+
+/// The header and the binary files of a field.
+fn encode(f: &SurfaceLightField) -> (Header, Vec<(String, Vec<u8>)>) {
+    let median_scale = f
+        .median
+        .iter()
+        .map(|m| m.max_element())
+        .fold(0.0f32, f32::max)
+        .max(1e-12);
+    let mut files = vec![
+        (
+            "texels.bin".to_string(),
+            f.texels.iter().flat_map(|t| t.to_le_bytes()).collect(),
+        ),
+        (
+            "normals.bin".to_string(),
+            f32_bytes(f.normal.iter().flat_map(|n| n.to_array())),
+        ),
+        (
+            "median.bin".to_string(),
+            f.median
+                .iter()
+                .flat_map(|m| m.to_array().map(|x| q8(x, 0.0, median_scale)))
+                .collect(),
+        ),
+    ];
+    let mut h = Header {
+        format: "igi-slf".into(),
+        version: 1,
+        method: f.coding.name().into(),
+        level: f.oct.level,
+        resolution: f.resolution,
+        points: f.texels.len(),
+        q: 0,
+        codewords: 0,
+        median_scale,
+        lumisphere_offset: 0.0,
+        lumisphere_scale: 0.0,
+    };
+    match &f.coding {
+        Coding::MedianOnly => {}
+        Coding::Faired(l) => {
+            let lo = l
+                .iter()
+                .flatten()
+                .map(|v| v.min_element())
+                .fold(0.0f32, f32::min);
+            let hi = l
+                .iter()
+                .flatten()
+                .map(|v| v.max_element())
+                .fold(0.0f32, f32::max);
+            h.lumisphere_offset = lo;
+            h.lumisphere_scale = hi - lo;
+            files.push((
+                "lumispheres.bin".into(),
+                l.iter()
+                    .flatten()
+                    .flat_map(|v| v.to_array().map(|x| q8(x, lo, hi - lo)))
+                    .collect(),
+            ));
+        }
+        Coding::Pfa(p) => {
+            h.q = p.prototypes.len() - 1;
+            files.push((
+                "prototypes.bin".into(),
+                f32_bytes(p.prototypes.iter().flatten().flat_map(|v| v.to_array())),
+            ));
+            files.push((
+                "coefficients.bin".into(),
+                p.coefficients
+                    .iter()
+                    .flatten()
+                    .map(|a| q8(*a, 0.0, 1.0))
+                    .collect(),
+            ));
+        }
+        Coding::Quantized(c) => {
+            h.codewords = c.codewords.len();
+            files.push((
+                "codebook.bin".into(),
+                f32_bytes(c.codewords.iter().flatten().flat_map(|v| v.to_array())),
+            ));
+            let idx: Vec<u8> = if c.codewords.len() <= 1 << 16 {
+                c.index
+                    .iter()
+                    .flat_map(|i| (*i as u16).to_le_bytes())
+                    .collect()
+            } else {
+                c.index.iter().flat_map(|i| i.to_le_bytes()).collect()
+            };
+            files.push(("indices.bin".into(), idx));
+        }
+    }
+    (h, files)
+}
+
+fn read(dir: &Path, name: &str, want: usize) -> Result<Vec<u8>, LightFieldError> {
+    let p = dir.join(name);
+    let b = std::fs::read(&p).map_err(io_err(&p))?;
+    if b.len() != want {
+        return Err(LightFieldError::Format {
+            path: p,
+            msg: format!("{} bytes, expected {want}", b.len()),
+        });
+    }
+    Ok(b)
+}
+
+fn vec3s(b: &[u8]) -> Vec<Vec3> {
+    b.chunks(12)
+        .map(|c| {
+            Vec3::from_array([0, 4, 8].map(|o| f32::from_le_bytes(c[o..o + 4].try_into().unwrap())))
+        })
+        .collect()
+}
+
+/// Loads a field and its mesh from `dir` (the stored, 8-bit quantised values).
+pub fn load(dir: &Path) -> Result<(SurfaceLightField, TriMesh), LightFieldError> {
+    let hp = dir.join("header.json");
+    let text = std::fs::read_to_string(&hp).map_err(io_err(&hp))?;
+    let h: Header = serde_json::from_str(&text).map_err(|e| LightFieldError::Format {
+        path: hp.clone(),
+        msg: e.to_string(),
+    })?;
+    if h.format != "igi-slf" || h.version != 1 || h.level > 6 {
+        return Err(LightFieldError::Format {
+            path: hp,
+            msg: format!(
+                "not an igi-slf version 1 header (format {:?}, version {}, level {})",
+                h.format, h.version, h.level
+            ),
+        });
+    }
+    let oct = Octahedron::new(h.level);
+    let (p, n) = (h.points, oct.len());
+    let texels: Vec<u32> = read(dir, "texels.bin", 4 * p)?
+        .chunks(4)
+        .map(|c| u32::from_le_bytes(c.try_into().unwrap()))
+        .collect();
+    if let Some(t) = texels
+        .iter()
+        .find(|t| **t as usize >= h.resolution * h.resolution)
+    {
+        return Err(LightFieldError::Format {
+            path: dir.join("texels.bin"),
+            msg: format!("texel {t} outside the {0} x {0} atlas", h.resolution),
+        });
+    }
+    let normal = vec3s(&read(dir, "normals.bin", 12 * p)?);
+    let median = read(dir, "median.bin", 3 * p)?
+        .chunks(3)
+        .map(|c| Vec3::from_array([0, 1, 2].map(|k| dq8(c[k], 0.0, h.median_scale))))
+        .collect();
+    let coding = match h.method.as_str() {
+        "median" => Coding::MedianOnly,
+        "fair" => {
+            let b = read(dir, "lumispheres.bin", 3 * n * p)?;
+            let vals: Vec<Vec3> = b
+                .chunks(3)
+                .map(|c| {
+                    Vec3::from_array(
+                        [0, 1, 2].map(|k| dq8(c[k], h.lumisphere_offset, h.lumisphere_scale)),
+                    )
+                })
+                .collect();
+            Coding::Faired(vals.chunks(n).map(|c| c.to_vec()).collect())
+        }
+        "pfa" => {
+            let k = h.q + 1;
+            let protos = vec3s(&read(dir, "prototypes.bin", 12 * n * k)?)
+                .chunks(n)
+                .map(|c| c.to_vec())
+                .collect();
+            let coefficients = read(dir, "coefficients.bin", k * p)?
+                .chunks(k)
+                .map(|c| {
+                    let s: f32 = c.iter().map(|b| *b as f32).sum::<f32>().max(1.0);
+                    c.iter().map(|b| *b as f32 / s).collect()
+                })
+                .collect();
+            Coding::Pfa(Pfa {
+                prototypes: protos,
+                coefficients,
+                energy_history: Vec::new(),
+            })
+        }
+        "fq" => {
+            let k = h.codewords;
+            let codewords = vec3s(&read(dir, "codebook.bin", 12 * n * k)?)
+                .chunks(n)
+                .map(|c| c.to_vec())
+                .collect();
+            let wide = k > 1 << 16;
+            let b = read(dir, "indices.bin", (if wide { 4 } else { 2 }) * p)?;
+            let index: Vec<u32> = if wide {
+                b.chunks(4)
+                    .map(|c| u32::from_le_bytes(c.try_into().unwrap()))
+                    .collect()
+            } else {
+                b.chunks(2)
+                    .map(|c| u16::from_le_bytes([c[0], c[1]]) as u32)
+                    .collect()
+            };
+            if index.iter().any(|i| *i as usize >= k) {
+                return Err(LightFieldError::Format {
+                    path: dir.join("indices.bin"),
+                    msg: "codeword index out of range".into(),
+                });
+            }
+            Coding::Quantized(Codebook { codewords, index })
+        }
+        m => {
+            return Err(LightFieldError::Format {
+                path: hp,
+                msg: format!("unknown method {m:?}"),
+            })
+        }
+    };
+    let mesh = igi_geometry::read_mesh(&dir.join("mesh.ply"))?;
+    Ok((
+        SurfaceLightField::new(oct, h.resolution, texels, median, normal, coding),
+        mesh,
+    ))
+}

@@ -1,0 +1,201 @@
+//! The must-show experiments on the CI-sized synthetic glossy bunny (see tests/common).
+
+mod common;
+
+use common::{make, psnr, Synth};
+use glam::Vec3;
+use igi_lightfield::{BuildOptions, Method, Prepared, RenderSlfOptions, SurfaceLightField, View};
+use igi_render::embree::RtScene;
+use std::sync::OnceLock;
+
+const SIZE: u32 = 48;
+
+fn held_out_dirs() -> Vec<Vec3> {
+    vec![
+        Vec3::new(0.8, 0.3, 0.52).normalize(),
+        Vec3::new(-0.5, 0.7, 0.2).normalize(),
+        Vec3::new(0.1, -0.9, -0.3).normalize(),
+    ]
+}
+
+fn synth() -> &'static Synth {
+    static S: OnceLock<Synth> = OnceLock::new();
+    S.get_or_init(|| make(160, &held_out_dirs(), SIZE, 16, 64))
+}
+
+fn prepare(s: &Synth, keep: impl Fn(Vec3) -> bool) -> Prepared {
+    let rt = RtScene::new(&[(
+        s.atlas.mesh.positions.as_slice(),
+        s.atlas.mesh.indices.as_slice(),
+    )])
+    .unwrap();
+    let views: Vec<View> = s
+        .views
+        .iter()
+        .zip(&s.view_dirs)
+        .filter(|(_, d)| keep(**d))
+        .map(|((c, i), _)| View {
+            camera: c,
+            image: i,
+        })
+        .collect();
+    Prepared::new(&s.atlas, &rt, &views, 3)
+}
+
+fn held_out_psnr(s: &Synth, f: &SurfaceLightField, which: &[usize]) -> f64 {
+    let v: Vec<f64> = which
+        .iter()
+        .map(|&k| {
+            let (cam, truth) = &s.held_out[k];
+            let (img, alpha) = f
+                .render(&s.atlas.mesh, cam, &RenderSlfOptions::default())
+                .unwrap();
+            psnr(&img, &alpha, truth)
+        })
+        .collect();
+    v.iter().sum::<f64>() / v.len() as f64
+}
+
+fn opts() -> BuildOptions {
+    BuildOptions {
+        training: 1500,
+        ..BuildOptions::default()
+    }
+}
+
+#[test]
+fn held_out_views_fairing_pfa_and_the_median_baseline() {
+    let s = synth();
+    let prep = prepare(s, |_| true);
+    eprintln!(
+        "gather: {:?}, atlas texel {:.4} m",
+        prep.report, s.atlas.texel_size
+    );
+    assert!(
+        prep.report.unseen_points < prep.report.points / 20,
+        "{:?}",
+        prep.report
+    );
+    let all = [0, 1, 2];
+    let t = std::time::Instant::now();
+    let fair = prep.fit(Method::Fair, &opts()).unwrap();
+    let fair_s = t.elapsed().as_secs_f64();
+    let p_fair = held_out_psnr(s, &fair, &all);
+    let p_med = held_out_psnr(s, &prep.fit(Method::MedianOnly, &opts()).unwrap(), &all);
+    let p_pfa2 = held_out_psnr(s, &prep.fit(Method::Pfa { q: 2 }, &opts()).unwrap(), &all);
+    eprintln!(
+        "held-out PSNR: fair {p_fair:.2} dB, pfa q=2 {p_pfa2:.2} dB, median {p_med:.2} dB; fairing {:.2} s per million samples",
+        fair_s / prep.samples() as f64 * 1e6
+    );
+    assert!(
+        p_pfa2 >= p_fair - 2.0,
+        "PFA q=2 {p_pfa2:.2} dB vs fairing {p_fair:.2} dB"
+    );
+    assert!(
+        p_med <= p_fair - 3.0,
+        "median {p_med:.2} dB vs fairing {p_fair:.2} dB"
+    );
+}
+
+#[test]
+fn compression_of_pfa_q2_and_quantisation_after_storage() {
+    let s = synth();
+    let prep = prepare(s, |_| true);
+    let dir = tempfile::tempdir().unwrap();
+    let mut rows = Vec::new();
+    for (name, m) in [
+        ("fair", Method::Fair),
+        ("pfa2", Method::Pfa { q: 2 }),
+        ("pfa5", Method::Pfa { q: 5 }),
+        ("fq256", Method::Fq { codewords: 256 }),
+    ] {
+        let f = prep.fit(m, &opts()).unwrap();
+        let out = dir.path().join(name);
+        let rep =
+            igi_lightfield::store::save(&out, &f, &s.atlas.mesh, serde_json::json!({})).unwrap();
+        let (loaded, mesh) = igi_lightfield::store::load(&out).unwrap();
+        assert_eq!(mesh.indices, s.atlas.mesh.indices);
+        let p_mem = held_out_psnr(s, &f, &[0, 1, 2]);
+        let p_disk = held_out_psnr(s, &loaded, &[0, 1, 2]);
+        eprintln!("{name}: colour {} B, geometry {} B, ratio {:.1}:1, PSNR {p_mem:.2} dB (stored 8-bit: {p_disk:.2} dB)", rep.colour_bytes, rep.geometry_bytes, rep.compression_ratio);
+        assert!(
+            (p_mem - p_disk).abs() < 1.0,
+            "{name}: 8-bit storage costs {:.2} dB",
+            p_mem - p_disk
+        );
+        rows.push((name, rep.compression_ratio, p_disk));
+    }
+    let pfa2 = rows.iter().find(|r| r.0 == "pfa2").unwrap();
+    assert!(pfa2.1 >= 70.0, "PFA q=2 compression {:.1}:1", pfa2.1);
+    assert!(
+        !dir.path().join("pfa2.partial").exists(),
+        "nothing half-written left behind"
+    );
+}
+
+#[test]
+fn missing_directions_around_a_held_out_view() {
+    let s = synth();
+    let d0 = held_out_dirs()[0];
+    let full = held_out_psnr(
+        s,
+        &prepare(s, |_| true).fit(Method::Fair, &opts()).unwrap(),
+        &[0],
+    );
+    let mut res = Vec::new();
+    for deg in [10.0f32, 20.0] {
+        let cos = deg.to_radians().cos();
+        let removed = s.view_dirs.iter().filter(|d| d.dot(d0) > cos).count();
+        let prep = prepare(s, |d| d.dot(d0) <= cos);
+        let fair = held_out_psnr(s, &prep.fit(Method::Fair, &opts()).unwrap(), &[0]);
+        let pfa3 = held_out_psnr(s, &prep.fit(Method::Pfa { q: 3 }, &opts()).unwrap(), &[0]);
+        eprintln!("cone {deg} deg: {removed} views removed; fairing {fair:.2} dB (all views {full:.2} dB), PFA q=3 {pfa3:.2} dB");
+        assert!(removed > 0, "the cone must remove views");
+        res.push((fair, pfa3));
+    }
+    assert!(
+        res[0].0 >= full - 1.0,
+        "10 degrees: fairing loses {:.2} dB",
+        full - res[0].0
+    );
+    assert!(
+        res[1].1 >= res[1].0,
+        "20 degrees: PFA q=3 {:.2} dB vs fairing {:.2} dB",
+        res[1].1,
+        res[1].0
+    );
+}
+
+#[test]
+fn bias_one_half_is_the_identity() {
+    let s = synth();
+    let f = prepare(s, |_| true)
+        .fit(Method::Pfa { q: 2 }, &opts())
+        .unwrap();
+    let cam = &s.held_out[0].0;
+    let (a, _) = f
+        .render(&s.atlas.mesh, cam, &RenderSlfOptions::default())
+        .unwrap();
+    let (b, _) = f
+        .render(
+            &s.atlas.mesh,
+            cam,
+            &RenderSlfOptions {
+                bias: 0.5,
+                white: 3.0,
+            },
+        )
+        .unwrap();
+    assert_eq!(a.pixels, b.pixels);
+    let (c, _) = f
+        .render(
+            &s.atlas.mesh,
+            cam,
+            &RenderSlfOptions {
+                bias: 0.3,
+                white: 3.0,
+            },
+        )
+        .unwrap();
+    assert_ne!(a.pixels, c.pixels, "another bias changes the picture");
+}

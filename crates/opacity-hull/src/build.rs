@@ -1,0 +1,283 @@
+//! `igi hull build`: a rig in, a hull folder out.
+//!
+//! The folder holds `hull.json` (the manifest: the rig file, the views in order, the grid),
+//! `hull.ply` (the visual hull's surface), `surfels.ply` (surfels with per-view visibility and
+//! opacity), `mattes/ID.exr` (each view's alpha, the matte validity as the `valid` channel),
+//! `volume.png` (volume against views over random orders, Fig. 12) and `report.json` (per-view
+//! reprojection IoU, timings). It is assembled in a temporary sibling folder and renamed into
+//! place, so a failure leaves nothing.
+
+use crate::hull::{carve_hull, plot_volume_curves, reproject, volume_curves, Reprojection};
+use crate::render::HullModel;
+use crate::surfel::{make_surfels, Surfels};
+use crate::views::{load_views, MatteOptions, View};
+use crate::HullError;
+use glam::DVec3;
+use igi_imaging::read_image;
+use igi_imaging::rig::Rig;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Build options.
+#[derive(Clone, Copy, Debug)]
+pub struct BuildOptions {
+    /// Carving cells per axis of the bounding box (at least 256: cells no coarser than bbox/256).
+    pub resolution: usize,
+    pub matte: MatteOptions,
+    /// Random view orders for the volume plot, and its grid resolution.
+    pub volume_orders: usize,
+    pub volume_resolution: usize,
+    pub seed: u64,
+}
+
+impl Default for BuildOptions {
+    fn default() -> Self {
+        BuildOptions {
+            resolution: 256,
+            matte: MatteOptions::default(),
+            volume_orders: 30,
+            volume_resolution: 64,
+            seed: 1,
+        }
+    }
+}
+
+/// The manifest `hull.json`.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct Manifest {
+    pub rig: PathBuf,
+    pub views: Vec<String>,
+    pub bbox_min: [f64; 3],
+    pub bbox_max: [f64; 3],
+    pub resolution: usize,
+    pub surfels: usize,
+}
+
+/// Seconds spent per stage.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct Timings {
+    pub load_s: f64,
+    pub carve_s: f64,
+    pub surfels_s: f64,
+    pub reproject_s: f64,
+    pub volume_s: f64,
+    pub write_s: f64,
+}
+
+/// `report.json`.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct BuildReport {
+    pub views: Vec<Reprojection>,
+    pub iou_min: f64,
+    pub iou_mean: f64,
+    pub resolution: usize,
+    pub cell_size: [f64; 3],
+    pub volume_m3: f64,
+    pub triangles: usize,
+    pub surfels: usize,
+    pub timings: Timings,
+}
+
+/// Stages reported to a progress callback.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stage {
+    Load,
+    Carve,
+    Surfels,
+    Reproject,
+    Volume,
+    Write,
+}
+
+/// Build a hull folder from a rig (see the module docs). `progress` hears each stage start.
+pub fn build(
+    rig: &Rig,
+    out: &Path,
+    opts: BuildOptions,
+    progress: &mut dyn FnMut(Stage),
+) -> Result<BuildReport, HullError> {
+    if opts.resolution < 256 {
+        return Err(HullError::InvalidArgument(format!(
+            "resolution {} is coarser than bbox/256",
+            opts.resolution
+        )));
+    }
+    check_output(out)?;
+    let mut t = Timings::default();
+    let mut clock = Instant::now();
+    let mut lap = |slot: &mut f64| {
+        *slot = clock.elapsed().as_secs_f64();
+        clock = Instant::now();
+    };
+    progress(Stage::Load);
+    let views = load_views(rig, opts.matte)?;
+    lap(&mut t.load_s);
+    progress(Stage::Carve);
+    let (min, max) = (
+        DVec3::from_array(rig.object.bbox_min),
+        DVec3::from_array(rig.object.bbox_max),
+    );
+    let refs: Vec<&View> = views.iter().collect();
+    let hull = carve_hull(&rig.path, &refs, min, max, opts.resolution)?;
+    lap(&mut t.carve_s);
+    progress(Stage::Surfels);
+    let cell = hull.grid.cell_size().max_element();
+    let surfels = make_surfels(&hull.mesh, cell as f32, 1.5 * cell, &views);
+    lap(&mut t.surfels_s);
+    progress(Stage::Reproject);
+    let reps: Vec<Reprojection> = views.iter().map(|v| reproject(&hull.mesh, v)).collect();
+    lap(&mut t.reproject_s);
+    progress(Stage::Volume);
+    let curves = volume_curves(
+        &refs,
+        min,
+        max,
+        opts.volume_resolution,
+        opts.volume_orders,
+        opts.seed,
+    );
+    lap(&mut t.volume_s);
+    progress(Stage::Write);
+    let manifest = Manifest {
+        rig: std::path::absolute(&rig.path).map_err(|e| HullError::io(&rig.path, e))?,
+        views: views.iter().map(|v| v.id.clone()).collect(),
+        bbox_min: rig.object.bbox_min,
+        bbox_max: rig.object.bbox_max,
+        resolution: opts.resolution,
+        surfels: surfels.len(),
+    };
+    let mut report = BuildReport {
+        iou_min: reps.iter().map(|r| r.iou).fold(1.0, f64::min),
+        iou_mean: reps.iter().map(|r| r.iou).sum::<f64>() / reps.len() as f64,
+        views: reps,
+        resolution: opts.resolution,
+        cell_size: hull.grid.cell_size().to_array(),
+        volume_m3: hull.volume(),
+        triangles: hull.mesh.triangle_count(),
+        surfels: surfels.len(),
+        timings: t,
+    };
+    let write_start = Instant::now();
+    write_folder(out, |dir| {
+        igi_imaging::io::write_text_atomic(
+            &dir.join("hull.json"),
+            &serde_json::to_string_pretty(&manifest).expect("manifest"),
+        )?;
+        igi_geometry::write_ply(&dir.join("hull.ply"), &hull.mesh)?;
+        igi_geometry::write_points_ply(&dir.join("surfels.ply"), &surfels.to_cloud())?;
+        std::fs::create_dir_all(dir.join("mattes"))
+            .map_err(|e| HullError::io(dir.join("mattes"), e))?;
+        for v in &views {
+            igi_imaging::write_exr(
+                &dir.join("mattes").join(format!("{}.exr", v.id)),
+                &v.matte.to_image(),
+            )?;
+        }
+        plot_volume_curves(&dir.join("volume.png"), &curves)?;
+        report.timings.write_s = write_start.elapsed().as_secs_f64();
+        igi_imaging::io::write_text_atomic(
+            &dir.join("report.json"),
+            &serde_json::to_string_pretty(&report).expect("report"),
+        )?;
+        Ok(())
+    })?;
+    Ok(report)
+}
+
+fn check_output(out: &Path) -> Result<(), HullError> {
+    if out.exists()
+        && std::fs::read_dir(out)
+            .map_err(|e| HullError::io(out, e))?
+            .next()
+            .is_some()
+    {
+        return Err(HullError::io(
+            out,
+            std::io::Error::new(
+                std::io::ErrorKind::AlreadyExists,
+                "output folder exists and is not empty",
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Fill a temporary sibling of `out` with `fill`, then rename it to `out` (which must be absent
+/// or empty); on error the temporary folder is removed.
+pub(crate) fn write_folder(
+    out: &Path,
+    fill: impl FnOnce(&Path) -> Result<(), HullError>,
+) -> Result<(), HullError> {
+    check_output(out)?;
+    let parent = out
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let name = out
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let tmp = parent.join(format!(".{name}.partial-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&tmp);
+    std::fs::create_dir_all(&tmp).map_err(|e| HullError::io(&tmp, e))?;
+    let result = fill(&tmp).and_then(|()| {
+        if out.exists() {
+            std::fs::remove_dir(out).map_err(|e| HullError::io(out, e))?;
+        }
+        std::fs::rename(&tmp, out).map_err(|e| HullError::io(out, e))
+    });
+    if result.is_err() {
+        let _ = std::fs::remove_dir_all(&tmp);
+    }
+    result
+}
+
+/// Load a hull folder for rendering: the surfels, and each view's camera centre and photo
+/// samples at the surfels it sees (read again from the rig the manifest names).
+pub fn load_model(dir: &Path) -> Result<HullModel, HullError> {
+    let mpath = dir.join("hull.json");
+    let text = std::fs::read_to_string(&mpath).map_err(|e| HullError::io(&mpath, e))?;
+    let manifest: Manifest = serde_json::from_str(&text).map_err(|e| HullError::HullFolder {
+        path: mpath.clone(),
+        msg: e.to_string(),
+    })?;
+    let cloud = igi_geometry::read_points_ply(&dir.join("surfels.ply"))?;
+    let nv = manifest.views.len();
+    let surfels = Surfels::from_cloud(&cloud, nv).ok_or_else(|| HullError::HullFolder {
+        path: dir.join("surfels.ply"),
+        msg: format!("lacks the normals, radius, visibility or opacity properties of {nv} views"),
+    })?;
+    let rig = Rig::load(&manifest.rig)?;
+    let mut centres = Vec::with_capacity(nv);
+    let mut colors = vec![[0.0f32; 3]; surfels.len() * nv];
+    for (v, id) in manifest.views.iter().enumerate() {
+        let rv = rig.view(id).ok_or_else(|| HullError::HullFolder {
+            path: mpath.clone(),
+            msg: format!("view {id:?} is not in {}", rig.path.display()),
+        })?;
+        let cam = rig.load_camera(rv)?;
+        let photo = read_image(&rv.photo).map_err(|e| rig.view_error(rv, e))?;
+        centres.push(cam.center_world());
+        for s in 0..surfels.len() {
+            if !surfels.visible[s * nv + v] {
+                continue;
+            }
+            let p = DVec3::from_array(surfels.positions[s].map(f64::from));
+            if let Some(px) = cam.project(p) {
+                colors[s * nv + v] =
+                    photo.bilinear(px.x as f32, px.y as f32).unwrap_or_else(|| {
+                        let (x, y) = (
+                            px.x.round().clamp(0.0, photo.width as f64 - 1.0),
+                            px.y.round().clamp(0.0, photo.height as f64 - 1.0),
+                        );
+                        photo.get(x as usize, y as usize)
+                    });
+            }
+        }
+    }
+    Ok(HullModel {
+        surfels,
+        centres,
+        colors,
+    })
+}

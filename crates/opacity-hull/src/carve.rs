@@ -1,0 +1,275 @@
+//! Visual hull by octree carving of a regular grid of cells over the rig's bounding box.
+//!
+//! A cell is carved by a view when its centre projects, inside the frame, onto a known
+//! background pixel (nearest pixel; pixel centres at integer coordinates). Pixels outside the
+//! frame, pixels with an invalid matte and centres behind the camera are unknown and carve
+//! nothing. Blocks of cells are decided at once where a view's projected block (the bounding
+//! rectangle of its eight projected corners, padded by two pixels) is all known background
+//! (the whole block is carved) or holds no known background (no cell of it is carved by that
+//! view); otherwise the block is split in eight.
+//!
+//! For every cell the carving records the index of the **first** view (in the given order)
+//! that carves it, so the volume after the first k views and the view that emptied the hull
+//! come for free.
+
+use crate::views::View;
+use glam::DVec3;
+use rayon::prelude::*;
+
+/// Marker for a cell no view carves.
+pub const KEPT: u8 = u8::MAX;
+
+/// The cell grid over a box.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CellGrid {
+    pub min: DVec3,
+    pub max: DVec3,
+    /// Cells per axis.
+    pub dims: [usize; 3],
+}
+
+impl CellGrid {
+    /// A grid with `n` cells along every axis of the box (cell = box extent / n per axis).
+    pub fn new(min: DVec3, max: DVec3, n: usize) -> CellGrid {
+        CellGrid {
+            min,
+            max,
+            dims: [n; 3],
+        }
+    }
+
+    /// Edge lengths of one cell.
+    pub fn cell_size(&self) -> DVec3 {
+        (self.max - self.min)
+            / DVec3::new(
+                self.dims[0] as f64,
+                self.dims[1] as f64,
+                self.dims[2] as f64,
+            )
+    }
+
+    /// Centre of cell (i, j, k).
+    pub fn center(&self, c: [usize; 3]) -> DVec3 {
+        self.min + (DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64) + 0.5) * self.cell_size()
+    }
+
+    /// Flat index of cell (i, j, k) (x fastest).
+    pub fn index(&self, c: [usize; 3]) -> usize {
+        c[0] + self.dims[0] * (c[1] + self.dims[1] * c[2])
+    }
+
+    pub fn len(&self) -> usize {
+        self.dims.iter().product()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// Summed-area table of a view's known-background pixels.
+struct ViewTable<'a> {
+    view: &'a View,
+    /// (w + 1) x (h + 1) prefix sums of known background.
+    bg: Vec<u32>,
+}
+
+impl<'a> ViewTable<'a> {
+    fn new(view: &'a View) -> Self {
+        let (w, h) = (view.silhouette.width, view.silhouette.height);
+        let mut bg = vec![0u32; (w + 1) * (h + 1)];
+        for y in 0..h {
+            let mut row = 0u32;
+            for x in 0..w {
+                row += view.is_background(x, y) as u32;
+                bg[(y + 1) * (w + 1) + x + 1] = bg[y * (w + 1) + x + 1] + row;
+            }
+        }
+        ViewTable { view, bg }
+    }
+
+    /// Known-background pixels in the inclusive rectangle [x0, x1] x [y0, y1] (clipped).
+    fn count(&self, x0: i64, y0: i64, x1: i64, y1: i64) -> (u64, bool) {
+        let (w, h) = (
+            self.view.silhouette.width as i64,
+            self.view.silhouette.height as i64,
+        );
+        let inside = x0 >= 0 && y0 >= 0 && x1 < w && y1 < h;
+        let (x0, y0, x1, y1) = (x0.max(0), y0.max(0), x1.min(w - 1), y1.min(h - 1));
+        if x0 > x1 || y0 > y1 {
+            return (0, inside);
+        }
+        let s = |x: i64, y: i64| self.bg[(y * (w + 1) + x) as usize] as i64;
+        let n = s(x1 + 1, y1 + 1) - s(x0, y1 + 1) - s(x1 + 1, y0) + s(x0, y0);
+        (n as u64, inside)
+    }
+
+    /// Does this view carve the cell centred at `p`?
+    fn carves_point(&self, p: DVec3) -> bool {
+        let Some(px) = self.view.camera.project(p) else {
+            return false;
+        };
+        let (x, y) = (px.x.round(), px.y.round());
+        let (w, h) = (
+            self.view.silhouette.width as f64,
+            self.view.silhouette.height as f64,
+        );
+        if !(x >= 0.0 && y >= 0.0 && x < w && y < h) {
+            return false;
+        }
+        self.view.is_background(x as usize, y as usize)
+    }
+
+    /// Decision for a box: Some(true) = all carved, Some(false) = none carved, None = mixed.
+    fn classify_box(&self, lo: DVec3, hi: DVec3) -> Option<bool> {
+        let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
+        for c in 0..8 {
+            let p = DVec3::new(
+                if c & 1 == 0 { lo.x } else { hi.x },
+                if c & 2 == 0 { lo.y } else { hi.y },
+                if c & 4 == 0 { lo.z } else { hi.z },
+            );
+            let pc = self.view.camera.pose.apply(p);
+            if !(pc.z > 1e-9) {
+                return None;
+            }
+            let px = self.view.camera.project(p)?;
+            x0 = x0.min(px.x);
+            y0 = y0.min(px.y);
+            x1 = x1.max(px.x);
+            y1 = y1.max(px.y);
+        }
+        let pad = 2.0;
+        let r = [x0 - pad, y0 - pad, x1 + pad, y1 + pad];
+        if r.iter().any(|v| !v.is_finite() || v.abs() > 1e7) {
+            return None;
+        }
+        let (rx0, ry0, rx1, ry1) = (
+            r[0].floor() as i64,
+            r[1].floor() as i64,
+            r[2].ceil() as i64,
+            r[3].ceil() as i64,
+        );
+        let (n, inside) = self.count(rx0, ry0, rx1, ry1);
+        let area = ((rx1 - rx0 + 1) * (ry1 - ry0 + 1)) as u64;
+        if n == 0 {
+            Some(false)
+        } else if inside && n == area {
+            Some(true)
+        } else {
+            None
+        }
+    }
+}
+
+/// For every cell of `grid`, the index of the first view that carves it, or [`KEPT`].
+/// At most 255 views.
+pub fn carve(grid: &CellGrid, views: &[&View]) -> Vec<u8> {
+    assert!(views.len() < KEPT as usize, "at most 254 views");
+    let tables: Vec<ViewTable> = views.iter().map(|v| ViewTable::new(v)).collect();
+    let block = 16usize;
+    let nb = grid.dims.map(|d| d.div_ceil(block));
+    let blocks: Vec<[usize; 3]> = (0..nb[2])
+        .flat_map(|k| (0..nb[1]).flat_map(move |j| (0..nb[0]).map(move |i| [i, j, k])))
+        .collect();
+    let results: Vec<([usize; 3], [usize; 3], Vec<u8>)> = blocks
+        .par_iter()
+        .map(|b| {
+            let lo = [0, 1, 2].map(|a| b[a] * block);
+            let hi = [0, 1, 2].map(|a| ((b[a] + 1) * block).min(grid.dims[a]));
+            let size = [0, 1, 2].map(|a| hi[a] - lo[a]);
+            let mut local = vec![KEPT; size[0] * size[1] * size[2]];
+            carve_range(grid, &tables, lo, hi, 0, &mut |c: [usize; 3], v: u8| {
+                local[(c[0] - lo[0]) + size[0] * ((c[1] - lo[1]) + size[1] * (c[2] - lo[2]))] = v;
+            });
+            (lo, size, local)
+        })
+        .collect();
+    let mut out = vec![KEPT; grid.len()];
+    for (lo, size, local) in results {
+        for k in 0..size[2] {
+            for j in 0..size[1] {
+                for i in 0..size[0] {
+                    out[grid.index([lo[0] + i, lo[1] + j, lo[2] + k])] =
+                        local[i + size[0] * (j + size[1] * k)];
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Carve the cells in [lo, hi) from view `first` on; `set(cell, view)` records a carve.
+fn carve_range(
+    grid: &CellGrid,
+    tables: &[ViewTable],
+    lo: [usize; 3],
+    hi: [usize; 3],
+    first: usize,
+    set: &mut dyn FnMut([usize; 3], u8),
+) {
+    let cs = grid.cell_size();
+    let corner = |c: [usize; 3]| grid.min + DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64) * cs;
+    let single = (0..3).all(|a| hi[a] - lo[a] == 1);
+    if single {
+        let p = grid.center(lo);
+        if let Some(v) = (first..tables.len()).find(|&v| tables[v].carves_point(p)) {
+            set(lo, v as u8);
+        }
+        return;
+    }
+    let (blo, bhi) = (corner(lo), corner(hi));
+    for v in first..tables.len() {
+        match tables[v].classify_box(blo, bhi) {
+            Some(false) => continue,
+            Some(true) => {
+                for k in lo[2]..hi[2] {
+                    for j in lo[1]..hi[1] {
+                        for i in lo[0]..hi[0] {
+                            set([i, j, k], v as u8);
+                        }
+                    }
+                }
+                return;
+            }
+            None => {
+                let mid = [0, 1, 2].map(|a| (lo[a] + hi[a]).div_ceil(2));
+                for oct in 0..8 {
+                    let clo = [0, 1, 2].map(|a| if oct >> a & 1 == 0 { lo[a] } else { mid[a] });
+                    let chi = [0, 1, 2].map(|a| if oct >> a & 1 == 0 { mid[a] } else { hi[a] });
+                    if (0..3).all(|a| clo[a] < chi[a]) {
+                        carve_range(grid, tables, clo, chi, v, set);
+                    }
+                }
+                return;
+            }
+        }
+    }
+}
+
+/// Cells kept after the first `k` views: those whose first carving view is `>= k`.
+pub fn volume_after(carver: &[u8], k: usize) -> usize {
+    carver.iter().filter(|&&v| v as usize >= k).count()
+}
+
+/// Per cell, the bit set of every view that carves its centre (direct test, no early out):
+/// for volume-against-views studies over many view orders. At most 64 views.
+pub fn carve_sets(grid: &CellGrid, views: &[&View]) -> Vec<u64> {
+    assert!(views.len() <= 64, "at most 64 views");
+    let tables: Vec<ViewTable> = views.iter().map(|v| ViewTable::new(v)).collect();
+    (0..grid.len())
+        .into_par_iter()
+        .map(|i| {
+            let c = [
+                i % grid.dims[0],
+                (i / grid.dims[0]) % grid.dims[1],
+                i / (grid.dims[0] * grid.dims[1]),
+            ];
+            let p = grid.center(c);
+            tables
+                .iter()
+                .enumerate()
+                .fold(0u64, |acc, (v, t)| acc | ((t.carves_point(p) as u64) << v))
+        })
+        .collect()
+}

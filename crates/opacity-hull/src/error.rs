@@ -1,0 +1,62 @@
+//! The one error type of `igi-opacity-hull`.
+
+use std::path::PathBuf;
+
+/// Everything that can go wrong importing, matting, carving, building or rendering a hull.
+#[derive(Debug, thiserror::Error)]
+pub enum HullError {
+    /// Camera, image, rig or mask trouble (these name their file, and the view where known).
+    #[error(transparent)]
+    Imaging(#[from] igi_imaging::ImagingError),
+    /// Mesh or point-cloud trouble.
+    #[error(transparent)]
+    Geometry(#[from] igi_geometry::GeometryError),
+    /// An operating-system error on a named file.
+    #[error("{}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// A line of a Middlebury `_par.txt` file that does not parse.
+    #[error("{}: line {line}: {msg}", path.display())]
+    ParLine {
+        path: PathBuf,
+        line: usize,
+        msg: String,
+    },
+    /// A Middlebury rotation too far from a rotation to be a measurement error.
+    #[error("{}: line {line} ({image}): R is {distance:.3e} from the nearest rotation (more than {limit:.0e})", path.display())]
+    NotRotation {
+        path: PathBuf,
+        line: usize,
+        image: String,
+        distance: f64,
+        limit: f64,
+    },
+    /// A silhouette with nothing (or everything) in it.
+    #[error("{}: view {view:?}: the silhouette is {what}", rig.display())]
+    Silhouette {
+        rig: PathBuf,
+        view: String,
+        what: &'static str,
+    },
+    /// Carving left nothing: `view` removed the last cells.
+    #[error("{}: the hull is empty after carving with view {view:?} (its silhouette disagrees with the views before it, or with the bounding box)", rig.display())]
+    CarvedEmpty { rig: PathBuf, view: String },
+    /// A hull folder that is missing a file or has a bad manifest.
+    #[error("{}: {msg}", path.display())]
+    HullFolder { path: PathBuf, msg: String },
+    /// A bad argument (resolution, image size...).
+    #[error("invalid argument: {0}")]
+    InvalidArgument(String),
+}
+
+impl HullError {
+    pub(crate) fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        HullError::Io {
+            path: path.into(),
+            source,
+        }
+    }
+}

@@ -1,0 +1,210 @@
+//! The visual hull of a set of views: carving, the surface mesh, reprojection checks, and the
+//! volume against the number of views.
+
+use crate::carve::{carve, carve_sets, CellGrid, KEPT};
+use crate::raster::{iou_over, rasterize_depth, uncovered_fraction};
+use crate::views::View;
+use crate::HullError;
+use glam::DVec3;
+use igi_geometry::{marching_cubes, Grid, TriMesh};
+use rand::seq::SliceRandom;
+use rand::SeedableRng;
+use std::path::Path;
+
+/// A carved hull: the grid, the first carving view per cell, the surface.
+#[derive(Clone, Debug)]
+pub struct VisualHull {
+    pub grid: CellGrid,
+    /// Per cell, the index (into the views given) of the first view that carves it, or [`KEPT`].
+    pub carver: Vec<u8>,
+    pub mesh: TriMesh,
+}
+
+impl VisualHull {
+    /// Cells kept by every view.
+    pub fn occupied(&self) -> usize {
+        self.carver.iter().filter(|&&c| c == KEPT).count()
+    }
+
+    /// Volume of the kept cells (cubic metres).
+    pub fn volume(&self) -> f64 {
+        let c = self.grid.cell_size();
+        self.occupied() as f64 * c.x * c.y * c.z
+    }
+}
+
+/// Carve the hull of `views` in the box with `resolution` cells per axis and extract its
+/// surface (marching cubes on the occupancy, iso 0.5, closed at the box faces). `rig` names the
+/// capture in errors: when carving leaves nothing the error names the view that removed the
+/// last cells.
+pub fn carve_hull(
+    rig: &Path,
+    views: &[&View],
+    min: DVec3,
+    max: DVec3,
+    resolution: usize,
+) -> Result<VisualHull, HullError> {
+    if !(2..=2048).contains(&resolution) {
+        return Err(HullError::InvalidArgument(format!(
+            "carving resolution {resolution} must be 2..=2048 cells per axis"
+        )));
+    }
+    let grid = CellGrid::new(min, max, resolution);
+    let carver = carve(&grid, views);
+    if !carver.contains(&KEPT) {
+        let last = carver.iter().copied().max().unwrap_or(0) as usize;
+        return Err(HullError::CarvedEmpty {
+            rig: rig.to_path_buf(),
+            view: views[last].id.clone(),
+        });
+    }
+    let mesh = occupancy_mesh(&grid, &carver)?;
+    Ok(VisualHull { grid, carver, mesh })
+}
+
+/// Marching cubes on the kept cells (1 inside, 0 outside) padded with one empty layer.
+fn occupancy_mesh(grid: &CellGrid, carver: &[u8]) -> Result<TriMesh, HullError> {
+    let [nx, ny, nz] = grid.dims;
+    let d = [nx + 2, ny + 2, nz + 2];
+    let mut values = vec![0.0f32; d[0] * d[1] * d[2]];
+    for k in 0..nz {
+        for j in 0..ny {
+            for i in 0..nx {
+                if carver[grid.index([i, j, k])] == KEPT {
+                    values[(i + 1) + d[0] * ((j + 1) + d[1] * (k + 1))] = 1.0;
+                }
+            }
+        }
+    }
+    let cs = grid.cell_size();
+    let origin = grid.min - cs * 0.5;
+    let g = Grid {
+        values: &values,
+        dims: d,
+        origin: origin.as_vec3().to_array(),
+        spacing: cs.as_vec3().to_array(),
+    };
+    Ok(marching_cubes(&g, 0.5)?)
+}
+
+/// How well the hull reproduces one view's silhouette.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Reprojection {
+    pub view: String,
+    /// IoU of the hull's projection and the silhouette over the view's known pixels.
+    pub iou: f64,
+    /// Fraction of the silhouette the hull's projection misses.
+    pub uncovered: f64,
+    pub silhouette_pixels: usize,
+}
+
+/// Project `mesh` into `view` and compare with its silhouette.
+pub fn reproject(mesh: &TriMesh, view: &View) -> Reprojection {
+    let cover = rasterize_depth(mesh, &view.camera).coverage();
+    Reprojection {
+        view: view.id.clone(),
+        iou: iou_over(&cover, &view.silhouette, &view.known),
+        uncovered: uncovered_fraction(&view.silhouette, &cover, &view.known),
+        silhouette_pixels: view.silhouette.count(),
+    }
+}
+
+/// Leave-one-out: for each view, the hull of all the others projected into it.
+pub fn leave_one_out(
+    rig: &Path,
+    views: &[View],
+    min: DVec3,
+    max: DVec3,
+    resolution: usize,
+) -> Result<Vec<Reprojection>, HullError> {
+    (0..views.len())
+        .map(|held| {
+            let others: Vec<&View> = views
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| *i != held)
+                .map(|(_, v)| v)
+                .collect();
+            let hull = carve_hull(rig, &others, min, max, resolution)?;
+            Ok(reproject(&hull.mesh, &views[held]))
+        })
+        .collect()
+}
+
+/// Volume (kept cells / cells kept by all views) after the first 1..=n views, for `orders`
+/// random orders of the views (seeded): the curves of Matusik et al.'s Fig. 12.
+pub fn volume_curves(
+    views: &[&View],
+    min: DVec3,
+    max: DVec3,
+    resolution: usize,
+    orders: usize,
+    seed: u64,
+) -> Vec<Vec<f64>> {
+    let grid = CellGrid::new(min, max, resolution);
+    let sets = carve_sets(&grid, views);
+    let final_volume = sets.iter().filter(|&&s| s == 0).count().max(1) as f64;
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+    (0..orders)
+        .map(|_| {
+            let mut order: Vec<usize> = (0..views.len()).collect();
+            order.shuffle(&mut rng);
+            let mut mask = 0u64;
+            order
+                .iter()
+                .map(|&v| {
+                    mask |= 1 << v;
+                    sets.iter().filter(|&&s| s & mask == 0).count() as f64 / final_volume
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// Plot volume curves (relative volume against the number of views) to a PNG, atomically.
+pub fn plot_volume_curves(path: &Path, curves: &[Vec<f64>]) -> Result<(), HullError> {
+    use plotters::prelude::*;
+    igi_imaging::plot::register_fonts();
+    let n = curves.first().map_or(1, Vec::len);
+    let ymax = curves
+        .iter()
+        .flatten()
+        .fold(1.0f64, |a, &b| a.max(b))
+        .min(50.0)
+        * 1.05;
+    igi_imaging::io::write_atomic(path, |tmp| {
+        let enc = |e: String| igi_imaging::ImagingError::Encode {
+            path: path.to_path_buf(),
+            msg: e,
+        };
+        let root = BitMapBackend::new(tmp, (800, 500)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| enc(e.to_string()))?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(
+                "visual hull volume against views (random orders)",
+                ("sans-serif", 20),
+            )
+            .margin(10)
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            .build_cartesian_2d(1f64..n as f64, 0.9f64..ymax)
+            .map_err(|e| enc(e.to_string()))?;
+        chart
+            .configure_mesh()
+            .x_desc("number of views")
+            .y_desc("volume / final volume")
+            .draw()
+            .map_err(|e| enc(e.to_string()))?;
+        for c in curves {
+            let pts = c
+                .iter()
+                .enumerate()
+                .map(|(i, &v)| ((i + 1) as f64, v.min(ymax)));
+            chart
+                .draw_series(LineSeries::new(pts, BLUE.mix(0.4).stroke_width(1)))
+                .map_err(|e| enc(e.to_string()))?;
+        }
+        root.present().map_err(|e| enc(e.to_string()))
+    })?;
+    Ok(())
+}

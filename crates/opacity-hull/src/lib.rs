@@ -1,0 +1,33 @@
+//! # igi-opacity-hull
+//!
+//! The turntable 3D-photography pipeline of Matusik et al. 2002, *Image-Based 3D Photography
+//! using Opacity Hulls*, on the shared camera, HDR, rig and mesh code of `igi-imaging` and
+//! `igi-geometry` (it never depends on the solver):
+//!
+//! * [`backdrop`]: the Eq. 1 backdrop patterns and alpha by Eq. 2 (maximum over lambda; pixels
+//!   where the backdrop pair carries no signal are invalid).
+//! * [`views`]: a rig's views loaded with their mattes and carving silhouettes (alpha > 0.05;
+//!   invalid and out-of-frame pixels unknown).
+//! * [`carve`]: octree carving of a cell grid over the bounding box.
+//! * [`hull`]: the visual hull (carving + marching cubes), reprojection IoU, leave-one-out,
+//!   volume against the number of views (Fig. 12).
+//! * [`raster`]: triangle rasterisation into a camera (coverage and depth).
+//! * [`surfel`]: surfels by resampling the hull, with per-view visibility and opacity.
+//! * [`render`]: unstructured-lumigraph weights (Eq. 4) and order-independent surfel splatting
+//!   to RGBA.
+//! * [`build`]: the `igi hull build` pipeline and the hull folder.
+//! * [`middlebury`]: importer for the Middlebury multi-view sets.
+
+mod error;
+
+pub mod backdrop;
+pub mod build;
+pub mod carve;
+pub mod hull;
+pub mod middlebury;
+pub mod raster;
+pub mod render;
+pub mod surfel;
+pub mod views;
+
+pub use error::HullError;

@@ -1,0 +1,181 @@
+//! Surfels by resampling the hull: the vertices of the hull's surface mesh (spaced about one
+//! carving cell apart) with their normals, a splat radius of one cell, per-view visibility
+//! (facing the camera, inside the frame, not behind the hull in the view's depth buffer) and
+//! per-view opacity (the view's matte at the surfel's projection, Matusik et al. 2002 Sec. 4).
+
+use crate::raster::rasterize_depth;
+use crate::views::View;
+use glam::DVec3;
+use igi_geometry::{PointCloud, TriMesh};
+use rayon::prelude::*;
+
+/// Views whose visibility bit fits in one f32 property exactly (integers up to 2^24).
+pub const BITS_PER_WORD: usize = 24;
+
+/// Surfels with per-view visibility and opacity.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Surfels {
+    pub positions: Vec<[f32; 3]>,
+    pub normals: Vec<[f32; 3]>,
+    pub radius: Vec<f32>,
+    /// Number of views.
+    pub views: usize,
+    /// `visible[s * views + v]`.
+    pub visible: Vec<bool>,
+    /// `opacity[s * views + v]` (0 where not visible or the matte is invalid there).
+    pub opacity: Vec<f32>,
+}
+
+impl Surfels {
+    pub fn len(&self) -> usize {
+        self.positions.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.positions.is_empty()
+    }
+
+    /// As a point cloud: `vis0, vis1, ...` hold 24 visibility bits each, `alpha_vN` the
+    /// opacity seen from view N.
+    pub fn to_cloud(&self) -> PointCloud {
+        let n = self.len();
+        let words = self.views.div_ceil(BITS_PER_WORD);
+        let mut properties = Vec::new();
+        for w in 0..words {
+            let vals = (0..n)
+                .map(|s| {
+                    (0..BITS_PER_WORD)
+                        .filter(|b| {
+                            w * BITS_PER_WORD + b < self.views
+                                && self.visible[s * self.views + w * BITS_PER_WORD + b]
+                        })
+                        .fold(0u32, |acc, b| acc | 1 << b) as f32
+                })
+                .collect();
+            properties.push((format!("vis{w}"), vals));
+        }
+        for v in 0..self.views {
+            properties.push((
+                format!("alpha_v{v}"),
+                (0..n).map(|s| self.opacity[s * self.views + v]).collect(),
+            ));
+        }
+        PointCloud {
+            positions: self.positions.clone(),
+            normals: Some(self.normals.clone()),
+            colors: None,
+            radii: Some(self.radius.clone()),
+            properties,
+        }
+    }
+
+    /// Back from [`Surfels::to_cloud`]; `None` when a property is missing.
+    pub fn from_cloud(c: &PointCloud, views: usize) -> Option<Surfels> {
+        let n = c.len();
+        let mut visible = vec![false; n * views];
+        let mut opacity = vec![0.0f32; n * views];
+        for w in 0..views.div_ceil(BITS_PER_WORD) {
+            let vals = c.property(&format!("vis{w}"))?;
+            for s in 0..n {
+                let bits = vals[s] as u32;
+                for b in 0..BITS_PER_WORD.min(views - w * BITS_PER_WORD) {
+                    visible[s * views + w * BITS_PER_WORD + b] = bits >> b & 1 == 1;
+                }
+            }
+        }
+        for v in 0..views {
+            let a = c.property(&format!("alpha_v{v}"))?;
+            for s in 0..n {
+                opacity[s * views + v] = a[s];
+            }
+        }
+        Some(Surfels {
+            positions: c.positions.clone(),
+            normals: c.normals.clone()?,
+            radius: c.radii.clone()?,
+            views,
+            visible,
+            opacity,
+        })
+    }
+}
+
+/// Surfels on the vertices of `mesh` with splat radius `radius`; `depth_tolerance` is how far
+/// (metres, along the camera axis) a surfel may lie behind the depth buffer and still count as
+/// visible.
+pub fn make_surfels(mesh: &TriMesh, radius: f32, depth_tolerance: f64, views: &[View]) -> Surfels {
+    let n = mesh.positions.len();
+    let normals = mesh
+        .normals
+        .clone()
+        .unwrap_or_else(|| vec![[0.0, 0.0, 1.0]; n]);
+    let nv = views.len();
+    let per_view: Vec<Vec<(bool, f32)>> = views
+        .par_iter()
+        .map(|view| {
+            let depth = rasterize_depth(mesh, &view.camera);
+            let centre = view.camera.center_world();
+            (0..n)
+                .map(|s| {
+                    visibility(
+                        &mesh.positions[s],
+                        &normals[s],
+                        view,
+                        &depth,
+                        centre,
+                        depth_tolerance,
+                    )
+                })
+                .collect()
+        })
+        .collect();
+    let mut visible = vec![false; n * nv];
+    let mut opacity = vec![0.0f32; n * nv];
+    for (v, col) in per_view.iter().enumerate() {
+        for (s, &(vis, a)) in col.iter().enumerate() {
+            visible[s * nv + v] = vis;
+            opacity[s * nv + v] = a;
+        }
+    }
+    Surfels {
+        positions: mesh.positions.clone(),
+        normals,
+        radius: vec![radius; n],
+        views: nv,
+        visible,
+        opacity,
+    }
+}
+
+fn visibility(
+    p: &[f32; 3],
+    n: &[f32; 3],
+    view: &View,
+    depth: &crate::raster::DepthBuffer,
+    centre: DVec3,
+    tol: f64,
+) -> (bool, f32) {
+    let pw = DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+    let nw = DVec3::new(n[0] as f64, n[1] as f64, n[2] as f64);
+    if nw.dot(centre - pw) <= 0.0 {
+        return (false, 0.0);
+    }
+    let z = view.camera.pose.apply(pw).z;
+    let Some(px) = view.camera.project(pw) else {
+        return (false, 0.0);
+    };
+    let (x, y) = (px.x.round(), px.y.round());
+    if !(x >= 0.0 && y >= 0.0 && x < depth.width as f64 && y < depth.height as f64) {
+        return (false, 0.0);
+    }
+    let i = y as usize * depth.width + x as usize;
+    if z > depth.depth[i] as f64 + tol {
+        return (false, 0.0);
+    }
+    let a = if view.matte.valid[i] {
+        view.matte.alpha[i]
+    } else {
+        0.0
+    };
+    (true, a)
+}

@@ -1,0 +1,192 @@
+//! The resume rule of `igi solve`: a result folder belongs to one run.
+//!
+//! [`SolveSession::check`] runs before any work or output: it validates the options, checks
+//! that the output folder is (or can become) a writable folder, and builds the run manifest
+//! (`run.json`, see `igi_imaging::run`): fingerprints of the survey file, meshes or prepared
+//! site, photographs, cameras, lighting and BRDF samples, and every result-changing option
+//! (`--atlas`, `--spp`, `--indirect`, `--seed`, `--initial`, the weighting rules) with the part
+//! selection as the shard's `owns`. `--iterations` and `--tolerance` are left out on purpose:
+//! they say how far to go, and a resume with more iterations continues the same run.
+//!
+//! A folder with a `run.json` is resumed only when the manifests are equal; otherwise the
+//! error names the first differing option or input and suggests `--restart`. Two shards
+//! (different `--parts`) therefore never share a folder. `--restart` removes what an earlier
+//! solve wrote (only the names a solve writes) before starting afresh. Temporary files of
+//! killed runs are removed on resume.
+
+use crate::parts::Part;
+use crate::result::SolveResult;
+use crate::solver::SolveOptions;
+use crate::survey::{LightingSource, Survey};
+use crate::ReflectError;
+use igi_imaging::run::RUN_FILE;
+use igi_imaging::RunManifest;
+use std::path::{Path, PathBuf};
+
+/// The names a solve writes into its result folder (what `--restart` removes).
+const RESULT_ENTRIES: [&str; 5] = [
+    "parts",
+    "report.json",
+    "scene.toml",
+    "convergence.png",
+    RUN_FILE,
+];
+
+/// A checked result folder and the run manifest of this solve.
+pub struct SolveSession {
+    dir: PathBuf,
+    manifest: RunManifest,
+    resume: bool,
+    restart: bool,
+}
+
+impl SolveSession {
+    /// Checks everything that can be checked before work (see the module overview).
+    pub fn check(
+        dir: &Path,
+        survey: &Survey,
+        opts: &SolveOptions,
+        restart: bool,
+    ) -> Result<SolveSession, ReflectError> {
+        opts.validate()?;
+        igi_imaging::io::check_output_folder(dir)?;
+        let manifest = run_manifest(survey, opts)?;
+        let mut resume = false;
+        if dir.exists() && !restart {
+            match RunManifest::read(dir)? {
+                Some(old) => {
+                    manifest.check_resume(&old, dir)?;
+                    resume = dir.join("report.json").is_file();
+                }
+                None => {
+                    let empty = dir
+                        .read_dir()
+                        .map(|mut d| d.next().is_none())
+                        .map_err(|e| ReflectError::file(dir, format!("cannot read folder: {e}")))?;
+                    if dir.join("report.json").exists() {
+                        return Err(ReflectError::file(
+                            dir,
+                            "holds a result without a run manifest (an older igi, or `igi demo`); use --restart to solve afresh into it",
+                        ));
+                    }
+                    if !empty {
+                        return Err(ReflectError::file(
+                            dir,
+                            "exists and is not a result folder; choose another output",
+                        ));
+                    }
+                }
+            }
+        }
+        Ok(SolveSession {
+            dir: dir.to_path_buf(),
+            manifest,
+            resume,
+            restart,
+        })
+    }
+
+    /// Whether the folder holds a finished checkpoint of this same run, to continue from.
+    pub fn resumes(&self) -> bool {
+        self.resume
+    }
+
+    /// Loads the checkpoint to continue from (after removing dead runs' temporary files).
+    pub fn load(&self) -> Result<SolveResult, ReflectError> {
+        igi_imaging::io::remove_dead_temps(&self.dir, true)?;
+        SolveResult::load(&self.dir)
+    }
+
+    /// Starts a fresh result: checks the part selection against `parts`, removes an earlier
+    /// run's files (with restart) and dead temporary files, then writes `run.json` and the
+    /// parts' geometry.
+    pub fn start(
+        &self,
+        parts: Vec<Part>,
+        photo_ids: Vec<String>,
+        opts: &SolveOptions,
+    ) -> Result<SolveResult, ReflectError> {
+        crate::solver::check_selection(&parts, opts)?;
+        if self.restart {
+            for name in RESULT_ENTRIES {
+                let p = self.dir.join(name);
+                let r = if p.is_dir() {
+                    std::fs::remove_dir_all(&p)
+                } else if p.exists() {
+                    std::fs::remove_file(&p)
+                } else {
+                    Ok(())
+                };
+                r.map_err(|e| ReflectError::file(&p, format!("cannot remove: {e}")))?;
+            }
+        }
+        std::fs::create_dir_all(&self.dir)
+            .map_err(|e| ReflectError::file(&self.dir, format!("cannot create folder: {e}")))?;
+        igi_imaging::io::remove_dead_temps(&self.dir, true)?;
+        self.manifest.write(&self.dir)?;
+        let r = SolveResult::fresh(parts, photo_ids, opts);
+        r.write_geometry(&self.dir)?;
+        Ok(r)
+    }
+}
+
+/// The run manifest of a solve of `survey` with `opts`.
+fn run_manifest(survey: &Survey, opts: &SolveOptions) -> Result<RunManifest, ReflectError> {
+    let mut m = RunManifest::new("solve");
+    let a = opts.initial_albedo;
+    m.option("--atlas", opts.atlas_resolution)
+        .option("--spp", join(&opts.spp))
+        .option("--indirect", opts.indirect)
+        .option("--seed", opts.seed)
+        .option("--initial", format!("{:?},{:?},{:?}", a[0], a[1], a[2]))
+        .option(
+            "minimum evaluation albedo",
+            format!("{:?}", opts.min_eval_albedo),
+        )
+        .option(
+            "weighting rules",
+            serde_json::to_string(&opts.rules).expect("rules serialise"),
+        );
+    m.owns = opts.parts.as_ref().map(|p| {
+        let mut v = p.clone();
+        v.sort();
+        v.dedup();
+        v
+    });
+    m.input("survey", &survey.file)?;
+    for (i, p) in survey.meshes.iter().enumerate() {
+        m.input(&format!("mesh {i}"), p)?;
+    }
+    if let Some(p) = &survey.prepared {
+        m.input("prepared site", &p.join("manifest.json"))?;
+    }
+    for p in &survey.photos {
+        m.input(&format!("photo {} image", p.id), &p.image)?;
+        m.input(&format!("photo {} camera", p.id), &p.camera)?;
+        match &p.lighting {
+            LightingSource::File(l) => {
+                m.input(&format!("photo {} lighting", p.id), l)?;
+            }
+            LightingSource::Probe {
+                image,
+                camera,
+                board,
+            } => {
+                m.input(&format!("photo {} probe image", p.id), image)?;
+                m.input(&format!("photo {} probe camera", p.id), camera)?;
+                m.input(&format!("photo {} probe board", p.id), board)?;
+            }
+        }
+    }
+    if let Some(p) = &survey.brdf_samples {
+        m.input("BRDF samples", p)?;
+    }
+    Ok(m)
+}
+
+fn join(v: &[u32]) -> String {
+    v.iter()
+        .map(|x| x.to_string())
+        .collect::<Vec<_>>()
+        .join(",")
+}

@@ -1,0 +1,647 @@
+//! The hardening cases of issue 14, one test each: resumes that cannot mix runs, checks before
+//! work, bounded memory, no silent success, clean leftovers and messages. Each failed on the
+//! code before the fix.
+
+use igi_testkit::{assert_failed, fixture, s, shared_data, Cli};
+use std::path::{Path, PathBuf};
+
+fn igi() -> Cli {
+    Cli::new(env!("CARGO_BIN_EXE_igi"))
+}
+
+fn stderr(o: &std::process::Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// The survey fixture, solved small and fast.
+fn solve_args<'a>(survey: &'a str, out: &'a str, extra: &[&'a str]) -> Vec<&'a str> {
+    let mut v = vec![
+        "solve",
+        survey,
+        "-o",
+        out,
+        "--atlas",
+        "32",
+        "--spp",
+        "2",
+        "--indirect",
+        "0",
+    ];
+    v.extend_from_slice(extra);
+    if !extra.contains(&"--iterations") {
+        v.extend_from_slice(&["--iterations", "1"]);
+    }
+    v
+}
+
+#[test]
+fn solve_resume_refuses_other_options_and_names_them() {
+    let d = tempfile::tempdir().unwrap();
+    let survey = fixture("survey");
+    let out = d.path().join("res");
+    igi().ok(&solve_args(s(&survey), s(&out), &[]));
+    let report = std::fs::read(out.join("report.json")).unwrap();
+    for (flag, value) in [
+        ("--spp", "3"),
+        ("--indirect", "1"),
+        ("--seed", "7"),
+        ("--initial", "0.3,0.3,0.3"),
+    ] {
+        let mut args = solve_args(s(&survey), s(&out), &[]);
+        match args.iter().position(|a| *a == flag) {
+            Some(i) => args[i + 1] = value,
+            None => args.extend([flag, value]),
+        }
+        let o = igi().run(&args);
+        assert!(
+            !o.status.success(),
+            "{flag} {value} was mixed into the old run"
+        );
+        let e = stderr(&o);
+        assert!(
+            e.contains(&format!("option {flag}")) && e.contains("--restart"),
+            "{e}"
+        );
+        assert_eq!(
+            std::fs::read(out.join("report.json")).unwrap(),
+            report,
+            "the old result is untouched"
+        );
+    }
+    // more iterations of the same run resume it; --restart starts afresh with other options
+    igi().ok(&solve_args(
+        s(&survey),
+        s(&out),
+        &["--iterations", "2", "--tolerance", "0"],
+    ));
+    let r: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(r["iterations"].as_array().unwrap().len(), 2);
+    igi().ok(&solve_args(
+        s(&survey),
+        s(&out),
+        &["--seed", "7", "--restart"],
+    ));
+    let r: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(
+        (
+            r["options"]["seed"].as_u64(),
+            r["iterations"].as_array().unwrap().len()
+        ),
+        (Some(7), 1)
+    );
+}
+
+#[test]
+fn a_second_shard_cannot_claim_a_folder_of_another() {
+    let d = tempfile::tempdir().unwrap();
+    let survey = fixture("survey");
+    let out = d.path().join("res");
+    igi().ok(&solve_args(s(&survey), s(&out), &["--parts", "ground"]));
+    let o = igi().run(&solve_args(s(&survey), s(&out), &["--parts", "block,wall"]));
+    let e = stderr(&o);
+    assert!(
+        !o.status.success()
+            && e.contains("shard")
+            && e.contains("ground")
+            && e.contains("block,wall"),
+        "{e}"
+    );
+    // its own folder works; the same shard again resumes
+    let out2 = d.path().join("res2");
+    igi().ok(&solve_args(
+        s(&survey),
+        s(&out2),
+        &["--parts", "wall,block"],
+    ));
+    igi().ok(&solve_args(
+        s(&survey),
+        s(&out2),
+        &["--parts", "block,wall"],
+    ));
+    let run: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out2.join("run.json")).unwrap()).unwrap();
+    assert_eq!(run["owns"], serde_json::json!(["block", "wall"]));
+}
+
+#[test]
+fn prepare_resume_refuses_another_source_mesh() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("site.igi");
+    let ground = fixture("outdoor/ground.ply");
+    let wall = fixture("outdoor/wall.ply");
+    igi().ok(&[
+        "prepare",
+        s(&ground),
+        "-o",
+        s(&out),
+        "--atlas",
+        "64",
+        "--voxel",
+        "20",
+    ]);
+    let man = std::fs::read(out.join("manifest.json")).unwrap();
+    let o = igi().run(&[
+        "prepare",
+        s(&wall),
+        "-o",
+        s(&out),
+        "--atlas",
+        "64",
+        "--voxel",
+        "20",
+    ]);
+    let e = stderr(&o);
+    assert!(
+        !o.status.success()
+            && e.contains("input mesh")
+            && e.contains("wall.ply")
+            && e.contains("--restart"),
+        "{e}"
+    );
+    assert_eq!(std::fs::read(out.join("manifest.json")).unwrap(), man);
+    let o = igi().run(&[
+        "prepare",
+        s(&ground),
+        "-o",
+        s(&out),
+        "--atlas",
+        "128",
+        "--voxel",
+        "20",
+    ]);
+    assert!(stderr(&o).contains("option --atlas"), "{}", stderr(&o));
+    igi().ok(&[
+        "prepare",
+        s(&wall),
+        "-o",
+        s(&out),
+        "--atlas",
+        "64",
+        "--voxel",
+        "20",
+        "--restart",
+    ]);
+    let m: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("manifest.json")).unwrap()).unwrap();
+    assert!(m["source"].as_str().unwrap().ends_with("wall.ply"));
+}
+
+#[test]
+fn prepare_checks_before_writing_anything() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("site.igi");
+    let ground = fixture("outdoor/ground.ply");
+    let o = igi().run(&["prepare", s(&ground), "-o", s(&out), "--atlas", "0"]);
+    assert_failed(&o, "atlas", "outside 8..=16384", d.path(), &[]);
+    // the corrected run then works
+    igi().ok(&[
+        "prepare",
+        s(&ground),
+        "-o",
+        s(&out),
+        "--atlas",
+        "64",
+        "--voxel",
+        "20",
+    ]);
+}
+
+#[test]
+fn solve_checks_before_writing_anything() {
+    let d = tempfile::tempdir().unwrap();
+    let survey = fixture("survey");
+    let out = d.path().join("res");
+    for (extra, problem) in [
+        (vec!["--spp", "0"], "--spp"),
+        (vec!["--parts", "ground,nosuch"], "no part named `nosuch`"),
+        (vec!["--iterations", "0"], "--iterations 0"),
+        (vec!["--initial", "0.5,nan,0.5"], "--initial"),
+    ] {
+        let o = igi().run(&solve_args(s(&survey), s(&out), &extra));
+        assert_failed(&o, problem, problem, d.path(), &[]);
+    }
+    // a bad BRDF CSV named by the survey
+    let sv = d.path().join("sv");
+    copy_dir(&survey, &sv);
+    std::fs::write(sv.join("bad.csv"), "material,theta_i\nx,notanumber\n").unwrap();
+    let toml = std::fs::read_to_string(sv.join("survey.toml")).unwrap()
+        + "\n[brdf]\nsamples = \"bad.csv\"\n";
+    std::fs::write(sv.join("survey.toml"), toml).unwrap();
+    let o = igi().run(&solve_args(s(&sv), s(&out), &[]));
+    assert!(
+        !o.status.success() && stderr(&o).contains("bad.csv"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(
+        !out.exists(),
+        "nothing written before the BRDF samples were read"
+    );
+}
+
+#[test]
+fn render_checks_the_output_before_rendering() {
+    let d = tempfile::tempdir().unwrap();
+    let scene = fixture("outdoor/scene.toml");
+    let cam = fixture("outdoor/camera.json");
+    let file = d.path().join("afile");
+    std::fs::write(&file, "x").unwrap();
+    let t0 = std::time::Instant::now();
+    let out = file.join("out.exr");
+    let o = igi().run(&[
+        "render",
+        s(&scene),
+        "--camera",
+        s(&cam),
+        "--spp",
+        "4096",
+        "-o",
+        s(&out),
+    ]);
+    let e = stderr(&o);
+    assert!(
+        !o.status.success() && e.contains("is a file, not a folder"),
+        "{e}"
+    );
+    assert!(
+        t0.elapsed().as_secs_f64() < 20.0,
+        "refused before rendering 4096 spp"
+    );
+    let missing = d.path().join("nosuch/out.exr");
+    let o = igi().run(&[
+        "render",
+        s(&scene),
+        "--camera",
+        s(&cam),
+        "--spp",
+        "4096",
+        "-o",
+        s(&missing),
+    ]);
+    let e = stderr(&o);
+    assert!(e.contains("output folder does not exist"), "{e}");
+    assert_eq!(e.matches("does not exist").count(), 1, "said once: {e}");
+}
+
+#[test]
+fn huge_camera_and_tiny_voxels_are_refused_before_allocating() {
+    let d = tempfile::tempdir().unwrap();
+    let cam = d.path().join("huge.json");
+    let text = std::fs::read_to_string(fixture("outdoor/camera.json")).unwrap();
+    let mut j: serde_json::Value = serde_json::from_str(&text).unwrap();
+    j["width"] = 100000.into();
+    j["height"] = 100000.into();
+    std::fs::write(&cam, j.to_string()).unwrap();
+    let out = d.path().join("x.exr");
+    let o = igi().run(&[
+        "render",
+        s(&fixture("outdoor/scene.toml")),
+        "--camera",
+        s(&cam),
+        "--spp",
+        "1",
+        "-o",
+        s(&out),
+    ]);
+    assert_failed(
+        &o,
+        "huge.json",
+        "beyond the limit",
+        d.path(),
+        std::slice::from_ref(&cam),
+    );
+
+    let site = d.path().join("site.igi");
+    let bunny = shared_data("meshes/stanford_bunny/reconstruction/bun_zipper_res4.ply");
+    let t0 = std::time::Instant::now();
+    let o = igi().run(&["prepare", s(&bunny), "-o", s(&site), "--voxel", "1e-6"]);
+    assert_failed(
+        &o,
+        "voxels",
+        "--max-memory",
+        d.path(),
+        std::slice::from_ref(&cam),
+    );
+    assert!(t0.elapsed().as_secs_f64() < 10.0);
+}
+
+#[test]
+fn a_solve_that_sees_nothing_is_an_error() {
+    let d = tempfile::tempdir().unwrap();
+    let sv = d.path().join("sv");
+    copy_dir(&fixture("survey"), &sv);
+    // every camera turned 180 degrees about its y axis: same centre, looking away from the site
+    for e in std::fs::read_dir(sv.join("cameras")).unwrap() {
+        let p = e.unwrap().path();
+        let mut j: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&p).unwrap()).unwrap();
+        for r in [0, 2] {
+            for c in 0..3 {
+                j["R"][r][c] = (-j["R"][r][c].as_f64().unwrap()).into();
+            }
+            j["t"][r] = (-j["t"][r].as_f64().unwrap()).into();
+        }
+        std::fs::write(&p, j.to_string()).unwrap();
+    }
+    let out = d.path().join("res");
+    let o = igi().run(&solve_args(s(&sv), s(&out), &[]));
+    let e = stderr(&o);
+    assert!(!o.status.success() && e.contains("0 observations"), "{e}");
+    assert!(!out.join("report.json").exists());
+}
+
+#[test]
+fn prepare_resume_removes_dead_temps_and_manifests_are_deterministic() {
+    let d = tempfile::tempdir().unwrap();
+    let bunny = shared_data("meshes/stanford_bunny/reconstruction/bun_zipper_res4.ply");
+    let args = |out: &Path| -> Vec<String> {
+        [
+            "prepare",
+            s(&bunny),
+            "-o",
+            s(out),
+            "--voxel",
+            "0.05",
+            "--atlas",
+            "128",
+        ]
+        .iter()
+        .map(|x| x.to_string())
+        .collect()
+    };
+    let run = |out: &Path| {
+        let a = args(out);
+        igi().ok(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    };
+    let (a, b) = (d.path().join("a"), d.path().join("b"));
+    run(&a);
+    run(&b);
+    let man = std::fs::read(a.join("manifest.json")).unwrap();
+    assert_eq!(
+        man,
+        std::fs::read(b.join("manifest.json")).unwrap(),
+        "two identical runs"
+    );
+    // a killed run's leftovers: a voxel unfinished, temp files of a dead process
+    let voxel = std::fs::read_dir(b.join("voxels"))
+        .unwrap()
+        .next()
+        .unwrap()
+        .unwrap()
+        .path();
+    std::fs::remove_file(voxel.join("done.json")).unwrap();
+    let dead: Vec<PathBuf> = [
+        ".level0.ply.tmp4194305-7.ply",
+        ".position.exr.tmp4194305-8.exr",
+    ]
+    .iter()
+    .map(|n| voxel.join(n))
+    .collect();
+    for p in &dead {
+        std::fs::write(p, "partial").unwrap();
+    }
+    std::fs::write(b.join(".manifest.json.tmp4194305-9.json"), "partial").unwrap();
+    run(&b);
+    assert!(
+        dead.iter().all(|p| !p.exists()) && !b.join(".manifest.json.tmp4194305-9.json").exists()
+    );
+    assert_eq!(
+        man,
+        std::fs::read(b.join("manifest.json")).unwrap(),
+        "resumed run"
+    );
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let e = e.unwrap();
+        let p = e.path();
+        if p.is_dir() {
+            copy_dir(&p, &to.join(e.file_name()));
+        } else {
+            std::fs::copy(&p, to.join(e.file_name())).unwrap();
+        }
+    }
+}
+
+#[test]
+fn render_refuses_black_lighting_and_warns_of_a_sunken_sun() {
+    let d = tempfile::tempdir().unwrap();
+    let src = fixture("outdoor");
+    let sc = d.path().join("sc");
+    copy_dir(&src, &sc);
+    let cam = sc.join("camera.json");
+    let out = d.path().join("o.exr");
+    let scene = sc.join("scene.toml");
+    let render = |extra: &[&str]| {
+        let mut a = vec![
+            "render",
+            s(&scene),
+            "--camera",
+            s(&cam),
+            "--spp",
+            "1",
+            "-o",
+            s(&out),
+        ];
+        a.extend_from_slice(extra);
+        igi().run(&a)
+    };
+    // an empty lighting file
+    std::fs::write(sc.join("empty.toml"), "# nothing\n").unwrap();
+    let o = render(&["--lighting", s(&sc.join("empty.toml"))]);
+    assert!(
+        !o.status.success()
+            && stderr(&o).contains("empty.toml")
+            && stderr(&o).contains("nothing would light"),
+        "{}",
+        stderr(&o)
+    );
+    // a sun of 1e30
+    std::fs::write(
+        sc.join("hot.toml"),
+        "[sun]\ndirection = [0, 0, 1]\nradiance = [1e30, 1e30, 1e30]\n",
+    )
+    .unwrap();
+    let o = render(&["--lighting", s(&sc.join("hot.toml"))]);
+    assert!(
+        !o.status.success() && stderr(&o).contains("hot.toml"),
+        "{}",
+        stderr(&o)
+    );
+    // a scene without lighting
+    let text = std::fs::read_to_string(sc.join("scene.toml"))
+        .unwrap()
+        .replace("lighting = \"lighting.toml\"", "");
+    std::fs::write(sc.join("dark.toml"), text).unwrap();
+    let o = igi().run(&[
+        "render",
+        s(&sc.join("dark.toml")),
+        "--camera",
+        s(&cam),
+        "--spp",
+        "1",
+        "-o",
+        s(&out),
+    ]);
+    assert!(
+        !o.status.success() && stderr(&o).contains("no lighting"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!out.exists());
+    // a sun below the horizon renders, with a warning
+    std::fs::write(
+        sc.join("night.toml"),
+        "[sun]\ndirection = [0, 1, -0.5]\nradiance = [1, 1, 1]\n",
+    )
+    .unwrap();
+    let o = render(&["--lighting", s(&sc.join("night.toml"))]);
+    assert!(
+        o.status.success() && stderr(&o).contains("warning: the sun is below the horizon"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+#[test]
+fn brdf_csv_with_a_bom_is_read_and_absurd_values_refused() {
+    let d = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(fixture("brdf/samples.csv")).unwrap();
+    let bom = d.path().join("bom.csv");
+    std::fs::write(&bom, format!("\u{feff}{text}")).unwrap();
+    let out = d.path().join("m.json");
+    igi().ok(&["brdf", "fit", s(&bom), "-o", s(&out)]);
+    assert!(out.is_file());
+    let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+    let last = lines.len() - 1;
+    let mut cells: Vec<String> = lines[last].split(',').map(str::to_string).collect();
+    let n = cells.len();
+    for c in &mut cells[n - 3..] {
+        *c = "1e30".into();
+    }
+    lines[last] = cells.join(",");
+    let hot = d.path().join("hot.csv");
+    std::fs::write(&hot, lines.join("\n")).unwrap();
+    let out2 = d.path().join("m2.json");
+    let o = igi().run(&["brdf", "fit", s(&hot), "-o", s(&out2)]);
+    assert_failed(
+        &o,
+        "hot.csv",
+        "beyond 1e6",
+        d.path(),
+        &[bom, out, hot.clone()],
+    );
+}
+
+#[test]
+fn messages_name_the_problem_not_the_type() {
+    let d = tempfile::tempdir().unwrap();
+    let sc = d.path().join("sc");
+    copy_dir(&fixture("outdoor"), &sc);
+    let text = std::fs::read_to_string(sc.join("scene.toml"))
+        .unwrap()
+        .replace("albedo = [0.3, 0.28, 0.25]", "albedo = 3");
+    std::fs::write(sc.join("bad.toml"), text).unwrap();
+    let out = d.path().join("o.exr");
+    let o = igi().run(&[
+        "render",
+        s(&sc.join("bad.toml")),
+        "--camera",
+        s(&sc.join("camera.json")),
+        "--spp",
+        "1",
+        "-o",
+        s(&out),
+    ]);
+    let e = stderr(&o);
+    assert!(
+        !o.status.success() && e.contains("bad.toml") && e.contains("three numbers [r, g, b]"),
+        "{e}"
+    );
+    assert!(!e.contains("AlbedoSpec") && !e.contains("untagged"), "{e}");
+    // a read-only folder is named as such, not as an encoder failure
+    let ro = d.path().join("ro");
+    std::fs::create_dir(&ro).unwrap();
+    let mut perm = std::fs::metadata(&ro).unwrap().permissions();
+    perm.set_readonly(true);
+    std::fs::set_permissions(&ro, perm).unwrap();
+    let o = igi().run(&[
+        "render",
+        s(&sc.join("scene.toml")),
+        "--camera",
+        s(&sc.join("camera.json")),
+        "--spp",
+        "1",
+        "-o",
+        s(&ro.join("o.exr")),
+    ]);
+    let e = stderr(&o);
+    let root = e.contains("cannot write") || o.status.success(); // root ignores permissions
+    assert!(root && !e.contains("cannot encode"), "{e}");
+}
+
+#[test]
+fn probe_refuses_overlapping_spheres_and_a_non_toml_output() {
+    let d = tempfile::tempdir().unwrap();
+    let f = fixture("board/sunny");
+    let (img, cam) = (f.join("board.exr"), f.join("camera.json"));
+    let out = d.path().join("out.exr");
+    let o = igi().run(&[
+        "probe",
+        s(&img),
+        "--camera",
+        s(&cam),
+        "--board",
+        s(&f.join("board.json")),
+        "-o",
+        s(&out),
+    ]);
+    assert_failed(&o, "out.exr", "(.toml)", d.path(), &[]);
+    // the diffuse sphere moved onto the mirror sphere
+    let text = std::fs::read_to_string(f.join("board.json")).unwrap();
+    let mut j: serde_json::Value = serde_json::from_str(&text).unwrap();
+    j["spheres"][2]["center"] = serde_json::json!([-0.08, -0.06, 0.6]);
+    let board = d.path().join("overlap.json");
+    std::fs::write(&board, j.to_string()).unwrap();
+    let toml = d.path().join("l.toml");
+    let o = igi().run(&[
+        "probe",
+        s(&img),
+        "--camera",
+        s(&cam),
+        "--board",
+        s(&board),
+        "-o",
+        s(&toml),
+    ]);
+    assert_failed(
+        &o,
+        "overlap.json",
+        "overlap",
+        d.path(),
+        std::slice::from_ref(&board),
+    );
+}
+
+#[test]
+fn a_sample_point_far_from_the_site_is_an_error() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("res");
+    igi().ok(&solve_args(s(&fixture("survey")), s(&out), &[]));
+    let pts = d.path().join("p.csv");
+    std::fs::write(&pts, "x,y,z,nx,ny,nz\n0,0,0,0,0,1\n1e9,0,0,0,0,1\n").unwrap();
+    let csv = d.path().join("a.csv");
+    let o = igi().run(&["sample", s(&out), "--points", s(&pts), "-o", s(&csv)]);
+    let e = stderr(&o);
+    assert!(
+        !o.status.success() && e.contains("point 2") && e.contains("from the nearest surface"),
+        "{e}"
+    );
+    assert!(!csv.exists());
+    std::fs::write(&pts, "\u{feff}x,y,z,nx,ny,nz\n0,0,0,0,0,1\n").unwrap();
+    igi().ok(&["sample", s(&out), "--points", s(&pts), "-o", s(&csv)]);
+}
