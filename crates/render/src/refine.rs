@@ -215,32 +215,35 @@ fn with_normals(found: &[(DVec2, DVec3)], w: usize, h: usize) -> Vec<EdgePoint> 
         .collect()
 }
 
-/// Log-luminance of the photograph (invalid pixels stay invalid), with an offset of 1 % of the
-/// mean luminance so that dark noise does not make edges.
-fn log_luminance(photo: &HdrImage) -> HdrImage {
+/// The photograph's luminance planes for edge matching (invalid pixels stay invalid): channel 0
+/// is the log-luminance, with an offset of 1 % of the mean luminance so that dark noise does not
+/// make edges, channels 1 and 2 the linear luminance (bilinear sampling of the linear plane keeps
+/// a blurred step symmetric, which the log plane does not).
+fn luminance_planes(photo: &HdrImage) -> HdrImage {
     let lum = |p: &[f32; 3]| 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
     let mean = photo.pixels.iter().map(lum).sum::<f32>() / photo.pixels.len().max(1) as f32;
     let eps = (0.01 * mean).max(1e-12);
     let mut out = photo.clone();
     for p in &mut out.pixels {
-        let v = (lum(p).max(0.0) + eps).ln();
-        *p = [v; 3];
+        let l = lum(p).max(0.0);
+        *p = [(l + eps).ln(), l, l];
     }
     out
 }
 
 /// The strongest log-luminance step along `n` from `p` within `range` px, as a signed offset
-/// along `n` located to sub-pixel by a parabola through the derivative's peak.
+/// along `n`. The step is chosen on the log-luminance derivative (so that contrast, not
+/// brightness, decides) and located to sub-pixel by [`step_position`] on linear luminance.
 fn match_edge(g: &HdrImage, p: DVec2, n: DVec2, range: f64, min_contrast: f32) -> Option<f64> {
     let steps = (2.0 * range).ceil() as i32; // half-pixel samples each side
     let sample = |k: i32| {
         let q = p + n * (0.5 * k as f64);
-        g.bilinear(q.x as f32, q.y as f32).map(|v| v[0])
+        g.bilinear(q.x as f32, q.y as f32)
     };
     let vals: Vec<f32> = (-steps - 1..=steps + 1)
-        .map(sample)
+        .map(|k| sample(k).map(|v| v[0]))
         .collect::<Option<_>>()?;
-    // derivative over one pixel, centred on sample k (index k + steps + 1 in vals)
+    // derivative over one pixel, centred on sample k - steps (index k + 1 in vals)
     let d: Vec<f32> = (1..vals.len() - 1)
         .map(|i| (vals[i + 1] - vals[i - 1]).abs())
         .collect();
@@ -248,14 +251,33 @@ fn match_edge(g: &HdrImage, p: DVec2, n: DVec2, range: f64, min_contrast: f32) -
     if peak < min_contrast || k == 0 || k + 1 == d.len() {
         return None;
     }
-    let (a, b) = (d[k - 1] as f64, d[k + 1] as f64);
-    let denom = a - 2.0 * peak as f64 + b;
-    let delta = if denom < 0.0 {
-        (0.5 * (a - b) / denom).clamp(-0.5, 0.5)
-    } else {
-        0.0
-    };
-    Some(0.5 * (k as f64 - steps as f64 + delta))
+    let centre = k as i32 - steps;
+    let linear: Vec<f64> = (centre - STEP_HALF_WINDOW..=centre + STEP_HALF_WINDOW)
+        .map(|j| sample(j).map(|v| v[1] as f64))
+        .collect::<Option<_>>()?;
+    let s = 0.5 * centre as f64 + step_position(&linear)?;
+    // the moment must agree with the derivative peak; otherwise the window held a second edge
+    ((s - 0.5 * centre as f64).abs() <= 1.0).then_some(s)
+}
+
+/// Half-pixel samples each side of a derivative peak used to locate the step (2 px: wide
+/// enough for a box-filtered pixel plus bilinear interpolation at any angle).
+const STEP_HALF_WINDOW: i32 = 4;
+
+/// Position of a blurred step in `u` (samples 0.5 px apart, centred on the window's middle),
+/// relative to the middle, in pixels: for any symmetric blur of a step from `u[0]` to
+/// `u[last]`, the area under the normalised profile is the distance from the step to the window
+/// end (first moment of the derivative; trapezoidal rule, exact for the bilinear profile of a
+/// box-filtered axis-aligned step).
+fn step_position(u: &[f64]) -> Option<f64> {
+    let (lo, hi) = (u[0], u[u.len() - 1]);
+    if !((hi - lo).abs() > 1e-12) {
+        return None;
+    }
+    let f: Vec<f64> = u.iter().map(|v| (v - lo) / (hi - lo)).collect();
+    let area = 0.5 * (f.iter().sum::<f64>() - 0.5 * (f[0] + f[f.len() - 1]));
+    let half_len = 0.25 * (u.len() - 1) as f64;
+    Some(half_len - area)
 }
 
 /// The pose after a small motion in the camera frame: `x' = exp(w) x_cam + v`.
@@ -353,7 +375,7 @@ pub fn refine_pose(
             camera: (camera.width, camera.height),
         });
     }
-    let g = log_luminance(photo);
+    let g = luminance_planes(photo);
     let mut cam = camera.clone();
     let mut edges = model_edges(rt, &cam, opts.crease_deg);
     let initial: Vec<DVec3> = edges.iter().map(|e| e.world).collect();
@@ -436,7 +458,7 @@ mod tests {
                     img.set(x, y, [0.2 + 0.8 * cover; 3]);
                 }
             }
-            let g = log_luminance(&img);
+            let g = luminance_planes(&img);
             for (p, n) in [
                 (DVec2::new(15.0, 20.0), DVec2::X),
                 (DVec2::new(21.0, 20.0), -DVec2::X),
@@ -451,7 +473,7 @@ mod tests {
                 );
             }
         }
-        let flat = log_luminance(&HdrImage::new(w, h));
+        let flat = luminance_planes(&HdrImage::new(w, h));
         assert!(match_edge(&flat, DVec2::new(20.0, 20.0), DVec2::X, 6.0, 0.04).is_none());
     }
 }
