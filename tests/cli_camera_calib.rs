@@ -123,7 +123,7 @@ fn refine_recovers_a_perturbed_pose_from_a_photo_of_the_model() {
     use igi_reflect::synth::{ground_and_block, look_at_camera, scene_with_albedo, truth_atlas};
     let cli = Cli::new(env!("CARGO_BIN_EXE_igi"));
     let tmp = tempfile::tempdir().unwrap();
-    let parts = build_parts(ground_and_block(), 16).unwrap();
+    let parts = build_parts(ground_and_block(), 32).unwrap();
     let atlases: Vec<Vec<Vec3>> = parts
         .iter()
         .map(|p| truth_atlas(p, |x| Vec3::new(0.5, 0.45, 0.3 + 0.05 * x.z)))

@@ -241,13 +241,20 @@ fn parse_corners(text: &str) -> anyhow::Result<[DVec2; 4]> {
         .collect::<Result<_, _>>()
         .ok()
         .filter(|v: &Vec<f64>| v.len() == 8 && v.iter().all(|x| x.is_finite()))
-        .with_context(|| format!("--corners {text:?}: expected 8 finite numbers x,y,x,y,x,y,x,y"))?;
+        .with_context(|| {
+            format!("--corners {text:?}: expected 8 finite numbers x,y,x,y,x,y,x,y")
+        })?;
     Ok([0, 1, 2, 3].map(|k| DVec2::new(v[2 * k], v[2 * k + 1])))
 }
 
 fn radiometry(a: RadiometryArgs, ctx: &Ctx) -> anyhow::Result<()> {
     use igi_imaging::radiometry::{fit_radiometry, RadiometryInputs};
-    if a.output.extension().map(|e| e.to_string_lossy().to_lowercase()).as_deref() != Some("json") {
+    if a.output
+        .extension()
+        .map(|e| e.to_string_lossy().to_lowercase())
+        .as_deref()
+        != Some("json")
+    {
         bail!("{}: output must be .json", a.output.display());
     }
     if a.flat.is_empty() && a.checker.is_none() {
@@ -275,13 +282,22 @@ fn radiometry(a: RadiometryArgs, ctx: &Ctx) -> anyhow::Result<()> {
     pb.finish_and_clear();
     let size = |img: &igi_imaging::HdrImage| (img.width, img.height);
     let first = flats.first().or(checker.as_ref()).map(size);
-    for (p, img) in a.flat.iter().zip(&flats).chain(a.checker.iter().zip(&checker)) {
+    for (p, img) in a
+        .flat
+        .iter()
+        .zip(&flats)
+        .chain(a.checker.iter().zip(&checker))
+    {
         if Some(size(img)) != first {
             let (w, h) = first.unwrap_or_default();
             bail!("{}: image is {}x{} but the first is {w}x{h}; all must come from the same camera setting", p.display(), img.width, img.height);
         }
     }
-    let inputs = RadiometryInputs { flats: &flats, checker: checker.as_ref().zip(corners), white: a.white };
+    let inputs = RadiometryInputs {
+        flats: &flats,
+        checker: checker.as_ref().zip(corners),
+        white: a.white,
+    };
     let cal = fit_radiometry(&inputs).context("fitting the camera radiometry")?;
     cal.save(&a.output)?;
     if a.json {
@@ -299,7 +315,12 @@ fn radiometry(a: RadiometryArgs, ctx: &Ctx) -> anyhow::Result<()> {
 
 fn refine(a: RefineArgs) -> anyhow::Result<()> {
     use igi_render::refine::{refine_pose, rt_scene_of, RefineOptions};
-    if a.output.extension().map(|e| e.to_string_lossy().to_lowercase()).as_deref() != Some("json") {
+    if a.output
+        .extension()
+        .map(|e| e.to_string_lossy().to_lowercase())
+        .as_deref()
+        != Some("json")
+    {
         bail!("{}: output must be .json", a.output.display());
     }
     if !(a.search > 0.0 && a.search.is_finite()) {
@@ -308,12 +329,28 @@ fn refine(a: RefineArgs) -> anyhow::Result<()> {
     let cam = Camera::load(&a.camera)?;
     let photo = read_image(&a.photo)?;
     if photo.width != cam.width as usize || photo.height != cam.height as usize {
-        bail!("{}: image is {}x{} but its camera {} says {}x{}", a.photo.display(), photo.width, photo.height, a.camera.display(), cam.width, cam.height);
+        bail!(
+            "{}: image is {}x{} but its camera {} says {}x{}",
+            a.photo.display(),
+            photo.width,
+            photo.height,
+            a.camera.display(),
+            cam.width,
+            cam.height
+        );
     }
-    let meshes = a.mesh.iter().map(|m| igi_geometry::read_mesh(m)).collect::<Result<Vec<_>, _>>()?;
+    let meshes = a
+        .mesh
+        .iter()
+        .map(|m| igi_geometry::read_mesh(m))
+        .collect::<Result<Vec<_>, _>>()?;
     let rt = rt_scene_of(&meshes)?;
-    let opts = RefineOptions { search_px: a.search, ..RefineOptions::default() };
-    let (out, report) = refine_pose(&photo, &cam, &rt, &opts).with_context(|| format!("refining the pose of {}", a.photo.display()))?;
+    let opts = RefineOptions {
+        search_px: a.search,
+        ..RefineOptions::default()
+    };
+    let (out, report) = refine_pose(&photo, &cam, &rt, &opts)
+        .with_context(|| format!("refining the pose of {}", a.photo.display()))?;
     out.save(&a.output)?;
     if a.json {
         crate::report::print_json(&serde_json::json!({

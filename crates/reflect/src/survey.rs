@@ -166,7 +166,10 @@ impl Survey {
             return Err(ReflectError::file(&file, "no [[photo]] entries"));
         }
         let default_radiometry = match &f.radiometry {
-            Some(r) => Some(radiometry_file(exists(&r.camera, "camera radiometry file")?)?),
+            Some(r) => Some(radiometry_file(exists(
+                &r.camera,
+                "camera radiometry file",
+            )?)?),
             None => None,
         };
         let mut photos = Vec::new();

@@ -119,7 +119,13 @@ impl LightingSpec {
 /// 1.2 x 1.2 x 2 m block standing on it at the origin, named `ground` and `block`.
 pub fn ground_and_block() -> Vec<(String, TriMesh)> {
     let (size, n) = (8.0f32, 4usize);
-    let mut ground = TriMesh { positions: vec![], normals: Some(vec![]), uvs: None, colors: None, indices: vec![] };
+    let mut ground = TriMesh {
+        positions: vec![],
+        normals: Some(vec![]),
+        uvs: None,
+        colors: None,
+        indices: vec![],
+    };
     for j in 0..=n {
         for i in 0..=n {
             let f = |k: usize| -size / 2.0 + size * k as f32 / n as f32;
@@ -135,7 +141,13 @@ pub fn ground_and_block() -> Vec<(String, TriMesh)> {
         }
     }
     let (c, h) = (Vec3::new(0.0, 0.0, 1.0), Vec3::new(0.6, 0.6, 1.0));
-    let mut block = TriMesh { positions: vec![], normals: Some(vec![]), uvs: None, colors: None, indices: vec![] };
+    let mut block = TriMesh {
+        positions: vec![],
+        normals: Some(vec![]),
+        uvs: None,
+        colors: None,
+        indices: vec![],
+    };
     for (nrm, u, v) in [
         (Vec3::X, Vec3::Y, Vec3::Z),
         (-Vec3::X, Vec3::Z, Vec3::Y),
@@ -146,10 +158,18 @@ pub fn ground_and_block() -> Vec<(String, TriMesh)> {
     ] {
         let base = block.positions.len() as u32;
         for (su, sv) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
-            block.positions.push((c + (nrm + u * su + v * sv) * h).to_array());
-            block.normals.as_mut().expect("normals").push(nrm.to_array());
+            block
+                .positions
+                .push((c + (nrm + u * su + v * sv) * h).to_array());
+            block
+                .normals
+                .as_mut()
+                .expect("normals")
+                .push(nrm.to_array());
         }
-        block.indices.extend([[base, base + 1, base + 2], [base, base + 2, base + 3]]);
+        block
+            .indices
+            .extend([[base, base + 1, base + 2], [base, base + 2, base + 3]]);
     }
     vec![("ground".to_string(), ground), ("block".to_string(), block)]
 }

@@ -46,9 +46,16 @@ pub enum RenderError {
     #[error("{0}")]
     Invalid(String),
     #[error("photo is {}x{} but its camera is {}x{}", photo.0, photo.1, camera.0, camera.1)]
-    PhotoSize { photo: (usize, usize), camera: (u32, u32) },
+    PhotoSize {
+        photo: (usize, usize),
+        camera: (u32, u32),
+    },
     #[error("pose refinement: only {matched} model edge points match an edge of the photo ({found} found); is the model in view and the pose within {search_px} px?")]
-    TooFewEdgeMatches { matched: usize, found: usize, search_px: f64 },
+    TooFewEdgeMatches {
+        matched: usize,
+        found: usize,
+        search_px: f64,
+    },
 }
 
 #[cfg(test)]
