@@ -36,6 +36,11 @@ pub struct RefineArgs {
     /// pose error in pixels).
     #[arg(long, default_value_t = 10.0)]
     search: f64,
+    /// Also match creases (faces meeting at an angle); by default only silhouettes and
+    /// occlusion boundaries are matched, since shading at creases (ambient occlusion, contact
+    /// shadows) moves the photographed edge.
+    #[arg(long)]
+    creases: bool,
     #[arg(long)]
     json: bool,
     /// Output camera JSON (input intrinsics, refined pose).
@@ -347,6 +352,7 @@ fn refine(a: RefineArgs) -> anyhow::Result<()> {
     let rt = rt_scene_of(&meshes)?;
     let opts = RefineOptions {
         search_px: a.search,
+        creases: a.creases,
         ..RefineOptions::default()
     };
     let (out, report) = refine_pose(&photo, &cam, &rt, &opts)
