@@ -102,64 +102,77 @@ fn same_surface(a: &Surf, b: &Surf, crease_cos: f64) -> bool {
     a.n.dot(b.n).abs() > crease_cos && a.n.dot(d).abs() <= 0.05 * d.length() + 1e-5 * a.t
 }
 
-/// The edge between pixel centres `pa` and `pb` (which see different things), located by
-/// bisection: the 2D boundary position and the 3D point on the front surface next to it.
-fn locate_edge(
-    rt: &RtScene,
-    cam: &Camera,
-    pa: DVec2,
-    a: Option<Surf>,
-    pb: DVec2,
-    b: Option<Surf>,
+/// Ray casting of the model through one camera, for locating its edges.
+struct EdgeCaster<'a> {
+    rt: &'a RtScene,
+    cam: &'a Camera,
     crease_cos: f64,
     creases: bool,
-) -> Option<(DVec2, DVec3)> {
-    let (front, p0, p1) = match (a, b) {
-        (None, None) => return None,
-        (Some(a), None) => (a, pa, pb),
-        (None, Some(b)) => (b, pb, pa),
-        (Some(a), Some(b)) => {
-            if same_surface(&a, &b, crease_cos) && same_surface(&b, &a, crease_cos) {
-                return None;
+}
+
+impl EdgeCaster<'_> {
+    /// The edge between pixel centres `pa` and `pb` (which see `a` and `b`), located by
+    /// bisection: the 2D boundary position and the 3D point on the front surface next to it;
+    /// `None` where there is no edge (or a crease, unless creases are wanted).
+    fn locate(
+        &self,
+        (pa, a): (DVec2, Option<Surf>),
+        (pb, b): (DVec2, Option<Surf>),
+    ) -> Option<(DVec2, DVec3)> {
+        let crease_cos = self.crease_cos;
+        let (front, p0, p1) = match (a, b) {
+            (None, None) => return None,
+            (Some(a), None) => (a, pa, pb),
+            (None, Some(b)) => (b, pb, pa),
+            (Some(a), Some(b)) => {
+                if same_surface(&a, &b, crease_cos) && same_surface(&b, &a, crease_cos) {
+                    return None;
+                }
+                if b.t < a.t * (1.0 - 1e-3) {
+                    (b, pb, pa)
+                } else {
+                    (a, pa, pb)
+                }
             }
-            if b.t < a.t * (1.0 - 1e-3) {
-                (b, pb, pa)
-            } else {
-                (a, pa, pb)
+        };
+        let (mut lo, mut hi, mut last, mut beyond) = (0.0f64, 1.0f64, front, None);
+        for _ in 0..12 {
+            let m = 0.5 * (lo + hi);
+            match cast(self.rt, self.cam, p0 + (p1 - p0) * m) {
+                Some(s) if same_surface(&front, &s, crease_cos) => {
+                    lo = m;
+                    last = s;
+                }
+                s => {
+                    hi = m;
+                    beyond = s;
+                }
             }
         }
-    };
-    let (mut lo, mut hi, mut last, mut beyond) = (0.0f64, 1.0f64, front, None);
-    for _ in 0..12 {
-        let m = 0.5 * (lo + hi);
-        match cast(rt, cam, p0 + (p1 - p0) * m) {
-            Some(s) if same_surface(&front, &s, crease_cos) => {
-                lo = m;
-                last = s;
-            }
-            s => {
-                hi = m;
-                beyond = s;
-            }
+        // a crease: the surface beyond the boundary starts where the front one ends (no
+        // depth jump)
+        let crease = beyond.is_some_and(|s| (s.t - last.t).abs() <= 0.01 * last.t);
+        if crease && !self.creases {
+            return None;
         }
+        Some((p0 + (p1 - p0) * (0.5 * (lo + hi)), last.p))
     }
-    // a crease: the surface beyond the boundary starts where the front one ends (no depth jump)
-    let crease = beyond.is_some_and(|s| (s.t - last.t).abs() <= 0.01 * last.t);
-    if crease && !creases {
-        return None;
-    }
-    Some((p0 + (p1 - p0) * (0.5 * (lo + hi)), last.p))
 }
 
 /// All model edge points seen by `cam`, with their image normals.
 fn model_edges(rt: &RtScene, cam: &Camera, opts: &RefineOptions) -> Vec<EdgePoint> {
     let (w, h) = (cam.width as usize, cam.height as usize);
-    let crease_cos = opts.crease_deg.to_radians().cos();
+    let caster = EdgeCaster {
+        rt,
+        cam,
+        crease_cos: opts.crease_deg.to_radians().cos(),
+        creases: opts.creases,
+    };
     let surf: Vec<Option<Surf>> = (0..w * h)
         .into_par_iter()
         .map(|i| cast(rt, cam, DVec2::new((i % w) as f64, (i / w) as f64)))
         .collect();
-    let surf = &surf;
+    let (surf, caster) = (&surf, &caster);
     let found: Vec<(DVec2, DVec3)> = (0..w * h)
         .into_par_iter()
         .flat_map_iter(|i| {
@@ -170,9 +183,7 @@ fn model_edges(rt: &RtScene, cam: &Camera, opts: &RefineOptions) -> Vec<EdgePoin
             [right, down]
                 .into_iter()
                 .flatten()
-                .filter_map(move |(pb, b)| {
-                    locate_edge(rt, cam, pa, surf[i], pb, b, crease_cos, opts.creases)
-                })
+                .filter_map(move |b| caster.locate((pa, surf[i]), b))
                 .collect::<Vec<_>>()
         })
         .collect();
