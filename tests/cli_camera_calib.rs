@@ -200,7 +200,17 @@ fn refine_recovers_a_perturbed_pose_from_a_photo_of_the_model() {
     let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let refined = Camera::load(&out).unwrap();
     let after = reprojection_rms(&truth, &refined, &points).unwrap();
-    eprintln!("refine: {before:.2} px -> {after:.3} px; {report}");
+    let seen = igi_imaging::camera::points_in_frame(&truth, &points);
+    let (before_seen, after_seen) = (
+        reprojection_rms(&truth, &rough, &seen).unwrap(),
+        reprojection_rms(&truth, &refined, &seen).unwrap(),
+    );
+    eprintln!(
+        "refine: {before:.2} px -> {after:.3} px over {} texels in front, \
+         {before_seen:.2} px -> {after_seen:.3} px over {} in frame; {report}",
+        points.len(),
+        seen.len()
+    );
     assert!((before - 3.0).abs() < 0.05, "perturbation {before} px");
     assert!(
         after <= 0.5,

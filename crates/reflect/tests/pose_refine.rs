@@ -5,7 +5,7 @@
 //! and the refined cameras.
 
 use glam::{DMat3, DVec3, Vec3};
-use igi_imaging::camera::reprojection_rms;
+use igi_imaging::camera::{points_in_frame, reprojection_rms};
 use igi_imaging::{Camera, WorldToCamera};
 use igi_reflect::parts::build_parts;
 use igi_reflect::solver::{truth_from_scene, NoProgress};
@@ -46,21 +46,6 @@ fn perturbed(cam: &Camera, points: &[DVec3], target_px: f64, seed: u64) -> Camer
         s *= target_px / reprojection_rms(cam, &at(s), points).unwrap();
     }
     at(s)
-}
-
-/// The points that `cam` projects into its image: the reprojection error of a photograph is
-/// measured where the photograph sees the site (points outside the frame, e.g. ground at the
-/// camera's feet, constrain nothing the photo shows and inflate the figure).
-fn in_frame(cam: &Camera, points: &[DVec3]) -> Vec<DVec3> {
-    let (w, h) = (cam.width as f64, cam.height as f64);
-    points
-        .iter()
-        .copied()
-        .filter(|p| {
-            cam.project(*p)
-                .is_some_and(|q| q.x >= -0.5 && q.y >= -0.5 && q.x < w - 0.5 && q.y < h - 0.5)
-        })
-        .collect()
 }
 
 fn solve_mae(
@@ -143,7 +128,7 @@ fn refinement_from_2_to_5_px_reaches_half_a_pixel_and_the_albedo_of_true_poses()
                 .unwrap()
                 .mean;
             let target = 2.0 + 3.0 * i as f64 / 5.0; // 2 to 5 px
-            let seen = in_frame(&camera, &surface);
+            let seen = points_in_frame(&camera, &surface);
             let rough = perturbed(&camera, &seen, target, 100 + i as u64);
             let (refined, report) =
                 refine_pose(&image, &rough, &rt, &RefineOptions::default()).unwrap();
