@@ -13,6 +13,62 @@ pub enum CameraCmd {
     Pose(PoseArgs),
     /// Intrinsics from checkerboard photographs (Zhang); needs --features opencv.
     Calibrate(CalibrateArgs),
+    /// Radiometric calibration: lens falloff from flat fields, colour matrix from a
+    /// photographed ColorChecker Classic; writes the camera radiometry file (JSON) that a
+    /// survey's `[radiometry] camera = ...` applies to every photo.
+    Radiometry(RadiometryArgs),
+    /// Refine a camera pose (e.g. from PnP) by matching the model's edges and silhouette to
+    /// the photograph's; the intrinsics are kept.
+    Refine(RefineArgs),
+}
+
+#[derive(clap::Args, Debug)]
+pub struct RefineArgs {
+    /// The photograph (linear HDR, the camera's size).
+    photo: PathBuf,
+    /// The camera to refine (its pose is the starting point).
+    #[arg(long)]
+    camera: PathBuf,
+    /// The model (PLY or OBJ); repeat for several meshes.
+    #[arg(long, required = true)]
+    mesh: Vec<PathBuf>,
+    /// Initial search range along each model edge's normal, pixels (about twice the expected
+    /// pose error in pixels).
+    #[arg(long, default_value_t = 10.0)]
+    search: f64,
+    /// Also match creases (faces meeting at an angle); by default only silhouettes and
+    /// occlusion boundaries are matched, since shading at creases (ambient occlusion, contact
+    /// shadows) moves the photographed edge.
+    #[arg(long)]
+    creases: bool,
+    #[arg(long)]
+    json: bool,
+    /// Output camera JSON (input intrinsics, refined pose).
+    #[arg(short, long)]
+    output: PathBuf,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct RadiometryArgs {
+    /// Flat-field photographs (linear HDR; same size): an evenly lit, featureless target.
+    #[arg(long, num_args = 1..)]
+    flat: Vec<PathBuf>,
+    /// Photograph of a ColorChecker Classic (24 patches, linear HDR, same size as the flats).
+    #[arg(long)]
+    checker: Option<PathBuf>,
+    /// The checker's patch-grid outer corners in pixels, x,y four times: top-left (dark skin),
+    /// top-right (bluish green), bottom-right (black), bottom-left (white).
+    #[arg(long, allow_hyphen_values = true)]
+    corners: Option<String>,
+    /// Radiance of a perfect white diffuser under the checker's light, for an absolute
+    /// calibration; without it the matrix keeps the grey patches' luminance.
+    #[arg(long)]
+    white: Option<f64>,
+    #[arg(long)]
+    json: bool,
+    /// Output camera radiometry file (.json).
+    #[arg(short, long)]
+    output: PathBuf,
 }
 
 #[derive(clap::Args, Debug)]
@@ -67,6 +123,8 @@ pub fn run(c: CameraCmd, ctx: &Ctx) -> anyhow::Result<()> {
         CameraCmd::Undistort(a) => undistort(a),
         CameraCmd::Pose(a) => pose(a),
         CameraCmd::Calibrate(a) => calibrate(a, ctx),
+        CameraCmd::Radiometry(a) => radiometry(a, ctx),
+        CameraCmd::Refine(a) => refine(a),
     }
 }
 
@@ -176,6 +234,135 @@ fn calibrate(a: CalibrateArgs, ctx: &Ctx) -> anyhow::Result<()> {
             "rms_px": cal.rms_px,
             "fx": i.fx, "fy": i.fy, "cx": i.cx, "cy": i.cy,
             "dist": i.dist.to_array(),
+        }))?;
+    }
+    Ok(())
+}
+
+fn parse_corners(text: &str) -> anyhow::Result<[DVec2; 4]> {
+    let v: Vec<f64> = text
+        .split(',')
+        .map(|s| s.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .ok()
+        .filter(|v: &Vec<f64>| v.len() == 8 && v.iter().all(|x| x.is_finite()))
+        .with_context(|| {
+            format!("--corners {text:?}: expected 8 finite numbers x,y,x,y,x,y,x,y")
+        })?;
+    Ok([0, 1, 2, 3].map(|k| DVec2::new(v[2 * k], v[2 * k + 1])))
+}
+
+fn radiometry(a: RadiometryArgs, ctx: &Ctx) -> anyhow::Result<()> {
+    use igi_imaging::radiometry::{fit_radiometry, RadiometryInputs};
+    if a.output
+        .extension()
+        .map(|e| e.to_string_lossy().to_lowercase())
+        .as_deref()
+        != Some("json")
+    {
+        bail!("{}: output must be .json", a.output.display());
+    }
+    if a.flat.is_empty() && a.checker.is_none() {
+        bail!("give flat fields (--flat), a colour checker (--checker with --corners), or both");
+    }
+    let corners = match (&a.checker, &a.corners) {
+        (Some(_), Some(c)) => Some(parse_corners(c)?),
+        (Some(c), None) => bail!(
+            "{}: give the checker's four corners with --corners (automatic detection with OpenCV's mcc module is not built)",
+            c.display()
+        ),
+        (None, Some(_)) => bail!("--corners needs --checker"),
+        (None, None) => None,
+    };
+    let pb = ctx.progress(a.flat.len() as u64 + a.checker.is_some() as u64, "reading");
+    let mut flats = Vec::new();
+    for p in &a.flat {
+        flats.push(read_image(p)?);
+        pb.inc(1);
+    }
+    let checker = match &a.checker {
+        Some(p) => Some(read_image(p)?),
+        None => None,
+    };
+    pb.finish_and_clear();
+    let size = |img: &igi_imaging::HdrImage| (img.width, img.height);
+    let first = flats.first().or(checker.as_ref()).map(size);
+    for (p, img) in a
+        .flat
+        .iter()
+        .zip(&flats)
+        .chain(a.checker.iter().zip(&checker))
+    {
+        if Some(size(img)) != first {
+            let (w, h) = first.unwrap_or_default();
+            bail!("{}: image is {}x{} but the first is {w}x{h}; all must come from the same camera setting", p.display(), img.width, img.height);
+        }
+    }
+    let inputs = RadiometryInputs {
+        flats: &flats,
+        checker: checker.as_ref().zip(corners),
+        white: a.white,
+    };
+    let cal = fit_radiometry(&inputs).context("fitting the camera radiometry")?;
+    cal.save(&a.output)?;
+    if a.json {
+        crate::report::print_json(&serde_json::json!({
+            "output": a.output,
+            "width": cal.width,
+            "height": cal.height,
+            "falloff": cal.falloff,
+            "color_matrix": cal.color_matrix,
+            "fit": cal.fit,
+        }))?;
+    }
+    Ok(())
+}
+
+fn refine(a: RefineArgs) -> anyhow::Result<()> {
+    use igi_render::refine::{refine_pose, rt_scene_of, RefineOptions};
+    if a.output
+        .extension()
+        .map(|e| e.to_string_lossy().to_lowercase())
+        .as_deref()
+        != Some("json")
+    {
+        bail!("{}: output must be .json", a.output.display());
+    }
+    if !(a.search > 0.0 && a.search.is_finite()) {
+        bail!("--search {}: must be a positive number of pixels", a.search);
+    }
+    let cam = Camera::load(&a.camera)?;
+    let photo = read_image(&a.photo)?;
+    if photo.width != cam.width as usize || photo.height != cam.height as usize {
+        bail!(
+            "{}: image is {}x{} but its camera {} says {}x{}",
+            a.photo.display(),
+            photo.width,
+            photo.height,
+            a.camera.display(),
+            cam.width,
+            cam.height
+        );
+    }
+    let meshes = a
+        .mesh
+        .iter()
+        .map(|m| igi_geometry::read_mesh(m))
+        .collect::<Result<Vec<_>, _>>()?;
+    let rt = rt_scene_of(&meshes)?;
+    let opts = RefineOptions {
+        search_px: a.search,
+        creases: a.creases,
+        ..RefineOptions::default()
+    };
+    let (out, report) = refine_pose(&photo, &cam, &rt, &opts)
+        .with_context(|| format!("refining the pose of {}", a.photo.display()))?;
+    out.save(&a.output)?;
+    if a.json {
+        crate::report::print_json(&serde_json::json!({
+            "output": a.output,
+            "report": report,
+            "center_world": out.center_world().to_array(),
         }))?;
     }
     Ok(())

@@ -194,6 +194,21 @@ pub fn reprojection_rms(a: &Camera, b: &Camera, points: &[DVec3]) -> Option<f64>
     (!d2.is_empty()).then(|| (d2.iter().sum::<f64>() / d2.len() as f64).sqrt())
 }
 
+/// The points that `cam` projects into its image (pixel centres at integers, so the frame is
+/// [-0.5, width - 0.5) x [-0.5, height - 0.5)): where a photograph's reprojection error is
+/// measured, since points outside the frame constrain nothing the photo shows.
+pub fn points_in_frame(cam: &Camera, points: &[DVec3]) -> Vec<DVec3> {
+    let (w, h) = (cam.width as f64 - 0.5, cam.height as f64 - 0.5);
+    points
+        .iter()
+        .copied()
+        .filter(|p| {
+            cam.project(*p)
+                .is_some_and(|q| q.x >= -0.5 && q.y >= -0.5 && q.x < w && q.y < h)
+        })
+        .collect()
+}
+
 /// A calibrated camera with its pose.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Camera {
@@ -507,6 +522,41 @@ mod tests {
                 r,
                 t: DVec3::new(0.1, -0.2, 3.0),
             },
+        }
+    }
+
+    /// Points are kept exactly when they project inside the frame: on the pixel grid's edge,
+    /// just outside it, behind the camera.
+    #[test]
+    fn points_in_frame_keeps_what_the_image_shows() {
+        let cam = test_camera();
+        let c2w = cam.pose.inverse();
+        let at = |u: f64, v: f64, depth: f64| {
+            let (o, d) = cam.pixel_ray(u, v);
+            let z = cam.pose.apply(o + d).z - cam.pose.apply(o).z; // depth per unit along d
+            o + d * (depth / z)
+        };
+        let inside = [
+            at(-0.49, 0.0, 3.0),
+            at(639.49, 479.49, 10.0),
+            at(320.0, 240.0, 1.0),
+        ];
+        let outside = [
+            at(-0.51, 100.0, 3.0),
+            at(100.0, 479.51, 3.0),
+            at(700.0, 240.0, 2.0),
+        ];
+        let behind = c2w.apply(DVec3::new(0.0, 0.0, -2.0));
+        let all: Vec<DVec3> = inside
+            .iter()
+            .chain(&outside)
+            .copied()
+            .chain([behind])
+            .collect();
+        let kept = points_in_frame(&cam, &all);
+        assert_eq!(kept.len(), 3, "{kept:?}");
+        for (k, p) in inside.iter().enumerate() {
+            assert!(kept[k].distance(*p) < 1e-12);
         }
     }
 

@@ -28,6 +28,9 @@ pub struct PhotoSpec {
     pub image: PathBuf,
     pub camera: PathBuf,
     pub lighting: LightingSource,
+    /// The camera radiometry file (`igi camera radiometry`) applied to the image on load: the
+    /// photo's own `radiometry = ...`, else the survey's `[radiometry] camera = ...`, else none.
+    pub radiometry: Option<PathBuf>,
 }
 
 /// A parsed survey: everything is checked to exist, nothing heavy is loaded yet.
@@ -52,6 +55,15 @@ struct SurveyFile {
     #[serde(default)]
     photo: Vec<PhotoEntry>,
     brdf: Option<BrdfSpec>,
+    radiometry: Option<RadiometrySpec>,
+}
+
+/// `[radiometry]`: the camera radiometry file applied to every photograph on load (an
+/// extension of FORMATS.md's survey file).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RadiometrySpec {
+    camera: PathBuf,
 }
 
 #[derive(Deserialize)]
@@ -71,6 +83,7 @@ struct PhotoEntry {
     camera: PathBuf,
     lighting: Option<PathBuf>,
     probe: Option<ProbeEntry>,
+    radiometry: Option<PathBuf>,
 }
 
 /// `[photo.probe]`: a lighting-board capture in place of a lighting file (an extension of
@@ -152,6 +165,13 @@ impl Survey {
         if f.photo.is_empty() {
             return Err(ReflectError::file(&file, "no [[photo]] entries"));
         }
+        let default_radiometry = match &f.radiometry {
+            Some(r) => Some(radiometry_file(exists(
+                &r.camera,
+                "camera radiometry file",
+            )?)?),
+            None => None,
+        };
         let mut photos = Vec::new();
         for p in &f.photo {
             if photos.iter().any(|q: &PhotoSpec| q.id == p.id) {
@@ -178,7 +198,12 @@ impl Survey {
                         ))
                     }
                 },
+                radiometry: match &p.radiometry {
+                    Some(r) => Some(radiometry_file(exists(r, &format!("photo `{}` radiometry file", p.id))?)?),
+                    None => default_radiometry.clone(),
+                },
             });
+            check_radiometry_size(photos.last().expect("just pushed"))?;
         }
         let brdf_samples = match &f.brdf {
             Some(b) => Some(exists(&b.samples, "BRDF samples")?),
@@ -195,6 +220,37 @@ impl Survey {
     }
 }
 
+/// Checks that a camera radiometry file reads (so that a bad one fails before any work).
+fn radiometry_file(path: PathBuf) -> Result<PathBuf, ReflectError> {
+    igi_imaging::radiometry::CameraRadiometry::load(&path)?;
+    Ok(path)
+}
+
+/// Checks that a photo's camera has the aspect ratio its radiometry was fitted at (the camera
+/// file is small; the image must match the camera, which loading checks).
+fn check_radiometry_size(spec: &PhotoSpec) -> Result<(), ReflectError> {
+    let Some(path) = &spec.radiometry else {
+        return Ok(());
+    };
+    let cal = igi_imaging::radiometry::CameraRadiometry::load(path)?;
+    let cam = Camera::load(&spec.camera)?;
+    if cal.fits_size(cam.width as usize, cam.height as usize) {
+        return Ok(());
+    }
+    Err(ReflectError::file(
+        path,
+        format!(
+            "fitted at {}x{} but photo `{}`'s camera {} is {}x{} (another aspect ratio)",
+            cal.width,
+            cal.height,
+            spec.id,
+            spec.camera.display(),
+            cam.width,
+            cam.height
+        ),
+    ))
+}
+
 /// A photograph loaded into memory.
 pub struct Photo {
     pub id: String,
@@ -207,7 +263,7 @@ impl PhotoSpec {
     /// Loads the image, camera and lighting; the image must match the camera's size and hold
     /// only finite, non-negative radiance (saturated pixels stay marked invalid).
     pub fn load(&self) -> Result<Photo, ReflectError> {
-        let image = igi_imaging::read_image(&self.image)?;
+        let mut image = igi_imaging::read_image(&self.image)?;
         let camera = Camera::load(&self.camera)?;
         if image.width != camera.width as usize || image.height != camera.height as usize {
             return Err(ReflectError::file(
@@ -235,6 +291,23 @@ impl PhotoSpec {
                     i / image.width
                 ),
             ));
+        }
+        if let Some(path) = &self.radiometry {
+            let cal = igi_imaging::radiometry::CameraRadiometry::load(path)?;
+            if !cal.fits_size(image.width, image.height) {
+                return Err(ReflectError::file(
+                    &self.image,
+                    format!(
+                        "image is {}x{} but the radiometry {} was fitted at {}x{} (another aspect ratio)",
+                        image.width,
+                        image.height,
+                        path.display(),
+                        cal.width,
+                        cal.height
+                    ),
+                ));
+            }
+            cal.apply(&mut image);
         }
         let lighting = match &self.lighting {
             LightingSource::File(f) => Lighting::load(f)?,
@@ -296,4 +369,87 @@ pub fn lighting_from_probe(r: &igi_probe::ProbeResult) -> Result<Lighting, Refle
         environment: Some(igi_render::Environment::from_image(&r.sky, 1.0)?),
         sun,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+    use igi_imaging::radiometry::{CameraRadiometry, Falloff, RadiometryFit};
+
+    /// A survey folder whose files exist (only the camera and radiometry files are read when
+    /// the survey is), with `extra` appended to survey.toml and `photo_extra` to the photo.
+    fn survey_dir(extra: &str, photo_extra: &str) -> tempfile::TempDir {
+        let dir = tempfile::tempdir().unwrap();
+        for f in ["site.ply", "photo.exr", "sky.toml"] {
+            std::fs::write(dir.path().join(f), "").unwrap();
+        }
+        crate::synth::look_at_camera(Vec3::new(5.0, 0.0, 2.0), Vec3::ZERO, 64, 48, 60.0)
+            .unwrap()
+            .save(&dir.path().join("cam.json"))
+            .unwrap();
+        let cal = |w, h| CameraRadiometry {
+            width: w,
+            height: h,
+            falloff: Some(Falloff {
+                a2: -0.3,
+                a4: 0.05,
+                a6: 0.0,
+            }),
+            color_matrix: None,
+            fit: RadiometryFit::default(),
+        };
+        cal(128, 96).save(&dir.path().join("rad.json")).unwrap();
+        cal(100, 100).save(&dir.path().join("square.json")).unwrap();
+        std::fs::write(dir.path().join("broken.json"), "{\"width\": 3}").unwrap();
+        let text = format!(
+            "[site]\nmesh = \"site.ply\"\n{extra}\n[[photo]]\nid = \"p\"\nimage = \"photo.exr\"\n\
+             camera = \"cam.json\"\nlighting = \"sky.toml\"\n{photo_extra}\n"
+        );
+        std::fs::write(dir.path().join("survey.toml"), text).unwrap();
+        dir
+    }
+
+    fn error_of(extra: &str, photo_extra: &str) -> String {
+        let dir = survey_dir(extra, photo_extra);
+        match Survey::load(dir.path()) {
+            Ok(_) => panic!("survey with {extra:?} {photo_extra:?} was accepted"),
+            Err(e) => format!("{e}"),
+        }
+    }
+
+    #[test]
+    fn radiometry_keys_apply_per_survey_and_per_photo() {
+        let dir = survey_dir("[radiometry]\ncamera = \"rad.json\"", "");
+        let s = Survey::load(dir.path()).unwrap();
+        assert_eq!(s.photos[0].radiometry, Some(dir.path().join("rad.json")));
+        let dir = survey_dir("", "");
+        assert_eq!(Survey::load(dir.path()).unwrap().photos[0].radiometry, None);
+        let dir = survey_dir(
+            "[radiometry]\ncamera = \"square.json\"",
+            "radiometry = \"rad.json\"",
+        );
+        let s = Survey::load(dir.path()).unwrap();
+        assert_eq!(s.photos[0].radiometry, Some(dir.path().join("rad.json")));
+    }
+
+    #[test]
+    fn bad_radiometry_keys_fail_naming_the_file() {
+        let e = error_of("[radiometry]\ncamera = \"missing.json\"", "");
+        assert!(e.contains("missing.json"), "{e}");
+        let e = error_of("[radiometry]\ncamera = \"broken.json\"", "");
+        assert!(
+            e.contains("broken.json") && e.contains("not a camera radiometry file"),
+            "{e}"
+        );
+        let e = error_of("[radiometry]\ncamera = \"square.json\"", "");
+        assert!(
+            e.contains("square.json") && e.contains("64x48") && e.contains("aspect"),
+            "{e}"
+        );
+        let e = error_of("", "radiometry = \"broken.json\"");
+        assert!(e.contains("broken.json"), "{e}");
+        let e = error_of("[radiometry]\nfile = \"rad.json\"", "");
+        assert!(e.contains("survey.toml") && e.contains("file"), "{e}");
+    }
 }

@@ -7,6 +7,7 @@ use crate::fill::dilate;
 use crate::parts::Part;
 use crate::ReflectError;
 use glam::{DVec3, Vec3};
+use igi_geometry::TriMesh;
 use igi_imaging::{Camera, HdrImage, WorldToCamera};
 use igi_render::{
     render_image, Albedo, Environment, Lighting, Material, RenderOptions, Scene, Sun, Texture,
@@ -112,6 +113,65 @@ impl LightingSpec {
         write_text(&p, &t)?;
         Ok(p)
     }
+}
+
+/// A small test site: an 8 m square ground (a 4 x 4 quad grid at z = 0, facing up) and a
+/// 1.2 x 1.2 x 2 m block standing on it at the origin, named `ground` and `block`.
+pub fn ground_and_block() -> Vec<(String, TriMesh)> {
+    let (size, n) = (8.0f32, 4usize);
+    let mut ground = TriMesh {
+        positions: vec![],
+        normals: Some(vec![]),
+        uvs: None,
+        colors: None,
+        indices: vec![],
+    };
+    for j in 0..=n {
+        for i in 0..=n {
+            let f = |k: usize| -size / 2.0 + size * k as f32 / n as f32;
+            ground.positions.push([f(i), f(j), 0.0]);
+        }
+    }
+    ground.normals = Some(vec![[0.0, 0.0, 1.0]; ground.positions.len()]);
+    for j in 0..n {
+        for i in 0..n {
+            let a = (j * (n + 1) + i) as u32;
+            let (b, c, d) = (a + 1, a + (n + 1) as u32, a + (n + 2) as u32);
+            ground.indices.extend([[a, b, d], [a, d, c]]);
+        }
+    }
+    let (c, h) = (Vec3::new(0.0, 0.0, 1.0), Vec3::new(0.6, 0.6, 1.0));
+    let mut block = TriMesh {
+        positions: vec![],
+        normals: Some(vec![]),
+        uvs: None,
+        colors: None,
+        indices: vec![],
+    };
+    for (nrm, u, v) in [
+        (Vec3::X, Vec3::Y, Vec3::Z),
+        (-Vec3::X, Vec3::Z, Vec3::Y),
+        (Vec3::Y, Vec3::Z, Vec3::X),
+        (-Vec3::Y, Vec3::X, Vec3::Z),
+        (Vec3::Z, Vec3::X, Vec3::Y),
+        (-Vec3::Z, Vec3::Y, Vec3::X),
+    ] {
+        let base = block.positions.len() as u32;
+        for (su, sv) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+            block
+                .positions
+                .push((c + (nrm + u * su + v * sv) * h).to_array());
+            block
+                .normals
+                .as_mut()
+                .expect("normals")
+                .push(nrm.to_array());
+        }
+        block
+            .indices
+            .extend([[base, base + 1, base + 2], [base, base + 2, base + 3]]);
+    }
+    vec![("ground".to_string(), ground), ("block".to_string(), block)]
 }
 
 /// A pinhole camera at `eye` looking at `target` with a horizontal field of view in degrees.

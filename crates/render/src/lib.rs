@@ -4,6 +4,7 @@
 //! - [`lighting`]: lat-long environment (importance-sampled) and the sun disk; lighting TOML loader.
 //! - [`scene`]: meshes + Lafortune materials + Embree; scene TOML loader; surface points.
 //! - [`integrator`]: the path tracer (NEE + MIS), image rendering and the batched solver queries.
+//! - [`refine`]: camera pose refinement by matching the model's edges and silhouette to a photograph's.
 //! - [`compare`]: RMSE / relative mean / PSNR / noise-explained RMSE between two images.
 //! - [`sampling`]: per-pixel PCG streams, piecewise-constant 1D/2D distributions, cone sampling, MIS.
 //!
@@ -21,6 +22,7 @@ pub mod compare;
 pub mod embree;
 pub mod integrator;
 pub mod lighting;
+pub mod refine;
 pub mod sampling;
 pub mod scene;
 pub mod sky;
@@ -43,6 +45,17 @@ pub enum RenderError {
     File { path: PathBuf, msg: String },
     #[error("{0}")]
     Invalid(String),
+    #[error("photo is {}x{} but its camera is {}x{}", photo.0, photo.1, camera.0, camera.1)]
+    PhotoSize {
+        photo: (usize, usize),
+        camera: (u32, u32),
+    },
+    #[error("pose refinement: only {matched} model edge points match an edge of the photo ({found} found); is the model in view and the pose within {search_px} px?")]
+    TooFewEdgeMatches {
+        matched: usize,
+        found: usize,
+        search_px: f64,
+    },
 }
 
 #[cfg(test)]
