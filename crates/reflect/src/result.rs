@@ -14,8 +14,13 @@
 //!   parts/NAME_normal.exr       texel cache: world normal per texel
 //!   parts/NAME_lobes.json       lobes inferred for the part (when BRDF samples were given)
 //! ```
-//! Every file is written atomically; `report.json` is written last in each checkpoint, so a
-//! run killed mid-iteration resumes from the last complete iteration.
+//! Every file is written atomically, and a checkpoint is one transaction: its changed files,
+//! `scene.toml`, `convergence.png` and last `report.json` are first written into `staged/`;
+//! the staged `report.json` is the commit point, after which the staged files are renamed into
+//! place (report last). A run killed before the commit point leaves the previous checkpoint
+//! intact (the staged files are dropped on resume); one killed after it is rolled forward on
+//! resume ([`SolveResult::recover`]). So a killed solve resumes from exactly the last
+//! checkpoint and never mixes the albedo of one iteration with the report of another.
 
 use crate::parts::{Part, TexelCache};
 use crate::solver::{SolveOptions, SolveReport};
@@ -26,6 +31,9 @@ use igi_geometry::{read_mesh, write_obj, write_ply, TriMesh};
 use igi_imaging::{read_image, write_exr, HdrImage};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
+
+/// The staging folder of a checkpoint in progress (see the module overview).
+pub const STAGED: &str = "staged";
 
 /// The state and result of a solve.
 pub struct SolveResult {
@@ -112,7 +120,22 @@ impl SolveResult {
     /// Writes the current albedo, weights, observation counts and lobes of the changed parts,
     /// then `scene.toml`, the plot and `report.json` (last).
     pub fn write_state(&self, dir: &Path) -> Result<(), ReflectError> {
-        let pdir = dir.join("parts");
+        let sdir = dir.join(STAGED);
+        if sdir.exists() {
+            // an earlier checkpoint that never reached its commit point
+            std::fs::remove_dir_all(&sdir)
+                .map_err(|e| ReflectError::file(&sdir, format!("cannot remove: {e}")))?;
+        }
+        std::fs::create_dir_all(sdir.join("parts"))
+            .map_err(|e| ReflectError::file(&sdir, format!("cannot create folder: {e}")))?;
+        self.stage(&sdir)?;
+        Self::commit_staged(dir)
+    }
+
+    /// Writes this checkpoint's changed part files, `scene.toml`, `convergence.png` and, last,
+    /// `report.json` into the staging folder `sdir`.
+    fn stage(&self, sdir: &Path) -> Result<(), ReflectError> {
+        let pdir = sdir.join("parts");
         let store = match self.parts.iter().find_map(|p| p.stored.as_ref()) {
             Some(s) => Some(igi_geometry::SiteStore::open(&s.site)?),
             None => None,
@@ -188,16 +211,67 @@ impl SolveResult {
                 let _ = writeln!(scene, "lobes = [{}]", lobes.join(", "));
             }
         }
-        write_text(&dir.join("scene.toml"), &scene)?;
-        crate::plot::plot_convergence(&self.report, &dir.join("convergence.png"))?;
+        write_text(&sdir.join("scene.toml"), &scene)?;
+        crate::plot::plot_convergence(&self.report, &sdir.join("convergence.png"))?;
         let json = serde_json::to_string_pretty(&self.report).expect("report serialises");
-        write_text(&dir.join("report.json"), &json)?;
+        write_text(&sdir.join("report.json"), &json)?;
         Ok(())
+    }
+
+    /// Moves a committed staging folder (one holding `report.json`) into place: every staged
+    /// file first, `report.json` last, then removes the folder. Idempotent: a move killed
+    /// half-way is finished by the next call.
+    fn commit_staged(dir: &Path) -> Result<(), ReflectError> {
+        let sdir = dir.join(STAGED);
+        let mv = |from: PathBuf, to: PathBuf| {
+            std::fs::rename(&from, &to)
+                .map_err(|e| ReflectError::file(&to, format!("cannot move a staged file: {e}")))
+        };
+        let spdir = sdir.join("parts");
+        if spdir.is_dir() {
+            let entries = std::fs::read_dir(&spdir)
+                .map_err(|e| ReflectError::file(&spdir, format!("cannot read folder: {e}")))?;
+            for e in entries {
+                let e = e.map_err(|e| ReflectError::file(&spdir, format!("cannot read: {e}")))?;
+                let name = e.file_name();
+                if name.to_string_lossy().starts_with('.') {
+                    continue; // a dead writer's temporary file
+                }
+                mv(e.path(), dir.join("parts").join(name))?;
+            }
+        }
+        for f in ["scene.toml", "convergence.png", "report.json"] {
+            if sdir.join(f).exists() {
+                mv(sdir.join(f), dir.join(f))?;
+            }
+        }
+        std::fs::remove_dir_all(&sdir)
+            .map_err(|e| ReflectError::file(&sdir, format!("cannot remove: {e}")))
+    }
+
+    /// Repairs a result folder after a killed checkpoint: a staging folder that reached its
+    /// commit point (holds `report.json`) is moved into place, one that did not is dropped.
+    pub fn recover(dir: &Path) -> Result<(), ReflectError> {
+        let sdir = dir.join(STAGED);
+        if sdir.join("report.json").is_file() {
+            Self::commit_staged(dir)
+        } else if sdir.exists() {
+            std::fs::remove_dir_all(&sdir)
+                .map_err(|e| ReflectError::file(&sdir, format!("cannot remove: {e}")))
+        } else {
+            Ok(())
+        }
     }
 
     /// Loads a result folder written by [`write_geometry`](Self::write_geometry) and
     /// [`write_state`](Self::write_state), for resuming or reading.
     pub fn load(dir: &Path) -> Result<SolveResult, ReflectError> {
+        if dir.join(STAGED).join("report.json").is_file() {
+            return Err(ReflectError::file(
+                dir,
+                "a solve was killed while committing a checkpoint; run the same `igi solve` again to finish it",
+            ));
+        }
         let rp = dir.join("report.json");
         let text = std::fs::read_to_string(&rp)
             .map_err(|e| ReflectError::file(&rp, format!("cannot read: {e}")))?;

@@ -24,8 +24,9 @@ use igi_imaging::RunManifest;
 use std::path::{Path, PathBuf};
 
 /// The names a solve writes into its result folder (what `--restart` removes).
-const RESULT_ENTRIES: [&str; 5] = [
+const RESULT_ENTRIES: [&str; 6] = [
     "parts",
+    crate::result::STAGED,
     "report.json",
     "scene.toml",
     "convergence.png",
@@ -52,7 +53,13 @@ impl SolveSession {
         igi_imaging::io::check_output_folder(dir)?;
         let manifest = run_manifest(survey, opts)?;
         let state = manifest.check_folder(dir, restart, "report.json", "result")?;
-        let resume = state == FolderState::Resume && dir.join("report.json").is_file();
+        // a checkpoint: committed, or staged past its commit point (rolled forward on load)
+        let resume = state == FolderState::Resume
+            && (dir.join("report.json").is_file()
+                || dir
+                    .join(crate::result::STAGED)
+                    .join("report.json")
+                    .is_file());
         Ok(SolveSession {
             dir: dir.to_path_buf(),
             manifest,
@@ -69,6 +76,7 @@ impl SolveSession {
     /// Loads the checkpoint to continue from (after removing dead runs' temporary files).
     pub fn load(&self) -> Result<SolveResult, ReflectError> {
         igi_imaging::io::remove_dead_temps(&self.dir, true)?;
+        SolveResult::recover(&self.dir)?;
         SolveResult::load(&self.dir)
     }
 
@@ -112,6 +120,10 @@ fn run_manifest(survey: &Survey, opts: &SolveOptions) -> Result<RunManifest, Ref
             "weighting rules",
             serde_json::to_string(&opts.rules).expect("rules serialise"),
         );
+    // recorded only when not the default, so folders of earlier igi versions still resume
+    if opts.schedule != crate::Schedule::GaussSeidel {
+        m.option("--schedule", opts.schedule.name());
+    }
     m.owns = opts.parts.as_ref().map(|p| {
         let mut v = p.clone();
         v.sort();

@@ -163,7 +163,7 @@ fn solve_recovers_known_albedo_from_synthetic_photos_and_resumes() {
     std::fs::create_dir_all(&out).unwrap();
     let start = SolveResult::fresh(parts, ids, &opts);
     start.write_geometry(&out).unwrap();
-    let first = igi_reflect::solve(
+    let mut first = igi_reflect::solve(
         start,
         &photos,
         None,
@@ -175,6 +175,8 @@ fn solve_recovers_known_albedo_from_synthetic_photos_and_resumes() {
     .unwrap();
     assert_eq!(first.report.iterations.len(), 1);
     let it1 = first.report.iterations[0].clone();
+
+    check_checkpoint_transactions(&mut first, dir.path());
 
     // resume from disk for two more iterations (as a killed and restarted run would)
     let resumed = SolveResult::load(&out).unwrap();
@@ -443,4 +445,59 @@ fn glossy_lobes_inferred_per_texel_from_the_basis_are_recovered_and_written() {
         .lobe_map
         .as_ref()
         .is_some_and(|m| m.per_texel == 1 && m.width == res)));
+}
+
+/// A checkpoint killed before its commit point leaves the previous one; one killed after it
+/// (staged `report.json` written, files half moved) is refused by readers and rolled forward
+/// by `recover`; never a mix of one iteration's albedo and another's report.
+fn check_checkpoint_transactions(state: &mut SolveResult, tmp: &std::path::Path) {
+    let out = tmp.join("transactions");
+    std::fs::create_dir_all(&out).unwrap();
+    state.write_geometry(&out).unwrap();
+    let changed = std::mem::replace(&mut state.changed, vec![true; state.parts.len()]);
+    state.write_state(&out).unwrap();
+    state.changed = changed;
+    let name = &state.parts[0].name;
+    let rho_file = format!("{name}_rho_d.exr");
+    let staged = out.join("staged");
+    let grey = |v: f32| {
+        let r = state.parts[0].resolution();
+        let mut im = igi_imaging::HdrImage::new(r, r);
+        im.pixels.iter_mut().for_each(|p| *p = [v; 3]);
+        im
+    };
+    // killed before the commit point: the staged atlas is dropped
+    std::fs::create_dir_all(staged.join("parts")).unwrap();
+    igi_imaging::write_exr(&staged.join("parts").join(&rho_file), &grey(0.25)).unwrap();
+    SolveResult::recover(&out).unwrap();
+    assert!(!staged.exists());
+    let back = SolveResult::load(&out).unwrap();
+    assert_eq!(
+        back.rho[0][0], state.rho[0][0],
+        "the previous checkpoint is kept"
+    );
+    // killed after the commit point, with the atlas already moved and the report not yet
+    std::fs::create_dir_all(staged.join("parts")).unwrap();
+    let mut report = state.report.clone();
+    report.converged = !report.converged;
+    let json = serde_json::to_string_pretty(&report).unwrap();
+    std::fs::write(staged.join("report.json"), json).unwrap();
+    igi_imaging::write_exr(&out.join("parts").join(&rho_file), &grey(0.25)).unwrap();
+    let e = SolveResult::load(&out)
+        .err()
+        .expect("a half-committed folder is refused");
+    assert!(
+        e.to_string().contains("run the same `igi solve` again"),
+        "{e}"
+    );
+    SolveResult::recover(&out).unwrap();
+    assert!(!staged.exists());
+    let fwd = SolveResult::load(&out).unwrap();
+    assert_eq!(
+        fwd.report.converged, report.converged,
+        "the staged report is in place"
+    );
+    assert!(fwd.rho[0]
+        .iter()
+        .all(|v| (*v - glam::Vec3::splat(0.25)).abs().max_element() < 1e-6));
 }
