@@ -2,7 +2,9 @@
 # Kill -9 `igi prepare` and `igi solve` at random moments, resume each to the end, and check
 # that the result is byte-identical to an uninterrupted run and that no temporary file is left.
 #
-#   scripts/kill9.sh [KILLS]        (default 20 kills per command; IGI=path/to/igi, SEED=n)
+#   scripts/kill9.sh [KILLS]        (default 20 kills per command; IGI=path/to/igi, SEED=n,
+#                                    KINDS="prepare solve"; copy the binary first if you may
+#                                    rebuild it meanwhile: a run must not change binaries)
 #
 # prepare: the bunny (res2) from ../shared/data in 2 cm voxels, 64-texel atlases; every file
 # of the site folder is compared. solve: the survey fixture (3 iterations, tolerance 0); every
@@ -57,7 +59,7 @@ compare() { # kind ref out
   [ "$left" -eq 0 ] || { echo "TEMP FILES LEFT in $out:"; find "$out" -name '.*.tmp*'; return 1; }
 }
 
-for kind in prepare solve; do
+for kind in ${KINDS:-prepare solve}; do
   ref="$work/$kind-ref"
   secs=$(timed $kind "$ref")
   echo "$kind: uninterrupted run $secs s"

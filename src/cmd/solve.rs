@@ -3,7 +3,7 @@ use crate::report::{Bar, Ctx};
 use anyhow::{bail, Context};
 use igi_reflect::parts::build_parts;
 use igi_reflect::solver::truth_from_scene;
-use igi_reflect::{ExportFormat, SolveOptions, SolveSession, Survey};
+use igi_reflect::{ExportFormat, Schedule, SolveOptions, SolveSession, Survey};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
@@ -50,6 +50,11 @@ pub struct SolveArgs {
     /// folder holding a run with other inputs, options or parts is refused (run.json).
     #[arg(long)]
     pub restart: bool,
+    /// Order of updates in a prepared site's iteration: gauss-seidel (each voxel sees the new
+    /// albedo of the voxels solved before it) or jacobi (iteration k sees only iteration k-1:
+    /// the voxels are independent, as on a cluster; checkpoints once per iteration).
+    #[arg(long, default_value = "gauss-seidel", value_parser = ["gauss-seidel", "jacobi"])]
+    pub schedule: String,
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
@@ -76,6 +81,11 @@ pub fn run_solve(a: SolveArgs, ctx: &Ctx) -> anyhow::Result<()> {
         seed: a.seed,
         initial_albedo: [a.initial[0], a.initial[1], a.initial[2]],
         parts: a.parts.clone(),
+        schedule: if a.schedule == "jacobi" {
+            Schedule::Jacobi
+        } else {
+            Schedule::GaussSeidel
+        },
         ..SolveOptions::default()
     };
     // everything is checked before the first byte of work or output

@@ -37,7 +37,7 @@ use std::path::PathBuf;
 pub use parts::{Part, TexelCache};
 pub use result::{export, load_result_scene, sample_albedo, ExportFormat, SolveResult};
 pub use session::SolveSession;
-pub use solver::{solve, IterationRecord, Progress, SolveOptions, SolveReport};
+pub use solver::{solve, IterationRecord, Progress, Schedule, SolveOptions, SolveReport};
 pub use survey::{lighting_from_probe, LightingSource, PhotoSpec, Survey};
 
 /// Errors of the inverse solver.

@@ -39,6 +39,35 @@ pub struct SolveOptions {
     pub rules: WeightRules,
     /// Parts to solve (all when `None`); the others keep their current albedo.
     pub parts: Option<Vec<String>>,
+    /// In which order a prepared site's voxels see each other's new albedo.
+    #[serde(default)]
+    pub schedule: Schedule,
+}
+
+/// The order of updates within an iteration of a voxel-by-voxel solve.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Schedule {
+    /// Each voxel is solved against the albedo its predecessors in this iteration just
+    /// produced (converges in fewer iterations; inherently sequential). Checkpoints after
+    /// every voxel.
+    #[default]
+    GaussSeidel,
+    /// Iteration k reads only iteration k-1's albedo, so the voxels of an iteration are
+    /// independent and can be solved on different machines (`igi cluster`); the local run is
+    /// the reference a distributed run must equal. Checkpoints after every iteration (a killed
+    /// run redoes the iteration in progress).
+    Jacobi,
+}
+
+impl Schedule {
+    /// The name on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Schedule::GaussSeidel => "gauss-seidel",
+            Schedule::Jacobi => "jacobi",
+        }
+    }
 }
 
 impl Default for SolveOptions {
@@ -55,6 +84,7 @@ impl Default for SolveOptions {
             min_eval_albedo: 0.02,
             rules: WeightRules::default(),
             parts: None,
+            schedule: Schedule::GaussSeidel,
         }
     }
 }
@@ -245,25 +275,31 @@ enum GroupLoad {
     Terrain,
 }
 
+/// Every part's albedo atlas and lobes, as a group's scene shows them.
+struct Albedos<'a> {
+    rho: &'a [Vec<Vec3>],
+    lobes: &'a [Vec<Lobe>],
+}
+
 /// The scene of a group: every part with its current albedo atlas (one atlas serves every level
 /// of a stored part) and lobes, in part order.
 fn group_scene(
     state: &SolveResult,
     group: &Group,
     store: Option<&igi_geometry::SiteStore>,
-    lobes: &[Vec<Lobe>],
+    albedo: Albedos,
 ) -> Result<(Scene, u64), ReflectError> {
     let material = |i: usize| {
         let r = state.parts[i].resolution();
         let tex = Texture {
             width: r,
             height: r,
-            texels: state.rho[i].clone(),
+            texels: albedo.rho[i].clone(),
         };
         Material {
             lobe_map: None,
             albedo: Albedo::Texture(tex),
-            lobes: lobes[i].clone(),
+            lobes: albedo.lobes[i].clone(),
         }
     };
     let objects = match (&group.load, store) {
@@ -458,8 +494,18 @@ pub fn solve(
             .sum::<u64>()
             * photos.len() as u64;
         progress.begin(&format!("iteration {}", k + 1), total);
+        // Jacobi: every group of this iteration sees the albedo of the previous one
+        let snapshot =
+            (opts.schedule == Schedule::Jacobi).then(|| (start.rho.clone(), start.lobes.clone()));
         for g in todo {
-            let (scene, triangles) = group_scene(&start, g, store.as_ref(), &start.lobes)?;
+            let albedo = match &snapshot {
+                Some((rho, lobes)) => Albedos { rho, lobes },
+                None => Albedos {
+                    rho: &start.rho,
+                    lobes: &start.lobes,
+                },
+            };
+            let (scene, triangles) = group_scene(&start, g, store.as_ref(), albedo)?;
             for &i in &g.parts {
                 start.report.parts[i].scene_triangles = triangles;
             }
@@ -509,7 +555,7 @@ pub fn solve(
                 start.lobes[i] = part_lobes(&start.parts[i], &start.rho[i], basis);
             }
             acc.done.push(g.name.clone());
-            if groups.len() > 1 {
+            if groups.len() > 1 && opts.schedule == Schedule::GaussSeidel {
                 acc.wall_s = already_in_iteration + ti.elapsed().as_secs_f64();
                 start.report.pending = Some(acc.clone());
                 checkpoint(&start)?;
