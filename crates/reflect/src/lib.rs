@@ -22,6 +22,7 @@
 //! [`result`] (the result folder: atlases, `scene.toml`, `report.json`, export, sampling).
 
 pub mod demo;
+pub mod distributed;
 pub mod fill;
 pub mod parts;
 pub mod plot;
@@ -51,6 +52,9 @@ pub enum ReflectError {
     /// No photograph saw any texel of the parts being solved.
     #[error("no photograph sees any solved part (0 observations in iteration {0}): check the cameras' poses and sizes against the site, and the part selection")]
     NoObservations(u32),
+    /// A merge found tasks of its iteration unfinished.
+    #[error("iteration {iteration}: {} task(s) have not finished: {}", groups.len(), groups.join(", "))]
+    MissingTasks { iteration: u32, groups: Vec<String> },
     #[error(transparent)]
     Imaging(#[from] igi_imaging::ImagingError),
     #[error(transparent)]

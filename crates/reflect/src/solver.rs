@@ -233,6 +233,19 @@ pub struct Pending {
     pub nseen: u64,
 }
 
+impl Pending {
+    /// Adds a group's statistics (groups are added in their order, so sums do not depend on
+    /// where a run stopped or which machine solved a group).
+    pub fn add(&mut self, g: &Pending) {
+        self.observations += g.observations;
+        self.res2 += g.res2;
+        self.rel2 += g.rel2;
+        self.nres += g.nres;
+        self.delta += g.delta;
+        self.nseen += g.nseen;
+    }
+}
+
 /// Ground-truth albedo per part and covered texel (same order as `Part::cache.texels`).
 pub type Truth = Vec<Vec<Option<Vec3>>>;
 
@@ -259,10 +272,10 @@ struct TexelRef {
 
 /// A group of parts solved together against one scene: every part of an in-memory site at
 /// once, or one voxel (or the terrain) of a prepared site with the multiresolution load.
-struct Group {
+pub(crate) struct Group {
     name: String,
     /// Solved parts whose texels this group observes.
-    parts: Vec<usize>,
+    pub(crate) parts: Vec<usize>,
     load: GroupLoad,
 }
 
@@ -274,6 +287,9 @@ enum GroupLoad {
     /// The terrain at level 0, the voxels at level 1.
     Terrain,
 }
+
+/// Every part's albedo atlases and lobes at the start of a Jacobi iteration.
+pub(crate) type Snapshot = (Vec<Vec<Vec3>>, Vec<Vec<Lobe>>);
 
 /// Every part's albedo atlas and lobes, as a group's scene shows them.
 struct Albedos<'a> {
@@ -344,7 +360,7 @@ fn group_scene(
 }
 
 /// Lobes of one part: inferred from its mean albedo with the basis, or none.
-fn part_lobes(part: &Part, rho: &[Vec3], basis: Option<&Basis>) -> Vec<Lobe> {
+pub(crate) fn part_lobes(part: &Part, rho: &[Vec3], basis: Option<&Basis>) -> Vec<Lobe> {
     match basis {
         None => Vec::new(),
         Some(b) => {
@@ -395,21 +411,55 @@ fn make_groups(parts: &[Part], solved: &[bool]) -> Result<Vec<Group>, ReflectErr
         .collect())
 }
 
-/// Runs the solve. `start` is the state to continue from (a fresh state or one resumed from a
-/// result folder); `checkpoint` is called after every iteration with the current result (the
-/// CLI writes it atomically, which is what makes a killed run resumable). A prepared site is
-/// solved voxel by voxel, each against the multiresolution load of the site (the voxel at full
-/// resolution, its neighbours at medium, the rest at low), with a checkpoint after every voxel.
-pub fn solve(
-    mut start: SolveResult,
-    photos: &[Photo],
-    basis: Option<&Basis>,
-    truth: Option<&Truth>,
+/// What a solve needs besides its state: the photographs, the BRDF basis, the ground truth.
+pub struct SolveInputs<'a> {
+    pub photos: &'a [Photo],
+    pub basis: Option<&'a Basis>,
+    pub truth: Option<&'a Truth>,
+}
+
+/// A solve's state prepared for iterating: the groups, which parts are solved, the store.
+pub(crate) struct Plan {
+    groups: Vec<Group>,
+    pub(crate) solved: Vec<bool>,
+    store: Option<igi_geometry::SiteStore>,
+}
+
+impl Plan {
+    /// The names of the groups with parts to solve, in solve order.
+    pub(crate) fn group_names(&self) -> Vec<String> {
+        self.groups
+            .iter()
+            .filter(|g| !g.parts.is_empty())
+            .map(|g| g.name.clone())
+            .collect()
+    }
+
+    /// The group named `name`, or an error listing a few of the names.
+    pub(crate) fn group(&self, name: &str) -> Result<&Group, ReflectError> {
+        self.groups
+            .iter()
+            .find(|g| g.name == name && !g.parts.is_empty())
+            .ok_or_else(|| {
+                let names = self.group_names();
+                ReflectError::Invalid(format!(
+                    "no voxel or part `{name}` to solve (there are {}: {}{})",
+                    names.len(),
+                    names.iter().take(8).cloned().collect::<Vec<_>>().join(", "),
+                    if names.len() > 8 { ", ..." } else { "" }
+                ))
+            })
+    }
+}
+
+/// Checks the inputs and prepares `start` for iterating: lobes inferred from the current
+/// albedo, a summary for every part, the groups of the part selection.
+pub(crate) fn plan(
+    start: &mut SolveResult,
+    inputs: &SolveInputs,
     opts: &SolveOptions,
-    progress: &dyn Progress,
-    checkpoint: &mut dyn FnMut(&SolveResult) -> Result<(), ReflectError>,
-) -> Result<SolveResult, ReflectError> {
-    if photos.is_empty() {
+) -> Result<Plan, ReflectError> {
+    if inputs.photos.is_empty() {
         return Err(ReflectError::Invalid("no photographs to solve from".into()));
     }
     opts.validate()?;
@@ -424,13 +474,13 @@ pub fn solve(
         })
         .collect();
     let groups = make_groups(&start.parts, &solved)?;
-    start.basis = basis.cloned();
+    start.basis = inputs.basis.cloned();
     // kept current: the parts a group updates get new lobes right after it
     start.lobes = start
         .parts
         .iter()
         .zip(&start.rho)
-        .map(|(p, r)| part_lobes(p, r, basis))
+        .map(|(p, r)| part_lobes(p, r, inputs.basis))
         .collect();
     let store = match start.parts.iter().find_map(|p| p.stored.as_ref()) {
         Some(s) => Some(igi_geometry::SiteStore::open(&s.site)?),
@@ -461,6 +511,34 @@ pub fn solve(
         })
         .collect();
     start.report.parts = summaries;
+    Ok(Plan {
+        groups,
+        solved,
+        store,
+    })
+}
+
+/// Runs the solve. `start` is the state to continue from (a fresh state or one resumed from a
+/// result folder); `checkpoint` is called after every iteration with the current result (the
+/// CLI writes it atomically, which is what makes a killed run resumable). A prepared site is
+/// solved voxel by voxel, each against the multiresolution load of the site (the voxel at full
+/// resolution, its neighbours at medium, the rest at low), with a checkpoint after every voxel
+/// (Gauss-Seidel) or after every iteration (Jacobi).
+pub fn solve(
+    mut start: SolveResult,
+    photos: &[Photo],
+    basis: Option<&Basis>,
+    truth: Option<&Truth>,
+    opts: &SolveOptions,
+    progress: &dyn Progress,
+    checkpoint: &mut dyn FnMut(&SolveResult) -> Result<(), ReflectError>,
+) -> Result<SolveResult, ReflectError> {
+    let inputs = SolveInputs {
+        photos,
+        basis,
+        truth,
+    };
+    let plan = plan(&mut start, &inputs, opts)?;
     let t0 = Instant::now();
     let already = start
         .report
@@ -469,7 +547,6 @@ pub fn solve(
         .map_or(0.0, |r| r.cumulative_s);
     let first_k = start.report.iterations.len() as u32;
     for k in first_k..opts.max_iterations {
-        let spp = opts.spp[(k as usize).min(opts.spp.len() - 1)];
         let mut acc = match start.report.pending.take() {
             Some(p) if p.iteration == k + 1 => p,
             _ => Pending {
@@ -479,7 +556,8 @@ pub fn solve(
         };
         let already_in_iteration = acc.wall_s;
         let ti = Instant::now();
-        let todo: Vec<&Group> = groups
+        let todo: Vec<&Group> = plan
+            .groups
             .iter()
             .filter(|g| !g.parts.is_empty() && !acc.done.contains(&g.name))
             .collect();
@@ -498,64 +576,19 @@ pub fn solve(
         let snapshot =
             (opts.schedule == Schedule::Jacobi).then(|| (start.rho.clone(), start.lobes.clone()));
         for g in todo {
-            let albedo = match &snapshot {
-                Some((rho, lobes)) => Albedos { rho, lobes },
-                None => Albedos {
-                    rho: &start.rho,
-                    lobes: &start.lobes,
-                },
-            };
-            let (scene, triangles) = group_scene(&start, g, store.as_ref(), albedo)?;
-            for &i in &g.parts {
-                start.report.parts[i].scene_triangles = triangles;
-            }
-            // texel streams are numbered across groups so no two texels share one
-            let offset: u64 = start.parts[..g.parts[0]]
-                .iter()
-                .map(|p| p.cache.texels.len() as u64)
-                .sum();
-            let texels: Vec<TexelRef> = g
-                .parts
-                .iter()
-                .flat_map(|&i| {
-                    let p = &start.parts[i];
-                    p.cache
-                        .texels
-                        .iter()
-                        .enumerate()
-                        .map(move |(k, t)| TexelRef {
-                            part: i as u32,
-                            texel: k as u32,
-                            position: t.position,
-                            normal: t.normal,
-                            uv: p.cache.uv(t.index),
-                        })
-                })
-                .collect();
-            let mut obs: Vec<Obs> = Vec::new();
-            for (pi, photo) in photos.iter().enumerate() {
-                obs.extend(observe_photo(
-                    &scene,
-                    photo,
-                    pi,
-                    &texels,
-                    offset,
-                    &start,
-                    &start.lobes,
-                    basis,
-                    opts,
-                    k,
-                    spp,
-                    progress,
-                ));
-            }
-            drop(scene);
-            update_parts(&mut start, &g.parts, &obs, opts, &mut acc);
-            for &i in &g.parts {
-                start.lobes[i] = part_lobes(&start.parts[i], &start.rho[i], basis);
-            }
+            let sums = solve_group(
+                &mut start,
+                g,
+                &plan,
+                snapshot.as_ref(),
+                &inputs,
+                opts,
+                k,
+                progress,
+            )?;
+            acc.add(&sums);
             acc.done.push(g.name.clone());
-            if groups.len() > 1 && opts.schedule == Schedule::GaussSeidel {
+            if plan.groups.len() > 1 && opts.schedule == Schedule::GaussSeidel {
                 acc.wall_s = already_in_iteration + ti.elapsed().as_secs_f64();
                 start.report.pending = Some(acc.clone());
                 checkpoint(&start)?;
@@ -563,55 +596,17 @@ pub fn solve(
             }
         }
         progress.finish();
-        start.report.pending = None;
-        let (truth_mae, truth_rms) = match truth {
-            Some(t) => truth_error(&start, t, &solved),
-            None => (None, None),
-        };
-        let delta_rho = if acc.nseen > 0 {
-            (acc.delta / acc.nseen as f64) as f32
-        } else {
-            0.0
-        };
         let wall = already_in_iteration + ti.elapsed().as_secs_f64();
-        let rec = IterationRecord {
-            iteration: k + 1,
-            spp,
-            wall_s: wall,
-            cumulative_s: already + t0.elapsed().as_secs_f64() + already_in_iteration,
-            observations: acc.observations,
-            residual_rms: if acc.nres > 0 {
-                (acc.res2 / acc.nres as f64).sqrt() as f32
-            } else {
-                0.0
-            },
-            residual_rel_rms: if acc.rel2 > 0.0 {
-                (acc.res2 / acc.rel2).sqrt() as f32
-            } else {
-                0.0
-            },
-            delta_rho,
-            truth_mae,
-            truth_rms,
-            seen_texels: acc.nseen,
-        };
-        tracing::info!(
-            "iteration {}: {} spp, {:.1} s, {} observations, residual {:.4} ({:.2}% rel), change {:.5}",
-            rec.iteration,
-            spp,
+        let cumulative = already + t0.elapsed().as_secs_f64() + already_in_iteration;
+        let done = finish_iteration(
+            &mut start,
+            &acc,
+            &plan.solved,
+            truth,
+            opts,
             wall,
-            rec.observations,
-            rec.residual_rms,
-            100.0 * rec.residual_rel_rms,
-            delta_rho
-        );
-        if rec.observations == 0 {
-            // an albedo from no observation cannot mean what was asked for
-            return Err(ReflectError::NoObservations(rec.iteration));
-        }
-        start.report.iterations.push(rec);
-        let done = k + 1 >= opts.min_iterations && delta_rho < opts.tolerance;
-        start.report.converged = done;
+            cumulative,
+        )?;
         checkpoint(&start)?;
         start.changed.iter_mut().for_each(|c| *c = false);
         if done {
@@ -619,6 +614,154 @@ pub fn solve(
         }
     }
     Ok(start)
+}
+
+/// The samples per estimate of iteration `k` (counted from 0).
+fn spp_of(opts: &SolveOptions, k: u32) -> u32 {
+    opts.spp[(k as usize).min(opts.spp.len() - 1)]
+}
+
+/// Solves one group in iteration `k` (counted from 0): traces its texels in every photograph
+/// against its scene (built from `snapshot`, or from the current state without one), updates
+/// its parts' albedo, weights, observation counts, summaries and lobes in `start`, and returns
+/// the group's statistics.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn solve_group(
+    start: &mut SolveResult,
+    g: &Group,
+    plan: &Plan,
+    snapshot: Option<&Snapshot>,
+    inputs: &SolveInputs,
+    opts: &SolveOptions,
+    k: u32,
+    progress: &dyn Progress,
+) -> Result<Pending, ReflectError> {
+    let spp = spp_of(opts, k);
+    let albedo = match snapshot {
+        Some((rho, lobes)) => Albedos { rho, lobes },
+        None => Albedos {
+            rho: &start.rho,
+            lobes: &start.lobes,
+        },
+    };
+    let (scene, triangles) = group_scene(start, g, plan.store.as_ref(), albedo)?;
+    for &i in &g.parts {
+        start.report.parts[i].scene_triangles = triangles;
+    }
+    // texel streams are numbered across groups so no two texels share one
+    let offset: u64 = start.parts[..g.parts[0]]
+        .iter()
+        .map(|p| p.cache.texels.len() as u64)
+        .sum();
+    let texels = group_texels(start, g);
+    let mut obs: Vec<Obs> = Vec::new();
+    for (pi, photo) in inputs.photos.iter().enumerate() {
+        obs.extend(observe_photo(
+            &scene,
+            photo,
+            pi,
+            &texels,
+            offset,
+            start,
+            &start.lobes,
+            inputs.basis,
+            opts,
+            k,
+            spp,
+            progress,
+        ));
+    }
+    drop(scene);
+    let mut sums = Pending::default();
+    update_parts(start, &g.parts, &obs, opts, &mut sums);
+    for &i in &g.parts {
+        start.lobes[i] = part_lobes(&start.parts[i], &start.rho[i], inputs.basis);
+    }
+    Ok(sums)
+}
+
+/// Every texel of a group's parts, with what the per-photo pass needs.
+fn group_texels(start: &SolveResult, g: &Group) -> Vec<TexelRef> {
+    g.parts
+        .iter()
+        .flat_map(|&i| {
+            let p = &start.parts[i];
+            p.cache
+                .texels
+                .iter()
+                .enumerate()
+                .map(move |(k, t)| TexelRef {
+                    part: i as u32,
+                    texel: k as u32,
+                    position: t.position,
+                    normal: t.normal,
+                    uv: p.cache.uv(t.index),
+                })
+        })
+        .collect()
+}
+
+/// Ends an iteration: its record from the summed statistics `acc` (with the truth error),
+/// appended to the report with the convergence decision, which is returned. An iteration
+/// without any observation is an error (an albedo from nothing cannot mean what was asked).
+pub(crate) fn finish_iteration(
+    start: &mut SolveResult,
+    acc: &Pending,
+    solved: &[bool],
+    truth: Option<&Truth>,
+    opts: &SolveOptions,
+    wall_s: f64,
+    cumulative_s: f64,
+) -> Result<bool, ReflectError> {
+    start.report.pending = None;
+    let (truth_mae, truth_rms) = match truth {
+        Some(t) => truth_error(start, t, solved),
+        None => (None, None),
+    };
+    let k = acc.iteration - 1;
+    let rec = IterationRecord {
+        iteration: acc.iteration,
+        spp: spp_of(opts, k),
+        wall_s,
+        cumulative_s,
+        observations: acc.observations,
+        residual_rms: ratio_sqrt(acc.res2, acc.nres as f64),
+        residual_rel_rms: ratio_sqrt(acc.res2, acc.rel2),
+        delta_rho: if acc.nseen > 0 {
+            (acc.delta / acc.nseen as f64) as f32
+        } else {
+            0.0
+        },
+        truth_mae,
+        truth_rms,
+        seen_texels: acc.nseen,
+    };
+    tracing::info!(
+        "iteration {}: {} spp, {:.1} s, {} observations, residual {:.4} ({:.2}% rel), change {:.5}",
+        rec.iteration,
+        rec.spp,
+        wall_s,
+        rec.observations,
+        rec.residual_rms,
+        100.0 * rec.residual_rel_rms,
+        rec.delta_rho
+    );
+    if rec.observations == 0 {
+        return Err(ReflectError::NoObservations(rec.iteration));
+    }
+    let done = acc.iteration >= opts.min_iterations && rec.delta_rho < opts.tolerance;
+    start.report.iterations.push(rec);
+    start.report.converged = done;
+    Ok(done)
+}
+
+/// sqrt(a / b), or 0 when b is not positive.
+fn ratio_sqrt(a: f64, b: f64) -> f32 {
+    if b > 0.0 {
+        (a / b).sqrt() as f32
+    } else {
+        0.0
+    }
 }
 
 /// Combines the observations of a group's parts into their new albedo (outlier rejection and

@@ -1,0 +1,260 @@
+//! A Jacobi iteration split into independent tasks and a merge, the unit of work a cluster
+//! runs (issue 15; the Slurm submission is not built yet).
+//!
+//! A result folder holding the committed checkpoint of iteration k-1 is the snapshot every
+//! task of iteration k reads. [`run_task`] solves one group (a voxel `I_J_K` or `terrain`)
+//! exactly as `solve` with [`Schedule::Jacobi`] would, and writes its parts' new atlases and
+//! then, last, `done.json` (its statistics and part summaries) into
+//! `WORK/iter_K/GROUP/`. [`merge`] requires every group's `done.json`, applies them in group
+//! order (so the iteration's sums are added in the same order as in a local run) and writes
+//! the result folder's next checkpoint. A local `igi solve --schedule jacobi` and tasks plus
+//! merge therefore write the same bytes (wall-clock fields and the plot of error against time
+//! aside): `crates/reflect/tests/prepared.rs`.
+//!
+//! ```text
+//! WORK/iter_K/GROUP/NAME_rho_d.exr, NAME_weight.exr, NAME_observations.exr   per part
+//! WORK/iter_K/GROUP/done.json                                                 written last
+//! ```
+
+use crate::result::SolveResult;
+use crate::solver::{
+    finish_iteration, part_lobes, plan, solve_group, PartSummary, Pending, Schedule, SolveInputs,
+    SolveOptions,
+};
+use crate::ReflectError;
+use glam::Vec3;
+use igi_imaging::{read_image, write_exr, HdrImage};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// What a finished task reports (`done.json`).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct TaskDone {
+    pub group: String,
+    /// The iteration it solved (from 1).
+    pub iteration: u32,
+    /// The group's statistics (observations, residual and change sums).
+    pub sums: Pending,
+    /// The summaries of the group's parts after the update.
+    pub parts: Vec<PartSummary>,
+    pub wall_s: f64,
+}
+
+/// The folder of one task's output.
+pub fn task_dir(work: &Path, iteration: u32, group: &str) -> PathBuf {
+    work.join(format!("iter_{iteration}")).join(group)
+}
+
+/// Writes the first checkpoint of a distributed solve into `result` (a folder holding
+/// `start`'s geometry): the state before iteration 1, with every part's summary and lobes, as
+/// a local solve holds it when it begins.
+pub fn initialise(
+    result: &Path,
+    mut start: SolveResult,
+    inputs: &SolveInputs,
+    opts: &SolveOptions,
+) -> Result<(), ReflectError> {
+    plan(&mut start, inputs, &jacobi(opts)?)?;
+    start.write_state(result)
+}
+
+/// The groups of a solve of `result` with `opts`, in solve order (what a task array indexes).
+pub fn groups(
+    result: &Path,
+    inputs: &SolveInputs,
+    opts: &SolveOptions,
+) -> Result<Vec<String>, ReflectError> {
+    let mut state = SolveResult::load(result)?;
+    let plan = plan(&mut state, inputs, &jacobi(opts)?)?;
+    Ok(plan.group_names())
+}
+
+fn jacobi(opts: &SolveOptions) -> Result<SolveOptions, ReflectError> {
+    if opts.schedule != Schedule::Jacobi {
+        return Err(ReflectError::Invalid(
+            "distributed iterations need the Jacobi schedule".into(),
+        ));
+    }
+    Ok(opts.clone())
+}
+
+/// Solves `group` for the iteration after the checkpoint in `result` and writes its output
+/// into [`task_dir`] (`done.json` last). Returns the task folder.
+pub fn run_task(
+    result: &Path,
+    work: &Path,
+    inputs: &SolveInputs,
+    opts: &SolveOptions,
+    group: &str,
+) -> Result<PathBuf, ReflectError> {
+    let opts = jacobi(opts)?;
+    let t0 = Instant::now();
+    let mut state = SolveResult::load(result)?;
+    let k = state.report.iterations.len() as u32;
+    let plan = plan(&mut state, inputs, &opts)?;
+    let g = plan.group(group)?;
+    let snapshot = (state.rho.clone(), state.lobes.clone());
+    let progress = crate::solver::NoProgress;
+    let sums = solve_group(
+        &mut state,
+        g,
+        &plan,
+        Some(&snapshot),
+        inputs,
+        &opts,
+        k,
+        &progress,
+    )?;
+    let dir = task_dir(work, k + 1, group);
+    std::fs::create_dir_all(&dir)
+        .map_err(|e| ReflectError::file(&dir, format!("cannot create folder: {e}")))?;
+    let mut parts = Vec::new();
+    for &i in &g.parts {
+        write_atlases(&state, i, &dir)?;
+        parts.push(state.report.parts[i].clone());
+    }
+    let done = TaskDone {
+        group: group.to_string(),
+        iteration: k + 1,
+        sums,
+        parts,
+        wall_s: t0.elapsed().as_secs_f64(),
+    };
+    let json = serde_json::to_string_pretty(&done).expect("task report serialises");
+    igi_imaging::io::write_text_atomic(&dir.join("done.json"), &json)?;
+    Ok(dir)
+}
+
+/// Writes part `i`'s albedo, weight and observation atlases into `dir`.
+fn write_atlases(state: &SolveResult, i: usize, dir: &Path) -> Result<(), ReflectError> {
+    let r = state.parts[i].resolution();
+    let name = &state.parts[i].name;
+    let img = |f: &dyn Fn(usize) -> [f32; 3]| {
+        let mut im = HdrImage::new(r, r);
+        for (k, px) in im.pixels.iter_mut().enumerate() {
+            *px = f(k);
+        }
+        im
+    };
+    write_exr(
+        &dir.join(format!("{name}_rho_d.exr")),
+        &img(&|k| state.rho[i][k].to_array()),
+    )?;
+    write_exr(
+        &dir.join(format!("{name}_weight.exr")),
+        &img(&|k| [state.weight_sum[i][k]; 3]),
+    )?;
+    write_exr(
+        &dir.join(format!("{name}_observations.exr")),
+        &img(&|k| [state.observations[i][k] as f32; 3]),
+    )?;
+    Ok(())
+}
+
+/// Reads part `i`'s atlases from a task folder into the state.
+fn read_atlases(state: &mut SolveResult, i: usize, dir: &Path) -> Result<(), ReflectError> {
+    let r = state.parts[i].resolution();
+    let name = state.parts[i].name.clone();
+    let read = |what: &str| -> Result<HdrImage, ReflectError> {
+        let p = dir.join(format!("{name}_{what}.exr"));
+        let im = read_image(&p)?;
+        if im.width != r || im.height != r {
+            return Err(ReflectError::file(
+                &p,
+                format!("is {}x{}, expected {r}x{r}", im.width, im.height),
+            ));
+        }
+        Ok(im)
+    };
+    state.rho[i] = read("rho_d")?
+        .pixels
+        .iter()
+        .map(|p| Vec3::from_array(*p))
+        .collect();
+    state.weight_sum[i] = read("weight")?.pixels.iter().map(|p| p[0]).collect();
+    state.observations[i] = read("observations")?
+        .pixels
+        .iter()
+        .map(|p| p[0] as u32)
+        .collect();
+    state.changed[i] = true;
+    Ok(())
+}
+
+/// Merges the tasks of the iteration after the checkpoint in `result`: every group's
+/// `done.json` must exist (otherwise [`ReflectError::MissingTasks`] names the missing groups
+/// and nothing is written); the groups are applied in order and the next checkpoint is
+/// written. Returns whether the solve has converged.
+pub fn merge(
+    result: &Path,
+    work: &Path,
+    inputs: &SolveInputs,
+    opts: &SolveOptions,
+) -> Result<bool, ReflectError> {
+    let opts = jacobi(opts)?;
+    let mut state = SolveResult::load(result)?;
+    let k = state.report.iterations.len() as u32;
+    let plan = plan(&mut state, inputs, &opts)?;
+    let mut dones = Vec::new();
+    let mut missing = Vec::new();
+    for name in plan.group_names() {
+        let dir = task_dir(work, k + 1, &name);
+        match read_done(&dir)? {
+            Some(d) if d.iteration == k + 1 && d.group == name => dones.push((dir, d)),
+            _ => missing.push(name),
+        }
+    }
+    if !missing.is_empty() {
+        return Err(ReflectError::MissingTasks {
+            iteration: k + 1,
+            groups: missing,
+        });
+    }
+    let mut acc = Pending {
+        iteration: k + 1,
+        ..Pending::default()
+    };
+    let mut wall = 0.0;
+    for (dir, done) in &dones {
+        let g = plan.group(&done.group)?;
+        for (&i, summary) in g.parts.iter().zip(&done.parts) {
+            read_atlases(&mut state, i, dir)?;
+            state.report.parts[i] = summary.clone();
+            state.lobes[i] = part_lobes(&state.parts[i], &state.rho[i], inputs.basis);
+        }
+        acc.add(&done.sums);
+        acc.done.push(done.group.clone());
+        wall += done.wall_s;
+    }
+    let cumulative = state
+        .report
+        .iterations
+        .last()
+        .map_or(0.0, |r| r.cumulative_s)
+        + wall;
+    let converged = finish_iteration(
+        &mut state,
+        &acc,
+        &plan.solved,
+        inputs.truth,
+        &opts,
+        wall,
+        cumulative,
+    )?;
+    state.write_state(result)?;
+    Ok(converged)
+}
+
+/// A task's `done.json`, or `None` when it has not finished.
+fn read_done(dir: &Path) -> Result<Option<TaskDone>, ReflectError> {
+    let p = dir.join("done.json");
+    if !p.is_file() {
+        return Ok(None);
+    }
+    let text = std::fs::read_to_string(&p)
+        .map_err(|e| ReflectError::file(&p, format!("cannot read: {e}")))?;
+    serde_json::from_str(&text)
+        .map(Some)
+        .map_err(|e| ReflectError::file(&p, format!("not a task report: {e}")))
+}
