@@ -90,19 +90,7 @@ pub fn run_solve(a: SolveArgs, ctx: &Ctx) -> anyhow::Result<()> {
     };
     // everything is checked before the first byte of work or output
     let session = SolveSession::check(&a.output, &survey, &opts, a.restart)?;
-    let basis = match &survey.brdf_samples {
-        None => None,
-        Some(p) => {
-            let samples = igi_brdf::read_samples(p)?;
-            let mut mats = Vec::new();
-            for (name, s) in igi_brdf::samples::group_by_material(&samples) {
-                let fit = igi_brdf::fit_material(&name, &s, &igi_brdf::FitOptions::default())
-                    .with_context(|| format!("{}: fitting material {name}", p.display()))?;
-                mats.push((name, fit.brdf));
-            }
-            Some(igi_brdf::Basis::new(mats)?)
-        }
-    };
+    let basis = survey.basis()?;
     let truth_scene = match &a.truth {
         None => None,
         Some(t) => Some(igi_render::Scene::load(t)?.0),

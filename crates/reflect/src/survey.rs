@@ -103,6 +103,27 @@ struct BrdfSpec {
 }
 
 impl Survey {
+    /// The BRDF basis fitted to the survey's samples (one Lafortune fit per material), or
+    /// `None` without samples.
+    pub fn basis(&self) -> Result<Option<igi_brdf::Basis>, ReflectError> {
+        let Some(p) = &self.brdf_samples else {
+            return Ok(None);
+        };
+        let samples = igi_brdf::read_samples(p)?;
+        let mut mats = Vec::new();
+        for (name, s) in igi_brdf::samples::group_by_material(&samples) {
+            let fit = igi_brdf::fit_material(&name, &s, &igi_brdf::FitOptions::default())
+                .map_err(|e| ReflectError::file(p, format!("fitting material {name}: {e}")))?;
+            mats.push((name, fit.brdf));
+        }
+        Ok(Some(igi_brdf::Basis::new(mats)?))
+    }
+
+    /// Every photograph loaded (image, camera with radiometry applied, lighting).
+    pub fn load_photos(&self) -> Result<Vec<Photo>, ReflectError> {
+        self.photos.iter().map(|p| p.load()).collect()
+    }
+
     /// Reads `survey.toml` from a survey folder (or the file itself). Every path it names must
     /// exist; photo ids must be unique.
     pub fn load(path: &Path) -> Result<Survey, ReflectError> {
