@@ -3,13 +3,14 @@
 # Usage: bash scripts/deps.sh [demo|test]
 #   demo: what the default build needs (Embree 3 for ray tracing, a font for plot labels)
 #   test: also OpenCV with contrib and clang/libclang (the `opencv` feature generates its
-#         bindings with libclang), everything the test command builds and runs
+#         bindings with libclang), Slurm and munge (tests/cli_cluster.rs runs a one-node
+#         loopback cluster, scripts/slurm-loopback.sh), everything the test command builds and runs
 set -euo pipefail
 profile="${1:-test}"
 pkgs=(libembree-dev pkg-config fonts-dejavu-core)
 case "$profile" in
   demo) ;;
-  test) pkgs+=(libopencv-dev clang libclang-dev) ;;
+  test) pkgs+=(libopencv-dev clang libclang-dev slurm-wlm slurmctld slurmd slurm-client munge) ;;
   *) echo "igi: deps.sh: unknown profile '$profile' (demo or test)" >&2; exit 2 ;;
 esac
 missing=()

@@ -52,6 +52,9 @@ enum Command {
     Sample(cmd::solve::SampleArgs),
     /// Export a recovered site as PLY, OBJ or a Mitsuba 3 scene.
     Export(cmd::solve::ExportArgs),
+    /// Solve a prepared site across a Slurm cluster: submit, status, resume, cancel.
+    #[command(subcommand)]
+    Cluster(cmd::cluster::ClusterCmd),
     /// Surface light fields (Wood et al. 2000): render a stored field, edit it.
     #[command(subcommand)]
     Slf(cmd::slf::SlfCmd),
@@ -81,6 +84,7 @@ fn main() {
         Command::Demo(a) => cmd::demo::run(a, &ctx),
         Command::Slf(c) => cmd::slf::run(c, &ctx),
         Command::Hull(c) => cmd::hull::run(c, &ctx),
+        Command::Cluster(c) => cmd::cluster::run(c, &ctx),
     };
     if let Err(e) = result {
         eprintln!("error: {}", error_chain(&e));

@@ -2,6 +2,7 @@
 
 pub mod brdf;
 pub mod camera;
+pub mod cluster;
 pub mod compare;
 pub mod demo;
 pub mod hdr;

@@ -68,7 +68,7 @@ impl Fingerprint {
     }
 
     /// Whether two fingerprints name the same content.
-    fn same_content(&self, other: &Fingerprint) -> bool {
+    pub fn same_content(&self, other: &Fingerprint) -> bool {
         match (&self.hash, &other.hash) {
             (Some(a), Some(b)) => a == b && self.size == other.size,
             _ => {
@@ -77,7 +77,8 @@ impl Fingerprint {
         }
     }
 
-    fn describe(&self) -> String {
+    /// Path and size, for messages.
+    pub fn describe(&self) -> String {
         format!("{} ({} bytes)", self.path, self.size)
     }
 }

@@ -39,6 +39,19 @@ pub struct TaskDone {
     /// The summaries of the group's parts after the update.
     pub parts: Vec<PartSummary>,
     pub wall_s: f64,
+    /// Where and as what it ran (empty for in-process tasks).
+    #[serde(default)]
+    pub meta: TaskMeta,
+}
+
+/// Who ran a task: host, batch job, attempt, and the fingerprint of the frozen run it belongs
+/// to (a task of another run must never count as done).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct TaskMeta {
+    pub host: String,
+    pub job: String,
+    pub attempt: u32,
+    pub fingerprint: String,
 }
 
 /// The folder of one task's output.
@@ -87,6 +100,7 @@ pub fn run_task(
     inputs: &SolveInputs,
     opts: &SolveOptions,
     group: &str,
+    meta: &TaskMeta,
 ) -> Result<PathBuf, ReflectError> {
     let opts = jacobi(opts)?;
     let t0 = Instant::now();
@@ -120,6 +134,7 @@ pub fn run_task(
         sums,
         parts,
         wall_s: t0.elapsed().as_secs_f64(),
+        meta: meta.clone(),
     };
     let json = serde_json::to_string_pretty(&done).expect("task report serialises");
     igi_imaging::io::write_text_atomic(&dir.join("done.json"), &json)?;
@@ -246,8 +261,18 @@ pub fn merge(
     Ok(converged)
 }
 
+/// The iteration a result folder's next tasks solve (its committed iterations plus one).
+pub fn next_iteration(result: &Path) -> Result<u32, ReflectError> {
+    let rp = result.join("report.json");
+    let text = std::fs::read_to_string(&rp)
+        .map_err(|e| ReflectError::file(&rp, format!("cannot read: {e}")))?;
+    let v: serde_json::Value = serde_json::from_str(&text)
+        .map_err(|e| ReflectError::file(&rp, format!("not a solve report: {e}")))?;
+    Ok(v["iterations"].as_array().map_or(0, |a| a.len()) as u32 + 1)
+}
+
 /// A task's `done.json`, or `None` when it has not finished.
-fn read_done(dir: &Path) -> Result<Option<TaskDone>, ReflectError> {
+pub fn read_done(dir: &Path) -> Result<Option<TaskDone>, ReflectError> {
     let p = dir.join("done.json");
     if !p.is_file() {
         return Ok(None);

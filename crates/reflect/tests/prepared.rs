@@ -342,20 +342,27 @@ fn jacobi_tasks_and_merge_equal_a_local_jacobi_solve() {
             if it == 0 && n == 3 {
                 continue; // a lost task
             }
-            run_task(&dist, &work, &inputs, &opts, g).unwrap();
+            run_task(&dist, &work, &inputs, &opts, g, &Default::default()).unwrap();
         }
         if it == 0 {
             let before = std::fs::read(dist.join("report.json")).unwrap();
             let e = merge(&dist, &work, &inputs, &opts).unwrap_err().to_string();
             assert!(e.contains(&names[3]) && e.contains("1 task(s)"), "{e}");
             assert_eq!(std::fs::read(dist.join("report.json")).unwrap(), before);
-            run_task(&dist, &work, &inputs, &opts, &names[3]).unwrap();
+            run_task(&dist, &work, &inputs, &opts, &names[3], &Default::default()).unwrap();
         }
         merge(&dist, &work, &inputs, &opts).unwrap();
     }
-    let e = run_task(&dist, &work, &inputs, &opts, "99_99_99")
-        .unwrap_err()
-        .to_string();
+    let e = run_task(
+        &dist,
+        &work,
+        &inputs,
+        &opts,
+        "99_99_99",
+        &Default::default(),
+    )
+    .unwrap_err()
+    .to_string();
     assert!(e.contains("99_99_99"), "{e}");
     // the same bytes: every atlas, the scene, the report but for its wall-clock fields
     let mut files = 0;

@@ -42,6 +42,7 @@ pub fn fixture(rel: &str) -> PathBuf {
 /// The `igi` binary of the test run.
 pub struct Cli {
     bin: PathBuf,
+    env: Vec<(String, String)>,
 }
 
 impl Cli {
@@ -49,12 +50,20 @@ impl Cli {
     pub fn new(bin: &str) -> Self {
         Self {
             bin: PathBuf::from(bin),
+            env: Vec::new(),
         }
+    }
+
+    /// The same binary run with `key=value` in its environment (e.g. `SLURM_CONF`, `PATH`).
+    pub fn with_env(mut self, key: &str, value: &str) -> Self {
+        self.env.push((key.to_string(), value.to_string()));
+        self
     }
 
     /// Runs `igi --quiet ARGS...` and returns its output.
     pub fn run(&self, args: &[&str]) -> Output {
         Command::new(&self.bin)
+            .envs(self.env.iter().map(|(k, v)| (k, v)))
             .arg("--quiet")
             .args(args)
             .output()

@@ -1,0 +1,72 @@
+//! Solving a prepared site across a Slurm cluster (`igi cluster`).
+//!
+//! A cluster run is a Jacobi solve ([`igi_reflect::Schedule::Jacobi`]) whose iterations are
+//! Slurm job arrays: one array task per voxel (and the terrain) runs
+//! [`igi_reflect::distributed::run_task`], and a merge job that depends on the array
+//! (`afterany`) runs [`igi_reflect::distributed::merge`] and submits the next iteration. The
+//! result folder has today's layout (so `igi render`, `sample` and `export` read it) plus
+//! `cluster/`:
+//!
+//! ```text
+//! RESULT/run.json                      the solve's run manifest (inputs and options)
+//! RESULT/cluster/cluster.json          the frozen run: options, binary, fingerprint, groups, jobs
+//! RESULT/cluster/iter_K/tasks-C.sh     the task array script(s) of iteration K (chunk C)
+//! RESULT/cluster/iter_K/merge.sh       its merge script
+//! RESULT/cluster/iter_K/logs/          Slurm output of every task and the merge
+//! RESULT/cluster/iter_K/GROUP/         a task's atlases and done.json (written last)
+//! RESULT/cluster/iter_K/missing.txt    written by a merge that found tasks unfinished
+//! ```
+//!
+//! Every Slurm call (`sbatch`, `squeue`, `scancel`, `scontrol`) is a subprocess in [`slurm`];
+//! accounting (`sacct`) is never used, since clusters often run without it.
+
+pub mod config;
+pub mod slurm;
+pub mod workflow;
+
+pub use config::{ClusterConfig, SlurmOptions};
+pub use workflow::{cancel, merge, resume, run_task, status, submit, GroupState, Status};
+
+use std::path::PathBuf;
+
+/// Errors of a cluster run.
+#[derive(Debug, thiserror::Error)]
+pub enum ClusterError {
+    #[error("{}: {msg}", path.display())]
+    File { path: PathBuf, msg: String },
+    #[error("{0}")]
+    Invalid(String),
+    /// A Slurm command could not run or failed.
+    #[error("`{command}`: {msg}")]
+    Slurm { command: String, msg: String },
+    /// A task or merge belongs to another run (binary or inputs changed since submission).
+    #[error("{}: {what} differs from the submitted run (there: {was}; now: {now}); submit afresh into a new folder", path.display())]
+    Mismatch {
+        path: PathBuf,
+        what: String,
+        was: String,
+        now: String,
+    },
+    /// A merge found tasks unfinished; `missing.txt` lists them.
+    #[error("iteration {iteration}: {count} task(s) did not finish (listed in {})", list.display())]
+    Missing {
+        iteration: u32,
+        count: usize,
+        list: PathBuf,
+    },
+    #[error(transparent)]
+    Reflect(#[from] igi_reflect::ReflectError),
+    #[error(transparent)]
+    Imaging(#[from] igi_imaging::ImagingError),
+    #[error(transparent)]
+    Geometry(#[from] igi_geometry::GeometryError),
+}
+
+impl ClusterError {
+    pub(crate) fn file(path: impl Into<PathBuf>, msg: impl Into<String>) -> Self {
+        ClusterError::File {
+            path: path.into(),
+            msg: msg.into(),
+        }
+    }
+}

@@ -1,0 +1,570 @@
+//! Submit, task, merge, status, resume, cancel: what `igi cluster` runs.
+
+use crate::config::{ClusterConfig, IterationJobs, SlurmOptions, FORMAT};
+use crate::slurm::{self, QueueState};
+use crate::ClusterError;
+use igi_imaging::run::Fingerprint;
+use igi_reflect::distributed::{self, TaskMeta};
+use igi_reflect::solver::SolveInputs;
+use igi_reflect::{Schedule, SolveOptions, SolveSession, Survey};
+use serde::Serialize;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// What `submit` is asked for.
+pub struct SubmitRequest {
+    pub survey: PathBuf,
+    pub result: PathBuf,
+    pub options: SolveOptions,
+    pub slurm: SlurmOptions,
+    pub max_attempts: u32,
+    /// Write the scripts of the first iteration but submit nothing.
+    pub dry_run: bool,
+    /// The igi binary the scripts run.
+    pub binary: PathBuf,
+}
+
+/// Freezes a run and submits its first iteration (or, with `dry_run`, only writes its
+/// scripts). Everything is checked before the first byte is written: the survey names a
+/// prepared site, `sbatch` runs, the result folder is new.
+pub fn submit(req: SubmitRequest) -> Result<(ClusterConfig, Vec<PathBuf>), ClusterError> {
+    let survey = Survey::load(&req.survey)?;
+    let Some(site) = survey.prepared.clone() else {
+        return Err(ClusterError::file(
+            &req.survey,
+            "names no prepared site ([site] prepared = \"SITE\"): a cluster solve runs voxel by voxel; run `igi prepare` first",
+        ));
+    };
+    let store = igi_geometry::SiteStore::open(&site)?;
+    let opts = SolveOptions {
+        schedule: Schedule::Jacobi,
+        // a prepared site keeps its own atlases (as `igi solve` does)
+        atlas_resolution: store.manifest().atlas_resolution,
+        ..req.options.clone()
+    };
+    if req.max_attempts == 0 {
+        return Err(ClusterError::Invalid(
+            "--max-attempts must be at least 1".into(),
+        ));
+    }
+    if ClusterConfig::path(&req.result).exists() {
+        return Err(ClusterError::file(
+            &req.result,
+            "already holds a cluster run; use `igi cluster status`, `resume` or `cancel` on it",
+        ));
+    }
+    if !req.dry_run {
+        slurm::check_available()?;
+    }
+    let session = SolveSession::check(&req.result, &survey, &opts, false)?;
+    let photos = survey.load_photos()?;
+    let basis = survey.basis()?;
+    let inputs = SolveInputs {
+        photos: &photos,
+        basis: basis.as_ref(),
+        truth: None,
+    };
+    let ids = photos.iter().map(|p| p.id.clone()).collect();
+    let state = session.start(igi_reflect::parts::prepared_parts(&store)?, ids, &opts)?;
+    distributed::initialise(&req.result, state, &inputs, &opts)?;
+    let groups = distributed::groups(&req.result, &inputs, &opts)?;
+    let config = freeze(&req, opts, groups)?;
+    config.write()?;
+    let indices = all(&config);
+    if req.dry_run {
+        let scripts = write_scripts(&config, 1, &indices)?.all();
+        return Ok((config, scripts));
+    }
+    let mut config = config;
+    let scripts = submit_iteration(&mut config, 1, indices)?;
+    Ok((config, scripts))
+}
+
+fn all(config: &ClusterConfig) -> Vec<usize> {
+    (0..config.groups.len()).collect()
+}
+
+/// The frozen run: absolute paths, the binary's fingerprint, and a fingerprint of the whole.
+fn freeze(
+    req: &SubmitRequest,
+    options: SolveOptions,
+    groups: Vec<String>,
+) -> Result<ClusterConfig, ClusterError> {
+    let abs = |p: &Path| std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf());
+    let binary = abs(&req.binary);
+    let binary_fingerprint = Fingerprint::of("igi binary", &binary)?;
+    let run = std::fs::read(req.result.join(igi_imaging::run::RUN_FILE))
+        .map_err(|e| ClusterError::file(&req.result, format!("cannot read run.json: {e}")))?;
+    let mut ident = run;
+    ident.extend(serde_json::to_vec(&binary_fingerprint).expect("serialisable"));
+    ident.extend(serde_json::to_vec(&options).expect("serialisable"));
+    Ok(ClusterConfig {
+        format: FORMAT.into(),
+        survey: abs(&req.survey),
+        result: abs(&req.result),
+        binary,
+        binary_fingerprint,
+        version: env!("CARGO_PKG_VERSION").into(),
+        options,
+        fingerprint: format!("{:016x}", igi_imaging::run::fnv1a64(&ident)),
+        groups,
+        slurm: req.slurm.clone(),
+        max_attempts: req.max_attempts,
+        submit: !req.dry_run,
+        max_array_size: if req.dry_run {
+            1001
+        } else {
+            slurm::max_array_size()
+        },
+        jobs: Vec::new(),
+    })
+}
+
+/// A path quoted for a POSIX shell.
+fn sh(p: &Path) -> String {
+    format!("'{}'", p.display().to_string().replace('\'', r"'\''"))
+}
+
+/// The scripts of one submission: the task arrays with the first index of their chunk, and
+/// the merge.
+struct Scripts {
+    tasks: Vec<(PathBuf, usize)>,
+    merge: PathBuf,
+}
+
+impl Scripts {
+    fn all(&self) -> Vec<PathBuf> {
+        let mut v: Vec<PathBuf> = self.tasks.iter().map(|(p, _)| p.clone()).collect();
+        v.push(self.merge.clone());
+        v
+    }
+}
+
+/// Writes iteration `k`'s task array scripts (one per chunk of MaxArraySize indices) for
+/// `indices` and its merge script.
+fn write_scripts(
+    config: &ClusterConfig,
+    k: u32,
+    indices: &[usize],
+) -> Result<Scripts, ClusterError> {
+    let dir = config.iteration_dir(k);
+    let logs = dir.join("logs");
+    std::fs::create_dir_all(&logs)
+        .map_err(|e| ClusterError::file(&logs, format!("cannot create folder: {e}")))?;
+    let m = config.max_array_size.max(1);
+    let mut tasks = Vec::new();
+    let mut chunks: Vec<usize> = indices.iter().map(|i| i / m).collect();
+    chunks.dedup();
+    for c in chunks {
+        let list: Vec<String> = indices
+            .iter()
+            .filter(|i| *i / m == c)
+            .map(|i| (i - c * m).to_string())
+            .collect();
+        let limit = config
+            .slurm
+            .max_parallel
+            .map_or(String::new(), |p| format!("%{p}"));
+        let mut s = header(config, &format!("igi-{k}-tasks-{c}"));
+        let _ = writeln!(s, "#SBATCH --array={}{limit}", list.join(","));
+        let _ = writeln!(
+            s,
+            "#SBATCH --output={}",
+            sh(&logs.join(format!("task-{c}-%a.out"))).trim_matches('\'')
+        );
+        let _ = writeln!(
+            s,
+            "exec {} cluster task {} --index $((SLURM_ARRAY_TASK_ID + {}))",
+            sh(&config.binary),
+            sh(&config.result),
+            c * m
+        );
+        let p = dir.join(format!("tasks-{c}.sh"));
+        igi_imaging::io::write_text_atomic(&p, &s)?;
+        tasks.push((p, c * m));
+    }
+    let mut s = header(config, &format!("igi-{k}-merge"));
+    let _ = writeln!(
+        s,
+        "#SBATCH --output={}",
+        logs.join("merge-%j.out").display()
+    );
+    let _ = writeln!(
+        s,
+        "exec {} cluster merge {}",
+        sh(&config.binary),
+        sh(&config.result)
+    );
+    let merge = dir.join("merge.sh");
+    igi_imaging::io::write_text_atomic(&merge, &s)?;
+    Ok(Scripts { tasks, merge })
+}
+
+/// The shebang and sbatch lines every script shares.
+fn header(config: &ClusterConfig, name: &str) -> String {
+    let o = &config.slurm;
+    let mut s = format!(
+        "#!/bin/sh\n# written by `igi cluster`; run {}\n#SBATCH --job-name={name}\n",
+        config.fingerprint
+    );
+    for (flag, v) in [
+        ("partition", o.partition.clone()),
+        ("account", o.account.clone()),
+        ("time", o.time.clone()),
+        ("mem", o.mem.clone()),
+        ("cpus-per-task", o.cpus_per_task.map(|c| c.to_string())),
+    ] {
+        if let Some(v) = v {
+            let _ = writeln!(s, "#SBATCH --{flag}={v}");
+        }
+    }
+    for a in &o.extra {
+        let _ = writeln!(s, "#SBATCH {a}");
+    }
+    s
+}
+
+/// Writes and submits iteration `k` for `indices`: the arrays, then the merge after them.
+fn submit_iteration(
+    config: &mut ClusterConfig,
+    k: u32,
+    indices: Vec<usize>,
+) -> Result<Vec<PathBuf>, ClusterError> {
+    let scripts = write_scripts(config, k, &indices)?;
+    let mut arrays = Vec::new();
+    for (script, first) in &scripts.tasks {
+        arrays.push((slurm::sbatch(script, &[])?, *first));
+    }
+    let deps: Vec<&str> = arrays.iter().map(|(id, _)| id.as_str()).collect();
+    let mut args = Vec::new();
+    if !deps.is_empty() {
+        args.push(format!("--dependency=afterany:{}", deps.join(":")));
+    }
+    let merge = slurm::sbatch(&scripts.merge, &args)?;
+    let attempt = config.jobs.iter().filter(|j| j.iteration == k).count() as u32 + 1;
+    config.jobs.push(IterationJobs {
+        iteration: k,
+        attempt,
+        arrays,
+        indices,
+        merge,
+    });
+    config.write()?;
+    Ok(scripts.all())
+}
+
+/// The survey, photographs and basis of a frozen run, after checking that the binary and the
+/// inputs are those submitted.
+fn reopen(
+    config: &ClusterConfig,
+) -> Result<(Vec<igi_reflect::survey::Photo>, Option<igi_brdf::Basis>), ClusterError> {
+    config.check_binary()?;
+    let survey = Survey::load(&config.survey)?;
+    // refuses inputs that changed since submission (the run manifest names the difference)
+    SolveSession::check(&config.result, &survey, &config.options, false)?;
+    Ok((survey.load_photos()?, survey.basis()?))
+}
+
+/// Runs array index `index` of the current iteration (`igi cluster task`). A task whose
+/// `done.json` of this run already exists returns at once (resubmitting is harmless).
+pub fn run_task(result: &Path, index: usize) -> Result<PathBuf, ClusterError> {
+    let config = ClusterConfig::read(result)?;
+    let k = distributed::next_iteration(result)?;
+    let group = config.groups.get(index).ok_or_else(|| {
+        ClusterError::Invalid(format!(
+            "--index {index} is out of range: the run has {} tasks (0..={})",
+            config.groups.len(),
+            config.groups.len().saturating_sub(1)
+        ))
+    })?;
+    let work = result.join("cluster");
+    let dir = distributed::task_dir(&work, k, group);
+    if let Some(d) = distributed::read_done(&dir)? {
+        if d.meta.fingerprint == config.fingerprint && d.iteration == k {
+            return Ok(dir);
+        }
+    }
+    let (photos, basis) = reopen(&config)?;
+    let inputs = SolveInputs {
+        photos: &photos,
+        basis: basis.as_ref(),
+        truth: None,
+    };
+    let env = |k: &str| std::env::var(k).unwrap_or_default();
+    let meta = TaskMeta {
+        host: std::fs::read_to_string("/proc/sys/kernel/hostname")
+            .map(|h| h.trim().to_string())
+            .unwrap_or_default(),
+        job: match (env("SLURM_ARRAY_JOB_ID"), env("SLURM_ARRAY_TASK_ID")) {
+            (j, t) if !j.is_empty() => format!("{j}_{t}"),
+            _ => env("SLURM_JOB_ID"),
+        },
+        attempt: config.jobs.iter().filter(|j| j.iteration == k).count() as u32,
+        fingerprint: config.fingerprint.clone(),
+    };
+    Ok(distributed::run_task(
+        result,
+        &work,
+        &inputs,
+        &config.options,
+        group,
+        &meta,
+    )?)
+}
+
+/// What a merge did.
+#[derive(Clone, Debug, Serialize)]
+pub struct MergeOutcome {
+    pub iteration: u32,
+    pub converged: bool,
+    /// The next iteration's jobs, when one was submitted.
+    pub next: Option<u32>,
+}
+
+/// Merges the current iteration (`igi cluster merge`): every task of this run must have
+/// finished, otherwise `missing.txt` lists them and nothing else is written; then the next
+/// iteration is submitted unless the solve converged or reached its iterations.
+pub fn merge(result: &Path) -> Result<MergeOutcome, ClusterError> {
+    let mut config = ClusterConfig::read(result)?;
+    let k = distributed::next_iteration(result)?;
+    let work = result.join("cluster");
+    let missing: Vec<usize> = (0..config.groups.len())
+        .filter(|&i| !task_done(&config, &work, k, i))
+        .collect();
+    let list = config.iteration_dir(k).join("missing.txt");
+    if !missing.is_empty() {
+        write_missing(&config, k, &missing, &list)?;
+        return Err(ClusterError::Missing {
+            iteration: k,
+            count: missing.len(),
+            list,
+        });
+    }
+    let (photos, basis) = reopen(&config)?;
+    let inputs = SolveInputs {
+        photos: &photos,
+        basis: basis.as_ref(),
+        truth: None,
+    };
+    let converged = distributed::merge(result, &work, &inputs, &config.options)?;
+    let _ = std::fs::remove_file(&list);
+    let next = if !converged && k < config.options.max_iterations && config.submit {
+        let indices = all(&config);
+        submit_iteration(&mut config, k + 1, indices)?;
+        Some(k + 1)
+    } else {
+        None
+    };
+    Ok(MergeOutcome {
+        iteration: k,
+        converged,
+        next,
+    })
+}
+
+fn task_done(config: &ClusterConfig, work: &Path, k: u32, i: usize) -> bool {
+    let dir = distributed::task_dir(work, k, &config.groups[i]);
+    matches!(distributed::read_done(&dir), Ok(Some(d)) if d.meta.fingerprint == config.fingerprint && d.iteration == k)
+}
+
+/// `missing.txt`: per unfinished task its group, index, log and the log's last line.
+fn write_missing(
+    config: &ClusterConfig,
+    k: u32,
+    missing: &[usize],
+    list: &Path,
+) -> Result<(), ClusterError> {
+    let mut s = String::from("# group\tindex\tlog\tlast line of the log\n");
+    for &i in missing {
+        let log = config.task_log(k, i);
+        let _ = writeln!(
+            s,
+            "{}\t{i}\t{}\t{}",
+            config.groups[i],
+            log.display(),
+            last_line(&log).unwrap_or_else(|| "(no log: the task never ran)".into())
+        );
+    }
+    Ok(igi_imaging::io::write_text_atomic(list, &s)?)
+}
+
+fn last_line(log: &Path) -> Option<String> {
+    let text = std::fs::read_to_string(log).ok()?;
+    text.lines()
+        .rev()
+        .find(|l| !l.trim().is_empty())
+        .map(|l| l.trim().to_string())
+}
+
+/// Where one task of the current iteration stands.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum GroupState {
+    Done,
+    Running,
+    Pending,
+    /// Not queued, not done, and its log ends in an error.
+    Failed,
+    /// Not queued, not done, and no error of its own (cancelled, killed with its node, never
+    /// started).
+    Lost,
+}
+
+/// The state of a run (`igi cluster status`).
+#[derive(Clone, Debug, Serialize)]
+pub struct Status {
+    /// The iteration in progress (the committed ones plus one).
+    pub iteration: u32,
+    pub max_iterations: u32,
+    pub converged: bool,
+    /// Converged or reached its iterations: nothing more to run.
+    pub finished: bool,
+    pub groups: Vec<(String, GroupState)>,
+    /// The merge of the iteration: pending, running, or absent from the queue.
+    pub merge: Option<String>,
+}
+
+/// Reads the result folder and `squeue` (never accounting).
+pub fn status(result: &Path) -> Result<Status, ClusterError> {
+    let config = ClusterConfig::read(result)?;
+    let report = std::fs::read_to_string(result.join("report.json")).unwrap_or_default();
+    let converged = serde_json::from_str::<serde_json::Value>(&report)
+        .ok()
+        .and_then(|v| v["converged"].as_bool())
+        .unwrap_or(false);
+    let next = distributed::next_iteration(result)?;
+    let finished = converged || next > config.options.max_iterations;
+    // a finished run shows its last iteration, every task of it done
+    let k = if finished { next - 1 } else { next };
+    let work = result.join("cluster");
+    let jobs: Vec<&IterationJobs> = config.jobs.iter().filter(|j| j.iteration == k).collect();
+    let mut ids: Vec<String> = jobs
+        .iter()
+        .flat_map(|j| j.arrays.iter().map(|(id, _)| id.clone()))
+        .collect();
+    let merges: Vec<String> = jobs.iter().map(|j| j.merge.clone()).collect();
+    ids.extend(merges.iter().cloned());
+    let queue = if ids.is_empty() {
+        Vec::new()
+    } else {
+        slurm::queued(&ids)?
+    };
+    let mut groups = Vec::new();
+    for (i, name) in config.groups.iter().enumerate() {
+        let state = if task_done(&config, &work, k, i) {
+            GroupState::Done
+        } else {
+            queued_state(&jobs, &queue, i).unwrap_or_else(|| {
+                match last_line(&config.task_log(k, i)) {
+                    Some(l) if l.contains("CANCELLED") => GroupState::Lost,
+                    Some(l) if l.to_lowercase().contains("error") => GroupState::Failed,
+                    _ => GroupState::Lost,
+                }
+            })
+        };
+        groups.push((name.clone(), state));
+    }
+    let merge = queue
+        .iter()
+        .find(|(id, _, _)| merges.contains(id))
+        .map(|(_, _, s)| format!("{s:?}").to_lowercase());
+    Ok(Status {
+        iteration: k,
+        max_iterations: config.options.max_iterations,
+        converged,
+        finished,
+        groups,
+        merge,
+    })
+}
+
+/// The queue state of array index `i`, if any job of the iteration holds it.
+fn queued_state(
+    jobs: &[&IterationJobs],
+    queue: &[(String, Option<usize>, QueueState)],
+    i: usize,
+) -> Option<GroupState> {
+    for j in jobs.iter().rev() {
+        for (id, first) in &j.arrays {
+            let hit = queue
+                .iter()
+                .find(|(qid, a, _)| qid == id && a.map(|a| a + first) == Some(i));
+            if let Some((_, _, s)) = hit {
+                return Some(match s {
+                    QueueState::Pending => GroupState::Pending,
+                    QueueState::Running => GroupState::Running,
+                });
+            }
+        }
+    }
+    None
+}
+
+/// Resubmits the current iteration's unfinished tasks that are not queued, and a merge
+/// after them (`igi cluster resume`). Refuses tasks that already failed `max_attempts` times.
+pub fn resume(result: &Path) -> Result<Option<IterationJobs>, ClusterError> {
+    let st = status(result)?;
+    let mut config = ClusterConfig::read(result)?;
+    config.check_binary()?;
+    if st.finished {
+        return Ok(None);
+    }
+    let k = st.iteration;
+    let redo: Vec<usize> = st
+        .groups
+        .iter()
+        .enumerate()
+        .filter(|(_, (_, s))| matches!(s, GroupState::Failed | GroupState::Lost))
+        .map(|(i, _)| i)
+        .collect();
+    let tried = |i: usize| {
+        config
+            .jobs
+            .iter()
+            .filter(|j| j.iteration == k && j.indices.contains(&i))
+            .count() as u32
+    };
+    let spent: Vec<String> = redo
+        .iter()
+        .filter(|&&i| tried(i) >= config.max_attempts)
+        .map(|&i| config.groups[i].clone())
+        .collect();
+    if !spent.is_empty() {
+        return Err(ClusterError::Invalid(format!(
+            "iteration {k}: {} task(s) failed {} time(s) already ({}); see {}",
+            spent.len(),
+            config.max_attempts,
+            spent.join(", "),
+            config.iteration_dir(k).join("missing.txt").display()
+        )));
+    }
+    if redo.is_empty() && st.merge.is_some() {
+        return Ok(None); // everything is queued or done, and a merge waits
+    }
+    submit_iteration(&mut config, k, redo)?;
+    Ok(config.jobs.last().cloned())
+}
+
+/// Cancels the queued and running jobs of the run (`igi cluster cancel`); returns their ids.
+pub fn cancel(result: &Path) -> Result<Vec<String>, ClusterError> {
+    let config = ClusterConfig::read(result)?;
+    let ids: Vec<String> = config
+        .jobs
+        .iter()
+        .flat_map(|j| {
+            j.arrays
+                .iter()
+                .map(|(id, _)| id.clone())
+                .chain(std::iter::once(j.merge.clone()))
+        })
+        .filter(|id| !id.is_empty())
+        .collect();
+    let queued: Vec<String> = slurm::queued(&ids)?
+        .into_iter()
+        .map(|(id, _, _)| id)
+        .collect::<std::collections::BTreeSet<_>>()
+        .into_iter()
+        .collect();
+    slurm::scancel(&queued)?;
+    Ok(queued)
+}

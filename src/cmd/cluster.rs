@@ -1,0 +1,231 @@
+//! `igi cluster`: a prepared site solved across Slurm (Jacobi iterations as job arrays of voxel
+//! tasks with a merge; docs/SOLVER.md "Solving across a cluster").
+use crate::report::{print_json, Ctx};
+use anyhow::bail;
+use igi_cluster::{GroupState, SlurmOptions};
+use igi_reflect::{Schedule, SolveOptions};
+use std::path::PathBuf;
+
+#[derive(clap::Subcommand, Debug)]
+pub enum ClusterCmd {
+    /// Freeze a Jacobi solve of a prepared site and submit its first iteration: a task array
+    /// (one task per voxel and the terrain) and a merge that submits the next iteration.
+    Submit(Box<SubmitArgs>),
+    /// Where each voxel of the iteration in progress stands (from the result folder and
+    /// squeue; never accounting).
+    Status(StatusArgs),
+    /// Resubmit the iteration's failed or lost tasks and a merge after them.
+    Resume(FolderArgs),
+    /// Cancel the run's queued and running jobs.
+    Cancel(FolderArgs),
+    /// (Run by the task array.) Solve array index INDEX of the iteration in progress.
+    #[command(hide = true)]
+    Task(TaskArgs),
+    /// (Run by the merge job.) Merge the iteration in progress and submit the next.
+    #[command(hide = true)]
+    Merge(FolderArgs),
+}
+
+#[derive(clap::Args, Debug)]
+pub struct SubmitArgs {
+    /// Survey folder (or survey.toml) whose `[site] prepared` names an `igi prepare` folder.
+    pub survey: PathBuf,
+    /// Result folder (new): today's result layout plus cluster/.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Most iterations.
+    #[arg(long, default_value_t = 4)]
+    pub iterations: u32,
+    /// Stop when the mean change of rho_d over seen texels is below this (after 2 iterations).
+    #[arg(long, default_value_t = 0.002)]
+    pub tolerance: f32,
+    /// Samples per radiance estimate, per iteration (the last repeats).
+    #[arg(long, value_delimiter = ',', default_value = "16,64,256")]
+    pub spp: Vec<u32>,
+    /// Indirect bounces after direct lighting.
+    #[arg(long, default_value_t = 2)]
+    pub indirect: u32,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Initial albedo of every texel (r,g,b).
+    #[arg(long, value_delimiter = ',', default_value = "0.5,0.5,0.5")]
+    pub initial: Vec<f32>,
+    #[arg(long)]
+    pub partition: Option<String>,
+    #[arg(long)]
+    pub account: Option<String>,
+    /// Time limit of one task (sbatch --time).
+    #[arg(long)]
+    pub time: Option<String>,
+    /// Memory of one task (sbatch --mem).
+    #[arg(long)]
+    pub mem: Option<String>,
+    #[arg(long)]
+    pub cpus_per_task: Option<u32>,
+    /// Tasks of an array running at once.
+    #[arg(long)]
+    pub max_parallel: Option<u32>,
+    /// A further sbatch argument (repeatable), e.g. --sbatch-arg=--qos=long.
+    #[arg(long, allow_hyphen_values = true)]
+    pub sbatch_arg: Vec<String>,
+    /// Attempts per task before `resume` refuses it.
+    #[arg(long, default_value_t = 3)]
+    pub max_attempts: u32,
+    /// Write the first iteration's scripts and print them; submit nothing.
+    #[arg(long)]
+    pub dry_run: bool,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct FolderArgs {
+    /// Result folder of `igi cluster submit`.
+    pub result: PathBuf,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct StatusArgs {
+    /// Result folder of `igi cluster submit`.
+    pub result: PathBuf,
+    /// Print the status as JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct TaskArgs {
+    pub result: PathBuf,
+    #[arg(long)]
+    pub index: usize,
+}
+
+pub fn run(c: ClusterCmd, _ctx: &Ctx) -> anyhow::Result<()> {
+    match c {
+        ClusterCmd::Submit(a) => submit(*a),
+        ClusterCmd::Status(a) => status(a),
+        ClusterCmd::Resume(a) => {
+            match igi_cluster::resume(&a.result)? {
+                Some(j) => println!(
+                    "iteration {}: resubmitted {} task(s) (jobs {}), merge {}",
+                    j.iteration,
+                    j.indices.len(),
+                    j.arrays
+                        .iter()
+                        .map(|(id, _)| id.as_str())
+                        .collect::<Vec<_>>()
+                        .join(","),
+                    j.merge
+                ),
+                None => println!("nothing to resume"),
+            }
+            Ok(())
+        }
+        ClusterCmd::Cancel(a) => {
+            let ids = igi_cluster::cancel(&a.result)?;
+            println!("cancelled {} job(s): {}", ids.len(), ids.join(" "));
+            Ok(())
+        }
+        ClusterCmd::Task(a) => {
+            let dir = igi_cluster::run_task(&a.result, a.index)?;
+            println!("done: {}", dir.display());
+            Ok(())
+        }
+        ClusterCmd::Merge(a) => {
+            let m = igi_cluster::merge(&a.result)?;
+            println!(
+                "iteration {} merged{}{}",
+                m.iteration,
+                if m.converged { ", converged" } else { "" },
+                m.next
+                    .map_or(String::new(), |n| format!("; iteration {n} submitted"))
+            );
+            Ok(())
+        }
+    }
+}
+
+fn submit(a: SubmitArgs) -> anyhow::Result<()> {
+    if a.initial.len() != 3 {
+        bail!("--initial takes three values r,g,b");
+    }
+    let req = igi_cluster::workflow::SubmitRequest {
+        survey: a.survey,
+        result: a.output,
+        options: SolveOptions {
+            max_iterations: a.iterations,
+            tolerance: a.tolerance,
+            spp: a.spp,
+            indirect: a.indirect,
+            seed: a.seed,
+            initial_albedo: [a.initial[0], a.initial[1], a.initial[2]],
+            schedule: Schedule::Jacobi,
+            ..SolveOptions::default()
+        },
+        slurm: SlurmOptions {
+            partition: a.partition,
+            account: a.account,
+            time: a.time,
+            mem: a.mem,
+            cpus_per_task: a.cpus_per_task,
+            max_parallel: a.max_parallel,
+            extra: a.sbatch_arg,
+        },
+        max_attempts: a.max_attempts,
+        dry_run: a.dry_run,
+        binary: std::env::current_exe()?,
+    };
+    let (config, scripts) = igi_cluster::submit(req)?;
+    if a.dry_run {
+        for s in &scripts {
+            println!("# {}\n{}", s.display(), std::fs::read_to_string(s)?);
+        }
+        println!(
+            "dry run: {} task(s) per iteration, nothing submitted",
+            config.groups.len()
+        );
+    } else {
+        let j = config.jobs.last().expect("submitted");
+        println!(
+            "submitted iteration 1: {} task(s) in job(s) {}, merge {}",
+            config.groups.len(),
+            j.arrays
+                .iter()
+                .map(|(id, _)| id.as_str())
+                .collect::<Vec<_>>()
+                .join(","),
+            j.merge
+        );
+    }
+    Ok(())
+}
+
+fn status(a: StatusArgs) -> anyhow::Result<()> {
+    let st = igi_cluster::status(&a.result)?;
+    if a.json {
+        return print_json(&st);
+    }
+    let count = |s: GroupState| st.groups.iter().filter(|(_, g)| *g == s).count();
+    println!(
+        "iteration {} of at most {}{}: {} done, {} running, {} pending, {} failed, {} lost; merge {}",
+        st.iteration,
+        st.max_iterations,
+        if st.converged {
+            " (converged, finished)"
+        } else if st.finished {
+            " (finished)"
+        } else {
+            ""
+        },
+        count(GroupState::Done),
+        count(GroupState::Running),
+        count(GroupState::Pending),
+        count(GroupState::Failed),
+        count(GroupState::Lost),
+        st.merge.as_deref().unwrap_or("not queued")
+    );
+    for (name, s) in &st.groups {
+        if !matches!(s, GroupState::Done) {
+            println!("  {name}: {s:?}");
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,320 @@
+//! `igi cluster` against a real one-node Slurm (scripts/slurm-loopback.sh), and its bad input.
+//!
+//! The Slurm test fails with the reason when the cluster cannot start (Slurm or munge not
+//! installed, not root): it never passes without having run on Slurm.
+
+use igi_testkit::{assert_failed, fixture, repo_root, s, Cli};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+fn igi() -> Cli {
+    Cli::new(env!("CARGO_BIN_EXE_igi"))
+}
+
+/// The fixture survey's block prepared in 12 voxels (1.5 m) plus its ground as terrain, and a
+/// survey naming it with the fixture's 8 photographs.
+fn prepared_survey(dir: &Path) -> PathBuf {
+    let f = fixture("survey");
+    let site = dir.join("site");
+    igi().ok(&[
+        "prepare",
+        s(&f.join("geometry/block.ply")),
+        "--terrain",
+        s(&f.join("geometry/ground.ply")),
+        "--voxel",
+        "1.5",
+        "--atlas",
+        "16",
+        "-o",
+        s(&site),
+    ]);
+    let text = std::fs::read_to_string(f.join("survey.toml")).unwrap();
+    let photos = &text[text.find("[[photo]]").unwrap()..];
+    let photos = photos.replace("= \"", &format!("= \"{}/", f.display()));
+    let survey = dir.join("survey.toml");
+    std::fs::write(
+        &survey,
+        format!("[site]\nprepared = {:?}\n\n{photos}", s(&site)),
+    )
+    .unwrap();
+    survey
+}
+
+const SOLVE: [&str; 8] = [
+    "--iterations",
+    "2",
+    "--spp",
+    "4,8",
+    "--tolerance",
+    "0",
+    "--indirect",
+    "1",
+];
+
+/// A running loopback cluster, stopped on drop.
+struct Slurm {
+    state: PathBuf,
+    conf: String,
+}
+
+impl Slurm {
+    fn start(state: &Path) -> Slurm {
+        let script = repo_root().join("scripts/slurm-loopback.sh");
+        // a port of its own, so a cluster someone runs on this machine does not answer
+        let port = 20000 + std::process::id() % 20000;
+        let out = std::process::Command::new("bash")
+            .arg(&script)
+            .arg("start")
+            .arg(state)
+            .env("IGI_SLURM_PORT", port.to_string())
+            .output()
+            .expect("run scripts/slurm-loopback.sh");
+        assert!(
+            out.status.success(),
+            "the Slurm loopback cluster did not start, so igi cluster cannot be tested: {}{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        Slurm {
+            state: state.to_path_buf(),
+            conf: s(&state.join("slurm.conf")).to_string(),
+        }
+    }
+
+    fn igi(&self) -> Cli {
+        igi().with_env("SLURM_CONF", &self.conf)
+    }
+
+    fn status(&self, result: &Path) -> serde_json::Value {
+        let o = self.igi().ok(&["cluster", "status", s(result), "--json"]);
+        serde_json::from_slice(&o.stdout).unwrap()
+    }
+
+    /// Waits until nothing of the run is queued (tasks and merge), at most `limit`.
+    fn settle(&self, result: &Path, limit: Duration) -> serde_json::Value {
+        let t0 = Instant::now();
+        loop {
+            let st = self.status(result);
+            let busy = st["merge"].is_string()
+                || st["groups"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .any(|g| g[1] == "running" || g[1] == "pending");
+            if !busy {
+                return st;
+            }
+            assert!(
+                t0.elapsed() < limit,
+                "the cluster run did not settle in {limit:?}: {st}"
+            );
+            std::thread::sleep(Duration::from_millis(500));
+        }
+    }
+
+    fn squeue(&self, args: &[&str]) -> String {
+        let o = std::process::Command::new("squeue")
+            .env("SLURM_CONF", &self.conf)
+            .args(args)
+            .output()
+            .unwrap();
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    }
+}
+
+impl Drop for Slurm {
+    fn drop(&mut self) {
+        let _ = std::process::Command::new("bash")
+            .arg(repo_root().join("scripts/slurm-loopback.sh"))
+            .arg("stop")
+            .arg(&self.state)
+            .status();
+    }
+}
+
+fn states(st: &serde_json::Value, want: &str) -> Vec<String> {
+    st["groups"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|g| g[1] == want)
+        .map(|g| g[0].as_str().unwrap().to_string())
+        .collect()
+}
+
+/// Every file of the local Jacobi result equals the cluster's, the report but for wall times.
+fn assert_same_result(local: &Path, cluster: &Path) {
+    let mut n = 0;
+    for e in std::fs::read_dir(local.join("parts")).unwrap() {
+        let name = e.unwrap().file_name();
+        let a = std::fs::read(local.join("parts").join(&name)).unwrap();
+        let b = std::fs::read(cluster.join("parts").join(&name)).unwrap();
+        assert!(a == b, "parts/{name:?} differs from the local Jacobi solve");
+        n += 1;
+    }
+    assert!(n >= 13 * 6, "{n} part files: 6 per voxel and the terrain");
+    for f in ["scene.toml", "run.json"] {
+        assert_eq!(
+            std::fs::read(local.join(f)).unwrap(),
+            std::fs::read(cluster.join(f)).unwrap(),
+            "{f}"
+        );
+    }
+    let report = |d: &Path| {
+        let mut r: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(d.join("report.json")).unwrap()).unwrap();
+        for it in r["iterations"].as_array_mut().unwrap() {
+            it["wall_s"] = 0.into();
+            it["cumulative_s"] = 0.into();
+        }
+        r
+    };
+    assert_eq!(report(local), report(cluster));
+}
+
+#[test]
+fn a_cluster_run_on_slurm_equals_the_local_jacobi_solve_and_recovers_failed_and_lost_tasks() {
+    let tmp = tempfile::tempdir().unwrap();
+    let slurm = Slurm::start(&tmp.path().join("slurm"));
+    let survey = prepared_survey(tmp.path());
+    let local = tmp.path().join("local");
+    let mut args = vec!["solve", s(&survey), "-o", s(&local), "--schedule", "jacobi"];
+    args.extend(SOLVE);
+    igi().ok(&args);
+
+    // a task made to fail: one voxel's full-resolution level truncated
+    let site = tmp.path().join("site");
+    let man: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(site.join("manifest.json")).unwrap()).unwrap();
+    let v = &man["voxels"][2];
+    let broken = format!("{}_{}_{}", v["voxel"][0], v["voxel"][1], v["voxel"][2]);
+    let level = site.join("voxels").join(&broken).join("level0.ply");
+    assert!(level.is_file(), "{}", level.display());
+    let good = std::fs::read(&level).unwrap();
+    std::fs::write(&level, &good[..good.len() / 2]).unwrap();
+
+    let result = tmp.path().join("cluster");
+    let mut args = vec!["cluster", "submit", s(&survey), "-o", s(&result)];
+    args.extend(SOLVE);
+    args.extend(["--max-parallel", "2"]);
+    slurm.igi().ok(&args);
+    let limit = Duration::from_secs(240);
+    let st = slurm.settle(&result, limit);
+    assert_eq!(st["iteration"], 1, "{st}");
+    assert_eq!(states(&st, "failed"), vec![broken.clone()], "{st}");
+    assert_eq!(states(&st, "done").len(), 12, "{st}");
+    let missing = std::fs::read_to_string(result.join("cluster/iter_1/missing.txt")).unwrap();
+    assert!(
+        missing.contains(&broken) && missing.contains("task-0-"),
+        "{missing}"
+    );
+    assert!(
+        !result.join("cluster/iter_2").exists(),
+        "the next iteration is not submitted after a failed task"
+    );
+
+    // restored, resume finishes iteration 1; the merge submits iteration 2, in which a task is
+    // cancelled while it waits its turn (it never runs: lost); resume repairs that too
+    std::fs::write(&level, &good).unwrap();
+    slurm.igi().ok(&["cluster", "resume", s(&result)]);
+    let t0 = Instant::now();
+    let job = loop {
+        let q = slurm.squeue(&["-h", "-r", "-t", "PD", "-n", "igi-2-tasks-0", "-o", "%i"]);
+        if let Some(last) = q.lines().map(str::trim).rfind(|l| !l.is_empty()) {
+            break last.to_string();
+        }
+        assert!(t0.elapsed() < limit, "iteration 2 never queued");
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    let out = std::process::Command::new("scancel")
+        .env("SLURM_CONF", &slurm.conf)
+        .arg(&job)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "scancel {job}");
+    let st = slurm.settle(&result, limit);
+    assert_eq!(st["iteration"], 2, "{st}");
+    let lost = states(&st, "lost");
+    assert_eq!(lost.len(), 1, "the cancelled task shows as lost: {st}");
+    assert_eq!(states(&st, "done").len(), 12, "{st}");
+    slurm.igi().ok(&["cluster", "resume", s(&result)]);
+    let st = slurm.settle(&result, limit);
+    assert_eq!(st["finished"], true, "{st}");
+    assert_same_result(&local, &result);
+}
+
+#[test]
+fn bad_cluster_input_is_refused_clearly() {
+    let tmp = tempfile::tempdir().unwrap();
+    // a survey that is not prepared
+    let plain = fixture("survey/survey.toml");
+    let out = igi().run(&[
+        "cluster",
+        "submit",
+        s(&plain),
+        "-o",
+        s(&tmp.path().join("r")),
+    ]);
+    assert_failed(
+        &out,
+        "survey.toml",
+        "run `igi prepare` first",
+        tmp.path(),
+        &[],
+    );
+    // no sbatch on PATH: refused before anything is written
+    let survey = prepared_survey(tmp.path());
+    let keep: Vec<PathBuf> = std::fs::read_dir(tmp.path())
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    let result = tmp.path().join("r");
+    let no_slurm = igi().with_env("PATH", "/nonexistent");
+    let mut args = vec!["cluster", "submit", s(&survey), "-o", s(&result)];
+    args.extend(SOLVE);
+    let out = no_slurm.run(&args);
+    assert_failed(&out, "sbatch", "is Slurm installed", tmp.path(), &keep);
+    // a dry run writes the scripts; a second submission into the folder is refused
+    let mut dry = args.clone();
+    dry.push("--dry-run");
+    let o = igi().ok(&dry);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("#SBATCH --array=0,1,2,3,4,5,6,7,8,9,10,11,12")
+            && text.contains("cluster task")
+            && text.contains("cluster merge"),
+        "{text}"
+    );
+    let out = igi().run(&dry);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("already holds a cluster run"));
+    // an index out of range, and a folder that is not a cluster run
+    let out = igi().run(&["cluster", "task", s(&result), "--index", "13"]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("--index 13 is out of range") && err.contains("13 tasks"),
+        "{err}"
+    );
+    let out = igi().run(&["cluster", "status", s(tmp.path())]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("cluster.json") && err.contains("igi cluster submit"),
+        "{err}"
+    );
+    // a result whose inputs changed since submission: the task refuses to run
+    let photo = fixture("survey/photos/v00-sunny.exr");
+    let copy = tmp.path().join("v00.exr");
+    std::fs::copy(&photo, &copy).unwrap();
+    let text = std::fs::read_to_string(&survey).unwrap();
+    std::fs::write(&survey, text.replace(s(&photo), s(&copy))).unwrap();
+    let img = igi_imaging::read_image(&copy).unwrap();
+    let mut brighter = img.clone();
+    brighter.pixels.iter_mut().for_each(|p| p[0] *= 1.01);
+    igi_imaging::write_exr(&copy, &brighter).unwrap();
+    let out = igi().run(&["cluster", "task", s(&result), "--index", "0"]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--restart") || err.contains("differ"), "{err}");
+}
