@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn igi() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_igi"))
+    igi_testkit::Cli::new(env!("CARGO_BIN_EXE_igi")).command()
 }
 
 fn bunny() -> PathBuf {

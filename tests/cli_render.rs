@@ -4,7 +4,7 @@ use std::path::Path;
 use std::process::Command;
 
 fn igi() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_igi"))
+    igi_testkit::Cli::new(env!("CARGO_BIN_EXE_igi")).command()
 }
 
 /// A 40 m ground quad (albedo 0.5 or a 2x1 texture), a sun at 30 degrees from the zenith and a

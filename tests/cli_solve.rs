@@ -1,22 +1,12 @@
 //! End-to-end tests of `igi demo`, `igi solve`, `igi render RESULT_DIR`, `igi export` and
 //! `igi sample` on the embedded default (quick size).
 
+use igi_testkit::run_ok;
 use std::path::Path;
 use std::process::Command;
 
 fn igi() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_igi"))
-}
-
-fn run_ok(cmd: &mut Command) -> String {
-    let out = cmd.output().expect("igi runs");
-    assert!(
-        out.status.success(),
-        "igi failed: {}\n{}",
-        String::from_utf8_lossy(&out.stderr),
-        String::from_utf8_lossy(&out.stdout)
-    );
-    String::from_utf8(out.stdout).unwrap()
+    igi_testkit::Cli::new(env!("CARGO_BIN_EXE_igi")).command()
 }
 
 fn json(s: &str) -> serde_json::Value {

@@ -60,6 +60,13 @@ impl Cli {
         self
     }
 
+    /// A command for the binary (with this runner's environment), to add arguments to.
+    pub fn command(&self) -> Command {
+        let mut c = Command::new(&self.bin);
+        c.envs(self.env.iter().map(|(k, v)| (k, v)));
+        c
+    }
+
     /// Runs `igi --quiet ARGS...` and returns its output.
     pub fn run(&self, args: &[&str]) -> Output {
         Command::new(&self.bin)
@@ -80,6 +87,18 @@ impl Cli {
         );
         o
     }
+}
+
+/// Runs `cmd` and returns its stdout; panics with its stderr and stdout unless it succeeded.
+pub fn run_ok(cmd: &mut Command) -> String {
+    let out = cmd.output().expect("the command runs");
+    assert!(
+        out.status.success(),
+        "{cmd:?} failed: {}\n{}",
+        String::from_utf8_lossy(&out.stderr),
+        String::from_utf8_lossy(&out.stdout)
+    );
+    String::from_utf8(out.stdout).expect("UTF-8 on stdout")
 }
 
 /// A path as `&str` (test paths are UTF-8).
