@@ -15,7 +15,7 @@ pub enum ClusterCmd {
     /// squeue; never accounting).
     Status(StatusArgs),
     /// Resubmit the iteration's failed or lost tasks and a merge after them.
-    Resume(FolderArgs),
+    Resume(ResumeArgs),
     /// Cancel the run's queued and running jobs.
     Cancel(FolderArgs),
     /// (Run by the task array.) Solve array index INDEX of the iteration in progress.
@@ -83,6 +83,16 @@ pub struct FolderArgs {
 }
 
 #[derive(clap::Args, Debug)]
+pub struct ResumeArgs {
+    /// Result folder of `igi cluster submit`.
+    pub result: PathBuf,
+    /// Tasks that failed --max-attempts times keep their previous albedo, marked stale in the
+    /// report (such an iteration never counts as converged), instead of stopping the run.
+    #[arg(long)]
+    pub skip_voxels: bool,
+}
+
+#[derive(clap::Args, Debug)]
 pub struct StatusArgs {
     /// Result folder of `igi cluster submit`.
     pub result: PathBuf,
@@ -103,7 +113,7 @@ pub fn run(c: ClusterCmd, _ctx: &Ctx) -> anyhow::Result<()> {
         ClusterCmd::Submit(a) => submit(*a),
         ClusterCmd::Status(a) => status(a),
         ClusterCmd::Resume(a) => {
-            match igi_cluster::resume(&a.result)? {
+            match igi_cluster::resume(&a.result, a.skip_voxels)? {
                 Some(j) => println!(
                     "iteration {}: resubmitted {} task(s) (jobs {}), merge {}",
                     j.iteration,

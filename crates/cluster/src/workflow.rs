@@ -501,8 +501,10 @@ fn queued_state(
 }
 
 /// Resubmits the current iteration's unfinished tasks that are not queued, and a merge
-/// after them (`igi cluster resume`). Refuses tasks that already failed `max_attempts` times.
-pub fn resume(result: &Path) -> Result<Option<IterationJobs>, ClusterError> {
+/// after them (`igi cluster resume`). Tasks that already ran `max_attempts` times are refused,
+/// or with `skip` keep their previous albedo (a stale `done.json`; the iteration records them
+/// and never counts as converged).
+pub fn resume(result: &Path, skip: bool) -> Result<Option<IterationJobs>, ClusterError> {
     let st = status(result)?;
     let mut config = ClusterConfig::read(result)?;
     config.check_binary()?;
@@ -524,25 +526,48 @@ pub fn resume(result: &Path) -> Result<Option<IterationJobs>, ClusterError> {
             .filter(|j| j.iteration == k && j.indices.contains(&i))
             .count() as u32
     };
-    let spent: Vec<String> = redo
-        .iter()
-        .filter(|&&i| tried(i) >= config.max_attempts)
-        .map(|&i| config.groups[i].clone())
-        .collect();
-    if !spent.is_empty() {
+    let (spent, redo): (Vec<usize>, Vec<usize>) = redo
+        .into_iter()
+        .partition(|&i| tried(i) >= config.max_attempts);
+    if !spent.is_empty() && !skip {
+        let names: Vec<&str> = spent.iter().map(|&i| config.groups[i].as_str()).collect();
         return Err(ClusterError::Invalid(format!(
-            "iteration {k}: {} task(s) failed {} time(s) already ({}); see {}",
+            "iteration {k}: {} task(s) failed {} time(s) already ({}); see {}; `--skip-voxels` keeps their previous albedo, marked stale",
             spent.len(),
             config.max_attempts,
-            spent.join(", "),
+            names.join(", "),
             config.iteration_dir(k).join("missing.txt").display()
         )));
+    }
+    if !spent.is_empty() {
+        skip_groups(&config, k, &spent)?;
     }
     if redo.is_empty() && st.merge.is_some() {
         return Ok(None); // everything is queued or done, and a merge waits
     }
     submit_iteration(&mut config, k, redo)?;
     Ok(config.jobs.last().cloned())
+}
+
+/// Writes stale stand-ins for the tasks `indices` of iteration `k`.
+fn skip_groups(config: &ClusterConfig, k: u32, indices: &[usize]) -> Result<(), ClusterError> {
+    let (photos, basis) = reopen(config)?;
+    let inputs = SolveInputs {
+        photos: &photos,
+        basis: basis.as_ref(),
+        truth: None,
+    };
+    let meta = TaskMeta {
+        fingerprint: config.fingerprint.clone(),
+        ..TaskMeta::default()
+    };
+    let work = config.result.join("cluster");
+    for &i in indices {
+        let g = &config.groups[i];
+        tracing::warn!("iteration {k}: {g} keeps its previous albedo (stale)");
+        distributed::write_stale(&config.result, &work, &inputs, &config.options, g, &meta)?;
+    }
+    Ok(())
 }
 
 /// Cancels the queued and running jobs of the run (`igi cluster cancel`); returns their ids.

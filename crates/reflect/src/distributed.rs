@@ -42,6 +42,9 @@ pub struct TaskDone {
     /// Where and as what it ran (empty for in-process tasks).
     #[serde(default)]
     pub meta: TaskMeta,
+    /// Not solved: the group keeps its previous albedo ([`write_stale`]).
+    #[serde(default)]
+    pub stale: bool,
 }
 
 /// Who ran a task: host, batch job, attempt, and the fingerprint of the frozen run it belongs
@@ -135,6 +138,45 @@ pub fn run_task(
         parts,
         wall_s: t0.elapsed().as_secs_f64(),
         meta: meta.clone(),
+        stale: false,
+    };
+    let json = serde_json::to_string_pretty(&done).expect("task report serialises");
+    igi_imaging::io::write_text_atomic(&dir.join("done.json"), &json)?;
+    Ok(dir)
+}
+
+/// Stands in for a task that cannot finish: writes `group`'s current atlases and summaries
+/// unchanged, with no statistics, as a stale `done.json`, so that the merge can go on; the
+/// iteration records the group as stale and does not count as converged.
+pub fn write_stale(
+    result: &Path,
+    work: &Path,
+    inputs: &SolveInputs,
+    opts: &SolveOptions,
+    group: &str,
+    meta: &TaskMeta,
+) -> Result<PathBuf, ReflectError> {
+    let opts = jacobi(opts)?;
+    let mut state = SolveResult::load(result)?;
+    let k = state.report.iterations.len() as u32;
+    let plan = plan(&mut state, inputs, &opts)?;
+    let g = plan.group(group)?;
+    let dir = task_dir(work, k + 1, group);
+    std::fs::create_dir_all(&dir)
+        .map_err(|e| ReflectError::file(&dir, format!("cannot create folder: {e}")))?;
+    let mut parts = Vec::new();
+    for &i in &g.parts {
+        write_atlases(&state, i, &dir)?;
+        parts.push(state.report.parts[i].clone());
+    }
+    let done = TaskDone {
+        group: group.to_string(),
+        iteration: k + 1,
+        sums: Pending::default(),
+        parts,
+        wall_s: 0.0,
+        meta: meta.clone(),
+        stale: true,
     };
     let json = serde_json::to_string_pretty(&done).expect("task report serialises");
     igi_imaging::io::write_text_atomic(&dir.join("done.json"), &json)?;
@@ -248,7 +290,7 @@ pub fn merge(
         .last()
         .map_or(0.0, |r| r.cumulative_s)
         + wall;
-    let converged = finish_iteration(
+    let mut converged = finish_iteration(
         &mut state,
         &acc,
         &plan.solved,
@@ -257,6 +299,19 @@ pub fn merge(
         wall,
         cumulative,
     )?;
+    let stale: Vec<String> = dones
+        .iter()
+        .filter(|(_, d)| d.stale)
+        .map(|(_, d)| d.group.clone())
+        .collect();
+    if !stale.is_empty() {
+        // an iteration that skipped groups cannot mean the solve has converged
+        converged = false;
+        state.report.converged = false;
+        if let Some(rec) = state.report.iterations.last_mut() {
+            rec.stale = stale;
+        }
+    }
     state.write_state(result)?;
     Ok(converged)
 }

@@ -181,6 +181,11 @@ pub struct IterationRecord {
     pub truth_mae: Option<[f32; 3]>,
     pub truth_rms: Option<f32>,
     pub seen_texels: u64,
+    /// Groups (voxels) of a distributed iteration that kept their previous albedo because their
+    /// task never finished (`igi cluster resume --skip-voxels`); an iteration with any is never
+    /// counted as converged.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub stale: Vec<String>,
 }
 
 /// Per-part summary in the report.
@@ -735,6 +740,7 @@ pub(crate) fn finish_iteration(
         truth_mae,
         truth_rms,
         seen_texels: acc.nseen,
+        stale: Vec::new(),
     };
     tracing::info!(
         "iteration {}: {} spp, {:.1} s, {} observations, residual {:.4} ({:.2}% rel), change {:.5}",

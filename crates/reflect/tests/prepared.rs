@@ -397,3 +397,59 @@ fn jacobi_tasks_and_merge_equal_a_local_jacobi_solve() {
     };
     assert_eq!(report(&local_dir), report(&dist));
 }
+
+/// A group whose task cannot finish can be skipped: it keeps its previous albedo, the
+/// iteration names it as stale and is not counted as converged, however small the change.
+#[test]
+fn a_skipped_group_keeps_its_albedo_and_blocks_convergence() {
+    use igi_reflect::distributed::{groups, initialise, merge, run_task, write_stale};
+    use igi_reflect::solver::{Schedule, SolveInputs};
+    let dir = tempfile::tempdir().unwrap();
+    let Colonnade { store, photos, .. } = colonnade(dir.path());
+    let ids: Vec<String> = photos.iter().map(|p| p.id.clone()).collect();
+    let opts = SolveOptions {
+        atlas_resolution: 48,
+        max_iterations: 1,
+        min_iterations: 1,
+        tolerance: 10.0,
+        spp: vec![8],
+        schedule: Schedule::Jacobi,
+        ..SolveOptions::default()
+    };
+    let inputs = SolveInputs {
+        photos: &photos,
+        basis: None,
+        truth: None,
+    };
+    let out = dir.path().join("r");
+    std::fs::create_dir_all(&out).unwrap();
+    let start = SolveResult::fresh(prepared_parts(&store).unwrap(), ids, &opts);
+    start.write_geometry(&out).unwrap();
+    initialise(&out, start, &inputs, &opts).unwrap();
+    let work = dir.path().join("work");
+    let names = groups(&out, &inputs, &opts).unwrap();
+    let skipped = &names[1];
+    let before = std::fs::read(out.join(format!("parts/{skipped}_rho_d.exr"))).unwrap();
+    for g in &names {
+        if g == skipped {
+            write_stale(&out, &work, &inputs, &opts, g, &Default::default()).unwrap();
+        } else {
+            run_task(&out, &work, &inputs, &opts, g, &Default::default()).unwrap();
+        }
+    }
+    let converged = merge(&out, &work, &inputs, &opts).unwrap();
+    assert!(!converged, "a run with a stale group never converges");
+    let r = SolveResult::load(&out).unwrap();
+    assert!(!r.report.converged);
+    assert_eq!(r.report.iterations[0].stale, vec![skipped.clone()]);
+    let after = std::fs::read(out.join(format!("parts/{skipped}_rho_d.exr"))).unwrap();
+    assert_eq!(before, after, "the skipped group keeps its albedo");
+    let other = &names[0];
+    let i = r.parts.iter().position(|p| &p.name == other).unwrap();
+    assert!(
+        r.rho[i]
+            .iter()
+            .any(|v| (*v - Vec3::splat(0.5)).abs().max_element() > 0.01),
+        "the solved groups changed"
+    );
+}
