@@ -234,10 +234,50 @@ fn solve_recovers_known_albedo_from_synthetic_photos_and_resumes() {
     for p in &done.report.parts {
         assert!(p.seen_texels > 0, "{} seen", p.name);
     }
+    check_z_scores(&done, &truth);
     // the result folder re-renders as a scene
     let scene_file = igi_reflect::load_result_scene(&out).unwrap();
     let (scene, _) = igi_render::Scene::load(&scene_file).unwrap();
     assert_eq!(scene.objects.len(), 2);
+}
+
+/// The standard errors of `rho_d` explain its error against the truth: over texels seen at
+/// least twice, the z-scores `(rho_d - truth) / stderr` (every channel) have a spread near 1.
+/// The spread is the robust one, 1.4826 times the median absolute z (1 for a standard normal;
+/// the plain standard deviation is printed too, but a texel seen by two photos has a spread
+/// estimate with one degree of freedom, whose z follows a heavy-tailed t distribution).
+fn check_z_scores(state: &SolveResult, truth: &igi_reflect::solver::Truth) {
+    let mut z = Vec::new();
+    for (pi, p) in state.parts.iter().enumerate() {
+        for (ti, t) in p.cache.texels.iter().enumerate() {
+            let i = t.index as usize;
+            let Some(tr) = truth[pi][ti] else { continue };
+            if state.observations[pi][i] < 2 {
+                continue;
+            }
+            let se = state.stderr[pi][i];
+            assert!(se.min_element() >= 0.0, "seen twice but no standard error");
+            for ch in 0..3 {
+                if se[ch] > 0.0 {
+                    z.push(((state.rho[pi][i][ch] - tr[ch]) / se[ch]) as f64);
+                }
+            }
+        }
+    }
+    assert!(z.len() > 300, "{} z-scores", z.len());
+    let sd = (z.iter().map(|v| v * v).sum::<f64>() / z.len() as f64).sqrt();
+    let mut abs: Vec<f64> = z.iter().map(|v| v.abs()).collect();
+    abs.sort_by(f64::total_cmp);
+    let robust = 1.4826 * abs[abs.len() / 2];
+    let p95 = abs[abs.len() * 95 / 100];
+    eprintln!(
+        "z-scores over {} texel channels seen twice: robust spread {robust:.3}, rms {sd:.3}, 95th percentile |z| {p95:.3}",
+        z.len()
+    );
+    assert!(
+        (0.7..=1.5).contains(&robust) && (0.7..=1.5).contains(&sd),
+        "z spread: robust {robust:.3}, rms {sd:.3} (goal 0.7 to 1.5)"
+    );
 }
 
 /// Glossy materials: the photographs are rendered with per-texel Lafortune lobes that a BRDF
