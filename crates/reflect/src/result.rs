@@ -17,6 +17,11 @@
 //!   parts/NAME_normal.exr       texel cache: world normal per texel
 //!   parts/NAME_lobes.json       lobes inferred for the part (when BRDF samples were given)
 //! ```
+//! `NAME_stderr.exr` is derived in docs/SOLVER.md ("Per-texel uncertainty"): the spread of the
+//! weighted proposals of the last ratio update beyond their Monte-Carlo noise, plus that noise.
+//! [`sample_albedo`] returns it with the albedo (`igi sample`'s `sr,sg,sb`), and [`export`]
+//! pictures it as `NAME_stderr.png`.
+//!
 //! Every file is written atomically, and a checkpoint is one transaction: its changed files,
 //! `scene.toml`, `convergence.png` and last `report.json` are first written into `staged/`;
 //! the staged `report.json` is the commit point, after which the staged files are renamed into

@@ -235,6 +235,19 @@ fn solve_recovers_known_albedo_from_synthetic_photos_and_resumes() {
         assert!(p.seen_texels > 0, "{} seen", p.name);
     }
     check_z_scores(&done, &truth);
+    // the standard errors round-trip through the result folder; a result written before they
+    // existed (no NAME_stderr.exr) loads with every standard error unknown
+    let back = SolveResult::load(&out).unwrap();
+    assert_eq!(back.stderr, done.stderr);
+    for p in &done.parts {
+        std::fs::remove_file(out.join(format!("parts/{}_stderr.exr", p.name))).unwrap();
+    }
+    let old = SolveResult::load(&out).unwrap();
+    assert!(old
+        .stderr
+        .iter()
+        .flatten()
+        .all(|s| *s == igi_reflect::UNKNOWN_STDERR));
     // the result folder re-renders as a scene
     let scene_file = igi_reflect::load_result_scene(&out).unwrap();
     let (scene, _) = igi_render::Scene::load(&scene_file).unwrap();
