@@ -249,6 +249,53 @@ impl Pending {
 /// Ground-truth albedo per part and covered texel (same order as `Part::cache.texels`).
 pub type Truth = Vec<Vec<Option<Vec3>>>;
 
+/// How well the standard errors explain the error against ground truth: the z-scores
+/// `(rho_d - truth) / stderr` of every channel of the texels seen at least twice.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ZScores {
+    /// Number of z-scores (texel channels with a positive standard error).
+    pub count: usize,
+    /// 1.4826 x the median |z| (1 for a standard normal; robust to heavy tails).
+    pub robust_spread: f64,
+    /// sqrt(mean z^2).
+    pub rms: f64,
+    /// 95th percentile of |z| (1.96 for a standard normal).
+    pub p95_abs: f64,
+}
+
+/// The [`ZScores`] of a result against ground truth, or `None` without any.
+pub fn z_scores(state: &SolveResult, truth: &Truth) -> Option<ZScores> {
+    let mut z = Vec::new();
+    for (pi, p) in state.parts.iter().enumerate() {
+        for (ti, t) in p.cache.texels.iter().enumerate() {
+            let i = t.index as usize;
+            let (Some(Some(gt)), true) = (
+                truth.get(pi).and_then(|v| v.get(ti)),
+                state.observations[pi][i] >= 2,
+            ) else {
+                continue;
+            };
+            let se = state.stderr[pi][i];
+            for ch in 0..3 {
+                if se[ch] > 0.0 {
+                    z.push(((state.rho[pi][i][ch] - gt[ch]) as f64 / se[ch] as f64).abs());
+                }
+            }
+        }
+    }
+    if z.is_empty() {
+        return None;
+    }
+    z.sort_by(f64::total_cmp);
+    let n = z.len();
+    Some(ZScores {
+        count: n,
+        robust_spread: 1.4826 * z[n / 2],
+        rms: (z.iter().map(|v| v * v).sum::<f64>() / n as f64).sqrt(),
+        p95_abs: z[(n * 95 / 100).min(n - 1)],
+    })
+}
+
 struct Obs {
     part: u32,
     texel: u32,

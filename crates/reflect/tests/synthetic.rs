@@ -260,36 +260,26 @@ fn solve_recovers_known_albedo_from_synthetic_photos_and_resumes() {
 /// the plain standard deviation is printed too, but a texel seen by two photos has a spread
 /// estimate with one degree of freedom, whose z follows a heavy-tailed t distribution).
 fn check_z_scores(state: &SolveResult, truth: &igi_reflect::solver::Truth) {
-    let mut z = Vec::new();
     for (pi, p) in state.parts.iter().enumerate() {
-        for (ti, t) in p.cache.texels.iter().enumerate() {
+        for t in &p.cache.texels {
             let i = t.index as usize;
-            let Some(tr) = truth[pi][ti] else { continue };
-            if state.observations[pi][i] < 2 {
-                continue;
-            }
-            let se = state.stderr[pi][i];
-            assert!(se.min_element() >= 0.0, "seen twice but no standard error");
-            for ch in 0..3 {
-                if se[ch] > 0.0 {
-                    z.push(((state.rho[pi][i][ch] - tr[ch]) / se[ch]) as f64);
-                }
+            if state.observations[pi][i] >= 2 {
+                assert!(
+                    state.stderr[pi][i].min_element() >= 0.0,
+                    "seen twice but no standard error"
+                );
             }
         }
     }
-    assert!(z.len() > 300, "{} z-scores", z.len());
-    let sd = (z.iter().map(|v| v * v).sum::<f64>() / z.len() as f64).sqrt();
-    let mut abs: Vec<f64> = z.iter().map(|v| v.abs()).collect();
-    abs.sort_by(f64::total_cmp);
-    let robust = 1.4826 * abs[abs.len() / 2];
-    let p95 = abs[abs.len() * 95 / 100];
+    let z = igi_reflect::solver::z_scores(state, truth).expect("texels seen twice");
     eprintln!(
-        "z-scores over {} texel channels seen twice: robust spread {robust:.3}, rms {sd:.3}, 95th percentile |z| {p95:.3}",
-        z.len()
+        "z-scores over {} texel channels seen twice: robust spread {:.3}, rms {:.3}, 95th percentile |z| {:.3}",
+        z.count, z.robust_spread, z.rms, z.p95_abs
     );
+    assert!(z.count > 300, "{} z-scores", z.count);
     assert!(
-        (0.7..=1.5).contains(&robust) && (0.7..=1.5).contains(&sd),
-        "z spread: robust {robust:.3}, rms {sd:.3} (goal 0.7 to 1.5)"
+        (0.7..=1.5).contains(&z.robust_spread) && (0.7..=1.5).contains(&z.rms),
+        "z spread: {z:?} (goal 0.7 to 1.5)"
     );
 }
 
