@@ -215,6 +215,10 @@ fn solve_recovers_mitsuba_albedo_and_relights_the_heldout_view() {
         "z-scores over {} texel channels seen twice: robust spread {:.3}, rms {:.3}, 95th percentile |z| {:.3}",
         z.count, z.robust_spread, z.rms, z.p95_abs
     );
+    assert!(
+        (0.7..=1.5).contains(&z.robust_spread) && (0.7..=1.5).contains(&z.rms),
+        "z spread: {z:?} (goal 0.7 to 1.5)"
+    );
 
     let (c, pc) = heldout_comparison(&res, tmp.path(), "recovered");
     assert_heldout("recovered", &c, &pc);
