@@ -135,6 +135,19 @@ fn demo_then_solve_resume_relight_export_and_sample() {
                 .arg(&dir),
         );
         assert!(dir.join("terrain_albedo.exr").is_file(), "{fmt}");
+        let png = igi_imaging::read_image(&dir.join("terrain_stderr.png")).unwrap();
+        assert_eq!(png.width, result_res(&res, "terrain"), "{fmt}");
+        // grey where known (a standard error below 0.05 is darker than white), magenta where not
+        assert!(
+            png.pixels
+                .iter()
+                .all(|p| p[0] == p[2] && (p[1] == p[0] || (p[0] == 1.0 && p[1] == 0.0))),
+            "{fmt}"
+        );
+        assert!(
+            png.pixels.iter().any(|p| p[1] < 1.0 && p[1] == p[0]),
+            "{fmt}"
+        );
         if fmt == "mitsuba" {
             let xml = std::fs::read_to_string(dir.join("scene.xml")).unwrap();
             for name in xml
@@ -180,8 +193,22 @@ fn demo_then_solve_resume_relight_export_and_sample() {
             .arg(&vals),
     );
     let text = std::fs::read_to_string(&vals).unwrap();
+    assert_eq!(text.lines().next(), Some("x,y,z,nx,ny,nz,r,g,b,sr,sg,sb"));
+    let mut known = 0;
     for (line, t) in text.lines().skip(1).zip(&texels) {
-        let v: Vec<f32> = line.split(',').map(|s| s.parse().unwrap()).collect();
+        let v: Vec<Option<f32>> = line.split(',').map(|s| s.parse().ok()).collect();
+        assert_eq!(v.len(), 12, "{line}");
+        let se = result.stderr[part][t.index as usize];
+        // the standard error of the texel under the point, or empty where unknown
+        if se.min_element() >= 0.0 {
+            known += 1;
+            for ch in 0..3 {
+                assert_eq!(v[9 + ch], Some(se[ch]), "{line} vs {se}");
+            }
+        } else {
+            assert!(v[9..].iter().all(|x| x.is_none()), "{line}");
+        }
+        let v: Vec<f32> = v[..9].iter().map(|x| x.unwrap()).collect();
         let want = result.rho[part][t.index as usize];
         // bilinear lookup at the texel centre returns the texel itself
         assert!(
@@ -191,6 +218,8 @@ fn demo_then_solve_resume_relight_export_and_sample() {
             "{line} vs {want}"
         );
     }
+
+    assert!(known > 0, "no sampled point has a standard error");
 
     // a prepared site: `igi prepare` the stylobate (with the terrain), name it in a copy of
     // the survey, and solve one voxel of it (--voxels); the others are not touched
@@ -353,4 +382,11 @@ fn bad_surveys_fail_clearly_without_output() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("not a valid survey file"));
     assert!(!out_dir.exists());
+}
+
+/// The atlas resolution of part `name` of a result folder.
+fn result_res(res: &std::path::Path, name: &str) -> usize {
+    let r = igi_reflect::SolveResult::load(res).unwrap();
+    let i = r.parts.iter().position(|p| p.name == name).unwrap();
+    r.parts[i].resolution()
 }

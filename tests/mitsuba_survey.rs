@@ -206,6 +206,20 @@ fn solve_recovers_mitsuba_albedo_and_relights_the_heldout_view() {
         "the error falls over the iterations"
     );
 
+    // the standard errors against the independent truth (reported in docs/SOLVER.md)
+    let result = igi_reflect::SolveResult::load(&res).unwrap();
+    let (truth_scene, _) = igi_render::Scene::load(&truth).unwrap();
+    let t = igi_reflect::solver::truth_from_scene(&result.parts, &truth_scene);
+    let z = igi_reflect::solver::z_scores(&result, &t).expect("texels seen twice");
+    eprintln!(
+        "z-scores over {} texel channels seen twice: robust spread {:.3}, rms {:.3}, 95th percentile |z| {:.3}",
+        z.count, z.robust_spread, z.rms, z.p95_abs
+    );
+    assert!(
+        (0.7..=1.5).contains(&z.robust_spread) && (0.7..=1.5).contains(&z.rms),
+        "z spread: {z:?} (goal 0.7 to 1.5)"
+    );
+
     let (c, pc) = heldout_comparison(&res, tmp.path(), "recovered");
     assert_heldout("recovered", &c, &pc);
 }

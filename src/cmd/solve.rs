@@ -184,7 +184,9 @@ pub struct SampleArgs {
     /// CSV with x,y,z,nx,ny,nz per row (a header row is allowed).
     #[arg(long)]
     pub points: PathBuf,
-    /// Output CSV: the input columns plus r,g,b.
+    /// Output CSV: the input columns plus r,g,b (diffuse albedo) and sr,sg,sb (its standard
+    /// error per channel at the nearest texel; empty where unknown: a texel not seen in the
+    /// last iteration, or a result written before standard errors were stored).
     #[arg(short, long)]
     pub output: PathBuf,
 }
@@ -192,10 +194,16 @@ pub struct SampleArgs {
 pub fn run_sample(a: SampleArgs, _ctx: &Ctx) -> anyhow::Result<()> {
     let pts = igi_reflect::result::read_points(&a.points)?;
     let values = igi_reflect::sample_albedo(&a.result, &pts)?;
-    let mut csv = String::from("x,y,z,nx,ny,nz,r,g,b\n");
-    for ((p, n), v) in pts.iter().zip(&values) {
+    let mut csv = String::from("x,y,z,nx,ny,nz,r,g,b,sr,sg,sb\n");
+    for ((p, n), s) in pts.iter().zip(&values) {
+        let v = s.rho;
+        let se = if s.stderr.min_element() >= 0.0 {
+            format!("{},{},{}", s.stderr.x, s.stderr.y, s.stderr.z)
+        } else {
+            ",,".to_string()
+        };
         csv.push_str(&format!(
-            "{},{},{},{},{},{},{},{},{}\n",
+            "{},{},{},{},{},{},{},{},{},{se}\n",
             p.x, p.y, p.z, n.x, n.y, n.z, v.x, v.y, v.z
         ));
     }

@@ -12,7 +12,8 @@
 //! aside): `crates/reflect/tests/prepared.rs`.
 //!
 //! ```text
-//! WORK/iter_K/GROUP/NAME_rho_d.exr, NAME_weight.exr, NAME_observations.exr   per part
+//! WORK/iter_K/GROUP/NAME_rho_d.exr, NAME_weight.exr, NAME_observations.exr,
+//!                   NAME_stderr.exr                                           per part
 //! WORK/iter_K/GROUP/done.json                                                 written last
 //! ```
 
@@ -183,7 +184,7 @@ pub fn write_stale(
     Ok(dir)
 }
 
-/// Writes part `i`'s albedo, weight and observation atlases into `dir`.
+/// Writes part `i`'s albedo, weight, observation and standard-error atlases into `dir`.
 fn write_atlases(state: &SolveResult, i: usize, dir: &Path) -> Result<(), ReflectError> {
     let r = state.parts[i].resolution();
     let name = &state.parts[i].name;
@@ -205,6 +206,10 @@ fn write_atlases(state: &SolveResult, i: usize, dir: &Path) -> Result<(), Reflec
     write_exr(
         &dir.join(format!("{name}_observations.exr")),
         &img(&|k| [state.observations[i][k] as f32; 3]),
+    )?;
+    write_exr(
+        &dir.join(format!("{name}_stderr.exr")),
+        &img(&|k| state.stderr[i][k].to_array()),
     )?;
     Ok(())
 }
@@ -235,6 +240,11 @@ fn read_atlases(state: &mut SolveResult, i: usize, dir: &Path) -> Result<(), Ref
         .iter()
         .map(|p| p[0] as u32)
         .collect();
+    let p = dir.join(format!("{name}_stderr.exr"));
+    if !p.exists() {
+        return Err(ReflectError::file(&p, "missing (a task writes it)"));
+    }
+    state.stderr[i] = crate::result::read_stderr(dir, &name, r)?;
     state.changed[i] = true;
     Ok(())
 }

@@ -36,7 +36,10 @@ pub mod weights;
 use std::path::PathBuf;
 
 pub use parts::{Part, TexelCache};
-pub use result::{export, load_result_scene, sample_albedo, ExportFormat, SolveResult};
+pub use result::{
+    export, load_result_scene, sample_albedo, AlbedoSample, ExportFormat, SolveResult,
+    UNKNOWN_STDERR,
+};
 pub use session::SolveSession;
 pub use solver::{solve, IterationRecord, Progress, Schedule, SolveOptions, SolveReport};
 pub use survey::{lighting_from_probe, LightingSource, PhotoSpec, Survey};

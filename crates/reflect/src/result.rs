@@ -9,11 +9,19 @@
 //!   parts/NAME_rho_d.exr        recovered diffuse albedo (linear RGB atlas)
 //!   parts/NAME_weight.exr       sum of the observation weights per texel (grey)
 //!   parts/NAME_observations.exr number of photos that contributed per texel (grey)
+//!   parts/NAME_stderr.exr       standard error of rho_d per texel and channel (RGB); -1 where
+//!                               unknown (texel not seen in the last iteration); a result
+//!                               written before this file existed reads as all unknown
 //!   parts/NAME_coverage.exr     1 covered, 0.5 gutter, 0 empty
 //!   parts/NAME_position.exr     texel cache: world position per texel
 //!   parts/NAME_normal.exr       texel cache: world normal per texel
 //!   parts/NAME_lobes.json       lobes inferred for the part (when BRDF samples were given)
 //! ```
+//! `NAME_stderr.exr` is derived in docs/SOLVER.md ("Per-texel uncertainty"): the spread of the
+//! weighted proposals of the last ratio update beyond their Monte-Carlo noise, plus that noise.
+//! [`sample_albedo`] returns it with the albedo (`igi sample`'s `sr,sg,sb`), and [`export`]
+//! pictures it as `NAME_stderr.png`.
+//!
 //! Every file is written atomically, and a checkpoint is one transaction: its changed files,
 //! `scene.toml`, `convergence.png` and last `report.json` are first written into `staged/`;
 //! the staged `report.json` is the commit point, after which the staged files are renamed into
@@ -35,6 +43,10 @@ use std::path::{Path, PathBuf};
 /// The staging folder of a checkpoint in progress (see the module overview).
 pub const STAGED: &str = "staged";
 
+/// The standard error of a texel whose albedo was not measured (not seen, or a result folder
+/// from before `NAME_stderr.exr`): negative, never NaN.
+pub const UNKNOWN_STDERR: Vec3 = Vec3::splat(-1.0);
+
 /// The state and result of a solve.
 pub struct SolveResult {
     pub parts: Vec<Part>,
@@ -42,6 +54,10 @@ pub struct SolveResult {
     pub rho: Vec<Vec<Vec3>>,
     pub weight_sum: Vec<Vec<f32>>,
     pub observations: Vec<Vec<u32>>,
+    /// Per part, per atlas texel: the standard error of `rho` per channel, or
+    /// [`UNKNOWN_STDERR`] (docs/SOLVER.md derives it from the spread of the weighted proposals
+    /// and the Monte-Carlo noise of the rendered radiance).
+    pub stderr: Vec<Vec<Vec3>>,
     /// Lobes per part (empty without a BRDF basis).
     pub lobes: Vec<Vec<Lobe>>,
     pub report: SolveReport,
@@ -69,6 +85,10 @@ impl SolveResult {
             .iter()
             .map(|p| vec![0; p.resolution() * p.resolution()])
             .collect();
+        let stderr = parts
+            .iter()
+            .map(|p| vec![UNKNOWN_STDERR; p.resolution() * p.resolution()])
+            .collect();
         let lobes = parts.iter().map(|_| Vec::new()).collect();
         let changed = vec![true; parts.len()];
         let site = parts
@@ -79,6 +99,7 @@ impl SolveResult {
             rho,
             weight_sum,
             observations,
+            stderr,
             lobes,
             report: SolveReport {
                 options: opts.clone(),
@@ -162,6 +183,10 @@ impl SolveResult {
                 write_exr(
                     &pdir.join(format!("{}_observations.exr", p.name)),
                     &img(&|k| [self.observations[i][k] as f32; 3]),
+                )?;
+                write_exr(
+                    &pdir.join(format!("{}_stderr.exr", p.name)),
+                    &img(&|k| self.stderr[i][k].to_array()),
                 )?;
                 if !self.lobes[i].is_empty() {
                     let json =
@@ -279,8 +304,8 @@ impl SolveResult {
             .map_err(|e| ReflectError::file(&rp, format!("not a solve report: {e}")))?;
         let pdir = dir.join("parts");
         let mut parts = Vec::new();
-        let (mut rho, mut weight_sum, mut observations, mut lobes) =
-            (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        let (mut rho, mut weight_sum, mut observations, mut stderr, mut lobes) =
+            (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
         for s in &report.parts {
             let name = &s.name;
             let mesh = match &s.stored {
@@ -312,6 +337,7 @@ impl SolveResult {
             ] {
                 sized(im, &format!("{name}_{f}.exr"))?;
             }
+            stderr.push(read_stderr(&pdir, name, r)?);
             let texels = TexelCache::covered_texels(&pos, &nrm, &coverage);
             let lp = pdir.join(format!("{name}_lobes.json"));
             let l: Vec<Lobe> = if lp.exists() {
@@ -350,6 +376,7 @@ impl SolveResult {
             rho,
             weight_sum,
             observations,
+            stderr,
             lobes,
             report,
             changed,
@@ -359,6 +386,34 @@ impl SolveResult {
 }
 
 /// A TOML basic string (quoted, with backslashes and quotes escaped).
+/// Reads `NAME_stderr.exr` of an `r` x `r` atlas; a missing file (a result written before it
+/// existed) reads as unknown everywhere.
+pub(crate) fn read_stderr(pdir: &Path, name: &str, r: usize) -> Result<Vec<Vec3>, ReflectError> {
+    let path = pdir.join(format!("{name}_stderr.exr"));
+    if !path.exists() {
+        return Ok(vec![UNKNOWN_STDERR; r * r]);
+    }
+    let im = read_image(&path)?;
+    if im.width != r || im.height != r {
+        return Err(ReflectError::file(
+            &path,
+            format!("is {}x{}, expected {r}x{r}", im.width, im.height),
+        ));
+    }
+    Ok(im
+        .pixels
+        .iter()
+        .map(|p| {
+            let v = Vec3::from_array(*p);
+            if v.is_finite() && v.min_element() >= 0.0 {
+                v
+            } else {
+                UNKNOWN_STDERR
+            }
+        })
+        .collect())
+}
+
 fn toml_string(s: &str) -> String {
     format!("\"{}\"", s.replace('\\', "\\\\").replace('"', "\\\""))
 }
@@ -432,8 +487,27 @@ impl std::str::FromStr for ExportFormat {
     }
 }
 
+/// The picture of a part's standard-error atlas that `igi export` writes: grey, black at 0 and
+/// white at [`STDERR_PICTURE_MAX`] or more (the luminance of the per-channel standard error),
+/// magenta where unknown.
+fn stderr_picture(stderr: &[Vec3], r: usize) -> HdrImage {
+    let mut im = HdrImage::new(r, r);
+    for (px, s) in im.pixels.iter_mut().zip(stderr) {
+        *px = if s.min_element() >= 0.0 {
+            [(igi_brdf::luminance(*s) / STDERR_PICTURE_MAX).min(1.0); 3]
+        } else {
+            [1.0, 0.0, 1.0]
+        };
+    }
+    im
+}
+
+/// The standard error shown white in `NAME_stderr.png` of `igi export`.
+pub const STDERR_PICTURE_MAX: f32 = 0.05;
+
 /// Writes the recovered site into `out`: meshes with atlas UVs plus linear EXR albedo
-/// textures (and sRGB PNG previews); for `Obj` a `.mtl` per part; for `Mitsuba` a
+/// textures (and sRGB PNG previews), and `NAME_stderr.png`, a picture of the standard error
+/// of the albedo (see [`stderr_picture`]); for `Obj` a `.mtl` per part; for `Mitsuba` a
 /// `scene.xml` with diffuse bitmap textures (Mitsuba reads the EXR as linear; its bitmap lookup
 /// has v = 0 at the top row, so `to_uv` flips v to FORMATS.md's convention, as
 /// `datasets/mitsuba/outdoor_reference.py` verifies against Mitsuba). Returns the files written.
@@ -458,6 +532,9 @@ pub fn export(
         let tex_name = format!("{}_albedo.exr", p.name);
         write_exr(&out.join(&tex_name), &tex)?;
         igi_imaging::write_png_tonemapped(&out.join(format!("{}_albedo.png", p.name)), &tex, 1.0)?;
+        let se_png = out.join(format!("{}_stderr.png", p.name));
+        igi_imaging::write_png_tonemapped(&se_png, &stderr_picture(&res.stderr[i], r), 1.0)?;
+        written.push(se_png);
         written.push(out.join(&tex_name));
         match format {
             ExportFormat::Ply | ExportFormat::Mitsuba => {
@@ -488,12 +565,37 @@ pub fn export(
     Ok(written)
 }
 
-/// The recovered diffuse albedo of the surface nearest each query point: a short ray along the
-/// point's normal (both ways) finds the surface; when it misses, the nearest covered texel.
+/// The albedo of a result at one query point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AlbedoSample {
+    /// Diffuse albedo (bilinear in the atlas).
+    pub rho: Vec3,
+    /// Its standard error per channel, at the nearest texel; [`UNKNOWN_STDERR`] where unknown.
+    pub stderr: Vec3,
+}
+
+/// The standard error at `uv` of an `r` x `r` atlas: the nearest texel's (not interpolated:
+/// an unknown texel must not blend into a known one).
+fn stderr_at(stderr: &[Vec3], r: usize, uv: glam::Vec2) -> Vec3 {
+    let f = |t: f32| {
+        if t.is_finite() {
+            t.clamp(0.0, 1.0)
+        } else {
+            0.5
+        }
+    };
+    let x = ((f(uv.x) * r as f32) as usize).min(r - 1);
+    let y = (((1.0 - f(uv.y)) * r as f32) as usize).min(r - 1);
+    stderr[y * r + x]
+}
+
+/// The recovered diffuse albedo (and its standard error) of the surface nearest each query
+/// point: a short ray along the point's normal (both ways) finds the surface; when it misses,
+/// the nearest covered texel.
 pub fn sample_albedo(
     result_dir: &Path,
     points: &[(Vec3, Vec3)],
-) -> Result<Vec<Vec3>, ReflectError> {
+) -> Result<Vec<AlbedoSample>, ReflectError> {
     let res = SolveResult::load(result_dir)?;
     let objects: Vec<(String, TriMesh, igi_render::Material)> = res
         .parts
@@ -541,17 +643,22 @@ pub fn sample_albedo(
                 if let Some(h) = scene.intersect(p + d * reach, -d) {
                     if h.t <= 2.0 * reach {
                         let sp = scene.surface_point(&h);
-                        return Ok(scene.objects[sp.object as usize].material.brdf_at(sp.uv).rho_d);
+                        let o = sp.object as usize;
+                        return Ok(AlbedoSample {
+                            rho: scene.objects[o].material.brdf_at(sp.uv).rho_d,
+                            stderr: stderr_at(&res.stderr[o], res.parts[o].resolution(), sp.uv),
+                        });
                     }
                 }
             }
             // nearest covered texel
-            let mut best = (f32::INFINITY, Vec3::ZERO);
+            let mut best = (f32::INFINITY, Vec3::ZERO, UNKNOWN_STDERR);
             for (i, part) in res.parts.iter().enumerate() {
                 for t in &part.cache.texels {
                     let d = t.position.distance_squared(p);
                     if d < best.0 {
-                        best = (d, res.rho[i][t.index as usize]);
+                        let k = t.index as usize;
+                        best = (d, res.rho[i][k], res.stderr[i][k]);
                     }
                 }
             }
@@ -565,7 +672,10 @@ pub fn sample_albedo(
                     best.0.sqrt()
                 )));
             }
-            Ok(best.1)
+            Ok(AlbedoSample {
+                rho: best.1,
+                stderr: best.2,
+            })
         })
         .collect()
 }

@@ -2,9 +2,9 @@
 
 use crate::fill::fill_unseen;
 use crate::parts::{stored_part_name, Part, StoredPart};
-use crate::result::SolveResult;
+use crate::result::{SolveResult, UNKNOWN_STDERR};
 use crate::survey::Photo;
-use crate::weights::{combine, WeightRules};
+use crate::weights::{combine, Proposal, WeightRules};
 use crate::ReflectError;
 use glam::{DVec3, Vec2, Vec3};
 use igi_brdf::{luminance, Basis, LafortuneRef, Lobe};
@@ -254,11 +254,60 @@ impl Pending {
 /// Ground-truth albedo per part and covered texel (same order as `Part::cache.texels`).
 pub type Truth = Vec<Vec<Option<Vec3>>>;
 
+/// How well the standard errors explain the error against ground truth: the z-scores
+/// `(rho_d - truth) / stderr` of every channel of the texels seen at least twice.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ZScores {
+    /// Number of z-scores (texel channels with a positive standard error).
+    pub count: usize,
+    /// 1.4826 x the median |z| (1 for a standard normal; robust to heavy tails).
+    pub robust_spread: f64,
+    /// sqrt(mean z^2).
+    pub rms: f64,
+    /// 95th percentile of |z| (1.96 for a standard normal).
+    pub p95_abs: f64,
+}
+
+/// The [`ZScores`] of a result against ground truth, or `None` without any.
+pub fn z_scores(state: &SolveResult, truth: &Truth) -> Option<ZScores> {
+    let mut z = Vec::new();
+    for (pi, p) in state.parts.iter().enumerate() {
+        for (ti, t) in p.cache.texels.iter().enumerate() {
+            let i = t.index as usize;
+            let (Some(Some(gt)), true) = (
+                truth.get(pi).and_then(|v| v.get(ti)),
+                state.observations[pi][i] >= 2,
+            ) else {
+                continue;
+            };
+            let se = state.stderr[pi][i];
+            for ch in 0..3 {
+                if se[ch] > 0.0 {
+                    z.push(((state.rho[pi][i][ch] - gt[ch]) as f64 / se[ch] as f64).abs());
+                }
+            }
+        }
+    }
+    if z.is_empty() {
+        return None;
+    }
+    z.sort_by(f64::total_cmp);
+    let n = z.len();
+    Some(ZScores {
+        count: n,
+        robust_spread: 1.4826 * z[n / 2],
+        rms: (z.iter().map(|v| v * v).sum::<f64>() / n as f64).sqrt(),
+        p95_abs: z[(n * 95 / 100).min(n - 1)],
+    })
+}
+
 struct Obs {
     part: u32,
     texel: u32,
     proposal: Vec3,
     weight: f32,
+    /// Variance of `proposal` from the Monte-Carlo noise of the rendered radiance.
+    mc_var: Vec3,
     /// Neither near an occlusion boundary nor on a shadow edge.
     clean: bool,
     residual: Vec3,
@@ -780,8 +829,7 @@ fn update_parts(
     opts: &SolveOptions,
     acc: &mut Pending,
 ) {
-    let mut per_texel: Vec<Vec<Vec<(Vec3, f32)>>> =
-        start.parts.iter().map(|_| Vec::new()).collect();
+    let mut per_texel: Vec<Vec<Vec<Proposal>>> = start.parts.iter().map(|_| Vec::new()).collect();
     let mut any_clean: Vec<Vec<bool>> = start.parts.iter().map(|_| Vec::new()).collect();
     for &pi in group {
         let n = start.parts[pi].cache.texels.len();
@@ -789,7 +837,11 @@ fn update_parts(
         any_clean[pi] = vec![false; n];
     }
     for o in obs {
-        per_texel[o.part as usize][o.texel as usize].push((o.proposal, o.weight));
+        per_texel[o.part as usize][o.texel as usize].push(Proposal {
+            value: o.proposal,
+            weight: o.weight,
+            mc_var: o.mc_var,
+        });
         any_clean[o.part as usize][o.texel as usize] |= o.clean;
         acc.res2 += o.residual.length_squared() as f64;
         acc.rel2 += o.pixel.length_squared() as f64;
@@ -806,7 +858,7 @@ fn update_parts(
         let mut new_rho = start.rho[pi].clone();
         for (ti, t) in p.cache.texels.iter().enumerate() {
             let i = t.index as usize;
-            let props = &mut per_texel[pi][ti];
+            let props = &per_texel[pi][ti];
             // seen only through occlusion boundaries or shadow edges: not reliable; filled
             let combined = if any_clean[pi][ti] {
                 combine(props, &opts.rules)
@@ -814,12 +866,13 @@ fn update_parts(
                 None
             };
             start.observations[pi][i] = if combined.is_some() {
-                props.iter().filter(|(_, w)| *w > 0.0).count() as u32
+                props.iter().filter(|p| p.weight > 0.0).count() as u32
             } else {
                 0
             };
             match combined {
-                Some((v, w)) => {
+                Some(c) => {
+                    let v = c.value;
                     acc.delta += (v - start.rho[pi][i]).abs().max_element() as f64;
                     acc.nseen += 1;
                     nseen_p += 1;
@@ -827,11 +880,13 @@ fn update_parts(
                         twice += 1;
                     }
                     new_rho[i] = v;
-                    start.weight_sum[pi][i] = w;
+                    start.weight_sum[pi][i] = c.weight;
+                    start.stderr[pi][i] = c.stderr;
                     seen[i] = true;
                 }
                 None => {
                     start.weight_sum[pi][i] = 0.0;
+                    start.stderr[pi][i] = UNKNOWN_STDERR;
                 }
             }
         }
@@ -1066,6 +1121,14 @@ fn observe_photo(
                     rho[ch]
                 }
             }));
+            // Monte-Carlo variance of the proposal: its relative error is that of L
+            let mc_var = Vec3::from_array(std::array::from_fn(|ch| {
+                if l[ch] > floor * 1e-3 {
+                    (proposal[ch] * se[ch] / l[ch]).powi(2)
+                } else {
+                    0.0
+                }
+            }));
             // rendered radiance with the current albedo (linear in the first vertex's albedo)
             let current = l * (rho / rho_eval);
             let residual = current - pixel;
@@ -1074,6 +1137,7 @@ fn observe_photo(
                 texel: t.texel,
                 proposal,
                 weight,
+                mc_var,
                 clean,
                 residual,
                 pixel,

@@ -66,53 +66,124 @@ impl Default for WeightRules {
     }
 }
 
+/// One photo's proposal for a texel's albedo: the value, its weight, and the variance per
+/// channel that the Monte-Carlo noise of the rendered radiance puts into it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Proposal {
+    pub value: Vec3,
+    pub weight: f32,
+    /// `(value * stderr(L) / L)^2` per channel (`L` the rendered radiance).
+    pub mc_var: Vec3,
+}
+
+/// The combined albedo of a texel: value, sum of the kept weights, and standard error.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Combined {
+    pub value: Vec3,
+    pub weight: f32,
+    /// Standard error of `value` per channel (see [`standard_error`]).
+    pub stderr: Vec3,
+}
+
 /// Combines weighted proposals into one value: outlier rejection around the weighted median
-/// (three or more observations), then the weighted mean. Returns the value and the sum of the
-/// kept weights, or `None` when nothing with positive weight remains.
-pub fn combine(proposals: &mut [(Vec3, f32)], rules: &WeightRules) -> Option<(Vec3, f32)> {
-    let mut kept: Vec<(Vec3, f32)> = proposals
+/// (three or more observations), then the weighted mean and its standard error. Returns
+/// `None` when nothing with positive weight remains.
+pub fn combine(proposals: &[Proposal], rules: &WeightRules) -> Option<Combined> {
+    let mut kept: Vec<Proposal> = proposals
         .iter()
         .copied()
-        .filter(|(v, w)| *w > 0.0 && v.is_finite())
+        .filter(|p| p.weight > 0.0 && p.value.is_finite() && p.mc_var.is_finite())
         .collect();
     if kept.is_empty() {
         return None;
     }
     if kept.len() >= 3 {
-        kept.sort_by(|a, b| luminance(a.0).total_cmp(&luminance(b.0)));
-        let total: f32 = kept.iter().map(|k| k.1).sum();
+        kept.sort_by(|a, b| luminance(a.value).total_cmp(&luminance(b.value)));
+        let total: f32 = kept.iter().map(|k| k.weight).sum();
         let mut acc = 0.0;
-        let mut median = luminance(kept[0].0);
-        for (v, w) in &kept {
-            acc += w;
+        let mut median = luminance(kept[0].value);
+        for k in &kept {
+            acc += k.weight;
             if acc >= 0.5 * total {
-                median = luminance(*v);
+                median = luminance(k.value);
                 break;
             }
         }
         let r = rules.outlier_ratio;
-        kept.retain(|(v, _)| {
-            let l = luminance(*v);
+        kept.retain(|k| {
+            let l = luminance(k.value);
             l <= median * r + 1e-6 && l * r + 1e-6 >= median
         });
     }
-    let wsum: f32 = kept.iter().map(|k| k.1).sum();
+    let wsum: f32 = kept.iter().map(|k| k.weight).sum();
     if !(wsum > 0.0) {
         return None;
     }
-    let mean = kept.iter().fold(Vec3::ZERO, |a, (v, w)| a + *v * *w) / wsum;
-    Some((mean.clamp(Vec3::ZERO, Vec3::splat(rules.max_albedo)), wsum))
+    let mean = kept.iter().fold(Vec3::ZERO, |a, k| a + k.value * k.weight) / wsum;
+    Some(Combined {
+        value: mean.clamp(Vec3::ZERO, Vec3::splat(rules.max_albedo)),
+        weight: wsum,
+        stderr: standard_error(&kept, mean, wsum),
+    })
+}
+
+/// Standard error of the weighted mean `mean` of the kept proposals (weights summing to
+/// `wsum`), per channel. With normalised weights `a_i = w_i / W` and the proposals' Monte-Carlo
+/// variances `v_i`:
+///
+/// - spread (reliability-weighted, unbiased): `s^2 = sum a_i (p_i - mean)^2 / (1 - sum a_i^2)`;
+/// - noise beyond the Monte-Carlo noise (photo noise, registration, lighting and model error),
+///   common to every proposal: `x^2 = max(0, s^2 - sum a_i v_i)`;
+/// - `var(mean) = sum a_i^2 (v_i + x^2)`.
+///
+/// A single proposal has no spread: its standard error is the Monte-Carlo part alone (a lower
+/// bound). Always finite and non-negative.
+pub fn standard_error(kept: &[Proposal], mean: Vec3, wsum: f32) -> Vec3 {
+    let a = |k: &Proposal| (k.weight / wsum) as f64;
+    let sum_a2: f64 = kept.iter().map(|k| a(k) * a(k)).sum();
+    let se = |ch: usize| -> f32 {
+        let mc: f64 = kept.iter().map(|k| a(k) * k.mc_var[ch] as f64).sum();
+        let mc_of_mean: f64 = kept.iter().map(|k| a(k) * a(k) * k.mc_var[ch] as f64).sum();
+        let extra = if kept.len() >= 2 && sum_a2 < 1.0 - 1e-9 {
+            let s2: f64 = kept
+                .iter()
+                .map(|k| a(k) * ((k.value[ch] - mean[ch]) as f64).powi(2))
+                .sum::<f64>()
+                / (1.0 - sum_a2);
+            (s2 - mc).max(0.0)
+        } else {
+            0.0
+        };
+        let v = mc_of_mean + extra * sum_a2;
+        if v.is_finite() {
+            v.max(0.0).sqrt() as f32
+        } else {
+            0.0
+        }
+    };
+    Vec3::new(se(0), se(1), se(2))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
+    fn props(v: &[(Vec3, f32)]) -> Vec<Proposal> {
+        v.iter()
+            .map(|&(value, weight)| Proposal {
+                value,
+                weight,
+                mc_var: Vec3::ZERO,
+            })
+            .collect()
+    }
+
     #[test]
     fn combine_is_the_weighted_mean_without_outliers() {
         let rules = WeightRules::default();
-        let mut p = vec![(Vec3::splat(0.2), 1.0), (Vec3::splat(0.4), 3.0)];
-        let (v, w) = combine(&mut p, &rules).unwrap();
+        let p = vec![(Vec3::splat(0.2), 1.0), (Vec3::splat(0.4), 3.0)];
+        let c = combine(&props(&p), &rules).unwrap();
+        let (v, w) = (c.value, c.weight);
         assert!((v.x - 0.35).abs() < 1e-6, "{v}");
         assert_eq!(w, 4.0);
     }
@@ -121,14 +192,15 @@ mod tests {
     fn a_misregistered_photo_is_rejected_as_an_outlier() {
         // Four photos agree on 0.30; a misregistered one sees a dark neighbour (0.05).
         let rules = WeightRules::default();
-        let mut p = vec![
+        let p = vec![
             (Vec3::splat(0.30), 1.0),
             (Vec3::splat(0.31), 1.0),
             (Vec3::splat(0.29), 1.0),
             (Vec3::splat(0.30), 1.0),
             (Vec3::splat(0.05), 1.0),
         ];
-        let (v, w) = combine(&mut p, &rules).unwrap();
+        let c = combine(&props(&p), &rules).unwrap();
+        let (v, w) = (c.value, c.weight);
         assert!((v.x - 0.30).abs() < 1e-3, "{v}");
         assert_eq!(w, 4.0);
     }
@@ -136,11 +208,73 @@ mod tests {
     #[test]
     fn a_single_observation_is_kept_and_clamped() {
         let rules = WeightRules::default();
-        let mut p = vec![(Vec3::new(1.7, 0.5, -0.1), 0.3)];
-        let (v, w) = combine(&mut p, &rules).unwrap();
+        let p = vec![(Vec3::new(1.7, 0.5, -0.1), 0.3)];
+        let c = combine(&props(&p), &rules).unwrap();
+        let (v, w) = (c.value, c.weight);
         assert_eq!(v, Vec3::new(1.0, 0.5, 0.0));
         assert_eq!(w, 0.3);
-        let mut none: Vec<(Vec3, f32)> = vec![(Vec3::ONE, 0.0), (Vec3::NAN, 1.0)];
-        assert!(combine(&mut none, &rules).is_none());
+        let none: Vec<(Vec3, f32)> = vec![(Vec3::ONE, 0.0), (Vec3::NAN, 1.0)];
+        assert!(combine(&props(&none), &rules).is_none());
+    }
+
+    #[test]
+    fn standard_error_of_two_equal_proposals_is_their_sample_error() {
+        // values 0.2 and 0.4: sample standard deviation 0.1414, error of the mean 0.1
+        let rules = WeightRules::default();
+        let c = combine(
+            &props(&[(Vec3::splat(0.2), 2.0), (Vec3::splat(0.4), 2.0)]),
+            &rules,
+        )
+        .unwrap();
+        assert!((c.stderr.x - 0.1).abs() < 1e-6, "{}", c.stderr);
+        // Monte-Carlo noise larger than the spread: the Monte-Carlo part alone remains,
+        // var = sum a_i^2 v_i = 2 * 0.25 * 0.04
+        let mut p = props(&[(Vec3::splat(0.3), 1.0), (Vec3::splat(0.31), 1.0)]);
+        for q in &mut p {
+            q.mc_var = Vec3::splat(0.04);
+        }
+        let c = combine(&p, &rules).unwrap();
+        assert!((c.stderr.y - 0.02f32.sqrt()).abs() < 1e-6, "{}", c.stderr);
+        // one proposal: its Monte-Carlo error only
+        p.truncate(1);
+        assert!((combine(&p, &rules).unwrap().stderr.z - 0.2).abs() < 1e-6);
+    }
+
+    #[test]
+    fn z_scores_of_noisy_proposals_have_unit_spread() {
+        // 4000 texels, 6 proposals each with Gaussian noise (sigma 0.05) and unequal weights:
+        // (mean - truth) / stderr must have a standard deviation near 1 (t with 5 degrees of
+        // freedom: sqrt(5/3) = 1.29 for equal weights).
+        let rules = WeightRules {
+            outlier_ratio: 1e9,
+            ..WeightRules::default()
+        };
+        let mut state = 0x9e3779b97f4a7c15u64;
+        let mut uniform = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+        };
+        let mut z2 = 0.0;
+        let n = 4000;
+        for _ in 0..n {
+            let p: Vec<Proposal> = (0..6)
+                .map(|k| {
+                    let g = (-2.0 * uniform().ln()).sqrt()
+                        * (2.0 * std::f64::consts::PI * uniform()).cos();
+                    Proposal {
+                        value: Vec3::splat(0.4 + 0.05 * g as f32),
+                        weight: 0.5 + 0.1 * k as f32,
+                        mc_var: Vec3::ZERO,
+                    }
+                })
+                .collect();
+            let c = combine(&p, &rules).unwrap();
+            z2 += (((c.value.x - 0.4) / c.stderr.x) as f64).powi(2);
+        }
+        let sd = (z2 / n as f64).sqrt();
+        eprintln!("z rms over {n} simulated texels: {sd:.3}");
+        assert!((1.1..1.45).contains(&sd), "z spread {sd}");
     }
 }

@@ -234,10 +234,53 @@ fn solve_recovers_known_albedo_from_synthetic_photos_and_resumes() {
     for p in &done.report.parts {
         assert!(p.seen_texels > 0, "{} seen", p.name);
     }
+    check_z_scores(&done, &truth);
+    // the standard errors round-trip through the result folder; a result written before they
+    // existed (no NAME_stderr.exr) loads with every standard error unknown
+    let back = SolveResult::load(&out).unwrap();
+    assert_eq!(back.stderr, done.stderr);
+    for p in &done.parts {
+        std::fs::remove_file(out.join(format!("parts/{}_stderr.exr", p.name))).unwrap();
+    }
+    let old = SolveResult::load(&out).unwrap();
+    assert!(old
+        .stderr
+        .iter()
+        .flatten()
+        .all(|s| *s == igi_reflect::UNKNOWN_STDERR));
     // the result folder re-renders as a scene
     let scene_file = igi_reflect::load_result_scene(&out).unwrap();
     let (scene, _) = igi_render::Scene::load(&scene_file).unwrap();
     assert_eq!(scene.objects.len(), 2);
+}
+
+/// The standard errors of `rho_d` explain its error against the truth: over texels seen at
+/// least twice, the z-scores `(rho_d - truth) / stderr` (every channel) have a spread near 1.
+/// The spread is the robust one, 1.4826 times the median absolute z (1 for a standard normal;
+/// the plain standard deviation is printed too, but a texel seen by two photos has a spread
+/// estimate with one degree of freedom, whose z follows a heavy-tailed t distribution).
+fn check_z_scores(state: &SolveResult, truth: &igi_reflect::solver::Truth) {
+    for (pi, p) in state.parts.iter().enumerate() {
+        for t in &p.cache.texels {
+            let i = t.index as usize;
+            if state.observations[pi][i] >= 2 {
+                assert!(
+                    state.stderr[pi][i].min_element() >= 0.0,
+                    "seen twice but no standard error"
+                );
+            }
+        }
+    }
+    let z = igi_reflect::solver::z_scores(state, truth).expect("texels seen twice");
+    eprintln!(
+        "z-scores over {} texel channels seen twice: robust spread {:.3}, rms {:.3}, 95th percentile |z| {:.3}",
+        z.count, z.robust_spread, z.rms, z.p95_abs
+    );
+    assert!(z.count > 300, "{} z-scores", z.count);
+    assert!(
+        (0.7..=1.5).contains(&z.robust_spread) && (0.7..=1.5).contains(&z.rms),
+        "z spread: {z:?} (goal 0.7 to 1.5)"
+    );
 }
 
 /// Glossy materials: the photographs are rendered with per-texel Lafortune lobes that a BRDF
