@@ -507,7 +507,7 @@ pub const STDERR_PICTURE_MAX: f32 = 0.05;
 
 /// Writes the recovered site into `out`: meshes with atlas UVs plus linear EXR albedo
 /// textures (and sRGB PNG previews), and `NAME_stderr.png`, a picture of the standard error
-/// of the albedo (see [`stderr_picture`]); for `Obj` a `.mtl` per part; for `Mitsuba` a
+/// of the albedo (see `stderr_picture`); for `Obj` a `.mtl` per part; for `Mitsuba` a
 /// `scene.xml` with diffuse bitmap textures (Mitsuba reads the EXR as linear; its bitmap lookup
 /// has v = 0 at the top row, so `to_uv` flips v to FORMATS.md's convention, as
 /// `datasets/mitsuba/outdoor_reference.py` verifies against Mitsuba). Returns the files written.
