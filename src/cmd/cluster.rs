@@ -1,7 +1,6 @@
 //! `igi cluster`: a prepared site solved across Slurm (Jacobi iterations as job arrays of voxel
 //! tasks with a merge; docs/SOLVER.md "Solving across a cluster").
 use crate::report::{print_json, Ctx};
-use anyhow::bail;
 use igi_cluster::{GroupState, SlurmOptions};
 use igi_reflect::{Schedule, SolveOptions};
 use std::path::PathBuf;
@@ -33,23 +32,8 @@ pub struct SubmitArgs {
     /// Result folder (new): today's result layout plus cluster/.
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Most iterations.
-    #[arg(long, default_value_t = 4)]
-    pub iterations: u32,
-    /// Stop when the mean change of rho_d over seen texels is below this (after 2 iterations).
-    #[arg(long, default_value_t = 0.002)]
-    pub tolerance: f32,
-    /// Samples per radiance estimate, per iteration (the last repeats).
-    #[arg(long, value_delimiter = ',', default_value = "16,64,256")]
-    pub spp: Vec<u32>,
-    /// Indirect bounces after direct lighting.
-    #[arg(long, default_value_t = 2)]
-    pub indirect: u32,
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
-    /// Initial albedo of every texel (r,g,b).
-    #[arg(long, value_delimiter = ',', default_value = "0.5,0.5,0.5")]
-    pub initial: Vec<f32>,
+    #[command(flatten)]
+    pub iteration: crate::cmd::solve::IterationArgs,
     #[arg(long)]
     pub partition: Option<String>,
     #[arg(long)]
@@ -154,21 +138,12 @@ pub fn run(c: ClusterCmd, _ctx: &Ctx) -> anyhow::Result<()> {
 }
 
 fn submit(a: SubmitArgs) -> anyhow::Result<()> {
-    if a.initial.len() != 3 {
-        bail!("--initial takes three values r,g,b");
-    }
     let req = igi_cluster::workflow::SubmitRequest {
         survey: a.survey,
         result: a.output,
         options: SolveOptions {
-            max_iterations: a.iterations,
-            tolerance: a.tolerance,
-            spp: a.spp,
-            indirect: a.indirect,
-            seed: a.seed,
-            initial_albedo: [a.initial[0], a.initial[1], a.initial[2]],
             schedule: Schedule::Jacobi,
-            ..SolveOptions::default()
+            ..a.iteration.options()?
         },
         slurm: SlurmOptions {
             partition: a.partition,

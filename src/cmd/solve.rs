@@ -6,16 +6,9 @@ use igi_reflect::solver::truth_from_scene;
 use igi_reflect::{ExportFormat, Schedule, SolveOptions, SolveSession, Survey};
 use std::path::PathBuf;
 
+/// The options of the iteration, shared by `igi solve` and `igi cluster submit`.
 #[derive(clap::Args, Debug)]
-pub struct SolveArgs {
-    /// Survey folder holding survey.toml (FORMATS.md), or the survey.toml itself.
-    pub survey: PathBuf,
-    /// Result folder (created; an unfinished result there is resumed).
-    #[arg(short, long)]
-    pub output: PathBuf,
-    /// Atlas resolution per part (texels per side); a prepared site keeps its own atlases.
-    #[arg(long, default_value_t = 512)]
-    pub atlas: u32,
+pub struct IterationArgs {
     /// Most iterations.
     #[arg(long, default_value_t = 4)]
     pub iterations: u32,
@@ -33,6 +26,38 @@ pub struct SolveArgs {
     /// Initial albedo of every texel (r,g,b).
     #[arg(long, value_delimiter = ',', default_value = "0.5,0.5,0.5")]
     pub initial: Vec<f32>,
+}
+
+impl IterationArgs {
+    /// These options over the defaults of [`SolveOptions`].
+    pub fn options(&self) -> anyhow::Result<SolveOptions> {
+        let [r, g, b] = self.initial[..] else {
+            bail!("--initial takes three values r,g,b");
+        };
+        Ok(SolveOptions {
+            max_iterations: self.iterations,
+            tolerance: self.tolerance,
+            spp: self.spp.clone(),
+            indirect: self.indirect,
+            seed: self.seed,
+            initial_albedo: [r, g, b],
+            ..SolveOptions::default()
+        })
+    }
+}
+
+#[derive(clap::Args, Debug)]
+pub struct SolveArgs {
+    /// Survey folder holding survey.toml (FORMATS.md), or the survey.toml itself.
+    pub survey: PathBuf,
+    /// Result folder (created; an unfinished result there is resumed).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Atlas resolution per part (texels per side); a prepared site keeps its own atlases.
+    #[arg(long, default_value_t = 512)]
+    pub atlas: u32,
+    #[command(flatten)]
+    pub iteration: IterationArgs,
     /// Solve only these parts, comma-separated, to share a site between machines: site meshes
     /// by file stem, or for a prepared site voxels as I_J_K (and `terrain`).
     #[arg(
@@ -61,9 +86,7 @@ pub struct SolveArgs {
 }
 
 pub fn run_solve(a: SolveArgs, ctx: &Ctx) -> anyhow::Result<()> {
-    if a.initial.len() != 3 {
-        bail!("--initial takes three values r,g,b");
-    }
+    let iteration = a.iteration.options()?;
     let survey = Survey::load(&a.survey)?;
     let store = match &survey.prepared {
         Some(p) => Some(igi_geometry::SiteStore::open(p)?),
@@ -74,19 +97,13 @@ pub fn run_solve(a: SolveArgs, ctx: &Ctx) -> anyhow::Result<()> {
         .map_or(a.atlas, |s| s.manifest().atlas_resolution);
     let opts = SolveOptions {
         atlas_resolution: atlas,
-        max_iterations: a.iterations,
-        tolerance: a.tolerance,
-        spp: a.spp.clone(),
-        indirect: a.indirect,
-        seed: a.seed,
-        initial_albedo: [a.initial[0], a.initial[1], a.initial[2]],
         parts: a.parts.clone(),
         schedule: if a.schedule == "jacobi" {
             Schedule::Jacobi
         } else {
             Schedule::GaussSeidel
         },
-        ..SolveOptions::default()
+        ..iteration
     };
     // everything is checked before the first byte of work or output
     let session = SolveSession::check(&a.output, &survey, &opts, a.restart)?;

@@ -125,24 +125,16 @@ pub fn run_task(
         &progress,
     )?;
     let dir = task_dir(work, k + 1, group);
-    std::fs::create_dir_all(&dir)
-        .map_err(|e| ReflectError::file(&dir, format!("cannot create folder: {e}")))?;
-    let mut parts = Vec::new();
-    for &i in &g.parts {
-        write_atlases(&state, i, &dir)?;
-        parts.push(state.report.parts[i].clone());
-    }
     let done = TaskDone {
         group: group.to_string(),
         iteration: k + 1,
         sums,
-        parts,
+        parts: Vec::new(),
         wall_s: t0.elapsed().as_secs_f64(),
         meta: meta.clone(),
         stale: false,
     };
-    let json = serde_json::to_string_pretty(&done).expect("task report serialises");
-    igi_imaging::io::write_text_atomic(&dir.join("done.json"), &json)?;
+    write_task(&state, &g.parts, &dir, done)?;
     Ok(dir)
 }
 
@@ -163,25 +155,38 @@ pub fn write_stale(
     let plan = plan(&mut state, inputs, &opts)?;
     let g = plan.group(group)?;
     let dir = task_dir(work, k + 1, group);
-    std::fs::create_dir_all(&dir)
-        .map_err(|e| ReflectError::file(&dir, format!("cannot create folder: {e}")))?;
-    let mut parts = Vec::new();
-    for &i in &g.parts {
-        write_atlases(&state, i, &dir)?;
-        parts.push(state.report.parts[i].clone());
-    }
     let done = TaskDone {
         group: group.to_string(),
         iteration: k + 1,
         sums: Pending::default(),
-        parts,
+        parts: Vec::new(),
         wall_s: 0.0,
         meta: meta.clone(),
         stale: true,
     };
-    let json = serde_json::to_string_pretty(&done).expect("task report serialises");
-    igi_imaging::io::write_text_atomic(&dir.join("done.json"), &json)?;
+    write_task(&state, &g.parts, &dir, done)?;
     Ok(dir)
+}
+
+/// Writes a task's output into `dir`: the atlases and summaries of its `parts`, then, last,
+/// `done.json`.
+fn write_task(
+    state: &SolveResult,
+    parts: &[usize],
+    dir: &Path,
+    mut done: TaskDone,
+) -> Result<(), ReflectError> {
+    std::fs::create_dir_all(dir)
+        .map_err(|e| ReflectError::file(dir, format!("cannot create folder: {e}")))?;
+    for &i in parts {
+        write_atlases(state, i, dir)?;
+        done.parts.push(state.report.parts[i].clone());
+    }
+    let json = serde_json::to_string_pretty(&done).expect("task report serialises");
+    Ok(igi_imaging::io::write_text_atomic(
+        &dir.join("done.json"),
+        &json,
+    )?)
 }
 
 /// Writes part `i`'s albedo, weight, observation and standard-error atlases into `dir`.
