@@ -10,7 +10,8 @@
 # Needs Debian's slurm-wlm and munge (`scripts/deps.sh test` installs them) and root (the
 # daemons run as root: SlurmUser=root). Settings known to work on these machines:
 # proctrack/linuxproc, task/none, select/cons_tres with CR_CPU, no accounting, fixed ports
-# (override with IGI_SLURM_PORT, default 6817; slurmd takes the next one).
+# (override with IGI_SLURM_PORT, default 6817; slurmd takes the next one). MaxArraySize is
+# 1001 (Slurm's default) unless IGI_SLURM_MAX_ARRAY_SIZE sets it.
 set -euo pipefail
 cmd=${1:?usage: slurm-loopback.sh start|stop STATE_DIR}
 state=$(realpath -m "${2:?usage: slurm-loopback.sh start|stop STATE_DIR}")
@@ -65,7 +66,7 @@ JobAcctGatherType=jobacct_gather/none
 JobCompType=jobcomp/none
 MpiDefault=none
 ReturnToService=2
-MaxArraySize=1001
+MaxArraySize=${IGI_SLURM_MAX_ARRAY_SIZE:-1001}
 SlurmctldTimeout=30
 SlurmdTimeout=30
 InactiveLimit=0

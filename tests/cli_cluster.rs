@@ -57,6 +57,10 @@ struct Slurm {
     conf: String,
 }
 
+/// The loopback cluster's MaxArraySize: small, so that the fixture's 13 tasks are split in two
+/// arrays (indices 0-7 and 8-12).
+const MAX_ARRAY_SIZE: usize = 8;
+
 impl Slurm {
     fn start(state: &Path) -> Slurm {
         let script = repo_root().join("scripts/slurm-loopback.sh");
@@ -67,6 +71,7 @@ impl Slurm {
             .arg("start")
             .arg(state)
             .env("IGI_SLURM_PORT", port.to_string())
+            .env("IGI_SLURM_MAX_ARRAY_SIZE", MAX_ARRAY_SIZE.to_string())
             .output()
             .expect("run scripts/slurm-loopback.sh");
         assert!(
@@ -119,6 +124,51 @@ impl Slurm {
             .output()
             .unwrap();
         String::from_utf8_lossy(&o.stdout).into_owned()
+    }
+}
+
+impl Slurm {
+    /// Cancels a task of iteration `k` while it runs; one that finished before the cancel
+    /// reached it does not count, and another is tried.
+    fn cancel_a_running_task(&self, logs: &Path, k: u32, limit: Duration) {
+        let t0 = Instant::now();
+        let mut tried = Vec::new();
+        loop {
+            assert!(
+                t0.elapsed() < limit,
+                "no running task of iteration {k} to cancel"
+            );
+            let q = self.squeue(&["-h", "-r", "-t", "R", "-o", "%i %j"]);
+            let running = q.lines().find_map(|l| {
+                let (id, name) = l.trim().split_once(' ')?;
+                let chunk = name.strip_prefix(&format!("igi-{k}-tasks-"))?;
+                let a = id.split_once('_')?.1;
+                (!tried.contains(&id.to_string()))
+                    .then(|| (id.to_string(), chunk.to_string(), a.to_string()))
+            });
+            let Some((id, chunk, a)) = running else {
+                std::thread::sleep(Duration::from_millis(50));
+                continue;
+            };
+            let out = std::process::Command::new("scancel")
+                .env("SLURM_CONF", &self.conf)
+                .arg(&id)
+                .output()
+                .unwrap();
+            assert!(out.status.success(), "scancel {id}");
+            tried.push(id.clone());
+            while self
+                .squeue(&["-h", "-r", "-j", &id, "-o", "%i"])
+                .contains(&id)
+            {
+                std::thread::sleep(Duration::from_millis(100));
+            }
+            let log = logs.join(format!("task-{chunk}-{a}.out"));
+            let text = std::fs::read_to_string(&log).unwrap_or_default();
+            if text.contains("CANCELLED") {
+                return;
+            }
+        }
     }
 }
 
@@ -182,12 +232,35 @@ fn a_cluster_run_on_slurm_equals_the_local_jacobi_solve_and_recovers_failed_and_
     args.extend(SOLVE);
     igi().ok(&args);
 
-    // a task made to fail: one voxel's full-resolution level truncated
+    // tasks made to fail: one voxel's full-resolution level truncated, which fails its own
+    // task and those of its neighbours (a Jacobi task loads its 26 neighbours at level 0)
     let site = tmp.path().join("site");
     let man: serde_json::Value =
         serde_json::from_slice(&std::fs::read(site.join("manifest.json")).unwrap()).unwrap();
-    let v = &man["voxels"][2];
-    let broken = format!("{}_{}_{}", v["voxel"][0], v["voxel"][1], v["voxel"][2]);
+    let ids: Vec<[i64; 3]> = man["voxels"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|e| serde_json::from_value(e["voxel"].clone()).ok())
+        .collect();
+    let v = ids[2];
+    let name = |u: [i64; 3]| format!("{}_{}_{}", u[0], u[1], u[2]);
+    let broken = name(v);
+    let mut failing: Vec<String> = ids
+        .iter()
+        .filter(|u| (0..3).all(|k| (u[k] - v[k]).abs() <= 1))
+        .map(|&u| name(u))
+        .collect();
+    failing.sort();
+    assert!(
+        failing.len() > 1 && failing.len() < ids.len(),
+        "{failing:?}"
+    );
+    let failed = |st: &serde_json::Value| {
+        let mut f = states(st, "failed");
+        f.sort();
+        f
+    };
     let level = site.join("voxels").join(&broken).join("level0.ply");
     assert!(level.is_file(), "{}", level.display());
     let good = std::fs::read(&level).unwrap();
@@ -201,11 +274,23 @@ fn a_cluster_run_on_slurm_equals_the_local_jacobi_solve_and_recovers_failed_and_
     let limit = Duration::from_secs(240);
     let st = slurm.settle(&result, limit);
     assert_eq!(st["iteration"], 1, "{st}");
-    assert_eq!(states(&st, "failed"), vec![broken.clone()], "{st}");
-    assert_eq!(states(&st, "done").len(), 12, "{st}");
+    assert_eq!(failed(&st), failing, "{st}");
+    assert_eq!(states(&st, "done").len(), 13 - failing.len(), "{st}");
+    let config: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(result.join("cluster/cluster.json")).unwrap())
+            .unwrap();
+    let arrays = &config["jobs"][0]["arrays"];
+    assert_eq!(
+        arrays.as_array().map(Vec::len),
+        Some(13usize.div_ceil(MAX_ARRAY_SIZE)),
+        "13 tasks in arrays of at most {MAX_ARRAY_SIZE}: {config}"
+    );
     let missing = std::fs::read_to_string(result.join("cluster/iter_1/missing.txt")).unwrap();
+    assert_eq!(missing.lines().count(), 1 + failing.len(), "{missing}");
     assert!(
-        missing.contains(&broken) && missing.contains("task-0-"),
+        failing.iter().all(|g| missing.contains(g.as_str()))
+            && missing.contains("task-0-")
+            && missing.contains(".ply"),
         "{missing}"
     );
     assert!(
@@ -213,25 +298,11 @@ fn a_cluster_run_on_slurm_equals_the_local_jacobi_solve_and_recovers_failed_and_
         "the next iteration is not submitted after a failed task"
     );
 
-    // restored, resume finishes iteration 1; the merge submits iteration 2, in which a task is
-    // cancelled while it waits its turn (it never runs: lost); resume repairs that too
+    // restored, resume finishes iteration 1; the merge submits iteration 2, in which a running
+    // task is cancelled (lost); resume repairs that too
     std::fs::write(&level, &good).unwrap();
     slurm.igi().ok(&["cluster", "resume", s(&result)]);
-    let t0 = Instant::now();
-    let job = loop {
-        let q = slurm.squeue(&["-h", "-r", "-t", "PD", "-n", "igi-2-tasks-0", "-o", "%i"]);
-        if let Some(last) = q.lines().map(str::trim).rfind(|l| !l.is_empty()) {
-            break last.to_string();
-        }
-        assert!(t0.elapsed() < limit, "iteration 2 never queued");
-        std::thread::sleep(Duration::from_millis(100));
-    };
-    let out = std::process::Command::new("scancel")
-        .env("SLURM_CONF", &slurm.conf)
-        .arg(&job)
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "scancel {job}");
+    slurm.cancel_a_running_task(&result.join("cluster/iter_2/logs"), 2, limit);
     let st = slurm.settle(&result, limit);
     assert_eq!(st["iteration"], 2, "{st}");
     let lost = states(&st, "lost");
@@ -240,7 +311,50 @@ fn a_cluster_run_on_slurm_equals_the_local_jacobi_solve_and_recovers_failed_and_
     slurm.igi().ok(&["cluster", "resume", s(&result)]);
     let st = slurm.settle(&result, limit);
     assert_eq!(st["finished"], true, "{st}");
+    let tasks = &st["tasks"];
+    assert_eq!(tasks["finished"], 13, "{st}");
+    let peak = tasks["peak_rss_bytes"].as_u64().unwrap();
+    assert!(peak > 1 << 20 && peak < 4 << 30, "{st}");
+    assert!(tasks["read_bytes"].as_u64().unwrap() > 13 << 10, "{st}");
     assert_same_result(&local, &result);
+
+    // a task that keeps failing: after --max-attempts, resume refuses it, and --skip-voxels
+    // keeps its previous albedo, marked stale, in a run that then never counts as converged
+    std::fs::write(&level, &good[..good.len() / 2]).unwrap();
+    let skipped = tmp.path().join("skipped");
+    let mut args = vec!["cluster", "submit", s(&survey), "-o", s(&skipped)];
+    args.extend(["--iterations", "1", "--spp", "4", "--indirect", "1"]);
+    args.extend(["--max-attempts", "1"]);
+    slurm.igi().ok(&args);
+    let st = slurm.settle(&skipped, limit);
+    assert_eq!(failed(&st), failing, "{st}");
+    let out = slurm.igi().run(&["cluster", "resume", s(&skipped)]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains(&broken) && err.contains("--skip-voxels"),
+        "{err}"
+    );
+    slurm
+        .igi()
+        .ok(&["cluster", "resume", s(&skipped), "--skip-voxels"]);
+    let st = slurm.settle(&skipped, limit);
+    assert_eq!(st["finished"], true, "{st}");
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(skipped.join("report.json")).unwrap()).unwrap();
+    let it = &report["iterations"][0];
+    let mut stale: Vec<String> = serde_json::from_value(it["stale"].clone()).unwrap();
+    stale.sort();
+    assert_eq!(stale, failing, "{it}");
+    assert_eq!(report["converged"], false, "{report}");
+    let a = igi_imaging::read_image(&local.join(format!("parts/{broken}_rho_d.exr")));
+    let b = igi_imaging::read_image(&skipped.join(format!("parts/{broken}_rho_d.exr")));
+    assert_ne!(
+        a.unwrap().pixels,
+        b.unwrap().pixels,
+        "the stale voxel was not solved"
+    );
+    std::fs::write(&level, &good).unwrap();
 }
 
 #[test]
@@ -303,6 +417,24 @@ fn bad_cluster_input_is_refused_clearly() {
         err.contains("cluster.json") && err.contains("igi cluster submit"),
         "{err}"
     );
+    // a result submitted by another igi binary: a task of this one refuses to run
+    let other = tmp.path().join("igi-other");
+    std::fs::copy(env!("CARGO_BIN_EXE_igi"), &other).unwrap();
+    let by_other = tmp.path().join("by-other");
+    let mut args = vec!["cluster", "submit", s(&survey), "-o", s(&by_other)];
+    args.extend(SOLVE);
+    args.push("--dry-run");
+    Cli::new(s(&other)).ok(&args);
+    let out = igi().run(&["cluster", "task", s(&by_other), "--index", "0"]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("igi binary"), "{err}");
+    let written: Vec<_> = std::fs::read_dir(by_other.join("cluster/iter_1"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .filter(|n| n != "logs" && !n.to_string_lossy().ends_with(".sh"))
+        .collect();
+    assert!(written.is_empty(), "no task output: {written:?}");
     // a result whose inputs changed since submission: the task refuses to run
     let photo = fixture("survey/photos/v00-sunny.exr");
     let copy = tmp.path().join("v00.exr");

@@ -46,7 +46,8 @@ pub struct SubmitArgs {
     pub mem: Option<String>,
     #[arg(long)]
     pub cpus_per_task: Option<u32>,
-    /// Tasks of an array running at once.
+    /// Tasks of an iteration running at once (an array larger than the cluster's MaxArraySize
+    /// is split in chunks, which then run one after another).
     #[arg(long)]
     pub max_parallel: Option<u32>,
     /// A further sbatch argument (repeatable), e.g. --sbatch-arg=--qos=long.
@@ -207,6 +208,18 @@ fn status(a: StatusArgs) -> anyhow::Result<()> {
         count(GroupState::Lost),
         st.merge.as_deref().unwrap_or("not queued")
     );
+    let t = &st.tasks;
+    if t.finished > 0 {
+        let mib = |b: u64| b as f64 / (1u64 << 20) as f64;
+        println!(
+            "finished tasks: {}, slowest {:.1} s, {:.1} s in all; peak memory of a task {:.0} MiB; {:.1} MiB read",
+            t.finished,
+            t.slowest_s,
+            t.task_s,
+            mib(t.peak_rss_bytes),
+            mib(t.read_bytes)
+        );
+    }
     for (name, s) in &st.groups {
         if !matches!(s, GroupState::Done) {
             println!("  {name}: {s:?}");

@@ -187,7 +187,7 @@ pub fn run_info(a: InfoArgs, _ctx: &Ctx) -> anyhow::Result<()> {
         Some(s) => {
             let v = parse_voxel(s, &store)?;
             let t0 = std::time::Instant::now();
-            let parts = store.load_for_voxel(v)?;
+            let parts = store.load_for_voxel(v, 1)?;
             let secs = t0.elapsed().as_secs_f64();
             let loaded: usize = parts.iter().map(|p| p.mesh.indices.len()).sum();
             let full: usize =

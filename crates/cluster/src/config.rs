@@ -16,7 +16,8 @@ pub struct SlurmOptions {
     /// Memory of one task (sbatch `--mem`).
     pub mem: Option<String>,
     pub cpus_per_task: Option<u32>,
-    /// Array tasks running at once (`%N`); none for no limit.
+    /// Tasks of an iteration running at once (`%N` on each array; chunks of an array larger
+    /// than MaxArraySize then run one after another); none for no limit.
     pub max_parallel: Option<u32>,
     /// Further sbatch arguments, passed as given.
     pub extra: Vec<String>,

@@ -25,7 +25,9 @@ pub mod slurm;
 pub mod workflow;
 
 pub use config::{ClusterConfig, SlurmOptions};
-pub use workflow::{cancel, merge, resume, run_task, status, submit, GroupState, Status};
+pub use workflow::{
+    cancel, merge, resume, run_task, status, submit, GroupState, Status, TaskTotals,
+};
 
 use std::path::PathBuf;
 

@@ -4,7 +4,7 @@ use crate::config::{ClusterConfig, IterationJobs, SlurmOptions, FORMAT};
 use crate::slurm::{self, QueueState};
 use crate::ClusterError;
 use igi_imaging::run::Fingerprint;
-use igi_reflect::distributed::{self, TaskMeta};
+use igi_reflect::distributed::{self, TaskDone, TaskMeta};
 use igi_reflect::solver::SolveInputs;
 use igi_reflect::{Schedule, SolveOptions, SolveSession, Survey};
 use serde::Serialize;
@@ -231,9 +231,15 @@ fn submit_iteration(
     indices: Vec<usize>,
 ) -> Result<Vec<PathBuf>, ClusterError> {
     let scripts = write_scripts(config, k, &indices)?;
-    let mut arrays = Vec::new();
+    let mut arrays: Vec<(String, usize)> = Vec::new();
     for (script, first) in &scripts.tasks {
-        arrays.push((slurm::sbatch(script, &[])?, *first));
+        // `%P` limits one array: with --max-parallel, chunks run one after another so that the
+        // bound holds for the whole iteration
+        let after = match (arrays.last(), config.slurm.max_parallel) {
+            (Some((prev, _)), Some(_)) => vec![format!("--dependency=afterany:{prev}")],
+            _ => Vec::new(),
+        };
+        arrays.push((slurm::sbatch(script, &after)?, *first));
     }
     let deps: Vec<&str> = arrays.iter().map(|(id, _)| id.as_str()).collect();
     let mut args = Vec::new();
@@ -363,8 +369,16 @@ pub fn merge(result: &Path) -> Result<MergeOutcome, ClusterError> {
 }
 
 fn task_done(config: &ClusterConfig, work: &Path, k: u32, i: usize) -> bool {
+    done_report(config, work, k, i).is_some()
+}
+
+/// The `done.json` of task `i` of iteration `k`, when it belongs to this run.
+fn done_report(config: &ClusterConfig, work: &Path, k: u32, i: usize) -> Option<TaskDone> {
     let dir = distributed::task_dir(work, k, &config.groups[i]);
-    matches!(distributed::read_done(&dir), Ok(Some(d)) if d.meta.fingerprint == config.fingerprint && d.iteration == k)
+    match distributed::read_done(&dir) {
+        Ok(Some(d)) if d.meta.fingerprint == config.fingerprint && d.iteration == k => Some(d),
+        _ => None,
+    }
 }
 
 /// `missing.txt`: per unfinished task its group, index, log and the log's last line.
@@ -422,6 +436,35 @@ pub struct Status {
     pub groups: Vec<(String, GroupState)>,
     /// The merge of the iteration: pending, running, or absent from the queue.
     pub merge: Option<String>,
+    /// What the iteration's finished tasks used.
+    pub tasks: TaskTotals,
+}
+
+/// Totals over the finished (not stale) tasks of one iteration, from their `done.json`: what
+/// to ask for with `--mem` and `--time`, and what the shared file system served.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct TaskTotals {
+    pub finished: usize,
+    /// The largest peak resident memory of a task.
+    pub peak_rss_bytes: u64,
+    /// Bytes read by all tasks together.
+    pub read_bytes: u64,
+    /// Task time summed over tasks, and the slowest task.
+    pub task_s: f64,
+    pub slowest_s: f64,
+}
+
+impl TaskTotals {
+    fn add(&mut self, d: &TaskDone) {
+        if d.stale {
+            return;
+        }
+        self.finished += 1;
+        self.peak_rss_bytes = self.peak_rss_bytes.max(d.usage.peak_rss_bytes);
+        self.read_bytes += d.usage.read_bytes;
+        self.task_s += d.wall_s;
+        self.slowest_s = self.slowest_s.max(d.wall_s);
+    }
 }
 
 /// Reads the result folder and `squeue` (never accounting).
@@ -450,8 +493,10 @@ pub fn status(result: &Path) -> Result<Status, ClusterError> {
         slurm::queued(&ids)?
     };
     let mut groups = Vec::new();
+    let mut tasks = TaskTotals::default();
     for (i, name) in config.groups.iter().enumerate() {
-        let state = if task_done(&config, &work, k, i) {
+        let state = if let Some(d) = done_report(&config, &work, k, i) {
+            tasks.add(&d);
             GroupState::Done
         } else {
             queued_state(&jobs, &queue, i).unwrap_or_else(|| {
@@ -475,6 +520,7 @@ pub fn status(result: &Path) -> Result<Status, ClusterError> {
         finished,
         groups,
         merge,
+        tasks,
     })
 }
 

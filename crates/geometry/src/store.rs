@@ -519,16 +519,20 @@ impl SiteStore {
         crate::ply::read_ply(&self.voxel_folder(v)?.join(level_file(level)))
     }
 
-    /// What the solver of voxel `v` needs: `v` at level 0, its 26 neighbours at level 1, every
+    /// What the solver of voxel `v` needs: `v` at level 0, its 26 neighbours at
+    /// `neighbour_level` (1 in the paper's load; 0 for a distributed Jacobi iteration), every
     /// other voxel and the terrain at the lowest level. Reads only those files.
-    pub fn load_for_voxel(&self, v: VoxelId) -> Result<Vec<LoadedPart>, GeometryError> {
+    pub fn load_for_voxel(
+        &self,
+        v: VoxelId,
+        neighbour_level: usize,
+    ) -> Result<Vec<LoadedPart>, GeometryError> {
         self.entry(v)?;
-        let n = self.manifest.levels.len();
-        let (medium, low) = (1.min(n - 1), n - 1);
+        let low = self.manifest.levels.len() - 1;
         self.load_with(&|u| match u {
             Some(u) => match (0..3).map(|k| (u[k] - v[k]).abs()).max().unwrap() {
                 0 => 0,
-                1 => medium,
+                1 => neighbour_level.min(low),
                 _ => low,
             },
             None => low,
@@ -813,8 +817,14 @@ mod tests {
             worst_bilinear / ts,
             worst_nearest_ratio
         );
-        // 5. loader: v high, neighbours medium, the rest low
-        let parts = store.load_for_voxel(v).unwrap();
+        // 5. loader: v high, neighbours medium (or high, as a Jacobi task loads them), the rest low
+        let jacobi = store.load_for_voxel(v, 0).unwrap();
+        for p in &jacobi {
+            let u = p.voxel.unwrap();
+            let d = (0..3).map(|k| (u[k] - v[k]).abs()).max().unwrap();
+            assert_eq!(p.level, [0, 0, 2][d.min(2) as usize]);
+        }
+        let parts = store.load_for_voxel(v, 1).unwrap();
         assert_eq!(parts.len(), ids.len());
         let mut loaded = 0;
         for p in &parts {
@@ -832,7 +842,7 @@ mod tests {
             loaded += p.mesh.indices.len();
         }
         assert!(loaded < t[0]);
-        assert!(store.load_for_voxel([99, 99, 99]).is_err());
+        assert!(store.load_for_voxel([99, 99, 99], 1).is_err());
         // 6. resume: a finished voxel is not rewritten; a broken one is redone
         let f0 = store.voxel_folder(ids[0]).unwrap().join("level0.ply");
         let t0 = std::fs::metadata(&f0).unwrap().modified().unwrap();
@@ -917,7 +927,7 @@ mod tests {
         // 40 x 40 m terrain in one 128-texel atlas: texels of at least 40/128 m
         assert!(t.texel_size >= 40.0 / 128.0, "{}", t.texel_size);
         let store = SiteStore::open(&out).unwrap();
-        let parts = store.load_for_voxel(store.voxel_ids()[0]).unwrap();
+        let parts = store.load_for_voxel(store.voxel_ids()[0], 1).unwrap();
         let terr: Vec<_> = parts.iter().filter(|p| p.voxel.is_none()).collect();
         assert_eq!(terr.len(), 1);
         assert_eq!(

@@ -388,3 +388,49 @@ mod tests {
         assert!(!dir.join(RUN_FILE).exists());
     }
 }
+
+/// What this process has used so far: its peak resident memory and the bytes it read
+/// (Linux `/proc/self/status` `VmHWM` and `/proc/self/io` `rchar`: every byte returned by read
+/// calls, cached or not, which is what a shared file system serves). Zeros where `/proc` is not
+/// available.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ProcessUsage {
+    pub peak_rss_bytes: u64,
+    pub read_bytes: u64,
+}
+
+impl ProcessUsage {
+    /// The usage of the calling process until now.
+    pub fn now() -> ProcessUsage {
+        let field = |file: &str, key: &str| -> Option<u64> {
+            let text = std::fs::read_to_string(file).ok()?;
+            let line = text.lines().find(|l| l.starts_with(key))?;
+            line[key.len()..].split_whitespace().next()?.parse().ok()
+        };
+        ProcessUsage {
+            peak_rss_bytes: field("/proc/self/status", "VmHWM:").unwrap_or(0) * 1024,
+            read_bytes: field("/proc/self/io", "rchar:").unwrap_or(0),
+        }
+    }
+}
+
+#[cfg(all(test, target_os = "linux"))]
+mod usage_tests {
+    use super::ProcessUsage;
+
+    #[test]
+    fn usage_counts_a_read_and_a_peak() {
+        let dir = tempfile::tempdir().unwrap();
+        let f = dir.path().join("blob");
+        std::fs::write(&f, vec![7u8; 3 << 20]).unwrap();
+        let before = ProcessUsage::now();
+        let bytes = std::fs::read(&f).unwrap();
+        let after = ProcessUsage::now();
+        assert_eq!(bytes.len(), 3 << 20);
+        assert!(
+            after.read_bytes - before.read_bytes >= 3 << 20,
+            "{before:?} -> {after:?}"
+        );
+        assert!(after.peak_rss_bytes >= 3 << 20, "{after:?}");
+    }
+}

@@ -24,6 +24,7 @@ use crate::solver::{
 };
 use crate::ReflectError;
 use glam::Vec3;
+use igi_imaging::run::ProcessUsage;
 use igi_imaging::{read_image, write_exr, HdrImage};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -46,6 +47,10 @@ pub struct TaskDone {
     /// Not solved: the group keeps its previous albedo ([`write_stale`]).
     #[serde(default)]
     pub stale: bool,
+    /// The task process's peak memory and bytes read when it finished (what `--mem` and the
+    /// shared file system must serve).
+    #[serde(default)]
+    pub usage: ProcessUsage,
 }
 
 /// Who ran a task: host, batch job, attempt, and the fingerprint of the frozen run it belongs
@@ -133,6 +138,7 @@ pub fn run_task(
         wall_s: t0.elapsed().as_secs_f64(),
         meta: meta.clone(),
         stale: false,
+        usage: ProcessUsage::now(),
     };
     write_task(&state, &g.parts, &dir, done)?;
     Ok(dir)
@@ -163,6 +169,7 @@ pub fn write_stale(
         wall_s: 0.0,
         meta: meta.clone(),
         stale: true,
+        usage: ProcessUsage::default(),
     };
     write_task(&state, &g.parts, &dir, done)?;
     Ok(dir)

@@ -56,7 +56,8 @@ pub enum Schedule {
     /// Iteration k reads only iteration k-1's albedo, so the voxels of an iteration are
     /// independent and can be solved on different machines (`igi cluster`); the local run is
     /// the reference a distributed run must equal. Checkpoints after every iteration (a killed
-    /// run redoes the iteration in progress).
+    /// run redoes the iteration in progress). A voxel's 26 neighbours are loaded at full
+    /// resolution (Gauss-Seidel loads them at level 1).
     Jacobi,
 }
 
@@ -66,6 +67,14 @@ impl Schedule {
         match self {
             Schedule::GaussSeidel => "gauss-seidel",
             Schedule::Jacobi => "jacobi",
+        }
+    }
+
+    /// The stored level a voxel group loads its 26 neighbours at.
+    pub fn neighbour_level(self) -> usize {
+        match self {
+            Schedule::GaussSeidel => 1,
+            Schedule::Jacobi => 0,
         }
     }
 }
@@ -336,8 +345,9 @@ pub(crate) struct Group {
 enum GroupLoad {
     /// Every part's own mesh, at full resolution.
     Meshes,
-    /// The voxel at level 0, its neighbours at level 1, the rest and the terrain at the lowest.
-    Voxel(igi_geometry::VoxelId),
+    /// The voxel at level 0, its neighbours at the given level (1 for Gauss-Seidel, 0 for
+    /// Jacobi), the rest and the terrain at the lowest.
+    Voxel(igi_geometry::VoxelId, usize),
     /// The terrain at level 0, the voxels at level 1.
     Terrain,
 }
@@ -381,7 +391,7 @@ fn group_scene(
             .collect(),
         (load, Some(store)) => {
             let loaded = match load {
-                GroupLoad::Voxel(v) => store.load_for_voxel(*v)?,
+                GroupLoad::Voxel(v, n) => store.load_for_voxel(*v, *n)?,
                 _ => store.load_for_terrain()?,
             };
             let mut objects = Vec::with_capacity(loaded.len());
@@ -432,7 +442,11 @@ pub(crate) fn part_lobes(part: &Part, rho: &[Vec3], basis: Option<&Basis>) -> Ve
 
 /// The groups of a solve: one per solved stored part (voxels, then the terrain), or one holding
 /// every solved in-memory part.
-fn make_groups(parts: &[Part], solved: &[bool]) -> Result<Vec<Group>, ReflectError> {
+fn make_groups(
+    parts: &[Part],
+    solved: &[bool],
+    schedule: Schedule,
+) -> Result<Vec<Group>, ReflectError> {
     let stored = parts.iter().filter(|p| p.stored.is_some()).count();
     if stored == 0 {
         let ids: Vec<usize> = (0..parts.len()).filter(|&i| solved[i]).collect();
@@ -453,7 +467,7 @@ fn make_groups(parts: &[Part], solved: &[bool]) -> Result<Vec<Group>, ReflectErr
         .filter(|(i, _)| solved[*i])
         .map(|(i, p)| {
             let load = match p.stored.as_ref().and_then(|s| s.voxel) {
-                Some(v) => GroupLoad::Voxel(v),
+                Some(v) => GroupLoad::Voxel(v, schedule.neighbour_level()),
                 None => GroupLoad::Terrain,
             };
             Group {
@@ -527,7 +541,7 @@ pub(crate) fn plan(
                 .is_none_or(|sel| sel.iter().any(|s| s == &p.name))
         })
         .collect();
-    let groups = make_groups(&start.parts, &solved)?;
+    let groups = make_groups(&start.parts, &solved, opts.schedule)?;
     start.basis = inputs.basis.cloned();
     // kept current: the parts a group updates get new lobes right after it
     start.lobes = start
