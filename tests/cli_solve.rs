@@ -148,8 +148,37 @@ fn demo_then_solve_resume_relight_export_and_sample() {
             png.pixels.iter().any(|p| p[1] < 1.0 && p[1] == p[0]),
             "{fmt}"
         );
+        // the export's scene.toml (albedo and lobe maps) renders exactly as the result does
+        let scene = std::fs::read_to_string(dir.join("scene.toml")).unwrap();
+        let result_scene = std::fs::read_to_string(res.join("scene.toml")).unwrap();
+        assert_eq!(
+            scene.matches("lobe_maps").count(),
+            result_scene.matches("lobe_maps").count(),
+            "{fmt}: {scene}"
+        );
+        let again = tmp.path().join(format!("export-{fmt}.exr"));
+        run_ok(
+            igi()
+                .arg("render")
+                .arg(dir.join("scene.toml"))
+                .arg("--lighting")
+                .arg(survey.join("lighting/held-out.toml"))
+                .arg("--camera")
+                .arg(survey.join("cameras/held-out.json"))
+                .args(["--spp", "4", "--quiet", "-o"])
+                .arg(&again),
+        );
+        assert!(
+            igi_imaging::read_image(&again).unwrap().pixels == img.pixels,
+            "{fmt}: the export renders differently from the result"
+        );
         if fmt == "mitsuba" {
             let xml = std::fs::read_to_string(dir.join("scene.xml")).unwrap();
+            assert_eq!(
+                xml.contains("APPROXIMATION"),
+                result_scene.contains("lobe"),
+                "{xml}"
+            );
             for name in xml
                 .split("value=\"")
                 .skip(1)

@@ -233,7 +233,10 @@ pub fn run_sample(a: SampleArgs, _ctx: &Ctx) -> anyhow::Result<()> {
 pub struct ExportArgs {
     /// Result folder of `igi solve`.
     pub result: PathBuf,
-    /// ply, obj or mitsuba.
+    /// ply, obj or mitsuba. Every format writes per part the mesh with atlas UVs, the albedo
+    /// (NAME_albedo.exr), the lobe maps when the result has lobes (NAME_lobeK_rho.exr,
+    /// NAME_lobeK_shape.exr) and an igi scene.toml of them; mitsuba adds scene.xml, which keeps
+    /// the diffuse term only (Mitsuba 3 has no Lafortune BSDF).
     #[arg(long)]
     pub format: ExportFormat,
     /// Output folder.

@@ -208,33 +208,12 @@ impl SolveResult {
                     std::fs::canonicalize(&f).unwrap_or(f).display().to_string()
                 }
             };
-            let _ = writeln!(
-                scene,
-                "\n[[object]]\nmesh = {}\nalbedo = \"parts/{}_rho_d.exr\"",
-                toml_string(&mesh),
-                p.name
-            );
+            let albedo = format!("parts/{}_rho_d.exr", p.name);
             let per_texel = self
                 .basis
                 .as_ref()
                 .map_or(0, |b| b.infer(Vec3::splat(0.5)).lobes.len());
-            if per_texel > 0 {
-                let maps: Vec<String> = (0..per_texel)
-                    .map(|k| format!("{{ rho = \"parts/{0}_lobe{k}_rho.exr\", shape = \"parts/{0}_lobe{k}_shape.exr\" }}", p.name))
-                    .collect();
-                let _ = writeln!(scene, "lobe_maps = [{}]", maps.join(", "));
-            } else if !self.lobes[i].is_empty() {
-                let lobes: Vec<String> = self.lobes[i]
-                    .iter()
-                    .map(|l| {
-                        format!(
-                            "{{ rho = [{}, {}, {}], cxy = {}, cz = {}, n = {} }}",
-                            l.rho.x, l.rho.y, l.rho.z, l.cxy, l.cz, l.n
-                        )
-                    })
-                    .collect();
-                let _ = writeln!(scene, "lobes = [{}]", lobes.join(", "));
-            }
+            scene.push_str(&self.object_toml(i, &mesh, &albedo, "parts/", per_texel));
         }
         write_text(&sdir.join("scene.toml"), &scene)?;
         crate::plot::plot_convergence(&self.report, &sdir.join("convergence.png"))?;
@@ -419,6 +398,49 @@ fn toml_string(s: &str) -> String {
 }
 
 impl SolveResult {
+    /// Part `i` as a scene file's `[[object]]` (FORMATS.md): its mesh and albedo texture, and
+    /// its per-texel lobe maps `{maps}NAME_lobeK_rho.exr` / `_shape.exr` (with a basis) or its
+    /// constant lobes.
+    fn object_toml(
+        &self,
+        i: usize,
+        mesh: &str,
+        albedo: &str,
+        maps: &str,
+        per_texel: usize,
+    ) -> String {
+        let name = &self.parts[i].name;
+        let mut s = format!(
+            "\n[[object]]\nmesh = {}\nalbedo = {}\n",
+            toml_string(mesh),
+            toml_string(albedo)
+        );
+        if per_texel > 0 {
+            let maps: Vec<String> = (0..per_texel)
+                .map(|k| {
+                    format!(
+                        "{{ rho = {}, shape = {} }}",
+                        toml_string(&format!("{maps}{name}_lobe{k}_rho.exr")),
+                        toml_string(&format!("{maps}{name}_lobe{k}_shape.exr"))
+                    )
+                })
+                .collect();
+            let _ = writeln!(s, "lobe_maps = [{}]", maps.join(", "));
+        } else if !self.lobes[i].is_empty() {
+            let lobes: Vec<String> = self.lobes[i]
+                .iter()
+                .map(|l| {
+                    format!(
+                        "{{ rho = [{}, {}, {}], cxy = {}, cz = {}, n = {} }}",
+                        l.rho.x, l.rho.y, l.rho.z, l.cxy, l.cz, l.n
+                    )
+                })
+                .collect();
+            let _ = writeln!(s, "lobes = [{}]", lobes.join(", "));
+        }
+        s
+    }
+
     /// Per-texel lobes of part `i`, inferred with the basis from every texel's albedo (`None`
     /// without a basis). Each texel gets the lobes `Basis::infer` gives for its `rho_d`.
     pub fn lobe_map(&self, i: usize) -> Option<igi_render::LobeMap> {
@@ -505,12 +527,17 @@ fn stderr_picture(stderr: &[Vec3], r: usize) -> HdrImage {
 /// The standard error shown white in `NAME_stderr.png` of `igi export`.
 pub const STDERR_PICTURE_MAX: f32 = 0.05;
 
-/// Writes the recovered site into `out`: meshes with atlas UVs plus linear EXR albedo
-/// textures (and sRGB PNG previews), and `NAME_stderr.png`, a picture of the standard error
-/// of the albedo (see `stderr_picture`); for `Obj` a `.mtl` per part; for `Mitsuba` a
-/// `scene.xml` with diffuse bitmap textures (Mitsuba reads the EXR as linear; its bitmap lookup
-/// has v = 0 at the top row, so `to_uv` flips v to FORMATS.md's convention, as
-/// `datasets/mitsuba/outdoor_reference.py` verifies against Mitsuba). Returns the files written.
+/// Writes the recovered site into `out` (layout in docs/SOLVER.md, "Export"): per part the mesh
+/// with atlas UVs (`NAME.ply`, or `NAME.obj` with `NAME.mtl`), the linear albedo texture
+/// `NAME_albedo.exr` with an sRGB preview, `NAME_stderr.png` (a picture of the albedo's standard
+/// error, see `stderr_picture`) and, when the result infers lobes from a BRDF basis, the
+/// per-texel lobe maps `NAME_lobeK_rho.exr` (RGB) and `NAME_lobeK_shape.exr` (Cxy, Cz, N); and
+/// `scene.toml`, an igi scene file (FORMATS.md) of all of it, so `igi render OUT/scene.toml`
+/// renders the export as `igi render RESULT_DIR` renders the result. For `Mitsuba` also
+/// `scene.xml`: diffuse bitmap textures only, since Mitsuba 3 has no Lafortune BSDF (the file
+/// says so and names the lobe maps it leaves out). Mitsuba reads the EXR as linear; its bitmap
+/// lookup has v = 0 at the top row, so `to_uv` flips v to FORMATS.md's convention, as
+/// `datasets/mitsuba/outdoor_reference.py` verifies against Mitsuba. Returns the files written.
 pub fn export(
     result_dir: &Path,
     format: ExportFormat,
@@ -520,49 +547,103 @@ pub fn export(
     std::fs::create_dir_all(out)
         .map_err(|e| ReflectError::file(out, format!("cannot create folder: {e}")))?;
     let mut written = Vec::new();
-    let mut xml = String::from(
-        "<scene version=\"3.0.0\">\n  <!-- igi export: recovered diffuse albedo; world Z up, metres. Add a sensor and emitters to render. -->\n  <integrator type=\"path\"><integer name=\"max_depth\" value=\"4\"/></integrator>\n",
+    let mut scene = String::from(
+        "# Recovered reflectance (igi export). Render with:\n# igi render THIS_FILE --lighting L.toml --camera C.json --spp N -o out.exr\n",
     );
+    let mut shapes = String::new();
+    let mut lobe_maps = 0;
     for (i, p) in res.parts.iter().enumerate() {
-        let r = p.resolution();
-        let mut tex = HdrImage::new(r, r);
-        for (k, px) in tex.pixels.iter_mut().enumerate() {
-            *px = res.rho[i][k].to_array();
-        }
-        let tex_name = format!("{}_albedo.exr", p.name);
-        write_exr(&out.join(&tex_name), &tex)?;
-        igi_imaging::write_png_tonemapped(&out.join(format!("{}_albedo.png", p.name)), &tex, 1.0)?;
-        let se_png = out.join(format!("{}_stderr.png", p.name));
-        igi_imaging::write_png_tonemapped(&se_png, &stderr_picture(&res.stderr[i], r), 1.0)?;
-        written.push(se_png);
-        written.push(out.join(&tex_name));
-        match format {
+        let (files, per_texel) = export_textures(&res, result_dir, i, out)?;
+        lobe_maps += per_texel;
+        written.extend(files);
+        let mesh = match format {
             ExportFormat::Ply | ExportFormat::Mitsuba => {
                 let mp = out.join(format!("{}.ply", p.name));
                 write_ply(&mp, &*p.full_mesh()?)?;
-                written.push(mp);
                 let _ = writeln!(
-                    xml,
-                    "  <shape type=\"ply\">\n    <string name=\"filename\" value=\"{0}.ply\"/>\n    <bsdf type=\"twosided\"><bsdf type=\"diffuse\">\n      <texture type=\"bitmap\" name=\"reflectance\"><string name=\"filename\" value=\"{1}\"/><boolean name=\"raw\" value=\"true\"/><string name=\"filter_type\" value=\"bilinear\"/><string name=\"wrap_mode\" value=\"clamp\"/>\n        <transform name=\"to_uv\"><scale x=\"1\" y=\"-1\"/><translate x=\"0\" y=\"1\"/></transform></texture>\n    </bsdf></bsdf>\n  </shape>",
-                    p.name, tex_name
+                    shapes,
+                    "  <shape type=\"ply\">\n    <string name=\"filename\" value=\"{0}.ply\"/>\n    <bsdf type=\"twosided\"><bsdf type=\"diffuse\">\n      <texture type=\"bitmap\" name=\"reflectance\"><string name=\"filename\" value=\"{0}_albedo.exr\"/><boolean name=\"raw\" value=\"true\"/><string name=\"filter_type\" value=\"bilinear\"/><string name=\"wrap_mode\" value=\"clamp\"/>\n        <transform name=\"to_uv\"><scale x=\"1\" y=\"-1\"/><translate x=\"0\" y=\"1\"/></transform></texture>\n    </bsdf></bsdf>\n  </shape>",
+                    p.name
                 );
+                mp
             }
             ExportFormat::Obj => {
                 let mp = out.join(format!("{}.obj", p.name));
                 write_obj(&mp, &*p.full_mesh()?)?;
                 let mtl = format!("newmtl {0}\nKd 1 1 1\nmap_Kd {0}_albedo.png\n", p.name);
                 write_text(&out.join(format!("{}.mtl", p.name)), &mtl)?;
-                written.push(mp);
+                mp
             }
-        }
+        };
+        let mesh_name = mesh.file_name().map(|n| n.to_string_lossy().into_owned());
+        let albedo = format!("{}_albedo.exr", p.name);
+        let mesh_name = mesh_name.unwrap_or_default();
+        scene.push_str(&res.object_toml(i, &mesh_name, &albedo, "", per_texel));
+        written.push(mesh);
     }
+    let sp = out.join("scene.toml");
+    write_text(&sp, &scene)?;
+    written.push(sp);
     if format == ExportFormat::Mitsuba {
-        xml.push_str("</scene>\n");
+        let lobes = if lobe_maps == 0 {
+            "The result has no specular lobes: the scene is complete.".to_string()
+        } else {
+            format!("APPROXIMATION: Mitsuba 3 has no Lafortune BSDF, so each part is its diffuse term only; the {lobe_maps} per-texel specular lobe maps (NAME_lobeK_rho.exr, NAME_lobeK_shape.exr; igi render scene.toml renders them) are left out, so highlights and grazing-angle reflection are missing.")
+        };
+        let xml = format!(
+            "<scene version=\"3.0.0\">\n  <!-- igi export: recovered reflectance; world Z up, metres. Add a sensor and emitters to render (datasets/mitsuba/export_reference.py does). -->\n  <!-- {lobes} -->\n  <integrator type=\"path\"><integer name=\"max_depth\" value=\"4\"/></integrator>\n{shapes}</scene>\n"
+        );
         let xp = out.join("scene.xml");
         write_text(&xp, &xml)?;
         written.push(xp);
     }
     Ok(written)
+}
+
+/// Writes part `i`'s albedo (EXR and PNG preview), its standard-error picture and the lobe maps
+/// the result holds into `out`; returns the standard-error picture, the albedo EXR and the lobe
+/// maps, and the number of lobes per texel.
+fn export_textures(
+    res: &SolveResult,
+    result_dir: &Path,
+    i: usize,
+    out: &Path,
+) -> Result<(Vec<PathBuf>, usize), ReflectError> {
+    let p = &res.parts[i];
+    let r = p.resolution();
+    let mut tex = HdrImage::new(r, r);
+    for (k, px) in tex.pixels.iter_mut().enumerate() {
+        *px = res.rho[i][k].to_array();
+    }
+    let albedo = out.join(format!("{}_albedo.exr", p.name));
+    write_exr(&albedo, &tex)?;
+    igi_imaging::write_png_tonemapped(&out.join(format!("{}_albedo.png", p.name)), &tex, 1.0)?;
+    let se_png = out.join(format!("{}_stderr.png", p.name));
+    igi_imaging::write_png_tonemapped(&se_png, &stderr_picture(&res.stderr[i], r), 1.0)?;
+    let mut written = vec![se_png, albedo];
+    // the lobe maps the result wrote (a loaded result does not keep its basis)
+    let mut k = 0;
+    loop {
+        let name = |suffix: &str| format!("{}_lobe{k}_{suffix}.exr", p.name);
+        let src = result_dir.join("parts");
+        if !src.join(name("rho")).is_file() {
+            break;
+        }
+        for suffix in ["rho", "shape"] {
+            let im = read_image(&src.join(name(suffix)))?;
+            if (im.width, im.height) != (r, r) {
+                return Err(ReflectError::file(
+                    src.join(name(suffix)),
+                    format!("is {}x{}, the part's atlas {r}x{r}", im.width, im.height),
+                ));
+            }
+            let f = out.join(name(suffix));
+            write_exr(&f, &im)?;
+            written.push(f);
+        }
+        k += 1;
+    }
+    Ok((written, k))
 }
 
 /// The albedo of a result at one query point.

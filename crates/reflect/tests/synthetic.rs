@@ -488,6 +488,25 @@ fn glossy_lobes_inferred_per_texel_from_the_basis_are_recovered_and_written() {
         .lobe_map
         .as_ref()
         .is_some_and(|m| m.per_texel == 1 && m.width == res)));
+    // the export keeps the lobes: its scene file holds the result's lobe maps texel for texel,
+    // and the Mitsuba scene says that it leaves them out
+    let exported = dir.path().join("export");
+    igi_reflect::export(&out, igi_reflect::ExportFormat::Mitsuba, &exported).unwrap();
+    let (again, _) = Scene::load(&exported.join("scene.toml")).unwrap();
+    assert_eq!(again.objects.len(), scene.objects.len());
+    for (a, b) in scene.objects.iter().zip(&again.objects) {
+        let (ma, mb) = (&a.material, &b.material);
+        assert_eq!(
+            ma.lobe_map.as_ref().map(|m| &m.lobes),
+            mb.lobe_map.as_ref().map(|m| &m.lobes)
+        );
+        assert_eq!((&a.positions, &a.triangles), (&b.positions, &b.triangles));
+    }
+    let xml = std::fs::read_to_string(exported.join("scene.xml")).unwrap();
+    assert!(
+        xml.contains("APPROXIMATION") && xml.contains("2 per-texel specular lobe maps"),
+        "{xml}"
+    );
 }
 
 /// A checkpoint killed before its commit point leaves the previous one; one killed after it
