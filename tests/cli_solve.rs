@@ -209,6 +209,23 @@ fn demo_then_solve_resume_relight_export_and_sample() {
             t.position.x, t.position.y, t.position.z, t.normal.x, t.normal.y, t.normal.z
         ));
     }
+    // and one 20 cm in front of the wall with a normal along it, so no short ray finds a
+    // surface: the nearest covered texel of any part (k-d tree), checked against brute force
+    let off = texels[2].position + texels[2].normal * 0.2;
+    let along = texels[2].normal.cross(glam::Vec3::Z).normalize();
+    csv.push_str(&format!(
+        "{},{},{},{},{},{}\n",
+        off.x, off.y, off.z, along.x, along.y, along.z
+    ));
+    let mut nearest = (f32::INFINITY, glam::Vec3::ZERO);
+    for (i, p) in result.parts.iter().enumerate() {
+        for t in &p.cache.texels {
+            let d = t.position.distance_squared(off);
+            if d < nearest.0 {
+                nearest = (d, result.rho[i][t.index as usize]);
+            }
+        }
+    }
     let pts = tmp.path().join("points.csv");
     std::fs::write(&pts, csv).unwrap();
     let vals = tmp.path().join("values.csv");
@@ -223,6 +240,20 @@ fn demo_then_solve_resume_relight_export_and_sample() {
     );
     let text = std::fs::read_to_string(&vals).unwrap();
     assert_eq!(text.lines().next(), Some("x,y,z,nx,ny,nz,r,g,b,sr,sg,sb"));
+    let last: Vec<f32> = text
+        .lines()
+        .last()
+        .unwrap()
+        .split(',')
+        .take(9)
+        .map(|v| v.parse().unwrap())
+        .collect();
+    assert_eq!(
+        &last[6..9],
+        &nearest.1.to_array(),
+        "the nearest texel off the surface ({} m away): {text}",
+        nearest.0.sqrt()
+    );
     let mut known = 0;
     for (line, t) in text.lines().skip(1).zip(&texels) {
         let v: Vec<Option<f32>> = line.split(',').map(|s| s.parse().ok()).collect();

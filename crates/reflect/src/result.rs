@@ -715,6 +715,7 @@ pub fn sample_albedo(
         .iter()
         .map(|p| 20.0 * p.texel_size as f32)
         .fold(0.5f32, f32::max);
+    let texels = std::sync::OnceLock::new();
     points
         .iter()
         .enumerate()
@@ -732,17 +733,9 @@ pub fn sample_albedo(
                     }
                 }
             }
-            // nearest covered texel
-            let mut best = (f32::INFINITY, Vec3::ZERO, UNKNOWN_STDERR);
-            for (i, part) in res.parts.iter().enumerate() {
-                for t in &part.cache.texels {
-                    let d = t.position.distance_squared(p);
-                    if d < best.0 {
-                        let k = t.index as usize;
-                        best = (d, res.rho[i][k], res.stderr[i][k]);
-                    }
-                }
-            }
+            // the nearest covered texel (the index is built at the first miss)
+            let index = texels.get_or_init(|| TexelIndex::new(&res));
+            let best = index.nearest(&res, p);
             if !(best.0.sqrt() <= far) {
                 return Err(ReflectError::Invalid(format!(
                     "point {} ({}, {}, {}) is {:.3e} m from the nearest surface of the result (at most {far:.2} m)",
@@ -759,6 +752,43 @@ pub fn sample_albedo(
             })
         })
         .collect()
+}
+
+/// Every part's covered texels in one k-d tree, by position.
+struct TexelIndex {
+    tree: kiddo::ImmutableKdTree<f32, 3>,
+    /// (part, atlas index) of each point of the tree.
+    items: Vec<(usize, usize)>,
+}
+
+impl TexelIndex {
+    fn new(res: &SolveResult) -> TexelIndex {
+        let mut points = Vec::new();
+        let mut items = Vec::new();
+        for (i, part) in res.parts.iter().enumerate() {
+            for t in &part.cache.texels {
+                points.push(t.position.to_array());
+                items.push((i, t.index as usize));
+            }
+        }
+        TexelIndex {
+            tree: kiddo::ImmutableKdTree::new_from_slice(&points),
+            items,
+        }
+    }
+
+    /// Squared distance, albedo and standard error of the covered texel nearest `p`
+    /// (infinitely far when the result has no covered texel).
+    fn nearest(&self, res: &SolveResult, p: Vec3) -> (f32, Vec3, Vec3) {
+        if self.items.is_empty() || !p.is_finite() {
+            return (f32::INFINITY, Vec3::ZERO, UNKNOWN_STDERR);
+        }
+        let hit = self
+            .tree
+            .nearest_one::<kiddo::SquaredEuclidean>(&p.to_array());
+        let (i, k) = self.items[hit.item as usize];
+        (hit.distance, res.rho[i][k], res.stderr[i][k])
+    }
 }
 
 /// Reads `x,y,z,nx,ny,nz` rows (a header row is allowed) for [`sample_albedo`].
