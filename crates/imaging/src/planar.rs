@@ -134,8 +134,8 @@ pub struct PlanarPose {
     pub rms_px: f64,
 }
 
-/// The nearest rotation (polar factor, det +1) to a 3x3 matrix.
-fn nearest_rotation(m: &DMat3) -> DMat3 {
+/// The nearest rotation (polar factor, det +1; nearest in the Frobenius norm) to a 3x3 matrix.
+pub fn nearest_rotation(m: &DMat3) -> DMat3 {
     let a = m.to_cols_array();
     let mm = Matrix3::from_column_slice(&a);
     let svd = SVD::new(mm, true, true);

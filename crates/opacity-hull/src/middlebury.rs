@@ -51,27 +51,10 @@ pub struct ImportReport {
     pub masks_touching_frame: Vec<String>,
 }
 
-/// Nearest rotation to `m` (Frobenius) and the largest entry of their difference.
+/// Nearest rotation to `m` (`igi_imaging::planar::nearest_rotation`) and the largest entry of
+/// their difference.
 pub fn nearest_rotation(m: &DMat3) -> (DMat3, f64) {
-    let a = nalgebra::Matrix3::from_fn(|i, j| m.col(j)[i]);
-    let svd = a.svd(true, true);
-    let (u, vt) = (svd.u.expect("u"), svd.v_t.expect("v_t"));
-    let mut d = nalgebra::Matrix3::identity();
-    if (u * vt).determinant() < 0.0 {
-        d[(2, 2)] = -1.0;
-    }
-    let r = u * d * vt;
-    let out = DMat3::from_cols_array(&[
-        r[(0, 0)],
-        r[(1, 0)],
-        r[(2, 0)],
-        r[(0, 1)],
-        r[(1, 1)],
-        r[(2, 1)],
-        r[(0, 2)],
-        r[(1, 2)],
-        r[(2, 2)],
-    ]);
+    let out = igi_imaging::planar::nearest_rotation(m);
     let dist = (out - *m)
         .to_cols_array()
         .iter()
