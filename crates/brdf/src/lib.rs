@@ -10,6 +10,7 @@
 
 pub mod basis;
 pub mod cluster;
+pub mod coverage;
 pub mod error;
 pub mod fit;
 pub mod frame;
