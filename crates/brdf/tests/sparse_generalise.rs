@@ -56,9 +56,23 @@ struct Row {
     dense: (f64, f64),
 }
 
+/// The fixtures: `lights8.csv` and `heldout.csv`.
+const FIXTURES: (&str, &str) = ("lights8.csv", "heldout.csv");
+/// Four other Mitsuba materials, never used to choose the fit's options.
+const VALIDATION: (&str, &str) = ("validation_lights8.csv", "validation_heldout.csv");
+
 fn study(lights: usize, dense: &[(f64, f64)], opts: &FitOptions) -> Vec<Row> {
-    let train = load("lights8.csv");
-    let held = load("heldout.csv");
+    study_on(FIXTURES, lights, dense, opts)
+}
+
+fn study_on(
+    files: (&str, &str),
+    lights: usize,
+    dense: &[(f64, f64)],
+    opts: &FitOptions,
+) -> Vec<Row> {
+    let train = load(files.0);
+    let held = load(files.1);
     let mut rows = Vec::new();
     for (i, ((name, s), (hname, h))) in train.iter().zip(&held).enumerate() {
         assert_eq!(name, hname);
@@ -80,7 +94,11 @@ fn study(lights: usize, dense: &[(f64, f64)], opts: &FitOptions) -> Vec<Row> {
 /// The fits to the dense held-out pairs themselves, per metric the better of the plain weighted
 /// least squares and the default fit (the stricter reference).
 fn dense_fits() -> Vec<(f64, f64)> {
-    load("heldout.csv")
+    dense_fits_on(FIXTURES.1)
+}
+
+fn dense_fits_on(held: &str) -> Vec<(f64, f64)> {
+    load(held)
         .iter()
         .map(|(name, h)| {
             let p = errors(
@@ -141,6 +159,31 @@ fn four_lights_against_the_dense_fit() {
             r.sparse.1,
             r.dense.1
         );
+    }
+}
+
+/// The same at 4 lights on four other Mitsuba materials (`validation_*.csv`: GGX alpha 0.05,
+/// 0.15 with IOR 1.6, Beckmann alpha 0.2, GGX alpha 0.4) that played no part in choosing the
+/// default. Measured (docs/BRDF.md), default / plain: log ratio 1.07 / 1.80, 1.05 / 1.11,
+/// 0.91 / 0.97, 1.04 / 1.10; relative RMS 0.97 / 489, 0.98 / 0.98, 2.34 / 2.50, 0.99 / 0.96.
+/// The Beckmann material's grazing highlight (a lobe gain of about 400 in the dense fit) is
+/// beyond every sample (lights <= 75 degrees): no fit from these samples sees it.
+#[test]
+fn four_lights_on_the_validation_materials() {
+    let dense = dense_fits_on(VALIDATION.1);
+    let rows = study_on(VALIDATION, 4, &dense, &FitOptions::default());
+    print(4, &rows);
+    let plain = study_on(VALIDATION, 4, &dense, &FitOptions::plain());
+    print(4, &plain);
+    for (r, p) in rows.iter().zip(&plain) {
+        let ratio = (r.sparse.0 / r.dense.0, r.sparse.1 / r.dense.1);
+        let plain_rms = p.sparse.1 / p.dense.1;
+        assert!(ratio.0 <= 1.2, "{}: log ratio {ratio:?}", r.name);
+        if r.name == "val_beckmann_a020" {
+            assert!(ratio.1 <= plain_rms, "{}: {ratio:?}", r.name);
+        } else {
+            assert!(ratio.1 <= 1.2, "{}: relative RMS {ratio:?}", r.name);
+        }
     }
 }
 
