@@ -77,10 +77,14 @@ fn study_on(
     for (i, ((name, s), (hname, h))) in train.iter().zip(&held).enumerate() {
         assert_eq!(name, hname);
         assert_eq!(s.len(), 8 * VIEWS, "{name}: 8 lights x 20 views");
+        let t0 = std::time::Instant::now();
         let fit = fit_material(name, &s[..lights * VIEWS], opts).unwrap();
         eprintln!(
-            "{name} lights {lights}: lobes {} cv {:?}\n  {:?}",
-            fit.lobes_used, fit.cv, fit.brdf
+            "{name} lights {lights}: fit {:.2} s, lobes {} cv {:?}\n  {:?}",
+            t0.elapsed().as_secs_f64(),
+            fit.lobes_used,
+            fit.cv,
+            fit.brdf
         );
         rows.push(Row {
             name: name.clone(),
