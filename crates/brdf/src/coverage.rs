@@ -25,6 +25,23 @@ fn pair_point(l: &[f64; 3], v: &[f64; 3]) -> [f64; 3] {
     [ml.max(mv), ml.min(mv), d / std::f64::consts::PI]
 }
 
+/// The distinct pair points (to 1e-9) of the first `n` samples, and each sample's index among them.
+fn unique_points(light: &[[f64; 3]], view: &[[f64; 3]], n: usize) -> (Vec<[f64; 3]>, Vec<usize>) {
+    let mut unique = Vec::new();
+    let mut index = std::collections::HashMap::new();
+    let of = (0..n)
+        .map(|i| {
+            let p = pair_point(&light[i], &view[i]);
+            let key = p.map(|x| (x * 1e9).round() as i64);
+            *index.entry(key).or_insert_with(|| {
+                unique.push(p);
+                unique.len() - 1
+            })
+        })
+        .collect();
+    (unique, of)
+}
+
 /// Coverage weights of the sample pairs `(light[i], view[i])`: mean 1, each at most `cap`
 /// (`cap >= 1`; the capped mass goes to the others by renormalising).
 pub fn coverage_weights(light: &[[f64; 3]], view: &[[f64; 3]], cap: f64) -> Vec<f64> {
@@ -32,17 +49,21 @@ pub fn coverage_weights(light: &[[f64; 3]], view: &[[f64; 3]], cap: f64) -> Vec<
     if n == 0 {
         return Vec::new();
     }
-    let pts: Vec<[f64; 3]> = (0..n).map(|i| pair_point(&light[i], &view[i])).collect();
-    let tree: ImmutableKdTree<f64, 3> = ImmutableKdTree::new_from_slice(&pts);
+    let (unique, of) = unique_points(light, view, n);
+    let tree: ImmutableKdTree<f64, 3> = ImmutableKdTree::new_from_slice(&unique);
     let mut rng = rand_pcg::Pcg64::seed_from_u64(0x5eed_c0fe);
     let m = 4000 + POINTS_PER_SAMPLE * n;
-    let mut count = vec![0.0f64; n];
+    let mut cell = vec![0.0f64; unique.len()];
     for _ in 0..m {
         let (a, b): (f64, f64) = (rng.gen(), rng.gen());
         let q = [a.max(b), a.min(b), rng.gen::<f64>()];
         let i = tree.nearest_one::<SquaredEuclidean>(&q).item as usize;
-        count[i.min(n - 1)] += 1.0;
+        cell[i.min(unique.len() - 1)] += 1.0;
     }
+    // samples at the same point (repeated measurements) share its cell
+    let mut mult = vec![0.0f64; unique.len()];
+    of.iter().for_each(|&u| mult[u] += 1.0);
+    let count: Vec<f64> = of.iter().map(|&u| cell[u] / mult[u]).collect();
     let cap = cap.max(1.0);
     // water-filling: the scale s with mean(min(s c_i, cap)) = 1 (bisection; s c_i = cap
     // for the capped samples, the others share the rest in proportion to their cells)
@@ -109,5 +130,20 @@ mod tests {
         assert!(capped.iter().all(|&x| x <= 4.0 && x > 0.0), "{capped:?}");
         assert!((capped[30] - 4.0).abs() < 1e-3, "{}", capped[30]);
         assert!(coverage_weights(&[], &[], 4.0).is_empty());
+
+        // repeated measurements of one pair share its cell: equal weights, as without repeats
+        let (mut l3, mut v3) = (l.clone(), v.clone());
+        for _ in 0..2 {
+            l3.push(l[30]);
+            v3.push(v[30]);
+        }
+        let w3 = coverage_weights(&l3, &v3, 1e9);
+        assert!((w3[30] - w3[31]).abs() < 1e-12 && (w3[31] - w3[32]).abs() < 1e-12);
+        let per = w[30] / w.len() as f64;
+        let per3 = 3.0 * w3[30] / w3.len() as f64;
+        assert!((per - per3).abs() < 0.02 * per, "{per} {per3}"); // MC noise only
+                                                                  // all samples at one point: all weights 1
+        let same = coverage_weights(&[[0.0, 0.0, 1.0]; 5], &[[0.6, 0.0, 0.8]; 5], 4.0);
+        assert!(same.iter().all(|&x| (x - 1.0).abs() < 1e-9), "{same:?}");
     }
 }
