@@ -17,7 +17,9 @@ use crate::report::Ctx;
 
 #[derive(clap::Subcommand, Debug)]
 pub enum BrdfCmd {
-    /// Fit Lambertian + retroreflective + specular Lafortune lobes per material (LM, staged).
+    /// Fit Lambertian + retroreflective + specular Lafortune lobes per material (LM, staged;
+    /// samples weighted by their coverage of the direction pairs, lobe growth toward grazing
+    /// bounded).
     Fit(FitArgs),
     /// Evaluate a fitted material at direction pairs (writes r, g, b = pi * f).
     Eval(EvalArgs),
