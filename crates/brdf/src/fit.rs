@@ -399,7 +399,8 @@ impl Data {
         }
     }
 
-    /// Multiplies each sample's squared residual by `w[i]` (e.g. [`coverage_weights`]).
+    /// Multiplies each sample's squared residual by `w[i]` (e.g.
+    /// [`crate::coverage::coverage_weights`]).
     pub(crate) fn with_sample_weights(mut self, w: &[f64]) -> Self {
         for (i, &wi) in w.iter().enumerate() {
             let r = wi.max(0.0).sqrt();
@@ -938,6 +939,28 @@ fn select_model(data: &Data, opts: &FitOptions) -> (Model, Vec<CvScore>) {
     )
 }
 
+/// The samples in f64 with the relative-residual weights of `opts` (floor `rel_floor` times the
+/// channel's mean) and, with `opts.coverage_cap > 0`, the coverage weights.
+fn prepared_data(samples: &[BrdfSample], opts: &FitOptions) -> Data {
+    let d3 = |v: Vec3| [v.x as f64, v.y as f64, v.z as f64];
+    let value: Vec<[f64; 3]> = samples.iter().map(|s| d3(s.value)).collect();
+    let mean: [f64; 3] =
+        [0, 1, 2].map(|c| value.iter().map(|v| v[c]).sum::<f64>() / value.len() as f64);
+    let floor = mean.map(|m| opts.rel_floor * m + 1e-12);
+    let data = Data::new(
+        samples.iter().map(|s| d3(s.light.normalize())).collect(),
+        samples.iter().map(|s| d3(s.view.normalize())).collect(),
+        value,
+        floor,
+    );
+    if opts.coverage_cap > 0.0 {
+        let w = crate::coverage::coverage_weights(&data.light, &data.view, opts.coverage_cap);
+        data.with_sample_weights(&w)
+    } else {
+        data
+    }
+}
+
 /// Fit Lambertian + retroreflective + specular lobes to one material's samples.
 pub fn fit_material(
     material: &str,
@@ -968,23 +991,7 @@ pub fn fit_material(
             )));
         }
     }
-    let d3 = |v: Vec3| [v.x as f64, v.y as f64, v.z as f64];
-    let value: Vec<[f64; 3]> = samples.iter().map(|s| d3(s.value)).collect();
-    let mean: [f64; 3] =
-        [0, 1, 2].map(|c| value.iter().map(|v| v[c]).sum::<f64>() / value.len() as f64);
-    let floor = mean.map(|m| opts.rel_floor * m + 1e-12);
-    let data = Data::new(
-        samples.iter().map(|s| d3(s.light.normalize())).collect(),
-        samples.iter().map(|s| d3(s.view.normalize())).collect(),
-        value,
-        floor,
-    );
-    let data = if opts.coverage_cap > 0.0 {
-        let w = crate::coverage::coverage_weights(&data.light, &data.view, opts.coverage_cap);
-        data.with_sample_weights(&w)
-    } else {
-        data
-    };
+    let data = prepared_data(samples, opts);
     let (model, cv) = select_model(&data, opts);
     let (p, cost, termination) = fit_staged(&model, &data, true);
     if !cost.is_finite() || p.iter().any(|x| !x.is_finite()) {
