@@ -11,7 +11,12 @@ BSDF.eval includes the cosine foreshortening of the incident direction, divided 
                                       (60, 135), (65, 300); each light's 20 views are those of
                                       samples.csv rotated by the light's azimuth (the hand-held
                                       frame: the camera moves with the light around the sample)
-Usage: python3 datasets/mitsuba/brdf_samples.py [--lights8]"""
+  datasets/fixtures/brdf/validation_lights8.csv, validation_heldout.csv  (--validation) the same
+                                      two files (8 lights x 20 views, seed 2026; 500 noise-free
+                                      random pairs, seed 2027) for four other materials (VALIDATION),
+                                      never used to choose the fit's options: a check that the
+                                      default fit's gain on the fixtures is no fit to the fixtures
+Usage: python3 datasets/mitsuba/brdf_samples.py [--lights8 | --validation]"""
 import math, os, sys
 import numpy as np
 import mitsuba as mi
@@ -44,12 +49,23 @@ def hemi(rng):
             return d
 
 
+VALIDATION = {
+    "val_a005_blue": {"type": "roughplastic", "distribution": "ggx", "alpha": 0.05,
+                      "diffuse_reflectance": {"type": "rgb", "value": [0.15, 0.25, 0.55]}},
+    "val_a015_grey": {"type": "roughplastic", "distribution": "ggx", "alpha": 0.15, "int_ior": 1.6,
+                      "diffuse_reflectance": {"type": "rgb", "value": [0.45, 0.45, 0.4]}},
+    "val_beckmann_a020": {"type": "roughplastic", "distribution": "beckmann", "alpha": 0.2,
+                          "diffuse_reflectance": {"type": "rgb", "value": [0.35, 0.2, 0.3]}},
+    "val_a040_yellow": {"type": "roughplastic", "distribution": "ggx", "alpha": 0.4,
+                        "diffuse_reflectance": {"type": "rgb", "value": [0.7, 0.6, 0.2]}},
+}
+
 LIGHTS8 = [(0, 0), (30, 0), (50, 0), (75, 0), (20, 90), (40, 225), (60, 135), (65, 300)]
 
 
-def lights8(bsdfs, head):
+def lights8(bsdfs, head, file="lights8.csv", seed=2025):
     """8 light positions x 20 views, 1 % noise: the fixture of the error-against-lights plot."""
-    rng = np.random.default_rng(2025)
+    rng = np.random.default_rng(seed)
     rows = []
     for name, b in bsdfs.items():
         for lt, la in LIGHTS8:
@@ -61,12 +77,29 @@ def lights8(bsdfs, head):
                 wv = np.array([math.sin(vt) * math.cos(vp), math.sin(vt) * math.sin(vp), math.cos(vt)])
                 val = pi_f(b, wl, wv) * (1 + 0.01 * rng.standard_normal(3))
                 rows.append([name, *wl, *wv, *val])
-    with open(os.path.join(OUT, "lights8.csv"), "w") as f:
+    with open(os.path.join(OUT, file), "w") as f:
+        f.write(head + "".join(",".join([r[0]] + [f"{x:.7g}" for x in r[1:]]) + "\n" for r in rows))
+
+
+def heldout(bsdfs, head, file, rng):
+    """500 noise-free pairs per material, both directions uniform on the hemisphere."""
+    rows = []
+    for name, b in bsdfs.items():
+        for _ in range(500):
+            wl, wv = hemi(rng), hemi(rng)
+            rows.append([name, *wl, *wv, *pi_f(b, wl, wv)])
+    with open(os.path.join(OUT, file), "w") as f:
         f.write(head + "".join(",".join([r[0]] + [f"{x:.7g}" for x in r[1:]]) + "\n" for r in rows))
 
 
 def main():
     os.makedirs(OUT, exist_ok=True)
+    if "--validation" in sys.argv:
+        bsdfs = {k: mi.load_dict(v) for k, v in VALIDATION.items()}
+        head = "material,light_x,light_y,light_z,view_x,view_y,view_z,r,g,b\n"
+        lights8(bsdfs, head, "validation_lights8.csv", 2026)
+        heldout(bsdfs, head, "validation_heldout.csv", np.random.default_rng(2027))
+        return
     if "--lights8" in sys.argv:
         bsdfs = {k: mi.load_dict(v) for k, v in MATERIALS.items()}
         lights8(bsdfs, "material,light_x,light_y,light_z,view_x,view_y,view_z,r,g,b\n")

@@ -17,7 +17,9 @@ use crate::report::Ctx;
 
 #[derive(clap::Subcommand, Debug)]
 pub enum BrdfCmd {
-    /// Fit Lambertian + retroreflective + specular Lafortune lobes per material (LM, staged).
+    /// Fit Lambertian + retroreflective + specular Lafortune lobes per material (LM, staged;
+    /// samples weighted by their coverage of the direction pairs, lobe growth toward grazing
+    /// bounded).
     Fit(FitArgs),
     /// Evaluate a fitted material at direction pairs (writes r, g, b = pi * f).
     Eval(EvalArgs),
@@ -69,6 +71,19 @@ pub struct FitArgs {
     /// Largest lobe exponent N.
     #[arg(long, default_value_t = 2.0e4)]
     pub max_n: f64,
+    /// Weight each sample by the share of all direction pairs it stands for (its Voronoi cell in
+    /// the isotropic pair space), each weight at most this times the mean; 0 = unweighted
+    /// (docs/BRDF.md, "Sparse hand-held samples").
+    #[arg(long, default_value_t = igi_brdf::fit::COVERAGE_CAP)]
+    pub coverage_cap: f64,
+    /// Largest grazing gain |Cxy|^N of a lobe (its peak at grazing over its peak at normal
+    /// incidence); `inf` = unbounded.
+    #[arg(long, default_value_t = igi_brdf::fit::MAX_GAIN)]
+    pub max_gain: f64,
+    /// The plain weighted least squares of before issue 16: no coverage weights, no gain bound
+    /// (overrides --coverage-cap and --max-gain).
+    #[arg(long)]
+    pub plain: bool,
 }
 
 #[derive(clap::Args, Debug)]
@@ -122,13 +137,36 @@ pub fn run(cmd: BrdfCmd, ctx: &Ctx) -> anyhow::Result<()> {
     }
 }
 
+/// The fit options of the command line (checked before any work).
+fn fit_options(a: &FitArgs) -> anyhow::Result<FitOptions> {
+    if !(a.coverage_cap >= 0.0 && a.coverage_cap.is_finite()) {
+        bail!(
+            "--coverage-cap must be a finite number >= 0 (got {})",
+            a.coverage_cap
+        );
+    }
+    if a.max_gain.is_nan() || a.max_gain < 1.0 {
+        bail!("--max-gain must be at least 1 (got {})", a.max_gain);
+    }
+    let base = if a.plain {
+        FitOptions::plain()
+    } else {
+        FitOptions {
+            coverage_cap: a.coverage_cap,
+            max_gain: a.max_gain,
+            ..FitOptions::default()
+        }
+    };
+    Ok(FitOptions {
+        max_n: a.max_n,
+        ..base
+    })
+}
+
 fn fit(a: FitArgs, ctx: &Ctx) -> anyhow::Result<()> {
+    let opts = fit_options(&a)?;
     let samples = read_samples(&a.samples)?;
     let groups = group_by_material(&samples);
-    let opts = FitOptions {
-        max_n: a.max_n,
-        ..Default::default()
-    };
     let pb = ctx.progress(groups.len() as u64, "fitting");
     let reports: Vec<_> = groups
         .par_iter()

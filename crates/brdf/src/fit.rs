@@ -46,29 +46,50 @@ pub struct FitOptions {
     /// and two, and among [`FitOptions::smooth`], by leave-one-light-out cross-validation;
     /// 0 = never (always two lobes).
     pub cv_min_lights: usize,
+    /// Weight each sample by its coverage of the space of direction pairs
+    /// ([`crate::coverage::coverage_weights`]), each weight at most this; 0 = unweighted.
+    pub coverage_cap: f64,
+    /// Largest grazing gain `|Cxy|^N` of a lobe (how much its peak may grow from normal incidence
+    /// to grazing); infinite = unbounded.
+    pub max_gain: f64,
 }
 
+/// Default [`FitOptions::coverage_cap`].
+pub const COVERAGE_CAP: f64 = 4.0;
+/// Default [`FitOptions::max_gain`].
+pub const MAX_GAIN: f64 = 30.0;
+
 impl Default for FitOptions {
-    /// The plain weighted least squares (no energy bound, no prior, no model selection).
+    /// What `igi brdf fit` uses: the plain weighted least squares with every sample weighted by
+    /// its coverage of the direction pairs (cap [`COVERAGE_CAP`]) and each lobe's grazing gain
+    /// bounded by [`MAX_GAIN`] (issue 16: fits from sparse samples that generalise; docs/BRDF.md).
     fn default() -> Self {
+        FitOptions {
+            coverage_cap: COVERAGE_CAP,
+            max_gain: MAX_GAIN,
+            ..FitOptions::plain()
+        }
+    }
+}
+
+impl FitOptions {
+    /// The plain weighted least squares: unweighted samples, no bound, no prior, no model
+    /// selection (the default before issue 16).
+    pub fn plain() -> Self {
         FitOptions {
             max_n: 2.0e4,
             rel_floor: 0.05,
             energy_weight: 0.0,
             smooth: vec![0.0],
             cv_min_lights: 0,
+            coverage_cap: 0.0,
+            max_gain: f64::INFINITY,
         }
     }
-}
 
-impl FitOptions {
-    /// The plain weighted least squares: the default.
-    pub fn plain() -> Self {
-        FitOptions::default()
-    }
-
-    /// For sparse samples (issue 16): the energy bound, a choice among smoothness weights, and
-    /// one or two lobes, by leave-one-light-out cross-validation.
+    /// The default plus the energy bound, a choice among smoothness weights, and one or two
+    /// lobes, by leave-one-light-out cross-validation (issue 16; not better on the Mitsuba
+    /// fixtures, docs/BRDF.md).
     pub fn regularised() -> Self {
         FitOptions {
             energy_weight: 10.0,
@@ -211,6 +232,10 @@ pub(crate) struct Model {
     /// Weight of the smoothness prior `ln|Cxy| ~ 0` on both lobes (a lobe that neither grows
     /// nor shrinks toward grazing unless the data ask for it), 0 = only the weak [`PRIOR`].
     pub(crate) smooth: f64,
+    /// Bound on each lobe's grazing gain `|Cxy|^N` (its peak at grazing over its peak at normal
+    /// incidence), enforced as residuals `GAIN_WEIGHT (N ln|Cxy| - ln max_gain)` above it;
+    /// infinite = off.
+    pub(crate) max_gain: f64,
 }
 
 /// Most folds of the cross-validation over light positions.
@@ -220,7 +245,10 @@ const CV_FOLDS: usize = 8;
 const ENERGY_THETAS: [f64; 7] = [0.0, 30.0, 50.0, 65.0, 75.0, 82.0, 87.0];
 
 /// Number of prior rows after the data residuals.
-pub(crate) const N_PRIOR: usize = 2 + 3 * ENERGY_THETAS.len();
+pub(crate) const N_PRIOR: usize = 4 + 3 * ENERGY_THETAS.len();
+
+/// Weight of the grazing-gain bound's residuals (per unit of `ln` gain above the bound).
+const GAIN_WEIGHT: f64 = 10.0;
 
 impl Model {
     /// The plain least-squares model (no energy bound, no smoothness prior; both lobes).
@@ -230,6 +258,7 @@ impl Model {
             retro: true,
             energy: 0.0,
             smooth: 0.0,
+            max_gain: f64::INFINITY,
         }
     }
 
@@ -272,6 +301,18 @@ impl Model {
                 out[2 + 3 * k + c] = self.energy * (a[c] - 1.0).max(0.0);
             }
         }
+        let (_, r, s) = self.lobes(p);
+        let lg = self.max_gain.ln();
+        let gain = |l: &LobeF64| {
+            if lg.is_finite() {
+                GAIN_WEIGHT * (l.n * l.cxy.abs().ln() - lg).max(0.0)
+            } else {
+                0.0
+            }
+        };
+        let e = 2 + 3 * ENERGY_THETAS.len();
+        out[e] = if self.retro { gain(&r) } else { 0.0 };
+        out[e + 1] = gain(&s);
     }
 
     fn lobes(&self, p: &[f64]) -> ([f64; 3], LobeF64, LobeF64) {
@@ -334,7 +375,8 @@ pub(crate) struct Data {
     pub(crate) light: Vec<[f64; 3]>,
     pub(crate) view: Vec<[f64; 3]>,
     pub(crate) value: Vec<[f64; 3]>,
-    /// 1 / (data + floor) per sample and channel
+    /// `sqrt(sample weight) / (data + floor)` per sample and channel (the sample weight is 1
+    /// without [`Data::with_sample_weights`]).
     pub(crate) weight: Vec<[f64; 3]>,
 }
 
@@ -357,13 +399,31 @@ impl Data {
         }
     }
 
+    /// Multiplies each sample's squared residual by `w[i]` (e.g.
+    /// [`crate::coverage::coverage_weights`]).
+    pub(crate) fn with_sample_weights(mut self, w: &[f64]) -> Self {
+        for (i, &wi) in w.iter().enumerate() {
+            let r = wi.max(0.0).sqrt();
+            for c in 0..3 {
+                self.weight[i][c] *= r;
+            }
+        }
+        self
+    }
+
+    /// The weighted residual of sample `i`, channel `c`, for the model value `f`.
+    #[inline]
+    pub(crate) fn residual(&self, i: usize, c: usize, f: f64) -> f64 {
+        (f - self.value[i][c]) * self.weight[i][c]
+    }
+
     /// Sum of squared weighted residuals of the parameters `p`.
     pub(crate) fn cost(&self, model: &Model, p: &[f64; NP]) -> f64 {
         let mut s = 0.0;
         for i in 0..self.light.len() {
             let f = model.value(p, &self.light[i], &self.view[i]);
             for c in 0..3 {
-                s += ((f[c] - self.value[i][c]) * self.weight[i][c]).powi(2);
+                s += self.residual(i, c, f[c]).powi(2);
             }
         }
         s
@@ -384,7 +444,7 @@ impl Problem<'_> {
         for i in 0..m {
             let f = self.model.value(p, &self.data.light[i], &self.data.view[i]);
             for c in 0..3 {
-                r[3 * i + c] = (f[c] - self.data.value[i][c]) * self.data.weight[i][c];
+                r[3 * i + c] = self.data.residual(i, c, f[c]);
             }
         }
         // A weak prior |Cxy| ~ 1 (ln|Cxy| ~ 0): keeps the Cxy of a lobe the data do not support at
@@ -824,6 +884,7 @@ fn select_model(data: &Data, opts: &FitOptions) -> (Model, Vec<CvScore>) {
         retro: true,
         energy: opts.energy_weight,
         smooth: smooth0,
+        max_gain: opts.max_gain,
     };
     let lights = data.light_groups();
     if opts.cv_min_lights == 0 || lights.len() < opts.cv_min_lights.max(2) {
@@ -878,6 +939,28 @@ fn select_model(data: &Data, opts: &FitOptions) -> (Model, Vec<CvScore>) {
     )
 }
 
+/// The samples in f64 with the relative-residual weights of `opts` (floor `rel_floor` times the
+/// channel's mean) and, with `opts.coverage_cap > 0`, the coverage weights.
+fn prepared_data(samples: &[BrdfSample], opts: &FitOptions) -> Data {
+    let d3 = |v: Vec3| [v.x as f64, v.y as f64, v.z as f64];
+    let value: Vec<[f64; 3]> = samples.iter().map(|s| d3(s.value)).collect();
+    let mean: [f64; 3] =
+        [0, 1, 2].map(|c| value.iter().map(|v| v[c]).sum::<f64>() / value.len() as f64);
+    let floor = mean.map(|m| opts.rel_floor * m + 1e-12);
+    let data = Data::new(
+        samples.iter().map(|s| d3(s.light.normalize())).collect(),
+        samples.iter().map(|s| d3(s.view.normalize())).collect(),
+        value,
+        floor,
+    );
+    if opts.coverage_cap > 0.0 {
+        let w = crate::coverage::coverage_weights(&data.light, &data.view, opts.coverage_cap);
+        data.with_sample_weights(&w)
+    } else {
+        data
+    }
+}
+
 /// Fit Lambertian + retroreflective + specular lobes to one material's samples.
 pub fn fit_material(
     material: &str,
@@ -908,17 +991,7 @@ pub fn fit_material(
             )));
         }
     }
-    let d3 = |v: Vec3| [v.x as f64, v.y as f64, v.z as f64];
-    let value: Vec<[f64; 3]> = samples.iter().map(|s| d3(s.value)).collect();
-    let mean: [f64; 3] =
-        [0, 1, 2].map(|c| value.iter().map(|v| v[c]).sum::<f64>() / value.len() as f64);
-    let floor = mean.map(|m| opts.rel_floor * m + 1e-12);
-    let data = Data::new(
-        samples.iter().map(|s| d3(s.light.normalize())).collect(),
-        samples.iter().map(|s| d3(s.view.normalize())).collect(),
-        value,
-        floor,
-    );
+    let data = prepared_data(samples, opts);
     let (model, cv) = select_model(&data, opts);
     let (p, cost, termination) = fit_staged(&model, &data, true);
     if !cost.is_finite() || p.iter().any(|x| !x.is_finite()) {

@@ -3,6 +3,9 @@
 //! - [`Lafortune`] / [`LafortuneRef`]: the model `rho_d/pi + sum rho_l max(0, Cxy(ux vx + uy vy) + Cz uz vz)^N`
 //!   in the local shading frame ([`Frame`], z = normal), with evaluation, importance sampling
 //!   (cosine + cosine-power lobes, mixture pdf for MIS) and directional albedo.
+//! - [`fit_material`]: the staged Lafortune fit; by default each sample weighted by its
+//!   [`coverage`] of the direction pairs and each lobe's growth toward grazing bounded, so fits
+//!   from sparse hand-held samples generalise.
 //! - [`measure`]: BRDF samples from photographs of the hand-held sample frame (pose from the
 //!   fiducials, light from the two black spheres' highlights, the white standard, an
 //!   orthographic view of the sample).
@@ -10,6 +13,7 @@
 
 pub mod basis;
 pub mod cluster;
+pub mod coverage;
 pub mod error;
 pub mod fit;
 pub mod frame;

@@ -125,14 +125,15 @@ fn fit_all() -> Vec<Row> {
     rows
 }
 
-/// Achieved numbers (worst channel), with about 10% margin: training rms, held-out relative RMS
-/// (all pairs, <= 75 degrees), held-out median relative error (all pairs, <= 75 degrees).
+/// Achieved numbers (worst channel), with about 10% margin: training rms (coverage-weighted, the
+/// default fit), held-out relative RMS (all pairs, <= 75 degrees), held-out median relative error
+/// (all pairs, <= 75 degrees).
 #[test]
 fn fits_of_mitsuba_samples_predict_heldout_pairs() {
     let expect: [(&str, f64, [f64; 2], [f64; 2]); 3] = [
-        ("plastic_a010", 0.19, [0.83, 0.74], [0.090, 0.045]),
-        ("plastic_a030", 0.16, [0.86, 0.36], [0.055, 0.036]),
-        ("dark_grazing", 0.25, [0.97, 0.80], [0.190, 0.180]),
+        ("plastic_a010", 0.24, [0.85, 0.78], [0.066, 0.052]),
+        ("plastic_a030", 0.23, [0.88, 0.41], [0.038, 0.030]),
+        ("dark_grazing", 0.29, [0.97, 0.85], [0.148, 0.125]),
     ];
     let rows = fit_all();
     for (row, (name, rms, rel_rms, median)) in rows.iter().zip(expect) {
@@ -196,7 +197,7 @@ fn representability_bound_from_fitting_the_heldout_pairs() {
                 h,
                 &FitOptions {
                     rel_floor: floor,
-                    ..FitOptions::default()
+                    ..FitOptions::plain()
                 },
             )
             .unwrap();

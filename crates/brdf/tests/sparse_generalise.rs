@@ -11,7 +11,7 @@
 //!
 //! `cargo test -p igi-brdf --test sparse_generalise -- --nocapture` prints the table of
 //! docs/BRDF.md; `... -- --ignored --nocapture` also sweeps 1 to 8 light positions and draws
-//! `target/brdf_error_vs_lights.png`.
+//! `docs/img/brdf_error_vs_lights.png`.
 
 use std::path::{Path, PathBuf};
 
@@ -56,17 +56,35 @@ struct Row {
     dense: (f64, f64),
 }
 
+/// The fixtures: `lights8.csv` and `heldout.csv`.
+const FIXTURES: (&str, &str) = ("lights8.csv", "heldout.csv");
+/// Four other Mitsuba materials, never used to choose the fit's options.
+const VALIDATION: (&str, &str) = ("validation_lights8.csv", "validation_heldout.csv");
+
 fn study(lights: usize, dense: &[(f64, f64)], opts: &FitOptions) -> Vec<Row> {
-    let train = load("lights8.csv");
-    let held = load("heldout.csv");
+    study_on(FIXTURES, lights, dense, opts)
+}
+
+fn study_on(
+    files: (&str, &str),
+    lights: usize,
+    dense: &[(f64, f64)],
+    opts: &FitOptions,
+) -> Vec<Row> {
+    let train = load(files.0);
+    let held = load(files.1);
     let mut rows = Vec::new();
     for (i, ((name, s), (hname, h))) in train.iter().zip(&held).enumerate() {
         assert_eq!(name, hname);
         assert_eq!(s.len(), 8 * VIEWS, "{name}: 8 lights x 20 views");
+        let t0 = std::time::Instant::now();
         let fit = fit_material(name, &s[..lights * VIEWS], opts).unwrap();
         eprintln!(
-            "{name} lights {lights}: lobes {} cv {:?}\n  {:?}",
-            fit.lobes_used, fit.cv, fit.brdf
+            "{name} lights {lights}: fit {:.2} s, lobes {} cv {:?}\n  {:?}",
+            t0.elapsed().as_secs_f64(),
+            fit.lobes_used,
+            fit.cv,
+            fit.brdf
         );
         rows.push(Row {
             name: name.clone(),
@@ -77,17 +95,29 @@ fn study(lights: usize, dense: &[(f64, f64)], opts: &FitOptions) -> Vec<Row> {
     rows
 }
 
-/// The fits to the dense held-out pairs themselves (plain weighted least squares).
+/// The fits to the dense held-out pairs themselves, per metric the better of the plain weighted
+/// least squares and the default fit (the stricter reference).
 fn dense_fits() -> Vec<(f64, f64)> {
-    load("heldout.csv")
+    dense_fits_on(FIXTURES.1)
+}
+
+fn dense_fits_on(held: &str) -> Vec<(f64, f64)> {
+    load(held)
         .iter()
         .map(|(name, h)| {
-            let b = errors(
+            let p = errors(
                 &fit_material(name, h, &FitOptions::plain()).unwrap().brdf,
                 h,
             );
-            eprintln!("{name} dense: plain log {:.3} relRMS {:.3}", b.0, b.1);
-            b
+            let d = errors(
+                &fit_material(name, h, &FitOptions::default()).unwrap().brdf,
+                h,
+            );
+            eprintln!(
+                "{name} dense: plain log {:.3} relRMS {:.3} | default log {:.3} relRMS {:.3}",
+                p.0, p.1, d.0, d.1
+            );
+            (p.0.min(d.0), p.1.min(d.1))
         })
         .collect()
 }
@@ -107,25 +137,22 @@ fn print(lights: usize, rows: &[Row]) {
     }
 }
 
-/// Plain fits from the 4 light positions of the hand-held frame against the dense fit. Measured
-/// (docs/BRDF.md): ratios of mean |log ratio| 1.34 / 1.15 / 1.03 and of relative RMS
-/// 1.13 / 1.03 / 0.99 (`plastic_a010`, `plastic_a030`, `dark_grazing`): the relative RMS is
-/// within 1.2x for every material, the log ratio of `plastic_a010` is not.
+/// The goal of issue 16: default fits (`igi brdf fit`) from the 4 light positions of the
+/// hand-held frame within 1.2x of the dense fit in both metrics, for every material. Measured
+/// (docs/BRDF.md): mean |log ratio| 1.11 / 1.03 / 1.05 and relative RMS 1.17 / 1.07 / 1.01
+/// (`plastic_a010`, `plastic_a030`, `dark_grazing`); the plain fit reaches 1.34 for
+/// `plastic_a010`'s log ratio (`plain_fit_misses_the_goal_for_plastic_a010`).
 #[test]
 fn four_lights_against_the_dense_fit() {
     let dense = dense_fits();
-    let rows = study(4, &dense, &FitOptions::plain());
+    let rows = study(4, &dense, &FitOptions::default());
     print(4, &rows);
-    let log_bound = [
-        ("plastic_a010", 1.45),
-        ("plastic_a030", 1.2),
-        ("dark_grazing", 1.2),
-    ];
-    for (r, (name, lb)) in rows.iter().zip(log_bound) {
+    let names = ["plastic_a010", "plastic_a030", "dark_grazing"];
+    for (r, name) in rows.iter().zip(names) {
         assert_eq!(r.name, name);
         let ratio = (r.sparse.0 / r.dense.0, r.sparse.1 / r.dense.1);
         assert!(
-            ratio.0 <= lb,
+            ratio.0 <= 1.2,
             "{name}: |log ratio| {:.3} vs dense {:.3}",
             r.sparse.0,
             r.dense.0
@@ -137,6 +164,62 @@ fn four_lights_against_the_dense_fit() {
             r.dense.1
         );
     }
+}
+
+/// The same at 4 lights on four other Mitsuba materials (`validation_*.csv`: GGX alpha 0.05,
+/// 0.15 with IOR 1.6, Beckmann alpha 0.2, GGX alpha 0.4) that played no part in choosing the
+/// default. Measured (docs/BRDF.md), default / plain: log ratio 1.07 / 1.80, 1.05 / 1.11,
+/// 0.91 / 0.97, 1.04 / 1.10; relative RMS 0.97 / 489, 0.98 / 0.98, 2.34 / 2.50, 0.99 / 0.96.
+/// The Beckmann material's grazing highlight (a lobe gain of about 400 in the dense fit) is
+/// beyond every sample (lights <= 75 degrees): no fit from these samples sees it.
+#[test]
+fn four_lights_on_the_validation_materials() {
+    let dense = dense_fits_on(VALIDATION.1);
+    let rows = study_on(VALIDATION, 4, &dense, &FitOptions::default());
+    print(4, &rows);
+    let plain = study_on(VALIDATION, 4, &dense, &FitOptions::plain());
+    print(4, &plain);
+    for (r, p) in rows.iter().zip(&plain) {
+        let ratio = (r.sparse.0 / r.dense.0, r.sparse.1 / r.dense.1);
+        let plain_rms = p.sparse.1 / p.dense.1;
+        assert!(ratio.0 <= 1.2, "{}: log ratio {ratio:?}", r.name);
+        if r.name == "val_beckmann_a020" {
+            assert!(ratio.1 <= plain_rms, "{}: {ratio:?}", r.name);
+        } else {
+            assert!(ratio.1 <= 1.2, "{}: relative RMS {ratio:?}", r.name);
+        }
+    }
+}
+
+/// What the coverage weights and the gain bound fix: the plain fit from 4 lights extrapolates
+/// the diffuse falloff badly at grazing pairs (`plastic_a010` mean |log ratio| 1.34x the dense
+/// fit's), and coverage weights without the gain bound let the specular lobe blow up toward
+/// grazing (relative RMS about 14x); `FitOptions::regularised()` misses too (1.81x).
+#[test]
+fn plain_fit_and_unbounded_weights_miss_the_goal_for_plastic_a010() {
+    let dense = dense_fits();
+    let plain = &study(4, &dense, &FitOptions::plain())[0];
+    print(4, std::slice::from_ref(plain));
+    assert!(plain.sparse.0 / plain.dense.0 > 1.25, "plain log ratio");
+    let unbounded = FitOptions {
+        max_gain: f64::INFINITY,
+        ..FitOptions::default()
+    };
+    let weighted = &study(4, &dense, &unbounded)[0];
+    print(4, std::slice::from_ref(weighted));
+    assert!(
+        weighted.sparse.1 / weighted.dense.1 > 3.0,
+        "unbounded rel RMS"
+    );
+    // the default plus the energy bound, smoothness and one/two-lobe cross-validation: the CV
+    // keeps one lobe, and the retro lobe it drops is what bends the diffuse term at grazing
+    let reg = study(4, &dense, &FitOptions::regularised());
+    print(4, &reg);
+    assert_eq!(reg[0].name, "plastic_a010");
+    assert!(
+        reg[0].sparse.0 / reg[0].dense.0 > 1.25,
+        "regularised log ratio"
+    );
 }
 
 /// The fit's reported uncertainty grows away from the samples: the standard error of `pi f`
@@ -170,73 +253,112 @@ fn value_stderr_grows_away_from_the_samples() {
     assert!(far > 1.1 * at_samples, "{far} vs {at_samples}");
 }
 
-/// Error against the number of light positions (1 to 8), plain and regularised fits, and the
-/// plot `target/brdf_error_vs_lights.png`. About 10 minutes.
+/// One material's points: (light positions, mean |log ratio| ratio, relative RMS ratio).
+type Curve = Vec<(f64, f64, f64)>;
+
+/// Error against the number of light positions (1 to 8) of the default and the plain fit, both
+/// metrics as ratios to the dense fit: prints the table of docs/BRDF.md and draws
+/// `docs/img/brdf_error_vs_lights.png`. About 2 minutes.
 #[test]
 #[ignore]
 fn error_against_number_of_lights() {
-    use plotters::prelude::*;
     let dense = dense_fits();
-    let mut curves: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
+    let names = ["plastic_a010", "plastic_a030", "dark_grazing"];
+    // curves[option][material] = [(lights, log ratio, rel RMS ratio)]
+    let mut curves: Vec<(&str, Vec<Curve>)> = Vec::new();
     for (label, opts) in [
+        ("default", FitOptions::default()),
         ("plain", FitOptions::plain()),
-        ("regularised", FitOptions::regularised()),
     ] {
-        let mut per: Vec<Vec<(f64, f64)>> = vec![Vec::new(); 3];
+        let mut per = vec![Vec::new(); 3];
         for lights in 1..=8 {
             let rows = study(lights, &dense, &opts);
             print(lights, &rows);
             for (k, r) in rows.iter().enumerate() {
-                per[k].push((lights as f64, r.sparse.0 / r.dense.0));
+                let q = (r.sparse.0 / r.dense.0, r.sparse.1 / r.dense.1);
+                per[k].push((lights as f64, q.0, q.1));
             }
         }
-        let names = ["plastic_a010", "plastic_a030", "dark_grazing"];
-        for (k, p) in per.into_iter().enumerate() {
-            curves.push((format!("{} {label}", names[k]), p));
+        curves.push((label, per));
+    }
+    eprintln!("| lights | fit | {} |", names.join(" (log, rel. RMS) | "));
+    for l in 0..8 {
+        for (label, per) in &curves {
+            let cells: Vec<String> = per
+                .iter()
+                .map(|c| format!("{:.2}, {:.2}", c[l].1, c[l].2))
+                .collect();
+            eprintln!("| {} | {label} | {} |", l + 1, cells.join(" | "));
         }
     }
+    let path =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/img/brdf_error_vs_lights.png");
+    std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+    plot_curves(&path, &names, &curves);
+    eprintln!("wrote {}", path.display());
+}
+
+/// Two panels (mean |log ratio|, relative RMS; each over the dense fit's) against light positions.
+fn plot_curves(path: &Path, names: &[&str], curves: &[(&str, Vec<Curve>)]) {
+    use plotters::prelude::*;
     igi_imaging::plot::register_fonts();
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../target/brdf_error_vs_lights.png");
-    let root = BitMapBackend::new(&path, (900, 600)).into_drawing_area();
+    let root = BitMapBackend::new(path, (1200, 520)).into_drawing_area();
     root.fill(&WHITE).unwrap();
-    let ymax = curves
+    let panels = root.split_evenly((1, 2));
+    let ymax = 3.0;
+    for (p, (area, title)) in panels
         .iter()
-        .flat_map(|c| c.1.iter().map(|p| p.1))
-        .fold(1.5, f64::max)
-        .min(5.0);
-    let mut chart = ChartBuilder::on(&root)
-        .caption(
-            "held-out mean |log ratio| / dense fit's, against light positions",
-            ("sans-serif", 20),
-        )
-        .margin(10)
-        .x_label_area_size(40)
-        .y_label_area_size(50)
-        .build_cartesian_2d(1.0..8.0, 0.8..ymax)
-        .unwrap();
-    chart
-        .configure_mesh()
-        .x_desc("light positions")
-        .y_desc("ratio to the dense fit")
-        .draw()
-        .unwrap();
-    for (i, (label, pts)) in curves.iter().enumerate() {
-        let col = Palette99::pick(i).to_rgba();
+        .zip(["mean |log ratio|", "relative RMS"])
+        .enumerate()
+    {
+        let mut chart = ChartBuilder::on(area)
+            .caption(
+                format!("held-out {title} / dense fit's"),
+                ("sans-serif", 20),
+            )
+            .margin(10)
+            .x_label_area_size(40)
+            .y_label_area_size(50)
+            .build_cartesian_2d(1.0..8.0, 0.8..ymax)
+            .unwrap();
+        chart
+            .configure_mesh()
+            .x_desc("light positions (20 views each)")
+            .y_desc("ratio to the dense fit (goal <= 1.2)")
+            .draw()
+            .unwrap();
         chart
             .draw_series(LineSeries::new(
-                pts.iter().map(|p| (p.0, p.1.min(ymax))),
-                col.stroke_width(2),
+                [(1.0, 1.2), (8.0, 1.2)],
+                BLACK.mix(0.5).stroke_width(1),
             ))
-            .unwrap()
-            .label(label.clone())
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], col));
+            .unwrap();
+        for (o, (label, per)) in curves.iter().enumerate() {
+            for (k, pts) in per.iter().enumerate() {
+                let col = Palette99::pick(k).to_rgba();
+                let style = if o == 0 {
+                    col.stroke_width(3)
+                } else {
+                    col.mix(0.6).stroke_width(1)
+                };
+                let y = |q: &(f64, f64, f64)| if p == 0 { q.1 } else { q.2 };
+                chart
+                    .draw_series(LineSeries::new(
+                        pts.iter().map(|q| (q.0, y(q).min(ymax))),
+                        style,
+                    ))
+                    .unwrap()
+                    .label(format!("{} {label}", names[k]))
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
+            }
+        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .draw()
+            .unwrap();
     }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()
-        .unwrap();
     root.present().unwrap();
-    eprintln!("wrote {}", path.display());
 }
