@@ -6,9 +6,62 @@ use std::path::PathBuf;
 
 #[derive(clap::Subcommand, Debug)]
 pub enum SlfCmd {
+    /// Build a surface light field from a multi-view capture (rig.toml, FORMATS.md) and a mesh
+    /// of the object in the same world frame: data lumispheres at the covered texels of an
+    /// atlas of the mesh, fitted by pointwise fairing, function quantization or principal
+    /// function analysis, stored in SLF_DIR (docs/LIGHTFIELD.md).
+    Build(BuildArgs),
     /// Render a stored surface light field (SLF_DIR) through a camera; with --mesh, a rotated
     /// or deformed copy of the stored mesh (same triangles and UVs) looks up its new normals.
     Render(RenderArgs),
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum MethodArg {
+    /// Pointwise fairing (each lumisphere on its own).
+    Fair,
+    /// Function quantization (a codebook of --codewords lumispheres).
+    Fq,
+    /// Principal function analysis (--q prototypes per point).
+    Pfa,
+    /// The median texture alone (the diffuse baseline).
+    Median,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct BuildArgs {
+    /// The multi-view capture (rig.toml): views with a camera and a photo each, an optional
+    /// mask (pixels outside it are ignored); clipped pixels of 8-bit photos are ignored.
+    pub rig: PathBuf,
+    /// The object's mesh (PLY or OBJ) in the rig's world frame.
+    #[arg(long)]
+    pub mesh: PathBuf,
+    #[arg(long, value_enum, default_value = "pfa")]
+    pub method: MethodArg,
+    /// Prototypes per point for --method pfa.
+    #[arg(long, default_value_t = 2)]
+    pub q: usize,
+    /// Codebook size for --method fq (a power of two).
+    #[arg(long, default_value_t = 256)]
+    pub codewords: usize,
+    /// Atlas texels a side (its covered texels are the grid points).
+    #[arg(long, default_value_t = 256)]
+    pub atlas: u32,
+    /// Octahedron subdivisions of a lumisphere (3: 258 directions).
+    #[arg(long, default_value_t = 3)]
+    pub level: u32,
+    /// Weight of the thin-plate smoothness term of the fits.
+    #[arg(long, default_value_t = 0.02)]
+    pub lambda: f32,
+    /// Seed of the training subsets (same seed, same bytes).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Output folder (new, empty, or an earlier SLF_DIR, which is replaced).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Print the report as JSON.
+    #[arg(long)]
+    pub json: bool,
 }
 
 #[derive(clap::Args, Debug)]
@@ -37,8 +90,65 @@ pub struct RenderArgs {
 
 pub fn run(c: SlfCmd, ctx: &Ctx) -> anyhow::Result<()> {
     match c {
+        SlfCmd::Build(a) => build(a, ctx),
         SlfCmd::Render(a) => render(a, ctx),
     }
+}
+
+fn build(a: BuildArgs, ctx: &Ctx) -> anyhow::Result<()> {
+    use igi_lightfield::{capture, BuildOptions, Method};
+    let method = match a.method {
+        MethodArg::Fair => Method::Fair,
+        MethodArg::Fq => Method::Fq {
+            codewords: a.codewords,
+        },
+        MethodArg::Pfa => Method::Pfa { q: a.q },
+        MethodArg::Median => Method::MedianOnly,
+    };
+    let opts = BuildOptions {
+        level: a.level,
+        lambda: a.lambda,
+        seed: a.seed,
+        ..BuildOptions::default()
+    };
+    opts.validate(method)?;
+    if !(1..=6).contains(&a.level) {
+        anyhow::bail!("--level must lie in 1..=6 (got {})", a.level);
+    }
+    igi_lightfield::store::check_output(&a.output)?;
+    let rig = igi_imaging::Rig::load(&a.rig)?;
+    rig.require_views(1)?;
+    let mesh = igi_geometry::read_mesh(&a.mesh)?;
+    let bar = ctx.progress(capture::STAGES.len() as u64, "slf build");
+    let t = std::time::Instant::now();
+    let built = capture::build_from_rig(&rig, &mesh, a.atlas, method, &opts, &|k| {
+        bar.set_position(k as u64);
+        bar.set_message(capture::STAGES[k]);
+    })?;
+    bar.finish_and_clear();
+    let seconds = t.elapsed().as_secs_f64();
+    let extra = serde_json::json!({
+        "rig": a.rig, "mesh": a.mesh, "views": built.views, "invalid_pixels": built.invalid_pixels,
+        "gather": built.report, "atlas_texel_m": built.atlas.texel_size, "seconds": seconds,
+    });
+    let report = igi_lightfield::store::save(&a.output, &built.field, &built.atlas.mesh, extra)?;
+    if a.json {
+        return print_json(&report);
+    }
+    println!(
+        "{} views, {} grid points ({} unseen), {} samples; atlas texel {:.4} m, median pixel footprint {:.4} m; colour {} bytes ({:.1}:1 against faired RGB8) in {:.1} s -> {}",
+        built.views,
+        built.report.points,
+        built.report.unseen_points,
+        built.report.samples,
+        built.atlas.texel_size,
+        built.report.median_pixel_footprint,
+        report.colour_bytes,
+        report.compression_ratio,
+        seconds,
+        a.output.display()
+    );
+    Ok(())
 }
 
 fn render(a: RenderArgs, _ctx: &Ctx) -> anyhow::Result<()> {

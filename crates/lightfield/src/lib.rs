@@ -9,6 +9,9 @@
 //! - [`quantize`]: function quantization (Eqs. 11-12).
 //! - [`pfa`]: principal function analysis (Eqs. 13-14).
 //! - [`field`]: the surface light field, rendering and editing.
+//! - [`capture`]: the whole build from a multi-view capture (`rig.toml`) and a mesh
+//!   (`igi slf build`).
+//! - [`store`]: the `SLF_DIR/` folder.
 //!
 //! Grid points are the covered texels of an `igi-geometry` atlas of the mesh (standing in for
 //! the paper's base-mesh parameterisation). Never depends on the solver (`igi-reflect`).
@@ -16,6 +19,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord, clippy::nonminimal_bool)]
 
 pub mod build;
+pub mod capture;
 pub mod data;
 pub mod field;
 pub mod fit;
@@ -25,6 +29,7 @@ pub mod quantize;
 pub mod store;
 
 pub use build::{grid_points, BuildOptions, Method, Prepared};
+pub use capture::{build_from_rig, RigBuild};
 pub use data::{gather, reparameterise, GatherReport, GridPoint, View};
 pub use field::{Coding, RenderSlfOptions, SurfaceLightField};
 pub use fit::{fair_pointwise, DataLumisphere, FitOptions};

@@ -16,6 +16,9 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+/// The `format` of `header.json`.
+pub const FORMAT: &str = "igi-slf";
+
 /// `header.json`.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct Header {
@@ -69,6 +72,32 @@ fn dq8(b: u8, lo: f32, scale: f32) -> f32 {
 
 fn f32_bytes(v: impl Iterator<Item = f32>) -> Vec<u8> {
     v.flat_map(|x| x.to_le_bytes()).collect()
+}
+
+/// Checks, before any work, that `dir` may receive a field: absent, empty, or an earlier
+/// `SLF_DIR` (which [`save`] replaces); anything else is refused rather than deleted.
+pub fn check_output(dir: &Path) -> Result<(), LightFieldError> {
+    if !dir.exists() {
+        return Ok(());
+    }
+    let refuse = |msg: &str| LightFieldError::Format {
+        path: dir.to_path_buf(),
+        msg: msg.into(),
+    };
+    if !dir.is_dir() {
+        return Err(refuse("exists and is not a folder"));
+    }
+    let mut entries = std::fs::read_dir(dir).map_err(io_err(dir))?;
+    if entries.next().is_none() {
+        return Ok(());
+    }
+    let header = std::fs::read_to_string(dir.join("header.json")).unwrap_or_default();
+    match serde_json::from_str::<Header>(&header) {
+        Ok(h) if h.format == FORMAT => Ok(()),
+        _ => Err(refuse(
+            "holds files but no surface light field (header.json); refusing to replace it: choose a new folder",
+        )),
+    }
 }
 
 /// Saves the field and its atlas mesh to `dir` (replacing it). `extra` goes into report.json.
@@ -164,7 +193,7 @@ fn encode(f: &SurfaceLightField) -> (Header, Vec<(String, Vec<u8>)>) {
         ),
     ];
     let mut h = Header {
-        format: "igi-slf".into(),
+        format: FORMAT.into(),
         version: 1,
         method: f.coding.name().into(),
         level: f.oct.level,
@@ -262,7 +291,7 @@ pub fn load(dir: &Path) -> Result<(SurfaceLightField, TriMesh), LightFieldError>
         path: hp.clone(),
         msg: e.to_string(),
     })?;
-    if h.format != "igi-slf" || h.version != 1 || h.level > 6 {
+    if h.format != FORMAT || h.version != 1 || h.level > 6 {
         return Err(LightFieldError::Format {
             path: hp,
             msg: format!(

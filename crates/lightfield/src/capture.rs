@@ -1,0 +1,127 @@
+//! A surface light field from a multi-view capture (`rig.toml`, FORMATS.md "Multi-view
+//! capture") and a mesh of the object in the same world frame: what `igi slf build` runs.
+//!
+//! Each view's photo is read as linear RGB; pixels outside the view's optional mask, and the
+//! clipped pixels of 8-bit photos (PNG, JPEG: a channel at 254/255 or more), are invalid and
+//! never contribute (`data::gather` skips bilinear lookups that touch them). The grid points
+//! are the covered texels of a fresh atlas of the mesh (`--atlas` texels a side, 1-texel
+//! gutters); the mesh's own texture coordinates, if any, are not used.
+
+use crate::build::{BuildOptions, Method, Prepared};
+use crate::data::{mask_clipped, GatherReport, View};
+use crate::field::SurfaceLightField;
+use crate::LightFieldError;
+use igi_geometry::atlas::{build_atlas, Atlas, AtlasOptions};
+use igi_geometry::TriMesh;
+use igi_imaging::rig::RigView;
+use igi_imaging::{read_image, Camera, HdrImage, Mask, Rig};
+use igi_render::embree::RtScene;
+use std::path::Path;
+
+/// The value at or above which an 8-bit photo's channel counts as clipped (254 of 255).
+pub const CLIP_8BIT: f32 = 254.0 / 255.0;
+
+/// What [`build_from_rig`] made.
+pub struct RigBuild {
+    pub field: SurfaceLightField,
+    /// The atlas whose covered texels are the grid points (its mesh is what `store::save` keeps).
+    pub atlas: Atlas,
+    pub report: GatherReport,
+    /// Views read, and their pixels marked invalid (masked or clipped).
+    pub views: usize,
+    pub invalid_pixels: usize,
+}
+
+/// Reads every view of `rig`: its camera and its photo with invalid pixels marked.
+pub fn load_views(rig: &Rig) -> Result<Vec<(Camera, HdrImage)>, LightFieldError> {
+    rig.views.iter().map(|v| load_view(rig, v)).collect()
+}
+
+fn load_view(rig: &Rig, v: &RigView) -> Result<(Camera, HdrImage), LightFieldError> {
+    let camera = rig.load_camera(v)?;
+    let read = |p: &Path| -> Result<HdrImage, LightFieldError> {
+        let img = read_image(p).map_err(|e| rig.view_error(v, e))?;
+        if (img.width, img.height) != (camera.width as usize, camera.height as usize) {
+            return Err(LightFieldError::ImageSize {
+                path: p.to_path_buf(),
+                got_w: img.width,
+                got_h: img.height,
+                want_w: camera.width,
+                want_h: camera.height,
+            });
+        }
+        Ok(img)
+    };
+    let mut photo = read(&v.photo)?;
+    if is_8bit(&v.photo) {
+        mask_clipped(&mut photo, CLIP_8BIT);
+    }
+    if let Some(m) = &v.mask {
+        let mask = Mask::threshold(&read(m)?, 0.0);
+        for (ok, inside) in photo.valid.iter_mut().zip(&mask.data) {
+            *ok &= *inside;
+        }
+    }
+    Ok((camera, photo))
+}
+
+/// PNG and JPEG photos are 8-bit (their top code value is clipped light).
+fn is_8bit(p: &Path) -> bool {
+    let ext = p
+        .extension()
+        .map(|e| e.to_string_lossy().to_lowercase())
+        .unwrap_or_default();
+    matches!(ext.as_str(), "png" | "jpg" | "jpeg")
+}
+
+/// The stages of [`build_from_rig`], reported to its `stage` callback as they begin.
+pub const STAGES: [&str; 4] = ["reading the views", "atlas", "gathering samples", "fitting"];
+
+/// Builds the surface light field of `mesh` from the views of `rig` with `method`; `stage(k)`
+/// is called as stage `k` of [`STAGES`] begins.
+pub fn build_from_rig(
+    rig: &Rig,
+    mesh: &TriMesh,
+    atlas_resolution: u32,
+    method: Method,
+    opts: &BuildOptions,
+    stage: &dyn Fn(usize),
+) -> Result<RigBuild, LightFieldError> {
+    opts.validate(method)?;
+    stage(0);
+    let views = load_views(rig)?;
+    stage(1);
+    let mut mesh = mesh.clone();
+    mesh.uvs = None;
+    let atlas = build_atlas(
+        &mesh,
+        AtlasOptions {
+            resolution: atlas_resolution,
+            gutter: 1,
+        },
+    )?;
+    let rt = RtScene::new(&[(
+        atlas.mesh.positions.as_slice(),
+        atlas.mesh.indices.as_slice(),
+    )])
+    .map_err(LightFieldError::Render)?;
+    stage(2);
+    let refs: Vec<View> = views
+        .iter()
+        .map(|(camera, image)| View { camera, image })
+        .collect();
+    let prepared = Prepared::new(&atlas, &rt, &refs, opts.level);
+    stage(3);
+    let field = prepared.fit(method, opts)?;
+    let invalid_pixels = views
+        .iter()
+        .map(|(_, im)| im.valid.iter().filter(|v| !**v).count())
+        .sum();
+    Ok(RigBuild {
+        field,
+        atlas,
+        report: prepared.report.clone(),
+        views: views.len(),
+        invalid_pixels,
+    })
+}
