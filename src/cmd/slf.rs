@@ -47,6 +47,10 @@ pub struct BuildArgs {
     /// Atlas texels a side (its covered texels are the grid points).
     #[arg(long, default_value_t = 256)]
     pub atlas: u32,
+    /// Keep about this fraction of the mesh's triangles before the atlas (dense scans and hull
+    /// meshes have more charts than an atlas holds); 1 keeps the mesh as it is.
+    #[arg(long, default_value_t = 1.0)]
+    pub simplify: f64,
     /// Octahedron subdivisions of a lumisphere (3: 258 directions).
     #[arg(long, default_value_t = 3)]
     pub level: u32,
@@ -115,13 +119,20 @@ fn build(a: BuildArgs, ctx: &Ctx) -> anyhow::Result<()> {
     if !(1..=6).contains(&a.level) {
         anyhow::bail!("--level must lie in 1..=6 (got {})", a.level);
     }
+    if !(a.simplify > 0.0 && a.simplify <= 1.0) {
+        anyhow::bail!("--simplify must lie in (0, 1] (got {})", a.simplify);
+    }
     igi_lightfield::store::check_output(&a.output)?;
     let rig = igi_imaging::Rig::load(&a.rig)?;
     rig.require_views(1)?;
     let mesh = igi_geometry::read_mesh(&a.mesh)?;
     let bar = ctx.progress(capture::STAGES.len() as u64, "slf build");
     let t = std::time::Instant::now();
-    let built = capture::build_from_rig(&rig, &mesh, a.atlas, method, &opts, &|k| {
+    let grid = capture::GridOptions {
+        atlas: a.atlas,
+        simplify: a.simplify,
+    };
+    let built = capture::build_from_rig(&rig, &mesh, grid, method, &opts, &|k| {
         bar.set_position(k as u64);
         bar.set_message(capture::STAGES[k]);
     })?;

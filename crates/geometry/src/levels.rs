@@ -45,7 +45,9 @@ pub fn compact(mesh: &TriMesh, indices: &[u32]) -> TriMesh {
 /// Simplify to about `ratio` of the triangles. Vertices with `locked[v]` never move (the voxel
 /// faces), `lock_border` also locks the mesh's open borders; attribute seams (same position,
 /// different UV) are collapsed only along the seam, so one atlas serves every level.
-/// `ratio >= 1` returns the mesh unchanged with error 0.
+/// `ratio >= 1` returns the mesh unchanged with error 0. `locked` may be shorter than the
+/// vertex list (an empty slice locks nothing): the missing entries are unlocked (meshopt reads
+/// one entry per vertex, so it always gets a full list).
 pub fn simplify(mesh: &TriMesh, locked: &[bool], ratio: f64, lock_border: bool) -> Level {
     if ratio >= 1.0 || mesh.indices.is_empty() {
         return Level {
@@ -61,11 +63,15 @@ pub fn simplify(mesh: &TriMesh, locked: &[bool], ratio: f64, lock_border: bool) 
     if lock_border {
         options |= SimplifyOptions::LockBorder;
     }
+    let mut lock = vec![false; mesh.positions.len()];
+    for (l, &v) in lock.iter_mut().zip(locked) {
+        *l = v;
+    }
     let mut err = 0.0f32;
     let out = meshopt::simplify_with_locks(
         flat,
         &adapter,
-        locked,
+        &lock,
         target,
         f32::MAX,
         options,
@@ -84,6 +90,30 @@ pub fn simplify(mesh: &TriMesh, locked: &[bool], ratio: f64, lock_border: bool) 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_empty_lock_list_locks_nothing_and_is_safe() {
+        let n = 30usize;
+        let mut m = TriMesh::default();
+        for j in 0..=n {
+            for i in 0..=n {
+                let (x, y) = (i as f32 / n as f32, j as f32 / n as f32);
+                m.positions.push([x, y, 0.01 * (7.0 * x).sin()]);
+            }
+        }
+        let w = (n + 1) as u32;
+        for j in 0..n as u32 {
+            for i in 0..n as u32 {
+                let a = j * w + i;
+                m.indices.push([a, a + 1, a + w + 1]);
+                m.indices.push([a, a + w + 1, a + w]);
+            }
+        }
+        let all = simplify(&m, &vec![false; m.positions.len()], 0.1, true);
+        let none = simplify(&m, &[], 0.1, true);
+        assert_eq!(all.mesh.indices, none.mesh.indices);
+        assert!(none.mesh.indices.len() < m.indices.len() / 5);
+    }
 
     #[test]
     fn a_bumpy_grid_simplifies_and_keeps_locked_vertices() {

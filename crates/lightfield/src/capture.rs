@@ -77,26 +77,51 @@ fn is_8bit(p: &Path) -> bool {
 /// The stages of [`build_from_rig`], reported to its `stage` callback as they begin.
 pub const STAGES: [&str; 4] = ["reading the views", "atlas", "gathering samples", "fitting"];
 
+/// The grid of a build: the atlas resolution and how far to simplify the mesh first.
+#[derive(Clone, Copy, Debug)]
+pub struct GridOptions {
+    /// Atlas texels a side.
+    pub atlas: u32,
+    /// Keep about this fraction of the mesh's triangles (meshopt, borders locked) before the
+    /// atlas: dense scans and hull meshes have more charts than an atlas can hold. 1: as is.
+    pub simplify: f64,
+}
+
+impl Default for GridOptions {
+    fn default() -> Self {
+        GridOptions {
+            atlas: 256,
+            simplify: 1.0,
+        }
+    }
+}
+
 /// Builds the surface light field of `mesh` from the views of `rig` with `method`; `stage(k)`
 /// is called as stage `k` of [`STAGES`] begins.
 pub fn build_from_rig(
     rig: &Rig,
     mesh: &TriMesh,
-    atlas_resolution: u32,
+    grid: GridOptions,
     method: Method,
     opts: &BuildOptions,
     stage: &dyn Fn(usize),
 ) -> Result<RigBuild, LightFieldError> {
     opts.validate(method)?;
+    if !(grid.simplify > 0.0 && grid.simplify <= 1.0) {
+        return Err(LightFieldError::BadSimplify(grid.simplify));
+    }
     stage(0);
     let views = load_views(rig)?;
     stage(1);
     let mut mesh = mesh.clone();
     mesh.uvs = None;
+    let mut mesh = igi_geometry::levels::simplify(&mesh, &[], grid.simplify, true).mesh;
+    mesh.normals = None;
+    mesh.compute_vertex_normals();
     let atlas = build_atlas(
         &mesh,
         AtlasOptions {
-            resolution: atlas_resolution,
+            resolution: grid.atlas,
             gutter: 1,
         },
     )?;

@@ -29,7 +29,7 @@ pub mod quantize;
 pub mod store;
 
 pub use build::{grid_points, BuildOptions, Method, Prepared};
-pub use capture::{build_from_rig, RigBuild};
+pub use capture::{build_from_rig, GridOptions, RigBuild};
 pub use data::{gather, reparameterise, GatherReport, GridPoint, View};
 pub use field::{Coding, RenderSlfOptions, SurfaceLightField};
 pub use fit::{fair_pointwise, DataLumisphere, FitOptions};
@@ -54,6 +54,8 @@ pub enum LightFieldError {
     Geometry(#[from] igi_geometry::GeometryError),
     #[error("the subspace dimension q must be at least 1 (got {0})")]
     BadQ(usize),
+    #[error("the fraction of triangles to keep must lie in (0, 1] (got {0})")]
+    BadSimplify(f64),
     #[error("lambda must be positive and finite (got {0})")]
     BadLambda(f32),
     #[error("the codebook size must be a power of two (got {0})")]
