@@ -293,6 +293,102 @@ fn sensor_model_keeps_the_sun_spot_centroid_where_the_old_renderer_moved_it() {
     );
 }
 
+/// Sun direction error (degrees) of `board` processed on `img`, its centres refined from their
+/// outlines when `refine`.
+fn sun_error(
+    img: &igi_imaging::HdrImage,
+    cam: &Camera,
+    board: &Board,
+    s: DVec3,
+    refine: bool,
+) -> f64 {
+    let opt = ProbeOptions {
+        refine_centers: refine,
+        ..ProbeOptions::default()
+    };
+    let res = process(img, cam, board, &opt).unwrap();
+    assert_eq!(
+        res.diagnostics.outline_fits.len(),
+        if refine { 2 } else { 0 }
+    );
+    let d = DVec3::from_array(res.diagnostics.sun.as_ref().expect("sun").direction);
+    d.angle_between(s).to_degrees()
+}
+
+/// Distances (mm) across the line of sight of the mirror and black spheres' centres from the truth.
+fn centre_errors(b: &Board, truth: &Board) -> [f64; 2] {
+    let across = |a: DVec3, t: DVec3| {
+        let (los, d) = (t.normalize(), a - t);
+        1e3 * (d - d.dot(los) * los).length()
+    };
+    [
+        across(b.mirror.center_cam, truth.mirror.center_cam),
+        across(b.black.unwrap().center_cam, truth.black.unwrap().center_cam),
+    ]
+}
+
+/// Issue 16 / PROBE.md "Known limits": sphere centres from an imprecise pose (each off by
+/// 0.3-0.4 mm, 0.3 px, across the line of sight) turn the sun by about `2 dc / r`; refined from
+/// their silhouettes (`igi_probe::outline`) most of that error goes.
+#[test]
+fn outline_refinement_undoes_a_perturbed_sphere_placement() {
+    use igi_probe::synth::{direction_from_angles, render_board_sensor, Sensor, SynthSun};
+    let (cam, board) = synth_setup(60.0);
+    let s = direction_from_angles(14.0, 200.0);
+    let sun = SynthSun {
+        direction: s,
+        radiance: SUN_RADIANCE,
+        diameter_deg: 0.53,
+    };
+    let img = render_board_sensor(
+        &cam,
+        &board,
+        &sky(32, s),
+        Some(sun),
+        Sensor {
+            ss: 3,
+            blur_sigma: 0.5,
+        },
+    );
+    let mut off = board.clone();
+    off.mirror.center_cam += DVec3::new(-0.2e-3, 0.25e-3, 0.3e-3);
+    off.black.as_mut().unwrap().center_cam += DVec3::new(0.25e-3, -0.2e-3, -0.3e-3);
+    let (refined, fits, warnings) = igi_probe::outline::refine_board(&img, &cam, &off, 0.5);
+    assert!(warnings.is_empty(), "{warnings:?}");
+    let (from_truth, _, _) = igi_probe::outline::refine_board(&img, &cam, &board, 0.5);
+    let (e_true, e_off, e_ref) = (
+        sun_error(&img, &cam, &board, s, false),
+        sun_error(&img, &cam, &off, s, false),
+        sun_error(&img, &cam, &off, s, true),
+    );
+    for f in &fits {
+        eprintln!(
+            "{}: {} edge points ({} used), shift {:.3} px, RMS {:.3} px, edge offset {:+.3} px",
+            f.kind, f.edge_points, f.edge_points_used, f.shift_px, f.rms_px, f.edge_offset_px
+        );
+    }
+    let (c_off, c_ref, c_truth) = (
+        centre_errors(&off, &board),
+        centre_errors(&refined, &board),
+        centre_errors(&from_truth, &board),
+    );
+    eprintln!(
+        "sun error: true centres {e_true:.3} deg, perturbed {e_off:.3} deg, refined {e_ref:.3} deg; \
+         mirror and black centres across the line of sight (mm): perturbed {c_off:.3?}, refined \
+         {c_ref:.3?}, refined from the true centres {c_truth:.3?}"
+    );
+    assert!(
+        e_off > 0.5,
+        "the perturbation should matter: {e_off:.3} deg"
+    );
+    assert!(
+        e_ref < 0.35 * e_off && e_ref < 0.25,
+        "refined: {e_ref:.3} deg"
+    );
+    assert!(c_ref.iter().all(|e| *e < 0.15), "{c_ref:?}");
+    assert!(c_truth.iter().all(|e| *e < 0.15), "{c_truth:?}");
+}
+
 /// The table of docs/PROBE.md: error against sphere radius in pixels (40 to 600).
 /// `cargo test -p igi-probe --test sun_accuracy -- --ignored --nocapture`
 #[test]
