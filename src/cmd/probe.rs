@@ -54,6 +54,10 @@ pub struct ProbeArgs {
     /// Largest incidence angle used on the mirror and black spheres, degrees.
     #[arg(long, default_value_t = 72.0)]
     pub max_incidence_deg: f64,
+    /// Refine the mirror and black spheres' centres from their outlines in the image (for
+    /// centres from an imprecise pose, e.g. the fiducials; docs/PROBE.md).
+    #[arg(long)]
+    pub refine_spheres: bool,
 }
 
 #[derive(clap::Subcommand, Debug)]
@@ -295,6 +299,7 @@ pub fn run(a: ProbeArgs, ctx: &Ctx) -> anyhow::Result<()> {
         camera_mask_deg: a.camera_mask_deg,
         max_incidence_deg: a.max_incidence_deg,
         saturation: a.saturation.or(saturation),
+        refine_centers: a.refine_spheres,
         ..ProbeOptions::default()
     };
     let opt = ProbeOptions {

@@ -28,19 +28,29 @@ fn truth(el: u32) -> (DVec3, [f64; 3]) {
     (DVec3::new(v[0], v[1], v[2]), [r[0], r[1], r[2]])
 }
 
-fn run(el: u32) -> ProbeResult {
+fn run(el: u32, refine: bool) -> ProbeResult {
     let d = dir(el);
     let cam = Camera::load(&d.join("camera.json")).unwrap();
     let board = Board::load(&d.join("board.json")).unwrap();
     let img = read_image(&d.join("board.exr")).unwrap();
     assert_eq!((img.width, img.height), (1024, 768));
-    process(&img, &cam, &board, &ProbeOptions::default()).unwrap()
+    let opt = ProbeOptions {
+        refine_centers: refine,
+        ..ProbeOptions::default()
+    };
+    process(&img, &cam, &board, &opt).unwrap()
 }
 
 /// (direction error in degrees, worst relative irradiance error over the channels).
-fn sun_errors(el: u32) -> (f64, f64) {
+fn sun_errors(el: u32, refine: bool) -> (f64, f64) {
     let (dir_t, rad_t) = truth(el);
-    let r = run(el);
+    let r = run(el, refine);
+    for f in &r.diagnostics.outline_fits {
+        eprintln!(
+            "  {} centre refined: moved {:.3} px, {} of {} edge points, RMS {:.3} px",
+            f.kind, f.shift_px, f.edge_points_used, f.edge_points, f.rms_px
+        );
+    }
     let sun = r.diagnostics.sun.as_ref().expect("sun found");
     let d = DVec3::from_array(sun.direction);
     let ang = d.dot(dir_t).clamp(-1.0, 1.0).acos().to_degrees();
@@ -68,7 +78,22 @@ fn sun_errors(el: u32) -> (f64, f64) {
 #[test]
 fn mitsuba_boards_sun_within_quarter_degree_and_two_percent() {
     for el in [14, 35, 60] {
-        let (ang, rel) = sun_errors(el);
+        let (ang, rel) = sun_errors(el, false);
+        assert!(ang <= 0.25, "sun at {el} deg: direction {ang:.3} deg off");
+        assert!(
+            rel <= 0.02,
+            "sun at {el} deg: irradiance {:.2}% off",
+            100.0 * rel
+        );
+    }
+}
+
+/// The Mitsuba boards with the sphere centres refined from their outlines although they are
+/// exact: the refinement's own error (about 0.07 px here) keeps them within the goal.
+#[test]
+fn mitsuba_boards_with_outline_refinement_stay_within_quarter_degree() {
+    for el in [14, 35, 60] {
+        let (ang, rel) = sun_errors(el, true);
         assert!(ang <= 0.25, "sun at {el} deg: direction {ang:.3} deg off");
         assert!(
             rel <= 0.02,
