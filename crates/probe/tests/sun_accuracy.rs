@@ -4,7 +4,12 @@
 //! `datasets/mitsuba/board_fixtures.py --size 1024x768 --fx 766 --sun-el EL`, see
 //! datasets/README.md), including a low sun (14 degrees elevation).
 //!
-//! `cargo test -p igi-probe --test sun_accuracy -- --nocapture` prints the errors (docs/PROBE.md).
+//! Also the error against sphere radius on synthetic boards (`synth::render_board_sensor`: lens
+//! blur before pixel integration, the sun's spot rendered exactly), the cause of the old
+//! synthetic boards' excess error, and the sphere centres refined from their outlines.
+//!
+//! `cargo test -p igi-probe --test sun_accuracy -- --nocapture` prints the errors;
+//! `-- --ignored --nocapture` runs the sweeps of docs/PROBE.md.
 
 use glam::DVec3;
 use igi_imaging::{read_image, Camera};
@@ -426,23 +431,31 @@ fn error_against_sphere_radius() {
     }
 }
 
-/// The same with a sharper lens (blur 0.25 px) and smaller spheres: where 0.25 deg is missed.
+/// Where 0.25 deg is missed: smaller spheres (20, 30 px) with the same lens, and a sharper lens
+/// (blur 0.25 px) from 20 to 150 px.
 /// `cargo test -p igi-probe --test sun_accuracy sharp -- --ignored --nocapture`
 #[test]
 #[ignore]
-fn error_against_sphere_radius_sharp_lens() {
-    for r in [20.0, 30.0, 40.0, 60.0, 90.0, 150.0] {
-        for el in [14.0, 35.0] {
-            synth_errors(r, el, 200.0, Render::Sensor { ss: 3, sigma: 0.25 });
+fn error_against_sphere_radius_small_spheres_and_sharp_lens() {
+    for (sigma, radii) in [
+        (0.5, &[20.0, 30.0][..]),
+        (0.25, &[20.0, 30.0, 40.0, 60.0, 90.0, 150.0][..]),
+    ] {
+        for r in radii {
+            for el in [14.0, 35.0] {
+                synth_errors(*r, el, 200.0, Render::Sensor { ss: 3, sigma });
+            }
         }
     }
 }
 
-/// Diagnostic: where the sun's spot centroid lands against the true reflection point, old
-/// renderer against the sensor model.
+/// Where the sun's spot centroid lands against the true reflection point, the old synthetic
+/// camera (box samples fine enough to hit the spot, then the blur) against the sensor model, on
+/// the same boards (docs/PROBE.md).
+/// `cargo test -p igi-probe --test sun_accuracy old_renderer -- --ignored --nocapture`
 #[test]
 #[ignore]
-fn diag_spot() {
+fn old_renderer_against_sensor_model() {
     for r in [60.0f64, 90.0] {
         for el in [14.0, 35.0] {
             let ss = ((3.0 / (0.0023 * r)).ceil() as usize).clamp(2, 24);
