@@ -26,6 +26,8 @@
 //! * [`resample`]: area-preserving resampling of a sphere's photograph into direction maps
 //!   (box reconstruction of the pixels, solid-angle weighted, sub-directions at the pixel
 //!   grid's Nyquist rate).
+//! * [`spot`]: the sun's spot to sub-pixel precision: the centroid, then a least-squares fit
+//!   of a point blurred by a Gaussian lens and integrated over square pixels.
 //! * [`synth`]: a forward renderer of board photographs from a known sky, for tests and benches.
 //!
 //! All radiance is linear `f32`; directions are in igi's world frame (Z up), obtained from the
@@ -40,6 +42,7 @@ pub mod outline;
 pub mod pipeline;
 pub mod resample;
 pub mod sphere;
+pub mod spot;
 pub mod synth;
 
 pub use board::{Board, BoardSpec, BoardSphere, SphereKind};

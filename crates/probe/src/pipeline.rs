@@ -4,6 +4,7 @@ use crate::board::{Board, SphereKind};
 use crate::envmap::{self, Integrator};
 use crate::resample::{self, Reflector};
 use crate::sphere::{reflect, SphereView};
+use crate::spot;
 use crate::ProbeError;
 use glam::{DVec2, DVec3, Vec3};
 use igi_imaging::{Camera, HdrImage};
@@ -78,6 +79,9 @@ pub struct SunEstimate {
     pub angular_diameter_deg: f64,
     /// Sub-pixel centre of the spot on the sphere it was found on.
     pub spot_pixel: [f64; 2],
+    /// Blur (pixels) of the Gaussian fitted to the spot ([`spot::fit_spot`]); `None` where the
+    /// spot was clipped or the fit failed and the intensity-weighted centroid was used.
+    pub spot_fit_sigma_px: Option<f64>,
     /// "black" or "mirror".
     pub found_on: String,
     /// Where the sun reflects in the mirror sphere (masked there).
@@ -203,6 +207,39 @@ fn sphere_saturated(img: &HdrImage, px: &[SpherePixel]) -> Vec<usize> {
     (0..px.len())
         .filter(|&i| !img.valid[px[i].y * img.width + px[i].x])
         .collect()
+}
+
+/// The sun disk's reflection in `view` around pixel `at`, as points sampling it evenly (offsets
+/// in pixels from the reflection of the disk's centre): a 9 x 9 grid over the disk in the plane
+/// across the direction reflected at `at`, each point mapped back to its pixel. `[0, 0]` alone
+/// where `at` misses the sphere.
+fn sun_spot_shape(view: &SphereView, at: DVec2, diameter_deg: f64) -> Vec<DVec2> {
+    let Some((_, n, d)) = view.hit_pixel(at.x, at.y) else {
+        return vec![DVec2::ZERO];
+    };
+    let s0 = reflect(d, n).normalize();
+    let Some(c0) = view.reflection_point(s0) else {
+        return vec![DVec2::ZERO];
+    };
+    let (e1, e2) = s0.any_orthonormal_pair();
+    let t = (0.5 * diameter_deg).to_radians().tan();
+    let mut pts = Vec::new();
+    for i in 0..9 {
+        for j in 0..9 {
+            let (u, v) = ((i as f64 - 4.0) / 4.5, (j as f64 - 4.0) / 4.5);
+            if u * u + v * v > 1.0 {
+                continue;
+            }
+            let w = (s0 + t * (u * e1 + v * e2)).normalize();
+            if let Some(q) = view.reflection_point(w) {
+                pts.push(q.pixel - c0.pixel);
+            }
+        }
+    }
+    if pts.is_empty() {
+        pts.push(DVec2::ZERO);
+    }
+    pts
 }
 
 /// Process one board photograph.
@@ -344,6 +381,7 @@ pub fn process(
 
     let mut sun_dir: Option<DVec3> = None;
     let mut spot_pixel = [0.0; 2];
+    let mut spot_sigma = None;
     if sun_found {
         // peak: brightest valid pixel, or the centroid of saturated pixels
         let (px, py) = if !spot_sat.is_empty() {
@@ -373,8 +411,9 @@ pub fn process(
             .map(|(_, v)| *v)
             .collect();
         let bg = median(&mut ring);
-        let (mut sw, mut sx, mut sy) = (0.0, 0.0, 0.0);
         let (cx, cy) = (px.round() as i64, py.round() as i64);
+        let mut samples = Vec::with_capacity(81);
+        let mut window_saturated = false;
         for dy in -4i64..=4 {
             for dx in -4i64..=4 {
                 let (x, y) = (cx + dx, cy + dy);
@@ -382,18 +421,25 @@ pub fn process(
                     continue;
                 }
                 if let Some(&i) = lookup.get(&(x as usize, y as usize)) {
-                    let wgt = (spot_val[i] - bg).max(0.0);
-                    sw += wgt;
-                    sx += wgt * x as f64;
-                    sy += wgt * y as f64;
+                    window_saturated |= !img.valid[y as usize * img.width + x as usize];
+                    samples.push(spot::SpotSample {
+                        x: x as f64,
+                        y: y as f64,
+                        v: spot_val[i] - bg,
+                    });
                 }
             }
         }
-        let (ux, uy) = if sw > 0.0 {
-            (sx / sw, sy / sw)
+        // the centroid, then (unless the spot is clipped) the fit of a blurred, pixel-integrated point
+        let cen = spot::centroid(&samples).unwrap_or(DVec2::new(px, py));
+        let fit = if window_saturated {
+            None
         } else {
-            (px, py)
+            let shape = sun_spot_shape(spot_view, cen, opt.sun_diameter_deg);
+            spot::fit_spot(&samples, cen, &shape)
         };
+        spot_sigma = fit.map(|f| f.sigma);
+        let (ux, uy) = fit.map_or((cen.x, cen.y), |f| (f.center.x, f.center.y));
         spot_pixel = [ux, uy];
         match spot_view.hit_pixel(ux, uy) {
             Some((_, n, d)) => sun_dir = Some(reflect(d, n).normalize()),
@@ -610,6 +656,7 @@ pub fn process(
         radiance: sun_radiance,
         angular_diameter_deg: opt.sun_diameter_deg,
         spot_pixel,
+        spot_fit_sigma_px: spot_sigma,
         found_on: spot_view.kind.name().to_string(),
         mirror_pixel,
         residual_rms_percent: residual,

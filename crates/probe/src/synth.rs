@@ -6,6 +6,7 @@ use crate::board::Board;
 use crate::board::SphereKind;
 use crate::envmap::{latlong_lookup, Integrator};
 use crate::sphere::{reflect, SphereView};
+use crate::spot::pixel_response;
 use glam::DVec3;
 use igi_imaging::{Camera, HdrImage, WorldToCamera};
 use rayon::prelude::*;
@@ -127,7 +128,7 @@ const SUN_GRID: usize = 192;
 /// The sun's tiny reflections in the mirror and black spheres are rendered separately and
 /// exactly: the spot is sampled densely ([`SUN_GRID`]^2 rays over its square, whatever the
 /// sphere's size) and each sample is spread over the pixels by the box-times-Gaussian pixel
-/// response (error functions), so the spot's sub-pixel position survives in the pixels as it
+/// response ([`pixel_response`]), so the spot's sub-pixel position survives in the pixels as it
 /// does in a photograph. The sun seen directly in the background is not drawn.
 pub fn render_board_sensor(
     camera: &Camera,
@@ -157,16 +158,6 @@ pub fn render_board_sensor(
         }
     }
     img
-}
-
-/// Fraction of a point's light at offset `d` (pixels, along one axis) from a pixel's centre
-/// that the pixel collects: the pixel's box convolved with the lens's Gaussian.
-fn pixel_response(d: f64, sigma: f64) -> f64 {
-    if sigma <= 0.0 {
-        return if d.abs() < 0.5 { 1.0 } else { 0.0 };
-    }
-    let k = 1.0 / (sigma * std::f64::consts::SQRT_2);
-    0.5 * (libm::erf((0.5 - d) * k) - libm::erf((-0.5 - d) * k))
 }
 
 /// Add the sun's reflection in sphere `vi` to `img` (see [`render_board_sensor`]).

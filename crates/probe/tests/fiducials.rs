@@ -203,6 +203,29 @@ fn fiducials_give_the_board_pose_and_the_same_lighting() {
     );
     assert!(rad_rel.iter().all(|r| r.abs() < 0.01), "{rad_rel:?}");
     assert!(sky_rel < 0.02, "sky maps differ by {sky_rel}");
+
+    // the fiducial placement with the mirror and black centres refined from their outlines
+    let opt_r = ProbeOptions {
+        refine_centers: true,
+        ..opt.clone()
+    };
+    let c = process(&img, &cam, &placed.board, &opt_r).unwrap();
+    let dc = DVec3::from_array(c.diagnostics.sun.as_ref().unwrap().direction);
+    let refined_angle = dc.angle_between(da).to_degrees();
+    let across = |a: DVec3, t: DVec3| {
+        let (los, d) = (t.normalize(), a - t);
+        1e3 * (d - d.dot(los) * los).length()
+    };
+    let black_t = board_true.black.unwrap().center_cam;
+    let black_fid = placed.board.black.unwrap().center_cam;
+    let black_ref = DVec3::from_array(c.diagnostics.outline_fits[1].center_after);
+    eprintln!(
+        "refined from the outlines: sun {refined_angle:.4} deg from the known pose's (fiducials \
+         {sun_angle:.4}); black centre across the line of sight {:.3} mm (fiducials {:.3} mm); fits {:?}",
+        across(black_ref, black_t),
+        across(black_fid, black_t),
+        c.diagnostics.outline_fits
+    );
 }
 
 #[cfg(not(feature = "opencv"))]

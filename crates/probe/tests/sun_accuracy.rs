@@ -248,6 +248,22 @@ fn synthetic_40px_board_low_sun_within_quarter_degree_and_two_percent() {
     assert!(off < 0.02, "spot centre {off:.3} px off");
 }
 
+/// CI-sized: a sharper lens (blur 0.25 px) on the 40 px board, where the intensity-weighted
+/// centroid of the spot was 0.21 deg off (its bias, about 0.09 px); the fit of the blurred,
+/// pixel-integrated sun disk (`igi_probe::spot`) is not.
+#[test]
+fn synthetic_40px_board_sharp_lens_spot_fit() {
+    for el in [14.0, 35.0] {
+        let run = synth_errors(40.0, el, 200.0, Render::Sensor { ss: 3, sigma: 0.25 });
+        assert!(
+            run.ang <= 0.05,
+            "sun at {el}: direction {:.3} deg off",
+            run.ang
+        );
+        assert!(run.rel <= 0.02, "irradiance {:.2}% off", 100.0 * run.rel);
+    }
+}
+
 /// The sun's spot on the black sphere of a board with a black sky: its intensity centroid in
 /// the rendered pixels against the true reflection point of the sun's centre, for sub-pixel
 /// positions across a pixel (the sun's azimuth stepped). Returns the worst offset in pixels.
