@@ -24,6 +24,27 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
+/// `igi probe` on fixture `f`'s HDR board photograph, writing `out`, with `extra` options.
+fn probe_fixture(f: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
+    let (img, cam, board) = (
+        f.join("board.exr"),
+        f.join("camera.json"),
+        f.join("board.json"),
+    );
+    let mut args = vec![
+        "probe",
+        s(&img),
+        "--camera",
+        s(&cam),
+        "--board",
+        s(&board),
+        "-o",
+        s(out),
+    ];
+    args.extend_from_slice(extra);
+    igi(&args)
+}
+
 fn angle_deg(a: &[f64], b: &[f64]) -> f64 {
     let d: f64 = a.iter().zip(b).map(|(x, y)| x * y).sum();
     d.clamp(-1.0, 1.0).acos().to_degrees()
@@ -39,16 +60,7 @@ fn probe_hdr_image_writes_lighting_sky_diagnostics_and_pictures() {
     let f = fixture("sunny");
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("noon.toml");
-    let o = igi(&[
-        "probe",
-        s(&f.join("board.exr")),
-        "--camera",
-        s(&f.join("camera.json")),
-        "--board",
-        s(&f.join("board.json")),
-        "-o",
-        s(&out),
-    ]);
+    let o = probe_fixture(&f, &out, &[]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let text = std::fs::read_to_string(&out).unwrap();
     assert!(text.contains("map = \"noon_sky.exr\""), "{text}");
@@ -109,17 +121,7 @@ fn probe_refine_spheres_reports_the_outline_fits() {
     let f = fixture("sunny");
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("noon.toml");
-    let o = igi(&[
-        "probe",
-        s(&f.join("board.exr")),
-        "--camera",
-        s(&f.join("camera.json")),
-        "--board",
-        s(&f.join("board.json")),
-        "--refine-spheres",
-        "-o",
-        s(&out),
-    ]);
+    let o = probe_fixture(&f, &out, &["--refine-spheres"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let diag: serde_json::Value = serde_json::from_str(
         &std::fs::read_to_string(tmp.path().join("noon_diagnostics.json")).unwrap(),
