@@ -242,6 +242,109 @@ fn sun_spot_shape(view: &SphereView, at: DVec2, diameter_deg: f64) -> Vec<DVec2>
     pts
 }
 
+fn log_outline_fits(fits: &[crate::outline::OutlineFit]) {
+    for f in fits {
+        tracing::info!(
+            "{} sphere centre refined from its outline: moved {:.3} px ({} edge points, RMS {:.3} px)",
+            f.kind,
+            f.shift_px,
+            f.edge_points_used,
+            f.rms_px
+        );
+    }
+}
+
+/// The pixels of the sphere the sun's spot is sought on ([`process`], step 5).
+struct SpotPixels<'a> {
+    img: &'a HdrImage,
+    view: &'a SphereView<'a>,
+    px: &'a [SpherePixel],
+    /// Each pixel's luminance divided by the sphere's reflectance.
+    val: &'a [f64],
+    /// Indices of the saturated pixels.
+    saturated: &'a [usize],
+    /// Index of the brightest pixel.
+    peak: Option<usize>,
+}
+
+/// Where the sun's spot is and the direction it reflects.
+struct LocatedSun {
+    /// `None` when the spot's centre misses the sphere.
+    direction: Option<DVec3>,
+    pixel: [f64; 2],
+    /// Blur of the fitted spot; `None` where the centroid was kept.
+    fit_sigma: Option<f64>,
+}
+
+/// Step 5: seed (the saturated pixels' centroid, else the brightest pixel), background (median
+/// of a ring 5-8 px out), the centroid of a 9x9 window, then unless a pixel of it is clipped the
+/// fit of the sun disk's blurred, pixel-integrated reflection ([`spot::fit_spot`]); the centre
+/// is traced and reflected.
+fn locate_sun(s: &SpotPixels, sun_diameter_deg: f64) -> Result<LocatedSun, ProbeError> {
+    let (img, px) = (s.img, s.px);
+    let seed = if !s.saturated.is_empty() {
+        let n = s.saturated.len() as f64;
+        DVec2::new(
+            s.saturated.iter().map(|&i| px[i].x as f64).sum::<f64>() / n,
+            s.saturated.iter().map(|&i| px[i].y as f64).sum::<f64>() / n,
+        )
+    } else {
+        let i = s.peak.ok_or_else(|| {
+            ProbeError::InvalidInput("the sun sphere has no usable pixels".into())
+        })?;
+        DVec2::new(px[i].x as f64, px[i].y as f64)
+    };
+    let lookup: std::collections::HashMap<(usize, usize), usize> = px
+        .iter()
+        .enumerate()
+        .map(|(i, p)| ((p.x, p.y), i))
+        .collect();
+    let mut ring: Vec<f64> = px
+        .iter()
+        .zip(s.val)
+        .filter(|(p, _)| {
+            let r = DVec2::new(p.x as f64, p.y as f64).distance(seed);
+            r > 5.0 && r <= 8.0 && img.valid[p.y * img.width + p.x]
+        })
+        .map(|(_, v)| *v)
+        .collect();
+    let bg = median(&mut ring);
+    let (cx, cy) = (seed.x.round() as i64, seed.y.round() as i64);
+    let mut samples = Vec::with_capacity(81);
+    let mut window_saturated = false;
+    for y in (cy - 4).max(0)..=cy + 4 {
+        for x in (cx - 4).max(0)..=cx + 4 {
+            if let Some(&i) = lookup.get(&(x as usize, y as usize)) {
+                window_saturated |= !img.valid[y as usize * img.width + x as usize];
+                samples.push(spot::SpotSample {
+                    x: x as f64,
+                    y: y as f64,
+                    v: s.val[i] - bg,
+                });
+            }
+        }
+    }
+    let cen = spot::centroid(&samples).unwrap_or(seed);
+    let fit = if window_saturated {
+        None
+    } else {
+        spot::fit_spot(
+            &samples,
+            cen,
+            &sun_spot_shape(s.view, cen, sun_diameter_deg),
+        )
+    };
+    let c = fit.map_or(cen, |f| f.center);
+    Ok(LocatedSun {
+        direction: s
+            .view
+            .hit_pixel(c.x, c.y)
+            .map(|(_, n, d)| reflect(d, n).normalize()),
+        pixel: [c.x, c.y],
+        fit_sigma: fit.map(|f| f.sigma),
+    })
+}
+
 /// Process one board photograph.
 pub fn process(
     image: &HdrImage,
@@ -283,15 +386,7 @@ pub fn process(
     let mut outline_fits = Vec::new();
     let board = if opt.refine_centers {
         let (b, fits, w) = crate::outline::refine_board(&img, camera, board, 0.5);
-        for f in &fits {
-            tracing::info!(
-                "{} sphere centre refined from its outline: moved {:.3} px ({} edge points, RMS {:.3} px)",
-                f.kind,
-                f.shift_px,
-                f.edge_points_used,
-                f.rms_px
-            );
-        }
+        log_outline_fits(&fits);
         warnings.extend(w);
         outline_fits = fits;
         refined = b;
@@ -379,74 +474,26 @@ pub fn process(
     );
     tracing::info!("{decision}");
 
-    let mut sun_dir: Option<DVec3> = None;
-    let mut spot_pixel = [0.0; 2];
-    let mut spot_sigma = None;
-    if sun_found {
-        // peak: brightest valid pixel, or the centroid of saturated pixels
-        let (px, py) = if !spot_sat.is_empty() {
-            let n = spot_sat.len() as f64;
-            (
-                spot_sat.iter().map(|&i| spot_px[i].x as f64).sum::<f64>() / n,
-                spot_sat.iter().map(|&i| spot_px[i].y as f64).sum::<f64>() / n,
-            )
-        } else {
-            let i = peak_i.ok_or_else(|| {
-                ProbeError::InvalidInput("the sun sphere has no usable pixels".into())
-            })?;
-            (spot_px[i].x as f64, spot_px[i].y as f64)
+    let located = if sun_found {
+        let spots = SpotPixels {
+            img: &img,
+            view: spot_view,
+            px: &spot_px,
+            val: &spot_val,
+            saturated: &spot_sat,
+            peak: peak_i,
         };
-        let lookup: std::collections::HashMap<(usize, usize), usize> = spot_px
-            .iter()
-            .enumerate()
-            .map(|(i, p)| ((p.x, p.y), i))
-            .collect();
-        let mut ring: Vec<f64> = spot_px
-            .iter()
-            .zip(&spot_val)
-            .filter(|(p, _)| {
-                let r = ((p.x as f64 - px).powi(2) + (p.y as f64 - py).powi(2)).sqrt();
-                r > 5.0 && r <= 8.0 && img.valid[p.y * img.width + p.x]
-            })
-            .map(|(_, v)| *v)
-            .collect();
-        let bg = median(&mut ring);
-        let (cx, cy) = (px.round() as i64, py.round() as i64);
-        let mut samples = Vec::with_capacity(81);
-        let mut window_saturated = false;
-        for dy in -4i64..=4 {
-            for dx in -4i64..=4 {
-                let (x, y) = (cx + dx, cy + dy);
-                if x < 0 || y < 0 {
-                    continue;
-                }
-                if let Some(&i) = lookup.get(&(x as usize, y as usize)) {
-                    window_saturated |= !img.valid[y as usize * img.width + x as usize];
-                    samples.push(spot::SpotSample {
-                        x: x as f64,
-                        y: y as f64,
-                        v: spot_val[i] - bg,
-                    });
-                }
-            }
+        let l = locate_sun(&spots, opt.sun_diameter_deg)?;
+        if l.direction.is_none() {
+            warnings.push("the sun spot's centre does not lie on the sphere; sun ignored".into());
         }
-        // the centroid, then (unless the spot is clipped) the fit of a blurred, pixel-integrated point
-        let cen = spot::centroid(&samples).unwrap_or(DVec2::new(px, py));
-        let fit = if window_saturated {
-            None
-        } else {
-            let shape = sun_spot_shape(spot_view, cen, opt.sun_diameter_deg);
-            spot::fit_spot(&samples, cen, &shape)
-        };
-        spot_sigma = fit.map(|f| f.sigma);
-        let (ux, uy) = fit.map_or((cen.x, cen.y), |f| (f.center.x, f.center.y));
-        spot_pixel = [ux, uy];
-        match spot_view.hit_pixel(ux, uy) {
-            Some((_, n, d)) => sun_dir = Some(reflect(d, n).normalize()),
-            None => warnings
-                .push("the sun spot's centre does not lie on the sphere; sun ignored".into()),
-        }
-    }
+        Some(l)
+    } else {
+        None
+    };
+    let sun_dir = located.as_ref().and_then(|l| l.direction);
+    let spot_pixel = located.as_ref().map_or([0.0; 2], |l| l.pixel);
+    let spot_sigma = located.as_ref().and_then(|l| l.fit_sigma);
 
     // ---- mirror: mask the sun's neighbourhood (its light goes into the disk) and unwarp
     let solve_sun = sun_dir.is_some() && diffuse.is_some();
