@@ -121,6 +121,12 @@ fn probe_refine_spheres_reports_the_outline_fits() {
     let f = fixture("sunny");
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("noon.toml");
+    // a bad mask radius is refused before any work
+    let bad = probe_fixture(&f, &out, &["--sun-mask-px=-1"]);
+    assert!(!bad.status.success());
+    let e = String::from_utf8_lossy(&bad.stderr);
+    assert!(e.contains("--sun-mask-px -1 must be"), "{e}");
+    assert!(!out.exists());
     let o = probe_fixture(&f, &out, &["--refine-spheres"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let diag: serde_json::Value = serde_json::from_str(
@@ -136,6 +142,7 @@ fn probe_refine_spheres_reports_the_outline_fits() {
         assert!(f["edge_points_used"].as_u64().unwrap() >= 24, "{f}");
     }
     assert_eq!(diag["options"]["refine_centers"], true);
+    assert_eq!(diag["options"]["sun_mask_px"], 4.0);
     let dir: Vec<f64> = serde_json::from_value(diag["sun"]["direction"].clone()).unwrap();
     let dir_t: Vec<f64> =
         serde_json::from_value(truth("sunny")["sun"]["direction"].clone()).unwrap();

@@ -54,6 +54,11 @@ pub struct ProbeArgs {
     /// Largest incidence angle used on the mirror and black spheres, degrees.
     #[arg(long, default_value_t = 72.0)]
     pub max_incidence_deg: f64,
+    /// Radius (pixels) masked around the sun's reflection in the mirror sphere, so the sun's light
+    /// stays out of the sky map. On spheres under about 30 px in radius, 3 keeps more of the sky
+    /// around the sun (docs/PROBE.md).
+    #[arg(long, default_value_t = 4.0)]
+    pub sun_mask_px: f64,
     /// Refine the mirror and black spheres' centres from their outlines in the image (for
     /// centres from an imprecise pose, e.g. the fiducials; docs/PROBE.md).
     #[arg(long)]
@@ -279,6 +284,12 @@ pub fn run(a: ProbeArgs, ctx: &Ctx) -> anyhow::Result<()> {
         );
     }
     igi_imaging::io::check_output_file(output)?;
+    if !(a.sun_mask_px >= 0.0 && a.sun_mask_px.is_finite()) {
+        bail!(
+            "--sun-mask-px {} must be a finite radius in pixels, 0 or more",
+            a.sun_mask_px
+        );
+    }
     let pb = ctx.progress(4, "probe");
     let camera = Camera::load(camera_path)?;
     let spec = BoardSpec::load(board_path)?;
@@ -300,6 +311,7 @@ pub fn run(a: ProbeArgs, ctx: &Ctx) -> anyhow::Result<()> {
         max_incidence_deg: a.max_incidence_deg,
         saturation: a.saturation.or(saturation),
         refine_centers: a.refine_spheres,
+        sun_mask_px: a.sun_mask_px,
         ..ProbeOptions::default()
     };
     let opt = ProbeOptions {
