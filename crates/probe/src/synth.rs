@@ -94,7 +94,9 @@ impl SynthPanel {
 }
 
 /// [`render_board`] with the board itself behind the spheres (an optional textured panel
-/// with fiducials, see [`SynthPanel`]); rays that miss spheres and panel show the sky.
+/// with fiducials, see [`SynthPanel`]); rays that miss spheres and panel show the sky. The
+/// mirror and black spheres reflect the panel where their reflected rays meet it (their rims);
+/// the diffuse sphere's irradiance is the sky's alone.
 pub fn render_board_with_panel(
     camera: &Camera,
     board: &Board,
@@ -327,7 +329,16 @@ impl<'a> Scene<'a> {
             return self.diffuse(n);
         }
         let r = self.reflectance(view.kind, n.dot(-d).max(0.0));
-        let l = self.env(reflect(d, n), self.sun_in_reflections);
+        let w = reflect(d, n);
+        // what the sphere reflects: the panel behind it where the reflected ray meets it (the
+        // rims, at grazing incidence), else the sky
+        let l = match self
+            .panel
+            .and_then(|pl| pl.hit(self.camera, p + 1e-9 * n, w))
+        {
+            Some((_, v)) => [v as f64; 3],
+            None => self.env(w, self.sun_in_reflections),
+        };
         [0, 1, 2].map(|c| r[c] * l[c])
     }
 
