@@ -147,6 +147,18 @@ fn probe_refine_spheres_reports_the_outline_fits() {
     let dir_t: Vec<f64> =
         serde_json::from_value(truth("sunny")["sun"]["direction"].clone()).unwrap();
     assert!(angle_deg(&dir, &dir_t) < 0.25);
+    // auto (the default) refines only spheres placed by the fiducials; these have their centres
+    for extra in [&[][..], &["--refine-spheres", "off"][..]] {
+        let out2 = tmp.path().join("plain.toml");
+        let o = probe_fixture(&f, &out2, extra);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let d: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(tmp.path().join("plain_diagnostics.json")).unwrap(),
+        )
+        .unwrap();
+        assert_eq!(d["outline_fits"].as_array().unwrap().len(), 0, "{extra:?}");
+        std::fs::remove_file(&out2).unwrap();
+    }
 }
 
 #[test]

@@ -59,10 +59,19 @@ pub struct ProbeArgs {
     /// around the sun (docs/PROBE.md).
     #[arg(long, default_value_t = 4.0)]
     pub sun_mask_px: f64,
-    /// Refine the mirror and black spheres' centres from their outlines in the image (for
-    /// centres from an imprecise pose, e.g. the fiducials; docs/PROBE.md).
-    #[arg(long)]
-    pub refine_spheres: bool,
+    /// Refine the mirror and black spheres' centres from their outlines in the image: auto (when
+    /// the board's fiducials placed them; an imprecise pose), on (also `--refine-spheres` alone)
+    /// or off (docs/PROBE.md).
+    #[arg(long, value_enum, default_value_t = RefineSpheres::Auto, num_args = 0..=1, default_missing_value = "on")]
+    pub refine_spheres: RefineSpheres,
+}
+
+/// When `igi probe` refines the sphere centres from their outlines.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RefineSpheres {
+    Auto,
+    On,
+    Off,
 }
 
 #[derive(clap::Subcommand, Debug)]
@@ -310,7 +319,11 @@ pub fn run(a: ProbeArgs, ctx: &Ctx) -> anyhow::Result<()> {
         camera_mask_deg: a.camera_mask_deg,
         max_incidence_deg: a.max_incidence_deg,
         saturation: a.saturation.or(saturation),
-        refine_centers: a.refine_spheres,
+        refine_centers: match a.refine_spheres {
+            RefineSpheres::On => true,
+            RefineSpheres::Off => false,
+            RefineSpheres::Auto => placement.pose.is_some(),
+        },
         sun_mask_px: a.sun_mask_px,
         ..ProbeOptions::default()
     };
