@@ -310,6 +310,7 @@ pub fn run(a: ProbeArgs, ctx: &Ctx) -> anyhow::Result<()> {
             board_path.display()
         )
     })?;
+    let refine_auto = placement.refine_by_default();
     let board = placement.board;
     pb.inc(1);
     let opt = ProbeOptions {
@@ -322,7 +323,7 @@ pub fn run(a: ProbeArgs, ctx: &Ctx) -> anyhow::Result<()> {
         refine_centers: match a.refine_spheres {
             RefineSpheres::On => true,
             RefineSpheres::Off => false,
-            RefineSpheres::Auto => placement.pose.is_some(),
+            RefineSpheres::Auto => refine_auto,
         },
         sun_mask_px: a.sun_mask_px,
         ..ProbeOptions::default()

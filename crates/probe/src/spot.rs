@@ -44,6 +44,11 @@ pub fn centroid(samples: &[SpotSample]) -> Option<DVec2> {
     (sw > 0.0).then(|| DVec2::new(sx / sw, sy / sw))
 }
 
+/// The least spread (pixels, standard deviation per axis of the fitted spot: lens blur and disk
+/// together) for which [`fit_spot`] answers: a spot confined to a pixel tells nothing of where
+/// inside it it lies, and the fit's centre then wanders (the centroid is kept).
+pub const MIN_SPOT_SPREAD_PX: f64 = 0.2;
+
 /// The fitted spot.
 #[derive(Clone, Copy, Debug)]
 pub struct SpotFit {
@@ -69,9 +74,9 @@ fn model(p: &[f64; 5], shape: &[DVec2], s: &SpotSample) -> f64 {
 /// Least-squares fit of `background + flux (disk * Gaussian * pixel box)` to the samples: the
 /// disk given by `shape` (points sampling it evenly, offsets in pixels from its centre; `[0, 0]`
 /// alone for a point), the Gaussian's width, the centre, flux and background free; from the
-/// centroid `start`, by Gauss-Newton with Levenberg damping. `None` when it does not converge or
-/// the centre leaves 1 px of the start or the blur leaves [0.02, 4] px (the caller keeps the
-/// centroid).
+/// centroid `start`, by Gauss-Newton with Levenberg damping. `None` when it does not converge,
+/// the centre leaves 1 px of the start, the blur leaves [0.02, 4] px or the spot's spread is
+/// under [`MIN_SPOT_SPREAD_PX`] (the caller keeps the centroid).
 pub fn fit_spot(samples: &[SpotSample], start: DVec2, shape: &[DVec2]) -> Option<SpotFit> {
     if samples.len() < 9 || shape.is_empty() {
         return None;
@@ -128,7 +133,10 @@ pub fn fit_spot(samples: &[SpotSample], start: DVec2, shape: &[DVec2]) -> Option
     }
     let center = DVec2::new(p[0], p[1]);
     let sigma = p[2].exp();
+    let disk_var =
+        shape.iter().map(|o| o.length_squared()).sum::<f64>() / (2.0 * shape.len() as f64);
     let ok = converged
+        && (sigma * sigma + disk_var).sqrt() >= MIN_SPOT_SPREAD_PX
         && center.distance(start) <= 1.0
         && (0.02..=4.0).contains(&sigma)
         && p[3] > 0.0
@@ -192,6 +200,14 @@ mod tests {
         }
         assert!(worst_c > 0.05, "centroid {worst_c}");
         assert!(worst_f < 1e-3, "fit {worst_f}");
+    }
+
+    /// A point spot with (almost) no blur sits in one pixel: the fit declines.
+    #[test]
+    fn fit_declines_a_spot_confined_to_a_pixel() {
+        let c = DVec2::new(20.3, 30.2);
+        let s = spot(c, 0.05);
+        assert!(fit_spot(&s, centroid(&s).unwrap(), &[DVec2::ZERO]).is_none());
     }
 
     #[test]
