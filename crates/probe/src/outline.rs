@@ -15,10 +15,12 @@
 //!
 //! Only the mirror and black spheres are refined ([`refine_board`]): the diffuse sphere's shading
 //! falls toward its terminator right at the outline and moved its measured edge by 1-2 px.
-//! The glossy spheres' rims brighten toward grazing incidence and show what they reflect there;
-//! where that differs from the background behind them the edge moves by a few tenths of a pixel
-//! (measured: -0.05 to -0.35 px around the outline of the synthetic boards, whose horizon is a
-//! step), which bounds what the refinement can do: about 0.1 px of centre error remains.
+//! The glossy spheres' rims brighten toward grazing incidence and show what they reflect there.
+//! On a real board that is mostly the board behind them, alike all around the outline, and the
+//! pull on the edge is the common offset below (fiducial test: the black centre 0.142 -> 0.024
+//! mm). Where the rim reflects something other than its background (a synthetic board with no
+//! panel whose rims show a sky with a horizon step) the edge moves by a few tenths of a pixel
+//! around the outline (-0.05 to -0.35 px measured) and about 0.1 px of centre error remains.
 //!
 //! The fit: each edge point's ray must make the cone's half-angle `asin(R / |c|)` with the
 //! direction to the centre `c`, up to one constant angular offset `b` shared by all points (it
