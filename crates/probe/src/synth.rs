@@ -128,7 +128,7 @@ const SUN_GRID: usize = 192;
 /// the diffuse sphere are rendered with `ss` x `ss` box samples (only inside the spheres' pixel
 /// boxes; elsewhere one sample) and blurred by [`gaussian_blur`] (exact for the smooth parts).
 /// The sun's tiny reflections in the mirror and black spheres are rendered separately and
-/// exactly: the spot is sampled densely ([`SUN_GRID`]^2 rays over its square, whatever the
+/// exactly: the spot is sampled densely (192 x 192 rays over its square, whatever the
 /// sphere's size) and each sample is spread over the pixels by the box-times-Gaussian pixel
 /// response ([`pixel_response`]), so the spot's sub-pixel position survives in the pixels as it
 /// does in a photograph. The sun seen directly in the background is not drawn.
