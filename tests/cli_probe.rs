@@ -24,6 +24,27 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
+/// `igi probe` on fixture `f`'s HDR board photograph, writing `out`, with `extra` options.
+fn probe_fixture(f: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
+    let (img, cam, board) = (
+        f.join("board.exr"),
+        f.join("camera.json"),
+        f.join("board.json"),
+    );
+    let mut args = vec![
+        "probe",
+        s(&img),
+        "--camera",
+        s(&cam),
+        "--board",
+        s(&board),
+        "-o",
+        s(out),
+    ];
+    args.extend_from_slice(extra);
+    igi(&args)
+}
+
 fn angle_deg(a: &[f64], b: &[f64]) -> f64 {
     let d: f64 = a.iter().zip(b).map(|(x, y)| x * y).sum();
     d.clamp(-1.0, 1.0).acos().to_degrees()
@@ -39,16 +60,7 @@ fn probe_hdr_image_writes_lighting_sky_diagnostics_and_pictures() {
     let f = fixture("sunny");
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("noon.toml");
-    let o = igi(&[
-        "probe",
-        s(&f.join("board.exr")),
-        "--camera",
-        s(&f.join("camera.json")),
-        "--board",
-        s(&f.join("board.json")),
-        "-o",
-        s(&out),
-    ]);
+    let o = probe_fixture(&f, &out, &[]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let text = std::fs::read_to_string(&out).unwrap();
     assert!(text.contains("map = \"noon_sky.exr\""), "{text}");
@@ -100,6 +112,53 @@ fn probe_hdr_image_writes_lighting_sky_diagnostics_and_pictures() {
     }
     let hemi = igi_imaging::read_image(&tmp.path().join("noon_mirror_hemi.exr")).unwrap();
     assert_eq!((hemi.width, hemi.height), (512, 512));
+}
+
+/// `--refine-spheres`: the mirror and black centres fitted to their outlines, reported in the
+/// diagnostics; on the exact Mitsuba board they barely move and the sun stays within 0.25 deg.
+#[test]
+fn probe_refine_spheres_reports_the_outline_fits() {
+    let f = fixture("sunny");
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("noon.toml");
+    // a bad mask radius is refused before any work
+    let bad = probe_fixture(&f, &out, &["--sun-mask-px=-1"]);
+    assert!(!bad.status.success());
+    let e = String::from_utf8_lossy(&bad.stderr);
+    assert!(e.contains("--sun-mask-px -1 must be"), "{e}");
+    assert!(!out.exists());
+    let o = probe_fixture(&f, &out, &["--refine-spheres"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let diag: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(tmp.path().join("noon_diagnostics.json")).unwrap(),
+    )
+    .unwrap();
+    let fits = diag["outline_fits"].as_array().expect("outline_fits");
+    let kinds: Vec<&str> = fits.iter().map(|f| f["kind"].as_str().unwrap()).collect();
+    assert_eq!(kinds, ["mirror", "black"]);
+    for f in fits {
+        let shift = f["shift_px"].as_f64().unwrap();
+        assert!(shift < 0.3, "{f}");
+        assert!(f["edge_points_used"].as_u64().unwrap() >= 24, "{f}");
+    }
+    assert_eq!(diag["options"]["refine_centers"], true);
+    assert_eq!(diag["options"]["sun_mask_px"], 4.0);
+    let dir: Vec<f64> = serde_json::from_value(diag["sun"]["direction"].clone()).unwrap();
+    let dir_t: Vec<f64> =
+        serde_json::from_value(truth("sunny")["sun"]["direction"].clone()).unwrap();
+    assert!(angle_deg(&dir, &dir_t) < 0.25);
+    // auto (the default) refines only spheres placed by the fiducials; these have their centres
+    for extra in [&[][..], &["--refine-spheres", "off"][..]] {
+        let out2 = tmp.path().join("plain.toml");
+        let o = probe_fixture(&f, &out2, extra);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let d: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(tmp.path().join("plain_diagnostics.json")).unwrap(),
+        )
+        .unwrap();
+        assert_eq!(d["outline_fits"].as_array().unwrap().len(), 0, "{extra:?}");
+        std::fs::remove_file(&out2).unwrap();
+    }
 }
 
 #[test]

@@ -54,6 +54,24 @@ pub struct ProbeArgs {
     /// Largest incidence angle used on the mirror and black spheres, degrees.
     #[arg(long, default_value_t = 72.0)]
     pub max_incidence_deg: f64,
+    /// Radius (pixels) masked around the sun's reflection in the mirror sphere, so the sun's light
+    /// stays out of the sky map. On spheres under about 30 px in radius, 3 keeps more of the sky
+    /// around the sun (docs/PROBE.md).
+    #[arg(long, default_value_t = 4.0)]
+    pub sun_mask_px: f64,
+    /// Refine the mirror and black spheres' centres from their outlines in the image: auto (when
+    /// the board's fiducials placed them; an imprecise pose), on (also `--refine-spheres` alone)
+    /// or off (docs/PROBE.md).
+    #[arg(long, value_enum, default_value_t = RefineSpheres::Auto, num_args = 0..=1, default_missing_value = "on")]
+    pub refine_spheres: RefineSpheres,
+}
+
+/// When `igi probe` refines the sphere centres from their outlines.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RefineSpheres {
+    Auto,
+    On,
+    Off,
 }
 
 #[derive(clap::Subcommand, Debug)]
@@ -275,6 +293,12 @@ pub fn run(a: ProbeArgs, ctx: &Ctx) -> anyhow::Result<()> {
         );
     }
     igi_imaging::io::check_output_file(output)?;
+    if !(a.sun_mask_px >= 0.0 && a.sun_mask_px.is_finite()) {
+        bail!(
+            "--sun-mask-px {} must be a finite radius in pixels, 0 or more",
+            a.sun_mask_px
+        );
+    }
     let pb = ctx.progress(4, "probe");
     let camera = Camera::load(camera_path)?;
     let spec = BoardSpec::load(board_path)?;
@@ -286,6 +310,7 @@ pub fn run(a: ProbeArgs, ctx: &Ctx) -> anyhow::Result<()> {
             board_path.display()
         )
     })?;
+    let refine_auto = placement.refine_by_default();
     let board = placement.board;
     pb.inc(1);
     let opt = ProbeOptions {
@@ -295,6 +320,12 @@ pub fn run(a: ProbeArgs, ctx: &Ctx) -> anyhow::Result<()> {
         camera_mask_deg: a.camera_mask_deg,
         max_incidence_deg: a.max_incidence_deg,
         saturation: a.saturation.or(saturation),
+        refine_centers: match a.refine_spheres {
+            RefineSpheres::On => true,
+            RefineSpheres::Off => false,
+            RefineSpheres::Auto => refine_auto,
+        },
+        sun_mask_px: a.sun_mask_px,
         ..ProbeOptions::default()
     };
     let opt = ProbeOptions {

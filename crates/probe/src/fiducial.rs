@@ -91,6 +91,15 @@ pub struct Placement {
     pub warnings: Vec<String>,
 }
 
+impl Placement {
+    /// Whether the sphere centres should be refined from their outlines by default
+    /// ([`crate::ProbeOptions::refine_centers`]): when the fiducials' pose placed them, whose
+    /// error (0.1-0.2 mm) turns the sun by about 0.3 degrees (docs/PROBE.md).
+    pub fn refine_by_default(&self) -> bool {
+        self.pose.is_some()
+    }
+}
+
 /// Place the board's spheres in the camera frame: from the fiducials when the board has them
 /// and every sphere has a board-frame centre (needs the `opencv` feature), else from the
 /// camera-frame centres (FORMATS.md). Without OpenCV a board that has camera-frame centres

@@ -14,6 +14,9 @@
 //!   reflects a given direction (exact for a camera at finite distance), the outline.
 //! * [`envmap`]: lat-long lookups, the 512x512 upper-hemisphere layout, hole filling, and the
 //!   diffuse convolution of a map by direct integration (no spherical-harmonic truncation).
+//! * [`outline`]: sphere centres refined from their silhouettes in the photograph (sub-pixel
+//!   edges along the predicted outline's normals, the tangent cone fitted across the line of
+//!   sight), for spheres placed by an imprecise pose.
 //! * [`pipeline`]: [`process`]: unwarp the mirror (and black) sphere into lat-long and
 //!   hemisphere maps divided by the sphere's reflectance, with a validity mask (saturation,
 //!   camera reflection, blind directions); decide whether the sun is visible; if so, its
@@ -23,6 +26,8 @@
 //! * [`resample`]: area-preserving resampling of a sphere's photograph into direction maps
 //!   (box reconstruction of the pixels, solid-angle weighted, sub-directions at the pixel
 //!   grid's Nyquist rate).
+//! * [`spot`]: the sun's spot to sub-pixel precision: the centroid, then a least-squares fit
+//!   of a point blurred by a Gaussian lens and integrated over square pixels.
 //! * [`synth`]: a forward renderer of board photographs from a known sky, for tests and benches.
 //!
 //! All radiance is linear `f32`; directions are in igi's world frame (Z up), obtained from the
@@ -33,9 +38,11 @@ pub mod envmap;
 mod error;
 pub mod fiducial;
 pub mod fresnel;
+pub mod outline;
 pub mod pipeline;
 pub mod resample;
 pub mod sphere;
+pub mod spot;
 pub mod synth;
 
 pub use board::{Board, BoardSpec, BoardSphere, SphereKind};

@@ -4,6 +4,7 @@ use crate::board::{Board, SphereKind};
 use crate::envmap::{self, Integrator};
 use crate::resample::{self, Reflector};
 use crate::sphere::{reflect, SphereView};
+use crate::spot;
 use crate::ProbeError;
 use glam::{DVec2, DVec3, Vec3};
 use igi_imaging::{Camera, HdrImage};
@@ -40,6 +41,10 @@ pub struct ProbeOptions {
     pub saturation: Option<f32>,
     /// Spheres smaller than this (pixels) get a warning.
     pub min_radius_px: f64,
+    /// Move the mirror and black spheres' centres across the line of sight to fit their
+    /// silhouettes in the image ([`crate::outline`]) before anything else: for centres from an
+    /// imprecise pose (fiducials); it leaves about 0.1 px of its own error.
+    pub refine_centers: bool,
 }
 
 impl Default for ProbeOptions {
@@ -57,6 +62,7 @@ impl Default for ProbeOptions {
             sun_diameter_deg: 0.53,
             saturation: None,
             min_radius_px: 20.0,
+            refine_centers: false,
         }
     }
 }
@@ -73,6 +79,9 @@ pub struct SunEstimate {
     pub angular_diameter_deg: f64,
     /// Sub-pixel centre of the spot on the sphere it was found on.
     pub spot_pixel: [f64; 2],
+    /// Blur (pixels) of the Gaussian fitted to the spot ([`spot::fit_spot`]); `None` where the
+    /// spot was clipped or the fit failed and the intensity-weighted centroid was used.
+    pub spot_fit_sigma_px: Option<f64>,
     /// "black" or "mirror".
     pub found_on: String,
     /// Where the sun reflects in the mirror sphere (masked there).
@@ -102,6 +111,8 @@ pub struct Diagnostics {
     /// The board's pose from its fiducials when they placed the spheres (set by the caller of
     /// [`process`], see [`crate::fiducial::place_board`]).
     pub board_pose: Option<crate::fiducial::BoardPose>,
+    /// The spheres' centres refined from their outlines (with `refine_centers`).
+    pub outline_fits: Vec<crate::outline::OutlineFit>,
 }
 
 /// Everything [`process`] produces.
@@ -198,6 +209,142 @@ fn sphere_saturated(img: &HdrImage, px: &[SpherePixel]) -> Vec<usize> {
         .collect()
 }
 
+/// The sun disk's reflection in `view` around pixel `at`, as points sampling it evenly (offsets
+/// in pixels from the reflection of the disk's centre): a 9 x 9 grid over the disk in the plane
+/// across the direction reflected at `at`, each point mapped back to its pixel. `[0, 0]` alone
+/// where `at` misses the sphere.
+fn sun_spot_shape(view: &SphereView, at: DVec2, diameter_deg: f64) -> Vec<DVec2> {
+    let Some((_, n, d)) = view.hit_pixel(at.x, at.y) else {
+        return vec![DVec2::ZERO];
+    };
+    let s0 = reflect(d, n).normalize();
+    let Some(c0) = view.reflection_point(s0) else {
+        return vec![DVec2::ZERO];
+    };
+    let (e1, e2) = s0.any_orthonormal_pair();
+    let t = (0.5 * diameter_deg).to_radians().tan();
+    let mut pts = Vec::new();
+    for i in 0..9 {
+        for j in 0..9 {
+            let (u, v) = ((i as f64 - 4.0) / 4.5, (j as f64 - 4.0) / 4.5);
+            if u * u + v * v > 1.0 {
+                continue;
+            }
+            let w = (s0 + t * (u * e1 + v * e2)).normalize();
+            if let Some(q) = view.reflection_point(w) {
+                pts.push(q.pixel - c0.pixel);
+            }
+        }
+    }
+    if pts.is_empty() {
+        pts.push(DVec2::ZERO);
+    }
+    pts
+}
+
+fn log_outline_fits(fits: &[crate::outline::OutlineFit]) {
+    for f in fits {
+        tracing::info!(
+            "{} sphere centre refined from its outline: moved {:.3} px ({} edge points, RMS {:.3} px)",
+            f.kind,
+            f.shift_px,
+            f.edge_points_used,
+            f.rms_px
+        );
+    }
+}
+
+/// The pixels of the sphere the sun's spot is sought on ([`process`], step 5).
+struct SpotPixels<'a> {
+    img: &'a HdrImage,
+    view: &'a SphereView<'a>,
+    px: &'a [SpherePixel],
+    /// Each pixel's luminance divided by the sphere's reflectance.
+    val: &'a [f64],
+    /// Indices of the saturated pixels.
+    saturated: &'a [usize],
+    /// Index of the brightest pixel.
+    peak: Option<usize>,
+}
+
+/// Where the sun's spot is and the direction it reflects.
+struct LocatedSun {
+    /// `None` when the spot's centre misses the sphere.
+    direction: Option<DVec3>,
+    pixel: [f64; 2],
+    /// Blur of the fitted spot; `None` where the centroid was kept.
+    fit_sigma: Option<f64>,
+}
+
+/// Step 5: seed (the saturated pixels' centroid, else the brightest pixel), background (median
+/// of a ring 5-8 px out), the centroid of a 9x9 window, then unless a pixel of it is clipped the
+/// fit of the sun disk's blurred, pixel-integrated reflection ([`spot::fit_spot`]); the centre
+/// is traced and reflected.
+fn locate_sun(s: &SpotPixels, sun_diameter_deg: f64) -> Result<LocatedSun, ProbeError> {
+    let (img, px) = (s.img, s.px);
+    let seed = if !s.saturated.is_empty() {
+        let n = s.saturated.len() as f64;
+        DVec2::new(
+            s.saturated.iter().map(|&i| px[i].x as f64).sum::<f64>() / n,
+            s.saturated.iter().map(|&i| px[i].y as f64).sum::<f64>() / n,
+        )
+    } else {
+        let i = s.peak.ok_or_else(|| {
+            ProbeError::InvalidInput("the sun sphere has no usable pixels".into())
+        })?;
+        DVec2::new(px[i].x as f64, px[i].y as f64)
+    };
+    let lookup: std::collections::HashMap<(usize, usize), usize> = px
+        .iter()
+        .enumerate()
+        .map(|(i, p)| ((p.x, p.y), i))
+        .collect();
+    let mut ring: Vec<f64> = px
+        .iter()
+        .zip(s.val)
+        .filter(|(p, _)| {
+            let r = DVec2::new(p.x as f64, p.y as f64).distance(seed);
+            r > 5.0 && r <= 8.0 && img.valid[p.y * img.width + p.x]
+        })
+        .map(|(_, v)| *v)
+        .collect();
+    let bg = median(&mut ring);
+    let (cx, cy) = (seed.x.round() as i64, seed.y.round() as i64);
+    let mut samples = Vec::with_capacity(81);
+    let mut window_saturated = false;
+    for y in (cy - 4).max(0)..=cy + 4 {
+        for x in (cx - 4).max(0)..=cx + 4 {
+            if let Some(&i) = lookup.get(&(x as usize, y as usize)) {
+                window_saturated |= !img.valid[y as usize * img.width + x as usize];
+                samples.push(spot::SpotSample {
+                    x: x as f64,
+                    y: y as f64,
+                    v: s.val[i] - bg,
+                });
+            }
+        }
+    }
+    let cen = spot::centroid(&samples).unwrap_or(seed);
+    let fit = if window_saturated {
+        None
+    } else {
+        spot::fit_spot(
+            &samples,
+            cen,
+            &sun_spot_shape(s.view, cen, sun_diameter_deg),
+        )
+    };
+    let c = fit.map_or(cen, |f| f.center);
+    Ok(LocatedSun {
+        direction: s
+            .view
+            .hit_pixel(c.x, c.y)
+            .map(|(_, n, d)| reflect(d, n).normalize()),
+        pixel: [c.x, c.y],
+        fit_sigma: fit.map(|f| f.sigma),
+    })
+}
+
 /// Process one board photograph.
 pub fn process(
     image: &HdrImage,
@@ -235,6 +382,18 @@ pub fn process(
         }
     }
 
+    let refined;
+    let mut outline_fits = Vec::new();
+    let board = if opt.refine_centers {
+        let (b, fits, w) = crate::outline::refine_board(&img, camera, board, 0.5);
+        log_outline_fits(&fits);
+        warnings.extend(w);
+        outline_fits = fits;
+        refined = b;
+        &refined
+    } else {
+        board
+    };
     let mirror = SphereView::new(camera, SphereKind::Mirror, &board.mirror);
     let black = board
         .black
@@ -315,65 +474,26 @@ pub fn process(
     );
     tracing::info!("{decision}");
 
-    let mut sun_dir: Option<DVec3> = None;
-    let mut spot_pixel = [0.0; 2];
-    if sun_found {
-        // peak: brightest valid pixel, or the centroid of saturated pixels
-        let (px, py) = if !spot_sat.is_empty() {
-            let n = spot_sat.len() as f64;
-            (
-                spot_sat.iter().map(|&i| spot_px[i].x as f64).sum::<f64>() / n,
-                spot_sat.iter().map(|&i| spot_px[i].y as f64).sum::<f64>() / n,
-            )
-        } else {
-            let i = peak_i.ok_or_else(|| {
-                ProbeError::InvalidInput("the sun sphere has no usable pixels".into())
-            })?;
-            (spot_px[i].x as f64, spot_px[i].y as f64)
+    let located = if sun_found {
+        let spots = SpotPixels {
+            img: &img,
+            view: spot_view,
+            px: &spot_px,
+            val: &spot_val,
+            saturated: &spot_sat,
+            peak: peak_i,
         };
-        let lookup: std::collections::HashMap<(usize, usize), usize> = spot_px
-            .iter()
-            .enumerate()
-            .map(|(i, p)| ((p.x, p.y), i))
-            .collect();
-        let mut ring: Vec<f64> = spot_px
-            .iter()
-            .zip(&spot_val)
-            .filter(|(p, _)| {
-                let r = ((p.x as f64 - px).powi(2) + (p.y as f64 - py).powi(2)).sqrt();
-                r > 5.0 && r <= 8.0 && img.valid[p.y * img.width + p.x]
-            })
-            .map(|(_, v)| *v)
-            .collect();
-        let bg = median(&mut ring);
-        let (mut sw, mut sx, mut sy) = (0.0, 0.0, 0.0);
-        let (cx, cy) = (px.round() as i64, py.round() as i64);
-        for dy in -4i64..=4 {
-            for dx in -4i64..=4 {
-                let (x, y) = (cx + dx, cy + dy);
-                if x < 0 || y < 0 {
-                    continue;
-                }
-                if let Some(&i) = lookup.get(&(x as usize, y as usize)) {
-                    let wgt = (spot_val[i] - bg).max(0.0);
-                    sw += wgt;
-                    sx += wgt * x as f64;
-                    sy += wgt * y as f64;
-                }
-            }
+        let l = locate_sun(&spots, opt.sun_diameter_deg)?;
+        if l.direction.is_none() {
+            warnings.push("the sun spot's centre does not lie on the sphere; sun ignored".into());
         }
-        let (ux, uy) = if sw > 0.0 {
-            (sx / sw, sy / sw)
-        } else {
-            (px, py)
-        };
-        spot_pixel = [ux, uy];
-        match spot_view.hit_pixel(ux, uy) {
-            Some((_, n, d)) => sun_dir = Some(reflect(d, n).normalize()),
-            None => warnings
-                .push("the sun spot's centre does not lie on the sphere; sun ignored".into()),
-        }
-    }
+        Some(l)
+    } else {
+        None
+    };
+    let sun_dir = located.as_ref().and_then(|l| l.direction);
+    let spot_pixel = located.as_ref().map_or([0.0; 2], |l| l.pixel);
+    let spot_sigma = located.as_ref().and_then(|l| l.fit_sigma);
 
     // ---- mirror: mask the sun's neighbourhood (its light goes into the disk) and unwarp
     let solve_sun = sun_dir.is_some() && diffuse.is_some();
@@ -583,6 +703,7 @@ pub fn process(
         radiance: sun_radiance,
         angular_diameter_deg: opt.sun_diameter_deg,
         spot_pixel,
+        spot_fit_sigma_px: spot_sigma,
         found_on: spot_view.kind.name().to_string(),
         mirror_pixel,
         residual_rms_percent: residual,
@@ -617,6 +738,7 @@ pub fn process(
             warnings,
             options: opt.clone(),
             board_pose: None,
+            outline_fits,
         },
     })
 }

@@ -6,6 +6,7 @@ use crate::board::Board;
 use crate::board::SphereKind;
 use crate::envmap::{latlong_lookup, Integrator};
 use crate::sphere::{reflect, SphereView};
+use crate::spot::pixel_response;
 use glam::DVec3;
 use igi_imaging::{Camera, HdrImage, WorldToCamera};
 use rayon::prelude::*;
@@ -93,7 +94,9 @@ impl SynthPanel {
 }
 
 /// [`render_board`] with the board itself behind the spheres (an optional textured panel
-/// with fiducials, see [`SynthPanel`]); rays that miss spheres and panel show the sky.
+/// with fiducials, see [`SynthPanel`]); rays that miss spheres and panel show the sky. The
+/// mirror and black spheres reflect the panel where their reflected rays meet it (their rims);
+/// the diffuse sphere's irradiance is the sky's alone.
 pub fn render_board_with_panel(
     camera: &Camera,
     board: &Board,
@@ -102,114 +105,290 @@ pub fn render_board_with_panel(
     ss: usize,
     panel: Option<&SynthPanel>,
 ) -> HdrImage {
-    let ss = ss.max(1);
-    let views: Vec<SphereView> =
-        std::iter::once(SphereView::new(camera, SphereKind::Mirror, &board.mirror))
-            .chain(
-                board
-                    .black
-                    .iter()
-                    .map(|b| SphereView::new(camera, SphereKind::Black, b)),
-            )
-            .chain(
-                board
-                    .diffuse
-                    .iter()
-                    .map(|b| SphereView::new(camera, SphereKind::Diffuse, b)),
-            )
-            .collect();
-    let integ = if board.diffuse.is_some() {
-        Some(Integrator::new(sky))
-    } else {
-        None
+    let scene = Scene::new(camera, board, sky, sun, panel, true);
+    render_pixels(&scene, ss.max(1), &|_, _| true)
+}
+
+/// How the synthetic camera of [`render_board_sensor`] forms a pixel: the scene blurred by a
+/// Gaussian lens (standard deviation `blur_sigma` pixels), then integrated over the pixel's area.
+#[derive(Clone, Copy, Debug)]
+pub struct Sensor {
+    /// Sub-samples per pixel side for everything but the sun (box filter of the pixel area).
+    pub ss: usize,
+    /// The lens's Gaussian blur in pixels (0: none).
+    pub blur_sigma: f64,
+}
+
+/// Sub-samples per side of the square around a sun spot in [`render_board_sensor`] (the disk's
+/// reflection is about 0.8 of that square across, so some 20,000 samples land in it).
+const SUN_GRID: usize = 192;
+
+/// A board photograph as a camera with a Gaussian lens and square pixels takes it: each pixel
+/// is the integral over its area of the lens-blurred scene. The sky, the spheres' outlines and
+/// the diffuse sphere are rendered with `ss` x `ss` box samples (only inside the spheres' pixel
+/// boxes; elsewhere one sample) and blurred by [`gaussian_blur`] (exact for the smooth parts).
+/// The sun's tiny reflections in the mirror and black spheres are rendered separately and
+/// exactly: the spot is sampled densely (192 x 192 rays over its square, whatever the
+/// sphere's size) and each sample is spread over the pixels by the box-times-Gaussian pixel
+/// response ([`pixel_response`]), so the spot's sub-pixel position survives in the pixels as it
+/// does in a photograph. The sun seen directly in the background is not drawn.
+pub fn render_board_sensor(
+    camera: &Camera,
+    board: &Board,
+    sky: &HdrImage,
+    sun: Option<SynthSun>,
+    sensor: Sensor,
+) -> HdrImage {
+    let scene = Scene::new(camera, board, sky, sun, None, false);
+    let boxes: Vec<(usize, usize, usize, usize)> =
+        scene.views.iter().map(|v| v.pixel_bbox()).collect();
+    let margin = 2 + (4.0 * sensor.blur_sigma).ceil() as usize;
+    let near = |x: usize, y: usize| {
+        boxes.iter().any(|b| {
+            x + margin >= b.0 && x <= b.2 + margin && y + margin >= b.1 && y <= b.3 + margin
+        })
     };
-    let sun_cos = sun.map(|s| (s.diameter_deg * 0.5).to_radians().cos());
-    let env = |d: DVec3| -> [f32; 3] {
-        let mut v = latlong_lookup(sky, d.as_vec3()).unwrap_or([0.0; 3]);
-        if let (Some(s), Some(c)) = (sun, sun_cos) {
-            if d.dot(s.direction) >= c {
+    let mut img = gaussian_blur(
+        &render_pixels(&scene, sensor.ss.max(1), &near),
+        sensor.blur_sigma,
+    );
+    if let Some(s) = sun {
+        for i in 0..scene.views.len() {
+            if scene.views[i].kind != SphereKind::Diffuse {
+                add_sun_spot(&mut img, &scene, i, s, sensor.blur_sigma);
+            }
+        }
+    }
+    img
+}
+
+/// Add the sun's reflection in sphere `vi` to `img` (see [`render_board_sensor`]).
+fn add_sun_spot(img: &mut HdrImage, scene: &Scene, vi: usize, sun: SynthSun, sigma: f64) {
+    let view = &scene.views[vi];
+    let Some(centre) = view.reflection_point(sun.direction) else {
+        return;
+    };
+    let alpha = (sun.diameter_deg * 0.5).to_radians();
+    let (e1, e2) = sun.direction.any_orthonormal_pair();
+    let extent = (0..32)
+        .filter_map(|k| {
+            let t = k as f64 * std::f64::consts::TAU / 32.0;
+            let w = alpha.cos() * sun.direction + alpha.sin() * (t.cos() * e1 + t.sin() * e2);
+            view.reflection_point(w)
+        })
+        .map(|q| q.pixel.distance(centre.pixel))
+        .fold(0.0, f64::max);
+    let half = 1.25 * extent + 1e-3;
+    let step = 2.0 * half / SUN_GRID as f64;
+    let reach = 0.5 + if sigma > 0.0 { 5.0 * sigma } else { 0.0 };
+    let (x0, y0) = (
+        (centre.pixel.x - half - reach).floor().max(0.0) as usize,
+        (centre.pixel.y - half - reach).floor().max(0.0) as usize,
+    );
+    let x1 = ((centre.pixel.x + half + reach).ceil() as usize).min(img.width - 1);
+    let y1 = ((centre.pixel.y + half + reach).ceil() as usize).min(img.height - 1);
+    let cos_a = alpha.cos();
+    for j in 0..SUN_GRID {
+        for i in 0..SUN_GRID {
+            let u = centre.pixel.x - half + (i as f64 + 0.5) * step;
+            let v = centre.pixel.y - half + (j as f64 + 0.5) * step;
+            let (o, d) = scene.camera.pixel_ray(u, v);
+            let Some((hit, p)) = scene.nearest_sphere(o, d) else {
+                continue;
+            };
+            if hit != vi {
+                continue;
+            }
+            let n = (p - view.center) / view.radius;
+            if reflect(d, n).dot(sun.direction) < cos_a {
+                continue;
+            }
+            let r = scene.reflectance(view.kind, n.dot(-d).max(0.0));
+            let wx: Vec<f64> = (x0..=x1)
+                .map(|x| pixel_response(x as f64 - u, sigma))
+                .collect();
+            for y in y0..=y1 {
+                let wy = pixel_response(y as f64 - v, sigma) * step * step;
+                if wy == 0.0 {
+                    continue;
+                }
+                for (x, w) in (x0..=x1).zip(&wx) {
+                    let k = y * img.width + x;
+                    for c in 0..3 {
+                        img.pixels[k][c] += (w * wy * r[c] * sun.radiance[c] as f64) as f32;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// What the synthetic camera sees: the spheres, the optional panel, the sky and sun.
+struct Scene<'a> {
+    camera: &'a Camera,
+    board: &'a Board,
+    views: Vec<SphereView<'a>>,
+    sky: &'a HdrImage,
+    integ: Option<Integrator>,
+    sun: Option<SynthSun>,
+    panel: Option<&'a SynthPanel>,
+    /// Whether the sun disk is seen in the mirror and black spheres' reflections (else only
+    /// in the background and in the diffuse sphere's irradiance).
+    sun_in_reflections: bool,
+}
+
+impl<'a> Scene<'a> {
+    fn new(
+        camera: &'a Camera,
+        board: &'a Board,
+        sky: &'a HdrImage,
+        sun: Option<SynthSun>,
+        panel: Option<&'a SynthPanel>,
+        sun_in_reflections: bool,
+    ) -> Self {
+        let views: Vec<SphereView> =
+            std::iter::once(SphereView::new(camera, SphereKind::Mirror, &board.mirror))
+                .chain(
+                    board
+                        .black
+                        .iter()
+                        .map(|b| SphereView::new(camera, SphereKind::Black, b)),
+                )
+                .chain(
+                    board
+                        .diffuse
+                        .iter()
+                        .map(|b| SphereView::new(camera, SphereKind::Diffuse, b)),
+                )
+                .collect();
+        let integ = board.diffuse.as_ref().map(|_| Integrator::new(sky));
+        Scene {
+            camera,
+            board,
+            views,
+            sky,
+            integ,
+            sun,
+            panel,
+            sun_in_reflections,
+        }
+    }
+
+    /// Sky radiance in direction `d`, with the sun disk when `with_sun`.
+    fn env(&self, d: DVec3, with_sun: bool) -> [f64; 3] {
+        let mut v = latlong_lookup(self.sky, d.as_vec3())
+            .unwrap_or([0.0; 3])
+            .map(|c| c as f64);
+        if let (Some(s), true) = (self.sun, with_sun) {
+            if d.dot(s.direction) >= (s.diameter_deg * 0.5).to_radians().cos() {
                 for k in 0..3 {
-                    v[k] += s.radiance[k];
+                    v[k] += s.radiance[k] as f64;
                 }
             }
         }
         v
-    };
-    let (w, h) = (camera.width as usize, camera.height as usize);
+    }
+
+    /// Index of the nearest sphere the ray hits, and the hit point.
+    fn nearest_sphere(&self, o: DVec3, d: DVec3) -> Option<(usize, DVec3)> {
+        let mut best: Option<(f64, usize, DVec3)> = None;
+        for (i, view) in self.views.iter().enumerate() {
+            if let Some(p) = view.intersect(o, d) {
+                let t = (p - o).length();
+                if best.is_none_or(|b| t < b.0) {
+                    best = Some((t, i, p));
+                }
+            }
+        }
+        best.map(|b| (b.1, b.2))
+    }
+
+    /// Fresnel reflectance of the mirror or black sphere at incidence cosine `cos_i`.
+    fn reflectance(&self, kind: SphereKind, cos_i: f64) -> [f64; 3] {
+        if kind == SphereKind::Mirror {
+            self.board.mirror_reflectance(cos_i)
+        } else {
+            self.board.black_reflectance(cos_i)
+        }
+    }
+
+    /// Radiance along the camera ray `o + t d`.
+    fn radiance(&self, o: DVec3, d: DVec3) -> [f64; 3] {
+        let best = self.nearest_sphere(o, d);
+        if let Some((t, v)) = self.panel.and_then(|p| p.hit(self.camera, o, d)) {
+            if best.is_none_or(|b| t < (b.1 - o).length()) {
+                return [v as f64; 3];
+            }
+        }
+        let Some((i, p)) = best else {
+            return self.env(d, true);
+        };
+        let view = &self.views[i];
+        let n = (p - view.center) / view.radius;
+        if view.kind == SphereKind::Diffuse {
+            return self.diffuse(n);
+        }
+        let r = self.reflectance(view.kind, n.dot(-d).max(0.0));
+        let w = reflect(d, n);
+        // what the sphere reflects: the panel behind it where the reflected ray meets it (the
+        // rims, at grazing incidence), else the sky
+        let l = match self
+            .panel
+            .and_then(|pl| pl.hit(self.camera, p + 1e-9 * n, w))
+        {
+            Some((_, v)) => [v as f64; 3],
+            None => self.env(w, self.sun_in_reflections),
+        };
+        [0, 1, 2].map(|c| r[c] * l[c])
+    }
+
+    /// The diffuse sphere at normal `n`: reflectance * irradiance (sky and sun disk) / pi.
+    fn diffuse(&self, n: DVec3) -> [f64; 3] {
+        let mut e = self
+            .integ
+            .as_ref()
+            .map(|i| i.irradiance(n.as_vec3()))
+            .unwrap_or([0.0; 3])
+            .map(|v| v as f64);
+        if let Some(s) = self.sun {
+            let k = crate::envmap::disk_cosine_solid_angle(s.diameter_deg)
+                * n.dot(s.direction).max(0.0);
+            for c in 0..3 {
+                e[c] += k * s.radiance[c] as f64;
+            }
+        }
+        let rho = self.board.diffuse_reflectance;
+        [0, 1, 2].map(|c| rho[c] * e[c] / std::f64::consts::PI)
+    }
+}
+
+/// Every pixel of the scene as the mean of `ss` x `ss` samples over its area where `dense(x,
+/// y)`, else one sample at its centre.
+fn render_pixels(
+    scene: &Scene,
+    ss: usize,
+    dense: &(dyn Fn(usize, usize) -> bool + Sync),
+) -> HdrImage {
+    let (w, h) = (scene.camera.width as usize, scene.camera.height as usize);
     let rows: Vec<Vec<[f32; 3]>> = (0..h)
         .into_par_iter()
         .map(|y| {
             (0..w)
                 .map(|x| {
+                    let n = if dense(x, y) { ss } else { 1 };
                     let mut acc = [0.0f64; 3];
-                    for sy in 0..ss {
-                        for sx in 0..ss {
-                            let u = x as f64 - 0.5 + (sx as f64 + 0.5) / ss as f64;
-                            let v = y as f64 - 0.5 + (sy as f64 + 0.5) / ss as f64;
-                            let (o, d) = camera.pixel_ray(u, v);
-                            let mut best: Option<(f64, &SphereView, DVec3)> = None;
-                            for view in &views {
-                                if let Some(p) = view.intersect(o, d) {
-                                    let t = (p - o).length();
-                                    if best.is_none_or(|b| t < b.0) {
-                                        best = Some((t, view, p));
-                                    }
-                                }
-                            }
-                            let panel_hit = panel.and_then(|p| p.hit(camera, o, d));
-                            if let Some((t, v)) = panel_hit {
-                                if best.is_none_or(|b| t < b.0) {
-                                    for a in acc.iter_mut() {
-                                        *a += v as f64;
-                                    }
-                                    continue;
-                                }
-                            }
-                            let val: [f64; 3] = match best {
-                                None => env(d).map(|c| c as f64),
-                                Some((_, view, p)) => {
-                                    let n = (p - view.center) / view.radius;
-                                    let cos_i = n.dot(-d).max(0.0);
-                                    match view.kind {
-                                        SphereKind::Mirror | SphereKind::Black => {
-                                            let r = if view.kind == SphereKind::Mirror {
-                                                board.mirror_reflectance(cos_i)
-                                            } else {
-                                                board.black_reflectance(cos_i)
-                                            };
-                                            let l = env(reflect(d, n));
-                                            [
-                                                r[0] * l[0] as f64,
-                                                r[1] * l[1] as f64,
-                                                r[2] * l[2] as f64,
-                                            ]
-                                        }
-                                        SphereKind::Diffuse => {
-                                            let e = integ
-                                                .as_ref()
-                                                .map(|i| i.irradiance(n.as_vec3()))
-                                                .unwrap_or([0.0; 3]);
-                                            let mut e = e.map(|v| v as f64);
-                                            if let Some(s) = sun {
-                                                let k = crate::envmap::disk_cosine_solid_angle(
-                                                    s.diameter_deg,
-                                                ) * n.dot(s.direction).max(0.0);
-                                                for c in 0..3 {
-                                                    e[c] += k * s.radiance[c] as f64;
-                                                }
-                                            }
-                                            let rho = board.diffuse_reflectance;
-                                            [0, 1, 2].map(|c| rho[c] * e[c] / std::f64::consts::PI)
-                                        }
-                                    }
-                                }
-                            };
+                    for sy in 0..n {
+                        for sx in 0..n {
+                            let u = x as f64 - 0.5 + (sx as f64 + 0.5) / n as f64;
+                            let v = y as f64 - 0.5 + (sy as f64 + 0.5) / n as f64;
+                            let (o, d) = scene.camera.pixel_ray(u, v);
+                            let val = scene.radiance(o, d);
                             for c in 0..3 {
                                 acc[c] += val[c];
                             }
                         }
                     }
-                    acc.map(|v| (v / (ss * ss) as f64) as f32)
+                    acc.map(|v| (v / (n * n) as f64) as f32)
                 })
                 .collect()
         })

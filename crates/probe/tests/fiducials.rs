@@ -203,6 +203,41 @@ fn fiducials_give_the_board_pose_and_the_same_lighting() {
     );
     assert!(rad_rel.iter().all(|r| r.abs() < 0.01), "{rad_rel:?}");
     assert!(sky_rel < 0.02, "sky maps differ by {sky_rel}");
+
+    // the fiducial placement with the mirror and black centres refined from their outlines
+    // (igi probe --refine-spheres)
+    let opt_r = ProbeOptions {
+        refine_centers: true,
+        ..opt.clone()
+    };
+    let c = process(&img, &cam, &placed.board, &opt_r).unwrap();
+    let dc = DVec3::from_array(c.diagnostics.sun.as_ref().unwrap().direction);
+    let refined_angle = dc.angle_between(da).to_degrees();
+    let across = |a: DVec3, t: DVec3| {
+        let (los, d) = (t.normalize(), a - t);
+        1e3 * (d - d.dot(los) * los).length()
+    };
+    let black_t = board_true.black.unwrap().center_cam;
+    let black_fid = placed.board.black.unwrap().center_cam;
+    let black_ref = DVec3::from_array(c.diagnostics.outline_fits[1].center_after);
+    eprintln!(
+        "refined from the outlines: sun {refined_angle:.4} deg from the known pose's (fiducials \
+         {sun_angle:.4}), {:.4} deg from the truth; black centre across the line of sight {:.3} mm (fiducials {:.3} mm); fits {:?}",
+        dc.angle_between(sun.direction).to_degrees(),
+        across(black_ref, black_t),
+        across(black_fid, black_t),
+        c.diagnostics.outline_fits
+    );
+    // the silhouettes against the panel (which the glossy rims reflect) pin the centres better
+    // than the fiducials do
+    assert!(
+        across(black_ref, black_t) < 0.5 * across(black_fid, black_t),
+        "black centre not improved"
+    );
+    assert!(
+        refined_angle < 0.1 && refined_angle < 0.5 * sun_angle,
+        "refined sun {refined_angle} deg from the known pose's (fiducials {sun_angle})"
+    );
 }
 
 #[cfg(not(feature = "opencv"))]

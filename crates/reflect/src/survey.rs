@@ -341,13 +341,11 @@ impl PhotoSpec {
                 let cam = Camera::load(camera)?;
                 let spec = igi_probe::BoardSpec::load(board)?;
                 let placement = igi_probe::fiducial::place_board(&spec, &img, &cam)?;
-                let r = igi_probe::process(
-                    &img,
-                    &cam,
-                    &placement.board,
-                    &igi_probe::ProbeOptions::default(),
-                )
-                .map_err(|e| {
+                let opt = igi_probe::ProbeOptions {
+                    refine_centers: placement.refine_by_default(),
+                    ..igi_probe::ProbeOptions::default()
+                };
+                let r = igi_probe::process(&img, &cam, &placement.board, &opt).map_err(|e| {
                     ReflectError::file(
                         image,
                         format!("processing the probe capture of photo `{}`: {e}", self.id),
