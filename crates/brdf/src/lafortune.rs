@@ -31,7 +31,7 @@ const MAX_LOG_POWER: f32 = 80.0;
 /// Rec. 709 luminance, used to weigh sampling strategies.
 #[inline]
 pub fn luminance(c: Vec3) -> f32 {
-    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+    igi_imaging::color::luminance(c.to_array())
 }
 
 /// One Lafortune lobe: colour `rho`, coefficients `cxy`, `cz` and exponent `n`.

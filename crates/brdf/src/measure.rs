@@ -534,13 +534,7 @@ fn reflect(d: DVec3, n: DVec3) -> DVec3 {
     d - 2.0 * d.dot(n) * n
 }
 
-fn median(v: &mut [f64]) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    v.sort_by(|a, b| a.total_cmp(b));
-    v[v.len() / 2]
-}
+use igi_imaging::color::median_in_place as median;
 
 /// Locate the highlight on a sphere of the frame photographed by `cam` (pose set): the
 /// pixels whose rays hit the sphere within 0.9 of its radius from the centre line (away from the

@@ -31,6 +31,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod camera;
+pub mod color;
 pub mod cv;
 mod error;
 pub mod hdr;

@@ -369,11 +369,6 @@ pub fn render_checker(
 /// The neutral patches (white to black) of the ColorChecker Classic, by index.
 const CHECKER_NEUTRALS: std::ops::Range<usize> = 18..24;
 
-/// Rec. 709 luminance of a linear RGB triple.
-fn luminance(c: &[f64; 3]) -> f64 {
-    0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
-}
-
 /// The colour matrix from the camera RGB of the 24 patches. With `white` (the radiance a
 /// perfect white diffuser shows under the chart's light, in the units the photographs should
 /// have), the matrix maps camera RGB to absolute radiance: `reference * white`. Without it the
@@ -406,8 +401,8 @@ pub fn fit_checker_matrix(
     if white.is_none() {
         let (mut before, mut after) = (0.0, 0.0);
         for k in CHECKER_NEUTRALS {
-            before += luminance(&camera_rgb[k]);
-            after += luminance(&mat_vec(&m, &camera_rgb[k]));
+            before += crate::color::luminance_f64(camera_rgb[k]);
+            after += crate::color::luminance_f64(mat_vec(&m, &camera_rgb[k]));
         }
         if !(after > 0.0) || !(before > 0.0) {
             return Err(ImagingError::InvalidInput(
@@ -416,7 +411,8 @@ pub fn fit_checker_matrix(
         }
         m = m.map(|row| row.map(|v| v * before / after));
     }
-    let scale = luminance(&mat_vec(&m, &camera_rgb[18])) / luminance(&reference[18]);
+    let scale = crate::color::luminance_f64(mat_vec(&m, &camera_rgb[18]))
+        / crate::color::luminance_f64(reference[18]);
     let ss: f64 = camera_rgb
         .iter()
         .zip(&reference)
@@ -754,7 +750,13 @@ mod tests {
         let cm = rel.color_matrix.unwrap();
         let g = [0.3, 0.3, 0.3];
         let mixed = mat_vec(&mix, &g);
-        assert!((luminance(&mat_vec(&cm, &mixed)) / luminance(&mixed) - 1.0).abs() < 0.03);
+        assert!(
+            (crate::color::luminance_f64(mat_vec(&cm, &mixed))
+                / crate::color::luminance_f64(mixed)
+                - 1.0)
+                .abs()
+                < 0.03
+        );
     }
 
     #[test]

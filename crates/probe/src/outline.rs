@@ -73,9 +73,7 @@ fn profile(img: &HdrImage, p: DVec2, n: DVec2, half: f64, k: usize) -> Option<Ve
 }
 
 fn median_of(v: &[f64]) -> f64 {
-    let mut w = v.to_vec();
-    w.sort_by(|a, b| a.total_cmp(b));
-    w[w.len() / 2]
+    igi_imaging::color::median_in_place(&mut v.to_vec())
 }
 
 /// The edge's offset along `n` from `p` (pixels, positive outward), or `None` without a clean step.

@@ -59,7 +59,7 @@ impl Default for ProbeOptions {
             diffuse_max_incidence_deg: 75.0,
             sun_peak_ratio: 50.0,
             sun_mask_px: 4.0,
-            sun_diameter_deg: 0.53,
+            sun_diameter_deg: igi_imaging::color::SUN_ANGULAR_DIAMETER_DEG,
             saturation: None,
             min_radius_px: 20.0,
             refine_centers: false,
@@ -132,8 +132,9 @@ pub struct ProbeResult {
     pub diagnostics: Diagnostics,
 }
 
+/// Rec. 709 luminance in double precision (`igi_imaging::color::luminance_f64`).
 pub fn luminance(p: [f32; 3]) -> f64 {
-    0.2126 * p[0] as f64 + 0.7152 * p[1] as f64 + 0.0722 * p[2] as f64
+    igi_imaging::color::luminance_f64(p.map(f64::from))
 }
 
 fn to_v3(d: DVec3) -> Vec3 {
@@ -170,13 +171,7 @@ fn sphere_pixels(view: &SphereView, min_cos: f64) -> Vec<SpherePixel> {
     out
 }
 
-fn median(v: &mut [f64]) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    v.sort_by(|a, b| a.total_cmp(b));
-    v[v.len() / 2]
-}
+use igi_imaging::color::median_in_place as median;
 
 fn hemisphere_map(size: usize, f: &(dyn Fn(DVec3) -> Option<[f32; 3]> + Sync)) -> HdrImage {
     let rows: Vec<Vec<Option<[f32; 3]>>> = (0..size)

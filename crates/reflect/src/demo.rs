@@ -114,7 +114,7 @@ fn probe_capture(
     let sun = truth.sun.map(|(d, l)| SynthSun {
         direction: d.normalize().as_dvec3(),
         radiance: l.to_array(),
-        diameter_deg: 0.53,
+        diameter_deg: igi_imaging::color::SUN_ANGULAR_DIAMETER_DEG,
     });
     let image = render_board(&cam, &board, &truth.sky, sun, 4);
     write_png_tonemapped(

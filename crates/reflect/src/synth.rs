@@ -8,6 +8,7 @@ use crate::parts::Part;
 use crate::ReflectError;
 use glam::{DVec3, Vec3};
 use igi_geometry::TriMesh;
+use igi_imaging::color::SUN_ANGULAR_DIAMETER_DEG;
 use igi_imaging::{Camera, HdrImage, WorldToCamera};
 use igi_render::{
     render_image, Albedo, Environment, Lighting, Material, RenderOptions, Scene, Sun, Texture,
@@ -88,7 +89,7 @@ impl LightingSpec {
     pub fn lighting(&self) -> Result<Lighting, ReflectError> {
         let environment = Some(Environment::from_image(&self.sky, 1.0)?);
         let sun = match self.sun {
-            Some((d, l)) => Some(Sun::new(d, l, 0.53)?),
+            Some((d, l)) => Some(Sun::new(d, l, SUN_ANGULAR_DIAMETER_DEG as f32)?),
             None => None,
         };
         Ok(Lighting { environment, sun })
@@ -105,8 +106,8 @@ impl LightingSpec {
             let d = d.normalize();
             let _ = write!(
                 t,
-                "\n[sun]\ndirection = [{}, {}, {}]\nradiance = [{}, {}, {}]\nangular_diameter_deg = 0.53\n",
-                d.x, d.y, d.z, l.x, l.y, l.z
+                "\n[sun]\ndirection = [{}, {}, {}]\nradiance = [{}, {}, {}]\nangular_diameter_deg = {}\n",
+                d.x, d.y, d.z, l.x, l.y, l.z, SUN_ANGULAR_DIAMETER_DEG
             );
         }
         let p = dir.join(format!("{}.toml", self.name));

@@ -349,7 +349,7 @@ fn one() -> f32 {
 }
 
 fn sun_diameter() -> f32 {
-    0.53
+    igi_imaging::color::SUN_ANGULAR_DIAMETER_DEG as f32
 }
 
 impl Lighting {

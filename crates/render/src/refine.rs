@@ -251,7 +251,7 @@ fn with_normals(found: &[(DVec2, DVec3)], w: usize, h: usize) -> Vec<EdgePoint> 
 /// make edges, channels 1 and 2 the linear luminance (bilinear sampling of the linear plane keeps
 /// a blurred step symmetric, which the log plane does not).
 fn luminance_planes(photo: &HdrImage) -> HdrImage {
-    let lum = |p: &[f32; 3]| 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
+    let lum = |p: &[f32; 3]| igi_imaging::color::luminance(*p);
     let mean = photo.pixels.iter().map(lum).sum::<f32>() / photo.pixels.len().max(1) as f32;
     let eps = (0.01 * mean).max(1e-12);
     let mut out = photo.clone();
