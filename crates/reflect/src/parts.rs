@@ -3,6 +3,10 @@
 //! centre that lies on the surface. A prepared site (`igi prepare`) gives one part per voxel and
 //! one for the terrain, with the atlases and caches it already holds; their meshes stay on disk
 //! and the solver loads, per voxel, only the levels that voxel's solve needs.
+//!
+//! A part's atlas resolution is fixed ([`build_parts`]) or chosen from the photographs
+//! ([`auto_resolution`]: one texel per pixel of the finest pixel footprint on the part, within a
+//! memory budget; `igi solve --atlas auto`).
 
 use crate::ReflectError;
 use glam::DVec3;
@@ -300,7 +304,7 @@ pub fn point_footprint(cam: &Camera, p: DVec3) -> Option<f64> {
     (cam.in_frame(q) && fp.is_finite() && fp > 0.0).then_some(fp)
 }
 
-/// The smallest multiple of 16 texels per side (within [[`AUTO_ATLAS_MIN`], `max`]) whose
+/// The smallest multiple of 16 texels per side (within [`AUTO_ATLAS_MIN`] to `max`) whose
 /// atlas holds `area` square metres at texels of `texel_m` when charts cover `efficiency` of
 /// the atlas: sqrt(area / texel^2 / efficiency).
 pub fn resolution_for(area: f64, texel_m: f64, efficiency: f64, max: u32) -> u32 {
