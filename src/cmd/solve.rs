@@ -1,7 +1,7 @@
 //! `igi solve`, `igi sample` and `igi export`: the inverse solver and what reads its result.
 use crate::report::{Bar, Ctx};
 use anyhow::{bail, Context};
-use igi_reflect::parts::build_parts;
+use igi_reflect::parts::{build_parts, build_parts_auto, AutoAtlas};
 use igi_reflect::solver::truth_from_scene;
 use igi_reflect::{ExportFormat, Schedule, SolveOptions, SolveSession, Survey};
 use std::path::PathBuf;
@@ -53,9 +53,16 @@ pub struct SolveArgs {
     /// Result folder (created; an unfinished result there is resumed).
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Atlas resolution per part (texels per side); a prepared site keeps its own atlases.
-    #[arg(long, default_value_t = 512)]
-    pub atlas: u32,
+    /// Atlas resolution per part: texels per side (8 to 16384), or `auto` to choose each
+    /// part's from the finest pixel footprint of the photographs that see it (one texel per
+    /// pixel, at most --atlas-max; docs/SOLVER.md "Atlas resolution"). A prepared site keeps
+    /// its own atlases.
+    #[arg(long, default_value = "512", value_parser = parse_atlas)]
+    pub atlas: AtlasArg,
+    /// With `--atlas auto`: the most texels per side of any part (the memory budget; at least
+    /// 64).
+    #[arg(long, default_value_t = 2048)]
+    pub atlas_max: u32,
     #[command(flatten)]
     pub iteration: IterationArgs,
     /// Solve only these parts, comma-separated, to share a site between machines: site meshes
@@ -85,6 +92,22 @@ pub struct SolveArgs {
     pub json: bool,
 }
 
+/// The value of `--atlas`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AtlasArg {
+    Fixed(u32),
+    Auto,
+}
+
+fn parse_atlas(s: &str) -> Result<AtlasArg, String> {
+    if s == "auto" {
+        return Ok(AtlasArg::Auto);
+    }
+    s.parse::<u32>().map(AtlasArg::Fixed).map_err(|_| {
+        format!("`{s}` is neither `auto` nor a resolution in texels per side (e.g. 512)")
+    })
+}
+
 pub fn run_solve(a: SolveArgs, ctx: &Ctx) -> anyhow::Result<()> {
     let iteration = a.iteration.options()?;
     let survey = Survey::load(&a.survey)?;
@@ -92,11 +115,17 @@ pub fn run_solve(a: SolveArgs, ctx: &Ctx) -> anyhow::Result<()> {
         Some(p) => Some(igi_geometry::SiteStore::open(p)?),
         None => None,
     };
-    let atlas = store
-        .as_ref()
-        .map_or(a.atlas, |s| s.manifest().atlas_resolution);
+    let (fixed, auto) = match a.atlas {
+        AtlasArg::Fixed(n) => (n, None),
+        AtlasArg::Auto => (512, Some(AutoAtlas { max: a.atlas_max })),
+    };
+    let (atlas, atlas_auto) = match &store {
+        Some(s) => (s.manifest().atlas_resolution, None),
+        None => (fixed, auto),
+    };
     let opts = SolveOptions {
         atlas_resolution: atlas,
+        atlas_auto,
         parts: a.parts.clone(),
         schedule: if a.schedule == "jacobi" {
             Schedule::Jacobi
@@ -141,7 +170,13 @@ pub fn run_solve(a: SolveArgs, ctx: &Ctx) -> anyhow::Result<()> {
                         .unwrap_or_default();
                     meshes.push((name, igi_geometry::read_mesh(m)?));
                 }
-                build_parts(meshes, a.atlas)?
+                match opts.atlas_auto {
+                    None => build_parts(meshes, atlas)?,
+                    Some(auto) => {
+                        let cameras: Vec<_> = photos.iter().map(|p| p.camera.clone()).collect();
+                        build_parts_auto(meshes, &cameras, auto.max)?
+                    }
+                }
             }
         };
         session.start(parts, photo_ids, &opts)?
@@ -179,9 +214,15 @@ pub fn run_solve(a: SolveArgs, ctx: &Ctx) -> anyhow::Result<()> {
             );
         }
         for p in &result.report.parts {
+            let footprint = p
+                .footprint_m
+                .map(|f| format!(" (finest pixel footprint {f:.4} m)"))
+                .unwrap_or_default();
             println!(
-                "part {}: {} texels of {:.4} m, {} seen ({} by 2+ photos), {} filled",
+                "part {}: {}x{} atlas, {} texels of {:.4} m{footprint}, {} seen ({} by 2+ photos), {} filled",
                 p.name,
+                p.resolution,
+                p.resolution,
                 p.covered_texels,
                 p.texel_size_m,
                 p.seen_texels,

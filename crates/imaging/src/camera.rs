@@ -198,14 +198,10 @@ pub fn reprojection_rms(a: &Camera, b: &Camera, points: &[DVec3]) -> Option<f64>
 /// [-0.5, width - 0.5) x [-0.5, height - 0.5)): where a photograph's reprojection error is
 /// measured, since points outside the frame constrain nothing the photo shows.
 pub fn points_in_frame(cam: &Camera, points: &[DVec3]) -> Vec<DVec3> {
-    let (w, h) = (cam.width as f64 - 0.5, cam.height as f64 - 0.5);
     points
         .iter()
         .copied()
-        .filter(|p| {
-            cam.project(*p)
-                .is_some_and(|q| q.x >= -0.5 && q.y >= -0.5 && q.x < w && q.y < h)
-        })
+        .filter(|p| cam.project(*p).is_some_and(|q| cam.in_frame(q)))
         .collect()
 }
 
@@ -432,6 +428,13 @@ impl Camera {
             self.intrinsics
                 .to_pixel(DVec2::new(pc.x / pc.z, pc.y / pc.z)),
         )
+    }
+
+    /// Whether pixel coordinates `q` lie in the frame (pixel centres at integers, so the frame
+    /// is [-0.5, width - 0.5) x [-0.5, height - 0.5)).
+    pub fn in_frame(&self, q: DVec2) -> bool {
+        let (w, h) = (self.width as f64 - 0.5, self.height as f64 - 0.5);
+        q.x >= -0.5 && q.y >= -0.5 && q.x < w && q.y < h
     }
 
     /// World-space ray (origin = camera centre, unit direction) through pixel (u, v).

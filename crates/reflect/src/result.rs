@@ -342,6 +342,7 @@ impl SolveResult {
                 mesh,
                 stored: s.stored.clone(),
                 texel_size: s.texel_size_m,
+                footprint_m: s.footprint_m,
                 cache: TexelCache {
                     resolution: r,
                     texels,

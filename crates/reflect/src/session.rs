@@ -107,8 +107,12 @@ impl SolveSession {
 fn run_manifest(survey: &Survey, opts: &SolveOptions) -> Result<RunManifest, ReflectError> {
     let mut m = RunManifest::new("solve");
     let a = opts.initial_albedo;
-    m.option("--atlas", opts.atlas_resolution)
-        .option("--spp", join(&opts.spp))
+    match opts.atlas_auto {
+        // numeric as before, so folders of earlier igi versions still resume
+        None => m.option("--atlas", opts.atlas_resolution),
+        Some(a) => m.option("--atlas", "auto").option("--atlas-max", a.max),
+    };
+    m.option("--spp", join(&opts.spp))
         .option("--indirect", opts.indirect)
         .option("--seed", opts.seed)
         .option("--initial", format!("{:?},{:?},{:?}", a[0], a[1], a[2]))

@@ -20,6 +20,10 @@ use std::time::Instant;
 pub struct SolveOptions {
     /// Atlas resolution per part (texels per side).
     pub atlas_resolution: u32,
+    /// `--atlas auto`: each part's resolution chosen from the photographs' pixel footprint on
+    /// it, within this budget (`atlas_resolution` is then unused for survey meshes).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub atlas_auto: Option<crate::parts::AutoAtlas>,
     /// Iterations at most; the solve stops earlier when the mean change of `rho_d` over seen
     /// texels drops below `tolerance` (after `min_iterations`).
     pub max_iterations: u32,
@@ -83,6 +87,7 @@ impl Default for SolveOptions {
     fn default() -> Self {
         SolveOptions {
             atlas_resolution: 512,
+            atlas_auto: None,
             max_iterations: 4,
             min_iterations: 2,
             tolerance: 0.002,
@@ -116,6 +121,15 @@ impl SolveOptions {
                 "--atlas {} is outside 8..=16384",
                 self.atlas_resolution
             ));
+        }
+        if let Some(a) = self.atlas_auto {
+            if !(crate::parts::AUTO_ATLAS_MIN..=16384).contains(&a.max) {
+                return bad(format!(
+                    "--atlas-max {} is outside {}..=16384",
+                    a.max,
+                    crate::parts::AUTO_ATLAS_MIN
+                ));
+            }
         }
         if !(self.tolerance.is_finite() && self.tolerance >= 0.0) {
             return bad(format!(
@@ -214,6 +228,10 @@ pub struct PartSummary {
     /// multiresolution load of its voxel).
     #[serde(default)]
     pub scene_triangles: u64,
+    /// The finest pixel footprint of the photographs on the part (metres) when `--atlas auto`
+    /// chose its resolution (`parts::auto_resolution`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub footprint_m: Option<f64>,
 }
 
 /// The report of a solve (`report.json`).
@@ -575,6 +593,7 @@ pub(crate) fn plan(
                     filled_texels: 0,
                     stored: p.stored.clone(),
                     scene_triangles: 0,
+                    footprint_m: p.footprint_m,
                 })
         })
         .collect();

@@ -1,0 +1,115 @@
+//! `igi solve --atlas auto` on the Mitsuba survey fixture (`datasets/fixtures/survey`): each
+//! part's atlas resolution follows from the finest pixel footprint of the photographs on it,
+//! it is reported, recorded in run.json (a resume with another choice is refused), and bad
+//! values are refused before any work.
+
+use igi_testkit::run_ok;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn igi() -> Command {
+    igi_testkit::Cli::new(env!("CARGO_BIN_EXE_igi")).command()
+}
+
+fn fixture() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("datasets/fixtures/survey")
+}
+
+/// `igi solve` of the fixture into `out` with one quick iteration and `extra` options.
+fn solve(out: &Path, extra: &[&str]) -> Command {
+    let mut c = igi();
+    c.arg("solve")
+        .arg(fixture())
+        .arg("-o")
+        .arg(out)
+        .args(["--iterations", "1", "--spp", "4", "--json"])
+        .args(extra);
+    c
+}
+
+/// (name, resolution, texel size, footprint) per part of a JSON report.
+fn parts(report: &str) -> Vec<(String, u64, f64, Option<f64>)> {
+    let r: serde_json::Value = serde_json::from_str(report).expect("JSON report");
+    r["parts"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| {
+            (
+                p["name"].as_str().unwrap().to_string(),
+                p["resolution"].as_u64().unwrap(),
+                p["texel_size_m"].as_f64().unwrap(),
+                p["footprint_m"].as_f64(),
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn atlas_auto_sizes_each_part_from_the_photographs() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("auto");
+    let auto = parts(&run_ok(solve(&out, &["--atlas", "auto"]).arg("--restart")));
+    assert_eq!(auto.len(), 3);
+    for (name, res, texel, fp) in &auto {
+        let fp = fp.unwrap_or_else(|| panic!("{name}: no footprint reported"));
+        // the fixture's photos are 160 x 120 of a site some 10 m across: centimetres per pixel
+        assert!((0.01..0.5).contains(&fp), "{name}: footprint {fp}");
+        assert!((64..=2048).contains(res) && res % 16 == 0, "{name}: {res}");
+        // one texel per pixel: the atlas is at least as fine as the finest footprint
+        assert!(
+            *texel <= fp * 1.0001,
+            "{name}: texel {texel} > footprint {fp}"
+        );
+    }
+    let get = |n: &str| auto.iter().find(|p| p.0 == n).unwrap().clone();
+    let (ground, block) = (get("ground"), get("block"));
+    // the block is seen from farther (coarser pixels) and is smaller: a smaller atlas
+    assert!(block.3.unwrap() > 1.1 * ground.3.unwrap(), "{auto:?}");
+    assert!(block.1 < ground.1, "{auto:?}");
+    let run_json = std::fs::read_to_string(out.join("run.json")).unwrap();
+    assert!(run_json.contains("\"--atlas\": \"auto\""), "{run_json}");
+    assert!(run_json.contains("\"--atlas-max\": \"2048\""), "{run_json}");
+
+    // a resume with another atlas choice is refused
+    for other in [
+        &["--atlas", "512"][..],
+        &["--atlas", "auto", "--atlas-max", "1024"],
+    ] {
+        let o = solve(&out, other).output().unwrap();
+        assert!(!o.status.success(), "{other:?} resumed an auto run");
+        assert!(
+            String::from_utf8_lossy(&o.stderr).contains("--atlas"),
+            "{}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+
+    // a numeric atlas stays what it was: the same resolution everywhere, no footprint
+    let fixed = parts(&run_ok(&mut solve(
+        &tmp.path().join("fixed"),
+        &["--atlas", "64"],
+    )));
+    assert!(
+        fixed.iter().all(|p| p.1 == 64 && p.3.is_none()),
+        "{fixed:?}"
+    );
+}
+
+#[test]
+fn bad_atlas_values_are_refused_before_any_work() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("out");
+    for (args, says) in [
+        (&["--atlas", "0"][..], "--atlas 0"),
+        (&["--atlas", "banana"], "banana"),
+        (&["--atlas", "-3"], "-3"),
+        (&["--atlas", "auto", "--atlas-max", "16"], "--atlas-max 16"),
+    ] {
+        let o = solve(&out, args).output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{args:?} was accepted");
+        assert!(err.contains(says), "{args:?}: {err}");
+        assert!(!out.exists(), "{args:?} left an output folder");
+    }
+}
