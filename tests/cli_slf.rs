@@ -5,7 +5,7 @@
 
 use glam::{DVec3, Vec3};
 use igi_geometry::atlas::{build_atlas, AtlasOptions};
-use igi_geometry::TriMesh;
+use igi_geometry::procedural::{fibonacci_directions as sphere_dirs, uv_sphere};
 use igi_imaging::rig::{RigObject, RigView};
 use igi_imaging::{Camera, HdrImage, Rig, WorldToCamera};
 use igi_render::{
@@ -20,35 +20,6 @@ fn igi() -> Cli {
 
 const SIZE: u32 = 40;
 
-fn uv_sphere(rings: usize, segments: usize, r: f32) -> TriMesh {
-    let mut m = TriMesh::default();
-    for i in 0..=rings {
-        let th = std::f32::consts::PI * i as f32 / rings as f32;
-        for j in 0..segments {
-            let ph = std::f32::consts::TAU * j as f32 / segments as f32;
-            m.positions.push([
-                r * th.sin() * ph.cos(),
-                r * th.sin() * ph.sin(),
-                r * th.cos(),
-            ]);
-        }
-    }
-    let n = segments as u32;
-    for i in 0..rings as u32 {
-        for j in 0..n {
-            let (a, b) = (i * n + j, i * n + (j + 1) % n);
-            if i > 0 {
-                m.indices.push([a, a + n, b]);
-            }
-            if i + 1 < rings as u32 {
-                m.indices.push([b, a + n, b + n]);
-            }
-        }
-    }
-    m.compute_vertex_normals();
-    m
-}
-
 fn camera_toward(dir: Vec3) -> Camera {
     let f = SIZE as f64 * 1.4;
     let c = (SIZE as f64 - 1.0) / 2.0;
@@ -60,17 +31,6 @@ fn camera_toward(dir: Vec3) -> Camera {
     };
     cam.pose = WorldToCamera::look_at(dir.as_dvec3() * 2.5, DVec3::ZERO, up).unwrap();
     cam
-}
-
-fn sphere_dirs(n: usize, offset: f32) -> Vec<Vec3> {
-    (0..n)
-        .map(|i| {
-            let z = 1.0 - 2.0 * (i as f32 + 0.5) / n as f32;
-            let phi = i as f32 * 2.399_963 + offset;
-            let r = (1.0 - z * z).sqrt();
-            Vec3::new(r * phi.cos(), r * phi.sin(), z)
-        })
-        .collect()
 }
 
 /// The glossy textured sphere under a smooth sky with a bright spot, and the mesh file.
@@ -275,6 +235,29 @@ fn slf_build_refuses_bad_input_before_any_work() {
     ]);
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("none.ply"));
     assert!(!out.exists());
+    // a simplification or subdivision level out of range
+    for (flag, v, msg) in [
+        ("--simplify", "0", "fraction of triangles"),
+        ("--level", "9", "subdivision level"),
+    ] {
+        let o = igi().run(&[
+            "slf",
+            "build",
+            s(&rig),
+            "--mesh",
+            s(&mesh),
+            flag,
+            v,
+            "-o",
+            s(&out),
+        ]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            !o.status.success() && err.contains(msg),
+            "{flag} {v}: {err}"
+        );
+        assert!(!out.exists());
+    }
     // an output folder that holds other files is never replaced
     let keep = tmp.path().join("keep");
     std::fs::create_dir_all(&keep).unwrap();

@@ -115,23 +115,18 @@ fn build(a: BuildArgs, ctx: &Ctx) -> anyhow::Result<()> {
         seed: a.seed,
         ..BuildOptions::default()
     };
+    let grid = capture::GridOptions {
+        atlas: a.atlas,
+        simplify: a.simplify,
+    };
     opts.validate(method)?;
-    if !(1..=6).contains(&a.level) {
-        anyhow::bail!("--level must lie in 1..=6 (got {})", a.level);
-    }
-    if !(a.simplify > 0.0 && a.simplify <= 1.0) {
-        anyhow::bail!("--simplify must lie in (0, 1] (got {})", a.simplify);
-    }
+    grid.validate()?;
     igi_lightfield::store::check_output(&a.output)?;
     let rig = igi_imaging::Rig::load(&a.rig)?;
     rig.require_views(1)?;
     let mesh = igi_geometry::read_mesh(&a.mesh)?;
     let bar = ctx.progress(capture::STAGES.len() as u64, "slf build");
     let t = std::time::Instant::now();
-    let grid = capture::GridOptions {
-        atlas: a.atlas,
-        simplify: a.simplify,
-    };
     let built = capture::build_from_rig(&rig, &mesh, grid, method, &opts, &|k| {
         bar.set_position(k as u64);
         bar.set_message(capture::STAGES[k]);

@@ -91,14 +91,13 @@ pub fn simplify(mesh: &TriMesh, locked: &[bool], ratio: f64, lock_border: bool) 
 mod tests {
     use super::*;
 
-    #[test]
-    fn an_empty_lock_list_locks_nothing_and_is_safe() {
-        let n = 30usize;
+    /// An `n` x `n` quad grid over the unit square with heights `z(x, y)`.
+    fn height_grid(n: usize, z: impl Fn(f32, f32) -> f32) -> TriMesh {
         let mut m = TriMesh::default();
         for j in 0..=n {
             for i in 0..=n {
                 let (x, y) = (i as f32 / n as f32, j as f32 / n as f32);
-                m.positions.push([x, y, 0.01 * (7.0 * x).sin()]);
+                m.positions.push([x, y, z(x, y)]);
             }
         }
         let w = (n + 1) as u32;
@@ -109,6 +108,12 @@ mod tests {
                 m.indices.push([a, a + w + 1, a + w]);
             }
         }
+        m
+    }
+
+    #[test]
+    fn an_empty_lock_list_locks_nothing_and_is_safe() {
+        let m = height_grid(30, |x, _| 0.01 * (7.0 * x).sin());
         let all = simplify(&m, &vec![false; m.positions.len()], 0.1, true);
         let none = simplify(&m, &[], 0.1, true);
         assert_eq!(all.mesh.indices, none.mesh.indices);
@@ -118,22 +123,7 @@ mod tests {
     #[test]
     fn a_bumpy_grid_simplifies_and_keeps_locked_vertices() {
         let n = 40usize;
-        let mut m = TriMesh::default();
-        for j in 0..=n {
-            for i in 0..=n {
-                let (x, y) = (i as f32 / n as f32, j as f32 / n as f32);
-                m.positions
-                    .push([x, y, 0.02 * (6.0 * x).sin() * (5.0 * y).cos()]);
-            }
-        }
-        let w = (n + 1) as u32;
-        for j in 0..n as u32 {
-            for i in 0..n as u32 {
-                let a = j * w + i;
-                m.indices.push([a, a + 1, a + w + 1]);
-                m.indices.push([a, a + w + 1, a + w]);
-            }
-        }
+        let mut m = height_grid(n, |x, y| 0.02 * (6.0 * x).sin() * (5.0 * y).cos());
         m.uvs = Some(m.positions.iter().map(|p| [p[0], p[1]]).collect());
         let locked: Vec<bool> = m
             .positions

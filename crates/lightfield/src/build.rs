@@ -60,6 +60,9 @@ impl BuildOptions {
         if !(self.lambda > 0.0 && self.lambda.is_finite()) {
             return Err(LightFieldError::BadLambda(self.lambda));
         }
+        if !(1..=6).contains(&self.level) {
+            return Err(LightFieldError::BadLevel(self.level));
+        }
         match method {
             Method::Pfa { q } if q < 1 => Err(LightFieldError::BadQ(q)),
             Method::Fq { codewords } if !codewords.is_power_of_two() => {
@@ -188,6 +191,10 @@ mod tests {
         assert!(matches!(
             o.validate(Method::Fq { codewords: 300 }),
             Err(LightFieldError::BadCodebookSize(300))
+        ));
+        assert!(matches!(
+            BuildOptions { level: 0, ..o }.validate(Method::Fair),
+            Err(LightFieldError::BadLevel(0))
         ));
         assert!(
             o.validate(Method::Fq { codewords: 256 }).is_ok()

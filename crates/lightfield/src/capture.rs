@@ -87,6 +87,16 @@ pub struct GridOptions {
     pub simplify: f64,
 }
 
+impl GridOptions {
+    /// Checks the options before any work.
+    pub fn validate(&self) -> Result<(), LightFieldError> {
+        if !(self.simplify > 0.0 && self.simplify <= 1.0) {
+            return Err(LightFieldError::BadSimplify(self.simplify));
+        }
+        Ok(())
+    }
+}
+
 impl Default for GridOptions {
     fn default() -> Self {
         GridOptions {
@@ -107,9 +117,7 @@ pub fn build_from_rig(
     stage: &dyn Fn(usize),
 ) -> Result<RigBuild, LightFieldError> {
     opts.validate(method)?;
-    if !(grid.simplify > 0.0 && grid.simplify <= 1.0) {
-        return Err(LightFieldError::BadSimplify(grid.simplify));
-    }
+    grid.validate()?;
     stage(0);
     let views = load_views(rig)?;
     stage(1);

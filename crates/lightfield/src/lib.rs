@@ -54,6 +54,8 @@ pub enum LightFieldError {
     Geometry(#[from] igi_geometry::GeometryError),
     #[error("the subspace dimension q must be at least 1 (got {0})")]
     BadQ(usize),
+    #[error("the octahedron subdivision level must lie in 1..=6 (got {0})")]
+    BadLevel(u32),
     #[error("the fraction of triangles to keep must lie in (0, 1] (got {0})")]
     BadSimplify(f64),
     #[error("lambda must be positive and finite (got {0})")]

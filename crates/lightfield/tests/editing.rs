@@ -8,6 +8,7 @@ use common::{camera_toward, psnr, sphere_dirs};
 use glam::{Mat3, Vec3};
 use igi_brdf::Lobe;
 use igi_geometry::atlas::{build_atlas, AtlasOptions};
+use igi_geometry::procedural::uv_sphere;
 use igi_geometry::TriMesh;
 use igi_imaging::HdrImage;
 use igi_lightfield::{BuildOptions, Method, Prepared, RenderSlfOptions, View};
@@ -15,38 +16,6 @@ use igi_render::embree::RtScene;
 use igi_render::{
     render_image, Albedo, Environment, Lighting, Material, RenderOptions, Scene, Texture,
 };
-
-fn uv_sphere(rings: usize, segments: usize, r: f32) -> TriMesh {
-    let mut m = TriMesh::default();
-    for i in 0..=rings {
-        let th = std::f32::consts::PI * i as f32 / rings as f32;
-        for j in 0..segments {
-            let ph = std::f32::consts::TAU * j as f32 / segments as f32;
-            m.positions.push([
-                r * th.sin() * ph.cos(),
-                r * th.sin() * ph.sin(),
-                r * th.cos(),
-            ]);
-        }
-    }
-    for i in 0..rings {
-        for j in 0..segments {
-            let (a, b) = (
-                (i * segments + j) as u32,
-                (i * segments + (j + 1) % segments) as u32,
-            );
-            let (c, d) = (a + segments as u32, b + segments as u32);
-            if i > 0 {
-                m.indices.push([a, c, b]);
-            }
-            if i + 1 < rings {
-                m.indices.push([b, c, d]);
-            }
-        }
-    }
-    m.compute_vertex_normals();
-    m
-}
 
 fn transformed(mesh: &TriMesh, f: impl Fn(Vec3) -> Vec3) -> TriMesh {
     let mut m = mesh.clone();

@@ -49,16 +49,7 @@ pub fn albedo(p: Vec3) -> Vec3 {
 }
 
 /// `n` directions on the unit sphere (Fibonacci), rotated by `offset` in azimuth.
-pub fn sphere_dirs(n: usize, offset: f32) -> Vec<Vec3> {
-    (0..n)
-        .map(|i| {
-            let z = 1.0 - 2.0 * (i as f32 + 0.5) / n as f32;
-            let phi = i as f32 * 2.399_963 + offset;
-            let r = (1.0 - z * z).sqrt();
-            Vec3::new(r * phi.cos(), r * phi.sin(), z)
-        })
-        .collect()
-}
+pub use igi_geometry::procedural::fibonacci_directions as sphere_dirs;
 
 /// A camera at distance `dist` along `dir` looking at the origin.
 pub fn camera_toward(dir: Vec3, dist: f64, size: u32) -> Camera {
