@@ -332,6 +332,51 @@ fn structures(d: usize) -> Vec<(String, TriMesh)> {
     out
 }
 
+/// A UV-less latitude-longitude sphere of radius `r` about the origin (poles on the Z axis),
+/// `rings` bands of `segments` quads (triangles at the poles), with vertex normals: the glossy
+/// test object of the surface-light-field tests.
+pub fn uv_sphere(rings: usize, segments: usize, r: f32) -> TriMesh {
+    let mut m = TriMesh::default();
+    for i in 0..=rings {
+        let th = std::f32::consts::PI * i as f32 / rings as f32;
+        for j in 0..segments {
+            let ph = std::f32::consts::TAU * j as f32 / segments as f32;
+            m.positions.push([
+                r * th.sin() * ph.cos(),
+                r * th.sin() * ph.sin(),
+                r * th.cos(),
+            ]);
+        }
+    }
+    let n = segments as u32;
+    for i in 0..rings as u32 {
+        for j in 0..n {
+            let (a, b) = (i * n + j, i * n + (j + 1) % n);
+            if i > 0 {
+                m.indices.push([a, a + n, b]);
+            }
+            if i + 1 < rings as u32 {
+                m.indices.push([b, a + n, b + n]);
+            }
+        }
+    }
+    m.compute_vertex_normals();
+    m
+}
+
+/// `n` nearly uniform unit directions (a Fibonacci sphere), turned by `offset` radians in
+/// azimuth: camera placements around an object.
+pub fn fibonacci_directions(n: usize, offset: f32) -> Vec<glam::Vec3> {
+    (0..n)
+        .map(|i| {
+            let z = 1.0 - 2.0 * (i as f32 + 0.5) / n as f32;
+            let phi = i as f32 * 2.399_963 + offset;
+            let r = (1.0 - z * z).sqrt();
+            glam::Vec3::new(r * phi.cos(), r * phi.sin(), z)
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -482,49 +527,4 @@ mod tests {
             );
         }
     }
-}
-
-/// A UV-less latitude-longitude sphere of radius `r` about the origin (poles on the Z axis),
-/// `rings` bands of `segments` quads (triangles at the poles), with vertex normals: the glossy
-/// test object of the surface-light-field tests.
-pub fn uv_sphere(rings: usize, segments: usize, r: f32) -> TriMesh {
-    let mut m = TriMesh::default();
-    for i in 0..=rings {
-        let th = std::f32::consts::PI * i as f32 / rings as f32;
-        for j in 0..segments {
-            let ph = std::f32::consts::TAU * j as f32 / segments as f32;
-            m.positions.push([
-                r * th.sin() * ph.cos(),
-                r * th.sin() * ph.sin(),
-                r * th.cos(),
-            ]);
-        }
-    }
-    let n = segments as u32;
-    for i in 0..rings as u32 {
-        for j in 0..n {
-            let (a, b) = (i * n + j, i * n + (j + 1) % n);
-            if i > 0 {
-                m.indices.push([a, a + n, b]);
-            }
-            if i + 1 < rings as u32 {
-                m.indices.push([b, a + n, b + n]);
-            }
-        }
-    }
-    m.compute_vertex_normals();
-    m
-}
-
-/// `n` nearly uniform unit directions (a Fibonacci sphere), turned by `offset` radians in
-/// azimuth: camera placements around an object.
-pub fn fibonacci_directions(n: usize, offset: f32) -> Vec<glam::Vec3> {
-    (0..n)
-        .map(|i| {
-            let z = 1.0 - 2.0 * (i as f32 + 0.5) / n as f32;
-            let phi = i as f32 * 2.399_963 + offset;
-            let r = (1.0 - z * z).sqrt();
-            glam::Vec3::new(r * phi.cos(), r * phi.sin(), z)
-        })
-        .collect()
 }
