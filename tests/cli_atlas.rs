@@ -69,6 +69,9 @@ fn atlas_auto_sizes_each_part_from_the_photographs() {
     assert!(block.1 < ground.1, "{auto:?}");
     let run_json = std::fs::read_to_string(out.join("run.json")).unwrap();
     assert!(run_json.contains("\"--atlas\": \"auto\""), "{run_json}");
+    // auto is the default
+    let default = parts(&run_ok(&mut solve(&tmp.path().join("default"), &[])));
+    assert_eq!(default, auto);
     assert!(run_json.contains("\"--atlas-max\": \"2048\""), "{run_json}");
 
     // a resume with another atlas choice is refused

@@ -40,6 +40,8 @@ datasets/mitsuba/inverse_adam.py reuses.
 Usage:
     python3 datasets/mitsuba/survey_reference.py --small          # CI fixture: datasets/fixtures/survey
     python3 datasets/mitsuba/survey_reference.py --out /tmp/survey_full   # full size (outside the repo)
+    python3 datasets/mitsuba/survey_reference.py --small --detail 2 --out /tmp/survey2x
+                                    # twice the texture detail (issue 16 item 7, docs/SOLVER.md)
 """
 
 import argparse
@@ -157,9 +159,13 @@ PARTS = {
 }
 
 
+DETAIL = 1.0                       # --detail: patches DETAIL x smaller, DETAIL^2 x as many
+
+
 def albedo_function(name):
     """Smooth albedo of a part as a function of world position: a base colour, a linear gradient
-    and Gaussian colour patches (sigma 0.7-1.2 m), squashed into (0.1, 0.8) with tanh."""
+    and Gaussian colour patches (sigma 0.7-1.2 m, divided by DETAIL), squashed into (0.1, 0.8)
+    with tanh."""
     rng = np.random.default_rng({"ground": 11, "block": 12, "wall": 13}[name])
     if name == "ground":
         lo, hi = np.array([-GROUND_HALF, -GROUND_HALF, 0]), np.array([GROUND_HALF, GROUND_HALF, 0])
@@ -170,8 +176,9 @@ def albedo_function(name):
     else:
         lo, hi = np.array(WALL_LO) - 0.5, np.array(WALL_HI) + 0.5
         n = 12
+    n = int(round(n * DETAIL * DETAIL))
     centres = rng.uniform(lo, hi, size=(n, 3))
-    sigmas = rng.uniform(0.7, 1.2, size=n)
+    sigmas = rng.uniform(0.7, 1.2, size=n) / DETAIL
     amps = rng.uniform(-1.1, 1.1, size=(n, 3))
     base = rng.uniform(-0.5, 0.5, size=3)
     grad = rng.uniform(-0.06, 0.06, size=(3, 3))           # per metre, per channel
@@ -485,8 +492,17 @@ def main():
     ap.add_argument("--spp", type=int, default=None, help="samples per pixel of each survey photo")
     ap.add_argument("--heldout-renders", type=int, default=8, help="M independent renders of the held-out photo")
     ap.add_argument("--heldout-spp", type=int, default=None, help="samples per pixel of each held-out render")
+    ap.add_argument("--detail", type=float, default=1.0,
+                    help="texture detail: colour patches this many times smaller (and its square as many), "
+                         "textures this many times finer (default 1: the committed fixture)")
     ap.add_argument("--checks-only", action="store_true")
     args = ap.parse_args()
+    if not (1.0 <= args.detail <= 8.0):
+        ap.error("--detail must lie in 1..8")
+    global DETAIL
+    DETAIL = args.detail
+    for k in TEX:
+        TEX[k] = int(round(TEX[k] * DETAIL))
     if args.out is None:
         if not args.small:
             ap.error("the full survey is large: give --out DIR outside the repository")
@@ -590,7 +606,8 @@ def main():
     ref.write_exr(os.path.join(out, "heldout", "photo.exr"), mean)
     ref.write_exr(os.path.join(out, "heldout", "photo_stderr.exr"), se)
     print(f"held-out: {m} x {heldout_spp} spp, {time.time() - t1:.1f} s", flush=True)
-    meta = {"generator": "datasets/mitsuba/survey_reference.py" + (" --small" if args.small else ""),
+    meta = {"generator": "datasets/mitsuba/survey_reference.py" + (" --small" if args.small else "")
+            + (f" --detail {args.detail:g}" if args.detail != 1.0 else ""),
             "mitsuba": mi.__version__, "variant": variant,
             "integrator": {"type": "path", "max_depth": MAX_DEPTH, "hide_emitters": False}, "rfilter": "box",
             "image_size": [width, height], "fov_x_deg": fov, "photos": meta_photos,

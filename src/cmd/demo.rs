@@ -20,6 +20,7 @@ pub fn run(a: DemoArgs, ctx: &Ctx) -> anyhow::Result<()> {
     let opts = if a.quick {
         DemoOptions {
             atlas: 32,
+            atlas_auto_max: None,
             photo_width: 60,
             photo_height: 40,
             photo_spp: 32,

@@ -1,7 +1,8 @@
 //! `igi solve`, `igi sample` and `igi export`: the inverse solver and what reads its result.
 use crate::report::{Bar, Ctx};
 use anyhow::{bail, Context};
-use igi_reflect::parts::{build_parts, build_parts_auto, AutoAtlas};
+use igi_reflect::atlas_size::AutoAtlas;
+use igi_reflect::parts::{build_parts, build_parts_auto};
 use igi_reflect::solver::truth_from_scene;
 use igi_reflect::{ExportFormat, Schedule, SolveOptions, SolveSession, Survey};
 use std::path::PathBuf;
@@ -12,7 +13,8 @@ pub struct IterationArgs {
     /// Most iterations.
     #[arg(long, default_value_t = 4)]
     pub iterations: u32,
-    /// Stop when the mean change of rho_d over seen texels is below this (after 2 iterations).
+    /// Stop when the mean change of rho_d over seen texels is below this, or below the
+    /// photographs' own noise in rho_d (after 2 iterations).
     #[arg(long, default_value_t = 0.002)]
     pub tolerance: f32,
     /// Samples per radiance estimate, per iteration (the last repeats).
@@ -53,11 +55,12 @@ pub struct SolveArgs {
     /// Result folder (created; an unfinished result there is resumed).
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Atlas resolution per part: texels per side (8 to 16384), or `auto` to choose each
-    /// part's from the finest pixel footprint of the photographs that see it (one texel per
-    /// pixel, at most --atlas-max; docs/SOLVER.md "Atlas resolution"). A prepared site keeps
-    /// its own atlases.
-    #[arg(long, default_value = "512", value_parser = parse_atlas)]
+    /// Atlas resolution per part: `auto` (the default) chooses each part's from the finest
+    /// pixel footprint of the photographs that see it (one texel per pixel, at most
+    /// --atlas-max; a mesh that would exceed it, or whose far and near ends differ much, is cut
+    /// into parts NAME-K; docs/SOLVER.md "Atlas resolution"), or a number gives every part that
+    /// many texels per side (8 to 16384). A prepared site keeps its own atlases.
+    #[arg(long, default_value = "auto", value_parser = parse_atlas)]
     pub atlas: AtlasArg,
     /// With `--atlas auto`: the most texels per side of any part (the memory budget; at least
     /// 64).
@@ -66,7 +69,8 @@ pub struct SolveArgs {
     #[command(flatten)]
     pub iteration: IterationArgs,
     /// Solve only these parts, comma-separated, to share a site between machines: site meshes
-    /// by file stem, or for a prepared site voxels as I_J_K (and `terrain`).
+    /// by file stem (a mesh that --atlas auto cut into pieces NAME-K selects all of them, and
+    /// NAME-K one), or for a prepared site voxels as I_J_K (and `terrain`).
     #[arg(
         long,
         visible_alias = "voxels",

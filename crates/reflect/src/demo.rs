@@ -9,13 +9,16 @@
 //! 3. Path-trace the survey photographs under the true skies at a high sample count and write
 //!    the survey folder with the probe-recovered lighting files.
 //! 4. Solve (`crate::solve`) with the ground truth attached, so the report records the albedo
-//!    error per iteration.
+//!    error per iteration. The solve's atlases are sized from the photographs (`--atlas auto`,
+//!    [`crate::atlas_size`]), independently of the true textures' 128-texel atlases; the error
+//!    is measured at the solve's texel centres against the true scene.
 //! 5. Re-render the recovered site from a held-out viewpoint under a held-out lighting and
 //!    compare with a rendering of the true site (relative mean, RMSE against the two images'
 //!    Monte-Carlo noise).
 //! 6. Write pictures a person can look at and `demo.json`.
 
-use crate::parts::build_parts;
+use crate::atlas_size::AutoAtlas;
+use crate::parts::{build_parts, build_parts_auto};
 use crate::result::{write_text, SolveResult};
 use crate::solver::{truth_from_scene, Progress, SolveOptions};
 use crate::synth::{
@@ -35,7 +38,13 @@ use std::time::Instant;
 #[derive(Clone, Debug, Serialize)]
 pub struct DemoOptions {
     pub seed: u64,
+    /// Texels per side of the true albedo textures (the site as photographed), and of the
+    /// solve's atlases when `atlas_auto_max` is `None`.
     pub atlas: u32,
+    /// Solve with `--atlas auto` (each part's atlas from the photographs' pixel footprint,
+    /// large meshes cut into parts) within this many texels per side; `None` solves on the
+    /// truth's atlases.
+    pub atlas_auto_max: Option<u32>,
     pub photo_width: u32,
     pub photo_height: u32,
     pub photo_spp: u32,
@@ -49,6 +58,7 @@ impl Default for DemoOptions {
         DemoOptions {
             seed: 7,
             atlas: 128,
+            atlas_auto_max: Some(512),
             photo_width: 240,
             photo_height: 160,
             photo_spp: 256,
@@ -202,7 +212,7 @@ pub fn run_demo(
     stage("building the procedural site");
     let site = igi_geometry::procedural::colonnade_site(opts.seed, 1);
     let triangles = site.iter().map(|(_, m)| m.indices.len()).sum();
-    let parts = build_parts(site, opts.atlas)?;
+    let parts = build_parts(site.clone(), opts.atlas)?;
     let truth: Vec<Vec<Vec3>> = parts
         .iter()
         .map(|p| truth_atlas(p, albedo_pattern))
@@ -271,8 +281,16 @@ pub fn run_demo(
         .iter()
         .map(|p| p.load())
         .collect::<Result<Vec<_>, _>>()?;
+    let parts = match opts.atlas_auto_max {
+        None => parts,
+        Some(max) => {
+            let cameras: Vec<_> = photos.iter().map(|p| p.camera.clone()).collect();
+            build_parts_auto(site, &cameras, max)?
+        }
+    };
     let solve_opts = SolveOptions {
         atlas_resolution: opts.atlas,
+        atlas_auto: opts.atlas_auto_max.map(|max| AutoAtlas { max }),
         max_iterations: opts.iterations,
         spp: opts.solve_spp.clone(),
         seed: opts.seed,
@@ -344,9 +362,12 @@ pub fn run_demo(
     for (i, p) in result.parts.iter().enumerate() {
         let r = p.resolution();
         let mut side = HdrImage::new(2 * r + 4, r);
+        for (t, v) in p.cache.texels.iter().zip(&gt[i]) {
+            let k = t.index as usize;
+            side.set(k % r, k / r, v.unwrap_or(Vec3::ZERO).to_array());
+        }
         for y in 0..r {
             for x in 0..r {
-                side.set(x, y, truth[i][y * r + x].to_array());
                 side.set(x + r + 4, y, result.rho[i][y * r + x].to_array());
             }
         }

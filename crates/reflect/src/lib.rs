@@ -18,9 +18,12 @@
 //! every iteration, and a killed run resumes after its last finished iteration.
 //!
 //! Modules: [`survey`] (the survey folder of FORMATS.md), [`parts`] (atlases and texel caches
-//! of the site), [`solver`] (the iteration), [`session`] (the resume rule and run manifest), [`weights`] and [`fill`] (the documented rules),
+//! of the site), [`atlas_size`] (`--atlas auto`: atlas sizes, and cutting meshes into parts),
+//! [`solver`] (the iteration), [`session`] (the resume rule and run manifest), [`weights`] and
+//! [`fill`] (the documented rules),
 //! [`result`] (the result folder: atlases, `scene.toml`, `report.json`, export, sampling).
 
+pub mod atlas_size;
 pub mod demo;
 pub mod distributed;
 pub mod fill;

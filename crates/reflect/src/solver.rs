@@ -4,7 +4,7 @@ use crate::fill::fill_unseen;
 use crate::parts::{stored_part_name, Part, StoredPart};
 use crate::result::{SolveResult, UNKNOWN_STDERR};
 use crate::survey::Photo;
-use crate::weights::{combine, Proposal, WeightRules};
+use crate::weights::{combine, Combined, Proposal, WeightRules};
 use crate::ReflectError;
 use glam::{DVec3, Vec2, Vec3};
 use igi_brdf::{luminance, Basis, LafortuneRef, Lobe};
@@ -23,9 +23,11 @@ pub struct SolveOptions {
     /// `--atlas auto`: each part's resolution chosen from the photographs' pixel footprint on
     /// it, within this budget (`atlas_resolution` is then unused for survey meshes).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub atlas_auto: Option<crate::parts::AutoAtlas>,
-    /// Iterations at most; the solve stops earlier when the mean change of `rho_d` over seen
-    /// texels drops below `tolerance` (after `min_iterations`).
+    pub atlas_auto: Option<crate::atlas_size::AutoAtlas>,
+    /// Iterations at most; the solve stops earlier (after `min_iterations`) when the mean
+    /// change of `rho_d` over seen texels drops below `tolerance` or below the photographs'
+    /// noise in `rho_d` (`IterationRecord::noise_rho`): an iteration that moves the albedo less
+    /// than the photographs can tell apart is not worth another.
     pub max_iterations: u32,
     pub min_iterations: u32,
     pub tolerance: f32,
@@ -123,11 +125,11 @@ impl SolveOptions {
             ));
         }
         if let Some(a) = self.atlas_auto {
-            if !(crate::parts::AUTO_ATLAS_MIN..=16384).contains(&a.max) {
+            if !(crate::atlas_size::AUTO_ATLAS_MIN..=16384).contains(&a.max) {
                 return bad(format!(
                     "--atlas-max {} is outside {}..=16384",
                     a.max,
-                    crate::parts::AUTO_ATLAS_MIN
+                    crate::atlas_size::AUTO_ATLAS_MIN
                 ));
             }
         }
@@ -157,10 +159,23 @@ impl SolveOptions {
     }
 }
 
-/// Every name in the part selection must name a part.
+/// Whether selection entry `sel` selects part `part`: the part's name, or the name of the mesh
+/// `--atlas auto` cut it from (its pieces are named `sel-K`, `sel-K-L`, ...).
+pub fn selects(sel: &str, part: &str) -> bool {
+    part == sel
+        || part
+            .strip_prefix(sel)
+            .and_then(|r| r.strip_prefix('-'))
+            .is_some_and(|r| {
+                r.split('-')
+                    .all(|k| !k.is_empty() && k.bytes().all(|b| b.is_ascii_digit()))
+            })
+}
+
+/// Every name in the part selection must select a part ([`selects`]).
 pub fn check_selection(parts: &[Part], opts: &SolveOptions) -> Result<(), ReflectError> {
     for s in opts.parts.iter().flatten() {
-        if !parts.iter().any(|p| &p.name == s) {
+        if !parts.iter().any(|p| selects(s, &p.name)) {
             let names: Vec<&str> = parts.iter().map(|p| p.name.as_str()).take(12).collect();
             return Err(ReflectError::Invalid(format!(
                 "--parts: no part named `{s}` in the site (parts: {}{})",
@@ -199,6 +214,18 @@ pub struct IterationRecord {
     pub residual_rel_rms: f32,
     /// Mean over seen texels of the largest per-channel change of `rho_d`.
     pub delta_rho: f32,
+    /// RMS over seen texels and channels of the standard error of `rho_d` beyond the
+    /// Monte-Carlo noise (`weights::Combined::photo_noise`): what the photographs leave
+    /// uncertain, which no number of samples reduces.
+    #[serde(default)]
+    pub noise_rho: f32,
+    /// RMS over seen texels and channels of this iteration's change of `rho_d` beyond what the
+    /// Monte-Carlo noise of this and the previous estimate explains: sqrt(max(0, mean(d^2 -
+    /// mc_k^2 - mc_(k-1)^2))). The solve stops once it is below `noise_rho`: the iteration
+    /// moved the albedo by less than the photographs can tell apart, and another at the same
+    /// samples would only redraw the Monte-Carlo noise.
+    #[serde(default)]
+    pub systematic_change_rho: f32,
     /// With ground truth: mean absolute error of `rho_d` per channel over texels seen in at
     /// least two photos, and its RMS.
     pub truth_mae: Option<[f32; 3]>,
@@ -229,7 +256,7 @@ pub struct PartSummary {
     #[serde(default)]
     pub scene_triangles: u64,
     /// The finest pixel footprint of the photographs on the part (metres) when `--atlas auto`
-    /// chose its resolution (`parts::auto_resolution`).
+    /// chose its resolution (`atlas_size::auto_resolution`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub footprint_m: Option<f64>,
 }
@@ -263,6 +290,13 @@ pub struct Pending {
     pub nres: u64,
     pub delta: f64,
     pub nseen: u64,
+    /// Sums over seen texels of the mean per-channel squared photograph noise of `rho_d`, and
+    /// of its squared change less the change the Monte-Carlo noise of this and the previous
+    /// estimate explains (may be negative; see [`IterationRecord::systematic_change_rho`]).
+    #[serde(default)]
+    pub noise2: f64,
+    #[serde(default)]
+    pub systematic2: f64,
 }
 
 impl Pending {
@@ -275,6 +309,8 @@ impl Pending {
         self.nres += g.nres;
         self.delta += g.delta;
         self.nseen += g.nseen;
+        self.noise2 += g.noise2;
+        self.systematic2 += g.systematic2;
     }
 }
 
@@ -556,7 +592,7 @@ pub(crate) fn plan(
         .map(|p| {
             opts.parts
                 .as_ref()
-                .is_none_or(|sel| sel.iter().any(|s| s == &p.name))
+                .is_none_or(|sel| sel.iter().any(|s| selects(s, &p.name)))
         })
         .collect();
     let groups = make_groups(&start.parts, &solved, opts.schedule)?;
@@ -806,6 +842,13 @@ pub(crate) fn finish_iteration(
         None => (None, None),
     };
     let k = acc.iteration - 1;
+    let per_seen = |sum: f64| {
+        if acc.nseen > 0 {
+            (sum / acc.nseen as f64) as f32
+        } else {
+            0.0
+        }
+    };
     let rec = IterationRecord {
         iteration: acc.iteration,
         spp: spp_of(opts, k),
@@ -814,30 +857,31 @@ pub(crate) fn finish_iteration(
         observations: acc.observations,
         residual_rms: ratio_sqrt(acc.res2, acc.nres as f64),
         residual_rel_rms: ratio_sqrt(acc.res2, acc.rel2),
-        delta_rho: if acc.nseen > 0 {
-            (acc.delta / acc.nseen as f64) as f32
-        } else {
-            0.0
-        },
+        delta_rho: per_seen(acc.delta),
+        noise_rho: per_seen(acc.noise2).sqrt(),
+        systematic_change_rho: per_seen(acc.systematic2.max(0.0)).sqrt(),
         truth_mae,
         truth_rms,
         seen_texels: acc.nseen,
         stale: Vec::new(),
     };
     tracing::info!(
-        "iteration {}: {} spp, {:.1} s, {} observations, residual {:.4} ({:.2}% rel), change {:.5}",
+        "iteration {}: {} spp, {:.1} s, {} observations, residual {:.4} ({:.2}% rel), change {:.5} ({:.5} beyond Monte-Carlo noise), photographs' noise {:.5}",
         rec.iteration,
         rec.spp,
         wall_s,
         rec.observations,
         rec.residual_rms,
         100.0 * rec.residual_rel_rms,
-        rec.delta_rho
+        rec.delta_rho,
+        rec.systematic_change_rho,
+        rec.noise_rho
     );
     if rec.observations == 0 {
         return Err(ReflectError::NoObservations(rec.iteration));
     }
-    let done = acc.iteration >= opts.min_iterations && rec.delta_rho < opts.tolerance;
+    let done = acc.iteration >= opts.min_iterations
+        && (rec.delta_rho < opts.tolerance || rec.systematic_change_rho < rec.noise_rho);
     start.report.iterations.push(rec);
     start.report.converged = done;
     Ok(done)
@@ -907,6 +951,10 @@ fn update_parts(
                 Some(c) => {
                     let v = c.value;
                     acc.delta += (v - start.rho[pi][i]).abs().max_element() as f64;
+                    let (noise2, systematic2) =
+                        change_against_noise(start.rho[pi][i], start.stderr[pi][i], &c);
+                    acc.noise2 += noise2;
+                    acc.systematic2 += systematic2;
                     acc.nseen += 1;
                     nseen_p += 1;
                     if start.observations[pi][i] >= 2 {
@@ -932,6 +980,28 @@ fn update_parts(
         s.seen_twice_texels = twice;
         s.filled_texels = filled;
     }
+}
+
+/// A seen texel's squared photograph noise and its squared change beyond the Monte-Carlo noise
+/// (unclamped), both averaged over the channels, for the stopping rule: `old` and `old_se` are
+/// the texel's albedo and standard error before this iteration (`old_se` negative when
+/// unknown: no Monte-Carlo noise is subtracted for it), `c` its new combination. The previous
+/// estimate's Monte-Carlo variance is its squared standard error less this iteration's squared
+/// photograph noise (the photographs are the same).
+fn change_against_noise(old: Vec3, old_se: Vec3, c: &Combined) -> (f64, f64) {
+    let photo2 = c.photo_noise * c.photo_noise;
+    let mc_new2 = (c.stderr * c.stderr - photo2).max(Vec3::ZERO);
+    let mc_old2 = if old_se.min_element() >= 0.0 {
+        (old_se * old_se - photo2).max(Vec3::ZERO)
+    } else {
+        Vec3::ZERO
+    };
+    let d = c.value - old;
+    let excess = d * d - mc_new2 - mc_old2;
+    (
+        photo2.element_sum() as f64 / 3.0,
+        excess.element_sum() as f64 / 3.0,
+    )
 }
 
 /// One texel's raw observation in a photo: texel index and the per-texel estimates the
@@ -1244,4 +1314,87 @@ pub fn truth_from_scene(parts: &[Part], truth: &Scene) -> Truth {
                 .collect()
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `finish_iteration` on an empty result after iteration `it` with mean change `delta`,
+    /// RMS change beyond the Monte-Carlo noise `delta` and RMS photograph noise `noise` per
+    /// seen texel: whether the solve stops.
+    fn stops(it: u32, delta: f64, noise: f64, tolerance: f32) -> (bool, IterationRecord) {
+        let opts = SolveOptions {
+            tolerance,
+            ..SolveOptions::default()
+        };
+        let mut r = SolveResult::fresh(Vec::new(), vec!["p".into()], &opts);
+        let acc = Pending {
+            iteration: it,
+            observations: 10,
+            nseen: 10,
+            delta: 10.0 * delta,
+            systematic2: 10.0 * delta * delta,
+            noise2: 10.0 * noise * noise,
+            ..Pending::default()
+        };
+        let done = finish_iteration(&mut r, &acc, &[], None, &opts, 1.0, 1.0).unwrap();
+        (done, r.report.iterations.pop().unwrap())
+    }
+
+    #[test]
+    fn the_solve_stops_once_an_iteration_moves_the_albedo_less_than_the_photographs_noise() {
+        let (done, rec) = stops(2, 0.004, 0.005, 0.0);
+        assert!(done);
+        assert!((rec.systematic_change_rho - 0.004).abs() < 1e-7);
+        assert!((rec.noise_rho - 0.005).abs() < 1e-7);
+        // a change above the noise goes on, unless below the tolerance
+        assert!(!stops(2, 0.006, 0.005, 0.0).0);
+        assert!(stops(2, 0.006, 0.005, 0.01).0);
+        // never before the second iteration
+        assert!(!stops(1, 0.001, 0.005, 0.01).0);
+        // noiseless photographs (every texel seen once): only the tolerance stops it
+        assert!(!stops(3, 1e-4, 0.0, 0.0).0);
+    }
+
+    #[test]
+    fn the_change_the_monte_carlo_noise_explains_is_not_counted_against_the_noise() {
+        let c = |value: f32, stderr: f32, photo: f32| Combined {
+            value: Vec3::splat(value),
+            weight: 1.0,
+            stderr: Vec3::splat(stderr),
+            photo_noise: Vec3::splat(photo),
+        };
+        // stderr 0.05 of which photographs 0.03: Monte-Carlo 0.04 now and before
+        let (n2, s2) =
+            change_against_noise(Vec3::splat(0.5), Vec3::splat(0.05), &c(0.6, 0.05, 0.03));
+        assert!((n2 - 0.0009).abs() < 1e-9, "{n2}");
+        assert!((s2 - (0.01 - 0.0016 - 0.0016)).abs() < 1e-7, "{s2}");
+        // a change smaller than the Monte-Carlo noise counts negative (summed, then clamped)
+        let (_, s2) =
+            change_against_noise(Vec3::splat(0.5), Vec3::splat(0.05), &c(0.51, 0.05, 0.03));
+        assert!(s2 < 0.0, "{s2}");
+        // unknown previous standard error: only this estimate's noise is subtracted
+        let (_, s2) = change_against_noise(Vec3::splat(0.5), UNKNOWN_STDERR, &c(0.6, 0.05, 0.03));
+        assert!((s2 - (0.01 - 0.0016)).abs() < 1e-7, "{s2}");
+    }
+
+    #[test]
+    fn a_mesh_name_selects_the_pieces_cut_from_it_and_nothing_else() {
+        for part in ["ground", "ground-0", "ground-3-12", "ground-0-0-1"] {
+            assert!(selects("ground", part), "{part}");
+        }
+        for part in [
+            "grounds",
+            "ground-",
+            "ground-a",
+            "ground-0-",
+            "ground--1",
+            "groun",
+        ] {
+            assert!(!selects("ground", part), "{part}");
+        }
+        assert!(selects("ground-0", "ground-0-2"));
+        assert!(!selects("ground-0", "ground-1"));
+    }
 }

@@ -83,6 +83,9 @@ pub struct Combined {
     pub weight: f32,
     /// Standard error of `value` per channel (see [`standard_error`]).
     pub stderr: Vec3,
+    /// The part of `stderr` beyond the Monte-Carlo noise: the photographs' own noise (with
+    /// registration, lighting and model error); 0 for a single proposal.
+    pub photo_noise: Vec3,
 }
 
 /// Combines weighted proposals into one value: outlier rejection around the weighted median
@@ -120,10 +123,12 @@ pub fn combine(proposals: &[Proposal], rules: &WeightRules) -> Option<Combined> 
         return None;
     }
     let mean = kept.iter().fold(Vec3::ZERO, |a, k| a + k.value * k.weight) / wsum;
+    let (stderr, photo_noise) = error_parts(&kept, mean, wsum);
     Some(Combined {
         value: mean.clamp(Vec3::ZERO, Vec3::splat(rules.max_albedo)),
         weight: wsum,
-        stderr: standard_error(&kept, mean, wsum),
+        stderr,
+        photo_noise,
     })
 }
 
@@ -139,9 +144,23 @@ pub fn combine(proposals: &[Proposal], rules: &WeightRules) -> Option<Combined> 
 /// A single proposal has no spread: its standard error is the Monte-Carlo part alone (a lower
 /// bound). Always finite and non-negative.
 pub fn standard_error(kept: &[Proposal], mean: Vec3, wsum: f32) -> Vec3 {
+    error_parts(kept, mean, wsum).0
+}
+
+/// The standard error of [`standard_error`] and its part beyond the Monte-Carlo noise,
+/// `sqrt(sum a_i^2 x^2)` per channel: what the photographs themselves leave uncertain
+/// (more samples per estimate do not reduce it).
+fn error_parts(kept: &[Proposal], mean: Vec3, wsum: f32) -> (Vec3, Vec3) {
     let a = |k: &Proposal| (k.weight / wsum) as f64;
     let sum_a2: f64 = kept.iter().map(|k| a(k) * a(k)).sum();
-    let se = |ch: usize| -> f32 {
+    let root = |v: f64| {
+        if v.is_finite() {
+            v.max(0.0).sqrt() as f32
+        } else {
+            0.0
+        }
+    };
+    let parts = |ch: usize| -> (f32, f32) {
         let mc: f64 = kept.iter().map(|k| a(k) * k.mc_var[ch] as f64).sum();
         let mc_of_mean: f64 = kept.iter().map(|k| a(k) * a(k) * k.mc_var[ch] as f64).sum();
         let extra = if kept.len() >= 2 && sum_a2 < 1.0 - 1e-9 {
@@ -154,14 +173,10 @@ pub fn standard_error(kept: &[Proposal], mean: Vec3, wsum: f32) -> Vec3 {
         } else {
             0.0
         };
-        let v = mc_of_mean + extra * sum_a2;
-        if v.is_finite() {
-            v.max(0.0).sqrt() as f32
-        } else {
-            0.0
-        }
+        (root(mc_of_mean + extra * sum_a2), root(extra * sum_a2))
     };
-    Vec3::new(se(0), se(1), se(2))
+    let [x, y, z] = [parts(0), parts(1), parts(2)];
+    (Vec3::new(x.0, y.0, z.0), Vec3::new(x.1, y.1, z.1))
 }
 
 #[cfg(test)]
@@ -176,6 +191,34 @@ mod tests {
                 mc_var: Vec3::ZERO,
             })
             .collect()
+    }
+
+    #[test]
+    fn the_photographs_noise_is_the_spread_beyond_the_monte_carlo_noise() {
+        let rules = WeightRules::default();
+        // two equal-weight proposals 0.2 and 0.4: s^2 = (0.5 * 0.01 + 0.5 * 0.01) / (1 - 0.5)
+        // = 0.02; without Monte-Carlo noise all of it is the photographs': sqrt(0.02 * 0.5)
+        let mut p = props(&[(Vec3::splat(0.2), 1.0), (Vec3::splat(0.4), 1.0)]);
+        let c = combine(&p, &rules).unwrap();
+        assert!((c.photo_noise.x - 0.1).abs() < 1e-6, "{c:?}");
+        assert_eq!(c.photo_noise, c.stderr);
+        // Monte-Carlo variance 0.004 each: x^2 = 0.02 - 0.004, photo noise sqrt(0.016 * 0.5);
+        // the total adds the Monte-Carlo variance of the mean, 0.25 * 0.004 * 2
+        p.iter_mut().for_each(|q| q.mc_var = Vec3::splat(0.004));
+        let c = combine(&p, &rules).unwrap();
+        assert!((c.photo_noise.x - 0.008f32.sqrt()).abs() < 1e-6, "{c:?}");
+        assert!(
+            (c.stderr.x - (0.008f32 + 0.002).sqrt()).abs() < 1e-6,
+            "{c:?}"
+        );
+        // proposals that agree better than their Monte-Carlo noise: no photograph noise left
+        p.iter_mut().for_each(|q| q.mc_var = Vec3::splat(0.1));
+        let c = combine(&p, &rules).unwrap();
+        assert_eq!(c.photo_noise, Vec3::ZERO);
+        assert!(c.stderr.x > 0.2);
+        // a single proposal has no spread: no photograph noise
+        let one = combine(&props(&[(Vec3::splat(0.3), 1.0)]), &rules).unwrap();
+        assert_eq!(one.photo_noise, Vec3::ZERO);
     }
 
     #[test]

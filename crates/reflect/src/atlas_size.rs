@@ -1,0 +1,535 @@
+//! `igi solve --atlas auto`: how large each part's atlas is, and where a site mesh is cut into
+//! several parts.
+//!
+//! The texel size of a part is the finest pixel footprint of the photographs on it
+//! ([`pixel_footprint`]: one texel per pixel, since a finer atlas would hold detail no
+//! photograph resolves and a coarser one averages detail they do), and its resolution follows
+//! from its surface area at that texel size ([`resolution_for`]), within `--atlas-max` texels
+//! per side (the memory budget of one part).
+//!
+//! One texel size per mesh is a poor fit for a large mesh: the terrain under a building is seen
+//! from a few metres, its far edge from fifty, and one atlas at the finest footprint spends
+//! most of its texels where no photograph resolves them, or does not fit the budget at all.
+//! [`plan_parts`] therefore cuts a mesh into pieces (an exact partition along axis planes,
+//! `igi_geometry::voxel::partition`, halving its longest extent) when the mesh would exceed the
+//! budget, or when its pieces, each at its own finest footprint, need clearly fewer texels than
+//! the whole (less than [`SPLIT_GAIN`] of them); pieces are cut again by the same rule. A piece
+//! of mesh `NAME` is named `NAME-K` (and `NAME-K-L` for a piece of that), `K` counting the
+//! pieces in the partition's order.
+
+use crate::ReflectError;
+use glam::DVec3;
+use igi_geometry::atlas::{build_atlas, AtlasOptions};
+use igi_geometry::voxel::{partition, VoxelGrid};
+use igi_geometry::TriMesh;
+use igi_imaging::Camera;
+use serde::{Deserialize, Serialize};
+
+/// `igi solve --atlas auto`: each part's atlas resolution follows from the photographs (see
+/// [`auto_resolution`]), at most `max` texels per side (the memory budget); larger meshes are
+/// cut into parts ([`plan_parts`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct AutoAtlas {
+    pub max: u32,
+}
+
+/// The smallest resolution `--atlas auto` gives a part (also a part no photograph sees).
+pub const AUTO_ATLAS_MIN: u32 = 64;
+/// Resolution of the trial atlas whose covered fraction measures the packing efficiency.
+const TRIAL_RESOLUTION: u32 = 128;
+/// The footprint that decides is this quantile (by area) of the per-point finest footprints.
+const FOOTPRINT_QUANTILE: f64 = 0.05;
+/// At most about this many surface points are sampled per part.
+const MAX_FOOTPRINT_SAMPLES: usize = 20_000;
+/// Chosen resolutions are multiples of this.
+const RESOLUTION_STEP: u32 = 16;
+/// A mesh is cut when its pieces need less than this fraction of its texels.
+pub const SPLIT_GAIN: f64 = 0.8;
+/// A mesh that needs fewer texels than this is not cut for the gain alone (its pieces would
+/// be mostly gutter and minimum-size atlases).
+const MIN_SPLIT_TEXELS: f64 = (4 * AUTO_ATLAS_MIN * AUTO_ATLAS_MIN) as f64;
+/// Cuts nest at most this deep (up to 8^6 pieces of one mesh in principle; in practice a
+/// handful).
+const MAX_SPLIT_DEPTH: u32 = 6;
+/// Packing efficiency assumed when deciding whether a mesh fits the budget (the trial atlas
+/// measures the real one afterwards).
+const PLANNING_EFFICIENCY: f64 = 0.5;
+
+/// The atlas resolution chosen for a part.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AtlasChoice {
+    /// Texels per side.
+    pub resolution: u32,
+    /// The finest pixel footprint on the part that decided it (metres per pixel); `None` for a
+    /// fixed resolution or a part no photograph sees.
+    pub footprint_m: Option<f64>,
+}
+
+/// A part as [`plan_parts`] cut it: its name, mesh (with normals) and atlas resolution.
+#[derive(Clone, Debug)]
+pub struct PlannedPart {
+    pub name: String,
+    pub mesh: TriMesh,
+    pub choice: AtlasChoice,
+}
+
+/// Points on `mesh` with the surface area each stands for: for a mesh of at most
+/// [`MAX_FOOTPRINT_SAMPLES`] triangles, about that many points spread by area (at least one per
+/// triangle, a deterministic low-discrepancy pattern inside each); for a larger one, the
+/// centroid of every k-th triangle.
+fn surface_samples(mesh: &TriMesh) -> Vec<(DVec3, f64)> {
+    let n = mesh.triangle_count();
+    let corners = |t: usize| mesh.triangle(t).map(|c| DVec3::from(c.map(f64::from)));
+    if n > MAX_FOOTPRINT_SAMPLES {
+        let stride = n.div_ceil(MAX_FOOTPRINT_SAMPLES);
+        return (0..n)
+            .step_by(stride)
+            .map(|t| {
+                let [a, b, c] = corners(t);
+                ((a + b + c) / 3.0, mesh.triangle_area(t))
+            })
+            .collect();
+    }
+    let total = mesh.total_area();
+    let mut out = Vec::new();
+    for t in 0..n {
+        let area = mesh.triangle_area(t);
+        if !(area.is_finite() && area > 0.0) {
+            continue;
+        }
+        let k = ((area / total * MAX_FOOTPRINT_SAMPLES as f64).ceil() as usize)
+            .clamp(1, MAX_FOOTPRINT_SAMPLES);
+        let [a, b, c] = corners(t);
+        for j in 0..k {
+            // R2 sequence (Roberts 2018), warped uniformly onto the triangle
+            let r1 = (0.5 + (j as f64 + 0.5) * 0.754_877_666_246_692_7).fract();
+            let r2 = (0.5 + (j as f64 + 0.5) * 0.569_840_290_998_053_3).fract();
+            let s = r1.sqrt();
+            out.push((
+                a * (1.0 - s) + b * (s * (1.0 - r2)) + c * (s * r2),
+                area / k as f64,
+            ));
+        }
+    }
+    out
+}
+
+/// The finest pixel footprint of `cameras` on `mesh` in metres per pixel, `None` when no
+/// camera sees any of it.
+///
+/// Sample points are spread over the surface by area ([`surface_samples`]). A camera sees a
+/// point when the point lies in front of it and projects into its frame; occlusion is ignored
+/// (a point hidden behind another surface still counts, so the footprint can only come out
+/// finer than the truth, never coarser). In a camera that sees it, a point's footprint is its
+/// depth along the optical axis over the focal length in pixels (the geometric mean of fx and
+/// fy); obliquity is ignored, as is lens distortion's change of scale. The per-point footprint
+/// is the finest over the cameras, and the part's is the 5th percentile of those weighted by
+/// area, so a few points that one camera sees from very close do not decide the whole part.
+pub fn pixel_footprint(mesh: &TriMesh, cameras: &[Camera]) -> Option<f64> {
+    let mut samples: Vec<(f64, f64)> = surface_samples(mesh)
+        .into_iter()
+        .filter_map(|(p, area)| {
+            let finest = cameras
+                .iter()
+                .filter_map(|cam| point_footprint(cam, p))
+                .min_by(f64::total_cmp)?;
+            Some((finest, area))
+        })
+        .collect();
+    samples.sort_by(|x, y| x.0.total_cmp(&y.0));
+    let total: f64 = samples.iter().map(|s| s.1).sum();
+    let mut acc = 0.0;
+    samples
+        .iter()
+        .find(|(_, w)| {
+            acc += w;
+            acc >= FOOTPRINT_QUANTILE * total
+        })
+        .map(|s| s.0)
+}
+
+/// The footprint of one pixel of `cam` at world point `p` (depth / focal length), `None`
+/// when `cam` does not see `p` (behind it or outside its frame).
+pub fn point_footprint(cam: &Camera, p: DVec3) -> Option<f64> {
+    let depth = cam.pose.apply(p).z;
+    let q = cam.project(p)?;
+    let f = (cam.intrinsics.fx * cam.intrinsics.fy).sqrt();
+    let fp = depth / f;
+    (cam.in_frame(q) && fp.is_finite() && fp > 0.0).then_some(fp)
+}
+
+/// The smallest multiple of 16 texels per side (within [`AUTO_ATLAS_MIN`] to `max`) whose
+/// atlas holds `area` square metres at texels of `texel_m` when charts cover `efficiency` of
+/// the atlas: sqrt(area / texel^2 / efficiency).
+pub fn resolution_for(area: f64, texel_m: f64, efficiency: f64, max: u32) -> u32 {
+    let max = max.max(AUTO_ATLAS_MIN);
+    let side = (area / (texel_m * texel_m) / efficiency).sqrt();
+    if !side.is_finite() {
+        return if side.is_nan() { AUTO_ATLAS_MIN } else { max };
+    }
+    let step = RESOLUTION_STEP as f64;
+    let rounded = ((side / step).ceil() * step).min(max as f64);
+    (rounded as u32).clamp(AUTO_ATLAS_MIN, max)
+}
+
+/// The atlas resolution of one part for `--atlas auto`: one texel per pixel of the finest
+/// footprint ([`pixel_footprint`]), in an atlas large enough for the part's surface area at
+/// the packing efficiency measured on a trial atlas of 128 texels per side (its covered
+/// fraction). A part no camera sees gets [`AUTO_ATLAS_MIN`]. `mesh` needs normals (for the
+/// trial atlas).
+pub fn auto_resolution(
+    mesh: &TriMesh,
+    cameras: &[Camera],
+    max: u32,
+) -> Result<AtlasChoice, ReflectError> {
+    let Some(footprint) = pixel_footprint(mesh, cameras) else {
+        return Ok(AtlasChoice {
+            resolution: AUTO_ATLAS_MIN,
+            footprint_m: None,
+        });
+    };
+    let trial = build_atlas(
+        mesh,
+        AtlasOptions {
+            resolution: TRIAL_RESOLUTION,
+            ..AtlasOptions::default()
+        },
+    )
+    .map_err(|e| ReflectError::Invalid(format!("trial atlas: {e}")))?;
+    let efficiency = trial.coverage_fraction();
+    Ok(AtlasChoice {
+        resolution: resolution_for(mesh.total_area(), footprint, efficiency, max),
+        footprint_m: Some(footprint),
+    })
+}
+
+/// Texels a mesh needs at one texel per pixel of its finest footprint (before packing), 0
+/// when no camera sees it.
+fn texels_needed(mesh: &TriMesh, cameras: &[Camera]) -> f64 {
+    pixel_footprint(mesh, cameras).map_or(0.0, |f| mesh.total_area() / (f * f))
+}
+
+/// The mesh cut in two along its longest extent (and along any other extent at least half as
+/// long): the non-empty pieces of an exact partition, in the partition's order.
+fn halve(mesh: &TriMesh) -> Vec<TriMesh> {
+    let Some((lo, hi)) = mesh.bounds() else {
+        return Vec::new();
+    };
+    let ext: [f64; 3] = std::array::from_fn(|k| (hi[k] - lo[k]) as f64);
+    let longest = ext.iter().copied().fold(0.0, f64::max);
+    if !(longest.is_finite() && longest > 0.0) {
+        return Vec::new();
+    }
+    // cells of half the longest extent, centred on the box: 2 cells along the longest axis
+    // (and along any axis at least half as long), 1 along the others
+    let size = 0.5 * longest * (1.0 + 1e-4);
+    let origin: [f64; 3] = std::array::from_fn(|k| {
+        let c = 0.5 * (lo[k] as f64 + hi[k] as f64);
+        if ext[k] > 0.5 * longest {
+            c - size
+        } else {
+            c - 0.5 * size
+        }
+    });
+    let Ok(grid) = VoxelGrid::new(origin, size) else {
+        return Vec::new();
+    };
+    partition(mesh, &grid)
+        .into_values()
+        .filter(|m| m.triangle_count() > 0)
+        .collect()
+}
+
+/// Cuts each named mesh into parts and chooses every part's resolution (`--atlas auto`); see
+/// the module overview for the rule. Meshes get normals when they have none. Fails when a
+/// piece's name is taken by another mesh.
+pub fn plan_parts(
+    meshes: Vec<(String, TriMesh)>,
+    cameras: &[Camera],
+    max: u32,
+) -> Result<Vec<PlannedPart>, ReflectError> {
+    crate::parts::check_names(meshes.iter().map(|(n, _)| n.as_str()))?;
+    let mut out = Vec::new();
+    for (name, mut mesh) in meshes {
+        if mesh.normals.is_none() {
+            mesh.compute_vertex_normals();
+        }
+        plan_mesh(name, mesh, cameras, max, 0, &mut out)?;
+    }
+    crate::parts::check_names(out.iter().map(|p| p.name.as_str())).map_err(|e| {
+        ReflectError::Invalid(format!(
+            "{e}: a site mesh has the name `--atlas auto` gives a piece cut from another (NAME-K); rename the mesh"
+        ))
+    })?;
+    Ok(out)
+}
+
+/// [`plan_parts`] for one mesh at cut depth `depth`, appending to `out`.
+fn plan_mesh(
+    name: String,
+    mesh: TriMesh,
+    cameras: &[Camera],
+    max: u32,
+    depth: u32,
+    out: &mut Vec<PlannedPart>,
+) -> Result<(), ReflectError> {
+    let need = texels_needed(&mesh, cameras);
+    let over_budget = need / PLANNING_EFFICIENCY > (max as f64) * (max as f64);
+    if depth < MAX_SPLIT_DEPTH && (over_budget || need > MIN_SPLIT_TEXELS) {
+        let pieces = halve(&mesh);
+        if pieces.len() > 1 {
+            let pieces_need: f64 = pieces.iter().map(|m| texels_needed(m, cameras)).sum();
+            if over_budget || pieces_need < SPLIT_GAIN * need {
+                tracing::info!(
+                    "cutting {name} into {} pieces: {need:.0} texels whole, {pieces_need:.0} cut",
+                    pieces.len()
+                );
+                for (k, piece) in pieces.into_iter().enumerate() {
+                    plan_mesh(format!("{name}-{k}"), piece, cameras, max, depth + 1, out)?;
+                }
+                return Ok(());
+            }
+        }
+    }
+    let choice = auto_resolution(&mesh, cameras, max)?;
+    out.push(PlannedPart { name, mesh, choice });
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use igi_imaging::WorldToCamera;
+
+    /// A `side` x `side` metre square in the plane z = 0, centred at (cx, 0), as an n x n grid.
+    fn square(side: f32, cx: f32, n: u32) -> TriMesh {
+        let mut m = TriMesh::default();
+        for j in 0..=n {
+            for i in 0..=n {
+                let (u, v) = (i as f32 / n as f32 - 0.5, j as f32 / n as f32 - 0.5);
+                m.positions.push([cx + side * u, side * v, 0.0]);
+            }
+        }
+        for j in 0..n {
+            for i in 0..n {
+                let a = j * (n + 1) + i;
+                m.indices.push([a, a + 1, a + n + 2]);
+                m.indices.push([a, a + n + 2, a + n + 1]);
+            }
+        }
+        m.compute_vertex_normals();
+        m
+    }
+
+    /// A 640 x 480 pinhole camera of focal length `f` pixels at height `d` above (x, 0, 0),
+    /// looking straight down.
+    fn camera_above(x: f64, d: f64, f: f64) -> Camera {
+        let mut cam = Camera::pinhole(640, 480, f, f, 319.5, 239.5);
+        cam.pose = WorldToCamera::look_at(DVec3::new(x, 0.0, d), DVec3::new(x, 0.0, 0.0), DVec3::Y)
+            .unwrap();
+        cam
+    }
+
+    #[test]
+    fn a_plane_seen_head_on_has_footprint_depth_over_focal_length() {
+        let plane = square(4.0, 0.0, 8);
+        for (d, f) in [(10.0, 500.0), (3.0, 1200.0), (250.0, 800.0)] {
+            let fp = pixel_footprint(&plane, &[camera_above(0.0, d, f)]).unwrap();
+            assert!((fp / (d / f) - 1.0).abs() < 1e-6, "{fp} vs {}", d / f);
+        }
+        // the finest camera decides; one that does not see the plane is ignored
+        let cams = [
+            camera_above(0.0, 20.0, 500.0),
+            camera_above(0.0, 10.0, 500.0),
+            // from below, coarser (back faces count: occlusion and facing are ignored)
+            camera_above(0.0, -5.0, 100.0),
+            camera_above(500.0, 10.0, 5000.0),
+        ];
+        let fp = pixel_footprint(&plane, &cams).unwrap();
+        assert!((fp - 10.0 / 500.0).abs() < 1e-9, "{fp}");
+    }
+
+    #[test]
+    fn a_point_behind_or_outside_the_frame_has_no_footprint() {
+        let cam = camera_above(0.0, 10.0, 500.0);
+        assert!(point_footprint(&cam, DVec3::new(0.0, 0.0, 0.0)).is_some());
+        assert!(point_footprint(&cam, DVec3::new(0.0, 0.0, 20.0)).is_none());
+        // 500 * 7 / 10 = 350 px from the centre, beyond the 320 px half width
+        assert!(point_footprint(&cam, DVec3::new(7.0, 0.0, 0.0)).is_none());
+        assert!(pixel_footprint(&square(4.0, 100.0, 4), &[cam]).is_none());
+        assert!(pixel_footprint(&square(4.0, 0.0, 4), &[]).is_none());
+    }
+
+    #[test]
+    fn a_part_seen_twice_as_close_gets_twice_the_resolution() {
+        let plane = square(4.0, 0.0, 8);
+        let far = auto_resolution(&plane, &[camera_above(0.0, 20.0, 500.0)], 4096).unwrap();
+        let near = auto_resolution(&plane, &[camera_above(0.0, 10.0, 500.0)], 4096).unwrap();
+        assert_eq!(far.footprint_m, Some(0.04));
+        // 4 m at 0.04 m per texel is 100 texels per side before the packing efficiency
+        assert!((100..=160).contains(&far.resolution), "{far:?}");
+        let ratio = near.resolution as f64 / far.resolution as f64;
+        assert!((ratio - 2.0).abs() < 0.15, "{near:?} vs {far:?}");
+        assert_eq!(near.resolution % 16, 0);
+        // the budget caps it; an unseen part gets the minimum
+        let capped = auto_resolution(&plane, &[camera_above(0.0, 2.0, 1000.0)], 256).unwrap();
+        assert_eq!(capped.footprint_m, Some(0.002));
+        assert_eq!(capped.resolution, 256);
+        let unseen = auto_resolution(&plane, &[camera_above(100.0, 10.0, 500.0)], 4096).unwrap();
+        assert_eq!(unseen.resolution, AUTO_ATLAS_MIN);
+        assert_eq!(unseen.footprint_m, None);
+    }
+
+    #[test]
+    fn resolution_rule_extremes() {
+        // 16 m^2 at 0.1 m and full packing: 40 texels, below the minimum
+        assert_eq!(resolution_for(16.0, 0.1, 1.0, 2048), AUTO_ATLAS_MIN);
+        // 16 m^2 at 0.01 m, half packed: sqrt(320000) = 565.7, up to 576
+        assert_eq!(resolution_for(16.0, 0.01, 0.5, 2048), 576);
+        assert_eq!(resolution_for(16.0, 0.001, 0.5, 2048), 2048);
+        assert_eq!(resolution_for(16.0, 0.01, 0.0, 2048), 2048);
+        assert_eq!(resolution_for(0.0, 0.0, 0.0, 2048), AUTO_ATLAS_MIN);
+        assert_eq!(resolution_for(1e30, 1e-30, 1e-30, 16384), 16384);
+    }
+
+    /// A `len` x `width` metre strip along x from x = 0, in the plane z = 0, as two triangles.
+    fn strip(len: f32, width: f32) -> TriMesh {
+        let mut m = TriMesh {
+            positions: vec![
+                [0.0, -width / 2.0, 0.0],
+                [len, -width / 2.0, 0.0],
+                [len, width / 2.0, 0.0],
+                [0.0, width / 2.0, 0.0],
+            ],
+            indices: vec![[0, 1, 2], [0, 2, 3]],
+            ..TriMesh::default()
+        };
+        m.compute_vertex_normals();
+        m
+    }
+
+    /// A wide 640 x 480 camera (focal length 200 px) at `eye` looking at `target`.
+    fn camera_at(eye: DVec3, target: DVec3) -> Camera {
+        let mut cam = Camera::pinhole(640, 480, 200.0, 200.0, 319.5, 239.5);
+        cam.pose = WorldToCamera::look_at(eye, target, DVec3::Z).unwrap();
+        cam
+    }
+
+    #[test]
+    fn a_two_triangle_plane_is_sampled_over_its_area_not_at_two_centroids() {
+        // a 4 m square of two triangles under a camera 10 m above one corner: the finest
+        // footprint lies at that corner, where neither centroid is
+        let mut plane = strip(4.0, 4.0);
+        plane.positions.iter_mut().for_each(|p| p[1] += 2.0);
+        let cam = camera_above(0.0, 10.0, 500.0);
+        let fp = pixel_footprint(&plane, &[cam]).unwrap();
+        // straight down, every point has depth 10: footprint 10 / 500 everywhere seen
+        assert!((fp - 0.02).abs() < 1e-9, "{fp}");
+        let samples = surface_samples(&plane);
+        let area: f64 = samples.iter().map(|s| s.1).sum();
+        assert!((area - 16.0).abs() < 1e-6, "{area}");
+        assert!(samples.len() >= MAX_FOOTPRINT_SAMPLES, "{}", samples.len());
+        // the points cover the square: each 1 m cell holds about 1/16 of them
+        let mut cells = [0usize; 16];
+        for (p, _) in &samples {
+            let (i, j) = ((p.x.floor() as usize).min(3), (p.y.floor() as usize).min(3));
+            cells[j * 4 + i] += 1;
+        }
+        let n = samples.len() as f64 / 16.0;
+        assert!(
+            cells.iter().all(|&c| (c as f64 - n).abs() < 0.05 * n),
+            "{cells:?}"
+        );
+    }
+
+    #[test]
+    fn a_long_strip_seen_from_one_end_is_cut_and_each_piece_sized_by_its_own_footprint() {
+        let cams = [camera_at(
+            DVec3::new(-4.0, 0.0, 3.0),
+            DVec3::new(8.0, 0.0, 0.0),
+        )];
+        let whole = texels_needed(&strip(40.0, 4.0), &cams);
+        let parts = plan_parts(vec![("strip".into(), strip(40.0, 4.0))], &cams, 2048).unwrap();
+        assert!(parts.len() > 2, "{}", parts.len());
+        let area: f64 = parts.iter().map(|p| p.mesh.total_area()).sum();
+        assert!((area - 160.0).abs() < 1e-3, "an exact partition: {area}");
+        let cut: f64 = parts.iter().map(|p| texels_needed(&p.mesh, &cams)).sum();
+        assert!(cut < SPLIT_GAIN * whole, "{cut} vs {whole}");
+        for p in &parts {
+            assert!(p.name.starts_with("strip-"), "{}", p.name);
+        }
+        // the piece nearest the camera has the finest footprint, the farthest the coarsest
+        let x_of = |p: &PlannedPart| p.mesh.bounds().unwrap().0[0];
+        let near = parts
+            .iter()
+            .min_by(|a, b| x_of(a).total_cmp(&x_of(b)))
+            .unwrap();
+        let far = parts
+            .iter()
+            .max_by(|a, b| x_of(a).total_cmp(&x_of(b)))
+            .unwrap();
+        let (fn_, ff) = (
+            near.choice.footprint_m.unwrap(),
+            far.choice.footprint_m.unwrap(),
+        );
+        assert!(ff > 2.0 * fn_, "near {fn_} far {ff}");
+        assert!(
+            near.mesh.total_area() / (near.choice.resolution as f64).powi(2)
+                < far.mesh.total_area() / (far.choice.resolution as f64).powi(2)
+        );
+    }
+
+    #[test]
+    fn a_mesh_over_the_budget_is_cut_until_its_pieces_fit() {
+        // an 8 m square at 0.02 m per pixel everywhere needs 400^2 texels; the budget is 256
+        let cams: Vec<Camera> = [(2.0, -2.0), (6.0, -2.0), (2.0, 2.0), (6.0, 2.0)]
+            .iter()
+            .map(|&(x, y)| {
+                let mut cam = Camera::pinhole(640, 480, 500.0, 500.0, 319.5, 239.5);
+                cam.pose =
+                    WorldToCamera::look_at(DVec3::new(x, y, 10.0), DVec3::new(x, y, 0.0), DVec3::Y)
+                        .unwrap();
+                cam
+            })
+            .collect();
+        let parts = plan_parts(vec![("field".into(), strip(8.0, 8.0))], &cams, 256).unwrap();
+        assert_eq!(parts.len(), 16, "8 m cut to 4 m (still over), then to 2 m");
+        for p in &parts {
+            let need = texels_needed(&p.mesh, &cams) / PLANNING_EFFICIENCY;
+            assert!(need <= 256.0 * 256.0, "{}: {need}", p.name);
+            assert!(p.choice.resolution <= 256);
+            assert!((p.choice.footprint_m.unwrap() - 0.02).abs() < 1e-6);
+        }
+        // a small part near the camera is not cut: the gain is not worth the atlases
+        let small = plan_parts(vec![("s".into(), strip(2.0, 2.0))], &cams, 2048).unwrap();
+        assert_eq!(small.len(), 1);
+        assert_eq!(small[0].name, "s");
+    }
+
+    #[test]
+    fn a_piece_named_like_another_mesh_is_refused() {
+        let cams = [camera_at(
+            DVec3::new(-4.0, 0.0, 3.0),
+            DVec3::new(8.0, 0.0, 0.0),
+        )];
+        let err = plan_parts(
+            vec![
+                ("strip".into(), strip(40.0, 4.0)),
+                ("strip-1".into(), strip(1.0, 1.0)),
+            ],
+            &cams,
+            2048,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(err.contains("`strip-1`") && err.contains("rename"), "{err}");
+        let twice = plan_parts(
+            vec![("a".into(), strip(1.0, 1.0)), ("a".into(), strip(1.0, 1.0))],
+            &cams,
+            2048,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(twice.contains("both named `a`"), "{twice}");
+    }
+}
