@@ -41,8 +41,6 @@ pub mod fresnel;
 pub mod outline;
 pub mod pipeline;
 pub mod resample;
-pub mod sphere;
-pub mod spot;
 pub mod synth;
 
 pub use board::{Board, BoardSpec, BoardSphere, SphereKind};

@@ -30,8 +30,8 @@
 //! deviations.
 
 use crate::board::{BoardSphere, SphereKind};
-use crate::sphere::SphereView;
 use glam::{DVec2, DVec3};
+use igi_capture::sphere::SphereView;
 use igi_imaging::{Camera, HdrImage};
 use nalgebra::{Matrix3, Vector3};
 

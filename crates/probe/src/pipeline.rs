@@ -3,10 +3,10 @@
 use crate::board::{Board, SphereKind};
 use crate::envmap::{self, Integrator};
 use crate::resample::{self, Reflector};
-use crate::sphere::{reflect, SphereView};
-use crate::spot;
 use crate::ProbeError;
 use glam::{DVec2, DVec3, Vec3};
+use igi_capture::highlight::{locate_spot, SpotPixels};
+use igi_capture::sphere::{SpherePixel, SphereView};
 use igi_imaging::{Camera, HdrImage};
 use rayon::prelude::*;
 
@@ -79,7 +79,7 @@ pub struct SunEstimate {
     pub angular_diameter_deg: f64,
     /// Sub-pixel centre of the spot on the sphere it was found on.
     pub spot_pixel: [f64; 2],
-    /// Blur (pixels) of the Gaussian fitted to the spot ([`spot::fit_spot`]); `None` where the
+    /// Blur (pixels) of the Gaussian fitted to the spot ([`igi_capture::spot::fit_spot`]); `None` where the
     /// spot was clipped or the fit failed and the intensity-weighted centroid was used.
     pub spot_fit_sigma_px: Option<f64>,
     /// "black" or "mirror".
@@ -141,36 +141,6 @@ fn to_v3(d: DVec3) -> Vec3 {
     d.as_vec3()
 }
 
-/// A pixel of a sphere's image with its geometry.
-#[derive(Clone, Copy)]
-struct SpherePixel {
-    x: usize,
-    y: usize,
-    normal: DVec3,
-    cos_i: f64,
-}
-
-fn sphere_pixels(view: &SphereView, min_cos: f64) -> Vec<SpherePixel> {
-    let (x0, y0, x1, y1) = view.pixel_bbox();
-    let mut out = Vec::new();
-    for y in y0..=y1 {
-        for x in x0..=x1 {
-            if let Some((_, n, d)) = view.hit_pixel(x as f64, y as f64) {
-                let cos_i = n.dot(-d);
-                if cos_i >= min_cos {
-                    out.push(SpherePixel {
-                        x,
-                        y,
-                        normal: n,
-                        cos_i,
-                    });
-                }
-            }
-        }
-    }
-    out
-}
-
 use igi_imaging::color::median_in_place as median;
 
 fn hemisphere_map(size: usize, f: &(dyn Fn(DVec3) -> Option<[f32; 3]> + Sync)) -> HdrImage {
@@ -204,39 +174,6 @@ fn sphere_saturated(img: &HdrImage, px: &[SpherePixel]) -> Vec<usize> {
         .collect()
 }
 
-/// The sun disk's reflection in `view` around pixel `at`, as points sampling it evenly (offsets
-/// in pixels from the reflection of the disk's centre): a 9 x 9 grid over the disk in the plane
-/// across the direction reflected at `at`, each point mapped back to its pixel. `[0, 0]` alone
-/// where `at` misses the sphere.
-fn sun_spot_shape(view: &SphereView, at: DVec2, diameter_deg: f64) -> Vec<DVec2> {
-    let Some((_, n, d)) = view.hit_pixel(at.x, at.y) else {
-        return vec![DVec2::ZERO];
-    };
-    let s0 = reflect(d, n).normalize();
-    let Some(c0) = view.reflection_point(s0) else {
-        return vec![DVec2::ZERO];
-    };
-    let (e1, e2) = s0.any_orthonormal_pair();
-    let t = (0.5 * diameter_deg).to_radians().tan();
-    let mut pts = Vec::new();
-    for i in 0..9 {
-        for j in 0..9 {
-            let (u, v) = ((i as f64 - 4.0) / 4.5, (j as f64 - 4.0) / 4.5);
-            if u * u + v * v > 1.0 {
-                continue;
-            }
-            let w = (s0 + t * (u * e1 + v * e2)).normalize();
-            if let Some(q) = view.reflection_point(w) {
-                pts.push(q.pixel - c0.pixel);
-            }
-        }
-    }
-    if pts.is_empty() {
-        pts.push(DVec2::ZERO);
-    }
-    pts
-}
-
 fn log_outline_fits(fits: &[crate::outline::OutlineFit]) {
     for f in fits {
         tracing::info!(
@@ -247,97 +184,6 @@ fn log_outline_fits(fits: &[crate::outline::OutlineFit]) {
             f.rms_px
         );
     }
-}
-
-/// The pixels of the sphere the sun's spot is sought on ([`process`], step 5).
-struct SpotPixels<'a> {
-    img: &'a HdrImage,
-    view: &'a SphereView<'a>,
-    px: &'a [SpherePixel],
-    /// Each pixel's luminance divided by the sphere's reflectance.
-    val: &'a [f64],
-    /// Indices of the saturated pixels.
-    saturated: &'a [usize],
-    /// Index of the brightest pixel.
-    peak: Option<usize>,
-}
-
-/// Where the sun's spot is and the direction it reflects.
-struct LocatedSun {
-    /// `None` when the spot's centre misses the sphere.
-    direction: Option<DVec3>,
-    pixel: [f64; 2],
-    /// Blur of the fitted spot; `None` where the centroid was kept.
-    fit_sigma: Option<f64>,
-}
-
-/// Step 5: seed (the saturated pixels' centroid, else the brightest pixel), background (median
-/// of a ring 5-8 px out), the centroid of a 9x9 window, then unless a pixel of it is clipped the
-/// fit of the sun disk's blurred, pixel-integrated reflection ([`spot::fit_spot`]); the centre
-/// is traced and reflected.
-fn locate_sun(s: &SpotPixels, sun_diameter_deg: f64) -> Result<LocatedSun, ProbeError> {
-    let (img, px) = (s.img, s.px);
-    let seed = if !s.saturated.is_empty() {
-        let n = s.saturated.len() as f64;
-        DVec2::new(
-            s.saturated.iter().map(|&i| px[i].x as f64).sum::<f64>() / n,
-            s.saturated.iter().map(|&i| px[i].y as f64).sum::<f64>() / n,
-        )
-    } else {
-        let i = s.peak.ok_or_else(|| {
-            ProbeError::InvalidInput("the sun sphere has no usable pixels".into())
-        })?;
-        DVec2::new(px[i].x as f64, px[i].y as f64)
-    };
-    let lookup: std::collections::HashMap<(usize, usize), usize> = px
-        .iter()
-        .enumerate()
-        .map(|(i, p)| ((p.x, p.y), i))
-        .collect();
-    let mut ring: Vec<f64> = px
-        .iter()
-        .zip(s.val)
-        .filter(|(p, _)| {
-            let r = DVec2::new(p.x as f64, p.y as f64).distance(seed);
-            r > 5.0 && r <= 8.0 && img.valid[p.y * img.width + p.x]
-        })
-        .map(|(_, v)| *v)
-        .collect();
-    let bg = median(&mut ring);
-    let (cx, cy) = (seed.x.round() as i64, seed.y.round() as i64);
-    let mut samples = Vec::with_capacity(81);
-    let mut window_saturated = false;
-    for y in (cy - 4).max(0)..=cy + 4 {
-        for x in (cx - 4).max(0)..=cx + 4 {
-            if let Some(&i) = lookup.get(&(x as usize, y as usize)) {
-                window_saturated |= !img.valid[y as usize * img.width + x as usize];
-                samples.push(spot::SpotSample {
-                    x: x as f64,
-                    y: y as f64,
-                    v: s.val[i] - bg,
-                });
-            }
-        }
-    }
-    let cen = spot::centroid(&samples).unwrap_or(seed);
-    let fit = if window_saturated {
-        None
-    } else {
-        spot::fit_spot(
-            &samples,
-            cen,
-            &sun_spot_shape(s.view, cen, sun_diameter_deg),
-        )
-    };
-    let c = fit.map_or(cen, |f| f.center);
-    Ok(LocatedSun {
-        direction: s
-            .view
-            .hit_pixel(c.x, c.y)
-            .map(|(_, n, d)| reflect(d, n).normalize()),
-        pixel: [c.x, c.y],
-        fit_sigma: fit.map(|f| f.sigma),
-    })
 }
 
 /// Process one board photograph.
@@ -421,7 +267,7 @@ pub fn process(
     let black_refl = |c: f64| board.black_reflectance(c);
 
     // ---- sun: decide from saturation and the black sphere's brightest spot
-    let mirror_px = sphere_pixels(&mirror, min_cos);
+    let mirror_px = mirror.pixels(min_cos);
     let mirror_sat = sphere_saturated(&img, &mirror_px);
     let spot_view = black.as_ref().unwrap_or(&mirror);
     let spot_refl: &dyn Fn(f64) -> [f64; 3] = if black.is_some() {
@@ -430,7 +276,7 @@ pub fn process(
         &mirror_refl
     };
     let spot_px = if black.is_some() {
-        sphere_pixels(spot_view, min_cos)
+        spot_view.pixels(min_cos)
     } else {
         mirror_px.clone()
     };
@@ -478,7 +324,9 @@ pub fn process(
             saturated: &spot_sat,
             peak: peak_i,
         };
-        let l = locate_sun(&spots, opt.sun_diameter_deg)?;
+        let l = locate_spot(&spots, opt.sun_diameter_deg).ok_or_else(|| {
+            ProbeError::InvalidInput("the sun sphere has no usable pixels".into())
+        })?;
         if l.direction.is_none() {
             warnings.push("the sun spot's centre does not lie on the sphere; sun ignored".into());
         }
@@ -562,7 +410,7 @@ pub fn process(
     if let Some(dv) = &diffuse {
         let rho = board.diffuse_reflectance;
         let dmin = opt.diffuse_max_incidence_deg.to_radians().cos();
-        let px = sphere_pixels(dv, dmin);
+        let px = dv.pixels(dmin);
         let good: Vec<&SpherePixel> = px
             .iter()
             .filter(|p| img.valid[p.y * img.width + p.x])
