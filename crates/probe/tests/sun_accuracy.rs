@@ -250,7 +250,7 @@ fn synthetic_40px_board_low_sun_within_quarter_degree_and_two_percent() {
 
 /// CI-sized: a sharper lens (blur 0.25 px) on the 40 px board, where the intensity-weighted
 /// centroid of the spot was 0.21 deg off (its bias, about 0.09 px); the fit of the blurred,
-/// pixel-integrated sun disk (`igi_probe::spot`) is not.
+/// pixel-integrated sun disk (`igi_capture::spot`) is not.
 #[test]
 fn synthetic_40px_board_sharp_lens_spot_fit() {
     for el in [14.0, 35.0] {
