@@ -10,8 +10,7 @@ use std::path::{Path, PathBuf};
 
 /// Default reflectance of the diffuse sphere's paint.
 pub const DIFFUSE_REFLECTANCE: [f64; 3] = [0.30, 0.31, 0.32];
-/// Default complex index (n, k) of the steel mirror sphere, per channel (about 52 % at normal).
-pub const MIRROR_IOR: [(f64, f64); 3] = [(2.40, 2.98), (2.40, 3.02), (2.40, 3.02)];
+pub use crate::fresnel::MIRROR_IOR;
 /// Default index of the black sphere's glossy dielectric coat.
 pub const BLACK_IOR: f64 = 1.5;
 
