@@ -1,12 +1,13 @@
 //! Hand-held BRDF measurement with the sample frame of Debevec et al. 2004 (3.2.1): from one
 //! photograph of the frame, recover
 //!
-//! - the camera pose from the four fiducials (user-supplied fiducial pixels and the pure-Rust
-//!   [`igi_imaging::planar::pose_from_plane`], or ArUco detection and PnP from
+//! - the camera pose from the four fiducials ([`crate::fiducial`]: user-supplied fiducial pixels
+//!   and the pure-Rust [`igi_imaging::planar::pose_from_plane`], or ArUco detection and PnP from
 //!   [`igi_imaging::cv`] with the `opencv` feature),
-//! - the light position from the highlights in the two glossy black spheres (the camera rays
-//!   through the highlights' sub-pixel centres, reflected off the spheres; the light is the
-//!   midpoint of the two reflected rays' closest approach),
+//! - the light position from the highlights in the two glossy black spheres
+//!   ([`crate::highlight::find_highlight`]: the camera rays through the highlights' sub-pixel
+//!   centres, reflected off the spheres; the light is the midpoint of the two reflected rays'
+//!   closest approach),
 //! - the light's intensity from the white reflectance standard,
 //! - an orthographic (fronto-parallel) view of the sample plane (a homography, plus the lens
 //!   distortion), and the mean `pi f` over chosen regions of it,

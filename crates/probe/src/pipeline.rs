@@ -678,6 +678,28 @@ fn diffuse_compare(
     (dimg, mimg)
 }
 
+/// The recovered sun toward `s` with what the search, the mirror and the diffuse sphere found.
+fn sun_estimate(
+    s: DVec3,
+    search: &SunSearch,
+    maps: &MirrorMaps,
+    diffuse: &DiffuseSolve,
+    opt: &ProbeOptions,
+) -> SunEstimate {
+    SunEstimate {
+        direction: s.to_array(),
+        elevation_deg: s.z.clamp(-1.0, 1.0).asin().to_degrees(),
+        azimuth_deg: s.y.atan2(s.x).to_degrees().rem_euclid(360.0),
+        radiance: diffuse.sun_radiance,
+        angular_diameter_deg: opt.sun_diameter_deg,
+        spot_pixel: search.located.as_ref().map_or([0.0; 2], |l| l.pixel),
+        spot_fit_sigma_px: search.located.as_ref().and_then(|l| l.fit_sigma),
+        found_on: search.found_on.to_string(),
+        mirror_pixel: maps.mirror_pixel,
+        residual_rms_percent: diffuse.residual,
+    }
+}
+
 /// Process one board photograph.
 pub fn process(
     image: &HdrImage,
@@ -727,18 +749,7 @@ pub fn process(
             ));
         }
     }
-    let sun = sun_dir.map(|s| SunEstimate {
-        direction: s.to_array(),
-        elevation_deg: s.z.clamp(-1.0, 1.0).asin().to_degrees(),
-        azimuth_deg: s.y.atan2(s.x).to_degrees().rem_euclid(360.0),
-        radiance: diffuse.sun_radiance,
-        angular_diameter_deg: opt.sun_diameter_deg,
-        spot_pixel: search.located.as_ref().map_or([0.0; 2], |l| l.pixel),
-        spot_fit_sigma_px: search.located.as_ref().and_then(|l| l.fit_sigma),
-        found_on: search.found_on.to_string(),
-        mirror_pixel: maps.mirror_pixel,
-        residual_rms_percent: diffuse.residual,
-    });
+    let sun = sun_dir.map(|s| sun_estimate(s, &search, &maps, &diffuse, opt));
     let sky_valid_fraction = maps.sky_measured.valid_fraction();
     Ok(ProbeResult {
         sky_measured: maps.sky_measured,
