@@ -307,6 +307,21 @@ mod tests {
     }
 
     #[test]
+    fn ray_sphere_roots_are_the_entry_and_exit() {
+        let c = DVec3::new(0.0, 0.0, 5.0);
+        let (near, far) = ray_sphere(DVec3::ZERO, DVec3::Z, c, 1.0).unwrap();
+        assert!((near - 4.0).abs() < 1e-12 && (far - 6.0).abs() < 1e-12);
+        // from inside: the entry is behind the origin
+        let (near, far) = ray_sphere(c, DVec3::X, c, 1.0).unwrap();
+        assert!((near + 1.0).abs() < 1e-12 && (far - 1.0).abs() < 1e-12);
+        // a ray passing 1.5 radii from the centre misses
+        assert!(ray_sphere(DVec3::new(1.5, 0.0, 0.0), DVec3::Z, c, 1.0).is_none());
+        // a grazing ray touches once
+        let (near, far) = ray_sphere(DVec3::new(1.0, 0.0, 0.0), DVec3::Z, c, 1.0).unwrap();
+        assert!((near - 5.0).abs() < 1e-12 && (far - 5.0).abs() < 1e-12);
+    }
+
+    #[test]
     fn reflection_point_inverts_ray_tracing() {
         let cam = camera();
         let s = BoardSphere {
