@@ -174,6 +174,14 @@ impl SampleFrame {
     }
 
     fn validate(&self) -> Result<(), String> {
+        self.validate_fiducials()?;
+        self.validate_spheres()?;
+        self.validate_white_and_ortho()?;
+        self.validate_regions()
+    }
+
+    /// At least four finite fiducials, no three (nearly) collinear; a known dictionary.
+    fn validate_fiducials(&self) -> Result<(), String> {
         let finite = |xs: &[f64]| xs.iter().all(|x| x.is_finite());
         if self.fiducials.len() < 4 {
             return Err(format!(
@@ -207,6 +215,12 @@ impl SampleFrame {
             );
         }
         aruco_dict(&self.aruco_dictionary)?;
+        Ok(())
+    }
+
+    /// Exactly two finite, positive, disjoint spheres.
+    fn validate_spheres(&self) -> Result<(), String> {
+        let finite = |xs: &[f64]| xs.iter().all(|x| x.is_finite());
         if self.spheres.len() != 2 {
             return Err(format!(
                 "needs exactly two spheres, found {}",
@@ -226,6 +240,12 @@ impl SampleFrame {
         {
             return Err("the two spheres overlap".into());
         }
+        Ok(())
+    }
+
+    /// The white standard and the orthographic rectangle: ordered, finite, sensible sizes.
+    fn validate_white_and_ortho(&self) -> Result<(), String> {
+        let finite = |xs: &[f64]| xs.iter().all(|x| x.is_finite());
         let w = &self.white;
         if !finite(&w.min)
             || !finite(&w.max)
@@ -257,6 +277,13 @@ impl SampleFrame {
                 "ortho: the view would be {ow}x{oh} pixels (1 to 20000 each)"
             ));
         }
+        Ok(())
+    }
+
+    /// At least one region, each named plainly and inside the orthographic rectangle.
+    fn validate_regions(&self) -> Result<(), String> {
+        let o = &self.ortho;
+        let finite = |xs: &[f64]| xs.iter().all(|x| x.is_finite());
         if self.regions.is_empty() {
             return Err("needs at least one region".into());
         }
