@@ -383,7 +383,7 @@ fn cluster_two_materials_from_csv() {
     }
 }
 
-#[path = "../crates/brdf/tests/measure_support/synth.rs"]
+#[path = "../crates/capture/tests/measure_support/synth.rs"]
 mod measure_synth;
 
 /// `igi brdf measure` on synthetic photographs of the sample frame (known pose, light and

@@ -313,7 +313,7 @@ fn parse_corners(s: &str) -> anyhow::Result<Vec<glam::DVec2>> {
 }
 
 fn measure(a: MeasureArgs) -> anyhow::Result<()> {
-    use igi_brdf::measure::{
+    use igi_capture::sample_frame::{
         measure_photo, orthographic_view, MeasureOptions, PoseInput, SampleFrame,
     };
     let frame = SampleFrame::load(&a.frame)?;

@@ -6,9 +6,8 @@
 //! - [`fit_material`]: the staged Lafortune fit; by default each sample weighted by its
 //!   [`coverage`] of the direction pairs and each lobe's growth toward grazing bounded, so fits
 //!   from sparse hand-held samples generalise.
-//! - [`measure`]: BRDF samples from photographs of the hand-held sample frame (pose from the
-//!   fiducials, light from the two black spheres' highlights, the white standard, an
-//!   orthographic view of the sample).
+//! - The samples come from photographs of the hand-held sample frame, measured by
+//!   `igi_capture::sample_frame` (photogrammetry lives there, not here).
 //! - Directions are unit vectors pointing away from the surface; values are linear RGB, f32.
 
 pub mod basis;
@@ -19,7 +18,6 @@ pub mod fit;
 pub mod frame;
 pub mod lafortune;
 pub mod materials;
-pub mod measure;
 pub mod plot;
 pub mod samples;
 
@@ -32,7 +30,6 @@ pub use fit::{fit_material, FitOptions, FitReport, LobeStderr, Stderr};
 pub use frame::Frame;
 pub use lafortune::{luminance, BsdfSample, Lafortune, LafortuneRef, Lobe};
 pub use materials::{MaterialEntry, MaterialsFile};
-pub use measure::{measure_photo, MeasureOptions, PhotoMeasurement, PoseInput, SampleFrame};
 pub use samples::{read_pairs, read_samples, BrdfSample, PairRow, PairTable};
 
 #[cfg(test)]

@@ -2,47 +2,17 @@
 
 use crate::ProbeError;
 use glam::DVec3;
+pub use igi_capture::fiducial::FiducialMarker;
+pub use igi_capture::sphere::{BoardSphere, SphereKind};
 use igi_imaging::cv::ArucoDict;
 use igi_imaging::WorldToCamera;
 use std::path::{Path, PathBuf};
 
 /// Default reflectance of the diffuse sphere's paint.
 pub const DIFFUSE_REFLECTANCE: [f64; 3] = [0.30, 0.31, 0.32];
-/// Default complex index (n, k) of the steel mirror sphere, per channel (about 52 % at normal).
-pub const MIRROR_IOR: [(f64, f64); 3] = [(2.40, 2.98), (2.40, 3.02), (2.40, 3.02)];
+pub use crate::fresnel::MIRROR_IOR;
 /// Default index of the black sphere's glossy dielectric coat.
 pub const BLACK_IOR: f64 = 1.5;
-
-/// What a sphere is made of.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum SphereKind {
-    Mirror,
-    Black,
-    Diffuse,
-}
-
-impl SphereKind {
-    /// The kind stored at index `i` (`SphereKind as usize`: mirror 0, black 1, diffuse 2).
-    pub fn from_index(i: usize) -> SphereKind {
-        [SphereKind::Mirror, SphereKind::Black, SphereKind::Diffuse][i]
-    }
-
-    pub fn name(self) -> &'static str {
-        match self {
-            SphereKind::Mirror => "mirror",
-            SphereKind::Black => "black",
-            SphereKind::Diffuse => "diffuse",
-        }
-    }
-}
-
-/// Position of one sphere in the camera frame of the board photograph (OpenCV convention).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct BoardSphere {
-    pub center_cam: DVec3,
-    pub radius: f64,
-}
 
 /// A board: the mirror sphere (required), the black and diffuse spheres (optional, e.g. a
 /// lone chrome ball), and their calibration.
@@ -91,14 +61,6 @@ struct BoardJson {
     spheres: Vec<SphereJson>,
     #[serde(default)]
     fiducials: Option<FiducialsJson>,
-}
-
-/// One fiducial of the board: its ArUco id and its corners in the board frame, in OpenCV's
-/// order (the printed marker's top-left, top-right, bottom-right, bottom-left corner).
-#[derive(Clone, Debug, PartialEq)]
-pub struct FiducialMarker {
-    pub id: i32,
-    pub corners: [DVec3; 4],
 }
 
 /// The board's fiducials (docs/PROBE.md, "Board file: fiducials").

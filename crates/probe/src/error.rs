@@ -1,3 +1,4 @@
+use igi_capture::SphereError;
 use igi_imaging::ImagingError;
 use std::path::PathBuf;
 
@@ -13,25 +14,9 @@ pub enum ProbeError {
     },
     #[error("{}: invalid board file: {msg}", path.display())]
     Board { path: PathBuf, msg: String },
-    #[error(
-        "{kind} sphere is partly outside the {width}x{height} image: its outline reaches pixel ({x:.1}, {y:.1}); \
-         move the board or fix its centre/radius"
-    )]
-    OutsideImage {
-        kind: String,
-        width: u32,
-        height: u32,
-        x: f64,
-        y: f64,
-    },
-    #[error(
-        "{kind} sphere is behind the camera or contains it (centre {center:?}, radius {radius})"
-    )]
-    BadSphere {
-        kind: String,
-        center: [f64; 3],
-        radius: f64,
-    },
+    /// A sphere not fully seen by the camera ([`igi_capture::SphereError`]).
+    #[error(transparent)]
+    Sphere(#[from] SphereError),
     #[error("{}: invalid reflectance samples: {msg}", path.display())]
     Samples { path: PathBuf, msg: String },
     #[error("invalid input: {0}")]

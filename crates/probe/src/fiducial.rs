@@ -1,5 +1,6 @@
 //! The board's pose from its fiducials (ArUco markers, OpenCV via `igi_imaging::cv`): the
-//! markers' corners, detected to sub-pixel and matched by id to their board-frame positions,
+//! markers' corners, detected to sub-pixel and matched by id to their board-frame positions
+//! ([`igi_capture::fiducial::match_markers`]),
 //! give the board-to-camera transform by SQPnP and Levenberg-Marquardt refinement; the
 //! spheres' board-frame centres then go to the camera frame. Without the `opencv` feature of
 //! `igi-imaging` the detection is unavailable and a board given only in its own frame is an
@@ -7,7 +8,8 @@
 
 use crate::board::{Board, BoardSpec, Fiducials};
 use crate::ProbeError;
-use glam::{DVec2, DVec3};
+use glam::DVec3;
+use igi_capture::fiducial::match_markers;
 use igi_imaging::{cv, Camera, HdrImage, ImagingError, WorldToCamera};
 
 /// Corners reprojecting farther than this (pixels) are dropped from the PnP solve.
@@ -45,39 +47,27 @@ pub fn estimate_board_pose(
     fid: &Fiducials,
 ) -> Result<BoardPose, ProbeError> {
     let found = cv::detect_aruco_subpix(image, fid.dictionary)?;
-    let (mut world, mut pixels) = (Vec::<DVec3>::new(), Vec::<DVec2>::new());
-    let (mut ids_found, mut ids_missing) = (Vec::new(), Vec::new());
-    for m in &fid.markers {
-        // a marker id seen twice is ambiguous: use neither
-        let mut hits = found.iter().filter(|d| d.id == m.id);
-        match (hits.next(), hits.next()) {
-            (Some(d), None) => {
-                ids_found.push(m.id);
-                world.extend_from_slice(&m.corners);
-                pixels.extend_from_slice(&d.corners);
-            }
-            _ => ids_missing.push(m.id),
-        }
-    }
-    if ids_found.len() < 2 {
+    // a marker id seen twice is ambiguous: it counts as missing
+    let m = match_markers(&fid.markers, &found);
+    if m.found.len() < 2 {
         return Err(ProbeError::InvalidInput(format!(
             "found {} of the board's {} fiducials ({} dictionary; {} markers of that dictionary in the image): \
              the pose needs at least 2",
-            ids_found.len(),
+            m.found.len(),
             fid.markers.len(),
             fid.dictionary.name(),
             found.len()
         )));
     }
-    let pnp = cv::solve_pnp_matched(&camera.intrinsics, &world, &pixels, PNP_THRESHOLD_PX)?;
+    let pnp = cv::solve_pnp_matched(&camera.intrinsics, &m.target, &m.pixels, PNP_THRESHOLD_PX)?;
     let r = pnp.pose.r.transpose().to_cols_array_2d();
     Ok(BoardPose {
         r,
         t: pnp.pose.t.to_array(),
-        markers_found: ids_found,
-        markers_missing: ids_missing,
+        corners_matched: m.target.len(),
+        markers_found: m.found,
+        markers_missing: m.missing,
         corners_inliers: pnp.inliers.len(),
-        corners_matched: world.len(),
         rms_px: pnp.rms_px,
     })
 }

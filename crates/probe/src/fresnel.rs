@@ -6,6 +6,9 @@ use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{Complex, DVector, Dyn, OMatrix, Owned, Vector2, U2};
 use std::path::Path;
 
+/// Default complex index (n, k) of the steel mirror sphere, per channel (about 52 % at normal).
+pub const MIRROR_IOR: [(f64, f64); 3] = [(2.40, 2.98), (2.40, 3.02), (2.40, 3.02)];
+
 /// Unpolarised Fresnel reflectance at incidence cosine `cos_i` of a medium with complex index
 /// `n + i k` seen from air (exact complex formula; `k = 0` gives a dielectric).
 pub fn conductor(cos_i: f64, n: f64, k: f64) -> f64 {
@@ -210,7 +213,7 @@ impl ReflectanceSamples {
 }
 
 /// Fit the mirror sphere's complex index per channel ([`fit_complex_ior`], started from the
-/// default steel index [`crate::board::MIRROR_IOR`]).
+/// default steel index [`MIRROR_IOR`]).
 pub fn fit_mirror_ior(samples: &ReflectanceSamples) -> Result<[IorFit; 3], ProbeError> {
     let mut fits = Vec::with_capacity(3);
     for c in 0..3 {
@@ -220,7 +223,7 @@ pub fn fit_mirror_ior(samples: &ReflectanceSamples) -> Result<[IorFit; 3], Probe
             .zip(&samples.rgb)
             .map(|(a, v)| (a.to_radians(), v[c]))
             .collect();
-        fits.push(fit_complex_ior(&s, crate::board::MIRROR_IOR[c])?);
+        fits.push(fit_complex_ior(&s, MIRROR_IOR[c])?);
     }
     Ok([fits[0], fits[1], fits[2]])
 }

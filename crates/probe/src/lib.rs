@@ -4,14 +4,17 @@
 //! 2004, section 3.3): a mirrored steel sphere (the sky), a shiny black sphere (a sharp,
 //! unsaturated image of the sun) and a diffuse grey sphere (the sun's intensity, indirectly).
 //!
+//! The board is a recipe on `igi-capture`, which owns the photogrammetry it shares with the
+//! hand-held BRDF sample frame: sphere views ([`igi_capture::sphere`]), the sun's spot
+//! ([`igi_capture::highlight::locate_spot`], [`igi_capture::spot`]) and the fiducial matching
+//! ([`igi_capture::fiducial`]).
+//!
 //! * [`board`]: the FORMATS.md board file and the spheres' calibration (diffuse paint
 //!   reflectance, the mirror's complex index, the black coat's index).
 //! * [`fiducial`]: the board's pose from its ArUco fiducials (OpenCV, feature `opencv`), which
 //!   places spheres given in the board frame into the camera frame.
 //! * [`fresnel`]: conductor and dielectric Fresnel reflectance; a Levenberg-Marquardt fit of a
 //!   complex index from reflectance-versus-angle samples.
-//! * [`sphere`]: a sphere seen by a calibrated camera: ray hits, the surface point that
-//!   reflects a given direction (exact for a camera at finite distance), the outline.
 //! * [`envmap`]: lat-long lookups, the 512x512 upper-hemisphere layout, hole filling, and the
 //!   diffuse convolution of a map by direct integration (no spherical-harmonic truncation).
 //! * [`outline`]: sphere centres refined from their silhouettes in the photograph (sub-pixel
@@ -26,8 +29,6 @@
 //! * [`resample`]: area-preserving resampling of a sphere's photograph into direction maps
 //!   (box reconstruction of the pixels, solid-angle weighted, sub-directions at the pixel
 //!   grid's Nyquist rate).
-//! * [`spot`]: the sun's spot to sub-pixel precision: the centroid, then a least-squares fit
-//!   of a point blurred by a Gaussian lens and integrated over square pixels.
 //! * [`synth`]: a forward renderer of board photographs from a known sky, for tests and benches.
 //!
 //! All radiance is linear `f32`; directions are in igi's world frame (Z up), obtained from the
@@ -41,8 +42,6 @@ pub mod fresnel;
 pub mod outline;
 pub mod pipeline;
 pub mod resample;
-pub mod sphere;
-pub mod spot;
 pub mod synth;
 
 pub use board::{Board, BoardSpec, BoardSphere, SphereKind};

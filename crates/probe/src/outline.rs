@@ -30,8 +30,8 @@
 //! deviations.
 
 use crate::board::{BoardSphere, SphereKind};
-use crate::sphere::SphereView;
 use glam::{DVec2, DVec3};
+use igi_capture::sphere::SphereView;
 use igi_imaging::{Camera, HdrImage};
 use nalgebra::{Matrix3, Vector3};
 
@@ -67,7 +67,7 @@ fn profile(img: &HdrImage, p: DVec2, n: DVec2, half: f64, k: usize) -> Option<Ve
             let s = -half + 2.0 * half * i as f64 / k as f64;
             let q = p + s * n;
             img.bilinear(q.x as f32, q.y as f32)
-                .map(crate::pipeline::luminance)
+                .map(|p| igi_imaging::color::luminance_f64(p.map(f64::from)))
         })
         .collect()
 }

@@ -3,10 +3,10 @@
 use crate::board::{Board, SphereKind};
 use crate::envmap::{self, Integrator};
 use crate::resample::{self, Reflector};
-use crate::sphere::{reflect, SphereView};
-use crate::spot;
 use crate::ProbeError;
 use glam::{DVec2, DVec3, Vec3};
+use igi_capture::highlight::{locate_spot, LocatedSpot, SpotPixels};
+use igi_capture::sphere::{SpherePixel, SphereView};
 use igi_imaging::{Camera, HdrImage};
 use rayon::prelude::*;
 
@@ -79,7 +79,7 @@ pub struct SunEstimate {
     pub angular_diameter_deg: f64,
     /// Sub-pixel centre of the spot on the sphere it was found on.
     pub spot_pixel: [f64; 2],
-    /// Blur (pixels) of the Gaussian fitted to the spot ([`spot::fit_spot`]); `None` where the
+    /// Blur (pixels) of the Gaussian fitted to the spot ([`igi_capture::spot::fit_spot`]); `None` where the
     /// spot was clipped or the fit failed and the intensity-weighted centroid was used.
     pub spot_fit_sigma_px: Option<f64>,
     /// "black" or "mirror".
@@ -141,36 +141,6 @@ fn to_v3(d: DVec3) -> Vec3 {
     d.as_vec3()
 }
 
-/// A pixel of a sphere's image with its geometry.
-#[derive(Clone, Copy)]
-struct SpherePixel {
-    x: usize,
-    y: usize,
-    normal: DVec3,
-    cos_i: f64,
-}
-
-fn sphere_pixels(view: &SphereView, min_cos: f64) -> Vec<SpherePixel> {
-    let (x0, y0, x1, y1) = view.pixel_bbox();
-    let mut out = Vec::new();
-    for y in y0..=y1 {
-        for x in x0..=x1 {
-            if let Some((_, n, d)) = view.hit_pixel(x as f64, y as f64) {
-                let cos_i = n.dot(-d);
-                if cos_i >= min_cos {
-                    out.push(SpherePixel {
-                        x,
-                        y,
-                        normal: n,
-                        cos_i,
-                    });
-                }
-            }
-        }
-    }
-    out
-}
-
 use igi_imaging::color::median_in_place as median;
 
 fn hemisphere_map(size: usize, f: &(dyn Fn(DVec3) -> Option<[f32; 3]> + Sync)) -> HdrImage {
@@ -204,39 +174,6 @@ fn sphere_saturated(img: &HdrImage, px: &[SpherePixel]) -> Vec<usize> {
         .collect()
 }
 
-/// The sun disk's reflection in `view` around pixel `at`, as points sampling it evenly (offsets
-/// in pixels from the reflection of the disk's centre): a 9 x 9 grid over the disk in the plane
-/// across the direction reflected at `at`, each point mapped back to its pixel. `[0, 0]` alone
-/// where `at` misses the sphere.
-fn sun_spot_shape(view: &SphereView, at: DVec2, diameter_deg: f64) -> Vec<DVec2> {
-    let Some((_, n, d)) = view.hit_pixel(at.x, at.y) else {
-        return vec![DVec2::ZERO];
-    };
-    let s0 = reflect(d, n).normalize();
-    let Some(c0) = view.reflection_point(s0) else {
-        return vec![DVec2::ZERO];
-    };
-    let (e1, e2) = s0.any_orthonormal_pair();
-    let t = (0.5 * diameter_deg).to_radians().tan();
-    let mut pts = Vec::new();
-    for i in 0..9 {
-        for j in 0..9 {
-            let (u, v) = ((i as f64 - 4.0) / 4.5, (j as f64 - 4.0) / 4.5);
-            if u * u + v * v > 1.0 {
-                continue;
-            }
-            let w = (s0 + t * (u * e1 + v * e2)).normalize();
-            if let Some(q) = view.reflection_point(w) {
-                pts.push(q.pixel - c0.pixel);
-            }
-        }
-    }
-    if pts.is_empty() {
-        pts.push(DVec2::ZERO);
-    }
-    pts
-}
-
 fn log_outline_fits(fits: &[crate::outline::OutlineFit]) {
     for f in fits {
         tracing::info!(
@@ -249,104 +186,72 @@ fn log_outline_fits(fits: &[crate::outline::OutlineFit]) {
     }
 }
 
-/// The pixels of the sphere the sun's spot is sought on ([`process`], step 5).
-struct SpotPixels<'a> {
-    img: &'a HdrImage,
-    view: &'a SphereView<'a>,
-    px: &'a [SpherePixel],
-    /// Each pixel's luminance divided by the sphere's reflectance.
-    val: &'a [f64],
-    /// Indices of the saturated pixels.
-    saturated: &'a [usize],
-    /// Index of the brightest pixel.
-    peak: Option<usize>,
+/// The board's spheres as seen by the camera.
+struct BoardViews<'a> {
+    mirror: SphereView<'a>,
+    black: Option<SphereView<'a>>,
+    diffuse: Option<SphereView<'a>>,
 }
 
-/// Where the sun's spot is and the direction it reflects.
-struct LocatedSun {
-    /// `None` when the spot's centre misses the sphere.
-    direction: Option<DVec3>,
-    pixel: [f64; 2],
-    /// Blur of the fitted spot; `None` where the centroid was kept.
-    fit_sigma: Option<f64>,
-}
-
-/// Step 5: seed (the saturated pixels' centroid, else the brightest pixel), background (median
-/// of a ring 5-8 px out), the centroid of a 9x9 window, then unless a pixel of it is clipped the
-/// fit of the sun disk's blurred, pixel-integrated reflection ([`spot::fit_spot`]); the centre
-/// is traced and reflected.
-fn locate_sun(s: &SpotPixels, sun_diameter_deg: f64) -> Result<LocatedSun, ProbeError> {
-    let (img, px) = (s.img, s.px);
-    let seed = if !s.saturated.is_empty() {
-        let n = s.saturated.len() as f64;
-        DVec2::new(
-            s.saturated.iter().map(|&i| px[i].x as f64).sum::<f64>() / n,
-            s.saturated.iter().map(|&i| px[i].y as f64).sum::<f64>() / n,
-        )
-    } else {
-        let i = s.peak.ok_or_else(|| {
-            ProbeError::InvalidInput("the sun sphere has no usable pixels".into())
-        })?;
-        DVec2::new(px[i].x as f64, px[i].y as f64)
-    };
-    let lookup: std::collections::HashMap<(usize, usize), usize> = px
-        .iter()
-        .enumerate()
-        .map(|(i, p)| ((p.x, p.y), i))
-        .collect();
-    let mut ring: Vec<f64> = px
-        .iter()
-        .zip(s.val)
-        .filter(|(p, _)| {
-            let r = DVec2::new(p.x as f64, p.y as f64).distance(seed);
-            r > 5.0 && r <= 8.0 && img.valid[p.y * img.width + p.x]
-        })
-        .map(|(_, v)| *v)
-        .collect();
-    let bg = median(&mut ring);
-    let (cx, cy) = (seed.x.round() as i64, seed.y.round() as i64);
-    let mut samples = Vec::with_capacity(81);
-    let mut window_saturated = false;
-    for y in (cy - 4).max(0)..=cy + 4 {
-        for x in (cx - 4).max(0)..=cx + 4 {
-            if let Some(&i) = lookup.get(&(x as usize, y as usize)) {
-                window_saturated |= !img.valid[y as usize * img.width + x as usize];
-                samples.push(spot::SpotSample {
-                    x: x as f64,
-                    y: y as f64,
-                    v: s.val[i] - bg,
-                });
-            }
+impl<'a> BoardViews<'a> {
+    fn new(camera: &'a Camera, board: &Board) -> Self {
+        let view = |kind, s: &Option<_>| s.as_ref().map(|s| SphereView::new(camera, kind, s));
+        BoardViews {
+            mirror: SphereView::new(camera, SphereKind::Mirror, &board.mirror),
+            black: view(SphereKind::Black, &board.black),
+            diffuse: view(SphereKind::Diffuse, &board.diffuse),
         }
     }
-    let cen = spot::centroid(&samples).unwrap_or(seed);
-    let fit = if window_saturated {
-        None
-    } else {
-        spot::fit_spot(
-            &samples,
-            cen,
-            &sun_spot_shape(s.view, cen, sun_diameter_deg),
-        )
-    };
-    let c = fit.map_or(cen, |f| f.center);
-    Ok(LocatedSun {
-        direction: s
-            .view
-            .hit_pixel(c.x, c.y)
-            .map(|(_, n, d)| reflect(d, n).normalize()),
-        pixel: [c.x, c.y],
-        fit_sigma: fit.map(|f| f.sigma),
-    })
+
+    /// Every sphere must lie inside the image; one under `min_radius_px` gets a warning.
+    /// Returns each sphere's apparent radius, pixels.
+    fn check_sizes(
+        &self,
+        min_radius_px: f64,
+        warnings: &mut Vec<String>,
+    ) -> Result<Vec<(String, f64)>, ProbeError> {
+        let mut radii = Vec::new();
+        for v in std::iter::once(&self.mirror)
+            .chain(self.black.iter())
+            .chain(self.diffuse.iter())
+        {
+            let r = v.check_in_image()?;
+            if r < min_radius_px {
+                let m = format!(
+                    "the {} sphere is only {r:.1} px in radius (under {min_radius_px} px): expect a coarse map and a poor sun direction",
+                    v.kind.name(),
+                );
+                tracing::warn!("{m}");
+                warnings.push(m);
+            }
+            radii.push((v.kind.name().to_string(), r));
+        }
+        Ok(radii)
+    }
 }
 
-/// Process one board photograph.
-pub fn process(
-    image: &HdrImage,
-    camera: &Camera,
-    board: &Board,
-    opt: &ProbeOptions,
-) -> Result<ProbeResult, ProbeError> {
+/// What every step of [`process`] reads.
+struct Ctx<'a> {
+    /// The working copy of the photograph (non-finite and clipped pixels invalid).
+    img: &'a HdrImage,
+    board: &'a Board,
+    opt: &'a ProbeOptions,
+    /// Cosines of `max_incidence_deg` and `camera_mask_deg`.
+    min_cos: f64,
+    cam_cos: f64,
+}
+
+impl Ctx<'_> {
+    fn mirror_refl(&self) -> impl Fn(f64) -> [f64; 3] + Sync + '_ {
+        |c| self.board.mirror_reflectance(c)
+    }
+
+    fn black_refl(&self) -> impl Fn(f64) -> [f64; 3] + Sync + '_ {
+        |c| self.board.black_reflectance(c)
+    }
+}
+
+fn check_inputs(image: &HdrImage, camera: &Camera, opt: &ProbeOptions) -> Result<(), ProbeError> {
     if image.width != camera.width as usize || image.height != camera.height as usize {
         return Err(ProbeError::InvalidInput(format!(
             "the image is {}x{} but the camera is {}x{}",
@@ -363,99 +268,68 @@ pub fn process(
             opt.map_width, opt.conv_width
         )));
     }
-    let mut warnings = Vec::new();
-    // working copy: non-finite and (optionally) clipped pixels become invalid
+    Ok(())
+}
+
+/// The working copy of the photograph: non-finite and (with `saturation`) clipped pixels
+/// become invalid.
+fn working_copy(image: &HdrImage, saturation: Option<f32>) -> HdrImage {
     let mut img = image.clone();
     for (p, v) in img.pixels.iter_mut().zip(img.valid.iter_mut()) {
         if p.iter().any(|c| !c.is_finite()) {
             *v = false;
             *p = [0.0; 3];
-        } else if let Some(s) = opt.saturation {
+        } else if let Some(s) = saturation {
             if p.iter().any(|c| *c >= s) {
                 *v = false;
             }
         }
     }
+    img
+}
 
-    let refined;
-    let mut outline_fits = Vec::new();
-    let board = if opt.refine_centers {
-        let (b, fits, w) = crate::outline::refine_board(&img, camera, board, 0.5);
-        log_outline_fits(&fits);
-        warnings.extend(w);
-        outline_fits = fits;
-        refined = b;
-        &refined
-    } else {
-        board
-    };
-    let mirror = SphereView::new(camera, SphereKind::Mirror, &board.mirror);
-    let black = board
-        .black
-        .as_ref()
-        .map(|s| SphereView::new(camera, SphereKind::Black, s));
-    let diffuse = board
-        .diffuse
-        .as_ref()
-        .map(|s| SphereView::new(camera, SphereKind::Diffuse, s));
-    let mut radii = Vec::new();
-    for v in std::iter::once(&mirror)
-        .chain(black.iter())
-        .chain(diffuse.iter())
-    {
-        let r = v.check_in_image()?;
-        if r < opt.min_radius_px {
-            let m = format!(
-                "the {} sphere is only {r:.1} px in radius (under {} px): expect a coarse map and a poor sun direction",
-                v.kind.name(),
-                opt.min_radius_px
-            );
-            tracing::warn!("{m}");
-            warnings.push(m);
-        }
-        radii.push((v.kind.name().to_string(), r));
-    }
-    let min_cos = opt.max_incidence_deg.to_radians().cos();
-    let cam_cos = opt.camera_mask_deg.to_radians().cos();
-    let mirror_refl = |c: f64| board.mirror_reflectance(c);
-    let black_refl = |c: f64| board.black_reflectance(c);
+/// The sun search: whether it is visible and where.
+struct SunSearch {
+    found: bool,
+    decision: String,
+    /// `Some` when found.
+    located: Option<LocatedSpot>,
+    mirror_saturated: usize,
+    black_saturated: usize,
+    peak_ratio: Option<f64>,
+    /// "black" or "mirror": the sphere the spot is sought on.
+    found_on: &'static str,
+}
 
-    // ---- sun: decide from saturation and the black sphere's brightest spot
-    let mirror_px = sphere_pixels(&mirror, min_cos);
-    let mirror_sat = sphere_saturated(&img, &mirror_px);
-    let spot_view = black.as_ref().unwrap_or(&mirror);
-    let spot_refl: &dyn Fn(f64) -> [f64; 3] = if black.is_some() {
+/// Decide from saturation and the black (else mirror) sphere's brightest spot whether the sun
+/// is visible; if so, locate its spot ([`locate_spot`]).
+fn find_sun(
+    ctx: &Ctx,
+    views: &BoardViews,
+    warnings: &mut Vec<String>,
+) -> Result<SunSearch, ProbeError> {
+    let (img, opt) = (ctx.img, ctx.opt);
+    let mirror_px = views.mirror.pixels(ctx.min_cos);
+    let mirror_sat = sphere_saturated(img, &mirror_px);
+    let spot_view = views.black.as_ref().unwrap_or(&views.mirror);
+    let (black_refl, mirror_refl) = (ctx.black_refl(), ctx.mirror_refl());
+    let spot_refl: &dyn Fn(f64) -> [f64; 3] = if views.black.is_some() {
         &black_refl
     } else {
         &mirror_refl
     };
-    let spot_px = if black.is_some() {
-        sphere_pixels(spot_view, min_cos)
+    let spot_px = if views.black.is_some() {
+        spot_view.pixels(ctx.min_cos)
     } else {
-        mirror_px.clone()
+        mirror_px
     };
-    let spot_sat = sphere_saturated(&img, &spot_px);
+    let spot_sat = sphere_saturated(img, &spot_px);
     let spot_val: Vec<f64> = spot_px
         .iter()
         .map(|p| luminance(img.pixels[p.y * img.width + p.x]) / spot_refl(p.cos_i)[1])
         .collect();
-    let mut valid_vals: Vec<f64> = spot_px
-        .iter()
-        .zip(&spot_val)
-        .filter(|(p, _)| img.valid[p.y * img.width + p.x])
-        .map(|(_, v)| *v)
-        .collect();
-    let med = median(&mut valid_vals);
-    let (mut peak_i, mut peak_v) = (None, f64::MIN);
-    for (i, v) in spot_val.iter().enumerate() {
-        if *v > peak_v {
-            peak_v = *v;
-            peak_i = Some(i);
-        }
-    }
-    let peak_ratio = if med > 0.0 { Some(peak_v / med) } else { None };
-    let black_sat_count = if black.is_some() { spot_sat.len() } else { 0 };
-    let sun_found = !mirror_sat.is_empty()
+    let (peak, peak_ratio) = peak_over_median(img, &spot_px, &spot_val);
+    let found = !mirror_sat.is_empty()
         || !spot_sat.is_empty()
         || peak_ratio.is_some_and(|r| r > opt.sun_peak_ratio);
     let decision = format!(
@@ -465,20 +339,21 @@ pub fn process(
         spot_view.kind.name(),
         peak_ratio.map(|r| format!("{r:.1}")).unwrap_or_else(|| "n/a".into()),
         opt.sun_peak_ratio,
-        if sun_found { "visible" } else { "not visible: sun solve skipped" }
+        if found { "visible" } else { "not visible: sun solve skipped" }
     );
     tracing::info!("{decision}");
-
-    let located = if sun_found {
+    let located = if found {
         let spots = SpotPixels {
-            img: &img,
+            img,
             view: spot_view,
             px: &spot_px,
             val: &spot_val,
             saturated: &spot_sat,
-            peak: peak_i,
+            peak,
         };
-        let l = locate_sun(&spots, opt.sun_diameter_deg)?;
+        let l = locate_spot(&spots, opt.sun_diameter_deg).ok_or_else(|| {
+            ProbeError::InvalidInput("the sun sphere has no usable pixels".into())
+        })?;
         if l.direction.is_none() {
             warnings.push("the sun spot's centre does not lie on the sphere; sun ignored".into());
         }
@@ -486,48 +361,75 @@ pub fn process(
     } else {
         None
     };
-    let sun_dir = located.as_ref().and_then(|l| l.direction);
-    let spot_pixel = located.as_ref().map_or([0.0; 2], |l| l.pixel);
-    let spot_sigma = located.as_ref().and_then(|l| l.fit_sigma);
+    Ok(SunSearch {
+        found,
+        decision,
+        located,
+        mirror_saturated: mirror_sat.len(),
+        black_saturated: if views.black.is_some() {
+            spot_sat.len()
+        } else {
+            0
+        },
+        peak_ratio,
+        found_on: spot_view.kind.name(),
+    })
+}
 
-    // ---- mirror: mask the sun's neighbourhood (its light goes into the disk) and unwarp
-    let solve_sun = sun_dir.is_some() && diffuse.is_some();
-    if sun_dir.is_some() && diffuse.is_none() {
-        warnings.push(
-            "sun visible but the board has no diffuse sphere: its radiance cannot be solved, it stays in the map"
-                .into(),
-        );
-    }
-    let mut mirror_img = img.clone();
-    let mut mirror_pixel = None;
-    if let (true, Some(s)) = (solve_sun, sun_dir) {
-        if let Some(rp) = mirror.reflection_point(s) {
-            mirror_pixel = Some([rp.pixel.x, rp.pixel.y]);
-            let r = opt.sun_mask_px;
-            let (x0, x1) = (
-                (rp.pixel.x - r).floor().max(0.0) as usize,
-                (rp.pixel.x + r).ceil() as usize,
-            );
-            let (y0, y1) = (
-                (rp.pixel.y - r).floor().max(0.0) as usize,
-                (rp.pixel.y + r).ceil() as usize,
-            );
-            for y in y0..=y1.min(img.height - 1) {
-                for x in x0..=x1.min(img.width - 1) {
-                    if DVec2::new(x as f64, y as f64).distance(rp.pixel) <= r {
-                        mirror_img.valid[y * img.width + x] = false;
-                    }
-                }
-            }
+/// The brightest pixel's index and its ratio to the median of the valid pixels (`None` where
+/// that median is not positive).
+fn peak_over_median(
+    img: &HdrImage,
+    px: &[SpherePixel],
+    val: &[f64],
+) -> (Option<usize>, Option<f64>) {
+    let mut valid_vals: Vec<f64> = px
+        .iter()
+        .zip(val)
+        .filter(|(p, _)| img.valid[p.y * img.width + p.x])
+        .map(|(_, v)| *v)
+        .collect();
+    let med = median(&mut valid_vals);
+    let (mut peak_i, mut peak_v) = (None, f64::MIN);
+    for (i, v) in val.iter().enumerate() {
+        if *v > peak_v {
+            peak_v = *v;
+            peak_i = Some(i);
         }
     }
+    (peak_i, if med > 0.0 { Some(peak_v / med) } else { None })
+}
+
+/// The mirror (and black) sphere unwarped.
+struct MirrorMaps {
+    sky: HdrImage,
+    sky_measured: HdrImage,
+    mirror_hemi: HdrImage,
+    black_hemi: Option<HdrImage>,
+    /// Where the sun reflects in the mirror sphere (masked there).
+    mirror_pixel: Option<[f64; 2]>,
+}
+
+/// Mask the sun's neighbourhood in the mirror (its light goes into the disk; `solved_sun` is
+/// the direction of a sun whose radiance is solved separately) and unwarp the mirror into the
+/// lat-long sky (holes filled) and the hemisphere pictures.
+fn unwarp_mirror(ctx: &Ctx, views: &BoardViews, solved_sun: Option<DVec3>) -> MirrorMaps {
+    let (img, opt) = (ctx.img, ctx.opt);
+    let mut mirror_img = img.clone();
+    let mirror_pixel = solved_sun
+        .and_then(|s| views.mirror.reflection_point(s))
+        .map(|rp| {
+            mask_disc(&mut mirror_img, rp.pixel, opt.sun_mask_px);
+            [rp.pixel.x, rp.pixel.y]
+        });
     let (mw, ms) = (opt.map_width, opt.map_supersample);
+    let (mirror_refl, black_refl) = (ctx.mirror_refl(), ctx.black_refl());
     let mirror_reader = Reflector {
         img: &mirror_img,
-        view: &mirror,
+        view: &views.mirror,
         refl: &mirror_refl,
-        min_cos,
-        cam_cos,
+        min_cos: ctx.min_cos,
+        cam_cos: ctx.cam_cos,
     };
     let sky_measured = resample::resample(
         &mirror_reader,
@@ -541,193 +443,326 @@ pub fn process(
     sky.valid.iter_mut().for_each(|v| *v = true);
     let hemi = resample::hemisphere_layout(opt.hemi_size);
     let mirror_hemi = resample::resample(&mirror_reader, &hemi, opt.hemi_size, opt.hemi_size, ms);
-    let black_hemi = black.as_ref().map(|b| {
+    let black_hemi = views.black.as_ref().map(|b| {
         let reader = Reflector {
-            img: &img,
+            img,
             view: b,
             refl: &black_refl,
-            min_cos,
-            cam_cos,
+            min_cos: ctx.min_cos,
+            cam_cos: ctx.cam_cos,
         };
         resample::resample(&reader, &hemi, opt.hemi_size, opt.hemi_size, ms)
     });
-
-    // ---- diffuse sphere: D, D', D*, the sun's radiance, the check
-    let mut sun_radiance = None;
-    let mut residual = None;
-    let mut check = None;
-    let (mut used, mut masked) = (0, 0);
-    let mut diffuse_hemi = None;
-    let mut diffuse_compare = None;
-    if let Some(dv) = &diffuse {
-        let rho = board.diffuse_reflectance;
-        let dmin = opt.diffuse_max_incidence_deg.to_radians().cos();
-        let px = sphere_pixels(dv, dmin);
-        let good: Vec<&SpherePixel> = px
-            .iter()
-            .filter(|p| img.valid[p.y * img.width + p.x])
-            .collect();
-        used = good.len();
-        masked = px.len() - used;
-        if masked > 0 {
-            tracing::info!(
-                "{masked} saturated/invalid diffuse sphere pixels left out of the solve"
-            );
-        }
-        if used < 10 {
-            return Err(ProbeError::InvalidInput(format!(
-                "only {used} usable diffuse sphere pixels ({masked} saturated or invalid)"
-            )));
-        }
-        let d_meas: Vec<[f64; 3]> = good
-            .iter()
-            .map(|p| {
-                let v = img.pixels[p.y * img.width + p.x];
-                [
-                    v[0] as f64 / rho[0],
-                    v[1] as f64 / rho[1],
-                    v[2] as f64 / rho[2],
-                ]
-            })
-            .collect();
-        let normals: Vec<Vec3> = good.iter().map(|p| to_v3(p.normal)).collect();
-        let conv = envmap::downsample_latlong(&sky, opt.map_width / opt.conv_width);
-        let integ = Integrator::new(&conv);
-        let d_prime: Vec<[f64; 3]> = integ
-            .irradiance_many(&normals)
-            .into_iter()
-            .map(|e| e.map(|v| v as f64 / std::f64::consts::PI))
-            .collect();
-        let mut a = [0.0f64; 3];
-        let d_star: Vec<f64> = match (solve_sun, sun_dir) {
-            (true, Some(s)) => {
-                let k =
-                    envmap::disk_cosine_solid_angle(opt.sun_diameter_deg) / std::f64::consts::PI;
-                good.iter().map(|p| k * p.normal.dot(s).max(0.0)).collect()
-            }
-            _ => vec![0.0; good.len()],
-        };
-        if solve_sun {
-            let ss: f64 = d_star.iter().map(|v| v * v).sum();
-            if ss <= 0.0 {
-                warnings.push(
-                    "the sun lights no visible part of the diffuse sphere: radiance not solvable"
-                        .into(),
-                );
-            } else {
-                for c in 0..3 {
-                    let num: f64 = d_star
-                        .iter()
-                        .zip(&d_meas)
-                        .zip(&d_prime)
-                        .map(|((s, d), dp)| s * (d[c] - dp[c]))
-                        .sum();
-                    a[c] = num / ss;
-                    if a[c] < 0.0 {
-                        warnings.push(format!(
-                            "negative sun radiance in channel {c} ({:.3e}) clamped to 0",
-                            a[c]
-                        ));
-                        a[c] = 0.0;
-                    }
-                }
-                sun_radiance = Some(a.map(|v| v as f32));
-            }
-        }
-        let mean_d: f64 = d_meas
-            .iter()
-            .map(|d| (d[0] + d[1] + d[2]) / 3.0)
-            .sum::<f64>()
-            / used as f64;
-        let model: Vec<[f64; 3]> = d_prime
-            .iter()
-            .zip(&d_star)
-            .map(|(dp, s)| [dp[0] + a[0] * s, dp[1] + a[1] * s, dp[2] + a[2] * s])
-            .collect();
-        let rms = |m: &[[f64; 3]]| {
-            let se: f64 = m
-                .iter()
-                .zip(&d_meas)
-                .map(|(m, d)| (0..3).map(|c| (m[c] - d[c]).powi(2)).sum::<f64>())
-                .sum();
-            100.0 * (se / (3.0 * used as f64)).sqrt() / mean_d.max(1e-30)
-        };
-        if sun_radiance.is_some() {
-            residual = Some(rms(&model));
-        }
-        // check: the diffuse convolution of the final lighting (the sky map as written plus the
-        // sun disk as written) against the diffuse sphere image
-        check = Some(rms(&model));
-
-        // pictures: the diffuse sphere mapped by its normals, and D beside D' + a D*
-        let dview = dv.clone();
-        diffuse_hemi = Some(hemisphere_map(opt.hemi_size, &|n| {
-            let p = dview.center + dview.radius * n;
-            let v = (dview.eye - p).normalize();
-            if n.dot(v) < dmin {
-                return None;
-            }
-            let px = dview.camera.project(p)?;
-            let q = img.bilinear(px.x as f32, px.y as f32)?;
-            Some([
-                (q[0] as f64 / rho[0]) as f32,
-                (q[1] as f64 / rho[1]) as f32,
-                (q[2] as f64 / rho[2]) as f32,
-            ])
-        }));
-        let (x0, y0, x1, y1) = dv.pixel_bbox();
-        let (cw, ch) = (x1 - x0 + 1, y1 - y0 + 1);
-        let mut dimg = HdrImage::new(cw, ch);
-        let mut mimg = HdrImage::new(cw, ch);
-        dimg.valid.iter_mut().for_each(|v| *v = false);
-        mimg.valid.iter_mut().for_each(|v| *v = false);
-        for ((p, d), m) in good.iter().zip(&d_meas).zip(&model) {
-            let k = (p.y - y0) * cw + (p.x - x0);
-            dimg.pixels[k] = d.map(|v| v as f32);
-            mimg.pixels[k] = m.map(|v| v as f32);
-            dimg.valid[k] = true;
-            mimg.valid[k] = true;
-        }
-        diffuse_compare = Some((dimg, mimg));
+    MirrorMaps {
+        sky,
+        sky_measured,
+        mirror_hemi,
+        black_hemi,
+        mirror_pixel,
     }
+}
 
-    let sun = sun_dir.map(|s| SunEstimate {
+/// Mark the pixels within `r` of `c` invalid.
+fn mask_disc(img: &mut HdrImage, c: DVec2, r: f64) {
+    let (x0, x1) = (
+        (c.x - r).floor().max(0.0) as usize,
+        (c.x + r).ceil() as usize,
+    );
+    let (y0, y1) = (
+        (c.y - r).floor().max(0.0) as usize,
+        (c.y + r).ceil() as usize,
+    );
+    for y in y0..=y1.min(img.height - 1) {
+        for x in x0..=x1.min(img.width - 1) {
+            if DVec2::new(x as f64, y as f64).distance(c) <= r {
+                img.valid[y * img.width + x] = false;
+            }
+        }
+    }
+}
+
+/// What the diffuse sphere gives: the sun's radiance, the checks and the pictures.
+#[derive(Default)]
+struct DiffuseSolve {
+    sun_radiance: Option<[f32; 3]>,
+    residual: Option<f64>,
+    check: Option<f64>,
+    used: usize,
+    masked: usize,
+    hemi: Option<HdrImage>,
+    compare: Option<(HdrImage, HdrImage)>,
+}
+
+/// The diffuse sphere's usable pixels and their values D (divided by the paint reflectance).
+struct DiffuseSamples<'a> {
+    good: Vec<&'a SpherePixel>,
+    d_meas: Vec<[f64; 3]>,
+}
+
+/// The diffuse sphere: D, D' (the sky's diffuse convolution), D* (the sun's, per unit
+/// radiance), the sun's radiance `a` from the per-channel least squares `D' + a D* = D`, and
+/// the check of the final lighting against D.
+fn solve_diffuse(
+    ctx: &Ctx,
+    dv: &SphereView,
+    sky: &HdrImage,
+    solved_sun: Option<DVec3>,
+    warnings: &mut Vec<String>,
+) -> Result<DiffuseSolve, ProbeError> {
+    let (img, opt) = (ctx.img, ctx.opt);
+    let dmin = opt.diffuse_max_incidence_deg.to_radians().cos();
+    let px = dv.pixels(dmin);
+    let s = diffuse_samples(ctx, &px)?;
+    let used = s.good.len();
+    let normals: Vec<Vec3> = s.good.iter().map(|p| to_v3(p.normal)).collect();
+    let conv = envmap::downsample_latlong(sky, opt.map_width / opt.conv_width);
+    let d_prime: Vec<[f64; 3]> = Integrator::new(&conv)
+        .irradiance_many(&normals)
+        .into_iter()
+        .map(|e| e.map(|v| v as f64 / std::f64::consts::PI))
+        .collect();
+    let d_star: Vec<f64> = match solved_sun {
+        Some(sd) => {
+            let k = envmap::disk_cosine_solid_angle(opt.sun_diameter_deg) / std::f64::consts::PI;
+            s.good
+                .iter()
+                .map(|p| k * p.normal.dot(sd).max(0.0))
+                .collect()
+        }
+        None => vec![0.0; used],
+    };
+    let sun_radiance =
+        solved_sun.and_then(|_| solve_sun_radiance(&d_star, &s.d_meas, &d_prime, warnings));
+    let a = sun_radiance.unwrap_or([0.0; 3]);
+    let model: Vec<[f64; 3]> = d_prime
+        .iter()
+        .zip(&d_star)
+        .map(|(dp, s)| [dp[0] + a[0] * s, dp[1] + a[1] * s, dp[2] + a[2] * s])
+        .collect();
+    // check: the diffuse convolution of the final lighting (the sky map as written plus the
+    // sun disk as written) against the diffuse sphere image
+    let check = rms_percent(&model, &s.d_meas);
+    Ok(DiffuseSolve {
+        sun_radiance: sun_radiance.map(|a| a.map(|v| v as f32)),
+        residual: sun_radiance.map(|_| check),
+        check: Some(check),
+        used,
+        masked: px.len() - used,
+        hemi: Some(diffuse_hemisphere(img, dv, dmin, opt.hemi_size, ctx.board)),
+        compare: Some(diffuse_compare(dv, &s, &model)),
+    })
+}
+
+fn diffuse_samples<'a>(ctx: &Ctx, px: &'a [SpherePixel]) -> Result<DiffuseSamples<'a>, ProbeError> {
+    let img = ctx.img;
+    let rho = ctx.board.diffuse_reflectance;
+    let good: Vec<&SpherePixel> = px
+        .iter()
+        .filter(|p| img.valid[p.y * img.width + p.x])
+        .collect();
+    let (used, masked) = (good.len(), px.len() - good.len());
+    if masked > 0 {
+        tracing::info!("{masked} saturated/invalid diffuse sphere pixels left out of the solve");
+    }
+    if used < 10 {
+        return Err(ProbeError::InvalidInput(format!(
+            "only {used} usable diffuse sphere pixels ({masked} saturated or invalid)"
+        )));
+    }
+    let d_meas = good
+        .iter()
+        .map(|p| {
+            let v = img.pixels[p.y * img.width + p.x];
+            [
+                v[0] as f64 / rho[0],
+                v[1] as f64 / rho[1],
+                v[2] as f64 / rho[2],
+            ]
+        })
+        .collect();
+    Ok(DiffuseSamples { good, d_meas })
+}
+
+/// The sun's radiance per channel, `a = sum D* (D - D') / sum D*^2`, negative values clamped
+/// to 0 with a warning; `None` (with a warning) when the sun lights no visible part of the
+/// sphere.
+fn solve_sun_radiance(
+    d_star: &[f64],
+    d_meas: &[[f64; 3]],
+    d_prime: &[[f64; 3]],
+    warnings: &mut Vec<String>,
+) -> Option<[f64; 3]> {
+    let ss: f64 = d_star.iter().map(|v| v * v).sum();
+    if ss <= 0.0 {
+        warnings.push(
+            "the sun lights no visible part of the diffuse sphere: radiance not solvable".into(),
+        );
+        return None;
+    }
+    let mut a = [0.0f64; 3];
+    for c in 0..3 {
+        let num: f64 = d_star
+            .iter()
+            .zip(d_meas)
+            .zip(d_prime)
+            .map(|((s, d), dp)| s * (d[c] - dp[c]))
+            .sum();
+        a[c] = num / ss;
+        if a[c] < 0.0 {
+            warnings.push(format!(
+                "negative sun radiance in channel {c} ({:.3e}) clamped to 0",
+                a[c]
+            ));
+            a[c] = 0.0;
+        }
+    }
+    Some(a)
+}
+
+/// RMS of `model - d` over all channels, percent of the mean of `d`.
+fn rms_percent(model: &[[f64; 3]], d: &[[f64; 3]]) -> f64 {
+    let n = d.len() as f64;
+    let mean_d: f64 = d.iter().map(|d| (d[0] + d[1] + d[2]) / 3.0).sum::<f64>() / n;
+    let se: f64 = model
+        .iter()
+        .zip(d)
+        .map(|(m, d)| (0..3).map(|c| (m[c] - d[c]).powi(2)).sum::<f64>())
+        .sum();
+    100.0 * (se / (3.0 * n)).sqrt() / mean_d.max(1e-30)
+}
+
+/// The diffuse sphere mapped by its normals (divided by the paint reflectance).
+fn diffuse_hemisphere(
+    img: &HdrImage,
+    dv: &SphereView,
+    dmin: f64,
+    size: usize,
+    board: &Board,
+) -> HdrImage {
+    let rho = board.diffuse_reflectance;
+    hemisphere_map(size, &|n| {
+        let p = dv.center + dv.radius * n;
+        let v = (dv.eye - p).normalize();
+        if n.dot(v) < dmin {
+            return None;
+        }
+        let px = dv.camera.project(p)?;
+        let q = img.bilinear(px.x as f32, px.y as f32)?;
+        Some([
+            (q[0] as f64 / rho[0]) as f32,
+            (q[1] as f64 / rho[1]) as f32,
+            (q[2] as f64 / rho[2]) as f32,
+        ])
+    })
+}
+
+/// The diffuse sphere's crop: D beside the model D' + a D*.
+fn diffuse_compare(
+    dv: &SphereView,
+    s: &DiffuseSamples,
+    model: &[[f64; 3]],
+) -> (HdrImage, HdrImage) {
+    let (x0, y0, x1, y1) = dv.pixel_bbox();
+    let (cw, ch) = (x1 - x0 + 1, y1 - y0 + 1);
+    let mut dimg = HdrImage::new(cw, ch);
+    let mut mimg = HdrImage::new(cw, ch);
+    dimg.valid.iter_mut().for_each(|v| *v = false);
+    mimg.valid.iter_mut().for_each(|v| *v = false);
+    for ((p, d), m) in s.good.iter().zip(&s.d_meas).zip(model) {
+        let k = (p.y - y0) * cw + (p.x - x0);
+        dimg.pixels[k] = d.map(|v| v as f32);
+        mimg.pixels[k] = m.map(|v| v as f32);
+        dimg.valid[k] = true;
+        mimg.valid[k] = true;
+    }
+    (dimg, mimg)
+}
+
+/// The recovered sun toward `s` with what the search, the mirror and the diffuse sphere found.
+fn sun_estimate(
+    s: DVec3,
+    search: &SunSearch,
+    maps: &MirrorMaps,
+    diffuse: &DiffuseSolve,
+    opt: &ProbeOptions,
+) -> SunEstimate {
+    SunEstimate {
         direction: s.to_array(),
         elevation_deg: s.z.clamp(-1.0, 1.0).asin().to_degrees(),
         azimuth_deg: s.y.atan2(s.x).to_degrees().rem_euclid(360.0),
-        radiance: sun_radiance,
+        radiance: diffuse.sun_radiance,
         angular_diameter_deg: opt.sun_diameter_deg,
-        spot_pixel,
-        spot_fit_sigma_px: spot_sigma,
-        found_on: spot_view.kind.name().to_string(),
-        mirror_pixel,
-        residual_rms_percent: residual,
+        spot_pixel: search.located.as_ref().map_or([0.0; 2], |l| l.pixel),
+        spot_fit_sigma_px: search.located.as_ref().and_then(|l| l.fit_sigma),
+        found_on: search.found_on.to_string(),
+        mirror_pixel: maps.mirror_pixel,
+        residual_rms_percent: diffuse.residual,
+    }
+}
+
+/// Process one board photograph.
+pub fn process(
+    image: &HdrImage,
+    camera: &Camera,
+    board: &Board,
+    opt: &ProbeOptions,
+) -> Result<ProbeResult, ProbeError> {
+    check_inputs(image, camera, opt)?;
+    let mut warnings = Vec::new();
+    let img = working_copy(image, opt.saturation);
+    let mut outline_fits = Vec::new();
+    let refined = opt.refine_centers.then(|| {
+        let (b, fits, w) = crate::outline::refine_board(&img, camera, board, 0.5);
+        log_outline_fits(&fits);
+        warnings.extend(w);
+        outline_fits = fits;
+        b
     });
-    let sky_valid_fraction = sky_measured.valid_fraction();
-    for p in sky.pixels.iter().chain(mirror_hemi.pixels.iter()) {
+    let board = refined.as_ref().unwrap_or(board);
+    let views = BoardViews::new(camera, board);
+    let radii = views.check_sizes(opt.min_radius_px, &mut warnings)?;
+    let ctx = Ctx {
+        img: &img,
+        board,
+        opt,
+        min_cos: opt.max_incidence_deg.to_radians().cos(),
+        cam_cos: opt.camera_mask_deg.to_radians().cos(),
+    };
+    let search = find_sun(&ctx, &views, &mut warnings)?;
+    let sun_dir = search.located.as_ref().and_then(|l| l.direction);
+    if sun_dir.is_some() && views.diffuse.is_none() {
+        warnings.push(
+            "sun visible but the board has no diffuse sphere: its radiance cannot be solved, it stays in the map"
+                .into(),
+        );
+    }
+    let solved_sun = sun_dir.filter(|_| views.diffuse.is_some());
+    let maps = unwarp_mirror(&ctx, &views, solved_sun);
+    let diffuse = match &views.diffuse {
+        Some(dv) => solve_diffuse(&ctx, dv, &maps.sky, solved_sun, &mut warnings)?,
+        None => DiffuseSolve::default(),
+    };
+    for p in maps.sky.pixels.iter().chain(maps.mirror_hemi.pixels.iter()) {
         if p.iter().any(|c| !c.is_finite()) {
             return Err(ProbeError::InvalidInput(
                 "non-finite value in the unwarped map".into(),
             ));
         }
     }
+    let sun = sun_dir.map(|s| sun_estimate(s, &search, &maps, &diffuse, opt));
+    let sky_valid_fraction = maps.sky_measured.valid_fraction();
     Ok(ProbeResult {
-        sky,
-        sky_measured,
-        mirror_hemi,
-        black_hemi,
-        diffuse_hemi,
-        diffuse_compare,
+        sky_measured: maps.sky_measured,
         diagnostics: Diagnostics {
-            sun_found,
-            sun_decision: decision,
+            sun_found: search.found,
+            sun_decision: search.decision,
             sun,
-            check_rms_percent: check,
-            mirror_saturated_pixels: mirror_sat.len(),
-            black_saturated_pixels: black_sat_count,
-            diffuse_pixels_used: used,
-            diffuse_pixels_masked: masked,
-            black_peak_ratio: peak_ratio,
+            check_rms_percent: diffuse.check,
+            mirror_saturated_pixels: search.mirror_saturated,
+            black_saturated_pixels: search.black_saturated,
+            diffuse_pixels_used: diffuse.used,
+            diffuse_pixels_masked: diffuse.masked,
+            black_peak_ratio: search.peak_ratio,
             sky_valid_fraction,
             sphere_radius_px: radii,
             warnings,
@@ -735,5 +770,10 @@ pub fn process(
             board_pose: None,
             outline_fits,
         },
+        sky: maps.sky,
+        mirror_hemi: maps.mirror_hemi,
+        black_hemi: maps.black_hemi,
+        diffuse_hemi: diffuse.hemi,
+        diffuse_compare: diffuse.compare,
     })
 }

@@ -10,8 +10,8 @@
 //! photograph would instead blur each pixel over a 2-pixel tent and move light from a small
 //! bright source into the neighbouring texels (see docs/PROBE.md, "Resolution").
 
-use crate::sphere::SphereView;
 use glam::{DVec2, DVec3};
+use igi_capture::sphere::SphereView;
 use igi_imaging::HdrImage;
 use rayon::prelude::*;
 
@@ -192,8 +192,8 @@ pub fn hemisphere_layout(size: usize) -> impl Fn(f64, f64) -> Option<(DVec3, f64
 mod tests {
     use super::*;
     use crate::board::{BoardSphere, SphereKind};
-    use crate::sphere::reflect;
     use glam::DMat3;
+    use igi_capture::sphere::reflect;
     use igi_imaging::{latlong, Camera, WorldToCamera};
 
     /// Solid angle of the spherical triangle (a, b, c) (Van Oosterom and Strackee).

@@ -5,9 +5,9 @@
 use crate::board::Board;
 use crate::board::SphereKind;
 use crate::envmap::{latlong_lookup, Integrator};
-use crate::sphere::{reflect, SphereView};
-use crate::spot::pixel_response;
 use glam::DVec3;
+use igi_capture::sphere::{reflect, SphereView};
+use igi_capture::spot::pixel_response;
 use igi_imaging::{Camera, HdrImage, WorldToCamera};
 use rayon::prelude::*;
 

@@ -179,7 +179,7 @@ fn cloudy_brackets() {
 /// conductor's complex index.
 #[test]
 fn mirror_index_fitted_from_the_rendered_sphere() {
-    use igi_probe::sphere::{reflect, SphereView};
+    use igi_capture::sphere::{reflect, SphereView};
     let d = dir("cloudy");
     let cam = Camera::load(&d.join("camera.json")).unwrap();
     let board = Board::load(&d.join("board.json")).unwrap();

@@ -61,7 +61,7 @@ fn area_average(probe: &HdrImage, w: usize) -> HdrImage {
 
 /// Pixels of the ball image per probe texel at the probe's brightest texel, along azimuth and
 /// along the polar angle (the sampling rate of the ball image relative to the probe's own).
-fn pixels_per_probe_texel(probe: &HdrImage, view: &igi_probe::sphere::SphereView) -> (f64, f64) {
+fn pixels_per_probe_texel(probe: &HdrImage, view: &igi_capture::sphere::SphereView) -> (f64, f64) {
     let lum = |p: [f32; 3]| p[0] + p[1] + p[2];
     let k = (0..probe.pixels.len())
         .max_by(|a, b| lum(probe.pixels[*a]).total_cmp(&lum(probe.pixels[*b])))
@@ -96,8 +96,11 @@ fn latlong_probe_round_trip_through_a_mirror_ball() {
         let cam = camera(1232, 1232, 6000.0);
         // ball of radius 0.1 m at 1.0 m: 603 px in radius
         let board = Board::mirror_only(DVec3::new(0.0, 0.0, 1.0), 0.1);
-        let view =
-            igi_probe::sphere::SphereView::new(&cam, igi_probe::SphereKind::Mirror, &board.mirror);
+        let view = igi_capture::sphere::SphereView::new(
+            &cam,
+            igi_probe::SphereKind::Mirror,
+            &board.mirror,
+        );
         let (pu, pv) = pixels_per_probe_texel(&probe, &view);
         let img = render_board(&cam, &board, &probe, None, 2);
         let opt = ProbeOptions {
@@ -180,7 +183,7 @@ fn check_chrome_ball(name: &str, imgs: &[HdrImage], times: &[f64], radius: f64) 
     let top = &idx[..idx.len() / 200];
     let median = lum(m.pixels[idx[idx.len() / 2]]);
     let mirror =
-        igi_probe::sphere::SphereView::new(&cam, igi_probe::SphereKind::Mirror, &board.mirror);
+        igi_capture::sphere::SphereView::new(&cam, igi_probe::SphereKind::Mirror, &board.mirror);
     // where the ball shows them, the longest exposure is clipped (checked where it reaches 255
     // at all: the iPhone set's longest bracket peaks at 0.97, its lamps are not clipped)
     let long_max = imgs[0]

@@ -2,6 +2,7 @@
 //! cut-off spheres, NaN pixels.
 
 use glam::DVec3;
+use igi_capture::SphereError;
 use igi_imaging::{read_image, Camera, HdrImage};
 use igi_probe::synth::{direction_from_angles, render_board, SynthSun};
 use igi_probe::{process, Board, ProbeError, ProbeOptions};
@@ -174,7 +175,10 @@ fn small_sphere_warns_and_cut_off_sphere_errors() {
     board.diffuse.as_mut().unwrap().center_cam.y += 0.05; // pushes it past the bottom edge
     let img = render_board(&cam, &board, &sky(), None, 1);
     let e = process(&img, &cam, &board, &ProbeOptions::default()).unwrap_err();
-    assert!(matches!(e, ProbeError::OutsideImage { .. }));
+    assert!(matches!(
+        e,
+        ProbeError::Sphere(SphereError::OutsideImage { .. })
+    ));
     let msg = e.to_string();
     assert!(
         msg.contains("diffuse sphere is partly outside the 256x256 image"),

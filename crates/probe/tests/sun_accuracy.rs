@@ -222,7 +222,7 @@ fn synth_errors(r: f64, el: f64, az: f64, how: Render) -> SynthRun {
         .map(|c| (rad[c] as f64 / SUN_RADIANCE[c] as f64 - 1.0).abs())
         .fold(0.0, f64::max);
     let black = board.black.as_ref().unwrap();
-    let bv = igi_probe::sphere::SphereView::new(&cam, igi_probe::SphereKind::Black, black);
+    let bv = igi_capture::sphere::SphereView::new(&cam, igi_probe::SphereKind::Black, black);
     let truth = bv.reflection_point(s).unwrap().pixel;
     let spot_off = [est.spot_pixel[0] - truth.x, est.spot_pixel[1] - truth.y];
     let secs = ((t1 - t0).as_secs_f64(), (t2 - t1).as_secs_f64());
@@ -250,7 +250,7 @@ fn synthetic_40px_board_low_sun_within_quarter_degree_and_two_percent() {
 
 /// CI-sized: a sharper lens (blur 0.25 px) on the 40 px board, where the intensity-weighted
 /// centroid of the spot was 0.21 deg off (its bias, about 0.09 px); the fit of the blurred,
-/// pixel-integrated sun disk (`igi_probe::spot`) is not.
+/// pixel-integrated sun disk (`igi_capture::spot`) is not.
 #[test]
 fn synthetic_40px_board_sharp_lens_spot_fit() {
     for el in [14.0, 35.0] {
@@ -273,7 +273,7 @@ fn spot_centroid_worst_offset(
     use igi_probe::synth::{direction_from_angles, SynthSun};
     let (cam, board) = synth_setup(40.0);
     let black = board.black.unwrap();
-    let view = igi_probe::sphere::SphereView::new(&cam, igi_probe::SphereKind::Black, &black);
+    let view = igi_capture::sphere::SphereView::new(&cam, igi_probe::SphereKind::Black, &black);
     let (x0, y0, x1, y1) = view.pixel_bbox();
     let mut worst: f64 = 0.0;
     for k in 0..6 {

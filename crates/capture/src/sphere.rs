@@ -1,10 +1,67 @@
-//! One board sphere as seen by the calibrated camera: ray hits, the point that reflects a
-//! given direction, the image outline.
+//! A sphere as seen by a calibrated camera: ray hits, the mirror reflection, the point that
+//! reflects a given direction (Newton's method, exact for a camera at finite distance), the
+//! image outline and the pixels the sphere covers. Shared by the lighting board's three spheres
+//! (igi-probe) and the sample frame's two black spheres ([`crate::sample_frame`]).
 
-use crate::board::{BoardSphere, SphereKind};
-use crate::ProbeError;
+use crate::SphereError;
 use glam::{DVec2, DVec3};
 use igi_imaging::Camera;
+
+/// What a sphere is made of.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SphereKind {
+    Mirror,
+    Black,
+    Diffuse,
+}
+
+impl SphereKind {
+    /// The kind stored at index `i` (`SphereKind as usize`: mirror 0, black 1, diffuse 2).
+    pub fn from_index(i: usize) -> SphereKind {
+        [SphereKind::Mirror, SphereKind::Black, SphereKind::Diffuse][i]
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            SphereKind::Mirror => "mirror",
+            SphereKind::Black => "black",
+            SphereKind::Diffuse => "diffuse",
+        }
+    }
+}
+
+/// Position of one sphere of a photographed rig in the camera frame of the photograph (OpenCV
+/// convention).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BoardSphere {
+    pub center_cam: DVec3,
+    pub radius: f64,
+}
+
+/// The two ray parameters `s_near <= s_far` where the ray `o + s d` (unit `d`) meets the sphere
+/// of centre `c` and radius `r`; `None` where it misses.
+pub fn ray_sphere(o: DVec3, d: DVec3, c: DVec3, r: f64) -> Option<(f64, f64)> {
+    let oc = o - c;
+    let b = oc.dot(d);
+    let disc = b * b - (oc.length_squared() - r * r);
+    if disc < 0.0 {
+        return None;
+    }
+    let sq = disc.sqrt();
+    Some((-b - sq, -b + sq))
+}
+
+/// A pixel of a sphere's image with its geometry ([`SphereView::pixels`]).
+#[derive(Clone, Copy, Debug)]
+pub struct SpherePixel {
+    pub x: usize,
+    pub y: usize,
+    /// Unit surface normal where the pixel's ray hits.
+    pub normal: DVec3,
+    /// Cosine of the incidence angle of that ray.
+    pub cos_i: f64,
+}
 
 /// A sphere in world coordinates together with the camera that photographs it.
 #[derive(Clone, Debug)]
@@ -32,12 +89,21 @@ pub struct ReflectionPoint {
 impl<'a> SphereView<'a> {
     /// `s` is given in the camera frame (as in the board file).
     pub fn new(camera: &'a Camera, kind: SphereKind, s: &BoardSphere) -> Self {
-        let c2w = camera.pose.inverse();
+        Self::in_world(
+            camera,
+            kind,
+            camera.pose.inverse().apply(s.center_cam),
+            s.radius,
+        )
+    }
+
+    /// A sphere whose centre is given in world coordinates.
+    pub fn in_world(camera: &'a Camera, kind: SphereKind, center: DVec3, radius: f64) -> Self {
         SphereView {
             camera,
             kind,
-            center: c2w.apply(s.center_cam),
-            radius: s.radius,
+            center,
+            radius,
             eye: camera.center_world(),
         }
     }
@@ -49,15 +115,8 @@ impl<'a> SphereView<'a> {
 
     /// Nearest hit of the ray `o + t d` (unit `d`) with the sphere, `t > 0`.
     pub fn intersect(&self, o: DVec3, d: DVec3) -> Option<DVec3> {
-        let oc = o - self.center;
-        let b = oc.dot(d);
-        let c = oc.length_squared() - self.radius * self.radius;
-        let disc = b * b - c;
-        if disc < 0.0 {
-            return None;
-        }
-        let sq = disc.sqrt();
-        let t = if -b - sq > 0.0 { -b - sq } else { -b + sq };
+        let (near, far) = ray_sphere(o, d, self.center, self.radius)?;
+        let t = if near > 0.0 { near } else { far };
         (t > 0.0).then(|| o + t * d)
     }
 
@@ -67,6 +126,29 @@ impl<'a> SphereView<'a> {
         let p = self.intersect(o, d)?;
         let n = (p - self.center) / self.radius;
         Some((p, n, d))
+    }
+
+    /// The pixels of the sphere's image (row by row) whose rays hit it with incidence cosine at
+    /// least `min_cos`.
+    pub fn pixels(&self, min_cos: f64) -> Vec<SpherePixel> {
+        let (x0, y0, x1, y1) = self.pixel_bbox();
+        let mut out = Vec::new();
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                if let Some((_, n, d)) = self.hit_pixel(x as f64, y as f64) {
+                    let cos_i = n.dot(-d);
+                    if cos_i >= min_cos {
+                        out.push(SpherePixel {
+                            x,
+                            y,
+                            normal: n,
+                            cos_i,
+                        });
+                    }
+                }
+            }
+        }
+        out
     }
 
     /// The point whose mirror reflection of the camera ray leaves along unit direction `w`
@@ -170,10 +252,10 @@ impl<'a> SphereView<'a> {
     }
 
     /// Error if the sphere does not lie fully inside the image; its apparent radius otherwise.
-    pub fn check_in_image(&self) -> Result<f64, ProbeError> {
+    pub fn check_in_image(&self) -> Result<f64, SphereError> {
         let kind = self.kind.name().to_string();
         if self.center.distance(self.eye) <= self.radius * 1.0001 {
-            return Err(ProbeError::BadSphere {
+            return Err(SphereError::BadSphere {
                 kind,
                 center: self.center.to_array(),
                 radius: self.radius,
@@ -181,7 +263,7 @@ impl<'a> SphereView<'a> {
         }
         let pts = self.outline(256);
         if pts.len() < 256 {
-            return Err(ProbeError::BadSphere {
+            return Err(SphereError::BadSphere {
                 kind,
                 center: self.center.to_array(),
                 radius: self.radius,
@@ -190,7 +272,7 @@ impl<'a> SphereView<'a> {
         let (w, h) = (self.camera.width, self.camera.height);
         for p in pts {
             if !(p.x >= -0.5 && p.y >= -0.5 && p.x <= w as f64 - 0.5 && p.y <= h as f64 - 0.5) {
-                return Err(ProbeError::OutsideImage {
+                return Err(SphereError::OutsideImage {
                     kind,
                     width: w,
                     height: h,
@@ -222,6 +304,21 @@ mod tests {
         let eye = DVec3::new(1.0, 2.0, 3.0);
         c.pose = WorldToCamera { r, t: -(r * eye) };
         c
+    }
+
+    #[test]
+    fn ray_sphere_roots_are_the_entry_and_exit() {
+        let c = DVec3::new(0.0, 0.0, 5.0);
+        let (near, far) = ray_sphere(DVec3::ZERO, DVec3::Z, c, 1.0).unwrap();
+        assert!((near - 4.0).abs() < 1e-12 && (far - 6.0).abs() < 1e-12);
+        // from inside: the entry is behind the origin
+        let (near, far) = ray_sphere(c, DVec3::X, c, 1.0).unwrap();
+        assert!((near + 1.0).abs() < 1e-12 && (far - 1.0).abs() < 1e-12);
+        // a ray passing 1.5 radii from the centre misses
+        assert!(ray_sphere(DVec3::new(1.5, 0.0, 0.0), DVec3::Z, c, 1.0).is_none());
+        // a grazing ray touches once
+        let (near, far) = ray_sphere(DVec3::new(1.0, 0.0, 0.0), DVec3::Z, c, 1.0).unwrap();
+        assert!((near - 5.0).abs() < 1e-12 && (far - 5.0).abs() < 1e-12);
     }
 
     #[test]

@@ -1,5 +1,5 @@
-//! A synthetic photograph of the hand-held sample frame, for tests of `igi_brdf::measure`
-//! (shared by crates/brdf/tests/measure.rs and tests/cli_brdf.rs through `#[path]`).
+//! A synthetic photograph of the hand-held sample frame, for tests of `igi_capture::sample_frame`
+//! (shared by crates/capture/tests/sample_frame.rs and tests/cli_brdf.rs through `#[path]`).
 //!
 //! Each pixel's camera ray (through the distorted lens) is cast against the frame plane z = 0
 //! and the two black spheres. A point light of intensity `intensity` at `light` lights the
@@ -14,7 +14,9 @@
 #![allow(dead_code)]
 
 use glam::{DVec2, DVec3, Vec3};
-use igi_brdf::{Lafortune, Lobe, SampleFrame};
+use igi_brdf::{Lafortune, Lobe};
+use igi_capture::sample_frame::SampleFrame;
+use igi_capture::sphere::ray_sphere;
 use igi_imaging::{Camera, Distortion, HdrImage, WorldToCamera};
 use std::path::Path;
 
@@ -96,15 +98,11 @@ pub struct Synth {
     pub marker: Box<dyn Fn(usize, DVec2) -> f64 + Sync>,
 }
 
+/// The nearest hit in front of the ray's origin ([`ray_sphere`]'s near root, when positive).
 fn hit_sphere(o: DVec3, d: DVec3, c: DVec3, r: f64) -> Option<f64> {
-    let oc = o - c;
-    let b = oc.dot(d);
-    let disc = b * b - (oc.length_squared() - r * r);
-    if disc < 0.0 {
-        return None;
-    }
-    let s = -b - disc.sqrt();
-    (s > 0.0).then_some(s)
+    ray_sphere(o, d, c, r)
+        .map(|(near, _)| near)
+        .filter(|s| *s > 0.0)
 }
 
 impl Synth {

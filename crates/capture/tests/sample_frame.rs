@@ -1,4 +1,4 @@
-//! `igi_brdf::measure` against synthetic photographs of the sample frame with known pose,
+//! `igi_capture::sample_frame` against synthetic photographs of the sample frame with known pose,
 //! light and BRDFs (the renderer is in measure_support/synth.rs).
 
 #[path = "measure_support/synth.rs"]
@@ -7,12 +7,10 @@ mod synth;
 use std::path::Path;
 
 use glam::{DVec2, DVec3, Vec3};
-use igi_brdf::measure::closest_approach;
 use igi_brdf::samples::{group_by_material, parse_samples, samples_to_csv};
-use igi_brdf::{
-    fit_material, measure_photo, FitOptions, MeasureOptions, PhotoMeasurement, PoseInput,
-    SampleFrame,
-};
+use igi_brdf::{fit_material, FitOptions};
+use igi_capture::sample_frame::closest_approach;
+use igi_capture::{measure_photo, MeasureOptions, PhotoMeasurement, PoseInput, SampleFrame};
 use igi_imaging::cv::rotation_angle_between;
 use igi_imaging::Camera;
 use synth::{camera, dir, true_corners, Synth};

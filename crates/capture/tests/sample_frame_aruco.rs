@@ -1,4 +1,4 @@
-//! `igi_brdf::measure` with the pose from ArUco markers (`PoseInput::Aruco`, feature `opencv`):
+//! `igi_capture::sample_frame` with the pose from ArUco markers (`PoseInput::Aruco`, feature `opencv`):
 //! the synthetic frame (measure_support/synth.rs) rendered with the real 4x4_50 marker patterns
 //! of OpenCV's `drawMarker` at its fiducials, measured end to end, checked against the known
 //! pose, light and BRDFs.
@@ -10,7 +10,7 @@ mod synth;
 use std::path::Path;
 
 use glam::{DVec2, DVec3, Vec3};
-use igi_brdf::{measure_photo, MeasureOptions, PoseInput};
+use igi_capture::{measure_photo, MeasureOptions, PoseInput};
 use igi_imaging::cv::{aruco_marker_image, rotation_angle_between, ArucoDict};
 use synth::{camera, dir, Synth};
 

@@ -1,12 +1,13 @@
 //! Hand-held BRDF measurement with the sample frame of Debevec et al. 2004 (3.2.1): from one
 //! photograph of the frame, recover
 //!
-//! - the camera pose from the four fiducials (user-supplied fiducial pixels and the pure-Rust
-//!   [`igi_imaging::planar::pose_from_plane`], or ArUco detection and PnP from
+//! - the camera pose from the four fiducials ([`crate::fiducial`]: user-supplied fiducial pixels
+//!   and the pure-Rust [`igi_imaging::planar::pose_from_plane`], or ArUco detection and PnP from
 //!   [`igi_imaging::cv`] with the `opencv` feature),
-//! - the light position from the highlights in the two glossy black spheres (the camera rays
-//!   through the highlights' sub-pixel centres, reflected off the spheres; the light is the
-//!   midpoint of the two reflected rays' closest approach),
+//! - the light position from the highlights in the two glossy black spheres
+//!   ([`crate::highlight::find_highlight`]: the camera rays through the highlights' sub-pixel
+//!   centres, reflected off the spheres; the light is the midpoint of the two reflected rays'
+//!   closest approach),
 //! - the light's intensity from the white reflectance standard,
 //! - an orthographic (fronto-parallel) view of the sample plane (a homography, plus the lens
 //!   distortion), and the mean `pi f` over chosen regions of it,
@@ -35,10 +36,15 @@
 use std::path::{Path, PathBuf};
 
 use glam::{DMat3, DVec2, DVec3, Vec3};
-use igi_imaging::{cv, planar, Camera, HdrImage, WorldToCamera};
+use igi_imaging::{cv, Camera, HdrImage, WorldToCamera};
 use serde::{Deserialize, Serialize};
 
-use crate::{BrdfError, BrdfSample};
+use igi_brdf::BrdfSample;
+
+use crate::fiducial::{match_markers, pose_from_marked_points, FiducialMarker};
+use crate::highlight::{find_highlight, Highlight, HighlightLimits};
+use crate::sphere::{SphereKind, SphereView};
+use crate::CaptureError;
 
 /// One fiducial of the frame: its centre on the frame plane (the point a user marks for
 /// `--corners`) and, for ArUco detection, the marker id and side length.
@@ -148,8 +154,8 @@ fn v2(a: [f64; 2]) -> DVec2 {
 
 impl SampleFrame {
     /// Read and validate a frame file; errors name it.
-    pub fn load(path: &Path) -> Result<SampleFrame, BrdfError> {
-        let text = std::fs::read_to_string(path).map_err(|source| BrdfError::Io {
+    pub fn load(path: &Path) -> Result<SampleFrame, CaptureError> {
+        let text = std::fs::read_to_string(path).map_err(|source| CaptureError::Io {
             path: path.into(),
             source,
         })?;
@@ -157,8 +163,8 @@ impl SampleFrame {
     }
 
     /// Parse and validate frame JSON text; `path` names it in errors.
-    pub fn from_json_str(text: &str, path: &Path) -> Result<SampleFrame, BrdfError> {
-        let err = |msg: String| BrdfError::File {
+    pub fn from_json_str(text: &str, path: &Path) -> Result<SampleFrame, CaptureError> {
+        let err = |msg: String| CaptureError::File {
             path: path.into(),
             msg: format!("sample frame: {msg}"),
         };
@@ -168,6 +174,14 @@ impl SampleFrame {
     }
 
     fn validate(&self) -> Result<(), String> {
+        self.validate_fiducials()?;
+        self.validate_spheres()?;
+        self.validate_white_and_ortho()?;
+        self.validate_regions()
+    }
+
+    /// At least four finite fiducials, no three (nearly) collinear; a known dictionary.
+    fn validate_fiducials(&self) -> Result<(), String> {
         let finite = |xs: &[f64]| xs.iter().all(|x| x.is_finite());
         if self.fiducials.len() < 4 {
             return Err(format!(
@@ -201,6 +215,12 @@ impl SampleFrame {
             );
         }
         aruco_dict(&self.aruco_dictionary)?;
+        Ok(())
+    }
+
+    /// Exactly two finite, positive, disjoint spheres.
+    fn validate_spheres(&self) -> Result<(), String> {
+        let finite = |xs: &[f64]| xs.iter().all(|x| x.is_finite());
         if self.spheres.len() != 2 {
             return Err(format!(
                 "needs exactly two spheres, found {}",
@@ -220,6 +240,12 @@ impl SampleFrame {
         {
             return Err("the two spheres overlap".into());
         }
+        Ok(())
+    }
+
+    /// The white standard and the orthographic rectangle: ordered, finite, sensible sizes.
+    fn validate_white_and_ortho(&self) -> Result<(), String> {
+        let finite = |xs: &[f64]| xs.iter().all(|x| x.is_finite());
         let w = &self.white;
         if !finite(&w.min)
             || !finite(&w.max)
@@ -251,6 +277,13 @@ impl SampleFrame {
                 "ortho: the view would be {ow}x{oh} pixels (1 to 20000 each)"
             ));
         }
+        Ok(())
+    }
+
+    /// At least one region, each named plainly and inside the orthographic rectangle.
+    fn validate_regions(&self) -> Result<(), String> {
+        let o = &self.ortho;
+        let finite = |xs: &[f64]| xs.iter().all(|x| x.is_finite());
         if self.regions.is_empty() {
             return Err("needs at least one region".into());
         }
@@ -315,6 +348,18 @@ impl SampleFrame {
                 .map(|(dx, dy)| DVec3::new(c.x + dx, c.y + dy, 0.0)),
         )
     }
+
+    /// The fiducials that are ArUco markers, with their corners ([`Self::aruco_corners`]).
+    pub fn aruco_markers(&self) -> Vec<FiducialMarker> {
+        (0..self.fiducials.len())
+            .filter_map(|i| {
+                Some(FiducialMarker {
+                    id: self.fiducials[i].aruco_id?,
+                    corners: self.aruco_corners(i)?,
+                })
+            })
+            .collect()
+    }
 }
 
 fn aruco_dict(name: &str) -> Result<cv::ArucoDict, String> {
@@ -362,20 +407,6 @@ impl Default for MeasureOptions {
             max_pose_rms_px: 3.0,
         }
     }
-}
-
-/// A located highlight on one sphere.
-#[derive(Clone, Debug, Serialize)]
-pub struct Highlight {
-    /// Sub-pixel centre in the photograph.
-    pub pixel: [f64; 2],
-    /// True when the highlight was saturated (its centre is the centroid of the saturated pixels).
-    pub saturated: bool,
-    /// Brightest pixel over its surroundings on the sphere (0 when saturated).
-    pub peak_over_background: f64,
-    /// Point on the sphere and the unit reflected direction (frame coordinates).
-    pub point: [f64; 3],
-    pub reflected: [f64; 3],
 }
 
 /// One region's measured value.
@@ -449,7 +480,7 @@ fn rows(m: &DMat3) -> [[f64; 3]; 3] {
 /// Camera pose of a photograph from the frame's fiducials. Returns the pose, the RMS
 /// reprojection error and a description of the source. Errors are messages (the caller names
 /// the photo).
-pub fn frame_pose(
+fn frame_pose(
     frame: &SampleFrame,
     camera: &Camera,
     img: &HdrImage,
@@ -457,29 +488,9 @@ pub fn frame_pose(
 ) -> Result<(WorldToCamera, f64, String), String> {
     match input {
         PoseInput::Corners(px) => {
-            if px.len() != frame.fiducials.len() {
-                return Err(format!(
-                    "{} corner pixels given, the frame has {} fiducials",
-                    px.len(),
-                    frame.fiducials.len()
-                ));
-            }
-            for (i, p) in px.iter().enumerate() {
-                if !p.is_finite()
-                    || p.x < 0.0
-                    || p.y < 0.0
-                    || p.x > (img.width - 1) as f64
-                    || p.y > (img.height - 1) as f64
-                {
-                    return Err(format!(
-                        "corner {i} ({:.1}, {:.1}) lies outside the {}x{} photo",
-                        p.x, p.y, img.width, img.height
-                    ));
-                }
-            }
             let plane: Vec<DVec2> = frame.fiducials.iter().map(|f| v2(f.center)).collect();
-            let p = planar::pose_from_plane(&camera.intrinsics, &plane, px)
-                .map_err(|e| format!("corners: {e} (wrong order, or the wrong frame file?)"))?;
+            let p =
+                pose_from_marked_points(&camera.intrinsics, &plane, px, (img.width, img.height))?;
             Ok((p.pose, p.rms_px, "corners".into()))
         }
         PoseInput::Aruco => {
@@ -487,269 +498,21 @@ pub fn frame_pose(
             let found = cv::detect_aruco(img, dict).map_err(|e| {
                 format!("ArUco detection: {e} (or give the fiducial pixels with --corners)")
             })?;
-            let (mut world, mut px, mut ids) = (Vec::new(), Vec::new(), Vec::new());
-            for m in &found {
-                if let Some(i) = frame
-                    .fiducials
-                    .iter()
-                    .position(|f| f.aruco_id == Some(m.id))
-                {
-                    if ids.contains(&m.id) {
-                        continue;
-                    }
-                    ids.push(m.id);
-                    world.extend(frame.aruco_corners(i).expect("id implies size"));
-                    px.extend(m.corners);
-                }
-            }
-            if ids.len() < 2 {
+            let m = match_markers(&frame.aruco_markers(), &found);
+            if m.found.len() < 2 {
                 let want: Vec<i32> = frame.fiducials.iter().filter_map(|f| f.aruco_id).collect();
                 let seen: Vec<i32> = found.iter().map(|m| m.id).collect();
                 return Err(format!("found ArUco markers {seen:?}, the frame's are {want:?}: at least two are needed for the pose"));
             }
+            let mut ids = m.found.clone();
             ids.sort();
             // the markers lie in one plane: the RANSAC solver of `cv::solve_pnp` is unreliable
             // there; the matched solver (SQPnP + refinement, outlier rejection) is not
-            let r = cv::solve_pnp_matched(&camera.intrinsics, &world, &px, 3.0)
+            let r = cv::solve_pnp_matched(&camera.intrinsics, &m.target, &m.pixels, 3.0)
                 .map_err(|e| format!("PnP: {e}"))?;
             Ok((r.pose, r.rms_px, format!("aruco ids {ids:?}")))
         }
     }
-}
-
-/// Ray-sphere intersection: the nearest positive `s` with `|o + s d - c| = r` (`d` unit).
-fn hit_sphere(o: DVec3, d: DVec3, c: DVec3, r: f64) -> Option<f64> {
-    let oc = o - c;
-    let b = oc.dot(d);
-    let disc = b * b - (oc.length_squared() - r * r);
-    if disc < 0.0 {
-        return None;
-    }
-    let s = -b - disc.sqrt();
-    (s > 0.0).then_some(s)
-}
-
-/// Mirror reflection of `d` about the unit normal `n`.
-fn reflect(d: DVec3, n: DVec3) -> DVec3 {
-    d - 2.0 * d.dot(n) * n
-}
-
-use igi_imaging::color::median_in_place as median;
-
-/// Locate the highlight on a sphere of the frame photographed by `cam` (pose set): the
-/// pixels whose rays hit the sphere within 0.9 of its radius from the centre line (away from the
-/// limb) are examined; the highlight centre is the background-subtracted, intensity-weighted
-/// centroid of the bright blob around the brightest pixel; when some pixels are saturated, the
-/// saturated pixels count with the brightest unclipped level and the unclipped pixels within
-/// 3 px with their own.
-pub fn find_highlight(
-    cam: &Camera,
-    img: &HdrImage,
-    sphere: &FrameSphere,
-    opts: &MeasureOptions,
-) -> Result<Highlight, String> {
-    let c = DVec3::from_array(sphere.center);
-    let r = sphere.radius;
-    // bounding box of the sphere's image: projections of a circumscribing cube
-    let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
-    for k in 0..8 {
-        let o = DVec3::new(
-            if k & 1 == 0 { -1.0 } else { 1.0 },
-            if k & 2 == 0 { -1.0 } else { 1.0 },
-            if k & 4 == 0 { -1.0 } else { 1.0 },
-        );
-        let p = cam
-            .project(c + o * 1.2 * r)
-            .ok_or("the sphere is (partly) behind the camera")?;
-        lo = lo.min(p);
-        hi = hi.max(p);
-    }
-    let x0 = lo.x.floor().max(0.0) as usize;
-    let y0 = lo.y.floor().max(0.0) as usize;
-    let x1 = (hi.x.ceil().max(-1.0) as i64).min(img.width as i64 - 1);
-    let y1 = (hi.y.ceil().max(-1.0) as i64).min(img.height as i64 - 1);
-    let mut mask: Vec<(usize, usize)> = Vec::new();
-    if x1 >= x0 as i64 && y1 >= y0 as i64 {
-        for y in y0..=y1 as usize {
-            for x in x0..=x1 as usize {
-                let (o, d) = cam.pixel_ray(x as f64, y as f64);
-                let tca = (c - o).dot(d);
-                if tca > 0.0 && (c - o).length_squared() - tca * tca < (0.9 * r) * (0.9 * r) {
-                    mask.push((x, y));
-                }
-            }
-        }
-    }
-    if mask.len() < 20 {
-        return Err(format!(
-            "it covers only {} usable pixels of the photo (outside the image, or a wrong pose?)",
-            mask.len()
-        ));
-    }
-    let lum = |x: usize, y: usize| {
-        let p = img.get(x, y);
-        (p[0] as f64 + p[1] as f64 + p[2] as f64) / 3.0
-    };
-    let sat: Vec<(usize, usize)> = mask
-        .iter()
-        .copied()
-        .filter(|&(x, y)| !img.is_valid(x, y))
-        .collect();
-    let (centre, saturated, ratio) = if !sat.is_empty() {
-        let frac = sat.len() as f64 / mask.len() as f64;
-        if frac > opts.max_saturated_fraction {
-            return Err(format!(
-                "{} of its {} pixels ({:.0}%) are saturated or unusable (at most {:.0}%): the highlight cannot be located; use a shorter exposure",
-                sat.len(),
-                mask.len(),
-                frac * 100.0,
-                opts.max_saturated_fraction * 100.0
-            ));
-        }
-        // the clipped profile is still symmetric about the highlight's centre: weight the
-        // saturated pixels with the brightest unclipped level and add the unclipped tails
-        // within 3 px, background subtracted
-        let inside: std::collections::HashSet<(usize, usize)> = mask.iter().copied().collect();
-        let mut support: std::collections::BTreeSet<(usize, usize)> =
-            std::collections::BTreeSet::new();
-        for &(x, y) in &sat {
-            for dy in -3i64..=3 {
-                for dx in -3i64..=3 {
-                    let q = (
-                        (x as i64 + dx).max(0) as usize,
-                        (y as i64 + dy).max(0) as usize,
-                    );
-                    if inside.contains(&q) {
-                        support.insert(q);
-                    }
-                }
-            }
-        }
-        let mut vals: Vec<f64> = mask
-            .iter()
-            .filter(|&&(x, y)| img.is_valid(x, y))
-            .map(|&(x, y)| lum(x, y))
-            .collect();
-        let bg = median(&mut vals);
-        let plateau = support
-            .iter()
-            .filter(|&&(x, y)| img.is_valid(x, y))
-            .map(|&(x, y)| lum(x, y))
-            .fold(bg, f64::max);
-        let (mut sw, mut sx, mut sy) = (0.0, 0.0, 0.0);
-        for &(x, y) in &support {
-            let w = if img.is_valid(x, y) {
-                (lum(x, y) - bg).max(0.0)
-            } else {
-                plateau - bg
-            };
-            sw += w;
-            sx += w * x as f64;
-            sy += w * y as f64;
-        }
-        if !(sw > 0.0) {
-            let n = sat.len() as f64;
-            sx = sat.iter().map(|p| p.0 as f64).sum::<f64>();
-            sy = sat.iter().map(|p| p.1 as f64).sum::<f64>();
-            sw = n;
-        }
-        (DVec2::new(sx / sw, sy / sw), true, 0.0)
-    } else {
-        let mut vals: Vec<f64> = mask.iter().map(|&(x, y)| lum(x, y)).collect();
-        let (ip, peak) =
-            vals.iter().enumerate().fold(
-                (0, f64::MIN),
-                |b, (i, v)| if *v > b.1 { (i, *v) } else { b },
-            );
-        let med = median(&mut vals);
-        let (px, py) = mask[ip];
-        let inside: std::collections::HashSet<(usize, usize)> = mask.iter().copied().collect();
-        let near = |rmin: f64, rmax: f64| {
-            mask.iter().copied().filter(move |&(x, y)| {
-                let d = ((x as f64 - px as f64).powi(2) + (y as f64 - py as f64).powi(2)).sqrt();
-                d > rmin && d <= rmax
-            })
-        };
-        let mut ring: Vec<f64> = near(6.0, 10.0).map(|(x, y)| lum(x, y)).collect();
-        let bg = if ring.len() >= 8 {
-            median(&mut ring)
-        } else {
-            med
-        };
-        // a highlight stands out of its surroundings (the shading of the sphere's base does not)
-        let ratio = if bg > 0.0 {
-            peak / bg
-        } else if peak > 0.0 {
-            f64::INFINITY
-        } else {
-            0.0
-        };
-        if !(ratio >= opts.highlight_min_ratio) {
-            return Err(format!(
-                "no highlight found: its brightest pixel is {ratio:.2} times its surroundings (at least {} needed)",
-                opts.highlight_min_ratio
-            ));
-        }
-        // the blob: 8-connected pixels above 2% of the peak's excess, grown from the peak
-        let thr = bg + 0.02 * (peak - bg);
-        let mut blob = vec![(px, py)];
-        let mut seen: std::collections::HashSet<(usize, usize)> = blob.iter().copied().collect();
-        let mut k = 0;
-        while k < blob.len() && blob.len() < 10000 {
-            let (x, y) = blob[k];
-            k += 1;
-            for dy in -1i64..=1 {
-                for dx in -1i64..=1 {
-                    let (nx, ny) = (x as i64 + dx, y as i64 + dy);
-                    if nx < 0 || ny < 0 {
-                        continue;
-                    }
-                    let q = (nx as usize, ny as usize);
-                    if inside.contains(&q) && !seen.contains(&q) && lum(q.0, q.1) > thr {
-                        seen.insert(q);
-                        blob.push(q);
-                    }
-                }
-            }
-        }
-        // one pixel of margin around the blob carries the highlight's tails
-        let mut support = seen.clone();
-        for &(x, y) in &blob {
-            for dy in -1i64..=1 {
-                for dx in -1i64..=1 {
-                    let (nx, ny) = (x as i64 + dx, y as i64 + dy);
-                    if nx >= 0 && ny >= 0 && inside.contains(&(nx as usize, ny as usize)) {
-                        support.insert((nx as usize, ny as usize));
-                    }
-                }
-            }
-        }
-        let (mut sw, mut sx, mut sy) = (0.0, 0.0, 0.0);
-        for &(x, y) in &support {
-            let w = (lum(x, y) - bg).max(0.0);
-            sw += w;
-            sx += w * x as f64;
-            sy += w * y as f64;
-        }
-        (DVec2::new(sx / sw, sy / sw), false, ratio)
-    };
-    let (o, d) = cam.pixel_ray(centre.x, centre.y);
-    let s = hit_sphere(o, d, c, r).ok_or_else(|| {
-        format!(
-            "the highlight's centre ({:.2}, {:.2}) does not lie on the sphere",
-            centre.x, centre.y
-        )
-    })?;
-    let p = o + d * s;
-    let n = (p - c) / r;
-    let refl = reflect(d, n).normalize();
-    Ok(Highlight {
-        pixel: centre.to_array(),
-        saturated,
-        peak_over_background: ratio,
-        point: p.to_array(),
-        reflected: refl.to_array(),
-    })
 }
 
 /// The point of closest approach of two rays `o + s d` (unit `d`): the midpoint of the
@@ -810,23 +573,63 @@ pub fn measure_photo(
     photo: &Path,
     input: &PoseInput,
     opts: &MeasureOptions,
-) -> Result<PhotoMeasurement, BrdfError> {
-    let err = |msg: String| BrdfError::File {
+) -> Result<PhotoMeasurement, CaptureError> {
+    let err = |msg: String| CaptureError::File {
         path: photo.into(),
         msg,
     };
+    let (cam, pose_rms_px, pose_source) =
+        posed_camera(frame, camera, img, input, opts).map_err(err)?;
+    let (light, gap, highlights) = light_from_highlights(frame, &cam, img, opts).map_err(err)?;
+    let intensity = white_intensity(frame, &cam, img, light).map_err(err)?;
+    let lit = LitPhoto {
+        cam: &cam,
+        img,
+        light,
+        intensity,
+        step: 1.0 / frame.ortho.px_per_m,
+    };
+    let regions = (frame.regions.iter().enumerate())
+        .map(|(k, r)| measure_region(&lit, k, r))
+        .collect::<Result<Vec<_>, String>>()
+        .map_err(err)?;
+    Ok(PhotoMeasurement {
+        photo: photo.into(),
+        pose_source,
+        r: rows(&cam.pose.r),
+        t: cam.pose.t.to_array(),
+        pose_rms_px,
+        camera_center: cam.center_world().to_array(),
+        light: light.to_array(),
+        gap,
+        highlights,
+        intensity: intensity.to_array(),
+        homography: rows(&ortho_homography(frame, &cam)),
+        regions,
+    })
+}
+
+/// The camera with the photograph's pose from the fiducials, the pose's RMS reprojection error
+/// and its source; checked against `opts.max_pose_rms_px` and for a centre above the frame.
+fn posed_camera(
+    frame: &SampleFrame,
+    camera: &Camera,
+    img: &HdrImage,
+    input: &PoseInput,
+    opts: &MeasureOptions,
+) -> Result<(Camera, f64, String), String> {
     if (img.width, img.height) != (camera.width as usize, camera.height as usize) {
-        return Err(err(format!(
+        return Err(format!(
             "the photo is {}x{} but the camera is {}x{}",
             img.width, img.height, camera.width, camera.height
-        )));
+        ));
     }
-    let (pose, pose_rms_px, pose_source) = frame_pose(frame, camera, img, input).map_err(&err)?;
+    let (pose, pose_rms_px, pose_source) = frame_pose(frame, camera, img, input)?;
     if !(pose_rms_px <= opts.max_pose_rms_px) {
-        return Err(err(format!(
+        return Err(format!(
             "the fiducials reproject with RMS {pose_rms_px:.2} px (at most {} px): wrong order or wrong frame file?",
             opts.max_pose_rms_px
-        )));
+        ));
     }
     let cam = Camera {
         pose,
@@ -834,42 +637,70 @@ pub fn measure_photo(
     };
     let eye = cam.center_world();
     if !(eye.z > 0.0) {
-        return Err(err(format!(
+        return Err(format!(
             "the recovered camera centre {:?} is not above the frame plane",
             eye.to_array()
-        )));
+        ));
     }
+    Ok((cam, pose_rms_px, pose_source))
+}
 
-    // ---- light position from the two highlights
+/// The light position: the closest approach of the camera rays through the two spheres'
+/// highlights, reflected. Returns it, the rays' gap there and the highlights.
+fn light_from_highlights(
+    frame: &SampleFrame,
+    cam: &Camera,
+    img: &HdrImage,
+    opts: &MeasureOptions,
+) -> Result<(DVec3, f64, Vec<Highlight>), String> {
+    let limits = HighlightLimits {
+        min_ratio: opts.highlight_min_ratio,
+        max_saturated_fraction: opts.max_saturated_fraction,
+    };
     let mut hl = Vec::new();
     for (k, s) in frame.spheres.iter().enumerate() {
-        hl.push(find_highlight(&cam, img, s, opts).map_err(|m| err(format!("sphere {k}: {m}")))?);
+        let view = SphereView::in_world(
+            cam,
+            SphereKind::Black,
+            DVec3::from_array(s.center),
+            s.radius,
+        );
+        hl.push(find_highlight(&view, img, &limits).map_err(|e| format!("sphere {k}: {e}"))?);
     }
     let ray = |h: &Highlight| (DVec3::from_array(h.point), DVec3::from_array(h.reflected));
     let ((o1, d1), (o2, d2)) = (ray(&hl[0]), ray(&hl[1]));
     let (light, gap, s1, s2) = closest_approach(o1, d1, o2, d2).ok_or_else(|| {
-        err("the rays reflected off the two spheres are parallel: no light position".into())
+        "the rays reflected off the two spheres are parallel: no light position".to_string()
     })?;
     if !(s1 > 0.0 && s2 > 0.0) {
-        return Err(err(format!(
+        return Err(format!(
             "the rays reflected off the spheres meet behind them (parameters {s1:.3}, {s2:.3} m): highlights misidentified?"
-        )));
+        ));
     }
     let dist = 0.5 * (s1 + s2);
     if gap > opts.max_gap_ratio * dist {
-        return Err(err(format!(
+        return Err(format!(
             "the reflected rays pass {gap:.4} m apart at {dist:.3} m (more than {:.0}%): highlights or pose inconsistent",
             opts.max_gap_ratio * 100.0
-        )));
+        ));
     }
     if !(light.z > frame.white.z.max(0.0)) {
-        return Err(err(format!(
+        return Err(format!(
             "the recovered light {:?} is not above the frame plane",
             light.to_array()
-        )));
+        ));
     }
+    Ok((light, gap, hl))
+}
 
-    // ---- intensity from the white standard
+/// The light's intensity per channel: the mean of `pi Lw d^2 / (rho_w cos(theta_l))` over the
+/// white standard's inner 80 % (sampled at the orthographic view's pitch).
+fn white_intensity(
+    frame: &SampleFrame,
+    cam: &Camera,
+    img: &HdrImage,
+    light: DVec3,
+) -> Result<DVec3, String> {
     let w = &frame.white;
     let rho = w.reflectance.rgb();
     let step = 1.0 / frame.ortho.px_per_m;
@@ -889,105 +720,109 @@ pub fn measure_photo(
             let tl = light - q;
             let d2 = tl.length_squared();
             let cos = tl.z / d2.sqrt();
-            match sample_at(&cam, img, q) {
+            match sample_at(cam, img, q) {
                 Some(l) if cos > 0.0 => sum += l * std::f64::consts::PI * d2 / (rho * cos),
                 _ => bad += 1,
             }
         }
     }
     if bad > 0 {
-        return Err(err(format!(
+        return Err(format!(
             "white standard: {bad} of {} samples are saturated, unusable or outside the photo",
             nx * ny
-        )));
+        ));
     }
     let intensity = sum / (nx * ny) as f64;
     if !(intensity.min_element() > 0.0 && intensity.is_finite()) {
-        return Err(err(format!(
+        return Err(format!(
             "white standard: the light intensity {:?} is not positive in every channel",
             intensity.to_array()
-        )));
+        ));
     }
+    Ok(intensity)
+}
 
-    // ---- regions
-    let mut regions = Vec::new();
-    for (k, r) in frame.regions.iter().enumerate() {
-        let c = v2(r.center);
-        let pc = DVec3::new(c.x, c.y, 0.0);
-        let (l, v) = ((light - pc).normalize(), (eye - pc).normalize());
-        if !(l.z > 0.0 && v.z > 0.0) {
-            return Err(err(format!(
-                "region {k} ({}): the light or the camera is below the sample plane",
-                r.material
-            )));
-        }
-        let n = r.size_px;
-        let (mut acc, mut lum, mut bad) = (DVec3::ZERO, Vec::with_capacity(n * n), 0usize);
-        for j in 0..n {
-            for i in 0..n {
-                let p = DVec3::new(
-                    c.x + (i as f64 - (n - 1) as f64 * 0.5) * step,
-                    c.y + (j as f64 - (n - 1) as f64 * 0.5) * step,
-                    0.0,
-                );
-                let tl = light - p;
-                let d2 = tl.length_squared();
-                let cos = tl.z / d2.sqrt();
-                match sample_at(&cam, img, p) {
-                    Some(val) if cos > 0.0 => {
-                        let f = val * std::f64::consts::PI * d2 / (intensity * cos);
-                        acc += f;
-                        lum.push(f.element_sum() / 3.0);
-                    }
-                    _ => bad += 1,
+/// A posed photograph with its recovered light, for [`measure_region`].
+struct LitPhoto<'a> {
+    cam: &'a Camera,
+    img: &'a HdrImage,
+    light: DVec3,
+    intensity: DVec3,
+    /// Orthographic pixel pitch, metres.
+    step: f64,
+}
+
+/// Region `k`: the mean `pi f = pi L d^2 / (I cos(theta_l))` over its orthographic pixels, and
+/// the directions from its centre to the light and the camera.
+fn measure_region(lit: &LitPhoto, k: usize, r: &Region) -> Result<RegionValue, String> {
+    let (light, step) = (lit.light, lit.step);
+    let c = v2(r.center);
+    let pc = DVec3::new(c.x, c.y, 0.0);
+    let (l, v) = (
+        (light - pc).normalize(),
+        (lit.cam.center_world() - pc).normalize(),
+    );
+    if !(l.z > 0.0 && v.z > 0.0) {
+        return Err(format!(
+            "region {k} ({}): the light or the camera is below the sample plane",
+            r.material
+        ));
+    }
+    let n = r.size_px;
+    let (mut acc, mut lum, mut bad) = (DVec3::ZERO, Vec::with_capacity(n * n), 0usize);
+    for j in 0..n {
+        for i in 0..n {
+            let p = DVec3::new(
+                c.x + (i as f64 - (n - 1) as f64 * 0.5) * step,
+                c.y + (j as f64 - (n - 1) as f64 * 0.5) * step,
+                0.0,
+            );
+            let tl = light - p;
+            let d2 = tl.length_squared();
+            let cos = tl.z / d2.sqrt();
+            match sample_at(lit.cam, lit.img, p) {
+                Some(val) if cos > 0.0 => {
+                    let f = val * std::f64::consts::PI * d2 / (lit.intensity * cos);
+                    acc += f;
+                    lum.push(f.element_sum() / 3.0);
                 }
+                _ => bad += 1,
             }
         }
-        if bad > 0 {
-            return Err(err(format!(
-                "region {k} ({}): {bad} of {} pixels are saturated, unusable or outside the photo",
-                r.material,
-                n * n
-            )));
-        }
-        let m = acc / (n * n) as f64;
-        let ml = lum.iter().sum::<f64>() / lum.len() as f64;
-        let sd = (lum.iter().map(|x| (x - ml).powi(2)).sum::<f64>() / lum.len() as f64).sqrt();
-        regions.push(RegionValue {
-            material: r.material.clone(),
-            center: r.center,
-            light: l.as_vec3().to_array(),
-            view: v.as_vec3().to_array(),
-            value: m.as_vec3().to_array(),
-            rel_std: if ml > 0.0 { sd / ml } else { 0.0 },
-            pixels: n * n,
-        });
     }
+    if bad > 0 {
+        return Err(format!(
+            "region {k} ({}): {bad} of {} pixels are saturated, unusable or outside the photo",
+            r.material,
+            n * n
+        ));
+    }
+    let m = acc / (n * n) as f64;
+    let ml = lum.iter().sum::<f64>() / lum.len() as f64;
+    let sd = (lum.iter().map(|x| (x - ml).powi(2)).sum::<f64>() / lum.len() as f64).sqrt();
+    Ok(RegionValue {
+        material: r.material.clone(),
+        center: r.center,
+        light: l.as_vec3().to_array(),
+        view: v.as_vec3().to_array(),
+        value: m.as_vec3().to_array(),
+        rel_std: if ml > 0.0 { sd / ml } else { 0.0 },
+        pixels: n * n,
+    })
+}
 
-    // ---- homography: ortho pixel -> undistorted photo pixel, K [r1 r2 t] A
+/// The homography from orthographic pixel to undistorted photo pixel, `K [r1 r2 t] A`,
+/// normalised to a unit bottom-right entry.
+fn ortho_homography(frame: &SampleFrame, cam: &Camera) -> DMat3 {
     let i = &cam.intrinsics;
     let k = DMat3::from_cols(
         DVec3::new(i.fx, 0.0, 0.0),
         DVec3::new(0.0, i.fy, 0.0),
         DVec3::new(i.cx, i.cy, 1.0),
     );
+    let pose = &cam.pose;
     let h = k * DMat3::from_cols(pose.r.x_axis, pose.r.y_axis, pose.t) * frame.ortho_to_plane();
-    let h = h * (1.0 / h.z_axis.z);
-
-    Ok(PhotoMeasurement {
-        photo: photo.into(),
-        pose_source,
-        r: rows(&pose.r),
-        t: pose.t.to_array(),
-        pose_rms_px,
-        camera_center: eye.to_array(),
-        light: light.to_array(),
-        gap,
-        highlights: hl,
-        intensity: intensity.to_array(),
-        homography: rows(&h),
-        regions,
-    })
+    h * (1.0 / h.z_axis.z)
 }
 
 #[cfg(test)]
