@@ -11,13 +11,18 @@ pub struct DemoArgs {
     /// Smaller and faster (for tests): 60x40 photos, 32-texel atlases, fewer samples.
     #[arg(long)]
     pub quick: bool,
+    /// Solve on atlases sized from the photographs (as `igi solve --atlas auto`, at most 512
+    /// texels per part, large meshes cut into parts) instead of the true textures' 128-texel
+    /// atlases: more accurate and slower (docs/BENCHMARKS.md, "Demo").
+    #[arg(long)]
+    pub atlas_auto: bool,
     /// Print demo.json on stdout.
     #[arg(long)]
     pub json: bool,
 }
 
 pub fn run(a: DemoArgs, ctx: &Ctx) -> anyhow::Result<()> {
-    let opts = if a.quick {
+    let mut opts = if a.quick {
         DemoOptions {
             atlas: 32,
             atlas_auto_max: None,
@@ -32,6 +37,9 @@ pub fn run(a: DemoArgs, ctx: &Ctx) -> anyhow::Result<()> {
     } else {
         DemoOptions::default()
     };
+    if a.atlas_auto {
+        opts.atlas_auto_max = Some(512);
+    }
     let bar = Bar(ctx.progress(1, "demo"));
     let quiet = ctx.quiet;
     let report = run_demo(&a.output, &opts, &bar, &|s| {

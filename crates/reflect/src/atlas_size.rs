@@ -63,6 +63,9 @@ pub struct AtlasChoice {
     /// The finest pixel footprint on the part that decided it (metres per pixel); `None` for a
     /// fixed resolution or a part no photograph sees.
     pub footprint_m: Option<f64>,
+    /// The most texels per side the part may grow to when its packed atlas comes out coarser
+    /// than the footprint (the trial atlas's packing differs a little from the final one's).
+    pub max: u32,
 }
 
 /// A part as [`plan_parts`] cut it: its name, mesh (with normals) and atlas resolution.
@@ -186,6 +189,7 @@ pub fn auto_resolution(
         return Ok(AtlasChoice {
             resolution: AUTO_ATLAS_MIN,
             footprint_m: None,
+            max: AUTO_ATLAS_MIN,
         });
     };
     let trial = build_atlas(
@@ -200,6 +204,7 @@ pub fn auto_resolution(
     Ok(AtlasChoice {
         resolution: resolution_for(mesh.total_area(), footprint, efficiency, max),
         footprint_m: Some(footprint),
+        max,
     })
 }
 

@@ -9,9 +9,9 @@
 //! 3. Path-trace the survey photographs under the true skies at a high sample count and write
 //!    the survey folder with the probe-recovered lighting files.
 //! 4. Solve (`crate::solve`) with the ground truth attached, so the report records the albedo
-//!    error per iteration. The solve's atlases are sized from the photographs (`--atlas auto`,
-//!    [`crate::atlas_size`]), independently of the true textures' 128-texel atlases; the error
-//!    is measured at the solve's texel centres against the true scene.
+//!    error per iteration, on the true textures' 128-texel atlases, or (`igi demo --atlas-auto`)
+//!    on atlases sized from the photographs ([`crate::atlas_size`]); the error is measured at
+//!    the solve's texel centres against the true scene.
 //! 5. Re-render the recovered site from a held-out viewpoint under a held-out lighting and
 //!    compare with a rendering of the true site (relative mean, RMSE against the two images'
 //!    Monte-Carlo noise).
@@ -58,7 +58,7 @@ impl Default for DemoOptions {
         DemoOptions {
             seed: 7,
             atlas: 128,
-            atlas_auto_max: Some(512),
+            atlas_auto_max: None,
             photo_width: 240,
             photo_height: 160,
             photo_spp: 256,

@@ -148,6 +148,7 @@ pub fn build_parts(
         Ok(AtlasChoice {
             resolution,
             footprint_m: None,
+            max: resolution,
         })
     })
 }
@@ -180,7 +181,7 @@ pub fn build_parts_with(
                 mesh.compute_vertex_normals();
             }
             let choice = choose(&name, &mesh)?;
-            let atlas = part_atlas(&name, &mesh, choice.resolution)?;
+            let atlas = atlas_for(&name, &mesh, &choice)?;
             if let Some(f) = choice.footprint_m {
                 tracing::info!(
                     "part {name}: atlas {} texels per side, texel {:.4} m for a finest pixel footprint of {f:.4} m",
@@ -221,6 +222,25 @@ pub(crate) fn check_names<'a>(names: impl Iterator<Item = &'a str>) -> Result<()
         }
     }
     Ok(())
+}
+
+/// The atlas of part `name` at the chosen resolution; with a footprint, grown in steps of 16
+/// texels (up to `choice.max`) until its texels are no larger than the footprint (the trial
+/// atlas that chose the resolution packs a little differently).
+fn atlas_for(name: &str, mesh: &TriMesh, choice: &AtlasChoice) -> Result<Atlas, ReflectError> {
+    let mut atlas = part_atlas(name, mesh, choice.resolution)?;
+    let Some(f) = choice.footprint_m else {
+        return Ok(atlas);
+    };
+    for _ in 0..4 {
+        if atlas.texel_size <= f || atlas.resolution >= choice.max {
+            break;
+        }
+        let grown = (atlas.resolution as f64 * atlas.texel_size / f / 16.0).ceil() as u32 * 16;
+        let r = grown.max(atlas.resolution + 16).min(choice.max);
+        atlas = part_atlas(name, mesh, r)?;
+    }
+    Ok(atlas)
 }
 
 /// The atlas of part `name` at `resolution` texels per side.

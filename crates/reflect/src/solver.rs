@@ -25,9 +25,10 @@ pub struct SolveOptions {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub atlas_auto: Option<crate::atlas_size::AutoAtlas>,
     /// Iterations at most; the solve stops earlier (after `min_iterations`) when the mean
-    /// change of `rho_d` over seen texels drops below `tolerance` or below the photographs'
-    /// noise in `rho_d` (`IterationRecord::noise_rho`): an iteration that moves the albedo less
-    /// than the photographs can tell apart is not worth another.
+    /// change of `rho_d` over seen texels drops below `tolerance`, or, once the samples per
+    /// estimate stop growing, when its change beyond the Monte-Carlo noise drops below the
+    /// photographs' noise in `rho_d` (`IterationRecord::systematic_change_rho`, `noise_rho`):
+    /// another iteration at the same samples would only redraw the Monte-Carlo noise.
     pub max_iterations: u32,
     pub min_iterations: u32,
     pub tolerance: f32,
@@ -221,9 +222,10 @@ pub struct IterationRecord {
     pub noise_rho: f32,
     /// RMS over seen texels and channels of this iteration's change of `rho_d` beyond what the
     /// Monte-Carlo noise of this and the previous estimate explains: sqrt(max(0, mean(d^2 -
-    /// mc_k^2 - mc_(k-1)^2))). The solve stops once it is below `noise_rho`: the iteration
-    /// moved the albedo by less than the photographs can tell apart, and another at the same
-    /// samples would only redraw the Monte-Carlo noise.
+    /// mc_k^2 - mc_(k-1)^2))). Once the samples per estimate stop growing, the solve stops
+    /// when it is below `noise_rho`: the iteration moved the albedo by less than the
+    /// photographs can tell apart, and another at the same samples would only redraw the
+    /// Monte-Carlo noise.
     #[serde(default)]
     pub systematic_change_rho: f32,
     /// With ground truth: mean absolute error of `rho_d` per channel over texels seen in at
@@ -881,7 +883,8 @@ pub(crate) fn finish_iteration(
         return Err(ReflectError::NoObservations(rec.iteration));
     }
     let done = acc.iteration >= opts.min_iterations
-        && (rec.delta_rho < opts.tolerance || rec.systematic_change_rho < rec.noise_rho);
+        && (rec.delta_rho < opts.tolerance
+            || (rec.systematic_change_rho < rec.noise_rho && spp_of(opts, k + 1) <= rec.spp));
     start.report.iterations.push(rec);
     start.report.converged = done;
     Ok(done)
@@ -1344,13 +1347,17 @@ mod tests {
 
     #[test]
     fn the_solve_stops_once_an_iteration_moves_the_albedo_less_than_the_photographs_noise() {
-        let (done, rec) = stops(2, 0.004, 0.005, 0.0);
+        // iteration 3 of the default 16, 64, 256: the samples stop growing
+        let (done, rec) = stops(3, 0.004, 0.005, 0.0);
         assert!(done);
         assert!((rec.systematic_change_rho - 0.004).abs() < 1e-7);
         assert!((rec.noise_rho - 0.005).abs() < 1e-7);
+        // while the samples still grow (iteration 2 at 64 of 16, 64, 256), it goes on: the
+        // next iteration's Monte-Carlo noise is smaller
+        assert!(!stops(2, 0.004, 0.005, 0.0).0);
         // a change above the noise goes on, unless below the tolerance
-        assert!(!stops(2, 0.006, 0.005, 0.0).0);
-        assert!(stops(2, 0.006, 0.005, 0.01).0);
+        assert!(!stops(3, 0.006, 0.005, 0.0).0);
+        assert!(stops(3, 0.006, 0.005, 0.01).0);
         // never before the second iteration
         assert!(!stops(1, 0.001, 0.005, 0.01).0);
         // noiseless photographs (every texel seen once): only the tolerance stops it
