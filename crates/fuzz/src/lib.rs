@@ -155,8 +155,10 @@ pub fn targets() -> Vec<Target> {
             name: "lighting",
             input: "light/in.toml",
             setup: setup_lighting,
+            // parse (igi-formats), then build (igi-render)
             run: |p| {
-                igi_render::Lighting::load(p)
+                let f = igi_formats::lighting::read(p).map_err(|e| e.to_string())?;
+                igi_render::Lighting::from_file(&f, p)
                     .map(drop)
                     .map_err(|e| e.to_string())
             },
@@ -166,7 +168,8 @@ pub fn targets() -> Vec<Target> {
             input: "scene/in.toml",
             setup: setup_scene,
             run: |p| {
-                igi_render::Scene::load(p)
+                let f = igi_formats::scene::read(p).map_err(|e| e.to_string())?;
+                igi_render::Scene::from_file(&f, p)
                     .map(drop)
                     .map_err(|e| e.to_string())
             },
