@@ -2,6 +2,7 @@
 use crate::report::Ctx;
 use anyhow::{bail, Context};
 use igi_formats::lighting::{EnvironmentSection, LightingFile, SunSection};
+use igi_formats::TomlFile;
 use igi_imaging::hdr::{merge_linear, parse_time, LinearParams};
 use igi_imaging::io::{srgb_to_linear, write_text_atomic};
 use igi_imaging::{read_image, write_exr, write_png_tonemapped, Camera, HdrImage, ImagingError};
@@ -458,6 +459,6 @@ fn write_outputs(out: &Path, r: &ProbeResult) -> anyhow::Result<()> {
         }),
     };
     let header = format!("written by igi probe; diagnostics in {}", name(&diag_path));
-    igi_formats::lighting::write(out, &lighting, &[&header])?;
+    lighting.write(out, &[&header])?;
     Ok(())
 }

@@ -6,11 +6,20 @@
 //! (`igi-render` for lighting and scene files, `igi-reflect` for surveys) resolve the paths,
 //! validate the values and build their own objects.
 //!
-//! - [`lighting`]: the lighting file (`[environment]` lat-long map, `[sun]` disk).
-//! - [`scene`]: the scene file (`lighting`, `[[object]]` meshes with albedo and lobes).
-//! - [`survey`]: `survey.toml` (`[site]`, `[[photo]]`, `[brdf]`, `[radiometry]`).
-//! - camera files (JSON) stay with the camera model in `igi-imaging`, re-exported here as
-//!   [`Camera`]: [`Camera::load`] reads, [`Camera::save`] writes.
+//! - [`lighting`]: the lighting file ([`LightingFile`]: `[environment]` lat-long map, `[sun]`
+//!   disk).
+//! - [`scene`]: the scene file ([`SceneFile`]: `lighting`, `[[object]]` meshes with albedo and
+//!   lobes).
+//! - [`survey`]: `survey.toml` ([`SurveyFile`]: `[site]`, `[[photo]]`, `[brdf]`,
+//!   `[radiometry]`).
+//!
+//! Each reads with [`TomlFile::read`] and writes with [`TomlFile::write`] (atomically, after an
+//! optional comment header); the trait is the one reader and one writer of every TOML kind.
+//! - camera files (JSON) stay with the camera model in `igi-imaging` (the bottom crate, which
+//!   every pipeline reads cameras through), re-exported here: the file model [`CameraFile`]
+//!   (values kept as JSON so each problem gets its own message), [`Camera::from_file`] and
+//!   [`Camera::to_file`] between it and the [`Camera`], [`Camera::load`] reads and
+//!   [`Camera::save`] writes.
 //!
 //! Numbers are `f64` as TOML holds them; a reader that wants `f32` casts, which is what serde
 //! does when it reads a TOML float into an `f32`. Writers of `f32` data pass it through
@@ -23,7 +32,7 @@ pub mod lighting;
 pub mod scene;
 pub mod survey;
 
-pub use igi_imaging::Camera;
+pub use igi_imaging::{Camera, CameraFile};
 pub use lighting::LightingFile;
 pub use scene::SceneFile;
 pub use survey::SurveyFile;
@@ -94,55 +103,53 @@ pub enum FormatsError {
     Write(#[from] igi_imaging::ImagingError),
 }
 
-/// Reads and parses a TOML file of `kind`.
-fn read_toml<T: DeserializeOwned>(path: &Path, kind: FileKind) -> Result<T, FormatsError> {
-    let text = std::fs::read_to_string(path).map_err(|source| FormatsError::Read {
-        path: path.to_path_buf(),
-        kind,
-        source,
-    })?;
-    toml::from_str(&text).map_err(|source| FormatsError::Parse {
-        path: path.to_path_buf(),
-        kind,
-        source,
-    })
-}
+/// A file with one reader and one writer: the TOML text of a serde model.
+pub trait TomlFile: Serialize + DeserializeOwned {
+    /// Which file this is (errors name it).
+    const KIND: FileKind;
 
-/// The TOML text of `value`, after `header` (comment lines, each written as `# line`) and a
-/// blank line.
-fn toml_text<T: Serialize>(
-    value: &T,
-    header: &[&str],
-    path: &Path,
-    kind: FileKind,
-) -> Result<String, FormatsError> {
-    let body = toml::to_string(value).map_err(|source| FormatsError::Serialize {
-        path: path.to_path_buf(),
-        kind,
-        source,
-    })?;
-    let mut text = String::new();
-    for line in header {
-        text.push_str("# ");
-        text.push_str(line);
-        text.push('\n');
+    /// Reads and parses the file at `path`; no path in it is resolved or opened.
+    fn read(path: &Path) -> Result<Self, FormatsError> {
+        let text = std::fs::read_to_string(path).map_err(|source| FormatsError::Read {
+            path: path.to_path_buf(),
+            kind: Self::KIND,
+            source,
+        })?;
+        toml::from_str(&text).map_err(|source| FormatsError::Parse {
+            path: path.to_path_buf(),
+            kind: Self::KIND,
+            source,
+        })
     }
-    if !header.is_empty() {
-        text.push('\n');
-    }
-    text.push_str(&body);
-    Ok(text)
-}
 
-/// Writes `value` as TOML after `header`, atomically (a temporary file renamed into place).
-fn write_toml<T: Serialize>(
-    path: &Path,
-    value: &T,
-    header: &[&str],
-    kind: FileKind,
-) -> Result<(), FormatsError> {
-    let text = toml_text(value, header, path, kind)?;
-    Ok(igi_imaging::io::write_text_atomic(path, &text)?)
+    /// The text [`write`](Self::write) writes: each `header` line as a `# ` comment, a blank
+    /// line after them, then the TOML (tables in field order).
+    fn to_toml(&self, header: &[&str]) -> Result<String, toml::ser::Error> {
+        let body = toml::to_string(self)?;
+        let mut text = String::new();
+        for line in header {
+            text.push_str("# ");
+            text.push_str(line);
+            text.push('\n');
+        }
+        if !header.is_empty() {
+            text.push('\n');
+        }
+        text.push_str(&body);
+        Ok(text)
+    }
+
+    /// Writes the file atomically (a temporary file renamed into place), after `header`.
+    fn write(&self, path: &Path, header: &[&str]) -> Result<(), FormatsError> {
+        let text = self
+            .to_toml(header)
+            .map_err(|source| FormatsError::Serialize {
+                path: path.to_path_buf(),
+                kind: Self::KIND,
+                source,
+            })?;
+        Ok(igi_imaging::io::write_text_atomic(path, &text)?)
+    }
 }
 
 /// The `f64` nearest the shortest decimal that reads back as `x`: written to a file it shows

@@ -14,9 +14,9 @@
 //! Unknown keys inside a section are refused; unknown top-level keys are ignored (as they have
 //! always been).
 
-use crate::{read_toml, write_toml, FileKind, FormatsError};
+use crate::{FileKind, TomlFile};
 use serde::{Deserialize, Serialize};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// A lighting file as written. Neither section is required by the format; a renderer that
 /// needs light refuses a file with neither.
@@ -58,19 +58,8 @@ fn sun_diameter() -> f64 {
     igi_imaging::color::SUN_ANGULAR_DIAMETER_DEG
 }
 
-/// Reads a lighting file (no path in it is resolved or opened).
-pub fn read(path: &Path) -> Result<LightingFile, FormatsError> {
-    read_toml(path, FileKind::Lighting)
-}
-
-/// Writes a lighting file atomically, after `header` comment lines.
-pub fn write(path: &Path, file: &LightingFile, header: &[&str]) -> Result<(), FormatsError> {
-    write_toml(path, file, header, FileKind::Lighting)
-}
-
-/// The text [`write`] writes.
-pub fn to_string(file: &LightingFile, header: &[&str]) -> Result<String, FormatsError> {
-    crate::toml_text(file, header, Path::new("lighting file"), FileKind::Lighting)
+impl TomlFile for LightingFile {
+    const KIND: FileKind = FileKind::Lighting;
 }
 
 #[cfg(test)]
@@ -90,15 +79,15 @@ mod tests {
                 angular_diameter_deg: 0.53,
             }),
         };
-        let text = to_string(&f, &[]).unwrap();
+        let text = f.to_toml(&[]).unwrap();
         assert_eq!(
             text,
             "[environment]\nmap = \"noon_sky.exr\"\nscale = 1.0\n\n[sun]\ndirection = [0.0, 0.6, 0.8]\nradiance = [60000.0, 57000.5, 0.1]\nangular_diameter_deg = 0.53\n"
         );
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("noon.toml");
-        write(&p, &f, &["written by a test"]).unwrap();
-        let back = read(&p).unwrap();
+        f.write(&p, &["written by a test"]).unwrap();
+        let back = LightingFile::read(&p).unwrap();
         assert_eq!(back, f);
         assert!(std::fs::read_to_string(&p)
             .unwrap()
@@ -110,13 +99,13 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("sun.toml");
         std::fs::write(&p, "[sun]\ndirection = [0, 0, 1]\nradiance = [1, 2, 3]\n").unwrap();
-        let f = read(&p).unwrap();
+        let f = LightingFile::read(&p).unwrap();
         let s = f.sun.unwrap();
         assert_eq!(s.direction, [0.0, 0.0, 1.0]);
         assert_eq!(s.angular_diameter_deg, 0.53);
         assert!(f.environment.is_none());
         std::fs::write(&p, "[environment]\nmap = \"m.exr\"\nscal = 2\n").unwrap();
-        let e = read(&p).unwrap_err();
+        let e = LightingFile::read(&p).unwrap_err();
         let msg = e.to_string();
         assert!(
             msg.contains("sun.toml")
@@ -128,7 +117,9 @@ mod tests {
             std::error::Error::source(&e).is_some(),
             "the TOML error is kept"
         );
-        let e = read(&dir.path().join("none.toml")).unwrap_err().to_string();
+        let e = LightingFile::read(&dir.path().join("none.toml"))
+            .unwrap_err()
+            .to_string();
         assert!(
             e.contains("none.toml") && e.contains("cannot read lighting file"),
             "{e}"

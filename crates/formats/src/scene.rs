@@ -10,12 +10,12 @@
 //! lobes = [ { rho = [0.1, 0.1, 0.1], cxy = -0.9, cz = 1.0, n = 30.0 } ]
 //! # or, per texel (igi's extension): lobe_maps = [ { rho = "l0_rho.exr", shape = "l0_shape.exr" } ]
 //! ```
-//! Written by [`write`], nested lists of tables come out as `[[object.lobes]]` and
+//! Written by [`TomlFile::write`], nested lists of tables come out as `[[object.lobes]]` and
 //! `[[object.lobe_maps]]` sections, which TOML reads as the same lists.
 
-use crate::{read_toml, write_toml, FileKind, FormatsError};
+use crate::{FileKind, TomlFile};
 use serde::{Deserialize, Serialize};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// A scene file as written (paths relative to its folder).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -70,19 +70,8 @@ pub struct LobeMapEntry {
     pub shape: PathBuf,
 }
 
-/// Reads a scene file (no path in it is resolved or opened).
-pub fn read(path: &Path) -> Result<SceneFile, FormatsError> {
-    read_toml(path, FileKind::Scene)
-}
-
-/// Writes a scene file atomically, after `header` comment lines.
-pub fn write(path: &Path, file: &SceneFile, header: &[&str]) -> Result<(), FormatsError> {
-    write_toml(path, file, header, FileKind::Scene)
-}
-
-/// The text [`write`] writes.
-pub fn to_string(file: &SceneFile, header: &[&str]) -> Result<String, FormatsError> {
-    crate::toml_text(file, header, Path::new("scene file"), FileKind::Scene)
+impl TomlFile for SceneFile {
+    const KIND: FileKind = FileKind::Scene;
 }
 
 #[cfg(test)]
@@ -107,7 +96,7 @@ mod tests {
                 textured("block.ply", "block_albedo.exr"),
             ],
         };
-        let text = to_string(&f, &["Recovered", "second line"]).unwrap();
+        let text = f.to_toml(&["Recovered", "second line"]).unwrap();
         assert_eq!(
             text,
             "# Recovered\n# second line\n\n[[object]]\nmesh = \"ground.ply\"\nalbedo = \"ground_albedo.exr\"\n\n[[object]]\nmesh = \"block.ply\"\nalbedo = \"block_albedo.exr\"\n"
@@ -139,7 +128,7 @@ mod tests {
                 },
             ],
         };
-        let text = to_string(&f, &[]).unwrap();
+        let text = f.to_toml(&[]).unwrap();
         let back: SceneFile = toml::from_str(&text).unwrap();
         assert_eq!(back, f, "{text}");
         assert!(

@@ -14,9 +14,9 @@
 //! ```
 //! Every key of every section is checked: unknown keys are refused.
 
-use crate::{read_toml, write_toml, FileKind, FormatsError};
+use crate::{FileKind, TomlFile};
 use serde::{Deserialize, Serialize};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// A survey file as written (paths relative to its folder).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -82,19 +82,8 @@ pub struct RadiometrySection {
     pub camera: PathBuf,
 }
 
-/// Reads a survey file (no path in it is resolved or opened).
-pub fn read(path: &Path) -> Result<SurveyFile, FormatsError> {
-    read_toml(path, FileKind::Survey)
-}
-
-/// Writes a survey file atomically, after `header` comment lines.
-pub fn write(path: &Path, file: &SurveyFile, header: &[&str]) -> Result<(), FormatsError> {
-    write_toml(path, file, header, FileKind::Survey)
-}
-
-/// The text [`write`] writes.
-pub fn to_string(file: &SurveyFile, header: &[&str]) -> Result<String, FormatsError> {
-    crate::toml_text(file, header, Path::new("survey file"), FileKind::Survey)
+impl TomlFile for SurveyFile {
+    const KIND: FileKind = FileKind::Survey;
 }
 
 #[cfg(test)]
@@ -123,7 +112,7 @@ mod tests {
             radiometry: None,
             photo: vec![photo("a", "sunny"), photo("b", "overcast")],
         };
-        let text = to_string(&f, &[]).unwrap();
+        let text = f.to_toml(&[]).unwrap();
         assert_eq!(
             text,
             "[site]\nmeshes = [\"geometry/ground.ply\", \"geometry/block.ply\"]\n\n[[photo]]\nid = \"a\"\nimage = \"photos/a.exr\"\ncamera = \"cameras/a.json\"\nlighting = \"lighting/sunny.toml\"\n\n[[photo]]\nid = \"b\"\nimage = \"photos/b.exr\"\ncamera = \"cameras/b.json\"\nlighting = \"lighting/overcast.toml\"\n"
@@ -154,7 +143,7 @@ mod tests {
             }),
             photo: vec![p],
         };
-        let text = to_string(&f, &[]).unwrap();
+        let text = f.to_toml(&[]).unwrap();
         assert_eq!(toml::from_str::<SurveyFile>(&text).unwrap(), f, "{text}");
         let e = toml::from_str::<SurveyFile>("[site]\nmesh = \"a.ply\"\ncolour = 1\n")
             .unwrap_err()

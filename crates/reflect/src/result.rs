@@ -36,7 +36,7 @@ use crate::ReflectError;
 use glam::Vec3;
 use igi_brdf::Lobe;
 use igi_formats::scene::{AlbedoEntry, LobeEntry, LobeMapEntry, ObjectEntry, SceneFile};
-use igi_formats::{f32_decimal, f32_decimals};
+use igi_formats::{f32_decimal, f32_decimals, TomlFile};
 use igi_geometry::{read_mesh, write_obj, write_ply, TriMesh};
 use igi_imaging::{read_image, write_exr, HdrImage};
 use std::fmt::Write as _;
@@ -219,9 +219,8 @@ impl SolveResult {
                 .object
                 .push(self.object_entry(i, &mesh, &albedo, "parts/", per_texel));
         }
-        igi_formats::scene::write(
+        scene.write(
             &sdir.join("scene.toml"),
-            &scene,
             &[
                 "Recovered reflectance (igi solve). Re-light with:",
                 "igi render THIS_FOLDER --lighting L.toml --camera C.json --spp N -o out.exr",
@@ -586,9 +585,8 @@ pub fn export(
         written.push(mesh);
     }
     let sp = out.join("scene.toml");
-    igi_formats::scene::write(
+    scene.write(
         &sp,
-        &scene,
         &[
             "Recovered reflectance (igi export). Render with:",
             "igi render THIS_FILE --lighting L.toml --camera C.json --spp N -o out.exr",

@@ -3,6 +3,7 @@
 //! `igi_formats::survey`; this module resolves and checks what it names.
 
 use crate::ReflectError;
+use igi_formats::{SurveyFile, TomlFile};
 use igi_imaging::{Camera, HdrImage};
 use igi_render::Lighting;
 use std::path::{Path, PathBuf};
@@ -78,7 +79,7 @@ impl Survey {
         } else {
             path.to_path_buf()
         };
-        let f = igi_formats::survey::read(&file)?;
+        let f = SurveyFile::read(&file)?;
         let root = file.parent().unwrap_or(Path::new(".")).to_path_buf();
         let exists = |p: &Path, what: &str| -> Result<PathBuf, ReflectError> {
             let full = root.join(p);

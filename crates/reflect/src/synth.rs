@@ -7,10 +7,10 @@ use crate::fill::dilate;
 use crate::parts::Part;
 use crate::ReflectError;
 use glam::{DVec3, Vec3};
-use igi_formats::f32_decimals;
 use igi_formats::lighting::{EnvironmentSection, LightingFile, SunSection};
 use igi_formats::scene::{AlbedoEntry, ObjectEntry, SceneFile};
 use igi_formats::survey::{PhotoEntry, SiteSection, SurveyFile};
+use igi_formats::{f32_decimals, TomlFile};
 use igi_geometry::TriMesh;
 use igi_imaging::color::SUN_ANGULAR_DIAMETER_DEG;
 use igi_imaging::{Camera, HdrImage, WorldToCamera};
@@ -113,7 +113,7 @@ impl LightingSpec {
             }),
         };
         let p = dir.join(format!("{}.toml", self.name));
-        igi_formats::lighting::write(&p, &file, &[])?;
+        file.write(&p, &[])?;
         Ok(p)
     }
 }
@@ -277,9 +277,8 @@ pub fn write_survey(
                 .push(format!("geometry/{}.ply", p.name).into());
         }
     }
-    igi_formats::scene::write(
+    truth_scene.write(
         &dir.join("truth").join("scene.toml"),
-        &truth_scene,
         &["true albedo of the synthetic site (igi solve --truth)"],
     )?;
     let scene = scene_with_albedo(parts, truth)?;
@@ -319,6 +318,6 @@ pub fn write_survey(
             probe: None,
         });
     }
-    igi_formats::survey::write(&dir.join("survey.toml"), &survey, &[])?;
+    survey.write(&dir.join("survey.toml"), &[])?;
     Ok(())
 }

@@ -16,7 +16,7 @@ use crate::RenderError;
 use glam::{DVec3, Vec2, Vec3};
 use igi_brdf::luminance;
 use igi_brdf::Frame;
-use igi_formats::LightingFile;
+use igi_formats::{LightingFile, TomlFile};
 use igi_imaging::{latlong, HdrImage};
 use std::f32::consts::PI;
 use std::path::Path;
@@ -325,7 +325,7 @@ impl Lighting {
     /// Reads a lighting file (FORMATS.md) and builds it; the map path is relative to the
     /// file's folder.
     pub fn load(path: &Path) -> Result<Self, RenderError> {
-        Self::from_file(&igi_formats::lighting::read(path)?, path)
+        Self::from_file(&LightingFile::read(path)?, path)
     }
 
     /// Builds the lighting a parsed lighting file describes: reads its map (relative to the

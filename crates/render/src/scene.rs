@@ -16,6 +16,7 @@ use crate::RenderError;
 use glam::{DVec3, Vec2, Vec3};
 use igi_brdf::{LafortuneRef, Lobe};
 use igi_formats::scene::{AlbedoEntry, ObjectEntry, SceneFile};
+use igi_formats::TomlFile;
 use igi_geometry::TriMesh;
 use igi_imaging::HdrImage;
 use std::path::{Path, PathBuf};
@@ -456,7 +457,7 @@ impl Scene {
                 msg: "is a directory, not a scene file (re-lighting a solve result is not supported yet)".into(),
             });
         }
-        Self::from_file(&igi_formats::scene::read(path)?, path)
+        Self::from_file(&SceneFile::read(path)?, path)
     }
 
     /// Builds the scene (and its lighting) a parsed scene file describes: reads the meshes,
