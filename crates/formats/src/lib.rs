@@ -71,7 +71,8 @@ impl FileKind {
     }
 }
 
-/// Errors of reading and writing the interchange files. Every message names the file.
+/// Errors of reading and writing the interchange files. Every message names the file. The
+/// sources are boxed so that the error stays small (it travels inside other crates' errors).
 #[derive(Debug, thiserror::Error)]
 pub enum FormatsError {
     /// The file cannot be read (missing, a folder, not UTF-8).
@@ -88,7 +89,7 @@ pub enum FormatsError {
         path: PathBuf,
         kind: FileKind,
         #[source]
-        source: toml::de::Error,
+        source: Box<toml::de::Error>,
     },
     /// A value cannot be written as TOML (a path that is not UTF-8).
     #[error("{path}: cannot write {kind}: {source}")]
@@ -96,11 +97,11 @@ pub enum FormatsError {
         path: PathBuf,
         kind: FileKind,
         #[source]
-        source: toml::ser::Error,
+        source: Box<toml::ser::Error>,
     },
     /// Writing the file failed (the atomic writer names the file).
     #[error(transparent)]
-    Write(#[from] igi_imaging::ImagingError),
+    Write(Box<igi_imaging::ImagingError>),
 }
 
 /// A file with one reader and one writer: the TOML text of a serde model.
@@ -118,7 +119,7 @@ pub trait TomlFile: Serialize + DeserializeOwned {
         toml::from_str(&text).map_err(|source| FormatsError::Parse {
             path: path.to_path_buf(),
             kind: Self::KIND,
-            source,
+            source: Box::new(source),
         })
     }
 
@@ -146,9 +147,10 @@ pub trait TomlFile: Serialize + DeserializeOwned {
             .map_err(|source| FormatsError::Serialize {
                 path: path.to_path_buf(),
                 kind: Self::KIND,
-                source,
+                source: Box::new(source),
             })?;
-        Ok(igi_imaging::io::write_text_atomic(path, &text)?)
+        igi_imaging::io::write_text_atomic(path, &text)
+            .map_err(|e| FormatsError::Write(Box::new(e)))
     }
 }
 
