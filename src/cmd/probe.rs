@@ -1,6 +1,8 @@
 //! `igi probe`: lighting (sky map + sun) from a photograph of the three-sphere board.
 use crate::report::Ctx;
 use anyhow::{bail, Context};
+use igi_formats::lighting::{EnvironmentSection, LightingFile, SunSection};
+use igi_formats::TomlFile;
 use igi_imaging::hdr::{merge_linear, parse_time, LinearParams};
 use igi_imaging::io::{srgb_to_linear, write_text_atomic};
 use igi_imaging::{read_image, write_exr, write_png_tonemapped, Camera, HdrImage, ImagingError};
@@ -261,16 +263,6 @@ fn load_input(a: &ProbeArgs) -> anyhow::Result<(HdrImage, Option<f32>)> {
     }
 }
 
-fn toml_array(v: &[f64]) -> String {
-    format!(
-        "[{}]",
-        v.iter()
-            .map(|x| format!("{x:?}"))
-            .collect::<Vec<_>>()
-            .join(", ")
-    )
-}
-
 pub fn run(a: ProbeArgs, ctx: &Ctx) -> anyhow::Result<()> {
     if let Some(ProbeAction::CalibrateMirror(c)) = a.action {
         return calibrate_mirror(c);
@@ -453,21 +445,20 @@ fn write_outputs(out: &Path, r: &ProbeResult) -> anyhow::Result<()> {
     let json = serde_json::to_string_pretty(&r.diagnostics)?;
     write_text_atomic(&diag_path, &json)?;
     // lighting file
-    let mut toml = format!(
-        "# written by igi probe; diagnostics in {}\n[environment]\nmap = \"{}\"\nscale = 1.0\n",
-        name(&diag_path),
-        name(&sky_path)
-    );
-    if let Some(s) = sun {
-        if let Some(rad) = s.radiance {
-            toml.push_str(&format!(
-                "\n[sun]\ndirection = {}\nradiance = {}\nangular_diameter_deg = {:?}\n",
-                toml_array(&s.direction),
-                toml_array(&rad.map(|v| v as f64)),
-                s.angular_diameter_deg
-            ));
-        }
-    }
-    write_text_atomic(out, &toml)?;
+    let lighting = LightingFile {
+        environment: Some(EnvironmentSection {
+            map: name(&sky_path).into(),
+            scale: 1.0,
+        }),
+        sun: sun.and_then(|s| {
+            s.radiance.map(|rad| SunSection {
+                direction: s.direction,
+                radiance: rad.map(|v| v as f64),
+                angular_diameter_deg: s.angular_diameter_deg,
+            })
+        }),
+    };
+    let header = format!("written by igi probe; diagnostics in {}", name(&diag_path));
+    lighting.write(out, &[&header])?;
     Ok(())
 }

@@ -20,6 +20,7 @@
 //! Run with `scripts/fuzz.sh` (a fixed number of executions per target); the counts of the
 //! last full run are in `docs/RELIABILITY.md`.
 
+use igi_formats::TomlFile;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use std::alloc::{GlobalAlloc, Layout, System};
@@ -155,8 +156,10 @@ pub fn targets() -> Vec<Target> {
             name: "lighting",
             input: "light/in.toml",
             setup: setup_lighting,
+            // parse (igi-formats), then build (igi-render)
             run: |p| {
-                igi_render::Lighting::load(p)
+                let f = igi_formats::LightingFile::read(p).map_err(|e| e.to_string())?;
+                igi_render::Lighting::from_file(&f, p)
                     .map(drop)
                     .map_err(|e| e.to_string())
             },
@@ -166,7 +169,8 @@ pub fn targets() -> Vec<Target> {
             input: "scene/in.toml",
             setup: setup_scene,
             run: |p| {
-                igi_render::Scene::load(p)
+                let f = igi_formats::SceneFile::read(p).map_err(|e| e.to_string())?;
+                igi_render::Scene::from_file(&f, p)
                     .map(drop)
                     .map_err(|e| e.to_string())
             },

@@ -214,16 +214,24 @@ pub struct Camera {
     pub pose: WorldToCamera,
 }
 
-#[derive(serde::Serialize, serde::Deserialize)]
+/// A camera file (FORMATS.md, JSON) as written: the keys of the format, each value kept as
+/// JSON so that every problem gets its own message ("width must be a positive integer", "K row
+/// 1 must have 3 entries"). [`Camera::from_file`] checks and builds a [`Camera`];
+/// [`Camera::to_file`] is its inverse. [`Camera::load`] reads and [`Camera::save`] writes.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[allow(non_snake_case)]
-struct CameraJson {
-    width: serde_json::Value,
-    height: serde_json::Value,
-    K: serde_json::Value,
+pub struct CameraFile {
+    pub width: serde_json::Value,
+    pub height: serde_json::Value,
+    /// `[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`.
+    pub K: serde_json::Value,
+    /// `[k1, k2, p1, p2, k3]` (or 4 entries, or absent / null for none).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    dist: Option<serde_json::Value>,
-    R: serde_json::Value,
-    t: serde_json::Value,
+    pub dist: Option<serde_json::Value>,
+    /// World-to-camera rotation, rows.
+    pub R: serde_json::Value,
+    /// World-to-camera translation.
+    pub t: serde_json::Value,
 }
 
 fn json_numbers(v: &serde_json::Value, what: &str) -> Result<Vec<f64>, String> {
@@ -314,7 +322,16 @@ impl Camera {
             path: path.to_path_buf(),
             msg,
         };
-        let j: CameraJson = serde_json::from_str(text).map_err(|e| err(e.to_string()))?;
+        let j: CameraFile = serde_json::from_str(text).map_err(|e| err(e.to_string()))?;
+        Self::from_file(&j, path)
+    }
+
+    /// Checks a parsed camera file and builds the camera; `path` is used in errors.
+    pub fn from_file(j: &CameraFile, path: &Path) -> Result<Camera, ImagingError> {
+        let err = |msg: String| ImagingError::Camera {
+            path: path.to_path_buf(),
+            msg,
+        };
         let dim = |v: &serde_json::Value, what: &str| -> Result<u32, ImagingError> {
             v.as_u64()
                 .filter(|&x| x > 0 && x <= u32::MAX as u64)
@@ -400,16 +417,20 @@ impl Camera {
 
     /// JSON text in the FORMATS.md layout (`dist` omitted when zero).
     pub fn to_json_string(&self) -> String {
+        serde_json::to_string_pretty(&self.to_file()).expect("camera serialises")
+    }
+
+    /// The camera file of this camera (`dist` omitted when zero).
+    pub fn to_file(&self) -> CameraFile {
         let i = &self.intrinsics;
-        let j = CameraJson {
+        CameraFile {
             width: self.width.into(),
             height: self.height.into(),
             K: serde_json::json!(i.k_matrix()),
             dist: (!i.dist.is_zero()).then(|| serde_json::json!(i.dist.to_array())),
             R: serde_json::json!(rows_of(&self.pose.r)),
             t: serde_json::json!(self.pose.t.to_array()),
-        };
-        serde_json::to_string_pretty(&j).expect("camera serialises")
+        }
     }
 
     /// Save as JSON, atomically.

@@ -45,7 +45,7 @@ pub mod radiometry;
 pub mod rig;
 pub mod run;
 
-pub use camera::{Camera, CameraToWorld, Distortion, Intrinsics, WorldToCamera};
+pub use camera::{Camera, CameraFile, CameraToWorld, Distortion, Intrinsics, WorldToCamera};
 pub use error::ImagingError;
 pub use image::HdrImage;
 pub use io::{

@@ -62,6 +62,8 @@ pub enum ReflectError {
     #[error("iteration {iteration}: {} task(s) have not finished: {}", groups.len(), groups.join(", "))]
     MissingTasks { iteration: u32, groups: Vec<String> },
     #[error(transparent)]
+    Format(#[from] igi_formats::FormatsError),
+    #[error(transparent)]
     Imaging(#[from] igi_imaging::ImagingError),
     #[error(transparent)]
     Geometry(#[from] igi_geometry::GeometryError),

@@ -35,6 +35,8 @@ use crate::solver::{SolveOptions, SolveReport};
 use crate::ReflectError;
 use glam::Vec3;
 use igi_brdf::Lobe;
+use igi_formats::scene::{AlbedoEntry, LobeEntry, LobeMapEntry, ObjectEntry, SceneFile};
+use igi_formats::{f32_decimal, f32_decimals, TomlFile};
 use igi_geometry::{read_mesh, write_obj, write_ply, TriMesh};
 use igi_imaging::{read_image, write_exr, HdrImage};
 use std::fmt::Write as _;
@@ -161,7 +163,7 @@ impl SolveResult {
             Some(s) => Some(igi_geometry::SiteStore::open(&s.site)?),
             None => None,
         };
-        let mut scene = String::from("# Recovered reflectance (igi solve). Re-light with:\n# igi render THIS_FOLDER --lighting L.toml --camera C.json --spp N -o out.exr\n");
+        let mut scene = SceneFile::default();
         for (i, p) in self.parts.iter().enumerate() {
             let r = p.resolution();
             let img = |f: &dyn Fn(usize) -> [f32; 3]| {
@@ -213,9 +215,17 @@ impl SolveResult {
                 .basis
                 .as_ref()
                 .map_or(0, |b| b.infer(Vec3::splat(0.5)).lobes.len());
-            scene.push_str(&self.object_toml(i, &mesh, &albedo, "parts/", per_texel));
+            scene
+                .object
+                .push(self.object_entry(i, &mesh, &albedo, "parts/", per_texel));
         }
-        write_text(&sdir.join("scene.toml"), &scene)?;
+        scene.write(
+            &sdir.join("scene.toml"),
+            &[
+                "Recovered reflectance (igi solve). Re-light with:",
+                "igi render THIS_FOLDER --lighting L.toml --camera C.json --spp N -o out.exr",
+            ],
+        )?;
         crate::plot::plot_convergence(&self.report, &sdir.join("convergence.png"))?;
         let json = serde_json::to_string_pretty(&self.report).expect("report serialises");
         write_text(&sdir.join("report.json"), &json)?;
@@ -394,52 +404,44 @@ pub(crate) fn read_stderr(pdir: &Path, name: &str, r: usize) -> Result<Vec<Vec3>
         .collect())
 }
 
-fn toml_string(s: &str) -> String {
-    format!("\"{}\"", s.replace('\\', "\\\\").replace('"', "\\\""))
-}
-
 impl SolveResult {
     /// Part `i` as a scene file's `[[object]]` (FORMATS.md): its mesh and albedo texture, and
     /// its per-texel lobe maps `{maps}NAME_lobeK_rho.exr` / `_shape.exr` (with a basis) or its
     /// constant lobes.
-    fn object_toml(
+    fn object_entry(
         &self,
         i: usize,
         mesh: &str,
         albedo: &str,
         maps: &str,
         per_texel: usize,
-    ) -> String {
+    ) -> ObjectEntry {
         let name = &self.parts[i].name;
-        let mut s = format!(
-            "\n[[object]]\nmesh = {}\nalbedo = {}\n",
-            toml_string(mesh),
-            toml_string(albedo)
-        );
-        if per_texel > 0 {
-            let maps: Vec<String> = (0..per_texel)
-                .map(|k| {
-                    format!(
-                        "{{ rho = {}, shape = {} }}",
-                        toml_string(&format!("{maps}{name}_lobe{k}_rho.exr")),
-                        toml_string(&format!("{maps}{name}_lobe{k}_shape.exr"))
-                    )
-                })
-                .collect();
-            let _ = writeln!(s, "lobe_maps = [{}]", maps.join(", "));
-        } else if !self.lobes[i].is_empty() {
-            let lobes: Vec<String> = self.lobes[i]
+        let lobe_maps: Vec<LobeMapEntry> = (0..per_texel)
+            .map(|k| LobeMapEntry {
+                rho: format!("{maps}{name}_lobe{k}_rho.exr").into(),
+                shape: format!("{maps}{name}_lobe{k}_shape.exr").into(),
+            })
+            .collect();
+        let lobes = if per_texel > 0 {
+            Vec::new()
+        } else {
+            self.lobes[i]
                 .iter()
-                .map(|l| {
-                    format!(
-                        "{{ rho = [{}, {}, {}], cxy = {}, cz = {}, n = {} }}",
-                        l.rho.x, l.rho.y, l.rho.z, l.cxy, l.cz, l.n
-                    )
+                .map(|l| LobeEntry {
+                    rho: f32_decimals(l.rho.to_array()),
+                    cxy: f32_decimal(l.cxy),
+                    cz: f32_decimal(l.cz),
+                    n: f32_decimal(l.n),
                 })
-                .collect();
-            let _ = writeln!(s, "lobes = [{}]", lobes.join(", "));
+                .collect()
+        };
+        ObjectEntry {
+            mesh: mesh.into(),
+            albedo: AlbedoEntry::Texture(albedo.into()),
+            lobes,
+            lobe_maps,
         }
-        s
     }
 
     /// Per-texel lobes of part `i`, inferred with the basis from every texel's albedo (`None`
@@ -548,9 +550,7 @@ pub fn export(
     std::fs::create_dir_all(out)
         .map_err(|e| ReflectError::file(out, format!("cannot create folder: {e}")))?;
     let mut written = Vec::new();
-    let mut scene = String::from(
-        "# Recovered reflectance (igi export). Render with:\n# igi render THIS_FILE --lighting L.toml --camera C.json --spp N -o out.exr\n",
-    );
+    let mut scene = SceneFile::default();
     let mut shapes = String::new();
     let mut lobe_maps = 0;
     for (i, p) in res.parts.iter().enumerate() {
@@ -579,11 +579,19 @@ pub fn export(
         let mesh_name = mesh.file_name().map(|n| n.to_string_lossy().into_owned());
         let albedo = format!("{}_albedo.exr", p.name);
         let mesh_name = mesh_name.unwrap_or_default();
-        scene.push_str(&res.object_toml(i, &mesh_name, &albedo, "", per_texel));
+        scene
+            .object
+            .push(res.object_entry(i, &mesh_name, &albedo, "", per_texel));
         written.push(mesh);
     }
     let sp = out.join("scene.toml");
-    write_text(&sp, &scene)?;
+    scene.write(
+        &sp,
+        &[
+            "Recovered reflectance (igi export). Render with:",
+            "igi render THIS_FILE --lighting L.toml --camera C.json --spp N -o out.exr",
+        ],
+    )?;
     written.push(sp);
     if format == ExportFormat::Mitsuba {
         let lobes = if lobe_maps == 0 {

@@ -1,10 +1,11 @@
 //! The survey folder of FORMATS.md: `survey.toml` naming the site meshes, the photographs with
-//! their cameras and lighting files, and optional hand-held BRDF samples.
+//! their cameras and lighting files, and optional hand-held BRDF samples. The file is parsed by
+//! `igi_formats::survey`; this module resolves and checks what it names.
 
 use crate::ReflectError;
+use igi_formats::{SurveyFile, TomlFile};
 use igi_imaging::{Camera, HdrImage};
 use igi_render::Lighting;
-use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
 /// Where a photograph's lighting comes from.
@@ -48,60 +49,6 @@ pub struct Survey {
     pub brdf_samples: Option<PathBuf>,
 }
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct SurveyFile {
-    site: SiteSpec,
-    #[serde(default)]
-    photo: Vec<PhotoEntry>,
-    brdf: Option<BrdfSpec>,
-    radiometry: Option<RadiometrySpec>,
-}
-
-/// `[radiometry]`: the camera radiometry file applied to every photograph on load (an
-/// extension of FORMATS.md's survey file).
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RadiometrySpec {
-    camera: PathBuf,
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct SiteSpec {
-    mesh: Option<PathBuf>,
-    prepared: Option<PathBuf>,
-    #[serde(default)]
-    meshes: Vec<PathBuf>,
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct PhotoEntry {
-    id: String,
-    image: PathBuf,
-    camera: PathBuf,
-    lighting: Option<PathBuf>,
-    probe: Option<ProbeEntry>,
-    radiometry: Option<PathBuf>,
-}
-
-/// `[photo.probe]`: a lighting-board capture in place of a lighting file (an extension of
-/// FORMATS.md's survey file).
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct ProbeEntry {
-    image: PathBuf,
-    camera: PathBuf,
-    board: PathBuf,
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct BrdfSpec {
-    samples: PathBuf,
-}
-
 impl Survey {
     /// The BRDF basis fitted to the survey's samples (one Lafortune fit per material), or
     /// `None` without samples.
@@ -132,10 +79,7 @@ impl Survey {
         } else {
             path.to_path_buf()
         };
-        let text = std::fs::read_to_string(&file)
-            .map_err(|e| ReflectError::file(&file, format!("cannot read survey: {e}")))?;
-        let f: SurveyFile = toml::from_str(&text)
-            .map_err(|e| ReflectError::file(&file, format!("not a valid survey file: {e}")))?;
+        let f = SurveyFile::read(&file)?;
         let root = file.parent().unwrap_or(Path::new(".")).to_path_buf();
         let exists = |p: &Path, what: &str| -> Result<PathBuf, ReflectError> {
             let full = root.join(p);

@@ -7,13 +7,16 @@ use crate::fill::dilate;
 use crate::parts::Part;
 use crate::ReflectError;
 use glam::{DVec3, Vec3};
+use igi_formats::lighting::{EnvironmentSection, LightingFile, SunSection};
+use igi_formats::scene::{AlbedoEntry, ObjectEntry, SceneFile};
+use igi_formats::survey::{PhotoEntry, SiteSection, SurveyFile};
+use igi_formats::{f32_decimals, TomlFile};
 use igi_geometry::TriMesh;
 use igi_imaging::color::SUN_ANGULAR_DIAMETER_DEG;
 use igi_imaging::{Camera, HdrImage, WorldToCamera};
 use igi_render::{
     render_image, Albedo, Environment, Lighting, Material, RenderOptions, Scene, Sun, Texture,
 };
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 /// A smooth, colourful albedo pattern with per-texel detail, in [0.08, 0.85] per channel.
@@ -98,20 +101,19 @@ impl LightingSpec {
     /// Writes `NAME.toml` and `NAME_sky.exr` into `dir` (FORMATS.md lighting file).
     pub fn write(&self, dir: &Path) -> Result<PathBuf, ReflectError> {
         igi_imaging::write_exr(&dir.join(format!("{}_sky.exr", self.name)), &self.sky)?;
-        let mut t = format!(
-            "[environment]\nmap = \"{}_sky.exr\"\nscale = 1.0\n",
-            self.name
-        );
-        if let Some((d, l)) = self.sun {
-            let d = d.normalize();
-            let _ = write!(
-                t,
-                "\n[sun]\ndirection = [{}, {}, {}]\nradiance = [{}, {}, {}]\nangular_diameter_deg = {}\n",
-                d.x, d.y, d.z, l.x, l.y, l.z, SUN_ANGULAR_DIAMETER_DEG
-            );
-        }
+        let file = LightingFile {
+            environment: Some(EnvironmentSection {
+                map: format!("{}_sky.exr", self.name).into(),
+                scale: 1.0,
+            }),
+            sun: self.sun.map(|(d, l)| SunSection {
+                direction: f32_decimals(d.normalize().to_array()),
+                radiance: f32_decimals(l.to_array()),
+                angular_diameter_deg: SUN_ANGULAR_DIAMETER_DEG,
+            }),
+        };
         let p = dir.join(format!("{}.toml", self.name));
-        write_text(&p, &t)?;
+        file.write(&p, &[])?;
         Ok(p)
     }
 }
@@ -232,18 +234,23 @@ pub fn write_survey(
         std::fs::create_dir_all(&p)
             .map_err(|e| ReflectError::file(&p, format!("cannot create folder: {e}")))?;
     }
-    let mut truth_toml = String::from("# true albedo of the synthetic site (igi solve --truth)\n");
     let prepared = parts
         .iter()
         .find_map(|p| p.stored.as_ref().map(|s| s.site.clone()));
-    let mut survey = match &prepared {
-        Some(site) => {
-            let site = std::fs::canonicalize(site).unwrap_or(site.clone());
-            format!("[site]\nprepared = \"{}\"\n", site.display())
-        }
-        None => String::from("[site]\nmeshes = ["),
+    let mut truth_scene = SceneFile::default();
+    let mut survey = SurveyFile {
+        site: match &prepared {
+            Some(site) => SiteSection {
+                prepared: Some(std::fs::canonicalize(site).unwrap_or(site.clone())),
+                ..SiteSection::default()
+            },
+            None => SiteSection::default(),
+        },
+        brdf: None,
+        radiometry: None,
+        photo: Vec::new(),
     };
-    for (k, (p, a)) in parts.iter().zip(truth).enumerate() {
+    for (p, a) in parts.iter().zip(truth) {
         igi_geometry::write_ply(
             &dir.join("geometry").join(format!("{}.ply", p.name)),
             &*p.full_mesh()?,
@@ -257,24 +264,23 @@ pub fn write_survey(
             &dir.join("truth").join(format!("{}_albedo.exr", p.name)),
             &img,
         )?;
-        let _ = write!(
-            truth_toml,
-            "\n[[object]]\nmesh = \"../geometry/{0}.ply\"\nalbedo = \"{0}_albedo.exr\"\n",
-            p.name
-        );
+        truth_scene.object.push(ObjectEntry {
+            mesh: format!("../geometry/{}.ply", p.name).into(),
+            albedo: AlbedoEntry::Texture(format!("{}_albedo.exr", p.name).into()),
+            lobes: Vec::new(),
+            lobe_maps: Vec::new(),
+        });
         if prepared.is_none() {
-            let _ = write!(
-                survey,
-                "{}\"geometry/{}.ply\"",
-                if k > 0 { ", " } else { "" },
-                p.name
-            );
+            survey
+                .site
+                .meshes
+                .push(format!("geometry/{}.ply", p.name).into());
         }
     }
-    if prepared.is_none() {
-        survey.push_str("]\n");
-    }
-    write_text(&dir.join("truth").join("scene.toml"), &truth_toml)?;
+    truth_scene.write(
+        &dir.join("truth").join("scene.toml"),
+        &["true albedo of the synthetic site (igi solve --truth)"],
+    )?;
     let scene = scene_with_albedo(parts, truth)?;
     if recorded.len() != lightings.len() {
         return Err(ReflectError::Invalid(format!(
@@ -303,14 +309,15 @@ pub fn write_survey(
         igi_imaging::write_exr(&dir.join("photos").join(format!("{}.exr", s.id)), &out.mean)?;
         s.camera
             .save(&dir.join("cameras").join(format!("{}.json", s.id)))?;
-        let _ = write!(
-            survey,
-            "\n[[photo]]\nid = \"{0}\"\nimage = \"photos/{0}.exr\"\ncamera = \"cameras/{0}.json\"\nlighting = \"lighting/{1}.toml\"\n",
-            s.id, l.name
-        );
+        survey.photo.push(PhotoEntry {
+            id: s.id.clone(),
+            image: format!("photos/{}.exr", s.id).into(),
+            camera: format!("cameras/{}.json", s.id).into(),
+            lighting: Some(format!("lighting/{}.toml", l.name).into()),
+            radiometry: None,
+            probe: None,
+        });
     }
-    write_text(&dir.join("survey.toml"), &survey)?;
+    survey.write(&dir.join("survey.toml"), &[])?;
     Ok(())
 }
-
-use crate::result::write_text;

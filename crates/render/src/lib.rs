@@ -1,8 +1,10 @@
 //! `igi-render`: the Monte-Carlo path tracer behind `igi render` and the inverse solver.
 //!
 //! - [`embree`]: every Embree call (triangle scene, closest hit, occlusion, ray streams).
-//! - [`lighting`]: lat-long environment (importance-sampled) and the sun disk; lighting TOML loader.
-//! - [`scene`]: meshes + Lafortune materials + Embree; scene TOML loader; surface points.
+//! - [`lighting`]: lat-long environment (importance-sampled) and the sun disk, built from a
+//!   parsed lighting file (`igi_formats::lighting`).
+//! - [`scene`]: meshes + Lafortune materials + Embree, built from a parsed scene file
+//!   (`igi_formats::scene`); surface points.
 //! - [`integrator`]: the path tracer (NEE + MIS), image rendering and the batched solver queries.
 //! - [`refine`]: camera pose refinement by matching the model's edges and silhouette to a photograph's.
 //! - [`compare`]: RMSE / relative mean / PSNR / noise-explained RMSE between two images.
@@ -32,7 +34,7 @@ pub use integrator::{
     irradiance, radiance_toward, render_image, Estimate, PathTracer, RenderOptions, RenderOutput,
 };
 pub use lighting::{Environment, Lighting, Sun};
-pub use scene::{Albedo, LobeMap, Material, Object, Scene, SurfacePoint, Texture};
+pub use scene::{Albedo, LobeMap, LobeMapError, Material, Object, Scene, SurfacePoint, Texture};
 
 use std::path::PathBuf;
 
@@ -41,8 +43,28 @@ use std::path::PathBuf;
 pub enum RenderError {
     #[error("Embree: {0}")]
     Embree(String),
+    /// A scene or lighting file that parses but describes nothing usable.
     #[error("{path}: {msg}")]
     File { path: PathBuf, msg: String },
+    /// A scene or lighting file could not be read or parsed (`igi-formats`).
+    #[error(transparent)]
+    Format(#[from] igi_formats::FormatsError),
+    /// Something a scene or lighting file names or holds cannot be used: `context` says which
+    /// part (`environment map sky.exr`, `object 2: mesh wall.ply`, `[sun]`), `source` why.
+    #[error("{path}: {context}: {source}")]
+    InFile {
+        path: PathBuf,
+        context: String,
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
+    /// The objects a scene file lists do not make a scene.
+    #[error("{path}: {source}")]
+    Scene {
+        path: PathBuf,
+        #[source]
+        source: Box<RenderError>,
+    },
     #[error("{0}")]
     Invalid(String),
     #[error("photo is {}x{} but its camera is {}x{}", photo.0, photo.1, camera.0, camera.1)]
@@ -56,6 +78,21 @@ pub enum RenderError {
         found: usize,
         search_px: f64,
     },
+}
+
+impl RenderError {
+    /// [`RenderError::InFile`] for `path`.
+    pub(crate) fn in_file(
+        path: &std::path::Path,
+        context: impl Into<String>,
+        source: Box<dyn std::error::Error + Send + Sync>,
+    ) -> Self {
+        RenderError::InFile {
+            path: path.to_path_buf(),
+            context: context.into(),
+            source,
+        }
+    }
 }
 
 #[cfg(test)]

@@ -13,13 +13,13 @@
 
 use crate::sampling::{sample_cone_in, Distribution2D};
 use crate::RenderError;
-use glam::{Vec2, Vec3};
+use glam::{DVec3, Vec2, Vec3};
 use igi_brdf::luminance;
 use igi_brdf::Frame;
+use igi_formats::{LightingFile, TomlFile};
 use igi_imaging::{latlong, HdrImage};
-use serde::Deserialize;
 use std::f32::consts::PI;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// A direction sampled from a light.
 #[derive(Clone, Copy, Debug)]
@@ -321,76 +321,48 @@ pub struct Lighting {
     pub sun: Option<Sun>,
 }
 
-#[derive(Deserialize)]
-struct LightingFile {
-    environment: Option<EnvSection>,
-    sun: Option<SunSection>,
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct EnvSection {
-    map: PathBuf,
-    #[serde(default = "one")]
-    scale: f32,
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct SunSection {
-    direction: [f32; 3],
-    radiance: [f32; 3],
-    #[serde(default = "sun_diameter")]
-    angular_diameter_deg: f32,
-}
-
-fn one() -> f32 {
-    1.0
-}
-
-fn sun_diameter() -> f32 {
-    igi_imaging::color::SUN_ANGULAR_DIAMETER_DEG as f32
-}
-
 impl Lighting {
-    /// Reads a lighting TOML file (FORMATS.md); the map path is relative to the file's folder.
+    /// Reads a lighting file (FORMATS.md) and builds it; the map path is relative to the
+    /// file's folder.
     pub fn load(path: &Path) -> Result<Self, RenderError> {
-        let file_err = |msg: String| RenderError::File {
-            path: path.to_path_buf(),
-            msg,
-        };
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| file_err(format!("cannot read lighting file: {e}")))?;
-        let f: LightingFile = toml::from_str(&text)
-            .map_err(|e| file_err(format!("not a valid lighting file: {e}")))?;
+        Self::from_file(&LightingFile::read(path)?, path)
+    }
+
+    /// Builds the lighting a parsed lighting file describes: reads its map (relative to the
+    /// folder of `path`, the file it came from, which errors name) and checks every value.
+    pub fn from_file(f: &LightingFile, path: &Path) -> Result<Self, RenderError> {
         let dir = path.parent().unwrap_or(Path::new("."));
-        let environment = match f.environment {
+        let environment = match &f.environment {
             None => None,
             Some(e) => {
                 let map_path = dir.join(&e.map);
-                let img = igi_imaging::read_image(&map_path).map_err(|err| {
-                    file_err(format!("environment map {}: {err}", map_path.display()))
-                })?;
-                Some(Environment::from_image(&img, e.scale).map_err(|err| {
-                    file_err(format!("environment map {}: {err}", map_path.display()))
-                })?)
+                let in_map = |source: Box<dyn std::error::Error + Send + Sync>| {
+                    RenderError::in_file(
+                        path,
+                        format!("environment map {}", map_path.display()),
+                        source,
+                    )
+                };
+                let img = igi_imaging::read_image(&map_path).map_err(|e| in_map(e.into()))?;
+                Some(Environment::from_image(&img, e.scale as f32).map_err(|e| in_map(e.into()))?)
             }
         };
-        let sun = match f.sun {
+        let sun = match &f.sun {
             None => None,
             Some(s) => Some(
                 Sun::new(
-                    Vec3::from_array(s.direction),
-                    Vec3::from_array(s.radiance),
-                    s.angular_diameter_deg,
+                    DVec3::from_array(s.direction).as_vec3(),
+                    DVec3::from_array(s.radiance).as_vec3(),
+                    s.angular_diameter_deg as f32,
                 )
-                .map_err(|err| file_err(format!("[sun]: {err}")))?,
+                .map_err(|e| RenderError::in_file(path, "[sun]", e.into()))?,
             ),
         };
         if environment.is_none() && sun.is_none() {
-            return Err(file_err(
-                "names neither [environment] nor [sun]: nothing would light the scene".into(),
-            ));
+            return Err(RenderError::File {
+                path: path.to_path_buf(),
+                msg: "names neither [environment] nor [sun]: nothing would light the scene".into(),
+            });
         }
         Ok(Lighting { environment, sun })
     }

@@ -1,5 +1,5 @@
 //! Renderable scene: triangle meshes with materials, the Embree accelerator, and the scene
-//! file loader (FORMATS.md "Scene file (TOML)").
+//! built from a parsed scene file (`igi_formats::scene`, FORMATS.md "Scene file (TOML)").
 //!
 //! Materials are Lafortune BRDFs: a diffuse albedo (constant or a texture) plus constant lobes
 //! per object. Texture lookup rule: FORMATS.md UV convention (texel row i, column j centred at
@@ -13,11 +13,12 @@
 use crate::embree::{Hit, RtScene};
 use crate::lighting::Lighting;
 use crate::RenderError;
-use glam::{Vec2, Vec3};
+use glam::{DVec3, Vec2, Vec3};
 use igi_brdf::{LafortuneRef, Lobe};
+use igi_formats::scene::{AlbedoEntry, ObjectEntry, SceneFile};
+use igi_formats::TomlFile;
 use igi_geometry::TriMesh;
 use igi_imaging::HdrImage;
-use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
 /// An RGB texture for per-texel parameters (linear values).
@@ -107,21 +108,22 @@ impl LobeMap {
 
     /// Reads the maps of a scene file's `lobe_maps`: per lobe a `rho` EXR (RGB) and a `shape`
     /// EXR (Cxy, Cz, N in its three channels), all of one size.
-    pub fn from_images(maps: &[(HdrImage, HdrImage)]) -> Result<LobeMap, String> {
+    pub fn from_images(maps: &[(HdrImage, HdrImage)]) -> Result<LobeMap, LobeMapError> {
         let Some((first, _)) = maps.first() else {
-            return Err("no lobe maps".into());
+            return Err(LobeMapError::NoMaps);
         };
         let (w, h) = (first.width, first.height);
         if w == 0 || h == 0 {
-            return Err("empty lobe map".into());
+            return Err(LobeMapError::Empty);
         }
         for (k, (rho, shape)) in maps.iter().enumerate() {
             for im in [rho, shape] {
                 if im.width != w || im.height != h {
-                    return Err(format!(
-                        "lobe {k}: map is {}x{}, the first is {w}x{h}",
-                        im.width, im.height
-                    ));
+                    return Err(LobeMapError::Size {
+                        lobe: k,
+                        size: (im.width, im.height),
+                        first: (w, h),
+                    });
                 }
             }
         }
@@ -129,18 +131,21 @@ impl LobeMap {
         let mut lobes = Vec::with_capacity(w * h * k);
         for i in 0..w * h {
             for (li, (rho, shape)) in maps.iter().enumerate() {
-                let r = Vec3::from_array(rho.pixels[i]);
                 let [cxy, cz, n] = shape.pixels[i];
-                let ok = r.is_finite()
-                    && r.min_element() >= 0.0
-                    && cxy.is_finite()
-                    && cz.is_finite()
-                    && n.is_finite()
-                    && n >= 0.0;
-                if !ok {
-                    return Err(format!("lobe {li}: texel {i} has invalid parameters (rho {r}, cxy {cxy}, cz {cz}, n {n})"));
+                let lobe = Lobe {
+                    rho: Vec3::from_array(rho.pixels[i]),
+                    cxy,
+                    cz,
+                    n,
+                };
+                if !lobe_is_valid(&lobe) {
+                    return Err(LobeMapError::Texel {
+                        lobe: li,
+                        texel: i,
+                        value: lobe,
+                    });
                 }
-                lobes.push(Lobe { rho: r, cxy, cz, n });
+                lobes.push(lobe);
             }
         }
         Ok(LobeMap {
@@ -168,6 +173,37 @@ impl LobeMap {
             })
             .collect()
     }
+}
+
+/// Why per-texel lobe maps cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum LobeMapError {
+    #[error("no lobe maps")]
+    NoMaps,
+    #[error("empty lobe map")]
+    Empty,
+    #[error("lobe {lobe}: map is {}x{}, the first is {}x{}", size.0, size.1, first.0, first.1)]
+    Size {
+        lobe: usize,
+        size: (usize, usize),
+        first: (usize, usize),
+    },
+    #[error("lobe {lobe}: texel {texel} has invalid parameters (rho {}, cxy {}, cz {}, n {})", value.rho, value.cxy, value.cz, value.n)]
+    Texel {
+        lobe: usize,
+        texel: usize,
+        value: Lobe,
+    },
+}
+
+/// Whether a lobe's parameters are usable: finite, `rho >= 0`, `n >= 0`.
+fn lobe_is_valid(l: &Lobe) -> bool {
+    l.rho.is_finite()
+        && l.rho.min_element() >= 0.0
+        && l.cxy.is_finite()
+        && l.cz.is_finite()
+        && l.n.is_finite()
+        && l.n >= 0.0
 }
 
 /// Material of an object: Lafortune with per-texel (or constant) `rho_d` and constant or
@@ -415,136 +451,122 @@ impl Scene {
     /// Loads a scene file and the lighting file it names. Relative paths are relative to the
     /// scene file's folder.
     pub fn load(path: &Path) -> Result<(Scene, Lighting), RenderError> {
-        let file_err = |msg: String| RenderError::File {
-            path: path.to_path_buf(),
-            msg,
-        };
         if path.is_dir() {
-            return Err(file_err("is a directory, not a scene file (re-lighting a solve result is not supported yet)".into()));
+            return Err(RenderError::File {
+                path: path.to_path_buf(),
+                msg: "is a directory, not a scene file (re-lighting a solve result is not supported yet)".into(),
+            });
         }
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| file_err(format!("cannot read scene file: {e}")))?;
-        let f: SceneFile =
-            toml::from_str(&text).map_err(|e| file_err(format!("not a valid scene file: {e}")))?;
+        Self::from_file(&SceneFile::read(path)?, path)
+    }
+
+    /// Builds the scene (and its lighting) a parsed scene file describes: reads the meshes,
+    /// textures, lobe maps and lighting file it names, relative to the folder of `path` (the
+    /// file it came from, which errors name), and checks every value.
+    pub fn from_file(f: &SceneFile, path: &Path) -> Result<(Scene, Lighting), RenderError> {
         let dir = path.parent().unwrap_or(Path::new("."));
         let lighting = match &f.lighting {
             Some(l) => Lighting::load(&dir.join(l))?,
             None => Lighting::default(),
         };
         if f.object.is_empty() {
-            return Err(file_err("no [[object]] in the scene".into()));
+            return Err(RenderError::File {
+                path: path.to_path_buf(),
+                msg: "no [[object]] in the scene".into(),
+            });
         }
-        let mut objects = Vec::with_capacity(f.object.len());
-        for (k, o) in f.object.iter().enumerate() {
-            let mesh_path = dir.join(&o.mesh);
-            let mesh = igi_geometry::read_mesh(&mesh_path)
-                .map_err(|e| file_err(format!("object {k}: mesh {}: {e}", mesh_path.display())))?;
-            let albedo = match &o.albedo {
-                AlbedoSpec::Constant(c) => {
-                    let c = Vec3::from_array(*c);
-                    if !c.is_finite() || c.min_element() < 0.0 {
-                        return Err(file_err(format!(
-                            "object {k}: albedo {c:?} must be finite and >= 0"
-                        )));
-                    }
-                    Albedo::Constant(c)
-                }
-                AlbedoSpec::Texture(t) => {
-                    let tp = dir.join(t);
-                    let img = igi_imaging::read_image(&tp).map_err(|e| {
-                        file_err(format!("object {k}: albedo texture {}: {e}", tp.display()))
-                    })?;
-                    if img
-                        .pixels
-                        .iter()
-                        .any(|p| p.iter().any(|c| !c.is_finite() || *c < 0.0))
-                    {
-                        return Err(file_err(format!(
-                            "object {k}: albedo texture {} has negative or non-finite texels",
-                            tp.display()
-                        )));
-                    }
-                    Albedo::Texture(Texture::from_image(&img))
-                }
-            };
-            for (li, l) in o.lobes.iter().enumerate() {
-                let ok = l.rho.is_finite()
-                    && l.rho.min_element() >= 0.0
-                    && l.cxy.is_finite()
-                    && l.cz.is_finite()
-                    && l.n.is_finite()
-                    && l.n >= 0.0;
-                if !ok {
-                    return Err(file_err(format!(
-                        "object {k}: lobe {li} {l:?} has invalid parameters"
-                    )));
-                }
-            }
-            let lobe_map = if o.lobe_maps.is_empty() {
-                None
-            } else {
-                let mut imgs = Vec::new();
-                for (li, m) in o.lobe_maps.iter().enumerate() {
-                    let read = |p: &PathBuf| {
-                        let full = dir.join(p);
-                        igi_imaging::read_image(&full).map_err(|e| {
-                            file_err(format!("object {k}: lobe map {li} {}: {e}", full.display()))
-                        })
-                    };
-                    imgs.push((read(&m.rho)?, read(&m.shape)?));
-                }
-                Some(
-                    LobeMap::from_images(&imgs)
-                        .map_err(|e| file_err(format!("object {k}: {e}")))?,
-                )
-            };
-            let material = Material {
-                albedo,
-                lobes: o.lobes.clone(),
-                lobe_map,
-            };
-            objects.push((mesh_path.display().to_string(), mesh, material));
-        }
-        let scene = Scene::new(objects).map_err(|e| file_err(e.to_string()))?;
+        let objects = f
+            .object
+            .iter()
+            .enumerate()
+            .map(|(k, o)| load_object(path, k, o))
+            .collect::<Result<Vec<_>, _>>()?;
+        let scene = Scene::new(objects).map_err(|e| RenderError::Scene {
+            path: path.to_path_buf(),
+            source: Box::new(e),
+        })?;
         Ok((scene, lighting))
     }
 }
 
-#[derive(Deserialize)]
-struct SceneFile {
-    lighting: Option<PathBuf>,
-    #[serde(default)]
-    object: Vec<ObjectSpec>,
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct ObjectSpec {
-    mesh: PathBuf,
-    albedo: AlbedoSpec,
-    #[serde(default)]
-    lobes: Vec<Lobe>,
-    /// Per-texel lobes (an extension of FORMATS.md): `lobe_maps = [{ rho = "l0_rho.exr",
-    /// shape = "l0_shape.exr" }, ...]`, overriding `lobes`.
-    #[serde(default)]
-    lobe_maps: Vec<LobeMapSpec>,
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct LobeMapSpec {
-    rho: PathBuf,
-    shape: PathBuf,
-}
-
-#[derive(Deserialize)]
-#[serde(
-    untagged,
-    expecting = "an albedo: three numbers [r, g, b] or the path of a texture image"
-)]
-enum AlbedoSpec {
-    Constant([f32; 3]),
-    Texture(PathBuf),
+/// Object `k` of scene file `path`: its mesh and material, read and checked.
+fn load_object(
+    path: &Path,
+    k: usize,
+    o: &ObjectEntry,
+) -> Result<(String, TriMesh, Material), RenderError> {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let in_object = |what: String, source: Box<dyn std::error::Error + Send + Sync>| {
+        RenderError::in_file(path, format!("object {k}: {what}"), source)
+    };
+    let mesh_path = dir.join(&o.mesh);
+    let mesh = igi_geometry::read_mesh(&mesh_path)
+        .map_err(|e| in_object(format!("mesh {}", mesh_path.display()), e.into()))?;
+    let file_err = |msg: String| RenderError::File {
+        path: path.to_path_buf(),
+        msg: format!("object {k}: {msg}"),
+    };
+    let albedo = match &o.albedo {
+        AlbedoEntry::Constant(c) => {
+            let c = DVec3::from_array(*c).as_vec3();
+            if !c.is_finite() || c.min_element() < 0.0 {
+                return Err(file_err(format!("albedo {c:?} must be finite and >= 0")));
+            }
+            Albedo::Constant(c)
+        }
+        AlbedoEntry::Texture(t) => {
+            let tp = dir.join(t);
+            let img = igi_imaging::read_image(&tp)
+                .map_err(|e| in_object(format!("albedo texture {}", tp.display()), e.into()))?;
+            if img
+                .pixels
+                .iter()
+                .any(|p| p.iter().any(|c| !c.is_finite() || *c < 0.0))
+            {
+                return Err(file_err(format!(
+                    "albedo texture {} has negative or non-finite texels",
+                    tp.display()
+                )));
+            }
+            Albedo::Texture(Texture::from_image(&img))
+        }
+    };
+    let lobes: Vec<Lobe> = o
+        .lobes
+        .iter()
+        .map(|l| Lobe {
+            rho: DVec3::from_array(l.rho).as_vec3(),
+            cxy: l.cxy as f32,
+            cz: l.cz as f32,
+            n: l.n as f32,
+        })
+        .collect();
+    if let Some((li, l)) = lobes.iter().enumerate().find(|(_, l)| !lobe_is_valid(l)) {
+        return Err(file_err(format!("lobe {li} {l:?} has invalid parameters")));
+    }
+    let lobe_map = if o.lobe_maps.is_empty() {
+        None
+    } else {
+        let mut imgs = Vec::new();
+        for (li, m) in o.lobe_maps.iter().enumerate() {
+            let read = |p: &PathBuf| {
+                let full = dir.join(p);
+                igi_imaging::read_image(&full)
+                    .map_err(|e| in_object(format!("lobe map {li} {}", full.display()), e.into()))
+            };
+            imgs.push((read(&m.rho)?, read(&m.shape)?));
+        }
+        Some(
+            LobeMap::from_images(&imgs)
+                .map_err(|e| RenderError::in_file(path, format!("object {k}"), e.into()))?,
+        )
+    };
+    let material = Material {
+        albedo,
+        lobes,
+        lobe_map,
+    };
+    Ok((mesh_path.display().to_string(), mesh, material))
 }
 
 #[cfg(test)]
@@ -615,10 +637,16 @@ mod tests {
         assert_eq!(back, m);
         let mut imgs = m.to_images();
         imgs[1].1 = HdrImage::new(3, 2);
-        assert!(LobeMap::from_images(&imgs).unwrap_err().contains("3x2"));
+        assert!(LobeMap::from_images(&imgs)
+            .unwrap_err()
+            .to_string()
+            .contains("3x2"));
         let mut imgs = m.to_images();
         imgs[0].1.pixels[0][2] = -1.0;
-        assert!(LobeMap::from_images(&imgs).unwrap_err().contains("invalid"));
+        assert!(LobeMap::from_images(&imgs)
+            .unwrap_err()
+            .to_string()
+            .contains("invalid"));
         let material = Material {
             albedo: Albedo::Constant(Vec3::splat(0.5)),
             lobes: vec![lobe(99.0)],

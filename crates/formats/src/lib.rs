@@ -1,0 +1,189 @@
+//! `igi-formats`: the files igi reads and writes that other tools script against
+//! (`docs/FORMATS.md`), as typed serde models with one reader and one writer each.
+//!
+//! Parse first, build after (as Mitsuba does): these types hold what a file says, paths as
+//! written (relative to the file's folder) and numbers as parsed; the crates that use them
+//! (`igi-render` for lighting and scene files, `igi-reflect` for surveys) resolve the paths,
+//! validate the values and build their own objects.
+//!
+//! - [`lighting`]: the lighting file ([`LightingFile`]: `[environment]` lat-long map, `[sun]`
+//!   disk).
+//! - [`scene`]: the scene file ([`SceneFile`]: `lighting`, `[[object]]` meshes with albedo and
+//!   lobes).
+//! - [`survey`]: `survey.toml` ([`SurveyFile`]: `[site]`, `[[photo]]`, `[brdf]`,
+//!   `[radiometry]`).
+//!
+//! Each reads with [`TomlFile::read`] and writes with [`TomlFile::write`] (atomically, after an
+//! optional comment header); the trait is the one reader and one writer of every TOML kind.
+//! - camera files (JSON) stay with the camera model in `igi-imaging` (the bottom crate, which
+//!   every pipeline reads cameras through), re-exported here: the file model [`CameraFile`]
+//!   (values kept as JSON so each problem gets its own message), [`Camera::from_file`] and
+//!   [`Camera::to_file`] between it and the [`Camera`], [`Camera::load`] reads and
+//!   [`Camera::save`] writes.
+//!
+//! Numbers are `f64` as TOML holds them; a reader that wants `f32` casts, which is what serde
+//! does when it reads a TOML float into an `f32`. Writers of `f32` data pass it through
+//! [`f32_decimal`], so a file shows `0.1` rather than `0.10000000149011612`.
+//!
+//! The lighting-board JSON and the BRDF-sample CSV still live with their pipelines
+//! (`igi-probe`, `igi-brdf`).
+
+pub mod lighting;
+pub mod scene;
+pub mod survey;
+
+pub use igi_imaging::{Camera, CameraFile};
+pub use lighting::LightingFile;
+pub use scene::SceneFile;
+pub use survey::SurveyFile;
+
+use serde::de::DeserializeOwned;
+use serde::Serialize;
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+/// Which kind of file an error is about (it names the file's role in messages).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FileKind {
+    Lighting,
+    Scene,
+    Survey,
+}
+
+impl fmt::Display for FileKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            FileKind::Lighting => "lighting file",
+            FileKind::Scene => "scene file",
+            FileKind::Survey => "survey file",
+        })
+    }
+}
+
+impl FileKind {
+    /// The noun after "cannot read" (the survey's message has always said "survey").
+    fn read_noun(self) -> &'static str {
+        match self {
+            FileKind::Lighting => "lighting file",
+            FileKind::Scene => "scene file",
+            FileKind::Survey => "survey",
+        }
+    }
+}
+
+/// Errors of reading and writing the interchange files. Every message names the file. The
+/// sources are boxed so that the error stays small (it travels inside other crates' errors).
+#[derive(Debug, thiserror::Error)]
+pub enum FormatsError {
+    /// The file cannot be read (missing, a folder, not UTF-8).
+    #[error("{path}: cannot read {}: {source}", kind.read_noun())]
+    Read {
+        path: PathBuf,
+        kind: FileKind,
+        #[source]
+        source: std::io::Error,
+    },
+    /// The file is not valid TOML of its kind (a missing key, a wrong type, an unknown key).
+    #[error("{path}: not a valid {kind}: {source}")]
+    Parse {
+        path: PathBuf,
+        kind: FileKind,
+        #[source]
+        source: Box<toml::de::Error>,
+    },
+    /// A value cannot be written as TOML (a path that is not UTF-8).
+    #[error("{path}: cannot write {kind}: {source}")]
+    Serialize {
+        path: PathBuf,
+        kind: FileKind,
+        #[source]
+        source: Box<toml::ser::Error>,
+    },
+    /// Writing the file failed (the atomic writer names the file).
+    #[error(transparent)]
+    Write(Box<igi_imaging::ImagingError>),
+}
+
+/// A file with one reader and one writer: the TOML text of a serde model.
+pub trait TomlFile: Serialize + DeserializeOwned {
+    /// Which file this is (errors name it).
+    const KIND: FileKind;
+
+    /// Reads and parses the file at `path`; no path in it is resolved or opened.
+    fn read(path: &Path) -> Result<Self, FormatsError> {
+        let text = std::fs::read_to_string(path).map_err(|source| FormatsError::Read {
+            path: path.to_path_buf(),
+            kind: Self::KIND,
+            source,
+        })?;
+        toml::from_str(&text).map_err(|source| FormatsError::Parse {
+            path: path.to_path_buf(),
+            kind: Self::KIND,
+            source: Box::new(source),
+        })
+    }
+
+    /// The text [`write`](Self::write) writes: each `header` line as a `# ` comment, a blank
+    /// line after them, then the TOML (tables in field order).
+    fn to_toml(&self, header: &[&str]) -> Result<String, toml::ser::Error> {
+        let body = toml::to_string(self)?;
+        let mut text = String::new();
+        for line in header {
+            text.push_str("# ");
+            text.push_str(line);
+            text.push('\n');
+        }
+        if !header.is_empty() {
+            text.push('\n');
+        }
+        text.push_str(&body);
+        Ok(text)
+    }
+
+    /// Writes the file atomically (a temporary file renamed into place), after `header`.
+    fn write(&self, path: &Path, header: &[&str]) -> Result<(), FormatsError> {
+        let text = self
+            .to_toml(header)
+            .map_err(|source| FormatsError::Serialize {
+                path: path.to_path_buf(),
+                kind: Self::KIND,
+                source: Box::new(source),
+            })?;
+        igi_imaging::io::write_text_atomic(path, &text)
+            .map_err(|e| FormatsError::Write(Box::new(e)))
+    }
+}
+
+/// The `f64` nearest the shortest decimal that reads back as `x`: written to a file it shows
+/// `0.1`, not `0.10000000149011612`, and a reader casting to `f32` gets `x` back (TOML floats
+/// are read as `f64` and cast, whichever type the reader asks for).
+pub fn f32_decimal(x: f32) -> f64 {
+    if x.is_finite() {
+        x.to_string().parse().unwrap_or(x as f64)
+    } else {
+        x as f64
+    }
+}
+
+/// [`f32_decimal`] of each component.
+pub fn f32_decimals(v: [f32; 3]) -> [f64; 3] {
+    v.map(f32_decimal)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn f32_decimals_read_back_exactly_and_print_short() {
+        for x in [
+            0.1f32, 0.53, 1.0, -0.0, 1e-30, 3.4e38, 0.70710677, 123456.79,
+        ] {
+            let d = f32_decimal(x);
+            assert_eq!((d as f32).to_bits(), x.to_bits(), "{x}");
+            assert_eq!(d.to_string(), x.to_string(), "{x}");
+        }
+        assert!(f32_decimal(f32::NAN).is_nan());
+        assert_eq!(f32_decimal(f32::INFINITY), f64::INFINITY);
+    }
+}
