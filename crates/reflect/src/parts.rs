@@ -233,11 +233,12 @@ fn atlas_for(name: &str, mesh: &TriMesh, choice: &AtlasChoice) -> Result<Atlas, 
         return Ok(atlas);
     };
     for _ in 0..4 {
-        if atlas.texel_size <= f || atlas.resolution >= choice.max {
+        let res = atlas.resolution as u32;
+        if atlas.texel_size <= f || res >= choice.max {
             break;
         }
-        let grown = (atlas.resolution as f64 * atlas.texel_size / f / 16.0).ceil() as u32 * 16;
-        let r = grown.max(atlas.resolution + 16).min(choice.max);
+        let grown = (res as f64 * atlas.texel_size / f / 16.0).ceil() as u32 * 16;
+        let r = grown.max(res + 16).min(choice.max);
         atlas = part_atlas(name, mesh, r)?;
     }
     Ok(atlas)
