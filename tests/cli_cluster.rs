@@ -417,9 +417,16 @@ fn bad_cluster_input_is_refused_clearly() {
         err.contains("cluster.json") && err.contains("igi cluster submit"),
         "{err}"
     );
-    // a result submitted by another igi binary: a task of this one refuses to run
+    // a result submitted by another igi binary: a task of this one refuses to run (the copy
+    // gets a trailing byte, so it differs whether binaries are told apart by content or by
+    // path and time)
     let other = tmp.path().join("igi-other");
     std::fs::copy(env!("CARGO_BIN_EXE_igi"), &other).unwrap();
+    {
+        use std::io::Write;
+        let mut f = std::fs::OpenOptions::new().append(true).open(&other).unwrap();
+        f.write_all(b"\0").unwrap();
+    }
     let by_other = tmp.path().join("by-other");
     let mut args = vec!["cluster", "submit", s(&survey), "-o", s(&by_other)];
     args.extend(SOLVE);

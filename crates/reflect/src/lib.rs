@@ -11,7 +11,8 @@
 //! 2. form the ratio proposal `rho_d(p) * I(p) / L_render(p)` per channel;
 //! 3. average the proposals over photos with weights (cosine of the view angle, lowered near
 //!    occlusion boundaries and near shadow edges, see [`weights`]);
-//! 4. repeat with more samples per estimate until the change in `rho_d` is below a tolerance.
+//! 4. repeat with more samples per estimate until the change in `rho_d` is below a tolerance,
+//!    or, once the samples stop growing, below the photographs' own noise in `rho_d`.
 //!
 //! Texels seen by no photo are filled from their seen neighbours (see [`fill`]). Results are
 //! written per part (an input mesh, or a voxel of a prepared site) atomically, with a report of
