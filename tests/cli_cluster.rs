@@ -424,7 +424,10 @@ fn bad_cluster_input_is_refused_clearly() {
     std::fs::copy(env!("CARGO_BIN_EXE_igi"), &other).unwrap();
     {
         use std::io::Write;
-        let mut f = std::fs::OpenOptions::new().append(true).open(&other).unwrap();
+        let mut f = std::fs::OpenOptions::new()
+            .append(true)
+            .open(&other)
+            .unwrap();
         f.write_all(b"\0").unwrap();
     }
     let by_other = tmp.path().join("by-other");
