@@ -120,7 +120,7 @@ fn surface_samples(mesh: &TriMesh) -> Vec<(DVec3, f64)> {
 /// The finest pixel footprint of `cameras` on `mesh` in metres per pixel, `None` when no
 /// camera sees any of it.
 ///
-/// Sample points are spread over the surface by area ([`surface_samples`]). A camera sees a
+/// Sample points are spread over the surface by area (about 20 000, at least one per triangle). A camera sees a
 /// point when the point lies in front of it and projects into its frame; occlusion is ignored
 /// (a point hidden behind another surface still counts, so the footprint can only come out
 /// finer than the truth, never coarser). In a camera that sees it, a point's footprint is its
