@@ -100,30 +100,37 @@ struct Header {
     elements: Vec<Element>,
 }
 
+/// Read one header line into `line` (without its line ending); false at the end of the file.
+/// Header lines are ASCII; this reads bytes up to '\n' so binary data after the header is
+/// untouched.
+fn read_header_line<R: BufRead>(
+    r: &mut R,
+    path: &Path,
+    line: &mut String,
+) -> Result<bool, GeometryError> {
+    line.clear();
+    let mut buf = Vec::new();
+    let n = r
+        .read_until(b'\n', &mut buf)
+        .map_err(|e| GeometryError::io(path, e))?;
+    if n == 0 {
+        return Ok(false);
+    }
+    if buf.len() > 4096 {
+        return Err(GeometryError::format(
+            path,
+            "PLY header line longer than 4096 bytes",
+        ));
+    }
+    *line = String::from_utf8_lossy(&buf)
+        .trim_end_matches(['\n', '\r'])
+        .to_string();
+    Ok(true)
+}
+
 fn read_header<R: BufRead>(r: &mut R, path: &Path) -> Result<Header, GeometryError> {
     let mut line = String::new();
-    let mut read_line = |line: &mut String| -> Result<bool, GeometryError> {
-        line.clear();
-        // header lines are ASCII; read bytes up to '\n' so binary data after the header is untouched
-        let mut buf = Vec::new();
-        let n = r
-            .read_until(b'\n', &mut buf)
-            .map_err(|e| GeometryError::io(path, e))?;
-        if n == 0 {
-            return Ok(false);
-        }
-        if buf.len() > 4096 {
-            return Err(GeometryError::format(
-                path,
-                "PLY header line longer than 4096 bytes",
-            ));
-        }
-        *line = String::from_utf8_lossy(&buf)
-            .trim_end_matches(['\n', '\r'])
-            .to_string();
-        Ok(true)
-    };
-    if !read_line(&mut line)? || line.trim() != "ply" {
+    if !read_header_line(r, path, &mut line)? || line.trim() != "ply" {
         return Err(GeometryError::format(
             path,
             "not a PLY file (first line is not `ply`)",
@@ -132,7 +139,7 @@ fn read_header<R: BufRead>(r: &mut R, path: &Path) -> Result<Header, GeometryErr
     let mut enc = None;
     let mut elements: Vec<Element> = Vec::new();
     loop {
-        if !read_line(&mut line)? {
+        if !read_header_line(r, path, &mut line)? {
             return Err(GeometryError::format(
                 path,
                 "truncated PLY header (no `end_header`)",
@@ -141,35 +148,8 @@ fn read_header<R: BufRead>(r: &mut R, path: &Path) -> Result<Header, GeometryErr
         let toks: Vec<&str> = line.split_whitespace().collect();
         match toks.first().copied() {
             None | Some("comment") | Some("obj_info") => {}
-            Some("format") => {
-                enc = Some(match toks.get(1).copied() {
-                    Some("ascii") => Encoding::Ascii,
-                    Some("binary_little_endian") => Encoding::BinLe,
-                    Some("binary_big_endian") => Encoding::BinBe,
-                    other => {
-                        return Err(GeometryError::format(
-                            path,
-                            format!("unknown PLY format {other:?}"),
-                        ))
-                    }
-                })
-            }
-            Some("element") => {
-                let (Some(name), Some(count)) = (
-                    toks.get(1),
-                    toks.get(2).and_then(|c| c.parse::<usize>().ok()),
-                ) else {
-                    return Err(GeometryError::format(
-                        path,
-                        format!("bad PLY element line `{line}`"),
-                    ));
-                };
-                elements.push(Element {
-                    name: name.to_string(),
-                    count,
-                    props: Vec::new(),
-                });
-            }
+            Some("format") => enc = Some(parse_format(&toks, path)?),
+            Some("element") => elements.push(parse_element(&toks, &line, path)?),
             Some("property") => {
                 let Some(el) = elements.last_mut() else {
                     return Err(GeometryError::format(
@@ -177,27 +157,7 @@ fn read_header<R: BufRead>(r: &mut R, path: &Path) -> Result<Header, GeometryErr
                         "PLY property before any element",
                     ));
                 };
-                let bad = || GeometryError::format(path, format!("bad PLY property line `{line}`"));
-                let prop = if toks.get(1) == Some(&"list") {
-                    let ct = toks.get(2).and_then(|s| Scalar::parse(s)).ok_or_else(bad)?;
-                    let ty = toks.get(3).and_then(|s| Scalar::parse(s)).ok_or_else(bad)?;
-                    if matches!(ct, Scalar::F32 | Scalar::F64) {
-                        return Err(bad());
-                    }
-                    Property {
-                        name: toks.get(4).ok_or_else(bad)?.to_string(),
-                        list: Some(ct),
-                        ty,
-                    }
-                } else {
-                    let ty = toks.get(1).and_then(|s| Scalar::parse(s)).ok_or_else(bad)?;
-                    Property {
-                        name: toks.get(2).ok_or_else(bad)?.to_string(),
-                        list: None,
-                        ty,
-                    }
-                };
-                el.props.push(prop);
+                el.props.push(parse_property(&toks, &line, path)?);
             }
             Some("end_header") => break,
             Some(other) => {
@@ -210,6 +170,61 @@ fn read_header<R: BufRead>(r: &mut R, path: &Path) -> Result<Header, GeometryErr
     }
     let enc = enc.ok_or_else(|| GeometryError::format(path, "PLY header has no `format` line"))?;
     Ok(Header { enc, elements })
+}
+
+/// The encoding of a `format` line.
+fn parse_format(toks: &[&str], path: &Path) -> Result<Encoding, GeometryError> {
+    match toks.get(1).copied() {
+        Some("ascii") => Ok(Encoding::Ascii),
+        Some("binary_little_endian") => Ok(Encoding::BinLe),
+        Some("binary_big_endian") => Ok(Encoding::BinBe),
+        other => Err(GeometryError::format(
+            path,
+            format!("unknown PLY format {other:?}"),
+        )),
+    }
+}
+
+/// An `element NAME COUNT` line, with no properties yet.
+fn parse_element(toks: &[&str], line: &str, path: &Path) -> Result<Element, GeometryError> {
+    let (Some(name), Some(count)) = (
+        toks.get(1),
+        toks.get(2).and_then(|c| c.parse::<usize>().ok()),
+    ) else {
+        return Err(GeometryError::format(
+            path,
+            format!("bad PLY element line `{line}`"),
+        ));
+    };
+    Ok(Element {
+        name: name.to_string(),
+        count,
+        props: Vec::new(),
+    })
+}
+
+/// A `property TYPE NAME` or `property list COUNT_TYPE TYPE NAME` line.
+fn parse_property(toks: &[&str], line: &str, path: &Path) -> Result<Property, GeometryError> {
+    let bad = || GeometryError::format(path, format!("bad PLY property line `{line}`"));
+    if toks.get(1) == Some(&"list") {
+        let ct = toks.get(2).and_then(|s| Scalar::parse(s)).ok_or_else(bad)?;
+        let ty = toks.get(3).and_then(|s| Scalar::parse(s)).ok_or_else(bad)?;
+        if matches!(ct, Scalar::F32 | Scalar::F64) {
+            return Err(bad());
+        }
+        Ok(Property {
+            name: toks.get(4).ok_or_else(bad)?.to_string(),
+            list: Some(ct),
+            ty,
+        })
+    } else {
+        let ty = toks.get(1).and_then(|s| Scalar::parse(s)).ok_or_else(bad)?;
+        Ok(Property {
+            name: toks.get(2).ok_or_else(bad)?.to_string(),
+            list: None,
+            ty,
+        })
+    }
 }
 
 /// Where each needed vertex attribute sits in a vertex record.
