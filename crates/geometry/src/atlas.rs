@@ -118,9 +118,41 @@ pub fn build_atlas(mesh: &TriMesh, opts: AtlasOptions) -> Result<Atlas, Geometry
             "atlas resolution {res} is too small (minimum 8)"
         )));
     }
-    let nt = mesh.indices.len();
-    // 1. dominant direction of each face
-    let label: Vec<u8> = (0..nt)
+    let label = face_labels(mesh);
+    let (mut charts, chart_of) = group_charts(mesh, &label);
+    let scale = pack_charts(&mut charts, res, g)?;
+    let (out, texel_xy) = split_vertices(mesh, &charts, scale, res, g);
+    let layout = Layout {
+        mesh: &out,
+        normals: out.normals.as_ref().unwrap(),
+        texel_xy: &texel_xy,
+        chart_of: &chart_of,
+        res,
+    };
+    let mut cache = TexelCache::new(res);
+    let overlap = rasterise_texel_centres(&layout, &mut cache);
+    cover_thin_triangles(&layout, &mut cache);
+    let covered: Vec<bool> = cache.owner.iter().map(|&o| o != u32::MAX).collect();
+    let covered_texels = covered.iter().filter(|c| **c).count();
+    extend_into_gutters(&layout, &covered, scale, g, &mut cache);
+    dilate_into_gutters(&mut cache, g);
+    let coverage = cache.mark_validity(&covered);
+    Ok(Atlas {
+        mesh: out,
+        resolution: res,
+        texel_size: 1.0 / scale,
+        charts: charts.len(),
+        position: cache.position,
+        normal: cache.normal,
+        coverage,
+        covered_texels,
+        overlap_texels: overlap,
+    })
+}
+
+/// The dominant direction of each face's normal, as `2 * axis + (1 when negative)`.
+fn face_labels(mesh: &TriMesh) -> Vec<u8> {
+    (0..mesh.indices.len())
         .map(|t| {
             let [a, b, c] = mesh.triangle(t).map(|p| p.map(f64::from));
             let n = cross(sub(b, a), sub(c, a));
@@ -129,8 +161,13 @@ pub fn build_atlas(mesh: &TriMesh, opts: AtlasOptions) -> Result<Atlas, Geometry
                 .unwrap();
             (axis * 2 + usize::from(n[axis] < 0.0)) as u8
         })
-        .collect();
-    // 2. connected components of same-direction faces, connected through shared positions
+        .collect()
+}
+
+/// Union-find forest over the faces: faces that share an edge (by position, not index) and a
+/// direction label are joined.
+fn join_same_direction_faces(mesh: &TriMesh, label: &[u8]) -> Vec<u32> {
+    let nt = mesh.indices.len();
     let mut canon: HashMap<[u32; 3], u32> = HashMap::with_capacity(mesh.positions.len());
     let cid: Vec<u32> = mesh
         .positions
@@ -157,7 +194,14 @@ pub fn build_atlas(mesh: &TriMesh, opts: AtlasOptions) -> Result<Atlas, Geometry
             }
         }
     }
-    drop(edges);
+    parent
+}
+
+/// Connected components of same-direction faces as charts with their projected bounds (in
+/// order of first face), and the chart of each face.
+fn group_charts(mesh: &TriMesh, label: &[u8]) -> (Vec<Chart>, Vec<u32>) {
+    let nt = mesh.indices.len();
+    let mut parent = join_same_direction_faces(mesh, label);
     let mut chart_of_root: HashMap<u32, usize> = HashMap::new();
     let mut charts: Vec<Chart> = Vec::new();
     let mut chart_of = vec![0u32; nt];
@@ -186,7 +230,12 @@ pub fn build_atlas(mesh: &TriMesh, opts: AtlasOptions) -> Result<Atlas, Geometry
             }
         }
     }
-    // 3. the largest scale (texels per metre) at which the padded rectangles pack
+    (charts, chart_of)
+}
+
+/// Find the largest scale (texels per metre) at which the charts' padded rectangles pack into
+/// the atlas, place the charts there and return the scale.
+fn pack_charts(charts: &mut [Chart], res: usize, g: usize) -> Result<f64, GeometryError> {
     let sizes_at = |s: f64| -> Vec<[usize; 2]> {
         charts
             .iter()
@@ -231,7 +280,18 @@ pub fn build_atlas(mesh: &TriMesh, opts: AtlasOptions) -> Result<Atlas, Geometry
     for (c, a) in charts.iter_mut().zip(&at) {
         c.at = *a;
     }
-    // 4. split vertices per chart and set UVs; texel-space coordinates (X right, Y down)
+    Ok(scale)
+}
+
+/// Split vertices per chart and set UVs; also returns each new vertex's texel-space
+/// coordinates (X right, Y down). The output mesh has normals (computed when the input had none).
+fn split_vertices(
+    mesh: &TriMesh,
+    charts: &[Chart],
+    scale: f64,
+    res: usize,
+    g: usize,
+) -> (TriMesh, Vec<[f64; 2]>) {
     let mut out = TriMesh::default();
     let mut normals = Vec::new();
     let mut colors = Vec::new();
@@ -239,7 +299,7 @@ pub fn build_atlas(mesh: &TriMesh, opts: AtlasOptions) -> Result<Atlas, Geometry
     let mut texel_xy: Vec<[f64; 2]> = Vec::new();
     let mut remap: HashMap<(u32, u32), u32> = HashMap::new();
     let src_n = mesh.normals.as_ref();
-    out.indices = vec![[0; 3]; nt];
+    out.indices = vec![[0; 3]; mesh.indices.len()];
     for (ci, ch) in charts.iter().enumerate() {
         for &t in &ch.tris {
             let tri = mesh.indices[t as usize];
@@ -273,16 +333,80 @@ pub fn build_atlas(mesh: &TriMesh, opts: AtlasOptions) -> Result<Atlas, Geometry
     if out.normals.is_none() {
         out.compute_vertex_normals();
     }
-    // 5. rasterise texel centres
-    let mut position = HdrImage::new(res, res);
-    let mut normal = HdrImage::new(res, res);
-    let mut owner = vec![u32::MAX; res * res];
+    (out, texel_xy)
+}
+
+/// The split mesh laid out in texel space, as the cache-filling steps read it.
+struct Layout<'a> {
+    mesh: &'a TriMesh,
+    normals: &'a [[f32; 3]],
+    /// Texel-space coordinates of each vertex (X right, Y down).
+    texel_xy: &'a [[f64; 2]],
+    chart_of: &'a [u32],
+    res: usize,
+}
+
+impl Layout<'_> {
+    fn texel_triangle(&self, t: usize) -> [[f64; 2]; 3] {
+        self.mesh.indices[t].map(|i| self.texel_xy[i as usize])
+    }
+
+    fn positions(&self, t: usize) -> [[f64; 3]; 3] {
+        self.mesh.indices[t].map(|i| self.mesh.positions[i as usize].map(f64::from))
+    }
+
+    fn normals(&self, t: usize) -> [[f64; 3]; 3] {
+        self.mesh.indices[t].map(|i| self.normals[i as usize].map(f64::from))
+    }
+}
+
+/// The texel caches being filled, and the chart owning each texel (`u32::MAX`: none yet).
+struct TexelCache {
+    res: usize,
+    position: HdrImage,
+    normal: HdrImage,
+    owner: Vec<u32>,
+}
+
+impl TexelCache {
+    fn new(res: usize) -> TexelCache {
+        TexelCache {
+            res,
+            position: HdrImage::new(res, res),
+            normal: HdrImage::new(res, res),
+            owner: vec![u32::MAX; res * res],
+        }
+    }
+
+    /// Mark owned texels valid in both caches and return the coverage image (1 on the
+    /// surface, 0.5 in the gutters, 0 elsewhere).
+    fn mark_validity(&mut self, covered: &[bool]) -> HdrImage {
+        let res = self.res;
+        let mut coverage = HdrImage::new(res, res);
+        for i in 0..res * res {
+            let filled = self.owner[i] != u32::MAX;
+            self.position.valid[i] = filled;
+            self.normal.valid[i] = filled;
+            let v = if covered[i] {
+                1.0
+            } else if filled {
+                0.5
+            } else {
+                0.0
+            };
+            coverage.pixels[i] = [v; 3];
+        }
+        coverage
+    }
+}
+
+/// Fill every texel whose centre lies on a triangle; returns the texels claimed by two charts.
+fn rasterise_texel_centres(layout: &Layout, cache: &mut TexelCache) -> usize {
+    let res = layout.res;
     let mut overlap = 0usize;
-    let on = out.normals.as_ref().unwrap();
-    for t in 0..nt {
-        let tri = out.indices[t];
-        let c = chart_of[t];
-        let [a, b, cc] = tri.map(|i| texel_xy[i as usize]);
+    for t in 0..layout.mesh.indices.len() {
+        let c = layout.chart_of[t];
+        let [a, b, cc] = layout.texel_triangle(t);
         let den = (b[1] - cc[1]) * (a[0] - cc[0]) + (cc[0] - b[0]) * (a[1] - cc[1]);
         if den.abs() < 1e-18 {
             continue;
@@ -291,8 +415,8 @@ pub fn build_atlas(mesh: &TriMesh, opts: AtlasOptions) -> Result<Atlas, Geometry
         let x1 = ((a[0].max(b[0]).max(cc[0]) - 0.5).ceil() as usize).min(res - 1);
         let y0 = (a[1].min(b[1]).min(cc[1]) - 0.5).floor().max(0.0) as usize;
         let y1 = ((a[1].max(b[1]).max(cc[1]) - 0.5).ceil() as usize).min(res - 1);
-        let [pa, pb, pc] = tri.map(|i| out.positions[i as usize].map(f64::from));
-        let [na, nb, nc] = tri.map(|i| on[i as usize].map(f64::from));
+        let [pa, pb, pc] = layout.positions(t);
+        let [na, nb, nc] = layout.normals(t);
         for y in y0..=y1 {
             for x in x0..=x1 {
                 let (px, py) = (x as f64 + 0.5, y as f64 + 0.5);
@@ -304,11 +428,11 @@ pub fn build_atlas(mesh: &TriMesh, opts: AtlasOptions) -> Result<Atlas, Geometry
                     continue;
                 }
                 let i = y * res + x;
-                if owner[i] != u32::MAX && owner[i] != c {
+                if cache.owner[i] != u32::MAX && cache.owner[i] != c {
                     overlap += 1;
                     continue;
                 }
-                owner[i] = c;
+                cache.owner[i] = c;
                 let p = [0, 1, 2].map(|k| (l1 * pa[k] + l2 * pb[k] + l3 * pc[k]) as f32);
                 let n = [0, 1, 2].map(|k| l1 * na[k] + l2 * nb[k] + l3 * nc[k]);
                 let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
@@ -317,20 +441,24 @@ pub fn build_atlas(mesh: &TriMesh, opts: AtlasOptions) -> Result<Atlas, Geometry
                 } else {
                     na.map(|v| v as f32)
                 };
-                position.pixels[i] = p;
-                normal.pixels[i] = n;
+                cache.position.pixels[i] = p;
+                cache.normal.pixels[i] = n;
             }
         }
     }
-    // triangles too thin to contain a texel centre: the texels holding their corners and
-    // centroid are covered too, with the triangle's surface point closest (in the atlas plane)
-    // to the texel centre
-    for t in 0..nt {
-        let tri = out.indices[t];
-        let c = chart_of[t];
-        let xy = tri.map(|i| texel_xy[i as usize]);
-        let ps = tri.map(|i| out.positions[i as usize].map(f64::from));
-        let ns = tri.map(|i| on[i as usize].map(f64::from));
+    overlap
+}
+
+/// Triangles too thin to contain a texel centre: the texels holding their corners and centroid
+/// are covered too, with the triangle's surface point closest (in the atlas plane) to the texel
+/// centre.
+fn cover_thin_triangles(layout: &Layout, cache: &mut TexelCache) {
+    let res = layout.res;
+    for t in 0..layout.mesh.indices.len() {
+        let c = layout.chart_of[t];
+        let xy = layout.texel_triangle(t);
+        let ps = layout.positions(t);
+        let ns = layout.normals(t);
         let cxy = [0, 1].map(|k| (xy[0][k] + xy[1][k] + xy[2][k]) / 3.0);
         for q in [cxy, xy[0], xy[1], xy[2]] {
             let (x, y) = (
@@ -338,7 +466,7 @@ pub fn build_atlas(mesh: &TriMesh, opts: AtlasOptions) -> Result<Atlas, Geometry
                 q[1].floor().clamp(0.0, (res - 1) as f64) as usize,
             );
             let i = y * res + x;
-            if owner[i] != u32::MAX {
+            if cache.owner[i] != u32::MAX {
                 continue;
             }
             let (_, cl) = closest_on_triangle([x as f64 + 0.5, y as f64 + 0.5], xy);
@@ -350,27 +478,34 @@ pub fn build_atlas(mesh: &TriMesh, opts: AtlasOptions) -> Result<Atlas, Geometry
             let p = [0, 1, 2].map(|k| (l[0] * ps[0][k] + l[1] * ps[1][k] + l[2] * ps[2][k]) as f32);
             let n = [0, 1, 2].map(|k| l[0] * ns[0][k] + l[1] * ns[1][k] + l[2] * ns[2][k]);
             let ln = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-            owner[i] = c;
-            position.pixels[i] = p;
-            normal.pixels[i] = if ln > 0.0 {
+            cache.owner[i] = c;
+            cache.position.pixels[i] = p;
+            cache.normal.pixels[i] = if ln > 0.0 {
                 n.map(|v| (v / ln) as f32)
             } else {
                 ns[0].map(|v| v as f32)
             };
         }
     }
-    let covered: Vec<bool> = owner.iter().map(|&o| o != u32::MAX).collect();
-    let covered_texels = covered.iter().filter(|c| **c).count();
-    // 6a. gutters: a texel within g + 1 texels of a chart takes the chart's nearest triangle
-    // extended affinely to the texel centre, so the caches continue the surface across chart
-    // borders and bilinear lookups there reproduce it (a sliver whose extension would run far
-    // off falls back to its closest point)
+}
+
+/// Gutters: a texel within g + 1 texels of a chart takes the chart's nearest triangle extended
+/// affinely to the texel centre, so the caches continue the surface across chart borders and
+/// bilinear lookups there reproduce it (a sliver whose extension would run far off falls back
+/// to its closest point).
+fn extend_into_gutters(
+    layout: &Layout,
+    covered: &[bool],
+    scale: f64,
+    g: usize,
+    cache: &mut TexelCache,
+) {
+    let res = layout.res;
     let reach = (g + 1) as f64;
     let mut best = vec![f64::INFINITY; res * res];
-    for t in 0..nt {
-        let tri = out.indices[t];
-        let c = chart_of[t];
-        let xy = tri.map(|i| texel_xy[i as usize]);
+    for t in 0..layout.mesh.indices.len() {
+        let c = layout.chart_of[t];
+        let xy = layout.texel_triangle(t);
         let [a, b, cc] = xy;
         let den = (b[1] - cc[1]) * (a[0] - cc[0]) + (cc[0] - b[0]) * (a[1] - cc[1]);
         if den.abs() < 1e-18 {
@@ -380,8 +515,8 @@ pub fn build_atlas(mesh: &TriMesh, opts: AtlasOptions) -> Result<Atlas, Geometry
         let hi = |k: usize| {
             ((a[k].max(b[k]).max(cc[k]) - 0.5 + reach).ceil().max(0.0) as usize).min(res - 1)
         };
-        let [pa, pb, pc] = tri.map(|i| out.positions[i as usize].map(f64::from));
-        let ns = tri.map(|i| on[i as usize].map(f64::from));
+        let [pa, pb, pc] = layout.positions(t);
+        let ns = layout.normals(t);
         for y in lo(1)..=hi(1) {
             for x in lo(0)..=hi(0) {
                 let i = y * res + x;
@@ -408,9 +543,9 @@ pub fn build_atlas(mesh: &TriMesh, opts: AtlasOptions) -> Result<Atlas, Geometry
                 let n = [0, 1, 2].map(|k| lc[0] * ns[0][k] + lc[1] * ns[1][k] + lc[2] * ns[2][k]);
                 let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
                 best[i] = d;
-                owner[i] = c;
-                position.pixels[i] = p.map(|v| v as f32);
-                normal.pixels[i] = if l > 0.0 {
+                cache.owner[i] = c;
+                cache.position.pixels[i] = p.map(|v| v as f32);
+                cache.normal.pixels[i] = if l > 0.0 {
                     n.map(|v| (v / l) as f32)
                 } else {
                     ns[0].map(|v| v as f32)
@@ -418,9 +553,13 @@ pub fn build_atlas(mesh: &TriMesh, opts: AtlasOptions) -> Result<Atlas, Geometry
             }
         }
     }
-    // 6b. anything the extension did not reach: dilate each chart into its gutter, g + 1 rings
+}
+
+/// Anything the extension did not reach: dilate each chart into its gutter, g + 1 rings.
+fn dilate_into_gutters(cache: &mut TexelCache, g: usize) {
+    let res = cache.res;
     for _ in 0..=g {
-        let prev = owner.clone();
+        let prev = cache.owner.clone();
         for y in 0..res {
             for x in 0..res {
                 let i = y * res + x;
@@ -441,17 +580,17 @@ pub fn build_atlas(mesh: &TriMesh, opts: AtlasOptions) -> Result<Atlas, Geometry
                         }
                         chart = prev[j];
                         for k in 0..3 {
-                            sp[k] += position.pixels[j][k];
-                            sn[k] += normal.pixels[j][k];
+                            sp[k] += cache.position.pixels[j][k];
+                            sn[k] += cache.normal.pixels[j][k];
                         }
                         cnt += 1.0;
                     }
                 }
                 if cnt > 0.0 {
-                    owner[i] = chart;
-                    position.pixels[i] = sp.map(|v| v / cnt);
+                    cache.owner[i] = chart;
+                    cache.position.pixels[i] = sp.map(|v| v / cnt);
                     let l = (sn[0] * sn[0] + sn[1] * sn[1] + sn[2] * sn[2]).sqrt();
-                    normal.pixels[i] = if l > 0.0 {
+                    cache.normal.pixels[i] = if l > 0.0 {
                         sn.map(|v| v / l)
                     } else {
                         [0.0, 0.0, 1.0]
@@ -460,31 +599,6 @@ pub fn build_atlas(mesh: &TriMesh, opts: AtlasOptions) -> Result<Atlas, Geometry
             }
         }
     }
-    let mut coverage = HdrImage::new(res, res);
-    for i in 0..res * res {
-        let filled = owner[i] != u32::MAX;
-        position.valid[i] = filled;
-        normal.valid[i] = filled;
-        let v = if covered[i] {
-            1.0
-        } else if filled {
-            0.5
-        } else {
-            0.0
-        };
-        coverage.pixels[i] = [v; 3];
-    }
-    Ok(Atlas {
-        mesh: out,
-        resolution: res,
-        texel_size: 1.0 / scale,
-        charts: charts.len(),
-        position,
-        normal,
-        coverage,
-        covered_texels,
-        overlap_texels: overlap,
-    })
 }
 
 /// Barycentric coordinates of `p` in a triangle of the atlas plane (None when degenerate); they

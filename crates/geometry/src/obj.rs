@@ -14,22 +14,48 @@ use std::path::Path;
 pub fn read_obj(path: &Path) -> Result<TriMesh, GeometryError> {
     let f = std::fs::File::open(path).map_err(|e| GeometryError::io(path, e))?;
     let r = BufReader::with_capacity(1 << 20, f);
-    let mut pos: Vec<[f32; 3]> = Vec::new();
-    let mut col: Vec<[f32; 3]> = Vec::new();
-    let mut tex: Vec<[f32; 2]> = Vec::new();
-    let mut nrm: Vec<[f32; 3]> = Vec::new();
-    // corners as (v, vt, vn) 0-based, u32::MAX = absent
-    let mut faces: Vec<[[u32; 3]; 3]> = Vec::new();
-    let mut any_vt = false;
-    let mut any_vn = false;
+    let mut obj = ObjData::default();
     let mut corners: Vec<[u32; 3]> = Vec::with_capacity(8);
     for (ln, line) in r.lines().enumerate() {
         let line = line.map_err(|e| GeometryError::io(path, e))?;
-        let ln = ln + 1;
-        let bad = |m: &str| GeometryError::format(path, format!("line {ln}: {m}"));
+        obj.parse_line(&line, ln + 1, path, &mut corners)?;
+    }
+    let mesh = obj.into_mesh();
+    mesh.validate().map_err(|e| e.in_file(path))?;
+    Ok(mesh)
+}
+
+/// What an OBJ file declares, before vertices are unwelded.
+#[derive(Default)]
+struct ObjData {
+    pos: Vec<[f32; 3]>,
+    col: Vec<[f32; 3]>,
+    tex: Vec<[f32; 2]>,
+    nrm: Vec<[f32; 3]>,
+    /// corners as (v, vt, vn) 0-based, u32::MAX = absent
+    faces: Vec<[[u32; 3]; 3]>,
+    any_vt: bool,
+    any_vn: bool,
+}
+
+/// An error on line `ln` of an OBJ file.
+fn obj_line_error(path: &Path, ln: usize, m: &str) -> GeometryError {
+    GeometryError::format(path, format!("line {ln}: {m}"))
+}
+
+impl ObjData {
+    /// Parse line `ln` (1-based); `corners` is scratch space for a face's corners.
+    fn parse_line(
+        &mut self,
+        line: &str,
+        ln: usize,
+        path: &Path,
+        corners: &mut Vec<[u32; 3]>,
+    ) -> Result<(), GeometryError> {
+        let bad = |m: &str| obj_line_error(path, ln, m);
         let line = line.split('#').next().unwrap_or("");
         let mut it = line.split_whitespace();
-        let Some(key) = it.next() else { continue };
+        let Some(key) = it.next() else { return Ok(()) };
         let nums = |it: std::str::SplitWhitespace, min: usize| -> Result<Vec<f32>, GeometryError> {
             let v: Result<Vec<f32>, _> = it.map(|t| t.parse::<f32>()).collect();
             let v = v.map_err(|_| {
@@ -46,104 +72,128 @@ pub fn read_obj(path: &Path) -> Result<TriMesh, GeometryError> {
         match key {
             "v" => {
                 let v = nums(it, 3)?;
-                pos.push([v[0], v[1], v[2]]);
+                self.pos.push([v[0], v[1], v[2]]);
                 if v.len() >= 6 {
-                    col.push([v[3], v[4], v[5]]);
+                    self.col.push([v[3], v[4], v[5]]);
                 }
             }
             "vt" => {
                 let v = nums(it, 1)?;
-                tex.push([v[0], v.get(1).copied().unwrap_or(0.0)]);
+                self.tex.push([v[0], v.get(1).copied().unwrap_or(0.0)]);
             }
             "vn" => {
                 let v = nums(it, 3)?;
-                nrm.push([v[0], v[1], v[2]]);
+                self.nrm.push([v[0], v[1], v[2]]);
             }
-            "f" => {
-                corners.clear();
-                for tok in it {
-                    let mut parts = tok.split('/');
-                    let mut idx = [u32::MAX; 3];
-                    let lens = [pos.len(), tex.len(), nrm.len()];
-                    for (k, slot) in idx.iter_mut().enumerate() {
-                        match parts.next() {
-                            None | Some("") if k > 0 => {}
-                            None | Some("") => {
-                                return Err(bad(&format!(
-                                    "face corner `{tok}` has no vertex index"
-                                )))
-                            }
-                            Some(s) => {
-                                let i: i64 = s
-                                    .parse()
-                                    .map_err(|_| bad(&format!("bad face index `{s}`")))?;
-                                let n = lens[k] as i64;
-                                let j = if i > 0 { i - 1 } else { n + i };
-                                if i == 0 || j < 0 || j >= n {
-                                    let what = ["vertex", "texture coordinate", "normal"][k];
-                                    return Err(bad(&format!(
-                                        "face {what} index {i} out of range ({n} defined so far)"
-                                    )));
-                                }
-                                *slot = j as u32;
-                            }
-                        }
-                    }
-                    any_vt |= idx[1] != u32::MAX;
-                    any_vn |= idx[2] != u32::MAX;
-                    corners.push(idx);
-                }
-                if corners.len() < 3 {
-                    return Err(bad("face with fewer than 3 corners"));
-                }
-                for j in 1..corners.len() - 1 {
-                    faces.push([corners[0], corners[j], corners[j + 1]]);
-                }
-            }
+            "f" => self.parse_face(it, ln, path, corners)?,
             _ => {} // o, g, s, usemtl, mtllib, l, p...: not geometry we keep
         }
+        Ok(())
     }
-    let colors_ok = !col.is_empty() && col.len() == pos.len();
-    let mut mesh = TriMesh::default();
-    if !any_vt && !any_vn {
-        mesh.positions = pos;
-        mesh.colors = colors_ok.then_some(col);
-        mesh.indices = faces.iter().map(|f| [f[0][0], f[1][0], f[2][0]]).collect();
-    } else {
+
+    /// Parse the corners of an `f` line and fan-triangulate them.
+    fn parse_face(
+        &mut self,
+        it: std::str::SplitWhitespace,
+        ln: usize,
+        path: &Path,
+        corners: &mut Vec<[u32; 3]>,
+    ) -> Result<(), GeometryError> {
+        corners.clear();
+        for tok in it {
+            let idx = self.parse_corner(tok, ln, path)?;
+            self.any_vt |= idx[1] != u32::MAX;
+            self.any_vn |= idx[2] != u32::MAX;
+            corners.push(idx);
+        }
+        if corners.len() < 3 {
+            return Err(obj_line_error(path, ln, "face with fewer than 3 corners"));
+        }
+        for j in 1..corners.len() - 1 {
+            self.faces.push([corners[0], corners[j], corners[j + 1]]);
+        }
+        Ok(())
+    }
+
+    /// A face corner `a`, `a/b`, `a//c` or `a/b/c` as 0-based (v, vt, vn), u32::MAX = absent.
+    fn parse_corner(&self, tok: &str, ln: usize, path: &Path) -> Result<[u32; 3], GeometryError> {
+        let bad = |m: &str| obj_line_error(path, ln, m);
+        let mut parts = tok.split('/');
+        let mut idx = [u32::MAX; 3];
+        let lens = [self.pos.len(), self.tex.len(), self.nrm.len()];
+        for (k, slot) in idx.iter_mut().enumerate() {
+            match parts.next() {
+                None | Some("") if k > 0 => {}
+                None | Some("") => {
+                    return Err(bad(&format!("face corner `{tok}` has no vertex index")))
+                }
+                Some(s) => {
+                    let i: i64 = s
+                        .parse()
+                        .map_err(|_| bad(&format!("bad face index `{s}`")))?;
+                    let n = lens[k] as i64;
+                    let j = if i > 0 { i - 1 } else { n + i };
+                    if i == 0 || j < 0 || j >= n {
+                        let what = ["vertex", "texture coordinate", "normal"][k];
+                        return Err(bad(&format!(
+                            "face {what} index {i} out of range ({n} defined so far)"
+                        )));
+                    }
+                    *slot = j as u32;
+                }
+            }
+        }
+        Ok(idx)
+    }
+
+    /// The mesh: positions in file order when faces use positions only, else one vertex per
+    /// distinct (position, uv, normal) corner.
+    fn into_mesh(self) -> TriMesh {
+        let colors_ok = !self.col.is_empty() && self.col.len() == self.pos.len();
+        let mut mesh = TriMesh::default();
+        if !self.any_vt && !self.any_vn {
+            mesh.positions = self.pos;
+            mesh.colors = colors_ok.then_some(self.col);
+            mesh.indices = self
+                .faces
+                .iter()
+                .map(|f| [f[0][0], f[1][0], f[2][0]])
+                .collect();
+            return mesh;
+        }
         let mut map: HashMap<[u32; 3], u32> = HashMap::new();
         let mut uvs = Vec::new();
         let mut nv = Vec::new();
         let mut cv = Vec::new();
-        for f in &faces {
+        for f in &self.faces {
             let mut tri = [0u32; 3];
             for (k, c) in f.iter().enumerate() {
                 tri[k] = *map.entry(*c).or_insert_with(|| {
                     let id = mesh.positions.len() as u32;
-                    mesh.positions.push(pos[c[0] as usize]);
+                    mesh.positions.push(self.pos[c[0] as usize]);
                     if colors_ok {
-                        cv.push(col[c[0] as usize]);
+                        cv.push(self.col[c[0] as usize]);
                     }
                     uvs.push(if c[1] == u32::MAX {
                         [0.0, 0.0]
                     } else {
-                        tex[c[1] as usize]
+                        self.tex[c[1] as usize]
                     });
                     nv.push(if c[2] == u32::MAX {
                         [0.0, 0.0, 0.0]
                     } else {
-                        nrm[c[2] as usize]
+                        self.nrm[c[2] as usize]
                     });
                     id
                 });
             }
             mesh.indices.push(tri);
         }
-        mesh.uvs = any_vt.then_some(uvs);
-        mesh.normals = any_vn.then_some(nv);
+        mesh.uvs = self.any_vt.then_some(uvs);
+        mesh.normals = self.any_vn.then_some(nv);
         mesh.colors = colors_ok.then_some(cv);
+        mesh
     }
-    mesh.validate().map_err(|e| e.in_file(path))?;
-    Ok(mesh)
 }
 
 /// Write an OBJ file (atomically): `v` (with r g b when the mesh has colours), `vt`, `vn`,

@@ -100,30 +100,37 @@ struct Header {
     elements: Vec<Element>,
 }
 
+/// Read one header line into `line` (without its line ending); false at the end of the file.
+/// Header lines are ASCII; this reads bytes up to '\n' so binary data after the header is
+/// untouched.
+fn read_header_line<R: BufRead>(
+    r: &mut R,
+    path: &Path,
+    line: &mut String,
+) -> Result<bool, GeometryError> {
+    line.clear();
+    let mut buf = Vec::new();
+    let n = r
+        .read_until(b'\n', &mut buf)
+        .map_err(|e| GeometryError::io(path, e))?;
+    if n == 0 {
+        return Ok(false);
+    }
+    if buf.len() > 4096 {
+        return Err(GeometryError::format(
+            path,
+            "PLY header line longer than 4096 bytes",
+        ));
+    }
+    *line = String::from_utf8_lossy(&buf)
+        .trim_end_matches(['\n', '\r'])
+        .to_string();
+    Ok(true)
+}
+
 fn read_header<R: BufRead>(r: &mut R, path: &Path) -> Result<Header, GeometryError> {
     let mut line = String::new();
-    let mut read_line = |line: &mut String| -> Result<bool, GeometryError> {
-        line.clear();
-        // header lines are ASCII; read bytes up to '\n' so binary data after the header is untouched
-        let mut buf = Vec::new();
-        let n = r
-            .read_until(b'\n', &mut buf)
-            .map_err(|e| GeometryError::io(path, e))?;
-        if n == 0 {
-            return Ok(false);
-        }
-        if buf.len() > 4096 {
-            return Err(GeometryError::format(
-                path,
-                "PLY header line longer than 4096 bytes",
-            ));
-        }
-        *line = String::from_utf8_lossy(&buf)
-            .trim_end_matches(['\n', '\r'])
-            .to_string();
-        Ok(true)
-    };
-    if !read_line(&mut line)? || line.trim() != "ply" {
+    if !read_header_line(r, path, &mut line)? || line.trim() != "ply" {
         return Err(GeometryError::format(
             path,
             "not a PLY file (first line is not `ply`)",
@@ -132,7 +139,7 @@ fn read_header<R: BufRead>(r: &mut R, path: &Path) -> Result<Header, GeometryErr
     let mut enc = None;
     let mut elements: Vec<Element> = Vec::new();
     loop {
-        if !read_line(&mut line)? {
+        if !read_header_line(r, path, &mut line)? {
             return Err(GeometryError::format(
                 path,
                 "truncated PLY header (no `end_header`)",
@@ -141,35 +148,8 @@ fn read_header<R: BufRead>(r: &mut R, path: &Path) -> Result<Header, GeometryErr
         let toks: Vec<&str> = line.split_whitespace().collect();
         match toks.first().copied() {
             None | Some("comment") | Some("obj_info") => {}
-            Some("format") => {
-                enc = Some(match toks.get(1).copied() {
-                    Some("ascii") => Encoding::Ascii,
-                    Some("binary_little_endian") => Encoding::BinLe,
-                    Some("binary_big_endian") => Encoding::BinBe,
-                    other => {
-                        return Err(GeometryError::format(
-                            path,
-                            format!("unknown PLY format {other:?}"),
-                        ))
-                    }
-                })
-            }
-            Some("element") => {
-                let (Some(name), Some(count)) = (
-                    toks.get(1),
-                    toks.get(2).and_then(|c| c.parse::<usize>().ok()),
-                ) else {
-                    return Err(GeometryError::format(
-                        path,
-                        format!("bad PLY element line `{line}`"),
-                    ));
-                };
-                elements.push(Element {
-                    name: name.to_string(),
-                    count,
-                    props: Vec::new(),
-                });
-            }
+            Some("format") => enc = Some(parse_format(&toks, path)?),
+            Some("element") => elements.push(parse_element(&toks, &line, path)?),
             Some("property") => {
                 let Some(el) = elements.last_mut() else {
                     return Err(GeometryError::format(
@@ -177,27 +157,7 @@ fn read_header<R: BufRead>(r: &mut R, path: &Path) -> Result<Header, GeometryErr
                         "PLY property before any element",
                     ));
                 };
-                let bad = || GeometryError::format(path, format!("bad PLY property line `{line}`"));
-                let prop = if toks.get(1) == Some(&"list") {
-                    let ct = toks.get(2).and_then(|s| Scalar::parse(s)).ok_or_else(bad)?;
-                    let ty = toks.get(3).and_then(|s| Scalar::parse(s)).ok_or_else(bad)?;
-                    if matches!(ct, Scalar::F32 | Scalar::F64) {
-                        return Err(bad());
-                    }
-                    Property {
-                        name: toks.get(4).ok_or_else(bad)?.to_string(),
-                        list: Some(ct),
-                        ty,
-                    }
-                } else {
-                    let ty = toks.get(1).and_then(|s| Scalar::parse(s)).ok_or_else(bad)?;
-                    Property {
-                        name: toks.get(2).ok_or_else(bad)?.to_string(),
-                        list: None,
-                        ty,
-                    }
-                };
-                el.props.push(prop);
+                el.props.push(parse_property(&toks, &line, path)?);
             }
             Some("end_header") => break,
             Some(other) => {
@@ -210,6 +170,61 @@ fn read_header<R: BufRead>(r: &mut R, path: &Path) -> Result<Header, GeometryErr
     }
     let enc = enc.ok_or_else(|| GeometryError::format(path, "PLY header has no `format` line"))?;
     Ok(Header { enc, elements })
+}
+
+/// The encoding of a `format` line.
+fn parse_format(toks: &[&str], path: &Path) -> Result<Encoding, GeometryError> {
+    match toks.get(1).copied() {
+        Some("ascii") => Ok(Encoding::Ascii),
+        Some("binary_little_endian") => Ok(Encoding::BinLe),
+        Some("binary_big_endian") => Ok(Encoding::BinBe),
+        other => Err(GeometryError::format(
+            path,
+            format!("unknown PLY format {other:?}"),
+        )),
+    }
+}
+
+/// An `element NAME COUNT` line, with no properties yet.
+fn parse_element(toks: &[&str], line: &str, path: &Path) -> Result<Element, GeometryError> {
+    let (Some(name), Some(count)) = (
+        toks.get(1),
+        toks.get(2).and_then(|c| c.parse::<usize>().ok()),
+    ) else {
+        return Err(GeometryError::format(
+            path,
+            format!("bad PLY element line `{line}`"),
+        ));
+    };
+    Ok(Element {
+        name: name.to_string(),
+        count,
+        props: Vec::new(),
+    })
+}
+
+/// A `property TYPE NAME` or `property list COUNT_TYPE TYPE NAME` line.
+fn parse_property(toks: &[&str], line: &str, path: &Path) -> Result<Property, GeometryError> {
+    let bad = || GeometryError::format(path, format!("bad PLY property line `{line}`"));
+    if toks.get(1) == Some(&"list") {
+        let ct = toks.get(2).and_then(|s| Scalar::parse(s)).ok_or_else(bad)?;
+        let ty = toks.get(3).and_then(|s| Scalar::parse(s)).ok_or_else(bad)?;
+        if matches!(ct, Scalar::F32 | Scalar::F64) {
+            return Err(bad());
+        }
+        Ok(Property {
+            name: toks.get(4).ok_or_else(bad)?.to_string(),
+            list: Some(ct),
+            ty,
+        })
+    } else {
+        let ty = toks.get(1).and_then(|s| Scalar::parse(s)).ok_or_else(bad)?;
+        Ok(Property {
+            name: toks.get(2).ok_or_else(bad)?.to_string(),
+            list: None,
+            ty,
+        })
+    }
 }
 
 /// Where each needed vertex attribute sits in a vertex record.
@@ -375,8 +390,6 @@ pub fn read_ply(path: &Path) -> Result<TriMesh, GeometryError> {
 /// Extra scalar vertex properties by name (those that are not positions, normals, UVs or colours).
 pub(crate) type ExtraProperties = Vec<(String, Vec<f32>)>;
 
-/// Read a PLY file without validating the mesh (a point cloud has no faces); also returns the
-/// vertex element's other scalar properties.
 /// How many elements of `el` to reserve room for: its declared count, but never more than a
 /// file of `file_len` bytes can hold (each element takes at least its fixed-size fields in
 /// binary, or a digit and a separator per property in ASCII), so a header that lies about its
@@ -390,12 +403,14 @@ fn capacity_for(el: &Element, enc: Encoding, file_len: u64) -> usize {
     el.count.min(usize::try_from(fits).unwrap_or(usize::MAX))
 }
 
+/// Read a PLY file without validating the mesh (a point cloud has no faces); also returns the
+/// vertex element's other scalar properties.
 pub(crate) fn read_ply_unchecked(path: &Path) -> Result<(TriMesh, ExtraProperties), GeometryError> {
     let f = std::fs::File::open(path).map_err(|e| GeometryError::io(path, e))?;
     let file_len = f.metadata().map_err(|e| GeometryError::io(path, e))?.len();
     let mut r = BufReader::with_capacity(1 << 20, f);
     let header = read_header(&mut r, path)?;
-    let mut src = match header.enc {
+    let src = match header.enc {
         Encoding::Ascii => Source::Ascii {
             r,
             line: String::new(),
@@ -404,187 +419,291 @@ pub(crate) fn read_ply_unchecked(path: &Path) -> Result<(TriMesh, ExtraPropertie
         },
         enc => Source::Binary { r, enc },
     };
+    let mut body = Body {
+        src,
+        path,
+        enc: header.enc,
+        file_len,
+    };
     let mut mesh = TriMesh::default();
     let mut extras: ExtraProperties = Vec::new();
     let mut saw_vertex = false;
     let mut saw_face = false;
     for el in &header.elements {
-        let what = |e: Eof, i: usize| {
-            match e {
-            Eof::End => GeometryError::format(
-                path,
-                format!(
-                    "truncated PLY: the header declares {} {} elements but the data ends in element {i}",
-                    el.count, el.name
-                ),
-            ),
-            Eof::Io(e) => GeometryError::io(path, e),
-            Eof::Bad(m) => GeometryError::format(path, format!("{} element {i}: {m}", el.name)),
-        }
-        };
         match el.name.as_str() {
             "vertex" if !saw_vertex => {
                 saw_vertex = true;
-                let l = vertex_layout(el, path)?;
-                let has_n = l.nrm.iter().all(Option::is_some);
-                let has_uv = l.uv.iter().all(Option::is_some);
-                let has_c = l.col.iter().all(Option::is_some);
-                let cap = capacity_for(el, header.enc, file_len);
-                mesh.positions.reserve_exact(cap);
-                let mut normals = Vec::with_capacity(if has_n { cap } else { 0 });
-                let mut uvs = Vec::with_capacity(if has_uv { cap } else { 0 });
-                let mut colors = Vec::with_capacity(if has_c { cap } else { 0 });
-                let fixed = el.props.iter().all(|p| p.list.is_none());
-                let mut vals = vec![0.0f64; el.props.len()];
-                let offsets: Vec<usize> = el
-                    .props
-                    .iter()
-                    .scan(0usize, |o, p| {
-                        let cur = *o;
-                        *o += p.ty.size();
-                        Some(cur)
-                    })
-                    .collect();
-                let rec_size: usize = el.props.iter().map(|p| p.ty.size()).sum();
-                let mut buf = vec![0u8; rec_size];
-                let enc = header.enc;
-                extras = l
-                    .extra
-                    .iter()
-                    .map(|&k| (el.props[k].name.clone(), Vec::with_capacity(cap)))
-                    .collect();
-                for i in 0..el.count {
-                    if fixed && enc != Encoding::Ascii {
-                        src.record(&mut buf).map_err(|e| what(e, i))?;
-                        for (k, p) in el.props.iter().enumerate() {
-                            vals[k] = p.ty.decode(&buf[offsets[k]..], enc);
-                        }
-                    } else {
-                        for (k, p) in el.props.iter().enumerate() {
-                            if let Some(ct) = p.list {
-                                let n = src.scalar(ct).map_err(|e| what(e, i))?;
-                                for _ in 0..n as usize {
-                                    src.scalar(p.ty).map_err(|e| what(e, i))?;
-                                }
-                                vals[k] = 0.0;
-                            } else {
-                                vals[k] = src.scalar(p.ty).map_err(|e| what(e, i))?;
-                            }
-                        }
-                    }
-                    let g = |s: Option<usize>| vals[s.unwrap()];
-                    mesh.positions.push([
-                        g(l.pos[0]) as f32,
-                        g(l.pos[1]) as f32,
-                        g(l.pos[2]) as f32,
-                    ]);
-                    if has_n {
-                        normals.push([g(l.nrm[0]) as f32, g(l.nrm[1]) as f32, g(l.nrm[2]) as f32]);
-                    }
-                    if has_uv {
-                        uvs.push([g(l.uv[0]) as f32, g(l.uv[1]) as f32]);
-                    }
-                    for (e, &k) in extras.iter_mut().zip(&l.extra) {
-                        e.1.push(vals[k] as f32);
-                    }
-                    if has_c {
-                        colors.push([
-                            (g(l.col[0]) / l.col_scale[0]) as f32,
-                            (g(l.col[1]) / l.col_scale[1]) as f32,
-                            (g(l.col[2]) / l.col_scale[2]) as f32,
-                        ]);
-                    }
-                }
-                mesh.normals = has_n.then_some(normals);
-                mesh.uvs = has_uv.then_some(uvs);
-                mesh.colors = has_c.then_some(colors);
+                extras = body.read_vertices(el, &mut mesh)?;
             }
             "face" if !saw_face => {
                 saw_face = true;
-                let vi = el
-                    .props
-                    .iter()
-                    .position(|p| {
-                        p.list.is_some() && (p.name == "vertex_indices" || p.name == "vertex_index")
-                    })
-                    .ok_or_else(|| {
-                        GeometryError::format(path, "PLY face element has no vertex_indices list")
-                    })?;
-                mesh.indices.reserve(capacity_for(el, header.enc, file_len));
-                let mut poly: Vec<u32> = Vec::with_capacity(8);
-                for i in 0..el.count {
-                    for (k, p) in el.props.iter().enumerate() {
-                        if let Some(ct) = p.list {
-                            let n = src.scalar(ct).map_err(|e| what(e, i))?;
-                            if !(0.0..=1e6).contains(&n) {
-                                return Err(GeometryError::format(
-                                    path,
-                                    format!("face {i}: bad list length {n}"),
-                                ));
-                            }
-                            poly.clear();
-                            for _ in 0..n as usize {
-                                let v = src.scalar(p.ty).map_err(|e| what(e, i))?;
-                                if k == vi {
-                                    if v < 0.0 || v.fract() != 0.0 || v > u32::MAX as f64 {
-                                        return Err(GeometryError::format(
-                                            path,
-                                            format!("face {i}: vertex index {v} out of range"),
-                                        ));
-                                    }
-                                    poly.push(v as u32);
-                                }
-                            }
-                            if k == vi {
-                                if poly.len() < 3 {
-                                    return Err(GeometryError::format(
-                                        path,
-                                        format!(
-                                            "face {i} has {} vertices (need at least 3)",
-                                            poly.len()
-                                        ),
-                                    ));
-                                }
-                                for j in 1..poly.len() - 1 {
-                                    mesh.indices.push([poly[0], poly[j], poly[j + 1]]);
-                                }
-                            }
-                        } else {
-                            src.scalar(p.ty).map_err(|e| what(e, i))?;
-                        }
-                    }
-                }
+                body.read_faces(el, &mut mesh)?;
             }
-            _ => {
-                // skip an element we do not use
-                for i in 0..el.count {
-                    for p in &el.props {
-                        if let Some(ct) = p.list {
-                            let n = src.scalar(ct).map_err(|e| what(e, i))?;
-                            for _ in 0..n as usize {
-                                src.scalar(p.ty).map_err(|e| what(e, i))?;
-                            }
-                        } else {
-                            src.scalar(p.ty).map_err(|e| what(e, i))?;
-                        }
-                    }
-                }
-            }
+            _ => body.skip_element(el)?,
         }
     }
     if !saw_vertex {
         return Err(GeometryError::format(path, "PLY has no vertex element"));
     }
-    if src
-        .has_trailing_data()
-        .map_err(|e| GeometryError::io(path, e))?
-    {
-        return Err(GeometryError::format(
-            path,
-            "data continues after the last element the header declares: the element counts do not match the data",
-        ));
-    }
+    body.check_no_trailing_data()?;
     Ok((mesh, extras))
+}
+
+/// The data after a PLY header, read element by element.
+struct Body<'a, R: BufRead> {
+    src: Source<R>,
+    path: &'a Path,
+    enc: Encoding,
+    file_len: u64,
+}
+
+/// The error for a failed read in element `i` of `el`.
+fn element_error(path: &Path, el: &Element, e: Eof, i: usize) -> GeometryError {
+    match e {
+        Eof::End => GeometryError::format(
+            path,
+            format!(
+                "truncated PLY: the header declares {} {} elements but the data ends in element {i}",
+                el.count, el.name
+            ),
+        ),
+        Eof::Io(e) => GeometryError::io(path, e),
+        Eof::Bad(m) => GeometryError::format(path, format!("{} element {i}: {m}", el.name)),
+    }
+}
+
+/// Scratch space for reading the scalar values of one vertex record.
+struct VertexRecord {
+    /// Every property is a scalar, so a binary record has a fixed size.
+    fixed: bool,
+    offsets: Vec<usize>,
+    buf: Vec<u8>,
+    vals: Vec<f64>,
+}
+
+impl VertexRecord {
+    fn new(el: &Element) -> VertexRecord {
+        let offsets: Vec<usize> = el
+            .props
+            .iter()
+            .scan(0usize, |o, p| {
+                let cur = *o;
+                *o += p.ty.size();
+                Some(cur)
+            })
+            .collect();
+        let rec_size: usize = el.props.iter().map(|p| p.ty.size()).sum();
+        VertexRecord {
+            fixed: el.props.iter().all(|p| p.list.is_none()),
+            offsets,
+            buf: vec![0u8; rec_size],
+            vals: vec![0.0f64; el.props.len()],
+        }
+    }
+}
+
+impl<R: BufRead> Body<'_, R> {
+    /// One scalar of element `i` of `el`.
+    fn scalar(&mut self, el: &Element, ty: Scalar, i: usize) -> Result<f64, GeometryError> {
+        let path = self.path;
+        self.src
+            .scalar(ty)
+            .map_err(|e| element_error(path, el, e, i))
+    }
+
+    /// Read a list property's values and drop them.
+    fn skip_list(
+        &mut self,
+        el: &Element,
+        p: &Property,
+        ct: Scalar,
+        i: usize,
+    ) -> Result<(), GeometryError> {
+        let n = self.scalar(el, ct, i)?;
+        for _ in 0..n as usize {
+            self.scalar(el, p.ty, i)?;
+        }
+        Ok(())
+    }
+
+    /// Read vertex `i` into `rec.vals` (lists read as 0).
+    fn read_vertex_record(
+        &mut self,
+        el: &Element,
+        rec: &mut VertexRecord,
+        i: usize,
+    ) -> Result<(), GeometryError> {
+        if rec.fixed && self.enc != Encoding::Ascii {
+            let path = self.path;
+            self.src
+                .record(&mut rec.buf)
+                .map_err(|e| element_error(path, el, e, i))?;
+            for (k, p) in el.props.iter().enumerate() {
+                rec.vals[k] = p.ty.decode(&rec.buf[rec.offsets[k]..], self.enc);
+            }
+        } else {
+            for (k, p) in el.props.iter().enumerate() {
+                if let Some(ct) = p.list {
+                    self.skip_list(el, p, ct, i)?;
+                    rec.vals[k] = 0.0;
+                } else {
+                    rec.vals[k] = self.scalar(el, p.ty, i)?;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Read the vertex element into `mesh`'s positions and whichever of normals, UVs and
+    /// colours it has; returns its other scalar properties.
+    fn read_vertices(
+        &mut self,
+        el: &Element,
+        mesh: &mut TriMesh,
+    ) -> Result<ExtraProperties, GeometryError> {
+        let l = vertex_layout(el, self.path)?;
+        let has_n = l.nrm.iter().all(Option::is_some);
+        let has_uv = l.uv.iter().all(Option::is_some);
+        let has_c = l.col.iter().all(Option::is_some);
+        let cap = capacity_for(el, self.enc, self.file_len);
+        mesh.positions.reserve_exact(cap);
+        let mut normals = Vec::with_capacity(if has_n { cap } else { 0 });
+        let mut uvs = Vec::with_capacity(if has_uv { cap } else { 0 });
+        let mut colors = Vec::with_capacity(if has_c { cap } else { 0 });
+        let mut rec = VertexRecord::new(el);
+        let mut extras: ExtraProperties = l
+            .extra
+            .iter()
+            .map(|&k| (el.props[k].name.clone(), Vec::with_capacity(cap)))
+            .collect();
+        for i in 0..el.count {
+            self.read_vertex_record(el, &mut rec, i)?;
+            let vals = &rec.vals;
+            let g = |s: Option<usize>| vals[s.unwrap()];
+            mesh.positions
+                .push([g(l.pos[0]) as f32, g(l.pos[1]) as f32, g(l.pos[2]) as f32]);
+            if has_n {
+                normals.push([g(l.nrm[0]) as f32, g(l.nrm[1]) as f32, g(l.nrm[2]) as f32]);
+            }
+            if has_uv {
+                uvs.push([g(l.uv[0]) as f32, g(l.uv[1]) as f32]);
+            }
+            for (e, &k) in extras.iter_mut().zip(&l.extra) {
+                e.1.push(vals[k] as f32);
+            }
+            if has_c {
+                colors.push([
+                    (g(l.col[0]) / l.col_scale[0]) as f32,
+                    (g(l.col[1]) / l.col_scale[1]) as f32,
+                    (g(l.col[2]) / l.col_scale[2]) as f32,
+                ]);
+            }
+        }
+        mesh.normals = has_n.then_some(normals);
+        mesh.uvs = has_uv.then_some(uvs);
+        mesh.colors = has_c.then_some(colors);
+        Ok(extras)
+    }
+
+    /// Read the face element, fan-triangulating each polygon into `mesh.indices`.
+    fn read_faces(&mut self, el: &Element, mesh: &mut TriMesh) -> Result<(), GeometryError> {
+        let path = self.path;
+        let vi = el
+            .props
+            .iter()
+            .position(|p| {
+                p.list.is_some() && (p.name == "vertex_indices" || p.name == "vertex_index")
+            })
+            .ok_or_else(|| {
+                GeometryError::format(path, "PLY face element has no vertex_indices list")
+            })?;
+        mesh.indices
+            .reserve(capacity_for(el, self.enc, self.file_len));
+        let mut poly: Vec<u32> = Vec::with_capacity(8);
+        for i in 0..el.count {
+            for (k, p) in el.props.iter().enumerate() {
+                let Some(ct) = p.list else {
+                    self.scalar(el, p.ty, i)?;
+                    continue;
+                };
+                self.read_polygon(el, p, ct, i, k == vi, &mut poly)?;
+                if k == vi {
+                    if poly.len() < 3 {
+                        return Err(GeometryError::format(
+                            path,
+                            format!("face {i} has {} vertices (need at least 3)", poly.len()),
+                        ));
+                    }
+                    for j in 1..poly.len() - 1 {
+                        mesh.indices.push([poly[0], poly[j], poly[j + 1]]);
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Read a list property of face `i`; when `keep`, its values are vertex indices, checked and
+    /// stored in `poly`.
+    fn read_polygon(
+        &mut self,
+        el: &Element,
+        p: &Property,
+        ct: Scalar,
+        i: usize,
+        keep: bool,
+        poly: &mut Vec<u32>,
+    ) -> Result<(), GeometryError> {
+        let n = self.scalar(el, ct, i)?;
+        if !(0.0..=1e6).contains(&n) {
+            return Err(GeometryError::format(
+                self.path,
+                format!("face {i}: bad list length {n}"),
+            ));
+        }
+        poly.clear();
+        for _ in 0..n as usize {
+            let v = self.scalar(el, p.ty, i)?;
+            if keep {
+                if v < 0.0 || v.fract() != 0.0 || v > u32::MAX as f64 {
+                    return Err(GeometryError::format(
+                        self.path,
+                        format!("face {i}: vertex index {v} out of range"),
+                    ));
+                }
+                poly.push(v as u32);
+            }
+        }
+        Ok(())
+    }
+
+    /// Read an element we do not use and drop it.
+    fn skip_element(&mut self, el: &Element) -> Result<(), GeometryError> {
+        for i in 0..el.count {
+            for p in &el.props {
+                if let Some(ct) = p.list {
+                    self.skip_list(el, p, ct, i)?;
+                } else {
+                    self.scalar(el, p.ty, i)?;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn check_no_trailing_data(&mut self) -> Result<(), GeometryError> {
+        if self
+            .src
+            .has_trailing_data()
+            .map_err(|e| GeometryError::io(self.path, e))?
+        {
+            return Err(GeometryError::format(
+                self.path,
+                "data continues after the last element the header declares: the element counts do not match the data",
+            ));
+        }
+        Ok(())
+    }
 }
 
 /// Write a binary little-endian PLY (x y z, then nx ny nz, u v, red green blue as floats when

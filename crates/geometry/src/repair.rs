@@ -43,52 +43,9 @@ pub fn repair(mesh: &TriMesh) -> (TriMesh, RepairReport) {
         triangles_in: mesh.indices.len(),
         ..Default::default()
     };
-    let keep: Vec<bool> = mesh
-        .indices
-        .par_iter()
-        .enumerate()
-        .map(|(t, tri)| {
-            tri[0] != tri[1] && tri[1] != tri[2] && tri[0] != tri[2] && mesh.triangle_area(t) > 0.0
-        })
-        .collect();
+    let keep = non_degenerate(mesh);
     rep.degenerate_removed = keep.iter().filter(|k| !**k).count();
-    let tri_key = |t: usize| -> [[u32; 3]; 3] {
-        let mut k = mesh.indices[t].map(|i| pos_key(mesh.positions[i as usize]));
-        k.sort();
-        k
-    };
-    // duplicates: sort (hash, index) and compare exactly inside runs of equal hash
-    let mut keyed: Vec<(u64, u32)> = (0..mesh.indices.len())
-        .into_par_iter()
-        .filter(|&t| keep[t])
-        .map(|t| (hash_words(tri_key(t).as_flattened()), t as u32))
-        .collect();
-    keyed.par_sort_unstable();
-    let mut dup = vec![false; mesh.indices.len()];
-    let mut i = 0;
-    while i < keyed.len() {
-        let mut j = i + 1;
-        while j < keyed.len() && keyed[j].0 == keyed[i].0 {
-            j += 1;
-        }
-        if j - i > 1 {
-            for a in i..j {
-                let ta = keyed[a].1 as usize;
-                if dup[ta] {
-                    continue;
-                }
-                let ka = tri_key(ta);
-                for b in a + 1..j {
-                    let tb = keyed[b].1 as usize;
-                    if !dup[tb] && tri_key(tb) == ka {
-                        dup[tb] = true; // keeps the one with the smaller index (sorted by index in a run)
-                    }
-                }
-            }
-        }
-        i = j;
-    }
-    drop(keyed);
+    let dup = later_duplicates(mesh, &keep);
     rep.duplicate_removed = dup.iter().filter(|d| **d).count();
     let indices: Vec<[u32; 3]> = mesh
         .indices
@@ -104,34 +61,103 @@ pub fn repair(mesh: &TriMesh) -> (TriMesh, RepairReport) {
         colors: mesh.colors.clone(),
         indices,
     };
-    // edges by position: (hash, edge id), exact compare in runs
-    let edge_key = |e: usize| -> [[u32; 3]; 2] {
-        let tri = out.indices[e / 3];
-        let (a, b) = (tri[e % 3], tri[(e + 1) % 3]);
-        let mut k = [
-            pos_key(out.positions[a as usize]),
-            pos_key(out.positions[b as usize]),
-        ];
-        k.sort();
-        k
-    };
-    let mut edges: Vec<(u64, u32)> = (0..out.indices.len() * 3)
+    (rep.border_edges, rep.non_manifold_edges) = count_open_and_non_manifold_edges(&out);
+    rep.triangles_out = out.indices.len();
+    (out, rep)
+}
+
+/// False for triangles with a repeated vertex or zero area.
+fn non_degenerate(mesh: &TriMesh) -> Vec<bool> {
+    mesh.indices
+        .par_iter()
+        .enumerate()
+        .map(|(t, tri)| {
+            tri[0] != tri[1] && tri[1] != tri[2] && tri[0] != tri[2] && mesh.triangle_area(t) > 0.0
+        })
+        .collect()
+}
+
+/// Triangle `t`'s corner positions, sorted.
+fn triangle_key(mesh: &TriMesh, t: usize) -> [[u32; 3]; 3] {
+    let mut k = mesh.indices[t].map(|i| pos_key(mesh.positions[i as usize]));
+    k.sort();
+    k
+}
+
+/// Edge `e` (corner `e % 3` of triangle `e / 3` to the next) as its sorted corner positions.
+fn edge_key(mesh: &TriMesh, e: usize) -> [[u32; 3]; 2] {
+    let tri = mesh.indices[e / 3];
+    let (a, b) = (tri[e % 3], tri[(e + 1) % 3]);
+    let mut k = [
+        pos_key(mesh.positions[a as usize]),
+        pos_key(mesh.positions[b as usize]),
+    ];
+    k.sort();
+    k
+}
+
+/// The end of the run of equal hashes starting at `i` in a sorted `(hash, id)` list.
+fn run_end(keyed: &[(u64, u32)], i: usize) -> usize {
+    let mut j = i + 1;
+    while j < keyed.len() && keyed[j].0 == keyed[i].0 {
+        j += 1;
+    }
+    j
+}
+
+/// True for each kept triangle with the same corner positions as a kept triangle of smaller
+/// index. Sorts (hash, index) and compares exactly inside runs of equal hash.
+fn later_duplicates(mesh: &TriMesh, keep: &[bool]) -> Vec<bool> {
+    let mut keyed: Vec<(u64, u32)> = (0..mesh.indices.len())
         .into_par_iter()
-        .map(|e| (hash_words(edge_key(e).as_flattened()), e as u32))
+        .filter(|&t| keep[t])
+        .map(|t| (hash_words(triangle_key(mesh, t).as_flattened()), t as u32))
+        .collect();
+    keyed.par_sort_unstable();
+    let mut dup = vec![false; mesh.indices.len()];
+    let mut i = 0;
+    while i < keyed.len() {
+        let j = run_end(&keyed, i);
+        if j - i > 1 {
+            for a in i..j {
+                let ta = keyed[a].1 as usize;
+                if dup[ta] {
+                    continue;
+                }
+                let ka = triangle_key(mesh, ta);
+                for b in a + 1..j {
+                    let tb = keyed[b].1 as usize;
+                    if !dup[tb] && triangle_key(mesh, tb) == ka {
+                        dup[tb] = true; // keeps the one with the smaller index (sorted by index in a run)
+                    }
+                }
+            }
+        }
+        i = j;
+    }
+    dup
+}
+
+/// Edges (by corner positions) used by exactly one triangle, and by more than two.
+fn count_open_and_non_manifold_edges(mesh: &TriMesh) -> (usize, usize) {
+    let (mut border, mut non_manifold) = (0, 0);
+    // edges by position: (hash, edge id), exact compare in runs
+    let mut edges: Vec<(u64, u32)> = (0..mesh.indices.len() * 3)
+        .into_par_iter()
+        .map(|e| (hash_words(edge_key(mesh, e).as_flattened()), e as u32))
         .collect();
     edges.par_sort_unstable();
     let mut i = 0;
     while i < edges.len() {
-        let mut j = i + 1;
-        while j < edges.len() && edges[j].0 == edges[i].0 {
-            j += 1;
-        }
+        let j = run_end(&edges, i);
         if j - i == 1 {
-            rep.border_edges += 1;
+            border += 1;
         } else {
             // group the run by exact key
-            let mut keys: Vec<[[u32; 3]; 2]> =
-                edges[i..j].iter().map(|e| edge_key(e.1 as usize)).collect();
+            let mut keys: Vec<[[u32; 3]; 2]> = edges[i..j]
+                .iter()
+                .map(|e| edge_key(mesh, e.1 as usize))
+                .collect();
             keys.sort();
             let mut a = 0;
             while a < keys.len() {
@@ -140,17 +166,16 @@ pub fn repair(mesh: &TriMesh) -> (TriMesh, RepairReport) {
                     b += 1;
                 }
                 match b - a {
-                    1 => rep.border_edges += 1,
+                    1 => border += 1,
                     2 => {}
-                    _ => rep.non_manifold_edges += 1,
+                    _ => non_manifold += 1,
                 }
                 a = b;
             }
         }
         i = j;
     }
-    rep.triangles_out = out.indices.len();
-    (out, rep)
+    (border, non_manifold)
 }
 
 #[cfg(test)]

@@ -353,15 +353,37 @@ pub fn prepare_run(
     mkdir(&out.join("voxels"))?;
     igi_imaging::io::remove_dead_temps(out, true)?;
     manifest.write(out)?;
+    let bounds = combined_bounds(&site, terrain.as_ref());
+    let parts: Vec<(VoxelId, TriMesh)> = partition(&site, &opts.grid).into_iter().collect();
+    drop(site);
+    let (mut voxels, terrain) = process_parts(out, parts, terrain, opts, progress)?;
+    voxels.sort_by_key(|e| e.voxel);
+    let manifest = site_manifest(source, opts, bounds, repair, voxels, terrain);
+    write_json(&out.join("manifest.json"), &manifest)?;
+    Ok(manifest)
+}
+
+/// Bounds of the site and the terrain together.
+fn combined_bounds(site: &TriMesh, terrain: Option<&TriMesh>) -> [[f32; 3]; 2] {
     let (mut lo, mut hi) = site.bounds().expect("validated mesh has vertices");
-    if let Some((tl, th)) = terrain.as_ref().and_then(|t| t.bounds()) {
+    if let Some((tl, th)) = terrain.and_then(|t| t.bounds()) {
         for k in 0..3 {
             lo[k] = lo[k].min(tl[k]);
             hi[k] = hi[k].max(th[k]);
         }
     }
-    let parts: Vec<(VoxelId, TriMesh)> = partition(&site, &opts.grid).into_iter().collect();
-    drop(site);
+    [lo, hi]
+}
+
+/// Process every voxel part in parallel, with the terrain (one large part) beside them;
+/// `progress(done, total)` after each part.
+fn process_parts(
+    out: &Path,
+    parts: Vec<(VoxelId, TriMesh)>,
+    terrain: Option<TriMesh>,
+    opts: &PrepareOptions,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<(Vec<PartEntry>, Option<PartEntry>), GeometryError> {
     let total = parts.len() + usize::from(terrain.is_some());
     let count = std::sync::atomic::AtomicUsize::new(0);
     let tick = || {
@@ -370,7 +392,6 @@ pub fn prepare_run(
             total,
         )
     };
-    // the terrain (one large part) runs beside the voxels
     let (voxels, terrain) = rayon::join(
         || {
             parts
@@ -394,9 +415,20 @@ pub fn prepare_run(
             }
         },
     );
-    let mut voxels = voxels?;
+    let voxels = voxels?;
     let terrain = terrain?;
-    voxels.sort_by_key(|e| e.voxel);
+    Ok((voxels, terrain))
+}
+
+/// The site manifest: settings, bounds, the voxel range and the parts' totals.
+fn site_manifest(
+    source: &str,
+    opts: &PrepareOptions,
+    bounds: [[f32; 3]; 2],
+    repair: RepairReport,
+    voxels: Vec<PartEntry>,
+    terrain: Option<PartEntry>,
+) -> Manifest {
     let mut vr = [[i32::MAX; 3], [i32::MIN; 3]];
     for e in &voxels {
         let v = e.voxel.unwrap();
@@ -416,13 +448,13 @@ pub fn prepare_run(
     let texel_size_max = all.clone().map(|e| e.texel_size).fold(0.0, f64::max);
     let n = all.clone().count().max(1) as f64;
     let coverage_mean = all.map(|e| e.coverage).sum::<f64>() / n;
-    let manifest = Manifest {
+    Manifest {
         format: FORMAT.to_string(),
         source: source.to_string(),
         grid: opts.grid,
         levels: opts.levels.clone(),
         atlas_resolution: opts.atlas.resolution,
-        bounds: [lo, hi],
+        bounds,
         voxel_range: vr,
         repair,
         triangles_per_level,
@@ -431,9 +463,7 @@ pub fn prepare_run(
         coverage_mean,
         voxels,
         terrain,
-    };
-    write_json(&out.join("manifest.json"), &manifest)?;
-    Ok(manifest)
+    }
 }
 
 /// One mesh loaded from the store.

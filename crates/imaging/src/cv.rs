@@ -319,6 +319,57 @@ mod imp {
             .collect()
     }
 
+    /// SQPnP on the correspondences `idx`, refined by Levenberg-Marquardt.
+    fn sqpnp_refined(
+        k: &Mat,
+        d: &Mat,
+        crit: core::TermCriteria,
+        world: &[DVec3],
+        pixels: &[DVec2],
+        idx: &[usize],
+    ) -> Result<WorldToCamera, ImagingError> {
+        let w: Vec<DVec3> = idx.iter().map(|&i| world[i]).collect();
+        let p: Vec<DVec2> = idx.iter().map(|&i| pixels[i]).collect();
+        let (obj, imgp) = (p3(&w), p2(&p));
+        let mut rvec = Mat::default();
+        let mut tvec = Mat::default();
+        let ok = calib3d::solve_pnp(
+            &obj,
+            &imgp,
+            k,
+            d,
+            &mut rvec,
+            &mut tvec,
+            false,
+            calib3d::SOLVEPNP_SQPNP,
+        )
+        .map_err(cv_err)?;
+        if !ok {
+            return Err(ImagingError::InvalidInput(
+                "PnP (SQPnP) found no pose".into(),
+            ));
+        }
+        calib3d::solve_pnp_refine_lm(&obj, &imgp, k, d, &mut rvec, &mut tvec, crit)
+            .map_err(cv_err)?;
+        pose_of(&rvec, &tvec)
+    }
+
+    /// Indices of the points that reproject within `threshold_px` under `pose`.
+    fn within_threshold(
+        intr: &Intrinsics,
+        pose: WorldToCamera,
+        world: &[DVec3],
+        pixels: &[DVec2],
+        threshold_px: f64,
+    ) -> Vec<usize> {
+        reprojection_errors(intr, pose, world, pixels)
+            .iter()
+            .enumerate()
+            .filter(|(_, e)| **e <= threshold_px)
+            .map(|(i, _)| i)
+            .collect()
+    }
+
     pub fn solve_pnp_matched(
         intr: &Intrinsics,
         world: &[DVec3],
@@ -342,40 +393,10 @@ mod imp {
         let crit =
             core::TermCriteria::new(core::TermCriteria_COUNT + core::TermCriteria_EPS, 50, 1e-12)
                 .map_err(cv_err)?;
-        let solve = |idx: &[usize]| -> Result<WorldToCamera, ImagingError> {
-            let w: Vec<DVec3> = idx.iter().map(|&i| world[i]).collect();
-            let p: Vec<DVec2> = idx.iter().map(|&i| pixels[i]).collect();
-            let (obj, imgp) = (p3(&w), p2(&p));
-            let mut rvec = Mat::default();
-            let mut tvec = Mat::default();
-            let ok = calib3d::solve_pnp(
-                &obj,
-                &imgp,
-                &k,
-                &d,
-                &mut rvec,
-                &mut tvec,
-                false,
-                calib3d::SOLVEPNP_SQPNP,
-            )
-            .map_err(cv_err)?;
-            if !ok {
-                return Err(ImagingError::InvalidInput(
-                    "PnP (SQPnP) found no pose".into(),
-                ));
-            }
-            calib3d::solve_pnp_refine_lm(&obj, &imgp, &k, &d, &mut rvec, &mut tvec, crit)
-                .map_err(cv_err)?;
-            pose_of(&rvec, &tvec)
-        };
+        let solve = |idx: &[usize]| sqpnp_refined(&k, &d, crit, world, pixels, idx);
         let all: Vec<usize> = (0..world.len()).collect();
         let mut pose = solve(&all)?;
-        let mut inliers: Vec<usize> = reprojection_errors(intr, pose, world, pixels)
-            .iter()
-            .enumerate()
-            .filter(|(_, e)| **e <= threshold_px)
-            .map(|(i, _)| i)
-            .collect();
+        let mut inliers = within_threshold(intr, pose, world, pixels, threshold_px);
         if inliers.len() < world.len() {
             if inliers.len() < 4 {
                 return Err(ImagingError::InvalidInput(format!(
@@ -385,12 +406,7 @@ mod imp {
                 )));
             }
             pose = solve(&inliers)?;
-            inliers = reprojection_errors(intr, pose, world, pixels)
-                .iter()
-                .enumerate()
-                .filter(|(_, e)| **e <= threshold_px)
-                .map(|(i, _)| i)
-                .collect();
+            inliers = within_threshold(intr, pose, world, pixels, threshold_px);
         }
         let errs = reprojection_errors(intr, pose, world, pixels);
         let rms_px = (inliers.iter().map(|&i| errs[i] * errs[i]).sum::<f64>()

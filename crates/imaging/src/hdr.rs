@@ -488,66 +488,90 @@ pub fn recover_response(
     let mut g: [Vec<f64>; 3] = Default::default();
     for (c, gc) in g.iter_mut().enumerate() {
         let samples = select_samples(images, times, c, p.samples, p.seed);
-        // Normal equations of the Debevec-Malik system with the per-sample unknowns ln E_i
-        // eliminated (their block is diagonal): a 256x256 Schur complement in g, solved by SVD.
-        let lt: Vec<f64> = times.iter().map(|t| t.ln()).collect();
-        let mut s_mat = DMatrix::<f64>::zeros(LEVELS, LEVELS);
-        let mut rhs = DVector::<f64>::zeros(LEVELS);
-        let mut ci = [0.0f64; LEVELS];
-        for &pix in &samples {
-            let mut touched: Vec<usize> = Vec::with_capacity(images.len());
-            let (mut d, mut be) = (0.0f64, 0.0f64);
-            for (im, l) in images.iter().zip(&lt) {
-                let z = code_value(im.pixels[pix][c]) as usize;
-                let w2 = debevec_weight(z as u8).powi(2);
-                s_mat[(z, z)] += w2;
-                rhs[z] += w2 * l;
-                if ci[z] == 0.0 {
-                    touched.push(z);
-                }
-                ci[z] -= w2;
-                d += w2;
-                be -= w2 * l;
-            }
-            if d > 0.0 {
-                for &za in &touched {
-                    for &zb in &touched {
-                        s_mat[(za, zb)] -= ci[za] * ci[zb] / d;
-                    }
-                    rhs[za] -= ci[za] * be / d;
-                }
-            }
-            for &z in &touched {
-                ci[z] = 0.0;
-            }
-        }
-        s_mat[(128, 128)] += 1.0; // g(128) = 0 row (imposed exactly below)
-        for z in 1..LEVELS - 1 {
-            let w = p.lambda * debevec_weight(z as u8);
-            let row = [(z - 1, w), (z, -2.0 * w), (z + 1, w)];
-            for &(za, va) in &row {
-                for &(zb, vb) in &row {
-                    s_mat[(za, zb)] += va * vb;
-                }
-            }
-        }
-        let x = s_mat.svd(true, true).solve(&rhs, 1e-12).map_err(|e| {
-            ImagingError::InvalidInput(format!("response least squares failed: {e}"))
-        })?;
-        // The data and smoothness rows are invariant under g += const; the weighted g(128) = 0
-        // row picks the constant only approximately, so impose it exactly.
-        let g128 = x[128];
-        *gc = x.iter().take(LEVELS).map(|v| v - g128).collect();
-        if gc.iter().any(|v| !v.is_finite()) {
-            return Err(ImagingError::InvalidInput(
-                "response recovery produced non-finite values".into(),
-            ));
-        }
+        *gc = channel_response(images, times, c, &samples, p.lambda)?;
     }
     Ok(Response {
         g,
         lambda: p.lambda,
     })
+}
+
+/// The log response `g` of channel `c` from the pixels `samples`.
+fn channel_response(
+    images: &[HdrImage],
+    times: &[f64],
+    c: usize,
+    samples: &[usize],
+    lambda: f64,
+) -> Result<Vec<f64>, ImagingError> {
+    let (mut s_mat, rhs) = response_data_equations(images, times, c, samples);
+    s_mat[(128, 128)] += 1.0; // g(128) = 0 row (imposed exactly below)
+    for z in 1..LEVELS - 1 {
+        let w = lambda * debevec_weight(z as u8);
+        let row = [(z - 1, w), (z, -2.0 * w), (z + 1, w)];
+        for &(za, va) in &row {
+            for &(zb, vb) in &row {
+                s_mat[(za, zb)] += va * vb;
+            }
+        }
+    }
+    let x = s_mat
+        .svd(true, true)
+        .solve(&rhs, 1e-12)
+        .map_err(|e| ImagingError::InvalidInput(format!("response least squares failed: {e}")))?;
+    // The data and smoothness rows are invariant under g += const; the weighted g(128) = 0
+    // row picks the constant only approximately, so impose it exactly.
+    let g128 = x[128];
+    let gc: Vec<f64> = x.iter().take(LEVELS).map(|v| v - g128).collect();
+    if gc.iter().any(|v| !v.is_finite()) {
+        return Err(ImagingError::InvalidInput(
+            "response recovery produced non-finite values".into(),
+        ));
+    }
+    Ok(gc)
+}
+
+/// Normal equations of the Debevec-Malik data rows with the per-sample unknowns ln E_i
+/// eliminated (their block is diagonal): a 256x256 Schur complement in g and its right-hand
+/// side.
+fn response_data_equations(
+    images: &[HdrImage],
+    times: &[f64],
+    c: usize,
+    samples: &[usize],
+) -> (DMatrix<f64>, DVector<f64>) {
+    let lt: Vec<f64> = times.iter().map(|t| t.ln()).collect();
+    let mut s_mat = DMatrix::<f64>::zeros(LEVELS, LEVELS);
+    let mut rhs = DVector::<f64>::zeros(LEVELS);
+    let mut ci = [0.0f64; LEVELS];
+    for &pix in samples {
+        let mut touched: Vec<usize> = Vec::with_capacity(images.len());
+        let (mut d, mut be) = (0.0f64, 0.0f64);
+        for (im, l) in images.iter().zip(&lt) {
+            let z = code_value(im.pixels[pix][c]) as usize;
+            let w2 = debevec_weight(z as u8).powi(2);
+            s_mat[(z, z)] += w2;
+            rhs[z] += w2 * l;
+            if ci[z] == 0.0 {
+                touched.push(z);
+            }
+            ci[z] -= w2;
+            d += w2;
+            be -= w2 * l;
+        }
+        if d > 0.0 {
+            for &za in &touched {
+                for &zb in &touched {
+                    s_mat[(za, zb)] -= ci[za] * ci[zb] / d;
+                }
+                rhs[za] -= ci[za] * be / d;
+            }
+        }
+        for &z in &touched {
+            ci[z] = 0.0;
+        }
+    }
+    (s_mat, rhs)
 }
 
 /// Merge 8-bit brackets with a known response (see the module docs).

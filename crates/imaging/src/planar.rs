@@ -199,6 +199,25 @@ pub fn pose_from_plane(
             pixels.len()
         )));
     }
+    let norm = undistort_all(intr, pixels)?;
+    let pose = pose_from_homography(plane_xy, &norm)?;
+    let world: Vec<DVec3> = plane_xy.iter().map(|p| DVec3::new(p.x, p.y, 0.0)).collect();
+    let res = residuals(intr, &pose, &world, pixels).ok_or_else(|| {
+        ImagingError::InvalidInput("planar pose: a point lies behind the camera".into())
+    })?;
+    let (mut pose, res) = refine_pose(intr, pose, res, &world, pixels);
+    pose.r = nearest_rotation(&pose.r);
+    let rms_px = (sum_of_squares(&res) / world.len() as f64).sqrt();
+    if !rms_px.is_finite() || !pose.t.is_finite() {
+        return Err(ImagingError::InvalidInput(
+            "planar pose: no finite solution".into(),
+        ));
+    }
+    Ok(PlanarPose { pose, rms_px })
+}
+
+/// Normalised image coordinates of distorted pixels.
+fn undistort_all(intr: &Intrinsics, pixels: &[DVec2]) -> Result<Vec<DVec2>, ImagingError> {
     let mut norm = Vec::with_capacity(pixels.len());
     for p in pixels {
         norm.push(intr.to_normalized(*p).ok_or_else(|| {
@@ -208,7 +227,13 @@ pub fn pose_from_plane(
             ))
         })?);
     }
-    let h = homography_dlt(plane_xy, &norm)?;
+    Ok(norm)
+}
+
+/// The plane-to-normalised-image homography decomposed into `[r1 r2 t]`, the rotation made
+/// orthonormal and the sign chosen so the first point lies in front of the camera.
+fn pose_from_homography(plane_xy: &[DVec2], norm: &[DVec2]) -> Result<WorldToCamera, ImagingError> {
+    let h = homography_dlt(plane_xy, norm)?;
     let (h1, h2, h3) = (h.x_axis, h.y_axis, h.z_axis);
     let mut lambda = 2.0 / (h1.length() + h2.length());
     // depth of the first point: third row of lambda * H applied to (x, y, 1)
@@ -218,32 +243,55 @@ pub fn pose_from_plane(
     }
     let (r1, r2) = (h1 * lambda, h2 * lambda);
     let r = nearest_rotation(&DMat3::from_cols(r1, r2, r1.cross(r2)));
-    let mut pose = WorldToCamera { r, t: h3 * lambda };
-    let world: Vec<DVec3> = plane_xy.iter().map(|p| DVec3::new(p.x, p.y, 0.0)).collect();
-    let cost = |r: &[f64]| r.iter().map(|x| x * x).sum::<f64>();
-    let mut res = residuals(intr, &pose, &world, pixels).ok_or_else(|| {
-        ImagingError::InvalidInput("planar pose: a point lies behind the camera".into())
-    })?;
+    Ok(WorldToCamera { r, t: h3 * lambda })
+}
+
+fn sum_of_squares(r: &[f64]) -> f64 {
+    r.iter().map(|x| x * x).sum::<f64>()
+}
+
+/// Central-difference Jacobian of the residuals over the six pose parameters (rotation
+/// vector, translation); a column whose perturbation puts a point behind the camera stops
+/// the filling and stays zero, as do the columns after it.
+fn residual_jacobian(
+    intr: &Intrinsics,
+    pose: &WorldToCamera,
+    world: &[DVec3],
+    pixels: &[DVec2],
+    m: usize,
+) -> DMatrix<f64> {
+    let mut j = DMatrix::<f64>::zeros(m, 6);
+    let scale = pose.t.length().max(1e-6);
+    for k in 0..6 {
+        let eps = if k < 3 { 1e-7 } else { 1e-7 * scale };
+        let mut d = [0.0; 6];
+        d[k] = eps;
+        let rp = residuals(intr, &perturb(pose, &d), world, pixels);
+        d[k] = -eps;
+        let rm = residuals(intr, &perturb(pose, &d), world, pixels);
+        let (Some(rp), Some(rm)) = (rp, rm) else {
+            break;
+        };
+        for i in 0..m {
+            j[(i, k)] = (rp[i] - rm[i]) / (2.0 * eps);
+        }
+    }
+    j
+}
+
+/// Damped Gauss-Newton (Levenberg-Marquardt) on the distorted reprojection error, from `pose`
+/// with residuals `res`; returns the refined pose and its residuals.
+fn refine_pose(
+    intr: &Intrinsics,
+    mut pose: WorldToCamera,
+    mut res: Vec<f64>,
+    world: &[DVec3],
+    pixels: &[DVec2],
+) -> (WorldToCamera, Vec<f64>) {
     let mut mu = 1e-3;
     for _ in 0..50 {
-        let c0 = cost(&res);
-        let m = res.len();
-        let mut j = DMatrix::<f64>::zeros(m, 6);
-        let scale = pose.t.length().max(1e-6);
-        for k in 0..6 {
-            let eps = if k < 3 { 1e-7 } else { 1e-7 * scale };
-            let mut d = [0.0; 6];
-            d[k] = eps;
-            let rp = residuals(intr, &perturb(&pose, &d), &world, pixels);
-            d[k] = -eps;
-            let rm = residuals(intr, &perturb(&pose, &d), &world, pixels);
-            let (Some(rp), Some(rm)) = (rp, rm) else {
-                break;
-            };
-            for i in 0..m {
-                j[(i, k)] = (rp[i] - rm[i]) / (2.0 * eps);
-            }
-        }
+        let c0 = sum_of_squares(&res);
+        let j = residual_jacobian(intr, &pose, world, pixels, res.len());
         let jt = j.transpose();
         let jtj = &jt * &j;
         let g = &jt * nalgebra::DVector::from_vec(res.clone());
@@ -258,8 +306,8 @@ pub fn pose_from_plane(
             };
             let d = [step[0], step[1], step[2], step[3], step[4], step[5]];
             let cand = perturb(&pose, &d);
-            if let Some(rn) = residuals(intr, &cand, &world, pixels) {
-                if cost(&rn) < c0 {
+            if let Some(rn) = residuals(intr, &cand, world, pixels) {
+                if sum_of_squares(&rn) < c0 {
                     pose = cand;
                     res = rn;
                     mu = (mu * 0.3).max(1e-12);
@@ -269,18 +317,11 @@ pub fn pose_from_plane(
             }
             mu *= 10.0;
         }
-        if !improved || c0 - cost(&res) < 1e-14 * c0.max(1e-30) {
+        if !improved || c0 - sum_of_squares(&res) < 1e-14 * c0.max(1e-30) {
             break;
         }
     }
-    pose.r = nearest_rotation(&pose.r);
-    let rms_px = (cost(&res) / world.len() as f64).sqrt();
-    if !rms_px.is_finite() || !pose.t.is_finite() {
-        return Err(ImagingError::InvalidInput(
-            "planar pose: no finite solution".into(),
-        ));
-    }
-    Ok(PlanarPose { pose, rms_px })
+    (pose, res)
 }
 
 #[cfg(test)]

@@ -205,7 +205,13 @@ fn encode(f: &SurfaceLightField) -> (Header, Vec<(String, Vec<u8>)>) {
         lumisphere_offset: 0.0,
         lumisphere_scale: 0.0,
     };
-    match &f.coding {
+    encode_coding(&f.coding, &mut h, &mut files);
+    (h, files)
+}
+
+/// The coding's binary files, and its numbers in the header.
+fn encode_coding(coding: &Coding, h: &mut Header, files: &mut Vec<(String, Vec<u8>)>) {
+    match coding {
         Coding::MedianOnly => {}
         Coding::Faired(l) => {
             let lo = l
@@ -260,7 +266,6 @@ fn encode(f: &SurfaceLightField) -> (Header, Vec<(String, Vec<u8>)>) {
             files.push(("indices.bin".into(), idx));
         }
     }
-    (h, files)
 }
 
 fn read(dir: &Path, name: &str, want: usize) -> Result<Vec<u8>, LightFieldError> {
@@ -286,20 +291,7 @@ fn vec3s(b: &[u8]) -> Vec<Vec3> {
 /// Loads a field and its mesh from `dir` (the stored, 8-bit quantised values).
 pub fn load(dir: &Path) -> Result<(SurfaceLightField, TriMesh), LightFieldError> {
     let hp = dir.join("header.json");
-    let text = std::fs::read_to_string(&hp).map_err(io_err(&hp))?;
-    let h: Header = serde_json::from_str(&text).map_err(|e| LightFieldError::Format {
-        path: hp.clone(),
-        msg: e.to_string(),
-    })?;
-    if h.format != FORMAT || h.version != 1 || h.level > 6 {
-        return Err(LightFieldError::Format {
-            path: hp,
-            msg: format!(
-                "not an igi-slf version 1 header (format {:?}, version {}, level {})",
-                h.format, h.version, h.level
-            ),
-        });
-    }
+    let h = read_header(&hp)?;
     let oct = Octahedron::new(h.level);
     let (p, n) = (h.points, oct.len());
     let texels: Vec<u32> = read(dir, "texels.bin", 4 * p)?
@@ -322,62 +314,9 @@ pub fn load(dir: &Path) -> Result<(SurfaceLightField, TriMesh), LightFieldError>
         .collect();
     let coding = match h.method.as_str() {
         "median" => Coding::MedianOnly,
-        "fair" => {
-            let b = read(dir, "lumispheres.bin", 3 * n * p)?;
-            let vals: Vec<Vec3> = b
-                .chunks(3)
-                .map(|c| {
-                    Vec3::from_array(
-                        [0, 1, 2].map(|k| dq8(c[k], h.lumisphere_offset, h.lumisphere_scale)),
-                    )
-                })
-                .collect();
-            Coding::Faired(vals.chunks(n).map(|c| c.to_vec()).collect())
-        }
-        "pfa" => {
-            let k = h.q + 1;
-            let protos = vec3s(&read(dir, "prototypes.bin", 12 * n * k)?)
-                .chunks(n)
-                .map(|c| c.to_vec())
-                .collect();
-            let coefficients = read(dir, "coefficients.bin", k * p)?
-                .chunks(k)
-                .map(|c| {
-                    let s: f32 = c.iter().map(|b| *b as f32).sum::<f32>().max(1.0);
-                    c.iter().map(|b| *b as f32 / s).collect()
-                })
-                .collect();
-            Coding::Pfa(Pfa {
-                prototypes: protos,
-                coefficients,
-                energy_history: Vec::new(),
-            })
-        }
-        "fq" => {
-            let k = h.codewords;
-            let codewords = vec3s(&read(dir, "codebook.bin", 12 * n * k)?)
-                .chunks(n)
-                .map(|c| c.to_vec())
-                .collect();
-            let wide = k > 1 << 16;
-            let b = read(dir, "indices.bin", (if wide { 4 } else { 2 }) * p)?;
-            let index: Vec<u32> = if wide {
-                b.chunks(4)
-                    .map(|c| u32::from_le_bytes(c.try_into().unwrap()))
-                    .collect()
-            } else {
-                b.chunks(2)
-                    .map(|c| u16::from_le_bytes([c[0], c[1]]) as u32)
-                    .collect()
-            };
-            if index.iter().any(|i| *i as usize >= k) {
-                return Err(LightFieldError::Format {
-                    path: dir.join("indices.bin"),
-                    msg: "codeword index out of range".into(),
-                });
-            }
-            Coding::Quantized(Codebook { codewords, index })
-        }
+        "fair" => read_faired(dir, &h, n)?,
+        "pfa" => read_pfa(dir, &h, n)?,
+        "fq" => read_quantized(dir, &h, n)?,
         m => {
             return Err(LightFieldError::Format {
                 path: hp,
@@ -390,4 +329,83 @@ pub fn load(dir: &Path) -> Result<(SurfaceLightField, TriMesh), LightFieldError>
         SurfaceLightField::new(oct, h.resolution, texels, median, normal, coding),
         mesh,
     ))
+}
+
+/// Read and check `header.json`.
+fn read_header(hp: &Path) -> Result<Header, LightFieldError> {
+    let text = std::fs::read_to_string(hp).map_err(io_err(hp))?;
+    let h: Header = serde_json::from_str(&text).map_err(|e| LightFieldError::Format {
+        path: hp.to_path_buf(),
+        msg: e.to_string(),
+    })?;
+    if h.format != FORMAT || h.version != 1 || h.level > 6 {
+        return Err(LightFieldError::Format {
+            path: hp.to_path_buf(),
+            msg: format!(
+                "not an igi-slf version 1 header (format {:?}, version {}, level {})",
+                h.format, h.version, h.level
+            ),
+        });
+    }
+    Ok(h)
+}
+
+/// The faired lumispheres of `h.points` points with `n` directions each.
+fn read_faired(dir: &Path, h: &Header, n: usize) -> Result<Coding, LightFieldError> {
+    let b = read(dir, "lumispheres.bin", 3 * n * h.points)?;
+    let vals: Vec<Vec3> = b
+        .chunks(3)
+        .map(|c| {
+            Vec3::from_array([0, 1, 2].map(|k| dq8(c[k], h.lumisphere_offset, h.lumisphere_scale)))
+        })
+        .collect();
+    Ok(Coding::Faired(vals.chunks(n).map(|c| c.to_vec()).collect()))
+}
+
+/// The principal-function prototypes and each point's coefficients (normalised to sum 1).
+fn read_pfa(dir: &Path, h: &Header, n: usize) -> Result<Coding, LightFieldError> {
+    let k = h.q + 1;
+    let protos = vec3s(&read(dir, "prototypes.bin", 12 * n * k)?)
+        .chunks(n)
+        .map(|c| c.to_vec())
+        .collect();
+    let coefficients = read(dir, "coefficients.bin", k * h.points)?
+        .chunks(k)
+        .map(|c| {
+            let s: f32 = c.iter().map(|b| *b as f32).sum::<f32>().max(1.0);
+            c.iter().map(|b| *b as f32 / s).collect()
+        })
+        .collect();
+    Ok(Coding::Pfa(Pfa {
+        prototypes: protos,
+        coefficients,
+        energy_history: Vec::new(),
+    }))
+}
+
+/// The codebook and each point's codeword index (16-bit unless there are more than 2^16).
+fn read_quantized(dir: &Path, h: &Header, n: usize) -> Result<Coding, LightFieldError> {
+    let k = h.codewords;
+    let codewords = vec3s(&read(dir, "codebook.bin", 12 * n * k)?)
+        .chunks(n)
+        .map(|c| c.to_vec())
+        .collect();
+    let wide = k > 1 << 16;
+    let b = read(dir, "indices.bin", (if wide { 4 } else { 2 }) * h.points)?;
+    let index: Vec<u32> = if wide {
+        b.chunks(4)
+            .map(|c| u32::from_le_bytes(c.try_into().unwrap()))
+            .collect()
+    } else {
+        b.chunks(2)
+            .map(|c| u16::from_le_bytes([c[0], c[1]]) as u32)
+            .collect()
+    };
+    if index.iter().any(|i| *i as usize >= k) {
+        return Err(LightFieldError::Format {
+            path: dir.join("indices.bin"),
+            msg: "codeword index out of range".into(),
+        });
+    }
+    Ok(Coding::Quantized(Codebook { codewords, index }))
 }

@@ -7,12 +7,15 @@
 //! reprojection IoU, timings). It is assembled in a temporary sibling folder and renamed into
 //! place, so a failure leaves nothing.
 
-use crate::hull::{carve_hull, plot_volume_curves, reproject, volume_curves, Reprojection};
+use crate::hull::{
+    carve_hull, plot_volume_curves, reproject, volume_curves, Reprojection, VisualHull,
+};
 use crate::render::HullModel;
 use crate::surfel::{make_surfels, Surfels};
 use crate::views::{load_views, MatteOptions, View};
 use crate::HullError;
 use glam::DVec3;
+use igi_geometry::TriMesh;
 use igi_imaging::read_image;
 use igi_imaging::rig::Rig;
 use std::path::{Path, PathBuf};
@@ -138,42 +141,11 @@ pub fn build(
     );
     lap(&mut t.volume_s);
     progress(Stage::Write);
-    let manifest = Manifest {
-        rig: std::path::absolute(&rig.path).map_err(|e| HullError::io(&rig.path, e))?,
-        views: views.iter().map(|v| v.id.clone()).collect(),
-        bbox_min: rig.object.bbox_min,
-        bbox_max: rig.object.bbox_max,
-        resolution: opts.resolution,
-        surfels: surfels.len(),
-    };
-    let mut report = BuildReport {
-        iou_min: reps.iter().map(|r| r.iou).fold(1.0, f64::min),
-        iou_mean: reps.iter().map(|r| r.iou).sum::<f64>() / reps.len() as f64,
-        views: reps,
-        resolution: opts.resolution,
-        cell_size: hull.grid.cell_size().to_array(),
-        volume_m3: hull.volume(),
-        triangles: hull.mesh.triangle_count(),
-        surfels: surfels.len(),
-        timings: t,
-    };
+    let manifest = hull_manifest(rig, &views, &opts, surfels.len())?;
+    let mut report = build_report(reps, &opts, &hull, surfels.len(), t);
     let write_start = Instant::now();
     write_folder(out, |dir| {
-        igi_imaging::io::write_text_atomic(
-            &dir.join("hull.json"),
-            &serde_json::to_string_pretty(&manifest).expect("manifest"),
-        )?;
-        igi_geometry::write_ply(&dir.join("hull.ply"), &hull.mesh)?;
-        igi_geometry::write_points_ply(&dir.join("surfels.ply"), &surfels.to_cloud())?;
-        std::fs::create_dir_all(dir.join("mattes"))
-            .map_err(|e| HullError::io(dir.join("mattes"), e))?;
-        for v in &views {
-            igi_imaging::write_exr(
-                &dir.join("mattes").join(format!("{}.exr", v.id)),
-                &v.matte.to_image(),
-            )?;
-        }
-        plot_volume_curves(&dir.join("volume.png"), &curves)?;
+        write_products(dir, &manifest, &hull.mesh, &surfels, &views, &curves)?;
         report.timings.write_s = write_start.elapsed().as_secs_f64();
         igi_imaging::io::write_text_atomic(
             &dir.join("report.json"),
@@ -182,6 +154,71 @@ pub fn build(
         Ok(())
     })?;
     Ok(report)
+}
+
+/// The folder's `hull.json`.
+fn hull_manifest(
+    rig: &Rig,
+    views: &[View],
+    opts: &BuildOptions,
+    surfels: usize,
+) -> Result<Manifest, HullError> {
+    Ok(Manifest {
+        rig: std::path::absolute(&rig.path).map_err(|e| HullError::io(&rig.path, e))?,
+        views: views.iter().map(|v| v.id.clone()).collect(),
+        bbox_min: rig.object.bbox_min,
+        bbox_max: rig.object.bbox_max,
+        resolution: opts.resolution,
+        surfels,
+    })
+}
+
+/// The report (its write time is filled in while writing).
+fn build_report(
+    reps: Vec<Reprojection>,
+    opts: &BuildOptions,
+    hull: &VisualHull,
+    surfels: usize,
+    timings: Timings,
+) -> BuildReport {
+    BuildReport {
+        iou_min: reps.iter().map(|r| r.iou).fold(1.0, f64::min),
+        iou_mean: reps.iter().map(|r| r.iou).sum::<f64>() / reps.len() as f64,
+        views: reps,
+        resolution: opts.resolution,
+        cell_size: hull.grid.cell_size().to_array(),
+        volume_m3: hull.volume(),
+        triangles: hull.mesh.triangle_count(),
+        surfels,
+        timings,
+    }
+}
+
+/// Everything in the folder but the report: manifest, hull mesh, surfels, mattes, volume plot.
+fn write_products(
+    dir: &Path,
+    manifest: &Manifest,
+    mesh: &TriMesh,
+    surfels: &Surfels,
+    views: &[View],
+    curves: &[Vec<f64>],
+) -> Result<(), HullError> {
+    igi_imaging::io::write_text_atomic(
+        &dir.join("hull.json"),
+        &serde_json::to_string_pretty(manifest).expect("manifest"),
+    )?;
+    igi_geometry::write_ply(&dir.join("hull.ply"), mesh)?;
+    igi_geometry::write_points_ply(&dir.join("surfels.ply"), &surfels.to_cloud())?;
+    std::fs::create_dir_all(dir.join("mattes"))
+        .map_err(|e| HullError::io(dir.join("mattes"), e))?;
+    for v in views {
+        igi_imaging::write_exr(
+            &dir.join("mattes").join(format!("{}.exr", v.id)),
+            &v.matte.to_image(),
+        )?;
+    }
+    plot_volume_curves(&dir.join("volume.png"), curves)?;
+    Ok(())
 }
 
 fn check_output(out: &Path) -> Result<(), HullError> {

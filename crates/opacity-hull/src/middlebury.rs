@@ -83,57 +83,7 @@ pub fn parse_par(path: &Path) -> Result<Vec<ParEntry>, HullError> {
     })?;
     let mut out = Vec::new();
     for (i, l) in lines {
-        let n = i + 1;
-        let toks: Vec<&str> = l.split_whitespace().collect();
-        if toks.len() != 22 {
-            return Err(bad(
-                n,
-                format!(
-                    "expected an image name and 21 numbers (K, R, t), found {} fields",
-                    toks.len()
-                ),
-            ));
-        }
-        let v: Vec<f64> = toks[1..]
-            .iter()
-            .map(|t| {
-                t.parse::<f64>()
-                    .ok()
-                    .filter(|x| x.is_finite())
-                    .ok_or_else(|| bad(n, format!("{t:?} is not a finite number")))
-            })
-            .collect::<Result<_, _>>()?;
-        let k = [[v[0], v[1], v[2]], [v[3], v[4], v[5]], [v[6], v[7], v[8]]];
-        if k[0][1] != 0.0
-            || k[1][0] != 0.0
-            || k[2] != [0.0, 0.0, 1.0]
-            || !(k[0][0] > 0.0 && k[1][1] > 0.0)
-        {
-            return Err(bad(n, format!("K must be [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] with positive focal lengths, found {k:?}")));
-        }
-        let r_file = DMat3::from_cols_array_2d(&[
-            [v[9], v[10], v[11]],
-            [v[12], v[13], v[14]],
-            [v[15], v[16], v[17]],
-        ])
-        .transpose();
-        let (r, correction) = nearest_rotation(&r_file);
-        if correction > MAX_ROTATION_ERROR {
-            return Err(HullError::NotRotation {
-                path: path.to_path_buf(),
-                line: n,
-                image: toks[0].into(),
-                distance: correction,
-                limit: MAX_ROTATION_ERROR,
-            });
-        }
-        out.push(ParEntry {
-            image: toks[0].to_string(),
-            k,
-            r,
-            t: DVec3::new(v[18], v[19], v[20]),
-            correction,
-        });
+        out.push(parse_par_line(path, i + 1, l)?);
     }
     if out.len() != count {
         return Err(bad(
@@ -145,6 +95,66 @@ pub fn parse_par(path: &Path) -> Result<Vec<ParEntry>, HullError> {
         ));
     }
     Ok(out)
+}
+
+/// One camera line `name k11 .. k33 r11 .. r33 t1 t2 t3` (line `n`), R projected to the
+/// nearest rotation.
+fn parse_par_line(path: &Path, n: usize, l: &str) -> Result<ParEntry, HullError> {
+    let bad = |line: usize, msg: String| HullError::ParLine {
+        path: path.to_path_buf(),
+        line,
+        msg,
+    };
+    let toks: Vec<&str> = l.split_whitespace().collect();
+    if toks.len() != 22 {
+        return Err(bad(
+            n,
+            format!(
+                "expected an image name and 21 numbers (K, R, t), found {} fields",
+                toks.len()
+            ),
+        ));
+    }
+    let v: Vec<f64> = toks[1..]
+        .iter()
+        .map(|t| {
+            t.parse::<f64>()
+                .ok()
+                .filter(|x| x.is_finite())
+                .ok_or_else(|| bad(n, format!("{t:?} is not a finite number")))
+        })
+        .collect::<Result<_, _>>()?;
+    let k = [[v[0], v[1], v[2]], [v[3], v[4], v[5]], [v[6], v[7], v[8]]];
+    if k[0][1] != 0.0
+        || k[1][0] != 0.0
+        || k[2] != [0.0, 0.0, 1.0]
+        || !(k[0][0] > 0.0 && k[1][1] > 0.0)
+    {
+        return Err(bad(n, format!("K must be [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] with positive focal lengths, found {k:?}")));
+    }
+    let r_file = DMat3::from_cols_array_2d(&[
+        [v[9], v[10], v[11]],
+        [v[12], v[13], v[14]],
+        [v[15], v[16], v[17]],
+    ])
+    .transpose();
+    let (r, correction) = nearest_rotation(&r_file);
+    if correction > MAX_ROTATION_ERROR {
+        return Err(HullError::NotRotation {
+            path: path.to_path_buf(),
+            line: n,
+            image: toks[0].into(),
+            distance: correction,
+            limit: MAX_ROTATION_ERROR,
+        });
+    }
+    Ok(ParEntry {
+        image: toks[0].to_string(),
+        k,
+        r,
+        t: DVec3::new(v[18], v[19], v[20]),
+        correction,
+    })
 }
 
 /// The two `(x y z)` corners after "bounding box" in a Middlebury README.
