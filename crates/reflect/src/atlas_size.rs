@@ -120,10 +120,10 @@ fn surface_samples(mesh: &TriMesh) -> Vec<(DVec3, f64)> {
 /// The finest pixel footprint of `cameras` on `mesh` in metres per pixel, `None` when no
 /// camera sees any of it.
 ///
-/// Sample points are spread over the surface by area (about 20 000, at least one per triangle). A camera sees a
-/// point when the point lies in front of it and projects into its frame; occlusion is ignored
-/// (a point hidden behind another surface still counts, so the footprint can only come out
-/// finer than the truth, never coarser). In a camera that sees it, a point's footprint is its
+/// Sample points are spread over the surface by area (about 20 000, at least one per
+/// triangle). A camera sees a point when the point lies in front of it and projects into its
+/// frame; occlusion is ignored (a point hidden behind another surface still counts, so the
+/// footprint can only come out finer than the truth, never coarser). In a camera that sees it, a point's footprint is its
 /// depth along the optical axis over the focal length in pixels (the geometric mean of fx and
 /// fy); obliquity is ignored, as is lens distortion's change of scale. The per-point footprint
 /// is the finest over the cameras, and the part's is the 5th percentile of those weighted by
