@@ -6,7 +6,7 @@ use crate::result::{SolveResult, UNKNOWN_STDERR};
 use crate::survey::Photo;
 use crate::weights::{combine, Combined, Proposal, WeightRules};
 use crate::ReflectError;
-use glam::{DVec3, Vec2, Vec3};
+use glam::{DVec2, DVec3, Vec2, Vec3};
 use igi_brdf::{luminance, Basis, LafortuneRef, Lobe};
 use igi_render::integrator::offset_origin;
 use igi_render::sampling::{hash2, Rng};
@@ -781,20 +781,19 @@ pub(crate) fn solve_group(
     let texels = group_texels(start, g);
     let mut obs: Vec<Obs> = Vec::new();
     for (pi, photo) in inputs.photos.iter().enumerate() {
-        obs.extend(observe_photo(
-            &scene,
+        let pass = PhotoPass {
+            scene: &scene,
             photo,
-            pi,
-            &texels,
+            photo_index: pi,
+            texels: &texels,
             offset,
-            start,
-            &start.lobes,
-            inputs.basis,
+            state: start,
+            basis: inputs.basis,
             opts,
-            k,
+            iteration: k,
             spp,
-            progress,
-        ));
+        };
+        obs.extend(pass.observe(progress));
     }
     drop(scene);
     let mut sums = Pending::default();
@@ -1008,32 +1007,40 @@ fn change_against_noise(old: Vec3, old_se: Vec3, c: &Combined) -> (f64, f64) {
 }
 
 /// One texel's raw observation in a photo: texel index and the per-texel estimates the
-/// ratio update needs (see `observe_photo`).
+/// ratio update needs (see [`PhotoPass`]).
 type RawObservation = (u32, Vec3, Vec3, Vec3, f32, bool, Vec3);
 
-#[allow(clippy::too_many_arguments)]
-fn observe_photo(
-    scene: &Scene,
-    photo: &Photo,
+/// The per-photo pass of a group: everything it reads, in one context. [`PhotoPass::observe`]
+/// traces every texel of the group toward the photograph's camera under its lighting and
+/// returns the texels' ratio proposals.
+struct PhotoPass<'a> {
+    scene: &'a Scene,
+    photo: &'a Photo,
     photo_index: usize,
-    texels: &[TexelRef],
+    texels: &'a [TexelRef],
+    /// The first texel stream number of the group (streams are numbered across groups).
     offset: u64,
-    state: &SolveResult,
-    lobes: &[Vec<Lobe>],
-    basis: Option<&Basis>,
-    opts: &SolveOptions,
+    state: &'a SolveResult,
+    basis: Option<&'a Basis>,
+    opts: &'a SolveOptions,
     iteration: u32,
     spp: u32,
-    progress: &dyn Progress,
-) -> Vec<Obs> {
-    let rules = &opts.rules;
-    let cam = &photo.camera;
-    let c = cam.center_world().as_vec3();
-    let sun = photo.lighting.sun.as_ref();
-    // Sun visibility per texel, for the shadow-edge rule (skipped without a sun).
-    let sun_vis: Option<Vec<Vec<bool>>> = sun.map(|s| {
-        state
-            .parts
+}
+
+/// Texels whose sun visibility differs from an atlas neighbour's (the shadow-edge rule).
+struct ShadowEdges {
+    /// Sun visibility per part and texel.
+    visible: Vec<Vec<bool>>,
+    /// Atlas index -> texel number per part, for neighbour lookups.
+    texel_of: Vec<Vec<u32>>,
+}
+
+impl ShadowEdges {
+    /// Sun visibility of every part's texels in `scene` (`None` without a sun).
+    fn new(pass: &PhotoPass) -> Option<ShadowEdges> {
+        let s = pass.photo.lighting.sun.as_ref()?;
+        let parts = &pass.state.parts;
+        let visible = parts
             .iter()
             .map(|p| {
                 p.cache
@@ -1045,16 +1052,13 @@ fn observe_photo(
                         } else {
                             t.normal
                         };
-                        !scene.occluded(offset_origin(t.position, n), s.direction, f32::INFINITY)
+                        let o = offset_origin(t.position, n);
+                        !pass.scene.occluded(o, s.direction, f32::INFINITY)
                     })
                     .collect()
             })
-            .collect()
-    });
-    // atlas index -> texel number, for neighbour lookups
-    let index_maps: Option<Vec<Vec<u32>>> = sun_vis.as_ref().map(|_| {
-        state
-            .parts
+            .collect();
+        let texel_of = parts
             .iter()
             .map(|p| {
                 let r = p.resolution();
@@ -1064,192 +1068,246 @@ fn observe_photo(
                 }
                 m
             })
-            .collect()
-    });
-    let shadow_edge = |t: &TexelRef| -> bool {
-        let (Some(vis), Some(maps)) = (&sun_vis, &index_maps) else {
-            return false;
-        };
-        let p = &state.parts[t.part as usize];
-        let r = p.resolution() as i64;
-        let idx = p.cache.texels[t.texel as usize].index as i64;
+            .collect();
+        Some(ShadowEdges { visible, texel_of })
+    }
+
+    /// Whether texel `t` lies on a shadow edge: a 4-neighbour in the atlas sees the sun
+    /// differently.
+    fn at(&self, parts: &[Part], t: &TexelRef) -> bool {
+        let (pi, vis, map) = (
+            t.part as usize,
+            &self.visible[t.part as usize],
+            &self.texel_of[t.part as usize],
+        );
+        let r = parts[pi].resolution() as i64;
+        let idx = parts[pi].cache.texels[t.texel as usize].index as i64;
         let (x, y) = (idx % r, idx / r);
-        let me = vis[t.part as usize][t.texel as usize];
-        for (dx, dy) in [(-1, 0), (1, 0), (0, -1), (0, 1)] {
+        let me = vis[t.texel as usize];
+        [(-1, 0), (1, 0), (0, -1), (0, 1)].iter().any(|&(dx, dy)| {
             let (xx, yy) = (x + dx, y + dy);
             if xx < 0 || yy < 0 || xx >= r || yy >= r {
-                continue;
+                return false;
             }
-            let k = maps[t.part as usize][(yy * r + xx) as usize];
-            if k != u32::MAX && vis[t.part as usize][k as usize] != me {
-                return true;
-            }
-        }
-        false
-    };
-    let render_opts = RenderOptions {
-        spp,
-        seed: opts.seed,
-        indirect: opts.indirect,
-        russian_roulette: false,
-    };
-    let pt = PathTracer::new(scene, &photo.lighting, &render_opts);
-    let stream_seed = hash2(opts.seed, ((iteration as u64) << 32) | photo_index as u64);
-    let min_eval = Vec3::splat(opts.min_eval_albedo);
-    // Geometric tests and radiance estimates, texel by texel.
-    let chunk = 4096;
-    let raw: Vec<Option<RawObservation>> = texels
-        .par_chunks(chunk)
-        .enumerate()
-        .flat_map_iter(|(ci, ch)| {
-            let out: Vec<_> = ch
-                .iter()
-                .enumerate()
-                .map(|(j, t)| {
-                    let gi = (ci * chunk + j) as u64;
-                    let to_cam = c - t.position;
-                    let dist = to_cam.length();
-                    if !(dist > 0.0) {
-                        return None;
-                    }
-                    let wo = to_cam / dist;
-                    let mut n = t.normal;
-                    let mut cos = n.dot(wo);
-                    if cos < 0.0 {
-                        n = -n;
-                        cos = -cos;
-                    }
-                    if cos < rules.min_cos {
-                        return None;
-                    }
-                    let px = cam.project(t.position.as_dvec3())?;
-                    let origin = offset_origin(t.position, n);
-                    if scene.occluded(origin, wo, (c - origin).length() * (1.0 - 1e-4)) {
-                        return None;
-                    }
-                    let pixel = Vec3::from_array(photo.image.bilinear(px.x as f32, px.y as f32)?);
-                    let mut weight = cos;
-                    let mut clean = true;
-                    // occlusion boundary / misregistration: neighbouring rays must land on the
-                    // texel's tangent plane (not merely at its depth: on a surface seen at a
-                    // grazing angle the depth changes by several percent per pixel)
-                    let o = rules.boundary_offset_px;
-                    for (dx, dy) in [(o, 0.0), (-o, 0.0), (0.0, o), (0.0, -o)] {
-                        let (ro, rd) = cam.pixel_ray(px.x + dx, px.y + dy);
-                        let (ro, rd) = (ro.as_vec3(), rd.as_vec3());
-                        let hit = scene.intersect(ro, rd);
-                        let denom = n.dot(rd);
-                        let t_plane = if denom.abs() > 1e-6 {
-                            n.dot(t.position - ro) / denom
-                        } else {
-                            f32::INFINITY
-                        };
-                        let ok = hit.is_some_and(|h| {
-                            (h.t - t_plane).abs() <= rules.depth_tolerance * dist
-                                && h.ng.normalize_or_zero().dot(n).abs()
-                                    >= rules.min_normal_agreement
-                        });
-                        if !ok {
-                            weight *= rules.boundary_factor;
-                            clean = false;
-                            break;
-                        }
-                    }
-                    if shadow_edge(t) {
-                        weight *= rules.shadow_edge_factor;
-                        clean = false;
-                    }
-                    // radiance toward the camera with the evaluation albedo at this texel
-                    let rho = state.rho[t.part as usize][state.parts[t.part as usize].cache.texels
-                        [t.texel as usize]
-                        .index as usize];
-                    let rho_eval = rho.max(min_eval);
-                    // the texel's own lobes, inferred from its albedo (other surfaces, met by
-                    // the bounces, carry their part's lobes)
-                    let inferred = basis.map(|b| b.infer(rho_eval).lobes);
-                    let brdf = LafortuneRef {
-                        rho_d: rho_eval,
-                        lobes: inferred.as_deref().unwrap_or(&lobes[t.part as usize]),
-                    };
-                    let sp = SurfacePoint {
-                        position: t.position,
-                        ng: n,
-                        ns: n,
-                        uv: t.uv,
-                        object: t.part,
-                        prim: 0,
-                    };
-                    let est = pt.lo_estimate(
-                        &sp,
-                        wo,
-                        Some(brdf),
-                        spp,
-                        &mut Rng::new(stream_seed, offset + gi),
-                    );
-                    Some((
-                        gi as u32, pixel, est.mean, est.stderr, weight, clean, rho_eval,
-                    ))
-                })
-                .collect();
-            progress.advance(ch.len() as u64);
-            out
+            let k = map[(yy * r + xx) as usize];
+            k != u32::MAX && vis[k as usize] != me
         })
-        .collect();
-    // near-zero floor relative to the photo's median rendered luminance
-    let mut lums: Vec<f32> = raw
-        .iter()
-        .flatten()
-        .map(|r| luminance(r.2))
-        .filter(|l| *l > 0.0)
-        .collect();
-    let median = if lums.is_empty() {
-        0.0
-    } else {
-        let m = lums.len() / 2;
-        *lums.select_nth_unstable_by(m, |a, b| a.total_cmp(b)).1
-    };
-    let floor = (median * rules.min_radiance_fraction).max(1e-12);
-    raw.into_iter()
-        .flatten()
-        .filter_map(|(gi, pixel, l, se, weight, clean, rho_eval)| {
-            let ll = luminance(l);
-            if !(ll > floor) || luminance(se) > rules.max_rel_stderr * ll {
-                return None;
-            }
-            let t = &texels[gi as usize];
-            let rho = state.rho[t.part as usize]
-                [state.parts[t.part as usize].cache.texels[t.texel as usize].index as usize];
-            // per channel; a channel rendered at zero keeps the current value
-            let proposal = Vec3::from_array(std::array::from_fn(|ch| {
-                if l[ch] > floor * 1e-3 {
-                    rho_eval[ch] * pixel[ch] / l[ch]
-                } else {
-                    rho[ch]
-                }
-            }));
-            // Monte-Carlo variance of the proposal: its relative error is that of L
-            let mc_var = Vec3::from_array(std::array::from_fn(|ch| {
-                if l[ch] > floor * 1e-3 {
-                    (proposal[ch] * se[ch] / l[ch]).powi(2)
-                } else {
-                    0.0
-                }
-            }));
-            // rendered radiance with the current albedo (linear in the first vertex's albedo)
-            let current = l * (rho / rho_eval);
-            let residual = current - pixel;
-            Some(Obs {
-                part: t.part,
-                texel: t.texel,
-                proposal,
-                weight,
-                mc_var,
-                clean,
-                residual,
-                pixel,
+    }
+}
+
+impl PhotoPass<'_> {
+    /// The observations of every texel of the group in this photograph.
+    fn observe(&self, progress: &dyn Progress) -> Vec<Obs> {
+        let shadow = ShadowEdges::new(self);
+        let render_opts = RenderOptions {
+            spp: self.spp,
+            seed: self.opts.seed,
+            indirect: self.opts.indirect,
+            russian_roulette: false,
+        };
+        let pt = PathTracer::new(self.scene, &self.photo.lighting, &render_opts);
+        let chunk = 4096;
+        let raw: Vec<Option<RawObservation>> = self
+            .texels
+            .par_chunks(chunk)
+            .enumerate()
+            .flat_map_iter(|(ci, ch)| {
+                let out: Vec<_> = ch
+                    .iter()
+                    .enumerate()
+                    .map(|(j, t)| self.observe_texel(t, (ci * chunk + j) as u64, &pt, &shadow))
+                    .collect();
+                progress.advance(ch.len() as u64);
+                out
             })
-        })
-        .collect()
+            .collect();
+        self.proposals(raw)
+    }
+
+    /// The current albedo of texel `t`.
+    fn rho(&self, t: &TexelRef) -> Vec3 {
+        let part = &self.state.parts[t.part as usize];
+        self.state.rho[t.part as usize][part.cache.texels[t.texel as usize].index as usize]
+    }
+
+    /// Geometric tests and the radiance estimate of texel `t` (number `gi` in the group):
+    /// `None` when the photograph does not see it.
+    fn observe_texel(
+        &self,
+        t: &TexelRef,
+        gi: u64,
+        pt: &PathTracer,
+        shadow: &Option<ShadowEdges>,
+    ) -> Option<RawObservation> {
+        let (rules, cam) = (&self.opts.rules, &self.photo.camera);
+        let c = cam.center_world().as_vec3();
+        let to_cam = c - t.position;
+        let dist = to_cam.length();
+        if !(dist > 0.0) {
+            return None;
+        }
+        let wo = to_cam / dist;
+        let mut n = t.normal;
+        let mut cos = n.dot(wo);
+        if cos < 0.0 {
+            n = -n;
+            cos = -cos;
+        }
+        if cos < rules.min_cos {
+            return None;
+        }
+        let px = cam.project(t.position.as_dvec3())?;
+        let origin = offset_origin(t.position, n);
+        if self
+            .scene
+            .occluded(origin, wo, (c - origin).length() * (1.0 - 1e-4))
+        {
+            return None;
+        }
+        let pixel = Vec3::from_array(self.photo.image.bilinear(px.x as f32, px.y as f32)?);
+        let mut clean = self.on_tangent_plane(t, n, px, dist);
+        let mut weight = if clean {
+            cos
+        } else {
+            cos * rules.boundary_factor
+        };
+        if shadow.as_ref().is_some_and(|s| s.at(&self.state.parts, t)) {
+            weight *= rules.shadow_edge_factor;
+            clean = false;
+        }
+        let (est, rho_eval) = self.estimate(t, n, wo, gi, pt);
+        Some((
+            gi as u32, pixel, est.mean, est.stderr, weight, clean, rho_eval,
+        ))
+    }
+
+    /// The occlusion-boundary / misregistration test: rays through the pixels around the
+    /// texel's projection `px` must land on the texel's tangent plane (not merely at its depth:
+    /// on a surface seen at a grazing angle the depth changes by several percent per pixel).
+    fn on_tangent_plane(&self, t: &TexelRef, n: Vec3, px: DVec2, dist: f32) -> bool {
+        let (rules, cam) = (&self.opts.rules, &self.photo.camera);
+        let o = rules.boundary_offset_px;
+        [(o, 0.0), (-o, 0.0), (0.0, o), (0.0, -o)]
+            .iter()
+            .all(|&(dx, dy)| {
+                let (ro, rd) = cam.pixel_ray(px.x + dx, px.y + dy);
+                let (ro, rd) = (ro.as_vec3(), rd.as_vec3());
+                let hit = self.scene.intersect(ro, rd);
+                let denom = n.dot(rd);
+                let t_plane = if denom.abs() > 1e-6 {
+                    n.dot(t.position - ro) / denom
+                } else {
+                    f32::INFINITY
+                };
+                hit.is_some_and(|h| {
+                    (h.t - t_plane).abs() <= rules.depth_tolerance * dist
+                        && h.ng.normalize_or_zero().dot(n).abs() >= rules.min_normal_agreement
+                })
+            })
+    }
+
+    /// The radiance leaving texel `t` toward the camera (direction `wo`, normal `n` facing
+    /// it) with the evaluation albedo at the texel, and that albedo. The texel carries its own
+    /// lobes, inferred from its albedo; other surfaces, met by the bounces, carry their part's.
+    fn estimate(
+        &self,
+        t: &TexelRef,
+        n: Vec3,
+        wo: Vec3,
+        gi: u64,
+        pt: &PathTracer,
+    ) -> (igi_render::integrator::Estimate, Vec3) {
+        let rho_eval = self.rho(t).max(Vec3::splat(self.opts.min_eval_albedo));
+        let inferred = self.basis.map(|b| b.infer(rho_eval).lobes);
+        let brdf = LafortuneRef {
+            rho_d: rho_eval,
+            lobes: inferred
+                .as_deref()
+                .unwrap_or(&self.state.lobes[t.part as usize]),
+        };
+        let sp = SurfacePoint {
+            position: t.position,
+            ng: n,
+            ns: n,
+            uv: t.uv,
+            object: t.part,
+            prim: 0,
+        };
+        let stream = hash2(
+            self.opts.seed,
+            ((self.iteration as u64) << 32) | self.photo_index as u64,
+        );
+        let mut rng = Rng::new(stream, self.offset + gi);
+        (
+            pt.lo_estimate(&sp, wo, Some(brdf), self.spp, &mut rng),
+            rho_eval,
+        )
+    }
+
+    /// The ratio proposals of the raw observations, dropping those rendered below the
+    /// near-zero floor (relative to the photograph's median rendered luminance) or too noisy.
+    fn proposals(&self, raw: Vec<Option<RawObservation>>) -> Vec<Obs> {
+        let rules = &self.opts.rules;
+        let mut lums: Vec<f32> = raw
+            .iter()
+            .flatten()
+            .map(|r| luminance(r.2))
+            .filter(|l| *l > 0.0)
+            .collect();
+        let median = if lums.is_empty() {
+            0.0
+        } else {
+            let m = lums.len() / 2;
+            *lums.select_nth_unstable_by(m, |a, b| a.total_cmp(b)).1
+        };
+        let floor = (median * rules.min_radiance_fraction).max(1e-12);
+        raw.into_iter()
+            .flatten()
+            .filter_map(|r| {
+                let (ll, se) = (luminance(r.2), luminance(r.3));
+                if !(ll > floor) || se > rules.max_rel_stderr * ll {
+                    return None;
+                }
+                Some(self.proposal(r, floor))
+            })
+            .collect()
+    }
+
+    /// One texel's proposal `rho_eval * pixel / L` per channel (a channel rendered at zero
+    /// keeps the current value), its Monte-Carlo variance (the relative error of `L`), and the
+    /// residual of the rendering with the current albedo.
+    fn proposal(&self, r: RawObservation, floor: f32) -> Obs {
+        let (gi, pixel, l, se, weight, clean, rho_eval) = r;
+        let t = &self.texels[gi as usize];
+        let rho = self.rho(t);
+        let lit = |ch: usize| l[ch] > floor * 1e-3;
+        let proposal = Vec3::from_array(std::array::from_fn(|ch| {
+            if lit(ch) {
+                rho_eval[ch] * pixel[ch] / l[ch]
+            } else {
+                rho[ch]
+            }
+        }));
+        let mc_var = Vec3::from_array(std::array::from_fn(|ch| {
+            if lit(ch) {
+                (proposal[ch] * se[ch] / l[ch]).powi(2)
+            } else {
+                0.0
+            }
+        }));
+        // rendered radiance with the current albedo (linear in the first vertex's albedo)
+        let current = l * (rho / rho_eval);
+        Obs {
+            part: t.part,
+            texel: t.texel,
+            proposal,
+            weight,
+            mc_var,
+            clean,
+            residual: current - pixel,
+            pixel,
+        }
+    }
 }
 
 /// Mean absolute error per channel and RMS error of `rho_d` against ground truth over covered
