@@ -194,6 +194,15 @@ fn lightings() -> Vec<LightingSpec> {
     ]
 }
 
+/// Where every camera of the demo looks.
+const TARGET: Vec3 = Vec3::new(0.0, 0.0, 1.8);
+
+/// Creates folder `p` (and its parents).
+fn make_folder(p: &Path) -> Result<(), ReflectError> {
+    std::fs::create_dir_all(p)
+        .map_err(|e| ReflectError::file(p, format!("cannot create folder: {e}")))
+}
+
 /// Runs the demo into `out` (created). `progress(stage)` reports the stage names.
 pub fn run_demo(
     out: &Path,
@@ -202,13 +211,8 @@ pub fn run_demo(
     stage: &dyn Fn(&str),
 ) -> Result<DemoReport, ReflectError> {
     let t0 = Instant::now();
-    let mk = |p: &Path| {
-        std::fs::create_dir_all(p)
-            .map_err(|e| ReflectError::file(p, format!("cannot create folder: {e}")))
-    };
-    mk(out)?;
     let pictures = out.join("pictures");
-    mk(&pictures)?;
+    make_folder(&pictures)?;
     stage("building the procedural site");
     let site = igi_geometry::procedural::colonnade_site(opts.seed, 1);
     let triangles = site.iter().map(|(_, m)| m.indices.len()).sum();
@@ -218,39 +222,9 @@ pub fn run_demo(
         .map(|p| truth_atlas(p, albedo_pattern))
         .collect();
     let lights = lightings();
-    let (w, h) = (opts.photo_width, opts.photo_height);
-    let target = Vec3::new(0.0, 0.0, 1.8);
-    let views: [(f32, f32, f32, usize); 8] = [
-        (-30.0, 16.0, 4.0, 0),
-        (20.0, 15.0, 5.0, 0),
-        (75.0, 15.0, 3.5, 0),
-        (150.0, 16.0, 4.5, 1),
-        (210.0, 15.0, 4.0, 1),
-        (260.0, 14.0, 6.0, 2),
-        (-80.0, 15.0, 3.0, 2),
-        (110.0, 17.0, 5.5, 2),
-    ];
-    let shots: Vec<ShotSpec> = views
-        .iter()
-        .enumerate()
-        .map(|(k, &(az, dist, z, l))| {
-            let a = az.to_radians();
-            let eye = Vec3::new(dist * a.cos(), dist * a.sin(), z);
-            Ok(ShotSpec {
-                id: format!("view{k}-{}", lights[l].name),
-                camera: look_at_camera(eye, target, w, h, 65.0)?,
-                lighting: l,
-            })
-        })
-        .collect::<Result<_, ReflectError>>()?;
+    let shots = demo_shots(&lights, opts)?;
     stage("recovering the lighting from probe captures");
-    let mut recorded = Vec::new();
-    let mut probes = Vec::new();
-    for l in &lights {
-        let (rec, summary) = probe_capture(l, &pictures)?;
-        recorded.push(rec);
-        probes.push(summary);
-    }
+    let (recorded, probes) = capture_lightings(&lights, &pictures)?;
     stage("rendering the survey photographs");
     let survey_dir = out.join("survey");
     let tp = Instant::now();
@@ -268,13 +242,119 @@ pub fn run_demo(
     )?;
     progress.finish();
     let photo_seconds = tp.elapsed().as_secs_f64();
-    for s in &shots {
+    write_photo_pictures(&survey_dir, &shots, &pictures)?;
+    stage("solving for the albedo");
+    let solved = solve_demo(out, parts, site, opts, progress)?;
+    stage("re-lighting from a held-out view");
+    let relight = relight_held_out(out, &solved, opts)?;
+    write_albedo_pictures(&pictures, &solved.result, &solved.truth)?;
+    copy_file(
+        &out.join("result").join("convergence.png"),
+        &pictures.join("convergence.png"),
+    )?;
+    let report = DemoReport {
+        options: opts.clone(),
+        parts: solved.result.parts.len(),
+        triangles,
+        photos: solved.photos,
+        photo_seconds,
+        solve_seconds: solved.seconds,
+        iterations: solved.result.report.iterations.len(),
+        albedo_mae: solved
+            .result
+            .report
+            .iterations
+            .last()
+            .and_then(|r| r.truth_mae),
+        probes,
+        relight,
+        total_seconds: t0.elapsed().as_secs_f64(),
+    };
+    write_text(
+        &out.join("demo.json"),
+        &serde_json::to_string_pretty(&report).expect("report serialises"),
+    )?;
+    Ok(report)
+}
+
+/// The demo's eight survey photographs: (azimuth, distance, height, lighting) around the
+/// colonnade.
+fn demo_shots(lights: &[LightingSpec], opts: &DemoOptions) -> Result<Vec<ShotSpec>, ReflectError> {
+    let views: [(f32, f32, f32, usize); 8] = [
+        (-30.0, 16.0, 4.0, 0),
+        (20.0, 15.0, 5.0, 0),
+        (75.0, 15.0, 3.5, 0),
+        (150.0, 16.0, 4.5, 1),
+        (210.0, 15.0, 4.0, 1),
+        (260.0, 14.0, 6.0, 2),
+        (-80.0, 15.0, 3.0, 2),
+        (110.0, 17.0, 5.5, 2),
+    ];
+    let (w, h) = (opts.photo_width, opts.photo_height);
+    views
+        .iter()
+        .enumerate()
+        .map(|(k, &(az, dist, z, l))| {
+            let a = az.to_radians();
+            let eye = Vec3::new(dist * a.cos(), dist * a.sin(), z);
+            Ok(ShotSpec {
+                id: format!("view{k}-{}", lights[l].name),
+                camera: look_at_camera(eye, TARGET, w, h, 65.0)?,
+                lighting: l,
+            })
+        })
+        .collect()
+}
+
+/// Each lighting as the probe pipeline recovers it from a photographed board, with how well.
+fn capture_lightings(
+    lights: &[LightingSpec],
+    pictures: &Path,
+) -> Result<(Vec<LightingSpec>, Vec<ProbeSummary>), ReflectError> {
+    let mut recorded = Vec::new();
+    let mut probes = Vec::new();
+    for l in lights {
+        let (rec, summary) = probe_capture(l, pictures)?;
+        recorded.push(rec);
+        probes.push(summary);
+    }
+    Ok((recorded, probes))
+}
+
+/// Tone-mapped pictures of the survey photographs.
+fn write_photo_pictures(
+    survey_dir: &Path,
+    shots: &[ShotSpec],
+    pictures: &Path,
+) -> Result<(), ReflectError> {
+    for s in shots {
         let img =
             igi_imaging::read_image(&survey_dir.join("photos").join(format!("{}.exr", s.id)))?;
         write_png_tonemapped(&pictures.join(format!("photo-{}.png", s.id)), &img, 1.0)?;
     }
+    Ok(())
+}
 
-    stage("solving for the albedo");
+/// The demo's solve: its result, the true albedo at its texels, the true scene, the number of
+/// photographs and the solve's wall time.
+struct DemoSolve {
+    result: SolveResult,
+    truth: crate::solver::Truth,
+    truth_scene: igi_render::Scene,
+    photos: usize,
+    seconds: f64,
+}
+
+/// Solves the survey in `out/survey` into `out/result`, on the truth's `parts` or (with
+/// `atlas_auto_max`) on parts cut and sized from the photographs.
+fn solve_demo(
+    out: &Path,
+    parts: Vec<crate::Part>,
+    site: Vec<(String, igi_geometry::TriMesh)>,
+    opts: &DemoOptions,
+    progress: &dyn Progress,
+) -> Result<DemoSolve, ReflectError> {
+    let survey_dir = out.join("survey");
     let survey = Survey::load(&survey_dir)?;
     let photos = survey
         .photos
@@ -297,9 +377,9 @@ pub fn run_demo(
         ..SolveOptions::default()
     };
     let result_dir = out.join("result");
-    mk(&result_dir)?;
+    make_folder(&result_dir)?;
     let (truth_scene, _) = igi_render::Scene::load(&survey_dir.join("truth").join("scene.toml"))?;
-    let gt = truth_from_scene(&parts, &truth_scene);
+    let truth = truth_from_scene(&parts, &truth_scene);
     let ids = photos.iter().map(|p| p.id.clone()).collect();
     let start = SolveResult::fresh(parts, ids, &solve_opts);
     start.write_geometry(&result_dir)?;
@@ -308,14 +388,29 @@ pub fn run_demo(
         start,
         &photos,
         None,
-        Some(&gt),
+        Some(&truth),
         &solve_opts,
         progress,
         &mut |r| r.write_state(&result_dir),
     )?;
-    let solve_seconds = ts.elapsed().as_secs_f64();
+    Ok(DemoSolve {
+        result,
+        truth,
+        truth_scene,
+        photos: photos.len(),
+        seconds: ts.elapsed().as_secs_f64(),
+    })
+}
 
-    stage("re-lighting from a held-out view");
+/// Renders the recovered and the true site from a held-out viewpoint under a held-out
+/// lighting (both written into the survey, so `igi render` can repeat it), writes the images
+/// and their pictures, and compares them.
+fn relight_held_out(
+    out: &Path,
+    solved: &DemoSolve,
+    opts: &DemoOptions,
+) -> Result<Comparison, ReflectError> {
+    let pictures = out.join("pictures");
     let new_sun = sun_direction(30.0, 160.0);
     let held_out = LightingSpec {
         name: "held-out".into(),
@@ -325,13 +420,8 @@ pub fn run_demo(
     held_out.write(&out.join("survey").join("lighting"))?;
     let lighting = held_out.lighting()?;
     let a = 125.0f32.to_radians();
-    let cam = look_at_camera(
-        Vec3::new(19.0 * a.cos(), 19.0 * a.sin(), 7.0),
-        target,
-        w,
-        h,
-        65.0,
-    )?;
+    let eye = Vec3::new(19.0 * a.cos(), 19.0 * a.sin(), 7.0);
+    let cam = look_at_camera(eye, TARGET, opts.photo_width, opts.photo_height, 65.0)?;
     cam.save(&out.join("survey").join("cameras").join("held-out.json"))?;
     let ropts = RenderOptions {
         spp: opts.relight_spp,
@@ -339,13 +429,19 @@ pub fn run_demo(
         indirect: 2,
         russian_roulette: false,
     };
-    let recovered = scene_with_albedo(&result.parts, &result.rho)?;
+    let recovered = scene_with_albedo(&solved.result.parts, &solved.result.rho)?;
     let relit = render_image(&recovered, &lighting, &cam, &ropts, &|_| {})?;
     let reference_opts = RenderOptions {
         seed: opts.seed ^ 0x1234,
         ..ropts
     };
-    let reference = render_image(&truth_scene, &lighting, &cam, &reference_opts, &|_| {})?;
+    let reference = render_image(
+        &solved.truth_scene,
+        &lighting,
+        &cam,
+        &reference_opts,
+        &|_| {},
+    )?;
     let cmp = compare_images(
         &relit.mean,
         &reference.mean,
@@ -358,11 +454,19 @@ pub fn run_demo(
     write_png_tonemapped(&pictures.join("relit-reference.png"), &reference.mean, 1.0)?;
     let diff = difference_image(&relit.mean, &reference.mean, None)?;
     write_png_tonemapped(&pictures.join("relit-difference.png"), &diff, 1.0)?;
-    // albedo pictures: true and recovered atlases side by side, per part
+    Ok(cmp)
+}
+
+/// True and recovered albedo atlases side by side, per part.
+fn write_albedo_pictures(
+    pictures: &Path,
+    result: &SolveResult,
+    truth: &crate::solver::Truth,
+) -> Result<(), ReflectError> {
     for (i, p) in result.parts.iter().enumerate() {
         let r = p.resolution();
         let mut side = HdrImage::new(2 * r + 4, r);
-        for (t, v) in p.cache.texels.iter().zip(&gt[i]) {
+        for (t, v) in p.cache.texels.iter().zip(&truth[i]) {
             let k = t.index as usize;
             side.set(k % r, k / r, v.unwrap_or(Vec3::ZERO).to_array());
         }
@@ -377,32 +481,12 @@ pub fn run_demo(
             1.0,
         )?;
     }
-    std::fs::copy(
-        result_dir.join("convergence.png"),
-        pictures.join("convergence.png"),
-    )
-    .map_err(|e| {
-        ReflectError::file(
-            result_dir.join("convergence.png"),
-            format!("cannot copy: {e}"),
-        )
-    })?;
-    let report = DemoReport {
-        options: opts.clone(),
-        parts: result.parts.len(),
-        triangles,
-        photos: photos.len(),
-        photo_seconds,
-        solve_seconds,
-        iterations: result.report.iterations.len(),
-        albedo_mae: result.report.iterations.last().and_then(|r| r.truth_mae),
-        probes,
-        relight: cmp,
-        total_seconds: t0.elapsed().as_secs_f64(),
-    };
-    write_text(
-        &out.join("demo.json"),
-        &serde_json::to_string_pretty(&report).expect("report serialises"),
-    )?;
-    Ok(report)
+    Ok(())
+}
+
+/// Copies `from` to `to`.
+fn copy_file(from: &Path, to: &Path) -> Result<(), ReflectError> {
+    std::fs::copy(from, to)
+        .map(|_| ())
+        .map_err(|e| ReflectError::file(from, format!("cannot copy: {e}")))
 }
