@@ -185,7 +185,16 @@ pub fn auto_resolution(
     cameras: &[Camera],
     max: u32,
 ) -> Result<AtlasChoice, ReflectError> {
-    let Some(footprint) = pixel_footprint(mesh, cameras) else {
+    choice_at(mesh, pixel_footprint(mesh, cameras), max)
+}
+
+/// [`auto_resolution`] for a mesh whose finest footprint is already known.
+fn choice_at(
+    mesh: &TriMesh,
+    footprint: Option<f64>,
+    max: u32,
+) -> Result<AtlasChoice, ReflectError> {
+    let Some(footprint) = footprint else {
         return Ok(AtlasChoice {
             resolution: AUTO_ATLAS_MIN,
             footprint_m: None,
@@ -208,10 +217,10 @@ pub fn auto_resolution(
     })
 }
 
-/// Texels a mesh needs at one texel per pixel of its finest footprint (before packing), 0
+/// Texels a mesh needs at one texel per pixel of its finest `footprint` (before packing), 0
 /// when no camera sees it.
-fn texels_needed(mesh: &TriMesh, cameras: &[Camera]) -> f64 {
-    pixel_footprint(mesh, cameras).map_or(0.0, |f| mesh.total_area() / (f * f))
+fn texels_needed(mesh: &TriMesh, footprint: Option<f64>) -> f64 {
+    footprint.map_or(0.0, |f| mesh.total_area() / (f * f))
 }
 
 /// The mesh cut in two along its longest extent (and along any other extent at least half as
@@ -259,7 +268,8 @@ pub fn plan_parts(
         if mesh.normals.is_none() {
             mesh.compute_vertex_normals();
         }
-        plan_mesh(name, mesh, cameras, max, 0, &mut out)?;
+        let footprint = pixel_footprint(&mesh, cameras);
+        plan_mesh(name, mesh, footprint, cameras, max, 0, &mut out)?;
     }
     crate::parts::check_names(out.iter().map(|p| p.name.as_str())).map_err(|e| {
         ReflectError::Invalid(format!(
@@ -269,34 +279,48 @@ pub fn plan_parts(
     Ok(out)
 }
 
-/// [`plan_parts`] for one mesh at cut depth `depth`, appending to `out`.
+/// [`plan_parts`] for one mesh (of finest footprint `footprint`) at cut depth `depth`,
+/// appending to `out`.
 fn plan_mesh(
     name: String,
     mesh: TriMesh,
+    footprint: Option<f64>,
     cameras: &[Camera],
     max: u32,
     depth: u32,
     out: &mut Vec<PlannedPart>,
 ) -> Result<(), ReflectError> {
-    let need = texels_needed(&mesh, cameras);
+    let need = texels_needed(&mesh, footprint);
     let over_budget = need / PLANNING_EFFICIENCY > (max as f64) * (max as f64);
     if depth < MAX_SPLIT_DEPTH && (over_budget || need > MIN_SPLIT_TEXELS) {
-        let pieces = halve(&mesh);
-        if pieces.len() > 1 {
-            let pieces_need: f64 = pieces.iter().map(|m| texels_needed(m, cameras)).sum();
-            if over_budget || pieces_need < SPLIT_GAIN * need {
-                tracing::info!(
-                    "cutting {name} into {} pieces: {need:.0} texels whole, {pieces_need:.0} cut",
-                    pieces.len()
-                );
-                for (k, piece) in pieces.into_iter().enumerate() {
-                    plan_mesh(format!("{name}-{k}"), piece, cameras, max, depth + 1, out)?;
-                }
-                return Ok(());
+        let pieces: Vec<(TriMesh, Option<f64>)> = halve(&mesh)
+            .into_iter()
+            .map(|m| {
+                let f = pixel_footprint(&m, cameras);
+                (m, f)
+            })
+            .collect();
+        let pieces_need: f64 = pieces.iter().map(|(m, f)| texels_needed(m, *f)).sum();
+        if pieces.len() > 1 && (over_budget || pieces_need < SPLIT_GAIN * need) {
+            tracing::info!(
+                "cutting {name} into {} pieces: {need:.0} texels whole, {pieces_need:.0} cut",
+                pieces.len()
+            );
+            for (k, (piece, f)) in pieces.into_iter().enumerate() {
+                plan_mesh(
+                    format!("{name}-{k}"),
+                    piece,
+                    f,
+                    cameras,
+                    max,
+                    depth + 1,
+                    out,
+                )?;
             }
+            return Ok(());
         }
     }
-    let choice = auto_resolution(&mesh, cameras, max)?;
+    let choice = choice_at(&mesh, footprint, max)?;
     out.push(PlannedPart { name, mesh, choice });
     Ok(())
 }
@@ -305,6 +329,11 @@ fn plan_mesh(
 mod tests {
     use super::*;
     use igi_imaging::WorldToCamera;
+
+    /// Texels `mesh` needs at its finest footprint in `cameras`.
+    fn need_in(mesh: &TriMesh, cameras: &[Camera]) -> f64 {
+        texels_needed(mesh, pixel_footprint(mesh, cameras))
+    }
 
     /// A `side` x `side` metre square in the plane z = 0, centred at (cx, 0), as an n x n grid.
     fn square(side: f32, cx: f32, n: u32) -> TriMesh {
@@ -453,12 +482,12 @@ mod tests {
             DVec3::new(-4.0, 0.0, 3.0),
             DVec3::new(8.0, 0.0, 0.0),
         )];
-        let whole = texels_needed(&strip(40.0, 4.0), &cams);
+        let whole = need_in(&strip(40.0, 4.0), &cams);
         let parts = plan_parts(vec![("strip".into(), strip(40.0, 4.0))], &cams, 2048).unwrap();
         assert!(parts.len() > 2, "{}", parts.len());
         let area: f64 = parts.iter().map(|p| p.mesh.total_area()).sum();
         assert!((area - 160.0).abs() < 1e-3, "an exact partition: {area}");
-        let cut: f64 = parts.iter().map(|p| texels_needed(&p.mesh, &cams)).sum();
+        let cut: f64 = parts.iter().map(|p| need_in(&p.mesh, &cams)).sum();
         assert!(cut < SPLIT_GAIN * whole, "{cut} vs {whole}");
         for p in &parts {
             assert!(p.name.starts_with("strip-"), "{}", p.name);
@@ -500,7 +529,7 @@ mod tests {
         let parts = plan_parts(vec![("field".into(), strip(8.0, 8.0))], &cams, 256).unwrap();
         assert_eq!(parts.len(), 16, "8 m cut to 4 m (still over), then to 2 m");
         for p in &parts {
-            let need = texels_needed(&p.mesh, &cams) / PLANNING_EFFICIENCY;
+            let need = need_in(&p.mesh, &cams) / PLANNING_EFFICIENCY;
             assert!(need <= 256.0 * 256.0, "{}: {need}", p.name);
             assert!(p.choice.resolution <= 256);
             assert!((p.choice.footprint_m.unwrap() - 0.02).abs() < 1e-6);
