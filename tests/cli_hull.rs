@@ -264,15 +264,7 @@ fn backdrops_writes_six_patterns() {
 
 /// PSNR (peak 1, the photos' white) of `rendered` against `photo` over the pixels of `mask`.
 fn psnr_inside(rendered: &HdrImage, photo: &HdrImage, mask: &Mask) -> f64 {
-    let (mut se, mut n) = (0.0f64, 0usize);
-    for (i, _) in mask.data.iter().enumerate().filter(|(_, &m)| m) {
-        for c in 0..3 {
-            let d = (rendered.pixels[i][c] - photo.pixels[i][c]) as f64;
-            se += d * d;
-        }
-        n += 3;
-    }
-    10.0 * (1.0 / (se / n as f64)).log10()
+    rendered.psnr_inside(photo, &mask.data, 1.0).unwrap()
 }
 
 /// Per view of the dino: PSNR inside the silhouette, and inside the part of it the rendered

@@ -46,8 +46,8 @@ pub struct RenderArgs {
     /// Output RGBA EXR.
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Views blended per surfel (Eq. 4).
-    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u16).range(1..))]
+    /// Views blended per surfel (Eq. 4), 1 to 16.
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u16).range(1..=16))]
     pub k: u16,
     /// Print the timing as JSON.
     #[arg(long)]

@@ -91,6 +91,26 @@ impl HdrImage {
         Some(out)
     }
 
+    /// PSNR in dB of `self` against `reference` over the pixels where `inside` is true (every
+    /// channel counted), with `peak` the reference's white: `None` when no pixel is inside or
+    /// the sizes differ, infinite when the two agree exactly there.
+    pub fn psnr_inside(&self, reference: &HdrImage, inside: &[bool], peak: f64) -> Option<f64> {
+        if (self.width, self.height) != (reference.width, reference.height)
+            || inside.len() != self.pixels.len()
+        {
+            return None;
+        }
+        let (mut se, mut n) = (0.0f64, 0usize);
+        for (i, _) in inside.iter().enumerate().filter(|(_, &m)| m) {
+            for c in 0..3 {
+                let d = (self.pixels[i][c] - reference.pixels[i][c]) as f64;
+                se += d * d;
+            }
+            n += 3;
+        }
+        (n > 0).then(|| 10.0 * (peak * peak / (se / n as f64)).log10())
+    }
+
     /// Multiply every pixel by `s`.
     pub fn scale(&mut self, s: f32) {
         for p in &mut self.pixels {
@@ -104,6 +124,23 @@ impl HdrImage {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn psnr_inside_counts_only_the_mask() {
+        let mut a = HdrImage::new(2, 1);
+        let b = HdrImage::new(2, 1);
+        a.pixels[0] = [0.1, 0.1, 0.1];
+        a.pixels[1] = [9.0, 9.0, 9.0];
+        // MSE 0.01 inside at peak 1: 20 dB; the outside pixel is ignored
+        let db = a.psnr_inside(&b, &[true, false], 1.0).unwrap();
+        assert!((db - 20.0).abs() < 1e-5, "{db}");
+        assert_eq!(
+            a.psnr_inside(&b, &[false, true], 1.0).map(|x| x < 0.0),
+            Some(true)
+        );
+        assert!(a.psnr_inside(&b, &[false, false], 1.0).is_none());
+        assert!(b.psnr_inside(&b, &[true, true], 1.0).unwrap().is_infinite());
+    }
 
     #[test]
     fn bilinear_interpolates_linear_ramp_exactly() {

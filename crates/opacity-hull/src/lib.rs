@@ -16,6 +16,8 @@
 //! * [`render`]: unstructured-lumigraph weights (Eq. 4) and order-independent surfel splatting
 //!   to RGBA.
 //! * [`build`]: the `igi hull build` pipeline and the hull folder.
+//! * [`warp`]: the nearest input photo warped to a new camera through the hull (the baseline a
+//!   new view must beat).
 //! * [`middlebury`]: importer for the Middlebury multi-view sets.
 
 mod error;
@@ -29,5 +31,6 @@ pub mod raster;
 pub mod render;
 pub mod surfel;
 pub mod views;
+pub mod warp;
 
 pub use error::HullError;

@@ -49,6 +49,9 @@ impl Default for RenderOptions {
     }
 }
 
+/// The most views blended per surfel ([`RenderOptions::k`] is clamped to it).
+pub const MAX_K: usize = 16;
+
 /// Eq. 4 weights for one surfel: `(view, weight)` pairs summing to 1, empty if no view sees it.
 pub fn blend_weights(
     p: DVec3,
@@ -57,43 +60,83 @@ pub fn blend_weights(
     visible: &[bool],
     k: usize,
 ) -> Vec<(usize, f64)> {
-    let dt = (target - p).normalize_or_zero();
-    let mut cand: Vec<(f64, usize)> = (0..centres.len())
-        .filter(|&v| visible[v])
-        .map(|v| (1.0 - (centres[v] - p).normalize_or_zero().dot(dt), v))
-        .collect();
-    if cand.is_empty() {
-        return vec![];
+    let mut out = [(0, 0.0); MAX_K];
+    let n = blend_weights_into(p, target, centres, visible, k, &mut out);
+    out[..n].to_vec()
+}
+
+/// [`blend_weights`] without allocating: fills `out` and returns how many pairs it holds.
+pub fn blend_weights_into(
+    p: DVec3,
+    target: DVec3,
+    centres: &[DVec3],
+    visible: &[bool],
+    k: usize,
+    out: &mut [(usize, f64); MAX_K],
+) -> usize {
+    let k = k.clamp(1, MAX_K);
+    let n = nearest_views(p, target, centres, visible, k, out);
+    if n == 0 {
+        return 0;
     }
-    cand.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-    if cand[0].0 <= 1e-12 {
-        return vec![(cand[0].1, 1.0)];
+    if out[0].1 <= 1e-12 {
+        out[0].1 = 1.0;
+        return 1;
     }
-    cand.truncate(k.max(1));
-    let cos_t = 1.0 - cand.last().map_or(0.0, |c| c.0);
-    let mut w: Vec<(usize, f64)> = cand
-        .iter()
-        .map(|&(pen, v)| {
-            let cos_i = 1.0 - pen;
-            let r = if cos_t < 1.0 {
-                (cos_i - cos_t) / (1.0 - cos_t)
-            } else {
-                1.0
-            };
-            (v, r.max(0.0) / pen)
-        })
-        .collect();
-    let sum: f64 = w.iter().map(|x| x.1).sum();
+    let cos_t = 1.0 - out[n - 1].1;
+    let mut sum = 0.0;
+    for x in &mut out[..n] {
+        let (pen, cos_i) = (x.1, 1.0 - x.1);
+        let r = if cos_t < 1.0 {
+            (cos_i - cos_t) / (1.0 - cos_t)
+        } else {
+            1.0
+        };
+        x.1 = r.max(0.0) / pen;
+        sum += x.1;
+    }
     if !(sum > 0.0) {
         // all kept views equally far: equal weights
-        let n = w.len() as f64;
-        return w.into_iter().map(|(v, _)| (v, 1.0 / n)).collect();
+        out[..n].iter_mut().for_each(|x| x.1 = 1.0 / n as f64);
+        return n;
     }
-    for x in &mut w {
-        x.1 /= sum;
+    let mut kept = 0;
+    for i in 0..n {
+        if out[i].1 > 0.0 {
+            out[kept] = (out[i].0, out[i].1 / sum);
+            kept += 1;
+        }
     }
-    w.retain(|x| x.1 > 0.0);
-    w
+    kept
+}
+
+/// The `k` visible views of smallest penalty `1 - cos theta` as `(view, penalty)`, ascending
+/// (ties: the lower view index first); returns how many.
+fn nearest_views(
+    p: DVec3,
+    target: DVec3,
+    centres: &[DVec3],
+    visible: &[bool],
+    k: usize,
+    out: &mut [(usize, f64); MAX_K],
+) -> usize {
+    let dt = (target - p).normalize_or_zero();
+    let mut n = 0;
+    for (v, c) in centres.iter().enumerate().filter(|(v, _)| visible[*v]) {
+        let pen = 1.0 - (*c - p).normalize_or_zero().dot(dt);
+        if n == k && pen >= out[k - 1].1 {
+            continue;
+        }
+        // insert after every kept entry with a penalty <= pen
+        let mut j = n.min(k - 1);
+        while j > 0 && out[j - 1].1 > pen {
+            out[j] = out[j - 1];
+            j -= 1;
+        }
+        out[j] = (v, pen);
+        n = (n + 1).min(k);
+    }
+    n
 }
 
 /// One projected splat.
@@ -123,18 +166,20 @@ pub fn render(model: &HullModel, camera: &Camera, opts: RenderOptions) -> (HdrIm
             }
             let z = camera.pose.apply(p).z;
             let px = camera.project(p)?;
-            let w = blend_weights(
+            let mut w = [(0, 0.0); MAX_K];
+            let nw = blend_weights_into(
                 p,
                 target,
                 &model.centres,
                 &s.visible[i * nv..(i + 1) * nv],
                 opts.k,
+                &mut w,
             );
-            if w.is_empty() {
+            if nw == 0 {
                 return None;
             }
             let (mut color, mut alpha) = (Vec3::ZERO, 0.0f32);
-            for (v, wt) in w {
+            for &(v, wt) in &w[..nw] {
                 color += Vec3::from_array(model.colors[i * nv + v]) * wt as f32;
                 alpha += s.opacity[i * nv + v] * wt as f32;
             }
@@ -171,6 +216,20 @@ fn footprint(sp: &Splat, w: usize, h: usize) -> Option<(usize, usize, usize, usi
     (x0 <= x1 && y0 <= y1).then_some((x0 as usize, x1 as usize, y0 as usize, y1 as usize))
 }
 
+/// Rows per band: bands are splatted in parallel, each from the splats overlapping it in
+/// surfel order, so the image does not depend on the thread count either.
+const BAND: usize = 8;
+
+/// The splats with their pixel boxes, for the band passes.
+struct Splatter<'a> {
+    splats: &'a [Option<Splat>],
+    boxes: Vec<Option<(usize, usize, usize, usize)>>,
+    width: usize,
+    /// Depth tolerance in surfel radii, and the surfels' radii.
+    tol: f32,
+    radius: &'a [f32],
+}
+
 fn splat(
     splats: &[Option<Splat>],
     w: usize,
@@ -178,55 +237,94 @@ fn splat(
     tol: f32,
     radius: &[f32],
 ) -> (HdrImage, Vec<f32>) {
-    let mut zbuf = vec![f32::INFINITY; w * h];
-    for sp in splats.iter().flatten() {
-        let Some((x0, x1, y0, y1)) = footprint(sp, w, h) else {
-            continue;
-        };
-        for y in y0..=y1 {
-            for x in x0..=x1 {
-                let d2 = (x as f32 - sp.x).powi(2) + (y as f32 - sp.y).powi(2);
-                if d2 <= sp.r * sp.r {
-                    let z = &mut zbuf[y * w + x];
-                    *z = z.min(sp.z);
-                }
+    let boxes: Vec<_> = splats
+        .iter()
+        .map(|sp| sp.as_ref().and_then(|sp| footprint(sp, w, h)))
+        .collect();
+    let mut bands: Vec<Vec<u32>> = vec![Vec::new(); h.div_ceil(BAND)];
+    for (i, b) in boxes.iter().enumerate() {
+        if let Some((_, _, y0, y1)) = *b {
+            for band in &mut bands[y0 / BAND..=y1 / BAND] {
+                band.push(i as u32);
             }
         }
     }
-    let mut acc = vec![[0.0f32; 5]; w * h];
-    for (i, sp) in splats.iter().enumerate() {
-        let Some(sp) = sp else { continue };
-        let Some((x0, x1, y0, y1)) = footprint(sp, w, h) else {
-            continue;
-        };
-        let ztol = tol * radius[i];
-        for y in y0..=y1 {
-            for x in x0..=x1 {
-                let d2 = (x as f32 - sp.x).powi(2) + (y as f32 - sp.y).powi(2);
-                let j = y * w + x;
-                if d2 > sp.r * sp.r || sp.z > zbuf[j] + ztol {
-                    continue;
-                }
-                let k = 1.0 - d2 / (sp.r * sp.r) + 1e-3;
-                let a = &mut acc[j];
-                a[0] += k * sp.color.x;
-                a[1] += k * sp.color.y;
-                a[2] += k * sp.color.z;
-                a[3] += k * sp.alpha;
-                a[4] += k;
-            }
-        }
-    }
+    let sp = Splatter {
+        splats,
+        boxes,
+        width: w,
+        tol,
+        radius,
+    };
     let mut img = HdrImage::new(w, h);
     let mut alpha = vec![0.0f32; w * h];
-    for (j, a) in acc.iter().enumerate() {
-        if a[4] > 0.0 {
-            let al = (a[3] / a[4]).clamp(0.0, 1.0);
-            alpha[j] = al;
-            img.pixels[j] = [a[0] / a[4] * al, a[1] / a[4] * al, a[2] / a[4] * al];
+    img.pixels
+        .par_chunks_mut(BAND * w)
+        .zip(alpha.par_chunks_mut(BAND * w))
+        .zip(bands.par_iter())
+        .enumerate()
+        .for_each(|(b, ((px, al), ids))| sp.band(b * BAND, ids, px, al));
+    (img, alpha)
+}
+
+impl Splatter<'_> {
+    /// Splat rows `y_start..` (as many as `alpha` holds) from the splats `ids`: the nearest depth
+    /// per pixel, then the weighted mean of the splats within the tolerance of it.
+    fn band(&self, y_start: usize, ids: &[u32], pixels: &mut [[f32; 3]], alpha: &mut [f32]) {
+        let w = self.width;
+        let y_end = y_start + alpha.len() / w - 1;
+        let mut zbuf = vec![f32::INFINITY; alpha.len()];
+        self.cover(ids, y_start, y_end, |_, j, sp, _| {
+            zbuf[j] = zbuf[j].min(sp.z)
+        });
+        let mut acc = vec![[0.0f32; 5]; alpha.len()];
+        self.cover(ids, y_start, y_end, |i, j, sp, d2| {
+            if sp.z > zbuf[j] + self.tol * self.radius[i] {
+                return;
+            }
+            let k = 1.0 - d2 / (sp.r * sp.r) + 1e-3;
+            let a = &mut acc[j];
+            a[0] += k * sp.color.x;
+            a[1] += k * sp.color.y;
+            a[2] += k * sp.color.z;
+            a[3] += k * sp.alpha;
+            a[4] += k;
+        });
+        for (j, a) in acc.iter().enumerate() {
+            if a[4] > 0.0 {
+                let al = (a[3] / a[4]).clamp(0.0, 1.0);
+                alpha[j] = al;
+                pixels[j] = [a[0] / a[4] * al, a[1] / a[4] * al, a[2] / a[4] * al];
+            }
         }
     }
-    (img, alpha)
+
+    /// Call `f(surfel, pixel index in the band, splat, squared distance)` for every pixel of rows
+    /// `y0..=y1` inside a splat's disk, splats in the order of `ids`.
+    fn cover(
+        &self,
+        ids: &[u32],
+        y0: usize,
+        y1: usize,
+        mut f: impl FnMut(usize, usize, &Splat, f32),
+    ) {
+        let w = self.width;
+        for &i in ids {
+            let i = i as usize;
+            let (Some(sp), Some((x0, x1, sy0, sy1))) = (&self.splats[i], self.boxes[i]) else {
+                continue;
+            };
+            for y in sy0.max(y0)..=sy1.min(y1) {
+                let dy2 = (y as f32 - sp.y).powi(2);
+                for x in x0..=x1 {
+                    let d2 = (x as f32 - sp.x).powi(2) + dy2;
+                    if d2 <= sp.r * sp.r {
+                        f(i, (y - y0) * w + x, sp, d2);
+                    }
+                }
+            }
+        }
+    }
 }
 
 #[cfg(test)]
@@ -260,5 +358,36 @@ mod tests {
         assert!(blend_weights(p, t, &centres, &vis, 4)
             .iter()
             .all(|x| x.0 != 1));
+    }
+
+    /// The insertion selection keeps what sorting all candidates by (penalty, view) and taking
+    /// the first k keeps, ties included.
+    #[test]
+    fn nearest_views_match_a_full_sort() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
+        for case in 0..500 {
+            let nv = rng.gen_range(1..40);
+            // few distinct directions, so that ties occur
+            let centres: Vec<DVec3> = (0..nv)
+                .map(|_| {
+                    let a = rng.gen_range(0..6) as f64;
+                    DVec3::new(a.cos(), a.sin(), 0.3)
+                })
+                .collect();
+            let vis: Vec<bool> = (0..nv).map(|_| rng.gen_bool(0.8)).collect();
+            let target = DVec3::new(2.0, 1.0, 0.5);
+            let k = rng.gen_range(1..=MAX_K);
+            let mut out = [(0, 0.0); MAX_K];
+            let n = nearest_views(DVec3::ZERO, target, &centres, &vis, k, &mut out);
+            let dt = target.normalize();
+            let mut all: Vec<(usize, f64)> = (0..nv)
+                .filter(|&v| vis[v])
+                .map(|v| (v, 1.0 - centres[v].normalize().dot(dt)))
+                .collect();
+            all.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
+            all.truncate(k);
+            assert_eq!(&out[..n], &all[..], "case {case}");
+        }
     }
 }
