@@ -68,7 +68,7 @@ fn bench_model(c: &mut Criterion) {
                 let r = m.as_ref();
                 let mut s = 0.0;
                 for &(l, v) in &pairs {
-                    let (f, p) = r.eval_pdf(v, l);
+                    let (f, p) = r.eval_pdf(l, v);
                     s += f.x + p;
                 }
                 black_box(s)

@@ -193,8 +193,9 @@ impl<'a> LafortuneRef<'a> {
         }
     }
 
-    /// Solid-angle pdf with which [`Self::sample`] draws `wi` given `wo`.
-    pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+    /// Solid-angle pdf with which [`Self::sample`] draws `wi` given `wo` (arguments in the
+    /// order of [`Self::eval`]).
+    pub fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
         if !(wi.z > 0.0 && wo.z > 0.0) || !finite_dir(wi) || !finite_dir(wo) {
             return 0.0;
         }
@@ -213,9 +214,9 @@ impl<'a> LafortuneRef<'a> {
         }
     }
 
-    /// Value and pdf in one call.
-    pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
-        (self.eval(wi, wo), self.pdf(wo, wi))
+    /// Value and pdf in one call (arguments in the order of [`Self::eval`]).
+    pub fn eval_pdf(&self, wi: Vec3, wo: Vec3) -> (Vec3, f32) {
+        (self.eval(wi, wo), self.pdf(wi, wo))
     }
 
     /// Sample an incident direction given `wo`: `u_select` picks the strategy, `u` drives it.
@@ -246,7 +247,7 @@ impl<'a> LafortuneRef<'a> {
         if !(wi.z > 0.0) || !wi.is_finite() {
             return None;
         }
-        let pdf = self.pdf(wo, wi);
+        let pdf = self.pdf(wi, wo);
         if !(pdf > 0.0) {
             return None;
         }

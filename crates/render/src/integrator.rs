@@ -115,7 +115,7 @@ const INV_PI: f32 = std::f32::consts::FRAC_1_PI;
 
 impl<'b> Shading<'b> {
     #[inline]
-    fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+    fn eval_pdf(&self, wi: Vec3, wo: Vec3) -> (Vec3, f32) {
         if self.brdf.lobes.is_empty() {
             if wi.z > 0.0 && wo.z > 0.0 {
                 (self.brdf.rho_d * INV_PI, wi.z * INV_PI)
@@ -123,7 +123,7 @@ impl<'b> Shading<'b> {
                 (Vec3::ZERO, 0.0)
             }
         } else {
-            self.brdf.eval_pdf(wo, wi)
+            self.brdf.eval_pdf(wi, wo)
         }
     }
 
@@ -245,7 +245,7 @@ impl<'a> PathTracer<'a> {
                 let ls = sun.sample(rng.uniform2());
                 if ls.wi.dot(ng) > 0.0 {
                     let wi_l = frame.to_local(ls.wi);
-                    let (f, pdf_b) = brdf.eval_pdf(wo_l, wi_l);
+                    let (f, pdf_b) = brdf.eval_pdf(wi_l, wo_l);
                     if f != Vec3::ZERO {
                         *rays += 1;
                         if !self.scene.occluded(origin, ls.wi, f32::INFINITY) {
@@ -259,7 +259,7 @@ impl<'a> PathTracer<'a> {
                 if let Some(ls) = env.sample(rng.uniform2()) {
                     if ls.wi.dot(ng) > 0.0 && ls.radiance != Vec3::ZERO {
                         let wi_l = frame.to_local(ls.wi);
-                        let (f, pdf_b) = brdf.eval_pdf(wo_l, wi_l);
+                        let (f, pdf_b) = brdf.eval_pdf(wi_l, wo_l);
                         if f != Vec3::ZERO {
                             *rays += 1;
                             if !self.scene.occluded(origin, ls.wi, f32::INFINITY) {
