@@ -6,7 +6,7 @@
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use glam::Vec3;
-use igi_render::embree::ShadowRay;
+use igi_render::embree::RaySegment;
 use igi_render::sampling::Rng;
 use igi_render::{render_image, Lighting, Material, RenderOptions, Scene, Sun};
 use rayon::prelude::*;
@@ -40,7 +40,7 @@ fn load() -> (Scene, Lighting, igi_imaging::Camera) {
 
 /// Incoherent rays like the path tracer's: camera rays through random pixel positions and,
 /// for each, a uniformly random direction from its first hit (half closest-hit, half shadow).
-fn make_rays(scene: &Scene, cam: &igi_imaging::Camera, n: usize) -> Vec<ShadowRay> {
+fn make_rays(scene: &Scene, cam: &igi_imaging::Camera, n: usize) -> Vec<RaySegment> {
     let mut rng = Rng::new(7, 0);
     let mut rays = Vec::with_capacity(2 * n);
     for _ in 0..n {
@@ -49,7 +49,7 @@ fn make_rays(scene: &Scene, cam: &igi_imaging::Camera, n: usize) -> Vec<ShadowRa
             rng.uniform() as f64 * cam.height as f64,
         );
         let (o, d) = (o.as_vec3(), d.as_vec3());
-        rays.push(ShadowRay {
+        rays.push(RaySegment {
             origin: o,
             dir: d,
             tnear: 0.0,
@@ -63,7 +63,7 @@ fn make_rays(scene: &Scene, cam: &igi_imaging::Camera, n: usize) -> Vec<ShadowRa
             if w.dot(sp.ng) < 0.0 {
                 w = -w;
             }
-            rays.push(ShadowRay {
+            rays.push(RaySegment {
                 origin: sp.position + sp.ng * 1e-4,
                 dir: w,
                 tnear: 0.0,

@@ -287,11 +287,19 @@ pub struct Pending {
     pub done: Vec<String>,
     pub wall_s: f64,
     pub observations: u64,
-    pub res2: f64,
-    pub rel2: f64,
-    pub nres: u64,
+    /// Sum of squared residuals (photograph minus prediction, per channel).
+    #[serde(alias = "res2")]
+    pub residual_sq: f64,
+    /// Sum of squared photograph values over the same channels (for the relative RMS).
+    #[serde(alias = "rel2")]
+    pub pixel_sq: f64,
+    /// Channels summed into `residual_sq`.
+    #[serde(alias = "nres")]
+    pub residual_channels: u64,
     pub delta: f64,
-    pub nseen: u64,
+    /// Texels with at least one observation.
+    #[serde(alias = "nseen")]
+    pub seen_texels: u64,
     /// Sums over seen texels of the mean per-channel squared photograph noise of `rho_d`, and
     /// of its squared change less the change the Monte-Carlo noise of this and the previous
     /// estimate explains (may be negative; see [`IterationRecord::systematic_change_rho`]).
@@ -306,11 +314,11 @@ impl Pending {
     /// where a run stopped or which machine solved a group).
     pub fn add(&mut self, g: &Pending) {
         self.observations += g.observations;
-        self.res2 += g.res2;
-        self.rel2 += g.rel2;
-        self.nres += g.nres;
+        self.residual_sq += g.residual_sq;
+        self.pixel_sq += g.pixel_sq;
+        self.residual_channels += g.residual_channels;
         self.delta += g.delta;
-        self.nseen += g.nseen;
+        self.seen_texels += g.seen_texels;
         self.noise2 += g.noise2;
         self.systematic2 += g.systematic2;
     }
@@ -844,8 +852,8 @@ pub(crate) fn finish_iteration(
     };
     let k = acc.iteration - 1;
     let per_seen = |sum: f64| {
-        if acc.nseen > 0 {
-            (sum / acc.nseen as f64) as f32
+        if acc.seen_texels > 0 {
+            (sum / acc.seen_texels as f64) as f32
         } else {
             0.0
         }
@@ -856,14 +864,14 @@ pub(crate) fn finish_iteration(
         wall_s,
         cumulative_s,
         observations: acc.observations,
-        residual_rms: ratio_sqrt(acc.res2, acc.nres as f64),
-        residual_rel_rms: ratio_sqrt(acc.res2, acc.rel2),
+        residual_rms: ratio_sqrt(acc.residual_sq, acc.residual_channels as f64),
+        residual_rel_rms: ratio_sqrt(acc.residual_sq, acc.pixel_sq),
         delta_rho: per_seen(acc.delta),
         noise_rho: per_seen(acc.noise2).sqrt(),
         systematic_change_rho: per_seen(acc.systematic2.max(0.0)).sqrt(),
         truth_mae,
         truth_rms,
-        seen_texels: acc.nseen,
+        seen_texels: acc.seen_texels,
         stale: Vec::new(),
     };
     tracing::info!(
@@ -922,9 +930,9 @@ fn update_parts(
             mc_var: o.mc_var,
         });
         any_clean[o.part as usize][o.texel as usize] |= o.clean;
-        acc.res2 += o.residual.length_squared() as f64;
-        acc.rel2 += o.pixel.length_squared() as f64;
-        acc.nres += 3;
+        acc.residual_sq += o.residual.length_squared() as f64;
+        acc.pixel_sq += o.pixel.length_squared() as f64;
+        acc.residual_channels += 3;
     }
     acc.observations += obs.len() as u64;
     for &pi in group {
@@ -957,7 +965,7 @@ fn update_parts(
                         change_against_noise(start.rho[pi][i], start.stderr[pi][i], &c);
                     acc.noise2 += noise2;
                     acc.systematic2 += systematic2;
-                    acc.nseen += 1;
+                    acc.seen_texels += 1;
                     nseen_p += 1;
                     if start.observations[pi][i] >= 2 {
                         twice += 1;
@@ -1381,6 +1389,26 @@ pub fn truth_from_scene(parts: &[Part], truth: &Scene) -> Truth {
 mod tests {
     use super::*;
 
+    /// Results written before the field names were spelled out still resume.
+    #[test]
+    fn pending_reads_the_old_field_names() {
+        let p: Pending = serde_json::from_str(
+            r#"{"iteration":2,"done":["a"],"wall_s":1.0,"observations":7,"res2":1.5,"rel2":2.5,"nres":3,"delta":0.25,"nseen":4}"#,
+        )
+        .unwrap();
+        assert_eq!(
+            (
+                p.residual_sq,
+                p.pixel_sq,
+                p.residual_channels,
+                p.seen_texels
+            ),
+            (1.5, 2.5, 3, 4)
+        );
+        let again: Pending = serde_json::from_str(&serde_json::to_string(&p).unwrap()).unwrap();
+        assert_eq!(again.seen_texels, 4);
+    }
+
     /// `finish_iteration` on an empty result after iteration `it` with mean change `delta`,
     /// RMS change beyond the Monte-Carlo noise `delta` and RMS photograph noise `noise` per
     /// seen texel: whether the solve stops.
@@ -1393,7 +1421,7 @@ mod tests {
         let acc = Pending {
             iteration: it,
             observations: 10,
-            nseen: 10,
+            seen_texels: 10,
             delta: 10.0 * delta,
             systematic2: 10.0 * delta * delta,
             noise2: 10.0 * noise * noise,

@@ -1,7 +1,7 @@
 //! Every call into Embree lives in this module: device, triangle scene, closest-hit and
 //! occlusion queries (single rays and the `rtcIntersect1M` / `rtcOccluded1M` streams).
 //!
-//! The rest of the crate sees only [`RtScene`], [`Hit`] and [`ShadowRay`], all in f32 with glam
+//! The rest of the crate sees only [`RtScene`], [`Hit`] and [`RaySegment`], all in f32 with glam
 //! vectors, so the ray-tracing back end can be swapped without touching the integrator.
 
 use crate::RenderError;
@@ -27,7 +27,7 @@ pub struct Hit {
 
 /// A ray for the batched queries: origin, direction, and the segment [tnear, tfar].
 #[derive(Clone, Copy, Debug)]
-pub struct ShadowRay {
+pub struct RaySegment {
     pub origin: Vec3,
     pub dir: Vec3,
     pub tnear: f32,
@@ -135,7 +135,7 @@ impl RtScene {
     }
 
     /// Closest hits of a batch of rays through Embree's stream API (`rtcIntersect1M`).
-    pub fn intersect_batch(&self, rays: &[ShadowRay], coherent: bool) -> Vec<Option<Hit>> {
+    pub fn intersect_batch(&self, rays: &[RaySegment], coherent: bool) -> Vec<Option<Hit>> {
         let mut ctx = if coherent {
             IntersectContext::coherent()
         } else {
@@ -159,7 +159,7 @@ impl RtScene {
     }
 
     /// Occlusion of a batch of rays through Embree's stream API (`rtcOccluded1M`).
-    pub fn occluded_batch(&self, rays: &[ShadowRay], coherent: bool) -> Vec<bool> {
+    pub fn occluded_batch(&self, rays: &[RaySegment], coherent: bool) -> Vec<bool> {
         let mut ctx = if coherent {
             IntersectContext::coherent()
         } else {
@@ -260,11 +260,11 @@ mod tests {
         let empty_p: Vec<[f32; 3]> = vec![];
         let empty_t: Vec<[u32; 3]> = vec![];
         let s = RtScene::new(&[(&empty_p, &empty_t), (&p, &t)]).unwrap();
-        let rays: Vec<ShadowRay> = (0..64)
+        let rays: Vec<RaySegment> = (0..64)
             .map(|i| {
                 let x = (i % 8) as f32 * 0.4 - 1.5;
                 let y = (i / 8) as f32 * 0.4 - 1.513; // off the quad diagonal x = y
-                ShadowRay {
+                RaySegment {
                     origin: Vec3::new(x, y, 1.0),
                     dir: -Vec3::Z,
                     tnear: 0.0,
