@@ -15,7 +15,7 @@ use igi_imaging::color::median_in_place as median;
 use igi_imaging::HdrImage;
 use serde::Serialize;
 
-use crate::sphere::{ray_sphere, reflect, SpherePixel, SphereView};
+use crate::sphere::{ray_sphere, SpherePixel, SphereView};
 use crate::spot;
 
 /// A located highlight on one sphere.
@@ -121,7 +121,7 @@ pub fn find_highlight(
         saturated,
         peak_over_background: ratio,
         point: p.to_array(),
-        reflected: reflect(d, n).normalize().to_array(),
+        reflected: d.reflect(n).normalize().to_array(),
     })
 }
 
@@ -357,7 +357,7 @@ pub fn locate_spot(s: &SpotPixels, diameter_deg: f64) -> Option<LocatedSpot> {
         direction: s
             .view
             .hit_pixel(c.x, c.y)
-            .map(|(_, n, d)| reflect(d, n).normalize()),
+            .map(|(_, n, d)| d.reflect(n).normalize()),
         pixel: [c.x, c.y],
         fit_sigma: fit.map(|f| f.sigma),
     })
@@ -398,7 +398,7 @@ pub fn disk_spot_shape(view: &SphereView, at: DVec2, diameter_deg: f64) -> Vec<D
     let Some((_, n, d)) = view.hit_pixel(at.x, at.y) else {
         return vec![DVec2::ZERO];
     };
-    let s0 = reflect(d, n).normalize();
+    let s0 = d.reflect(n).normalize();
     let Some(c0) = view.reflection_point(s0) else {
         return vec![DVec2::ZERO];
     };

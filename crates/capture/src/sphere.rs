@@ -285,11 +285,6 @@ impl<'a> SphereView<'a> {
     }
 }
 
-/// Mirror reflection of `d` about unit normal `n`: `d - 2 (d . n) n`.
-pub fn reflect(d: DVec3, n: DVec3) -> DVec3 {
-    d - 2.0 * d.dot(n) * n
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -341,7 +336,7 @@ mod tests {
                 if n.dot(-d) < 0.2 {
                     continue;
                 }
-                let w = reflect(d, n);
+                let w = d.reflect(n);
                 let rp = view.reflection_point(w).expect("visible direction");
                 assert!(
                     rp.pixel.distance(DVec2::new(x as f64, y as f64)) < 1e-6,

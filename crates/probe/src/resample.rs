@@ -193,7 +193,6 @@ mod tests {
     use super::*;
     use crate::board::{BoardSphere, SphereKind};
     use glam::DMat3;
-    use igi_capture::sphere::reflect;
     use igi_imaging::{latlong, Camera, WorldToCamera};
 
     /// Solid angle of the spherical triangle (a, b, c) (Van Oosterom and Strackee).
@@ -233,7 +232,7 @@ mod tests {
         // the pixel's footprint in directions: its four corners traced and reflected
         let dir = |u: f64, v: f64| {
             let (_, n, d) = view.hit_pixel(u, v).unwrap();
-            reflect(d, n).normalize()
+            d.reflect(n).normalize()
         };
         let (x, y) = (px as f64, py as f64);
         let c = [

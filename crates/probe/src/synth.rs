@@ -6,7 +6,7 @@ use crate::board::Board;
 use crate::board::SphereKind;
 use crate::envmap::{latlong_lookup, Integrator};
 use glam::DVec3;
-use igi_capture::sphere::{reflect, SphereView};
+use igi_capture::sphere::SphereView;
 use igi_capture::spot::pixel_response;
 use igi_imaging::{Camera, HdrImage, WorldToCamera};
 use rayon::prelude::*;
@@ -200,7 +200,7 @@ fn add_sun_spot(img: &mut HdrImage, scene: &Scene, vi: usize, sun: SynthSun, sig
                 continue;
             }
             let n = (p - view.center) / view.radius;
-            if reflect(d, n).dot(sun.direction) < cos_a {
+            if d.reflect(n).dot(sun.direction) < cos_a {
                 continue;
             }
             let r = scene.reflectance(view.kind, n.dot(-d).max(0.0));
@@ -329,7 +329,7 @@ impl<'a> Scene<'a> {
             return self.diffuse(n);
         }
         let r = self.reflectance(view.kind, n.dot(-d).max(0.0));
-        let w = reflect(d, n);
+        let w = d.reflect(n);
         // what the sphere reflects: the panel behind it where the reflected ray meets it (the
         // rims, at grazing incidence), else the sky
         let l = match self

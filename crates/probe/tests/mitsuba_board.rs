@@ -179,7 +179,7 @@ fn cloudy_brackets() {
 /// conductor's complex index.
 #[test]
 fn mirror_index_fitted_from_the_rendered_sphere() {
-    use igi_capture::sphere::{reflect, SphereView};
+    use igi_capture::sphere::SphereView;
     let d = dir("cloudy");
     let cam = Camera::load(&d.join("camera.json")).unwrap();
     let board = Board::load(&d.join("board.json")).unwrap();
@@ -197,7 +197,7 @@ fn mirror_index_fitted_from_the_rendered_sphere() {
             if cos_i < 0.35 {
                 continue;
             }
-            let l = latlong_lookup(&sky, reflect(dv, n).as_vec3()).unwrap();
+            let l = latlong_lookup(&sky, dv.reflect(n).as_vec3()).unwrap();
             let p = img.get(x, y);
             for c in 0..3 {
                 samples[c].push((cos_i.acos(), (p[c] / l[c]) as f64));
