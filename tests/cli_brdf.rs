@@ -383,8 +383,7 @@ fn cluster_two_materials_from_csv() {
     }
 }
 
-#[path = "../crates/capture/tests/measure_support/synth.rs"]
-mod measure_synth;
+use igi_capture::synth as measure_synth;
 
 /// `igi brdf measure` on synthetic photographs of the sample frame (known pose, light and
 /// BRDFs), then `igi brdf fit` on its CSV; and a corner outside the photo is a clear error.

@@ -1,8 +1,7 @@
 //! `igi_capture::sample_frame` against synthetic photographs of the sample frame with known pose,
-//! light and BRDFs (the renderer is in measure_support/synth.rs).
+//! light and BRDFs (the renderer is `igi_capture::synth`).
 
-#[path = "measure_support/synth.rs"]
-mod synth;
+use igi_capture::synth;
 
 use std::path::Path;
 
