@@ -47,6 +47,12 @@ pub enum HullError {
     /// A hull folder that is missing a file or has a bad manifest.
     #[error("{}: {msg}", path.display())]
     HullFolder { path: PathBuf, msg: String },
+    /// A lighting file that cannot be read or used (names the file, and the map).
+    #[error(transparent)]
+    Lighting(#[from] igi_formats::lighting::LightingLoadError),
+    /// `--lighting` on a hull folder built without light images.
+    #[error("{}: this hull has no surface reflectance field (its rig's views list no `lights` images), so it cannot be relit; rebuild it from a rig with one-light-at-a-time images", dir.display())]
+    NoReflectance { dir: PathBuf },
     /// A bad argument (resolution, image size...).
     #[error("invalid argument: {0}")]
     InvalidArgument(String),
