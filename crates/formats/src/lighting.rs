@@ -332,4 +332,55 @@ mod tests {
             "{e}"
         );
     }
+
+    #[test]
+    fn the_light_of_a_file_is_read_scaled_and_checked() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::create_dir(dir.path().join("maps")).unwrap();
+        let mut map = HdrImage::new(4, 2);
+        map.set(3, 1, [1.0, 2.0, 4.0]);
+        igi_imaging::write_exr(&dir.path().join("maps/sky.exr"), &map).unwrap();
+        let p = dir.path().join("l.toml");
+        std::fs::write(
+            &p,
+            "[environment]\nmap = \"maps/sky.exr\"\nscale = 0.5\n[sun]\ndirection = [0, 0, 2]\nradiance = [10, 20, 30]\n",
+        )
+        .unwrap();
+        let r = LightingRadiance::load(&p).unwrap();
+        let (w, h, texels) = r.environment.unwrap();
+        assert_eq!((w, h), (4, 2));
+        assert_eq!(texels[7], [0.5, 1.0, 2.0]);
+        let sun = r.sun.unwrap();
+        assert_eq!(sun.unit_direction(), [0.0, 0.0, 1.0]);
+        let half = 0.53f64.to_radians() / 2.0;
+        let omega = 2.0 * std::f64::consts::PI * (1.0 - half.cos());
+        assert!(
+            (sun.solid_angle - omega).abs() < 1e-6 * omega,
+            "the diameter passes through f32"
+        );
+        // errors name the file and what is wrong
+        std::fs::write(&p, "[sun]\ndirection = [0, 0, 0]\nradiance = [1, 1, 1]\n").unwrap();
+        let e = LightingRadiance::load(&p).unwrap_err().to_string();
+        assert!(e.contains("l.toml: [sun]: sun direction"), "{e}");
+        std::fs::write(&p, "[environment]\nmap = \"maps/sky.exr\"\nscale = -1\n").unwrap();
+        let e = LightingRadiance::load(&p).unwrap_err().to_string();
+        assert!(
+            e.contains("l.toml") && e.contains("sky.exr") && e.contains("scale -1"),
+            "{e}"
+        );
+        std::fs::write(&p, "").unwrap();
+        let e = LightingRadiance::load(&p).unwrap_err().to_string();
+        assert!(e.contains("names neither"), "{e}");
+        assert_eq!(
+            scaled_radiance(&map, 2.0).unwrap()[7],
+            [2.0, 4.0, 8.0],
+            "scale multiplies"
+        );
+        let mut bad = map.clone();
+        bad.set(1, 0, [f32::INFINITY, 0.0, 0.0]);
+        assert!(matches!(
+            scaled_radiance(&bad, 1.0),
+            Err(LightingValueError::MapPixel { row: 0, col: 1, .. })
+        ));
+    }
 }
