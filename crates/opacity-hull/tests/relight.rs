@@ -221,6 +221,9 @@ struct Measured {
     diffuse: f64,
     diffuse_splat: f64,
     glossy: f64,
+    /// Seconds of the build's reflectance stage, and of loading the relit model.
+    field_s: f64,
+    relit_load_s: f64,
 }
 
 /// Build from the rig, relight view 0 under `lighting` and compare with `truth`.
@@ -246,7 +249,9 @@ fn measure(
     // pixels whose whole footprint is the diffuse sphere: a boundary pixel of the truth also
     // averages in the sky behind the object, which the relit object (premultiplied) lacks
     let diffuse = mask_of(ids, |o| o == 0).erode(1.0);
+    let clock = std::time::Instant::now();
     let model = load_relit_model(out, &light).unwrap();
+    let relit_load_s = clock.elapsed().as_secs_f64();
     let (splat, _alpha) = render(&model, &camera(0), SplatOptions::default());
     Measured {
         ratio: r.ratio,
@@ -256,6 +261,8 @@ fn measure(
         diffuse: relative_rms(&relit, truth, &diffuse),
         diffuse_splat: relative_rms(&splat, truth, &diffuse),
         glossy: relative_rms(&relit, truth, &mask_of(ids, |o| o == 1).erode(1.0)),
+        field_s: r.seconds,
+        relit_load_s,
     }
 }
 
@@ -282,8 +289,16 @@ fn run(layout: &dyn Fn(usize) -> Vec<[f64; 3]>, name: &str) -> Measured {
     let rig = write_rig(&t.path().join("rig"), &scene, layout);
     let m = measure(&rig, &t.path().join("hull"), &lighting, &truth, &ids0);
     eprintln!(
-        "{name}: {:.2}x fewer numbers than the light images ({:.2}x than their kept blocks), PCA RMS {:.4} of the mean, {:.2} components a block; diffuse relative RMS {:.4} (splatted {:.4}), glossy {:.4}",
-        m.ratio, m.ratio_kept, m.relative_rms, m.mean_components, m.diffuse, m.diffuse_splat, m.glossy
+        "{name}: {:.2}x fewer numbers than the light images ({:.2}x than their kept blocks), PCA RMS {:.4} of the mean, {:.2} components a block; diffuse relative RMS {:.4} (splatted {:.4}), glossy {:.4}; PCA {:.2} s, relit model {:.3} s",
+        m.ratio,
+        m.ratio_kept,
+        m.relative_rms,
+        m.mean_components,
+        m.diffuse,
+        m.diffuse_splat,
+        m.glossy,
+        m.field_s,
+        m.relit_load_s
     );
     m
 }
