@@ -361,6 +361,23 @@ fn relighting_refuses_a_hull_without_a_reflectance_field_and_a_bad_lighting_file
     );
 }
 
+#[test]
+fn a_light_image_of_the_wrong_size() {
+    let t = tempfile::tempdir().unwrap();
+    let rig = make_lit_rig(&t.path().join("cap"), 3);
+    let small = HdrImage::new(10, 10);
+    igi_imaging::write_exr(&t.path().join("cap/l0_3.exr"), &small).unwrap();
+    build_fails(
+        &rig,
+        t.path(),
+        "l0_3.exr is 10x10 but the view's camera is 256x192",
+        "\"v0\"",
+    );
+    // a missing one is found before any work
+    std::fs::remove_file(t.path().join("cap/l2_5.exr")).unwrap();
+    build_fails(&rig, t.path(), "l2_5.exr", "\"v2\"");
+}
+
 fn par_set(dir: &Path, line2: Option<&str>) -> PathBuf {
     let src = igi_testkit::shared_data("multiview/dinoSparseRing");
     std::fs::create_dir_all(dir).unwrap();

@@ -125,6 +125,7 @@ pub fn build(
         clock = Instant::now();
     };
     progress(Stage::Load);
+    crate::reflectance::check_light_files(rig)?;
     let views = load_views(rig, opts.matte)?;
     lap(&mut t.load_s);
     progress(Stage::Carve);

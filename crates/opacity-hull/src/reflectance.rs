@@ -224,6 +224,21 @@ pub fn build_fields(
     Ok(Some((fields, report)))
 }
 
+/// Before any work: every light image of the rig exists (their sizes are checked when the
+/// reflectance stage reads them; nothing is written before then).
+pub fn check_light_files(rig: &Rig) -> Result<(), HullError> {
+    for rv in &rig.views {
+        for l in &rv.lights {
+            if let Err(e) = std::fs::metadata(&l.image) {
+                return Err(rig
+                    .view_message(rv, format!("light image {}: {e}", l.image.display()))
+                    .into());
+            }
+        }
+    }
+    Ok(())
+}
+
 /// The view's light images, each checked against the camera's size.
 fn read_light_images(rig: &Rig, rv: &RigView, view: &View) -> Result<Vec<HdrImage>, HullError> {
     let (w, h) = (view.camera.width as usize, view.camera.height as usize);
@@ -292,9 +307,11 @@ fn block_matrix(images: &[HdrImage], bx: u32, by: u32) -> DMatrix<f64> {
 }
 
 fn svd_error(view: &str, bx: u32, by: u32) -> HullError {
-    HullError::InvalidArgument(format!(
-        "view {view:?}: the SVD of block ({bx}, {by}) did not converge"
-    ))
+    HullError::Svd {
+        view: view.to_string(),
+        bx,
+        by,
+    }
 }
 
 /// Pass 1: blocks, squared singular values, sums.
