@@ -339,6 +339,19 @@ fn relighting_refuses_a_hull_without_a_reflectance_field_and_a_bad_lighting_file
         s(&img),
     ]);
     assert_failed(&o, "bad.toml", "missing.exr", t.path(), &keep);
+    // a good lighting file and no hull folder: the missing manifest is named
+    let o = igi().run(&[
+        "hull",
+        "render",
+        s(&nowhere),
+        "--camera",
+        s(&cam),
+        "--lighting",
+        s(&sky),
+        "-o",
+        s(&img),
+    ]);
+    assert_failed(&o, "hull.json", "No such file", t.path(), &keep);
     // and one that lights nothing
     std::fs::write(&bad, "# nothing\n").unwrap();
     let o = igi().run(&[

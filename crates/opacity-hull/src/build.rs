@@ -403,9 +403,12 @@ pub fn load_model(dir: &Path) -> Result<HullModel, HullError> {
 /// ([`light_weights`]); views without a field are not blended. A hull without a reflectance
 /// field is refused ([`HullError::NoReflectance`], naming the folder).
 pub fn load_relit_model(dir: &Path, light: &LightingRadiance) -> Result<HullModel, HullError> {
-    let fields = read_fields(dir)?.ok_or_else(|| HullError::NoReflectance {
-        dir: dir.to_path_buf(),
-    })?;
+    let Some(fields) = read_fields(dir)? else {
+        open_hull(dir)?; // a folder that is no hull folder at all says so first
+        return Err(HullError::NoReflectance {
+            dir: dir.to_path_buf(),
+        });
+    };
     let hull = open_hull(dir)?;
     let field_of = |id: &str| -> Option<&ViewField> { fields.iter().find(|f| f.id == id) };
     hull.model(|h, v| {
