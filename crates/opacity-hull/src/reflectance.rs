@@ -660,7 +660,7 @@ fn decode(bytes: &[u8], v: &ViewHeader) -> Result<ViewField, String> {
     for _ in 0..nb {
         let (bx, by, rank) = (r.u32()?, r.u32()?, r.u32()?);
         let (bw, bh) = block_dims(w, h, bx, by);
-        if bw == 0 || bh == 0 || rank as usize > l.max(1) * BLOCK * BLOCK * 3 {
+        if bw == 0 || bh == 0 || rank as usize > l.min(bw * bh * 3) {
             return Err(format!(
                 "block ({bx}, {by}) of rank {rank} does not fit {w}x{h}"
             ));
