@@ -1,16 +1,20 @@
 //! `igi hull`: opacity hulls from multi-view captures (Matusik et al. 2002).
 use crate::report::{print_json, Ctx};
-use igi_opacity_hull::build::{build, load_model, BuildOptions, Stage};
+use igi_formats::lighting::LightingRadiance;
+use igi_opacity_hull::build::{build, load_model, load_relit_model, BuildOptions, Stage};
 use igi_opacity_hull::render::{render, RenderOptions};
 use std::path::PathBuf;
 
 #[derive(clap::Subcommand, Debug)]
 pub enum HullCmd {
     /// Build a hull folder from a rig.toml: mattes, visual hull (hull.ply), surfels
-    /// (surfels.ply), volume against views (volume.png) and report.json (per-view IoU, timings).
+    /// (surfels.ply), volume against views (volume.png) and report.json (per-view IoU, timings);
+    /// with light images in the rig, the surface reflectance field (reflectance/: PCA per 8x8
+    /// block to 1% RMS).
     Build(BuildArgs),
     /// Render a hull folder from a camera to an RGBA EXR (colour premultiplied by alpha) with
-    /// unstructured-lumigraph blending of the input photos.
+    /// unstructured-lumigraph blending of the input photos, or with --lighting of the input
+    /// views relit from their reflectance fields (Eq. 3).
     Render(RenderArgs),
     /// Write the six multi-background matting patterns (Eq. 1: lambda 27, 40, 53; n = +1, -1).
     Backdrops(BackdropArgs),
@@ -40,7 +44,11 @@ pub struct RenderArgs {
     /// Camera file (FORMATS.md JSON).
     #[arg(long)]
     pub camera: PathBuf,
-    /// Lighting file: relighting from one-light-at-a-time captures (not implemented yet).
+    /// Lighting file (FORMATS.md: lat-long map times scale, sun): relight the object. Each
+    /// input view is rebuilt from its reflectance field (the one-light-at-a-time images),
+    /// each light weighted by the environment integrated over its Voronoi cell of directions
+    /// (the sun to its nearest light), then blended as without it. Needs a hull built from a
+    /// rig with light images.
     #[arg(long)]
     pub lighting: Option<PathBuf>,
     /// Output RGBA EXR.
@@ -120,7 +128,8 @@ fn run_build(a: BuildArgs, ctx: &Ctx) -> anyhow::Result<()> {
         resolution: a.resolution,
         ..Default::default()
     };
-    let pb = ctx.progress(6, "hull");
+    let lit = rig.views.iter().any(|v| !v.lights.is_empty());
+    let pb = ctx.progress(6 + lit as u64, "hull");
     let mut progress = |s: Stage| {
         pb.set_message(format!("{s:?}").to_lowercase());
         pb.inc(1);
@@ -140,19 +149,30 @@ fn run_build(a: BuildArgs, ctx: &Ctx) -> anyhow::Result<()> {
             "IoU min {:.4} mean {:.4}; {} surfels, {} triangles, volume {:.3e} m^3",
             r.iou_min, r.iou_mean, r.surfels, r.triangles, r.volume_m3
         );
+        if let Some(f) = &r.reflectance {
+            println!(
+                "reflectance field: {} light images, {} of {} blocks kept, {:.2} components a block (max {}); {} numbers stored, {:.1}x fewer than the light images ({:.1}x fewer than their kept blocks); RMS {:.3} % of the mean radiance",
+                f.light_images,
+                f.blocks_kept,
+                f.blocks_total,
+                f.mean_components,
+                f.max_components,
+                f.floats_stored,
+                f.ratio,
+                f.ratio_kept,
+                100.0 * f.relative_rms
+            );
+        }
     }
     Ok(())
 }
 
 fn run_render(a: RenderArgs) -> anyhow::Result<()> {
-    if let Some(l) = &a.lighting {
-        anyhow::bail!(
-            "{}: relighting from one-light-at-a-time captures is not implemented yet",
-            l.display()
-        );
-    }
     let camera = igi_imaging::Camera::load(&a.camera)?;
-    let model = load_model(&a.hull)?;
+    let model = match &a.lighting {
+        Some(l) => load_relit_model(&a.hull, &LightingRadiance::load(l)?)?,
+        None => load_model(&a.hull)?,
+    };
     let t = std::time::Instant::now();
     let opts = RenderOptions {
         k: a.k as usize,

@@ -4,20 +4,24 @@
 //! `hull.ply` (the visual hull's surface), `surfels.ply` (surfels with per-view visibility and
 //! opacity), `mattes/ID.exr` (each view's alpha, the matte validity as the `valid` channel),
 //! `volume.png` (volume against views over random orders, Fig. 12) and `report.json` (per-view
-//! reprojection IoU, timings). It is assembled in a temporary sibling folder and renamed into
+//! reprojection IoU, timings). A rig whose views have light images adds `reflectance/` (the
+//! surface reflectance field, [`crate::reflectance`]) and its numbers to the report. It is assembled in a temporary sibling folder and renamed into
 //! place, so a failure leaves nothing.
 
 use crate::hull::{
     carve_hull, plot_volume_curves, reproject, volume_curves, Reprojection, VisualHull,
 };
+use crate::lightweights::light_weights;
+use crate::reflectance::{build_fields, read_fields, FieldOptions, ReflectanceReport, ViewField};
 use crate::render::HullModel;
 use crate::surfel::{make_surfels, Surfels};
 use crate::views::{load_views, MatteOptions, View};
 use crate::HullError;
 use glam::DVec3;
+use igi_formats::lighting::LightingRadiance;
 use igi_geometry::TriMesh;
-use igi_imaging::read_image;
 use igi_imaging::rig::Rig;
+use igi_imaging::{read_image, Camera, HdrImage};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -31,6 +35,8 @@ pub struct BuildOptions {
     pub volume_orders: usize,
     pub volume_resolution: usize,
     pub seed: u64,
+    /// The reflectance field's PCA (used when the rig has light images).
+    pub field: FieldOptions,
 }
 
 impl Default for BuildOptions {
@@ -41,6 +47,7 @@ impl Default for BuildOptions {
             volume_orders: 30,
             volume_resolution: 64,
             seed: 1,
+            field: FieldOptions::default(),
         }
     }
 }
@@ -79,6 +86,9 @@ pub struct BuildReport {
     pub triangles: usize,
     pub surfels: usize,
     pub timings: Timings,
+    /// The surface reflectance field (only when the rig has light images).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reflectance: Option<ReflectanceReport>,
 }
 
 /// Stages reported to a progress callback.
@@ -88,6 +98,8 @@ pub enum Stage {
     Carve,
     Surfels,
     Reproject,
+    /// Only when the rig has light images.
+    Reflectance,
     Volume,
     Write,
 }
@@ -113,6 +125,7 @@ pub fn build(
         clock = Instant::now();
     };
     progress(Stage::Load);
+    crate::reflectance::check_light_files(rig)?;
     let views = load_views(rig, opts.matte)?;
     lap(&mut t.load_s);
     progress(Stage::Carve);
@@ -130,6 +143,11 @@ pub fn build(
     progress(Stage::Reproject);
     let reps: Vec<Reprojection> = views.iter().map(|v| reproject(&hull.mesh, v)).collect();
     lap(&mut t.reproject_s);
+    if rig.views.iter().any(|v| !v.lights.is_empty()) {
+        progress(Stage::Reflectance);
+    }
+    let field = build_fields(rig, &views, &surfels, opts.field)?;
+    lap(&mut 0.0); // timed in its own report
     progress(Stage::Volume);
     let curves = volume_curves(
         &refs,
@@ -143,9 +161,13 @@ pub fn build(
     progress(Stage::Write);
     let manifest = hull_manifest(rig, &views, &opts, surfels.len())?;
     let mut report = build_report(reps, &opts, &hull, surfels.len(), t);
+    report.reflectance = field.as_ref().map(|f| f.1.clone());
     let write_start = Instant::now();
     write_folder(out, |dir| {
         write_products(dir, &manifest, &hull.mesh, &surfels, &views, &curves)?;
+        if let Some((fields, r)) = &field {
+            crate::reflectance::write_fields(dir, fields, r)?;
+        }
         report.timings.write_s = write_start.elapsed().as_secs_f64();
         igi_imaging::io::write_text_atomic(
             &dir.join("report.json"),
@@ -191,6 +213,7 @@ fn build_report(
         triangles: hull.mesh.triangle_count(),
         surfels,
         timings,
+        reflectance: None,
     }
 }
 
@@ -269,9 +292,15 @@ pub(crate) fn write_folder(
     result
 }
 
-/// Load a hull folder for rendering: the surfels, and each view's camera centre and photo
-/// samples at the surfels it sees (read again from the rig the manifest names).
-pub fn load_model(dir: &Path) -> Result<HullModel, HullError> {
+/// A hull folder opened for rendering: its manifest, surfels and rig.
+struct OpenHull {
+    manifest_path: PathBuf,
+    manifest: Manifest,
+    surfels: Surfels,
+    rig: Rig,
+}
+
+fn open_hull(dir: &Path) -> Result<OpenHull, HullError> {
     let mpath = dir.join("hull.json");
     let text = std::fs::read_to_string(&mpath).map_err(|e| HullError::io(&mpath, e))?;
     let manifest: Manifest = serde_json::from_str(&text).map_err(|e| HullError::HullFolder {
@@ -285,36 +314,119 @@ pub fn load_model(dir: &Path) -> Result<HullModel, HullError> {
         msg: format!("lacks the normals, radius, visibility or opacity properties of {nv} views"),
     })?;
     let rig = Rig::load(&manifest.rig)?;
-    let mut centres = Vec::with_capacity(nv);
-    let mut colors = vec![[0.0f32; 3]; surfels.len() * nv];
-    for (v, id) in manifest.views.iter().enumerate() {
-        let rv = rig.view(id).ok_or_else(|| HullError::HullFolder {
-            path: mpath.clone(),
-            msg: format!("view {id:?} is not in {}", rig.path.display()),
+    Ok(OpenHull {
+        manifest_path: mpath,
+        manifest,
+        surfels,
+        rig,
+    })
+}
+
+impl OpenHull {
+    /// The rig's view `id` and its camera.
+    fn view(&self, id: &str) -> Result<(&igi_imaging::rig::RigView, Camera), HullError> {
+        let rv = self.rig.view(id).ok_or_else(|| HullError::HullFolder {
+            path: self.manifest_path.clone(),
+            msg: format!("view {id:?} is not in {}", self.rig.path.display()),
         })?;
-        let cam = rig.load_camera(rv)?;
-        let photo = read_image(&rv.photo).map_err(|e| rig.view_error(rv, e))?;
-        centres.push(cam.center_world());
-        for s in 0..surfels.len() {
-            if !surfels.visible[s * nv + v] {
-                continue;
-            }
-            let p = DVec3::from_array(surfels.positions[s].map(f64::from));
-            if let Some(px) = cam.project(p) {
-                colors[s * nv + v] =
-                    photo.bilinear(px.x as f32, px.y as f32).unwrap_or_else(|| {
-                        let (x, y) = (
-                            px.x.round().clamp(0.0, photo.width as f64 - 1.0),
-                            px.y.round().clamp(0.0, photo.height as f64 - 1.0),
-                        );
-                        photo.get(x as usize, y as usize)
-                    });
+        Ok((rv, self.rig.load_camera(rv)?))
+    }
+
+    /// The model with `colors[s * views + v]` sampled from `image(v)` (views whose image is
+    /// `None` are taken out of every surfel's visibility).
+    fn model(
+        mut self,
+        mut image: impl FnMut(&Self, usize) -> Result<(Camera, Option<HdrImage>), HullError>,
+    ) -> Result<HullModel, HullError> {
+        let nv = self.manifest.views.len();
+        let mut centres = Vec::with_capacity(nv);
+        let mut colors = vec![[0.0f32; 3]; self.surfels.len() * nv];
+        for v in 0..nv {
+            let (cam, img) = image(&self, v)?;
+            centres.push(cam.center_world());
+            match img {
+                Some(img) => sample_view(&self.surfels, v, &cam, &img, &mut colors),
+                None => {
+                    for s in 0..self.surfels.len() {
+                        self.surfels.visible[s * nv + v] = false;
+                    }
+                }
             }
         }
+        Ok(HullModel {
+            surfels: self.surfels,
+            centres,
+            colors,
+        })
     }
-    Ok(HullModel {
-        surfels,
-        centres,
-        colors,
+}
+
+/// `colors[s * views + v]` for the surfels visible in view `v`: `image` (bilinear; the nearest
+/// pixel at the border) at their projection.
+fn sample_view(
+    surfels: &Surfels,
+    v: usize,
+    cam: &Camera,
+    image: &HdrImage,
+    colors: &mut [[f32; 3]],
+) {
+    let nv = surfels.views;
+    for s in 0..surfels.len() {
+        if !surfels.visible[s * nv + v] {
+            continue;
+        }
+        let p = DVec3::from_array(surfels.positions[s].map(f64::from));
+        if let Some(px) = cam.project(p) {
+            colors[s * nv + v] = image.bilinear(px.x as f32, px.y as f32).unwrap_or_else(|| {
+                let (x, y) = (
+                    px.x.round().clamp(0.0, image.width as f64 - 1.0),
+                    px.y.round().clamp(0.0, image.height as f64 - 1.0),
+                );
+                image.get(x as usize, y as usize)
+            });
+        }
+    }
+}
+
+/// Load a hull folder for rendering: the surfels, and each view's camera centre and photo
+/// samples at the surfels it sees (read again from the rig the manifest names).
+pub fn load_model(dir: &Path) -> Result<HullModel, HullError> {
+    open_hull(dir)?.model(|h, v| {
+        let (rv, cam) = h.view(&h.manifest.views[v])?;
+        let photo = read_image(&rv.photo).map_err(|e| h.rig.view_error(rv, e))?;
+        Ok((cam, Some(photo)))
+    })
+}
+
+/// Load a hull folder for rendering under new light (Eq. 3): each view's image is its
+/// reflectance field relit with the light weights of `light` over its light directions
+/// ([`light_weights`]); views without a field are not blended. A hull without a reflectance
+/// field is refused ([`HullError::NoReflectance`], naming the folder).
+pub fn load_relit_model(dir: &Path, light: &LightingRadiance) -> Result<HullModel, HullError> {
+    let Some(fields) = read_fields(dir)? else {
+        open_hull(dir)?; // a folder that is no hull folder at all says so first
+        return Err(HullError::NoReflectance {
+            dir: dir.to_path_buf(),
+        });
+    };
+    let hull = open_hull(dir)?;
+    let field_of = |id: &str| -> Option<&ViewField> { fields.iter().find(|f| f.id == id) };
+    hull.model(|h, v| {
+        let id = &h.manifest.views[v];
+        let (_, cam) = h.view(id)?;
+        let Some(f) = field_of(id) else {
+            return Ok((cam, None));
+        };
+        if (f.width, f.height) != (cam.width as usize, cam.height as usize) {
+            return Err(HullError::HullFolder {
+                path: crate::reflectance::folder(dir),
+                msg: format!(
+                    "view {id:?} is {}x{} but its camera is {}x{}",
+                    f.width, f.height, cam.width, cam.height
+                ),
+            });
+        }
+        let weights = light_weights(light, &f.directions)?;
+        Ok((cam, Some(f.relight(&weights))))
     })
 }

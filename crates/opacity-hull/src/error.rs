@@ -47,6 +47,15 @@ pub enum HullError {
     /// A hull folder that is missing a file or has a bad manifest.
     #[error("{}: {msg}", path.display())]
     HullFolder { path: PathBuf, msg: String },
+    /// A lighting file that cannot be read or used (names the file, and the map).
+    #[error(transparent)]
+    Lighting(#[from] igi_formats::lighting::LightingLoadError),
+    /// `--lighting` on a hull folder built without light images.
+    #[error("{}: this hull has no surface reflectance field (its rig's views list no `lights` images), so it cannot be relit; rebuild it from a rig with one-light-at-a-time images", dir.display())]
+    NoReflectance { dir: PathBuf },
+    /// The SVD of a block of light images did not converge.
+    #[error("view {view:?}: the SVD of the light images' block ({bx}, {by}) did not converge")]
+    Svd { view: String, bx: u32, by: u32 },
     /// A bad argument (resolution, image size...).
     #[error("invalid argument: {0}")]
     InvalidArgument(String),

@@ -15,7 +15,13 @@
 //! * [`surfel`]: surfels by resampling the hull, with per-view visibility and opacity.
 //! * [`render`]: unstructured-lumigraph weights (Eq. 4) and order-independent surfel splatting
 //!   to RGBA.
-//! * [`build`]: the `igi hull build` pipeline and the hull folder.
+//! * [`reflectance`]: the surface reflectance field: light images kept in the 8 x 8 blocks the
+//!   surfels project into, PCA per block across the lights under a global RMS budget, Eq. 3
+//!   relighting on the coefficients, the `reflectance/` store.
+//! * [`lightweights`]: each light's weight under a lighting file, the environment integrated
+//!   over its Voronoi cell of directions plus the sun.
+//! * [`build`]: the `igi hull build` pipeline, the hull folder, loading it for rendering (with
+//!   the photos, or relit).
 //! * [`warp`]: the nearest input photo warped to a new camera through the hull (the baseline a
 //!   new view must beat).
 //! * [`middlebury`]: importer for the Middlebury multi-view sets.
@@ -26,8 +32,10 @@ pub mod backdrop;
 pub mod build;
 pub mod carve;
 pub mod hull;
+pub mod lightweights;
 pub mod middlebury;
 pub mod raster;
+pub mod reflectance;
 pub mod render;
 pub mod surfel;
 pub mod views;

@@ -49,6 +49,12 @@ pub enum RenderError {
     /// A scene or lighting file could not be read or parsed (`igi-formats`).
     #[error(transparent)]
     Format(#[from] igi_formats::FormatsError),
+    /// A lighting file's light that cannot be read or used (`igi_formats::lighting`).
+    #[error(transparent)]
+    Lighting(#[from] igi_formats::lighting::LightingLoadError),
+    /// A lighting value that cannot light anything (a map pixel, the sun's values).
+    #[error(transparent)]
+    LightingValue(#[from] igi_formats::lighting::LightingValueError),
     /// Something a scene or lighting file names or holds cannot be used: `context` says which
     /// part (`environment map sky.exr`, `object 2: mesh wall.ply`, `[sun]`), `source` why.
     #[error("{path}: {context}: {source}")]

@@ -13,10 +13,13 @@
 
 use crate::sampling::{sample_cone_in, Distribution2D};
 use crate::RenderError;
-use glam::{DVec3, Vec2, Vec3};
+use glam::{Vec2, Vec3};
 use igi_brdf::luminance;
 use igi_brdf::Frame;
-use igi_formats::{LightingFile, TomlFile};
+use igi_formats::lighting::{
+    check_sun, disk_one_minus_cos, scaled_radiance, LightingFile, LightingRadiance,
+};
+use igi_formats::TomlFile;
 use igi_imaging::{latlong, HdrImage};
 use std::f32::consts::PI;
 use std::path::Path;
@@ -45,30 +48,16 @@ pub struct Environment {
 }
 
 impl Environment {
-    /// From a lat-long image and a scale. Non-finite or negative texels are an error.
+    /// From a lat-long image and a scale. Non-finite or negative texels are an error
+    /// (`igi_formats::lighting::scaled_radiance`).
     pub fn from_image(img: &HdrImage, scale: f32) -> Result<Self, RenderError> {
-        if img.width == 0 || img.height == 0 {
-            return Err(RenderError::Invalid("environment map is empty".into()));
-        }
-        if !(scale.is_finite() && scale >= 0.0) {
-            return Err(RenderError::Invalid(format!(
-                "environment scale {scale} is not a finite non-negative number"
-            )));
-        }
-        let mut texels = Vec::with_capacity(img.pixels.len());
-        for (i, p) in img.pixels.iter().enumerate() {
-            let v = Vec3::from_array(*p) * scale;
-            if !v.is_finite() || v.min_element() < 0.0 || v.max_element() > MAX_RADIANCE {
-                return Err(RenderError::Invalid(format!(
-                    "environment map pixel (row {}, column {}) is {:?} (times scale {scale}): radiance must be finite, >= 0 and at most {MAX_RADIANCE:e}",
-                    i / img.width,
-                    i % img.width,
-                    p
-                )));
-            }
-            texels.push(v);
-        }
-        Ok(Self::from_texels(img.width, img.height, texels))
+        let texels = scaled_radiance(img, scale)?;
+        Ok(Self::from_scaled(img.width, img.height, &texels))
+    }
+
+    /// From radiance already scaled and checked (`igi_formats::lighting::LightingRadiance`).
+    pub fn from_scaled(w: usize, h: usize, texels: &[[f32; 3]]) -> Self {
+        Self::from_texels(w, h, texels.iter().map(|&t| Vec3::from_array(t)).collect())
     }
 
     /// A constant environment (every direction has radiance `l`).
@@ -237,27 +226,14 @@ impl Sun {
         radiance: Vec3,
         angular_diameter_deg: f32,
     ) -> Result<Self, RenderError> {
+        check_sun(
+            direction.to_array(),
+            radiance.to_array(),
+            angular_diameter_deg,
+        )?;
         let len = direction.length();
-        if !(len.is_finite() && len > 0.0) {
-            return Err(RenderError::Invalid(format!(
-                "sun direction {direction:?} is not a non-zero finite vector"
-            )));
-        }
-        if !radiance.is_finite()
-            || radiance.min_element() < 0.0
-            || radiance.max_element() > MAX_RADIANCE
-        {
-            return Err(RenderError::Invalid(format!(
-                "sun radiance {radiance:?} must be finite, >= 0 and at most {MAX_RADIANCE:e} (larger values overflow f32 in the estimates)"
-            )));
-        }
-        if !(angular_diameter_deg > 0.0 && angular_diameter_deg < 180.0) {
-            return Err(RenderError::Invalid(format!(
-                "sun angular_diameter_deg = {angular_diameter_deg}: must be in (0, 180)"
-            )));
-        }
         let half = (angular_diameter_deg as f64).to_radians() / 2.0;
-        let omc = 2.0 * (half / 2.0).sin().powi(2); // 1 - cos(half), without cancellation
+        let omc = disk_one_minus_cos(angular_diameter_deg as f64); // 1 - cos(half)
         Ok(Sun {
             direction: direction / len,
             radiance,
@@ -310,9 +286,7 @@ impl Sun {
     }
 }
 
-/// The largest radiance a light may have: products of radiance, solid angles, albedos and
-/// path weights stay inside `f32` (3.4e38) with a wide margin.
-pub const MAX_RADIANCE: f32 = 1e15;
+pub use igi_formats::lighting::MAX_RADIANCE;
 
 /// Environment plus sun. Either may be absent (black sky / hidden sun).
 #[derive(Clone, Debug, Default)]
@@ -331,39 +305,21 @@ impl Lighting {
     /// Builds the lighting a parsed lighting file describes: reads its map (relative to the
     /// folder of `path`, the file it came from, which errors name) and checks every value.
     pub fn from_file(f: &LightingFile, path: &Path) -> Result<Self, RenderError> {
-        let dir = path.parent().unwrap_or(Path::new("."));
-        let environment = match &f.environment {
-            None => None,
-            Some(e) => {
-                let map_path = dir.join(&e.map);
-                let in_map = |source: Box<dyn std::error::Error + Send + Sync>| {
-                    RenderError::in_file(
-                        path,
-                        format!("environment map {}", map_path.display()),
-                        source,
-                    )
-                };
-                let img = igi_imaging::read_image(&map_path).map_err(|e| in_map(e.into()))?;
-                Some(Environment::from_image(&img, e.scale as f32).map_err(|e| in_map(e.into()))?)
-            }
-        };
-        let sun = match &f.sun {
+        let r = LightingRadiance::from_file(f, path)?;
+        let environment = r
+            .environment
+            .map(|(w, h, texels)| Environment::from_scaled(w, h, &texels));
+        let sun = match r.sun {
             None => None,
             Some(s) => Some(
                 Sun::new(
-                    DVec3::from_array(s.direction).as_vec3(),
-                    DVec3::from_array(s.radiance).as_vec3(),
-                    s.angular_diameter_deg as f32,
+                    Vec3::from_array(s.direction),
+                    Vec3::from_array(s.radiance),
+                    s.angular_diameter_deg,
                 )
                 .map_err(|e| RenderError::in_file(path, "[sun]", e.into()))?,
             ),
         };
-        if environment.is_none() && sun.is_none() {
-            return Err(RenderError::File {
-                path: path.to_path_buf(),
-                msg: "names neither [environment] nor [sun]: nothing would light the scene".into(),
-            });
-        }
         Ok(Lighting { environment, sun })
     }
 
