@@ -2,7 +2,7 @@
 use crate::report::{Bar, Ctx};
 use anyhow::{bail, Context};
 use igi_reflect::atlas_size::AutoAtlas;
-use igi_reflect::parts::{build_parts, build_parts_auto};
+use igi_reflect::parts::survey_parts;
 use igi_reflect::solver::truth_from_scene;
 use igi_reflect::{ExportFormat, Schedule, SolveOptions, SolveSession, Survey};
 use std::path::PathBuf;
@@ -163,26 +163,8 @@ pub fn run_solve(a: SolveArgs, ctx: &Ctx) -> anyhow::Result<()> {
         tracing::info!("resuming after iteration {}", r.report.iterations.len());
         r
     } else {
-        let parts = match &store {
-            Some(store) => igi_reflect::parts::prepared_parts(store)?,
-            None => {
-                let mut meshes = Vec::new();
-                for m in &survey.meshes {
-                    let name = m
-                        .file_stem()
-                        .map(|s| s.to_string_lossy().into_owned())
-                        .unwrap_or_default();
-                    meshes.push((name, igi_geometry::read_mesh(m)?));
-                }
-                match opts.atlas_auto {
-                    None => build_parts(meshes, atlas)?,
-                    Some(auto) => {
-                        let cameras: Vec<_> = photos.iter().map(|p| p.camera.clone()).collect();
-                        build_parts_auto(meshes, &cameras, auto.max)?
-                    }
-                }
-            }
-        };
+        let cameras: Vec<_> = photos.iter().map(|p| p.camera.clone()).collect();
+        let parts = survey_parts(&survey, store.as_ref(), &opts, &cameras)?;
         session.start(parts, photo_ids, &opts)?
     };
     let truth = truth_scene.map(|scene| truth_from_scene(&state.parts, &scene));

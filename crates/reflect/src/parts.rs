@@ -138,6 +138,36 @@ pub fn prepared_parts(store: &SiteStore) -> Result<Vec<Part>, ReflectError> {
         .collect()
 }
 
+/// The parts a fresh solve of `survey` starts from: the prepared site's (`store`, opened from
+/// the survey's `prepared` key) when there is one, else the survey's meshes, each named by its
+/// file stem, packed at `opts.atlas_resolution` or, with `opts.atlas_auto`, cut and sized from
+/// the photographs' `cameras` ([`build_parts_auto`]).
+pub fn survey_parts(
+    survey: &crate::Survey,
+    store: Option<&SiteStore>,
+    opts: &crate::SolveOptions,
+    cameras: &[Camera],
+) -> Result<Vec<Part>, ReflectError> {
+    if let Some(store) = store {
+        return prepared_parts(store);
+    }
+    let meshes = survey
+        .meshes
+        .iter()
+        .map(|m| {
+            let name = m
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            Ok((name, igi_geometry::read_mesh(m)?))
+        })
+        .collect::<Result<Vec<_>, ReflectError>>()?;
+    match opts.atlas_auto {
+        None => build_parts(meshes, opts.atlas_resolution),
+        Some(auto) => build_parts_auto(meshes, cameras, auto.max),
+    }
+}
+
 /// Builds an atlas of `resolution` texels per side for each named mesh (normals are computed
 /// when a mesh has none). Names must be unique; they name the output files.
 pub fn build_parts(
