@@ -7,11 +7,10 @@ use std::path::PathBuf;
 use anyhow::{bail, Context};
 use glam::Vec3;
 use igi_brdf::{
-    cluster, fit_material, plot::plot_fits, plot::write_text_atomic, read_lumitexels, read_pairs,
+    cluster, fit_materials, plot::plot_fits, plot::write_text_atomic, read_lumitexels, read_pairs,
     read_samples, samples::group_by_material, samples::pairs_to_csv, Basis, ClusterOptions,
     FitOptions, MaterialsFile,
 };
-use rayon::prelude::*;
 
 use crate::report::Ctx;
 
@@ -166,18 +165,12 @@ fn fit_options(a: &FitArgs) -> anyhow::Result<FitOptions> {
 fn fit(a: FitArgs, ctx: &Ctx) -> anyhow::Result<()> {
     let opts = fit_options(&a)?;
     let samples = read_samples(&a.samples)?;
-    let groups = group_by_material(&samples);
-    let pb = ctx.progress(groups.len() as u64, "fitting");
-    let reports: Vec<_> = groups
-        .par_iter()
-        .map(|(name, s)| {
-            let r = fit_material(name, s, &opts)
-                .with_context(|| format!("fitting {}", a.samples.display()));
-            pb.inc(1);
-            r
-        })
-        .collect::<Result<_, _>>()?;
+    let n = group_by_material(&samples).len();
+    let pb = ctx.progress(n as u64, "fitting");
+    let fits = fit_materials(&samples, &opts, &|| pb.inc(1))
+        .with_context(|| format!("fitting {}", a.samples.display()))?;
     pb.finish_and_clear();
+    let reports: Vec<_> = fits.iter().map(|(_, r)| r.clone()).collect();
     let file = MaterialsFile::from_reports(&reports);
     write_text_atomic(&a.output, &file.to_json())?;
     println!(
@@ -198,10 +191,9 @@ fn fit(a: FitArgs, ctx: &Ctx) -> anyhow::Result<()> {
         }
     }
     if let Some(p) = &a.plot {
-        let m: Vec<_> = reports
+        let m: Vec<_> = fits
             .iter()
-            .zip(&groups)
-            .map(|(r, (name, s))| (name.clone(), s.clone(), r.brdf.clone()))
+            .map(|(s, r)| (r.material.clone(), s.clone(), r.brdf.clone()))
             .collect();
         plot_fits(p, &m)?;
     }

@@ -961,6 +961,24 @@ fn prepared_data(samples: &[BrdfSample], opts: &FitOptions) -> Data {
     }
 }
 
+/// Fit every material in `samples` ([`fit_material`] with `opts`), in parallel; materials in
+/// the order they first appear, each with its samples. `done` is called as each finishes.
+pub fn fit_materials(
+    samples: &[BrdfSample],
+    opts: &FitOptions,
+    done: &(dyn Fn() + Sync),
+) -> Result<Vec<(Vec<BrdfSample>, FitReport)>, BrdfError> {
+    use rayon::prelude::*;
+    crate::samples::group_by_material(samples)
+        .into_par_iter()
+        .map(|(name, s)| {
+            let r = fit_material(&name, &s, opts);
+            done();
+            r.map(|r| (s, r))
+        })
+        .collect()
+}
+
 /// Fit Lambertian + retroreflective + specular lobes to one material's samples.
 pub fn fit_material(
     material: &str,

@@ -26,7 +26,7 @@ pub use cluster::{
     basis_weights, cluster, read_lumitexels, ClusterOptions, ClusterResult, Lumitexel,
 };
 pub use error::BrdfError;
-pub use fit::{fit_material, FitOptions, FitReport, LobeStderr, Stderr};
+pub use fit::{fit_material, fit_materials, FitOptions, FitReport, LobeStderr, Stderr};
 pub use frame::Frame;
 pub use lafortune::{luminance, BsdfSample, Lafortune, LafortuneRef, Lobe};
 pub use materials::{MaterialEntry, MaterialsFile};

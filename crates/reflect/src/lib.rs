@@ -72,6 +72,13 @@ pub enum ReflectError {
     Render(#[from] igi_render::RenderError),
     #[error(transparent)]
     Brdf(#[from] igi_brdf::BrdfError),
+    /// A BRDF file (samples, materials) that reads but cannot be used.
+    #[error("{path}: {source}")]
+    BrdfFile {
+        path: PathBuf,
+        #[source]
+        source: igi_brdf::BrdfError,
+    },
     #[error(transparent)]
     Probe(#[from] igi_probe::ProbeError),
 }

@@ -57,12 +57,15 @@ impl Survey {
             return Ok(None);
         };
         let samples = igi_brdf::read_samples(p)?;
-        let mut mats = Vec::new();
-        for (name, s) in igi_brdf::samples::group_by_material(&samples) {
-            let fit = igi_brdf::fit_material(&name, &s, &igi_brdf::FitOptions::default())
-                .map_err(|e| ReflectError::file(p, format!("fitting material {name}: {e}")))?;
-            mats.push((name, fit.brdf));
-        }
+        let fits = igi_brdf::fit_materials(&samples, &igi_brdf::FitOptions::default(), &|| {})
+            .map_err(|source| ReflectError::BrdfFile {
+                path: p.clone(),
+                source,
+            })?;
+        let mats = fits
+            .into_iter()
+            .map(|(_, r)| (r.material, r.brdf))
+            .collect();
         Ok(Some(igi_brdf::Basis::new(mats)?))
     }
 
