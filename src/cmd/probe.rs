@@ -1,17 +1,15 @@
 //! `igi probe`: lighting (sky map + sun) from a photograph of the three-sphere board.
 use crate::report::Ctx;
 use anyhow::{bail, Context};
-use igi_formats::lighting::{EnvironmentSection, LightingFile, SunSection};
-use igi_formats::TomlFile;
-use igi_imaging::hdr::{merge_linear, parse_time, LinearParams};
-use igi_imaging::io::{srgb_to_linear, write_text_atomic};
-use igi_imaging::{read_image, write_exr, write_png_tonemapped, Camera, HdrImage, ImagingError};
-use igi_probe::envmap::hemisphere_pixel;
+use igi_imaging::hdr::parse_time;
+use igi_imaging::io::write_text_atomic;
+use igi_imaging::{Camera, HdrImage};
 use igi_probe::fiducial::place_board;
 use igi_probe::fresnel::{fit_mirror_ior, ReflectanceSamples};
-use igi_probe::pipeline::luminance;
-use igi_probe::{process, BoardSpec, ProbeOptions, ProbeResult};
-use std::path::{Path, PathBuf};
+use igi_probe::input::{load_photograph, PhotoSource};
+use igi_probe::outputs::write_outputs;
+use igi_probe::{process, BoardSpec, ProbeOptions};
+use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
 #[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
@@ -125,142 +123,20 @@ fn calibrate_mirror(a: CalibrateMirrorArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn is_ldr(p: &Path) -> bool {
-    matches!(
-        p.extension()
-            .and_then(|e| e.to_str())
-            .map(str::to_ascii_lowercase)
-            .as_deref(),
-        Some("png" | "jpg" | "jpeg" | "tif" | "tiff")
-    )
-}
-
-fn decode_srgb(img: &mut HdrImage) {
-    for p in img.pixels.iter_mut() {
-        *p = p.map(srgb_to_linear);
-    }
-}
-
-fn sibling(out: &Path, suffix: &str) -> PathBuf {
-    let stem = out
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "lighting".into());
-    out.with_file_name(format!("{stem}_{suffix}"))
-}
-
-/// Exposure that puts the median valid luminance at 0.18.
-fn auto_exposure(img: &HdrImage) -> f32 {
-    let mut l: Vec<f64> = img
-        .pixels
-        .iter()
-        .zip(&img.valid)
-        .filter(|(_, v)| **v)
-        .map(|(p, _)| luminance(*p))
-        .collect();
-    if l.is_empty() {
-        return 1.0;
-    }
-    l.sort_by(|a, b| a.total_cmp(b));
-    let m = l[l.len() / 2];
-    if m > 0.0 && m.is_finite() {
-        (0.18 / m) as f32
-    } else {
-        1.0
-    }
-}
-
-/// Tone-mapped picture; invalid (masked) pixels shown in dark magenta.
-fn picture(
-    path: &Path,
-    img: &HdrImage,
-    exposure: f32,
-    mark: Option<(f32, f32)>,
-) -> Result<(), ImagingError> {
-    let mut p = img.clone();
-    for (px, v) in p.pixels.iter_mut().zip(p.valid.iter_mut()) {
-        if !*v {
-            *px = [0.25 / exposure, 0.0, 0.25 / exposure];
-            *v = true;
-        }
-    }
-    if let Some((cx, cy)) = mark {
-        // a red ring of radius 9 px around the sun
-        for y in 0..p.height {
-            for x in 0..p.width {
-                let r = ((x as f32 - cx).powi(2) + (y as f32 - cy).powi(2)).sqrt();
-                if (7.5..=9.5).contains(&r) {
-                    p.set(x, y, [4.0 / exposure, 0.0, 0.0]);
-                }
-            }
-        }
-    }
-    write_png_tonemapped(path, &p, exposure)
-}
-
 fn load_input(a: &ProbeArgs) -> anyhow::Result<(HdrImage, Option<f32>)> {
-    if !a.brackets.is_empty() {
-        if a.brackets.len() != a.times.len() {
-            bail!(
-                "{} brackets but {} exposure times (give one --times value per bracket)",
-                a.brackets.len(),
-                a.times.len()
-            );
-        }
-        let times: Vec<f64> = a
-            .times
-            .iter()
-            .map(|t| parse_time(t))
-            .collect::<Result<_, _>>()?;
-        let mut imgs = Vec::new();
-        for p in &a.brackets {
-            let mut im = read_image(p)?;
-            if a.srgb {
-                decode_srgb(&mut im);
-            }
-            imgs.push(im);
-        }
-        let sat = a
-            .saturation
-            .unwrap_or(if a.srgb { srgb_to_linear(0.98) } else { 0.98 });
-        let (merged, stats) = merge_linear(
-            &imgs,
-            &times,
-            LinearParams {
-                noise_floor: 0.002,
-                saturation: sat,
-            },
-        )
-        .with_context(|| {
-            format!(
-                "merging brackets {}",
-                a.brackets
-                    .iter()
-                    .map(|p| p.display().to_string())
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            )
-        })?;
-        tracing::info!(
-            "merged {} brackets, {:.2}% of pixels valid",
-            stats.exposures,
-            100.0 * stats.valid_fraction
-        );
-        Ok((merged, None))
+    let source = if a.brackets.is_empty() {
+        PhotoSource::Image(a.image.clone().expect("clap requires IMAGE or --brackets"))
     } else {
-        let path = a.image.as_ref().expect("clap requires IMAGE or --brackets");
-        let mut im = read_image(path)?;
-        let ldr = is_ldr(path);
-        if a.srgb {
-            decode_srgb(&mut im);
+        PhotoSource::Brackets {
+            images: a.brackets.clone(),
+            times: a
+                .times
+                .iter()
+                .map(|t| parse_time(t))
+                .collect::<Result<_, _>>()?,
         }
-        let sat = a.saturation.or(if ldr {
-            Some(if a.srgb { srgb_to_linear(0.98) } else { 0.98 })
-        } else {
-            None
-        });
-        Ok((im, sat))
-    }
+    };
+    Ok(load_photograph(&source, a.srgb, a.saturation)?)
 }
 
 pub fn run(a: ProbeArgs, ctx: &Ctx) -> anyhow::Result<()> {
@@ -375,90 +251,5 @@ pub fn run(a: ProbeArgs, ctx: &Ctx) -> anyhow::Result<()> {
     for w in &d.warnings {
         eprintln!("warning: {w}");
     }
-    Ok(())
-}
-
-fn write_outputs(out: &Path, r: &ProbeResult) -> anyhow::Result<()> {
-    let name = |p: &Path| p.file_name().unwrap().to_string_lossy().into_owned();
-    let sky_path = sibling(out, "sky.exr");
-    write_exr(&sky_path, &r.sky)?;
-    let measured_path = sibling(out, "sky_measured.exr");
-    write_exr(&measured_path, &r.sky_measured)?;
-    write_exr(&sibling(out, "mirror_hemi.exr"), &r.mirror_hemi)?;
-    if let Some(b) = &r.black_hemi {
-        write_exr(&sibling(out, "black_hemi.exr"), b)?;
-    }
-    // pictures
-    let exp = auto_exposure(&r.sky_measured);
-    let sun = r.diagnostics.sun.as_ref();
-    let sun_v = sun.map(|s| glam::DVec3::from_array(s.direction).as_vec3());
-    let hemi_mark = sun_v.and_then(|s| hemisphere_pixel(s, r.mirror_hemi.width));
-    picture(
-        &sibling(out, "mirror_hemi.png"),
-        &r.mirror_hemi,
-        exp,
-        hemi_mark,
-    )?;
-    if let Some(b) = &r.black_hemi {
-        picture(
-            &sibling(out, "black_hemi.png"),
-            b,
-            auto_exposure(b),
-            hemi_mark,
-        )?;
-    }
-    if let Some(d) = &r.diffuse_hemi {
-        picture(&sibling(out, "diffuse_hemi.png"), d, auto_exposure(d), None)?;
-    }
-    let ll_mark = sun_v.map(|s| {
-        igi_imaging::latlong::direction_to_pixel(s, r.sky_measured.width, r.sky_measured.height)
-    });
-    picture(&sibling(out, "sky.png"), &r.sky_measured, exp, ll_mark)?;
-    if let Some((dm, model)) = &r.diffuse_compare {
-        // D | D' + a D* | 10 x |difference|
-        let (w, h) = (dm.width, dm.height);
-        let mut side = HdrImage::new(3 * w, h);
-        for y in 0..h {
-            for x in 0..w {
-                let k = y * w + x;
-                let ok = dm.valid[k];
-                let diff = [0, 1, 2].map(|c| 10.0 * (dm.pixels[k][c] - model.pixels[k][c]).abs());
-                for (i, v) in [dm.pixels[k], model.pixels[k], diff]
-                    .into_iter()
-                    .enumerate()
-                {
-                    let j = y * 3 * w + i * w + x;
-                    side.pixels[j] = v;
-                    side.valid[j] = ok;
-                }
-            }
-        }
-        picture(
-            &sibling(out, "diffuse_check.png"),
-            &side,
-            auto_exposure(dm),
-            None,
-        )?;
-    }
-    // diagnostics
-    let diag_path = sibling(out, "diagnostics.json");
-    let json = serde_json::to_string_pretty(&r.diagnostics)?;
-    write_text_atomic(&diag_path, &json)?;
-    // lighting file
-    let lighting = LightingFile {
-        environment: Some(EnvironmentSection {
-            map: name(&sky_path).into(),
-            scale: 1.0,
-        }),
-        sun: sun.and_then(|s| {
-            s.radiance.map(|rad| SunSection {
-                direction: s.direction,
-                radiance: rad.map(|v| v as f64),
-                angular_diameter_deg: s.angular_diameter_deg,
-            })
-        }),
-    };
-    let header = format!("written by igi probe; diagnostics in {}", name(&diag_path));
-    lighting.write(out, &[&header])?;
     Ok(())
 }

@@ -23,4 +23,17 @@ pub enum ProbeError {
     InvalidInput(String),
     #[error("fit failed: {0}")]
     Fit(String),
+    /// A lighting file could not be written.
+    #[error(transparent)]
+    Format(#[from] igi_formats::FormatsError),
+    /// Exposure brackets without one exposure time each.
+    #[error("{brackets} brackets but {times} exposure times (give one time per bracket)")]
+    BracketTimes { brackets: usize, times: usize },
+    /// Brackets that could not be merged (`files` names them).
+    #[error("merging brackets {files}: {source}")]
+    Merge {
+        files: String,
+        #[source]
+        source: ImagingError,
+    },
 }

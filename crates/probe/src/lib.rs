@@ -17,6 +17,8 @@
 //!   complex index from reflectance-versus-angle samples.
 //! * [`envmap`]: lat-long lookups, the 512x512 upper-hemisphere layout, hole filling, and the
 //!   diffuse convolution of a map by direct integration (no spherical-harmonic truncation).
+//! * [`input`]: the board photograph: one HDR or 8-bit image, or merged exposure brackets.
+//! * [`outputs`]: the lighting file and what is written beside it (maps, pictures, diagnostics).
 //! * [`outline`]: sphere centres refined from their silhouettes in the photograph (sub-pixel
 //!   edges along the predicted outline's normals, the tangent cone fitted across the line of
 //!   sight), for spheres placed by an imprecise pose.
@@ -39,7 +41,9 @@ pub mod envmap;
 mod error;
 pub mod fiducial;
 pub mod fresnel;
+pub mod input;
 pub mod outline;
+pub mod outputs;
 pub mod pipeline;
 pub mod resample;
 pub mod synth;
