@@ -134,160 +134,69 @@ impl BoardSpec {
                     s.kind.name()
                 )));
             }
-            let finite = |c: &Option<[f64; 3]>| c.is_none_or(|c| c.iter().all(|v| v.is_finite()));
-            if !finite(&s.center)
-                || !finite(&s.center_board)
-                || !s.radius.is_finite()
-                || s.radius <= 0.0
-            {
-                return Err(bad(format!(
-                    "sphere {i} ({}): centre must be finite and radius positive",
-                    s.kind.name()
-                )));
-            }
-            if s.center.is_none() && s.center_board.is_none() {
-                return Err(bad(format!(
-                    "sphere {i} ({}): no 'center' (camera frame) or 'center_board' (board frame)",
-                    s.kind.name()
-                )));
-            }
-            if let Some(c) = s.center {
-                if c[2] <= s.radius {
-                    return Err(bad(format!(
-                        "sphere {i} ({}): centre z = {} is not in front of the camera by more than the radius {} \
-                         (centres are in the camera frame, z forward)",
-                        s.kind.name(),
-                        c[2],
-                        s.radius
-                    )));
-                }
-            }
-            // two real spheres cannot interpenetrate: overlapping ones are a typo in the file
-            for (k, o) in j.spheres[..i].iter().enumerate() {
-                for (a, b) in [(s.center, o.center), (s.center_board, o.center_board)] {
-                    if let (Some(a), Some(b)) = (a, b) {
-                        let d = DVec3::from_array(a).distance(DVec3::from_array(b));
-                        if d < s.radius + o.radius {
-                            return Err(bad(format!(
-                                "spheres {k} ({}) and {i} ({}) overlap: centres {d:.4} apart, radii {} + {}",
-                                o.kind.name(),
-                                s.kind.name(),
-                                o.radius,
-                                s.radius
-                            )));
-                        }
-                    }
-                }
-            }
-            spec.spheres[slot] = Some(SphereSpec {
-                center_cam: s.center.map(DVec3::from_array),
-                center_board: s.center_board.map(DVec3::from_array),
-                radius: s.radius,
-            });
-            match s.kind {
-                SphereKind::Mirror => {
-                    if let Some(v) = &s.ior {
-                        let arr: [[f64; 2]; 3] = serde_json::from_value(v.clone()).map_err(|_| {
-                            bad(format!("sphere {i} (mirror): ior must be [[n_r, k_r], [n_g, k_g], [n_b, k_b]]"))
-                        })?;
-                        if arr.iter().flatten().any(|x| !(x.is_finite() && *x >= 0.0))
-                            || arr.iter().any(|p| p[0] <= 0.0)
-                        {
-                            return Err(bad(format!(
-                                "sphere {i} (mirror): ior entries must be finite, n > 0, k >= 0"
-                            )));
-                        }
-                        spec.mirror_ior = [
-                            (arr[0][0], arr[0][1]),
-                            (arr[1][0], arr[1][1]),
-                            (arr[2][0], arr[2][1]),
-                        ];
-                    }
-                }
-                SphereKind::Black => {
-                    if let Some(v) = &s.ior {
-                        let n = v.as_f64().ok_or_else(|| {
-                            bad(format!("sphere {i} (black): ior must be a number"))
-                        })?;
-                        if !(n.is_finite() && n > 1.0) {
-                            return Err(bad(format!("sphere {i} (black): ior {n} must be > 1")));
-                        }
-                        spec.black_ior = n;
-                    }
-                }
-                SphereKind::Diffuse => {
-                    if let Some(r) = s.reflectance {
-                        if r.iter().any(|x| !(x.is_finite() && *x > 0.0 && *x <= 1.0)) {
-                            return Err(bad(format!(
-                                "sphere {i} (diffuse): reflectance {r:?} must be in (0, 1]"
-                            )));
-                        }
-                        spec.diffuse_reflectance = r;
-                    }
-                }
-            }
-            if s.kind != SphereKind::Diffuse && s.reflectance.is_some() {
-                return Err(bad(format!(
-                    "sphere {i} ({}): 'reflectance' applies to the diffuse sphere only",
-                    s.kind.name()
-                )));
-            }
-            if s.kind == SphereKind::Diffuse && s.ior.is_some() {
-                return Err(bad(format!(
-                    "sphere {i} (diffuse): 'ior' applies to mirror and black spheres only"
-                )));
-            }
+            spec.spheres[slot] = Some(check_sphere(i, s, &j.spheres[..i]).map_err(bad)?);
+            spec.calibrate(i, s).map_err(bad)?;
         }
         if spec.spheres[SphereKind::Mirror as usize].is_none() {
             return Err(bad("no 'mirror' sphere (the sky map comes from it)".into()));
         }
-        if let Some(f) = j.fiducials {
-            let dictionary = ArucoDict::from_name(&f.dictionary).ok_or_else(|| {
-                bad(format!(
-                    "fiducials: unknown ArUco dictionary '{}' (DICT_4X4_50, DICT_5X5_100, DICT_6X6_250 or DICT_ARUCO_ORIGINAL)",
-                    f.dictionary
-                ))
-            })?;
-            if f.markers.len() < 2 {
-                return Err(bad(format!(
-                    "fiducials: {} marker(s); the pose needs at least 2 (8 corners)",
-                    f.markers.len()
-                )));
-            }
-            let mut markers = Vec::new();
-            for (i, m) in f.markers.iter().enumerate() {
-                if f.markers[..i].iter().any(|o| o.id == m.id) {
-                    return Err(bad(format!("fiducials: marker id {} appears twice", m.id)));
-                }
-                let c = m.corners.map(DVec3::from_array);
-                let degenerate = (0..4).any(|k| c[k].distance(c[(k + 1) % 4]) <= 0.0);
-                if m.corners.iter().flatten().any(|v| !v.is_finite()) || degenerate {
-                    return Err(bad(format!(
-                        "fiducials: marker {} corners must be finite and distinct",
-                        m.id
-                    )));
-                }
-                markers.push(FiducialMarker {
-                    id: m.id,
-                    corners: c,
-                });
-            }
-            spec.fiducials = Some(Fiducials {
-                dictionary,
-                markers,
-            });
-        } else if let Some((i, _)) = spec
-            .spheres
-            .iter()
-            .enumerate()
-            .find(|(_, s)| s.is_some_and(|s| s.center_cam.is_none()))
-        {
-            return Err(bad(format!(
-                "the {} sphere has only 'center_board': board-frame centres need 'fiducials' to place them",
-                SphereKind::from_index(i).name()
-            )));
+        match j.fiducials {
+            Some(f) => spec.fiducials = Some(fiducials_from(&f).map_err(bad)?),
+            None => spec.check_placeable().map_err(bad)?,
         }
         Ok(spec)
+    }
+
+    /// Sphere `i`'s calibration keys (`ior`, `reflectance`), each for its kind only.
+    fn calibrate(&mut self, i: usize, s: &SphereJson) -> Result<(), String> {
+        let name = s.kind.name();
+        match (s.kind, &s.ior, s.reflectance) {
+            (SphereKind::Diffuse, Some(_), _) => {
+                return Err(format!(
+                    "sphere {i} (diffuse): 'ior' applies to mirror and black spheres only"
+                ))
+            }
+            (SphereKind::Mirror | SphereKind::Black, _, Some(_)) => {
+                return Err(format!(
+                    "sphere {i} ({name}): 'reflectance' applies to the diffuse sphere only"
+                ))
+            }
+            (SphereKind::Mirror, Some(v), _) => self.mirror_ior = mirror_ior(i, v)?,
+            (SphereKind::Black, Some(v), _) => {
+                let n = v
+                    .as_f64()
+                    .ok_or_else(|| format!("sphere {i} (black): ior must be a number"))?;
+                if !(n.is_finite() && n > 1.0) {
+                    return Err(format!("sphere {i} (black): ior {n} must be > 1"));
+                }
+                self.black_ior = n;
+            }
+            (SphereKind::Diffuse, None, Some(r)) => {
+                if r.iter().any(|x| !(x.is_finite() && *x > 0.0 && *x <= 1.0)) {
+                    return Err(format!(
+                        "sphere {i} (diffuse): reflectance {r:?} must be in (0, 1]"
+                    ));
+                }
+                self.diffuse_reflectance = r;
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+
+    /// Without fiducials every sphere needs its camera-frame centre.
+    fn check_placeable(&self) -> Result<(), String> {
+        match self
+            .spheres
+            .iter()
+            .position(|s| s.is_some_and(|s| s.center_cam.is_none()))
+        {
+            Some(i) => Err(format!(
+                "the {} sphere has only 'center_board': board-frame centres need 'fiducials' to place them",
+                SphereKind::from_index(i).name()
+            )),
+            None => Ok(()),
+        }
     }
 
     fn board_with(
@@ -407,6 +316,104 @@ impl Board {
     }
 }
 
+/// Sphere `i` of the file checked against itself and the spheres before it (`earlier`).
+fn check_sphere(i: usize, s: &SphereJson, earlier: &[SphereJson]) -> Result<SphereSpec, String> {
+    let name = s.kind.name();
+    let finite = |c: &Option<[f64; 3]>| c.is_none_or(|c| c.iter().all(|v| v.is_finite()));
+    if !finite(&s.center) || !finite(&s.center_board) || !s.radius.is_finite() || s.radius <= 0.0 {
+        return Err(format!(
+            "sphere {i} ({name}): centre must be finite and radius positive"
+        ));
+    }
+    if s.center.is_none() && s.center_board.is_none() {
+        return Err(format!(
+            "sphere {i} ({name}): no 'center' (camera frame) or 'center_board' (board frame)"
+        ));
+    }
+    if let Some(c) = s.center.filter(|c| c[2] <= s.radius) {
+        return Err(format!(
+            "sphere {i} ({name}): centre z = {} is not in front of the camera by more than the radius {} \
+             (centres are in the camera frame, z forward)",
+            c[2], s.radius
+        ));
+    }
+    // two real spheres cannot interpenetrate: overlapping ones are a typo in the file
+    for (k, o) in earlier.iter().enumerate() {
+        for (a, b) in [(s.center, o.center), (s.center_board, o.center_board)] {
+            if let (Some(a), Some(b)) = (a, b) {
+                let d = DVec3::from_array(a).distance(DVec3::from_array(b));
+                if d < s.radius + o.radius {
+                    return Err(format!(
+                        "spheres {k} ({}) and {i} ({name}) overlap: centres {d:.4} apart, radii {} + {}",
+                        o.kind.name(),
+                        o.radius,
+                        s.radius
+                    ));
+                }
+            }
+        }
+    }
+    Ok(SphereSpec {
+        center_cam: s.center.map(DVec3::from_array),
+        center_board: s.center_board.map(DVec3::from_array),
+        radius: s.radius,
+    })
+}
+
+/// The mirror's complex index per channel from `[[n_r, k_r], [n_g, k_g], [n_b, k_b]]`.
+fn mirror_ior(i: usize, v: &serde_json::Value) -> Result<[(f64, f64); 3], String> {
+    let arr: [[f64; 2]; 3] = serde_json::from_value(v.clone()).map_err(|_| {
+        format!("sphere {i} (mirror): ior must be [[n_r, k_r], [n_g, k_g], [n_b, k_b]]")
+    })?;
+    if arr.iter().flatten().any(|x| !(x.is_finite() && *x >= 0.0))
+        || arr.iter().any(|p| p[0] <= 0.0)
+    {
+        return Err(format!(
+            "sphere {i} (mirror): ior entries must be finite, n > 0, k >= 0"
+        ));
+    }
+    Ok(arr.map(|p| (p[0], p[1])))
+}
+
+/// The fiducials section checked: a known dictionary, at least 2 markers, distinct ids, finite
+/// distinct corners.
+fn fiducials_from(f: &FiducialsJson) -> Result<Fiducials, String> {
+    let dictionary = ArucoDict::from_name(&f.dictionary).ok_or_else(|| {
+        format!(
+            "fiducials: unknown ArUco dictionary '{}' (DICT_4X4_50, DICT_5X5_100, DICT_6X6_250 or DICT_ARUCO_ORIGINAL)",
+            f.dictionary
+        )
+    })?;
+    if f.markers.len() < 2 {
+        return Err(format!(
+            "fiducials: {} marker(s); the pose needs at least 2 (8 corners)",
+            f.markers.len()
+        ));
+    }
+    let mut markers = Vec::new();
+    for (i, m) in f.markers.iter().enumerate() {
+        if f.markers[..i].iter().any(|o| o.id == m.id) {
+            return Err(format!("fiducials: marker id {} appears twice", m.id));
+        }
+        let c = m.corners.map(DVec3::from_array);
+        let degenerate = (0..4).any(|k| c[k].distance(c[(k + 1) % 4]) <= 0.0);
+        if m.corners.iter().flatten().any(|v| !v.is_finite()) || degenerate {
+            return Err(format!(
+                "fiducials: marker {} corners must be finite and distinct",
+                m.id
+            ));
+        }
+        markers.push(FiducialMarker {
+            id: m.id,
+            corners: c,
+        });
+    }
+    Ok(Fiducials {
+        dictionary,
+        markers,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -458,6 +465,54 @@ mod tests {
             (
                 r#"{"spheres":[{"kind":"mirror","center":[0,0,1],"radius":0.1,"ior":1.5}]}"#,
                 "ior must be",
+            ),
+            (
+                r#"{"spheres":[{"kind":"mirror","center":[0,0,1],"radius":0.1,"ior":[[1,0],[0,1],[1,1]]}]}"#,
+                "n > 0",
+            ),
+            (
+                r#"{"spheres":[{"kind":"mirror","center":[0,0,1],"radius":0.1},{"kind":"black","center":[0,0,1],"radius":0.1,"ior":0.9}]}"#,
+                "overlap",
+            ),
+            (
+                r#"{"spheres":[{"kind":"mirror","center":[0,0,1],"radius":0.1},{"kind":"black","center":[1,0,1],"radius":0.1,"ior":0.9}]}"#,
+                "ior 0.9 must be > 1",
+            ),
+            (
+                r#"{"spheres":[{"kind":"mirror","center":[0,0,1],"radius":0.1,"reflectance":[0.5,0.5,0.5]}]}"#,
+                "applies to the diffuse sphere only",
+            ),
+            (
+                r#"{"spheres":[{"kind":"mirror","center":[0,0,1],"radius":0.1},{"kind":"diffuse","center":[1,0,1],"radius":0.1,"ior":1.5}]}"#,
+                "applies to mirror and black spheres only",
+            ),
+            (
+                r#"{"spheres":[{"kind":"mirror","center":[0,0,1],"radius":0.1},{"kind":"diffuse","center":[1,0,1],"radius":0.1,"reflectance":[0.5,1.5,0.5]}]}"#,
+                "must be in (0, 1]",
+            ),
+            (
+                r#"{"spheres":[{"kind":"mirror","center_board":[0,0,0],"radius":0.1}]}"#,
+                "need 'fiducials'",
+            ),
+            (
+                r#"{"spheres":[{"kind":"mirror","radius":0.1}]}"#,
+                "no 'center'",
+            ),
+            (
+                r#"{"spheres":[{"kind":"mirror","center_board":[0,0,0],"radius":0.1}],"fiducials":{"dictionary":"DICT_9X9","markers":[]}}"#,
+                "unknown ArUco dictionary",
+            ),
+            (
+                r#"{"spheres":[{"kind":"mirror","center_board":[0,0,0],"radius":0.1}],"fiducials":{"dictionary":"DICT_4X4_50","markers":[{"id":1,"corners":[[0,0,0],[1,0,0],[1,1,0],[0,1,0]]}]}}"#,
+                "at least 2",
+            ),
+            (
+                r#"{"spheres":[{"kind":"mirror","center_board":[0,0,0],"radius":0.1}],"fiducials":{"dictionary":"DICT_4X4_50","markers":[{"id":1,"corners":[[0,0,0],[1,0,0],[1,1,0],[0,1,0]]},{"id":1,"corners":[[0,0,0],[1,0,0],[1,1,0],[0,1,0]]}]}}"#,
+                "appears twice",
+            ),
+            (
+                r#"{"spheres":[{"kind":"mirror","center_board":[0,0,0],"radius":0.1}],"fiducials":{"dictionary":"DICT_4X4_50","markers":[{"id":1,"corners":[[0,0,0],[0,0,0],[1,1,0],[0,1,0]]},{"id":2,"corners":[[0,0,0],[1,0,0],[1,1,0],[0,1,0]]}]}}"#,
+                "finite and distinct",
             ),
         ];
         for (t, want) in cases {
