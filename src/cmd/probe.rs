@@ -147,26 +147,7 @@ pub fn run(a: ProbeArgs, ctx: &Ctx) -> anyhow::Result<()> {
     else {
         bail!("igi probe needs --camera, --board and -o (or a subcommand)");
     };
-    // the lighting file and its siblings: checked before any work
-    if output
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase)
-        .as_deref()
-        != Some("toml")
-    {
-        bail!(
-            "{}: -o names the lighting file written (.toml); its maps are written beside it",
-            output.display()
-        );
-    }
-    igi_imaging::io::check_output_file(output)?;
-    if !(a.sun_mask_px >= 0.0 && a.sun_mask_px.is_finite()) {
-        bail!(
-            "--sun-mask-px {} must be a finite radius in pixels, 0 or more",
-            a.sun_mask_px
-        );
-    }
+    check_arguments(&a, output)?;
     let pb = ctx.progress(4, "probe");
     let camera = Camera::load(camera_path)?;
     let spec = BoardSpec::load(board_path)?;
@@ -181,29 +162,7 @@ pub fn run(a: ProbeArgs, ctx: &Ctx) -> anyhow::Result<()> {
     let refine_auto = placement.refine_by_default();
     let board = placement.board;
     pb.inc(1);
-    let opt = ProbeOptions {
-        map_width: a.map_width,
-        hemi_size: a.hemi_size,
-        conv_width: (a.map_width / 2).clamp(2, 128),
-        camera_mask_deg: a.camera_mask_deg,
-        max_incidence_deg: a.max_incidence_deg,
-        saturation: a.saturation.or(saturation),
-        refine_centers: match a.refine_spheres {
-            RefineSpheres::On => true,
-            RefineSpheres::Off => false,
-            RefineSpheres::Auto => refine_auto,
-        },
-        sun_mask_px: a.sun_mask_px,
-        ..ProbeOptions::default()
-    };
-    let opt = ProbeOptions {
-        conv_width: if a.map_width % opt.conv_width == 0 {
-            opt.conv_width
-        } else {
-            a.map_width
-        },
-        ..opt
-    };
+    let opt = probe_options(&a, refine_auto, saturation);
     let src = a
         .image
         .as_ref()
@@ -224,7 +183,64 @@ pub fn run(a: ProbeArgs, ctx: &Ctx) -> anyhow::Result<()> {
     write_outputs(output, &r)?;
     pb.inc(2);
     pb.finish_and_clear();
-    let d = &r.diagnostics;
+    print_summary(&r.diagnostics, output);
+    Ok(())
+}
+
+/// The lighting file and its siblings, and the options: checked before any work.
+fn check_arguments(a: &ProbeArgs, output: &std::path::Path) -> anyhow::Result<()> {
+    if output
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .as_deref()
+        != Some("toml")
+    {
+        bail!(
+            "{}: -o names the lighting file written (.toml); its maps are written beside it",
+            output.display()
+        );
+    }
+    igi_imaging::io::check_output_file(output)?;
+    if !(a.sun_mask_px >= 0.0 && a.sun_mask_px.is_finite()) {
+        bail!(
+            "--sun-mask-px {} must be a finite radius in pixels, 0 or more",
+            a.sun_mask_px
+        );
+    }
+    Ok(())
+}
+
+/// The options of [`process`] from the command line (`refine_auto`: the placement's default
+/// for `--refine-spheres auto`; `saturation`: the input's clip level when not given).
+fn probe_options(a: &ProbeArgs, refine_auto: bool, saturation: Option<f32>) -> ProbeOptions {
+    let opt = ProbeOptions {
+        map_width: a.map_width,
+        hemi_size: a.hemi_size,
+        conv_width: (a.map_width / 2).clamp(2, 128),
+        camera_mask_deg: a.camera_mask_deg,
+        max_incidence_deg: a.max_incidence_deg,
+        saturation: a.saturation.or(saturation),
+        refine_centers: match a.refine_spheres {
+            RefineSpheres::On => true,
+            RefineSpheres::Off => false,
+            RefineSpheres::Auto => refine_auto,
+        },
+        sun_mask_px: a.sun_mask_px,
+        ..ProbeOptions::default()
+    };
+    ProbeOptions {
+        conv_width: if a.map_width % opt.conv_width == 0 {
+            opt.conv_width
+        } else {
+            a.map_width
+        },
+        ..opt
+    }
+}
+
+/// One line on the sun and the check, then the warnings.
+fn print_summary(d: &igi_probe::pipeline::Diagnostics, output: &std::path::Path) {
     eprintln!(
         "probe: sun {}{}; check RMS {}; wrote {}",
         if d.sun_found {
@@ -251,5 +267,4 @@ pub fn run(a: ProbeArgs, ctx: &Ctx) -> anyhow::Result<()> {
     for w in &d.warnings {
         eprintln!("warning: {w}");
     }
-    Ok(())
 }
