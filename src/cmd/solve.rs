@@ -112,22 +112,22 @@ fn parse_atlas(s: &str) -> Result<AtlasArg, String> {
     })
 }
 
-pub fn run_solve(a: SolveArgs, ctx: &Ctx) -> anyhow::Result<()> {
-    let iteration = a.iteration.options()?;
-    let survey = Survey::load(&a.survey)?;
-    let store = match &survey.prepared {
-        Some(p) => Some(igi_geometry::SiteStore::open(p)?),
-        None => None,
-    };
+/// The solve's options: the iteration schedule, the atlas (a prepared site's own resolution,
+/// else `--atlas`), the parts and the schedule.
+fn solve_options(
+    a: &SolveArgs,
+    store: Option<&igi_geometry::SiteStore>,
+    iteration: SolveOptions,
+) -> SolveOptions {
     let (fixed, auto) = match a.atlas {
         AtlasArg::Fixed(n) => (n, None),
         AtlasArg::Auto => (512, Some(AutoAtlas { max: a.atlas_max })),
     };
-    let (atlas, atlas_auto) = match &store {
+    let (atlas, atlas_auto) = match store {
         Some(s) => (s.manifest().atlas_resolution, None),
         None => (fixed, auto),
     };
-    let opts = SolveOptions {
+    SolveOptions {
         atlas_resolution: atlas,
         atlas_auto,
         parts: a.parts.clone(),
@@ -137,7 +137,17 @@ pub fn run_solve(a: SolveArgs, ctx: &Ctx) -> anyhow::Result<()> {
             Schedule::GaussSeidel
         },
         ..iteration
+    }
+}
+
+pub fn run_solve(a: SolveArgs, ctx: &Ctx) -> anyhow::Result<()> {
+    let iteration = a.iteration.options()?;
+    let survey = Survey::load(&a.survey)?;
+    let store = match &survey.prepared {
+        Some(p) => Some(igi_geometry::SiteStore::open(p)?),
+        None => None,
     };
+    let opts = solve_options(&a, store.as_ref(), iteration);
     // everything is checked before the first byte of work or output
     let session = SolveSession::check(&a.output, &survey, &opts, a.restart)?;
     let basis = survey.basis()?;
@@ -180,44 +190,52 @@ pub fn run_solve(a: SolveArgs, ctx: &Ctx) -> anyhow::Result<()> {
         &mut |r| r.write_state(&out),
     )?;
     bar.0.finish_and_clear();
-    if a.json {
-        crate::report::print_json(&result.report)?;
-    } else {
-        for r in &result.report.iterations {
-            let truth = r
-                .truth_mae
-                .map(|m| format!(", rho_d MAE {:.4} {:.4} {:.4}", m[0], m[1], m[2]))
-                .unwrap_or_default();
-            println!(
-                "iteration {}: {} spp, {:.1} s, {} observations, residual {:.2}% (relative RMS), change {:.4}{}",
-                r.iteration,
-                r.spp,
-                r.wall_s,
-                r.observations,
-                100.0 * r.residual_rel_rms,
-                r.delta_rho,
-                truth
-            );
-        }
-        for p in &result.report.parts {
-            let footprint = p
-                .footprint_m
-                .map(|f| format!(" (finest pixel footprint {f:.4} m)"))
-                .unwrap_or_default();
-            println!(
-                "part {}: {}x{} atlas, {} texels of {:.4} m{footprint}, {} seen ({} by 2+ photos), {} filled",
-                p.name,
-                p.resolution,
-                p.resolution,
-                p.covered_texels,
-                p.texel_size_m,
-                p.seen_texels,
-                p.seen_twice_texels,
-                p.filled_texels
-            );
-        }
-        println!("result in {}", a.output.display());
+    print_report(&result.report, &a.output, a.json)
+}
+
+/// Per iteration and per part, one line each (or the report as JSON).
+fn print_report(
+    report: &igi_reflect::SolveReport,
+    output: &std::path::Path,
+    json: bool,
+) -> anyhow::Result<()> {
+    if json {
+        return crate::report::print_json(report);
     }
+    for r in &report.iterations {
+        let truth = r
+            .truth_mae
+            .map(|m| format!(", rho_d MAE {:.4} {:.4} {:.4}", m[0], m[1], m[2]))
+            .unwrap_or_default();
+        println!(
+            "iteration {}: {} spp, {:.1} s, {} observations, residual {:.2}% (relative RMS), change {:.4}{}",
+            r.iteration,
+            r.spp,
+            r.wall_s,
+            r.observations,
+            100.0 * r.residual_rel_rms,
+            r.delta_rho,
+            truth
+        );
+    }
+    for p in &report.parts {
+        let footprint = p
+            .footprint_m
+            .map(|f| format!(" (finest pixel footprint {f:.4} m)"))
+            .unwrap_or_default();
+        println!(
+            "part {}: {}x{} atlas, {} texels of {:.4} m{footprint}, {} seen ({} by 2+ photos), {} filled",
+            p.name,
+            p.resolution,
+            p.resolution,
+            p.covered_texels,
+            p.texel_size_m,
+            p.seen_texels,
+            p.seen_twice_texels,
+            p.filled_texels
+        );
+    }
+    println!("result in {}", output.display());
     Ok(())
 }
 
