@@ -188,6 +188,23 @@ fn merge_errors_sizes_times_and_missing_times() {
     // no times and no EXIF in the PNGs
     let o = igi(&["hdr", "merge", s(&a), s(&b), "-o", s(&out)]);
     assert_failed(&o, "a.png", "missing exposure times", tmp.path(), &keep);
+    // a response asked of the linear merge, which recovers none: refused before any output
+    let curve = tmp.path().join("curve.csv");
+    let o = igi(&[
+        "hdr",
+        "merge",
+        s(&a),
+        s(&b),
+        "--times",
+        "1",
+        "0.5",
+        "--linear",
+        "--response-out",
+        s(&curve),
+        "-o",
+        s(&out),
+    ]);
+    assert_failed(&o, "--response-out", "--linear", tmp.path(), &keep);
     // a good merge of the same files works (sanity check of the fixture)
     let o = igi(&[
         "hdr",

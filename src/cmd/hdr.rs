@@ -80,28 +80,10 @@ fn merge(a: MergeArgs, ctx: &Ctx) -> anyhow::Result<()> {
     if !matches!(ext.as_deref(), Some("exr") | Some("hdr")) {
         bail!("{}: output must be .exr or .hdr", a.output.display());
     }
-    // exposure times
-    let times: Vec<f64> = if !a.times.is_empty() {
-        a.times
-            .iter()
-            .map(|t| hdr::parse_time(t))
-            .collect::<Result<_, _>>()?
-    } else if let Some(f) = &a.times_file {
-        hdr::read_times_file(f)?
-    } else {
-        a.images
-            .iter()
-            .map(|p| hdr::exif_exposure_time(p))
-            .collect::<Result<_, _>>()
-            .context("missing exposure times: pass --times or --times-file")?
-    };
-    if times.len() != a.images.len() {
-        bail!(
-            "missing exposure times: {} image(s) but {} time(s) (pass one time per image)",
-            a.images.len(),
-            times.len()
-        );
+    if a.linear && a.response_out.is_some() {
+        bail!("--response-out needs a response: it is not recovered with --linear");
     }
+    let times = exposure_times(&a)?;
     let pb = ctx.progress(a.images.len() as u64 + 2, "reading");
     let mut images = Vec::with_capacity(a.images.len());
     for p in &a.images {
@@ -110,29 +92,10 @@ fn merge(a: MergeArgs, ctx: &Ctx) -> anyhow::Result<()> {
     }
     hdr::validate_brackets(&images, &times, &a.images)?;
     pb.set_message("merging");
-    let (merged, stats, resp) = if a.linear {
-        let p = LinearParams {
-            noise_floor: a.noise_floor,
-            saturation: a.saturation,
-        };
-        let (m, s) = hdr::merge_linear(&images, &times, p)?;
-        (m, s, None)
-    } else {
-        let p = ResponseParams {
-            lambda: a.lambda,
-            samples: a.samples,
-            seed: a.seed,
-        };
-        let r = hdr::recover_response(&images, &times, p)?;
-        pb.inc(1);
-        let (m, s) = hdr::merge_ldr(&images, &times, &r)?;
-        (m, s, Some(r))
-    };
-    pb.inc(1);
+    let (merged, stats, resp) = merge_images(&a, &images, &times)?;
+    pb.inc(2);
     if let (Some(path), Some(r)) = (&a.response_out, &resp) {
         r.write_csv(path)?;
-    } else if a.response_out.is_some() {
-        bail!("--response-out needs a response: it is not recovered with --linear");
     }
     write_output(&a.output, &merged)?;
     pb.finish_and_clear();
@@ -159,4 +122,54 @@ fn merge(a: MergeArgs, ctx: &Ctx) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// One exposure time per image: `--times`, `--times-file`, or each image's EXIF.
+fn exposure_times(a: &MergeArgs) -> anyhow::Result<Vec<f64>> {
+    let times: Vec<f64> = if !a.times.is_empty() {
+        a.times
+            .iter()
+            .map(|t| hdr::parse_time(t))
+            .collect::<Result<_, _>>()?
+    } else if let Some(f) = &a.times_file {
+        hdr::read_times_file(f)?
+    } else {
+        a.images
+            .iter()
+            .map(|p| hdr::exif_exposure_time(p))
+            .collect::<Result<_, _>>()
+            .context("missing exposure times: pass --times or --times-file")?
+    };
+    if times.len() != a.images.len() {
+        bail!(
+            "missing exposure times: {} image(s) but {} time(s) (pass one time per image)",
+            a.images.len(),
+            times.len()
+        );
+    }
+    Ok(times)
+}
+
+/// Linear merge, or Debevec-Malik: the recovered response, then the merge through it.
+fn merge_images(
+    a: &MergeArgs,
+    images: &[HdrImage],
+    times: &[f64],
+) -> anyhow::Result<(HdrImage, hdr::MergeStats, Option<hdr::Response>)> {
+    if a.linear {
+        let p = LinearParams {
+            noise_floor: a.noise_floor,
+            saturation: a.saturation,
+        };
+        let (m, s) = hdr::merge_linear(images, times, p)?;
+        return Ok((m, s, None));
+    }
+    let p = ResponseParams {
+        lambda: a.lambda,
+        samples: a.samples,
+        seed: a.seed,
+    };
+    let r = hdr::recover_response(images, times, p)?;
+    let (m, s) = hdr::merge_ldr(images, times, &r)?;
+    Ok((m, s, Some(r)))
 }
