@@ -7,29 +7,8 @@ use crate::SphereError;
 use glam::{DVec2, DVec3};
 use igi_imaging::Camera;
 
-/// What a sphere is made of.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum SphereKind {
-    Mirror,
-    Black,
-    Diffuse,
-}
-
-impl SphereKind {
-    /// The kind stored at index `i` (`SphereKind as usize`: mirror 0, black 1, diffuse 2).
-    pub fn from_index(i: usize) -> SphereKind {
-        [SphereKind::Mirror, SphereKind::Black, SphereKind::Diffuse][i]
-    }
-
-    pub fn name(self) -> &'static str {
-        match self {
-            SphereKind::Mirror => "mirror",
-            SphereKind::Black => "black",
-            SphereKind::Diffuse => "diffuse",
-        }
-    }
-}
+/// What a sphere is made of (the board file's vocabulary, `igi_formats::board`).
+pub use igi_formats::board::SphereKind;
 
 /// Position of one sphere of a photographed rig in the camera frame of the photograph (OpenCV
 /// convention).

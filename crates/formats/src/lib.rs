@@ -12,6 +12,8 @@
 //!   lobes).
 //! - [`survey`]: `survey.toml` ([`SurveyFile`]: `[site]`, `[[photo]]`, `[brdf]`,
 //!   `[radiometry]`).
+//! - [`board`]: the lighting-capture board (JSON, [`BoardFile`]: spheres and fiducials), read
+//!   with [`BoardFile::read`] and written with [`BoardFile::write`].
 //!
 //! Each reads with [`TomlFile::read`] and writes with [`TomlFile::write`] (atomically, after an
 //! optional comment header); the trait is the one reader and one writer of every TOML kind.
@@ -25,13 +27,14 @@
 //! does when it reads a TOML float into an `f32`. Writers of `f32` data pass it through
 //! [`f32_decimal`], so a file shows `0.1` rather than `0.10000000149011612`.
 //!
-//! The lighting-board JSON and the BRDF-sample CSV still live with their pipelines
-//! (`igi-probe`, `igi-brdf`).
+//! The BRDF-sample CSV still lives with its pipeline (`igi-brdf`).
 
+pub mod board;
 pub mod lighting;
 pub mod scene;
 pub mod survey;
 
+pub use board::BoardFile;
 pub use igi_imaging::{Camera, CameraFile};
 pub use lighting::LightingFile;
 pub use scene::SceneFile;
@@ -48,6 +51,7 @@ pub enum FileKind {
     Lighting,
     Scene,
     Survey,
+    Board,
 }
 
 impl fmt::Display for FileKind {
@@ -56,6 +60,7 @@ impl fmt::Display for FileKind {
             FileKind::Lighting => "lighting file",
             FileKind::Scene => "scene file",
             FileKind::Survey => "survey file",
+            FileKind::Board => "board file",
         })
     }
 }
@@ -67,6 +72,7 @@ impl FileKind {
             FileKind::Lighting => "lighting file",
             FileKind::Scene => "scene file",
             FileKind::Survey => "survey",
+            FileKind::Board => "board file",
         }
     }
 }
@@ -90,6 +96,14 @@ pub enum FormatsError {
         kind: FileKind,
         #[source]
         source: Box<toml::de::Error>,
+    },
+    /// The file is not valid JSON of its kind (a missing key, a wrong type, an unknown key).
+    #[error("{path}: not a valid {kind}: {source}")]
+    ParseJson {
+        path: PathBuf,
+        kind: FileKind,
+        #[source]
+        source: Box<serde_json::Error>,
     },
     /// A value cannot be written as TOML (a path that is not UTF-8).
     #[error("{path}: cannot write {kind}: {source}")]

@@ -4,6 +4,7 @@ use crate::ProbeError;
 use glam::DVec3;
 pub use igi_capture::fiducial::FiducialMarker;
 pub use igi_capture::sphere::{BoardSphere, SphereKind};
+use igi_formats::board::{BoardFile, FiducialsSection, SphereEntry};
 use igi_imaging::cv::ArucoDict;
 use igi_imaging::WorldToCamera;
 use std::path::{Path, PathBuf};
@@ -24,43 +25,6 @@ pub struct Board {
     pub mirror_ior: [(f64, f64); 3],
     pub black_ior: f64,
     pub diffuse_reflectance: [f64; 3],
-}
-
-#[derive(serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-struct SphereJson {
-    kind: SphereKind,
-    #[serde(default)]
-    center: Option<[f64; 3]>,
-    #[serde(default)]
-    center_board: Option<[f64; 3]>,
-    radius: f64,
-    #[serde(default)]
-    reflectance: Option<[f64; 3]>,
-    #[serde(default)]
-    ior: Option<serde_json::Value>,
-}
-
-#[derive(serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-struct MarkerJson {
-    id: i32,
-    corners: [[f64; 3]; 4],
-}
-
-#[derive(serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-struct FiducialsJson {
-    dictionary: String,
-    markers: Vec<MarkerJson>,
-}
-
-#[derive(serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-struct BoardJson {
-    spheres: Vec<SphereJson>,
-    #[serde(default)]
-    fiducials: Option<FiducialsJson>,
 }
 
 /// The board's fiducials (docs/PROBE.md, "Board file: fiducials").
@@ -97,11 +61,7 @@ pub struct BoardSpec {
 
 impl BoardSpec {
     pub fn load(path: &Path) -> Result<BoardSpec, ProbeError> {
-        let text = std::fs::read_to_string(path).map_err(|e| ProbeError::Io {
-            path: path.to_path_buf(),
-            source: e,
-        })?;
-        BoardSpec::from_json_str(&text, path)
+        BoardSpec::from_file(&BoardFile::read(path)?, path)
     }
 
     fn bad(&self, msg: String) -> ProbeError {
@@ -113,11 +73,15 @@ impl BoardSpec {
 
     /// Parse board JSON; `path` names the file in errors.
     pub fn from_json_str(text: &str, path: &Path) -> Result<BoardSpec, ProbeError> {
+        BoardSpec::from_file(&BoardFile::from_json_str(text, path)?, path)
+    }
+
+    /// The board a parsed file describes, every value checked; `path` names the file in errors.
+    pub fn from_file(j: &BoardFile, path: &Path) -> Result<BoardSpec, ProbeError> {
         let bad = |msg: String| ProbeError::Board {
             path: path.to_path_buf(),
             msg,
         };
-        let j: BoardJson = serde_json::from_str(text).map_err(|e| bad(e.to_string()))?;
         let mut spec = BoardSpec {
             path: path.to_path_buf(),
             spheres: [None; 3],
@@ -140,15 +104,15 @@ impl BoardSpec {
         if spec.spheres[SphereKind::Mirror as usize].is_none() {
             return Err(bad("no 'mirror' sphere (the sky map comes from it)".into()));
         }
-        match j.fiducials {
-            Some(f) => spec.fiducials = Some(fiducials_from(&f).map_err(bad)?),
+        match &j.fiducials {
+            Some(f) => spec.fiducials = Some(fiducials_from(f).map_err(bad)?),
             None => spec.check_placeable().map_err(bad)?,
         }
         Ok(spec)
     }
 
     /// Sphere `i`'s calibration keys (`ior`, `reflectance`), each for its kind only.
-    fn calibrate(&mut self, i: usize, s: &SphereJson) -> Result<(), String> {
+    fn calibrate(&mut self, i: usize, s: &SphereEntry) -> Result<(), String> {
         let name = s.kind.name();
         match (s.kind, &s.ior, s.reflectance) {
             (SphereKind::Diffuse, Some(_), _) => {
@@ -317,7 +281,7 @@ impl Board {
 }
 
 /// Sphere `i` of the file checked against itself and the spheres before it (`earlier`).
-fn check_sphere(i: usize, s: &SphereJson, earlier: &[SphereJson]) -> Result<SphereSpec, String> {
+fn check_sphere(i: usize, s: &SphereEntry, earlier: &[SphereEntry]) -> Result<SphereSpec, String> {
     let name = s.kind.name();
     let finite = |c: &Option<[f64; 3]>| c.is_none_or(|c| c.iter().all(|v| v.is_finite()));
     if !finite(&s.center) || !finite(&s.center_board) || !s.radius.is_finite() || s.radius <= 0.0 {
@@ -377,7 +341,7 @@ fn mirror_ior(i: usize, v: &serde_json::Value) -> Result<[(f64, f64); 3], String
 
 /// The fiducials section checked: a known dictionary, at least 2 markers, distinct ids, finite
 /// distinct corners.
-fn fiducials_from(f: &FiducialsJson) -> Result<Fiducials, String> {
+fn fiducials_from(f: &FiducialsSection) -> Result<Fiducials, String> {
     let dictionary = ArucoDict::from_name(&f.dictionary).ok_or_else(|| {
         format!(
             "fiducials: unknown ArUco dictionary '{}' (DICT_4X4_50, DICT_5X5_100, DICT_6X6_250 or DICT_ARUCO_ORIGINAL)",
