@@ -150,11 +150,20 @@ fn read_rgba(path: &Path, cam: &Camera) -> HdrImage {
         let miss = o.cross(d.normalize()).length();
         assert!(*a == 0.0 || *a == 1.0, "alpha {a} at pixel {i}");
         if miss < 0.47 {
-            assert_eq!(*a, 1.0, "pixel {i} sees the sphere (ray {miss:.3} from its centre)");
+            assert_eq!(
+                *a, 1.0,
+                "pixel {i} sees the sphere (ray {miss:.3} from its centre)"
+            );
             seen += 1;
         } else if miss > 0.501 {
-            assert_eq!(*a, 0.0, "pixel {i} misses the sphere (ray {miss:.3} from its centre)");
-            assert_eq!(img.pixels[i], [0.0; 3], "premultiplied: no colour where alpha is 0");
+            assert_eq!(
+                *a, 0.0,
+                "pixel {i} misses the sphere (ray {miss:.3} from its centre)"
+            );
+            assert_eq!(
+                img.pixels[i], [0.0; 3],
+                "premultiplied: no colour where alpha is 0"
+            );
             unseen += 1;
         }
         img.valid[i] = *a == 1.0;
@@ -171,7 +180,10 @@ fn compare_reads_the_alpha(dir: &Path, img: &Path, rgba: &HdrImage, truth: &HdrI
     let c: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let covered = rgba.valid.iter().filter(|v| **v).count() as u64;
     assert_eq!(c["pixels"].as_u64(), Some(covered), "{c}");
-    assert!((c["psnr_db"].as_f64().unwrap() - psnr).abs() < 1e-6, "{c} vs {psnr}");
+    assert!(
+        (c["psnr_db"].as_f64().unwrap() - psnr).abs() < 1e-6,
+        "{c} vs {psnr}"
+    );
 }
 
 fn psnr(img: &HdrImage, truth: &HdrImage) -> f64 {

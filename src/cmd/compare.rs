@@ -29,9 +29,7 @@ pub struct CompareArgs {
 /// background) are invalid, so that they are not compared.
 fn read_covered(p: &PathBuf) -> anyhow::Result<igi_imaging::HdrImage> {
     let mut img = igi_imaging::read_image(p).with_context(|| format!("reading {}", p.display()))?;
-    let is_exr = p
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+    let is_exr = p.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"));
     if is_exr {
         if let Some(alpha) = igi_imaging::read_exr_alpha(p)? {
             for (v, a) in img.valid.iter_mut().zip(alpha) {
