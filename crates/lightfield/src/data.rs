@@ -3,10 +3,9 @@
 //! the point (offset along its normal) to the camera centre through igi-render's Embree scene
 //! of the mesh; colours are bilinear lookups that fail when any tap is an invalid pixel (so
 //! masked or clipped pixels never contribute). Pixels off the mesh, and those whose footprint
-//! may straddle an edge of the mesh in the view (its silhouette against the background, or an occluding edge) are invalid
-//! too: a ray cast of every pixel centre must hit the mesh, and so must those of its 8
-//! neighbours, at depths within 4 pixel footprints of its own. Then the reparameterisation of
-//! Eqs. 9-10.
+//! may straddle its silhouette against the background, are invalid too: a ray cast of every
+//! pixel centre must hit the mesh, and so must those of its 8 neighbours. Then the
+//! reparameterisation of Eqs. 9-10.
 
 use crate::fit::{DataLumisphere, Sample};
 use crate::lumisphere::{median_rgb, reflect, Octahedron};
@@ -40,8 +39,8 @@ pub struct GatherReport {
     /// Grid points no view sees (their lumisphere stays zero: median only, and the median is 0).
     pub unseen_points: usize,
     pub samples: usize,
-    /// Pixels of the views (over all views) that see the mesh but are invalid as lying on an
-    /// edge of it (silhouette or occluding edge).
+    /// Pixels of the views (over all views) that see the mesh but are invalid as lying on its
+    /// silhouette (a neighbour's centre ray misses the mesh).
     pub edge_pixels: usize,
     /// Median over observations of the pixel footprint on the surface (metres per pixel at the
     /// point's distance), to compare with the atlas texel size.
@@ -94,42 +93,36 @@ pub fn gather(
     (obs, report)
 }
 
-/// A copy of the view's photograph whose pixels off the mesh or on an edge of it are invalid (a
-/// pixel is kept when its centre ray and those of its 8 neighbours hit the mesh at depths within
-/// 4 pixel footprints of its own), and the number of valid pixels on the mesh dropped as edges.
+/// A copy of the view's photograph whose pixels off the mesh or on its silhouette are invalid (a
+/// pixel is kept when its centre ray and those of its 8 neighbours hit the mesh), and the number
+/// of valid pixels on the mesh dropped as silhouette pixels.
 fn without_edges(scene: &RtScene, v: &View) -> (HdrImage, usize) {
     let (w, h) = (v.image.width, v.image.height);
-    let depth: Vec<f32> = (0..w * h)
+    let hit: Vec<bool> = (0..w * h)
         .into_par_iter()
         .map(|i| {
             let (o, d) = v.camera.pixel_ray((i % w) as f64, (i / w) as f64);
             scene
                 .intersect(o.as_vec3(), d.as_vec3(), 0.0, f32::INFINITY)
-                .map_or(f32::INFINITY, |hit| hit.t)
+                .is_some()
         })
         .collect();
-    let per_px = 4.0 / v.camera.intrinsics.fx as f32;
     let mut img = v.image.clone();
     let mut dropped = 0;
     for (i, valid) in img.valid.iter_mut().enumerate() {
-        let t = depth[i];
-        if !t.is_finite() {
-            *valid = false;
-            continue;
-        }
         let (x, y) = ((i % w) as i64, (i / w) as i64);
-        let clean = (-1..=1i64).all(|dy| {
+        let inside = (-1..=1i64).all(|dy| {
             (-1..=1i64).all(|dx| {
                 let (a, b) = (x + dx, y + dy);
                 a >= 0
                     && b >= 0
                     && (a as usize) < w
                     && (b as usize) < h
-                    && (depth[b as usize * w + a as usize] - t).abs() <= per_px * t
+                    && hit[b as usize * w + a as usize]
             })
         });
-        if !clean {
-            dropped += usize::from(*valid);
+        if !inside {
+            dropped += usize::from(*valid && hit[i]);
             *valid = false;
         }
     }

@@ -12,6 +12,7 @@
 //! - [`capture`]: the whole build from a multi-view capture (`rig.toml`) and a mesh
 //!   (`igi slf build`).
 //! - [`store`]: the `SLF_DIR/` folder.
+//! - [`plot`]: the error-against-size plot of the codings.
 //!
 //! Grid points are the covered texels of an `igi-geometry` atlas of the mesh (standing in for
 //! the paper's base-mesh parameterisation). Never depends on the solver (`igi-reflect`).
@@ -25,6 +26,7 @@ pub mod field;
 pub mod fit;
 pub mod lumisphere;
 pub mod pfa;
+pub mod plot;
 pub mod quantize;
 pub mod store;
 
