@@ -251,7 +251,7 @@ fn slf_build_from_a_rig_then_render_held_out_views() {
     }
     let (pfa, fair, median) = (scores[0], scores[1], scores[2]);
     assert!(pfa >= fair - 2.0, "PFA {pfa:.2} dB vs fairing {fair:.2} dB");
-    // measured 2026-11-24 (edge-free gather): PFA 19.67, fairing 20.58, median alone 17.23 dB
+    // measured 2026-11-24 (silhouette-free gather): PFA 19.83, fairing 20.68, median alone 17.25 dB
     assert!(
         fair >= median + 3.0,
         "fairing {fair:.2} dB vs the median alone {median:.2} dB"
