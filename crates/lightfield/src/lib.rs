@@ -33,7 +33,7 @@ pub mod store;
 pub use build::{grid_points, BuildOptions, Method, Prepared};
 pub use capture::{build_from_rig, GridOptions, RigBuild};
 pub use data::{gather, reparameterise, GatherReport, GridPoint, View};
-pub use field::{Coding, RenderSlfOptions, SurfaceLightField};
+pub use field::{Coding, FieldRenderer, RenderSlfOptions, SurfaceLightField};
 pub use fit::{fair_pointwise, DataLumisphere, FitOptions};
 pub use lumisphere::Octahedron;
 pub use pfa::{fit_pfa, Pfa, PfaOptions};
