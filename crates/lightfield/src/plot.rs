@@ -53,15 +53,11 @@ pub fn plot_error_against_size(path: &Path, points: &[SizePoint]) -> Result<(), 
             .map_err(|e| enc(e.to_string()))?;
         for p in points {
             let xy = (p.colour_bytes.max(1) as f64, p.psnr_db);
+            let marker = EmptyElement::at(xy)
+                + Circle::new((0, 0), 5, BLUE.filled())
+                + Text::new(p.label.clone(), (9, -7), ("sans-serif", 14));
             chart
-                .draw_series(std::iter::once(Circle::new(xy, 5, BLUE.filled())))
-                .map_err(|e| enc(e.to_string()))?;
-            chart
-                .draw_series(std::iter::once(Text::new(
-                    p.label.clone(),
-                    xy,
-                    ("sans-serif", 14),
-                )))
+                .draw_series(std::iter::once(marker))
                 .map_err(|e| enc(e.to_string()))?;
         }
         root.present().map_err(|e| enc(e.to_string()))
