@@ -77,7 +77,7 @@ pub fn make(n_views: usize, held_out_dirs: &[Vec3], size: u32, spp: u32, truth_s
     let atlas = build_atlas(
         &mesh,
         AtlasOptions {
-            resolution: 192,
+            resolution: 160,
             gutter: 1,
         },
     )
