@@ -2,7 +2,7 @@
 use crate::report::{print_json, Ctx};
 use anyhow::Context;
 use igi_render::{compare_images, difference_image};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
 pub struct CompareArgs {
@@ -27,7 +27,7 @@ pub struct CompareArgs {
 
 /// An image whose pixels of alpha 0 (an RGBA EXR's uncovered pixels, e.g. `igi slf render`'s
 /// background) are invalid, so that they are not compared.
-fn read_covered(p: &PathBuf) -> anyhow::Result<igi_imaging::HdrImage> {
+fn read_covered(p: &Path) -> anyhow::Result<igi_imaging::HdrImage> {
     let mut img = igi_imaging::read_image(p).with_context(|| format!("reading {}", p.display()))?;
     let is_exr = p.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"));
     if is_exr {
