@@ -2,11 +2,12 @@
 use crate::report::{print_json, Ctx};
 use anyhow::Context;
 use igi_render::{compare_images, difference_image};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
 pub struct CompareArgs {
-    /// The image to judge.
+    /// The image to judge. In an RGBA EXR, pixels of alpha 0 (nothing seen there, as
+    /// `igi slf render` writes) are not compared; the same holds for B.
     pub a: PathBuf,
     /// The reference (PSNR peak = max of B).
     pub b: PathBuf,
@@ -24,12 +25,27 @@ pub struct CompareArgs {
     pub stderr_b: Option<PathBuf>,
 }
 
+/// An image whose pixels of alpha 0 (an RGBA EXR's uncovered pixels, e.g. `igi slf render`'s
+/// background) are invalid, so that they are not compared.
+fn read_covered(p: &Path) -> anyhow::Result<igi_imaging::HdrImage> {
+    let mut img = igi_imaging::read_image(p).with_context(|| format!("reading {}", p.display()))?;
+    let is_exr = p.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+    if is_exr {
+        if let Some(alpha) = igi_imaging::read_exr_alpha(p)? {
+            for (v, a) in img.valid.iter_mut().zip(alpha) {
+                *v &= a > 0.0;
+            }
+        }
+    }
+    Ok(img)
+}
+
 pub fn run(a: CompareArgs, _ctx: &Ctx) -> anyhow::Result<()> {
     let read = |p: &PathBuf| {
         igi_imaging::read_image(p).with_context(|| format!("reading {}", p.display()))
     };
-    let ia = read(&a.a)?;
-    let ib = read(&a.b)?;
+    let ia = read_covered(&a.a)?;
+    let ib = read_covered(&a.b)?;
     let sa = a.stderr_a.as_ref().map(read).transpose()?;
     let sb = a.stderr_b.as_ref().map(read).transpose()?;
     let c = compare_images(&ia, &ib, sa.as_ref(), sb.as_ref())

@@ -84,7 +84,8 @@ pub struct RenderArgs {
     /// The value mapped to 1 before the bias.
     #[arg(long, default_value_t = 1.0)]
     pub white: f32,
-    /// Output EXR: RGB plus the coverage as its `valid` channel.
+    /// Output EXR, RGBA (FORMATS.md): radiance where the surface is seen, alpha 1 there and 0
+    /// elsewhere (colour premultiplied, so 0 where alpha is 0).
     #[arg(short, long)]
     pub output: PathBuf,
     /// Print the timing as JSON.
@@ -187,7 +188,7 @@ fn render(a: RenderArgs, _ctx: &Ctx) -> anyhow::Result<()> {
         None => stored,
     };
     let t = std::time::Instant::now();
-    let (mut img, alpha) = field.render(
+    let (img, alpha) = field.render(
         &mesh,
         &camera,
         &RenderSlfOptions {
@@ -196,8 +197,7 @@ fn render(a: RenderArgs, _ctx: &Ctx) -> anyhow::Result<()> {
         },
     )?;
     let seconds = t.elapsed().as_secs_f64();
-    img.valid = alpha.iter().map(|a| *a > 0.5).collect();
-    igi_imaging::write_exr(&a.output, &img)?;
+    igi_imaging::write_exr_rgba(&a.output, &img, &alpha)?;
     if a.json {
         print_json(
             &serde_json::json!({ "seconds": seconds, "width": img.width, "height": img.height }),

@@ -1,5 +1,6 @@
 //! `igi slf render` speed: a 512 x 512 frame of a PFA q = 2 field on the bunny's atlas
-//! (docs/BENCHMARKS.md). The field's values do not change the work per pixel, so the prototypes
+//! (docs/BENCHMARKS.md): `slf_render_512_pfa_q2` with the mesh's Embree scene built for the
+//! frame (as `igi slf render` does), `slf_frame_512_pfa_q2` with it built once (a viewer). The field's values do not change the work per pixel, so the prototypes
 //! and coefficients are seeded pseudo-random numbers.
 //!
 //!     cargo bench -p igi-lightfield --bench slf_render
@@ -72,12 +73,14 @@ fn bench(c: &mut Criterion) {
         pts.len(),
         atlas.mesh.indices.len()
     );
+    let opts = RenderSlfOptions::default();
     c.bench_function("slf_render_512_pfa_q2", |b| {
-        b.iter(|| {
-            field
-                .render(&atlas.mesh, &cam, &RenderSlfOptions::default())
-                .unwrap()
-        })
+        b.iter(|| field.render(&atlas.mesh, &cam, &opts).unwrap())
+    });
+    // a frame of an interactive viewer: the mesh's Embree scene built once
+    let renderer = field.renderer(&atlas.mesh).unwrap();
+    c.bench_function("slf_frame_512_pfa_q2", |b| {
+        b.iter(|| renderer.render(&cam, &opts))
     });
 }
 

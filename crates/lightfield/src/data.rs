@@ -2,7 +2,10 @@
 //! mesh) the (colour, direction) pairs of the views that see it. Visibility is a ray cast from
 //! the point (offset along its normal) to the camera centre through igi-render's Embree scene
 //! of the mesh; colours are bilinear lookups that fail when any tap is an invalid pixel (so
-//! masked or clipped pixels never contribute). Then the reparameterisation of Eqs. 9-10.
+//! masked or clipped pixels never contribute). Pixels off the mesh, and those whose footprint
+//! may straddle its silhouette against the background, are invalid too: a ray cast of every
+//! pixel centre must hit the mesh, and so must those of its 8 neighbours. Then the
+//! reparameterisation of Eqs. 9-10.
 
 use crate::fit::{DataLumisphere, Sample};
 use crate::lumisphere::{median_rgb, reflect, Octahedron};
@@ -36,6 +39,9 @@ pub struct GatherReport {
     /// Grid points no view sees (their lumisphere stays zero: median only, and the median is 0).
     pub unseen_points: usize,
     pub samples: usize,
+    /// Pixels of the views (over all views) that see the mesh but are invalid as lying on its
+    /// silhouette (a neighbour's centre ray misses the mesh).
+    pub edge_pixels: usize,
     /// Median over observations of the pixel footprint on the surface (metres per pixel at the
     /// point's distance), to compare with the atlas texel size.
     pub median_pixel_footprint: f64,
@@ -57,9 +63,19 @@ pub fn gather(
     points: &[GridPoint],
     views: &[View],
 ) -> (Vec<Observations>, GatherReport) {
+    let cleaned: Vec<(HdrImage, usize)> =
+        views.par_iter().map(|v| without_edges(scene, v)).collect();
+    let views: Vec<View> = views
+        .iter()
+        .zip(&cleaned)
+        .map(|(v, (image, _))| View {
+            camera: v.camera,
+            image,
+        })
+        .collect();
     let per_point: Vec<(Observations, Vec<f64>)> = points
         .par_iter()
-        .map(|p| observe(scene, p, views))
+        .map(|p| observe(scene, p, &views))
         .collect();
     let mut footprints: Vec<f64> = per_point
         .iter()
@@ -71,9 +87,46 @@ pub fn gather(
         points: points.len(),
         unseen_points: obs.iter().filter(|o| o.is_empty()).count(),
         samples: obs.iter().map(|o| o.len()).sum(),
+        edge_pixels: cleaned.iter().map(|(_, n)| n).sum(),
         median_pixel_footprint: footprints.get(footprints.len() / 2).copied().unwrap_or(0.0),
     };
     (obs, report)
+}
+
+/// A copy of the view's photograph whose pixels off the mesh or on its silhouette are invalid (a
+/// pixel is kept when its centre ray and those of its 8 neighbours hit the mesh), and the number
+/// of valid pixels on the mesh dropped as silhouette pixels.
+fn without_edges(scene: &RtScene, v: &View) -> (HdrImage, usize) {
+    let (w, h) = (v.image.width, v.image.height);
+    let hit: Vec<bool> = (0..w * h)
+        .into_par_iter()
+        .map(|i| {
+            let (o, d) = v.camera.pixel_ray((i % w) as f64, (i / w) as f64);
+            scene
+                .intersect(o.as_vec3(), d.as_vec3(), 0.0, f32::INFINITY)
+                .is_some()
+        })
+        .collect();
+    let mut img = v.image.clone();
+    let mut dropped = 0;
+    for (i, valid) in img.valid.iter_mut().enumerate() {
+        let (x, y) = ((i % w) as i64, (i / w) as i64);
+        let inside = (-1..=1i64).all(|dy| {
+            (-1..=1i64).all(|dx| {
+                let (a, b) = (x + dx, y + dy);
+                a >= 0
+                    && b >= 0
+                    && (a as usize) < w
+                    && (b as usize) < h
+                    && hit[b as usize * w + a as usize]
+            })
+        });
+        if !inside {
+            dropped += usize::from(*valid && hit[i]);
+            *valid = false;
+        }
+    }
+    (img, dropped)
 }
 
 fn observe(scene: &RtScene, p: &GridPoint, views: &[View]) -> (Observations, Vec<f64>) {

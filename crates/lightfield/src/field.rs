@@ -8,7 +8,7 @@ use crate::lumisphere::{eval_bary, reflect, Octahedron};
 use crate::pfa::Pfa;
 use crate::quantize::Codebook;
 use crate::LightFieldError;
-use glam::{Vec2, Vec3};
+use glam::{Mat3, Vec2, Vec3};
 use igi_geometry::TriMesh;
 use igi_imaging::{Camera, HdrImage};
 use igi_render::embree::RtScene;
@@ -133,66 +133,79 @@ impl SurfaceLightField {
     }
 
     /// Renders `mesh` (the atlas mesh, or a rotated / deformed copy with the same triangles and
-    /// UVs) through `camera`. Returns the colour and the alpha (1 where the mesh is hit).
+    /// UVs) through `camera`. Returns the colour and the alpha (1 where the mesh is hit). To
+    /// render many frames of one mesh, make its [`FieldRenderer`] once.
     pub fn render(
         &self,
         mesh: &TriMesh,
         camera: &Camera,
         opts: &RenderSlfOptions,
     ) -> Result<(HdrImage, Vec<f32>), LightFieldError> {
+        Ok(self.renderer(mesh)?.render(camera, opts))
+    }
+
+    /// The per-mesh state of rendering: the Embree scene and the unit vertex normals.
+    pub fn renderer<'a>(&'a self, mesh: &'a TriMesh) -> Result<FieldRenderer<'a>, LightFieldError> {
         let (uvs, normals) = render_attributes(mesh)?;
         let scene = RtScene::new(&[(mesh.positions.as_slice(), mesh.indices.as_slice())])
             .map_err(LightFieldError::Render)?;
+        Ok(FieldRenderer {
+            field: self,
+            mesh,
+            uvs,
+            normals,
+            scene,
+        })
+    }
+}
+
+/// A field ready to render one mesh through any camera (the scene built once).
+pub struct FieldRenderer<'a> {
+    field: &'a SurfaceLightField,
+    mesh: &'a TriMesh,
+    uvs: &'a [[f32; 2]],
+    normals: Vec<Vec3>,
+    scene: RtScene,
+}
+
+impl FieldRenderer<'_> {
+    /// The colour and the alpha (1 where the mesh is hit, 0 elsewhere) through `camera`; rows
+    /// in parallel, each written in place.
+    pub fn render(&self, camera: &Camera, opts: &RenderSlfOptions) -> (HdrImage, Vec<f32>) {
         let (w, h) = (camera.width as usize, camera.height as usize);
-        let rows: Vec<Vec<([f32; 3], f32)>> = (0..h)
-            .into_par_iter()
-            .map(|y| {
-                (0..w)
-                    .map(|x| self.shade_pixel(&scene, mesh, uvs, &normals, camera, x, y, opts))
-                    .collect()
-            })
-            .collect();
+        let rays = Rays::new(camera);
         let mut img = HdrImage::new(w, h);
         let mut alpha = vec![0.0f32; w * h];
-        for (y, row) in rows.into_iter().enumerate() {
-            for (x, (c, a)) in row.into_iter().enumerate() {
-                img.pixels[y * w + x] = c;
-                alpha[y * w + x] = a;
-            }
-        }
-        Ok((img, alpha))
+        img.pixels
+            .par_chunks_mut(w)
+            .zip(alpha.par_chunks_mut(w))
+            .enumerate()
+            .for_each(|(y, (row, arow))| {
+                for (x, (c, a)) in row.iter_mut().zip(arow.iter_mut()).enumerate() {
+                    (*c, *a) = self.shade_pixel(rays.ray(x, y), opts);
+                }
+            });
+        (img, alpha)
     }
 
-    #[allow(clippy::too_many_arguments)]
-    fn shade_pixel(
-        &self,
-        scene: &RtScene,
-        mesh: &TriMesh,
-        uvs: &[[f32; 2]],
-        normals: &[Vec3],
-        camera: &Camera,
-        x: usize,
-        y: usize,
-        opts: &RenderSlfOptions,
-    ) -> ([f32; 3], f32) {
-        let (o, d) = camera.pixel_ray(x as f64, y as f64);
-        let (o, d) = (o.as_vec3(), d.as_vec3());
-        let Some(hit) = scene.intersect(o, d, 0.0, f32::INFINITY) else {
+    /// The colour and alpha of the ray from `o` in unit direction `d`.
+    fn shade_pixel(&self, (o, d): (Vec3, Vec3), opts: &RenderSlfOptions) -> ([f32; 3], f32) {
+        let Some(hit) = self.scene.intersect(o, d, 0.0, f32::INFINITY) else {
             return ([0.0; 3], 0.0);
         };
-        let tri = mesh.indices[hit.prim as usize];
+        let tri = self.mesh.indices[hit.prim as usize];
         let bw = [1.0 - hit.bary.x - hit.bary.y, hit.bary.x, hit.bary.y];
         let mut uv = Vec2::ZERO;
         let mut n = Vec3::ZERO;
         for k in 0..3 {
-            uv += Vec2::from_array(uvs[tri[k] as usize]) * bw[k];
-            n += normals[tri[k] as usize] * bw[k];
+            uv += Vec2::from_array(self.uvs[tri[k] as usize]) * bw[k];
+            n += self.normals[tri[k] as usize] * bw[k];
         }
         let n = n.normalize_or(hit.ng.normalize_or(Vec3::Z));
-        let Some(p) = self.point_at(uv) else {
+        let Some(p) = self.field.point_at(uv) else {
             return ([0.0; 3], 1.0);
         };
-        let c = self.radiance(p, -d, n);
+        let c = self.field.radiance(p, -d, n);
         let c = if (opts.bias - 0.5).abs() < 1e-7 {
             c
         } else {
@@ -201,6 +214,44 @@ impl SurfaceLightField {
                 .into()
         };
         (c.to_array(), 1.0)
+    }
+}
+
+/// The pixel rays of a camera: without lens distortion, from the camera-to-world rotation and
+/// the intrinsics computed once per frame (in f32); with distortion, `Camera::pixel_ray`.
+struct Rays<'a> {
+    camera: &'a Camera,
+    pinhole: Option<(Mat3, Vec3)>,
+}
+
+impl<'a> Rays<'a> {
+    fn new(camera: &'a Camera) -> Self {
+        let c2w = camera.pose.inverse();
+        let pinhole = camera
+            .intrinsics
+            .dist
+            .is_zero()
+            .then(|| (c2w.r.as_mat3(), c2w.t.as_vec3()));
+        Rays { camera, pinhole }
+    }
+
+    /// Origin and unit direction of the ray through pixel (x, y).
+    fn ray(&self, x: usize, y: usize) -> (Vec3, Vec3) {
+        let i = &self.camera.intrinsics;
+        match self.pinhole {
+            Some((r, o)) => {
+                let p = Vec3::new(
+                    ((x as f64 - i.cx) / i.fx) as f32,
+                    ((y as f64 - i.cy) / i.fy) as f32,
+                    1.0,
+                );
+                (o, (r * p).normalize())
+            }
+            None => {
+                let (o, d) = self.camera.pixel_ray(x as f64, y as f64);
+                (o.as_vec3(), d.as_vec3())
+            }
+        }
     }
 }
 

@@ -12,6 +12,7 @@
 //! - [`capture`]: the whole build from a multi-view capture (`rig.toml`) and a mesh
 //!   (`igi slf build`).
 //! - [`store`]: the `SLF_DIR/` folder.
+//! - [`plot`]: the error-against-size plot of the codings.
 //!
 //! Grid points are the covered texels of an `igi-geometry` atlas of the mesh (standing in for
 //! the paper's base-mesh parameterisation). Never depends on the solver (`igi-reflect`).
@@ -25,13 +26,14 @@ pub mod field;
 pub mod fit;
 pub mod lumisphere;
 pub mod pfa;
+pub mod plot;
 pub mod quantize;
 pub mod store;
 
 pub use build::{grid_points, BuildOptions, Method, Prepared};
 pub use capture::{build_from_rig, GridOptions, RigBuild};
 pub use data::{gather, reparameterise, GatherReport, GridPoint, View};
-pub use field::{Coding, RenderSlfOptions, SurfaceLightField};
+pub use field::{Coding, FieldRenderer, RenderSlfOptions, SurfaceLightField};
 pub use fit::{fair_pointwise, DataLumisphere, FitOptions};
 pub use lumisphere::Octahedron;
 pub use pfa::{fit_pfa, Pfa, PfaOptions};

@@ -1,6 +1,6 @@
 //! Function quantization (Sec. 4.5, Eqs. 11-12): a codebook of lumispheres grown from one
 //! codeword by Lloyd iteration on a seeded training subset and codeword splitting (each codeword
-//! cloned with a small seeded perturbation) until it reaches its size (a power of two); then
+//! split into two with a smooth seeded perturbation) until it reaches its size (a power of two); then
 //! every grid point takes the codeword of least E_lambda against its own data lumisphere.
 //!
 //! The projection step compares every data lumisphere with every codeword under E_lambda, which
@@ -55,7 +55,7 @@ pub fn fit_fq(oct: &Octahedron, data: &[DataLumisphere], opts: &FqOptions) -> Co
     let mut codebook = vec![fit_cluster(oct, &train, None, &opts.fit)];
     let mut rng = rand_pcg::Pcg64::seed_from_u64(opts.seed ^ 0x5eed_c0de);
     while codebook.len() < opts.codewords {
-        codebook = split(&codebook, &mut rng);
+        codebook = split(oct, &codebook, &mut rng);
         lloyd(oct, &train, &mut codebook, opts);
     }
     let all: Vec<&DataLumisphere> = data.iter().collect();
@@ -66,24 +66,24 @@ pub fn fit_fq(oct: &Octahedron, data: &[DataLumisphere], opts: &FqOptions) -> Co
     }
 }
 
-/// Every codeword cloned with a perturbation of 1% of the codeword's RMS value (at least 1e-3).
-fn split(codebook: &[Vec<Vec3>], rng: &mut rand_pcg::Pcg64) -> Vec<Vec<Vec3>> {
+/// Every codeword c split into c + d and c - d, d a smooth seeded perturbation: a random linear
+/// function of the vertex direction times a random colour, of 10% of the codeword's RMS value
+/// (at least 1e-3). A smooth d keeps both halves' thin-plate energy equal; a white-noise
+/// perturbation made every clone rougher than its original, so that no clone ever won a data
+/// lumisphere under E_lambda and the codebook stayed at its first few codewords.
+fn split(oct: &Octahedron, codebook: &[Vec<Vec3>], rng: &mut rand_pcg::Pcg64) -> Vec<Vec<Vec3>> {
     let mut out = Vec::with_capacity(codebook.len() * 2);
+    let mut unit = || rng.gen_range(-1.0f32..1.0);
     for c in codebook {
         let rms = (c.iter().map(|v| v.length_squared()).sum::<f32>() / c.len() as f32).sqrt();
-        let eps = (0.01 * rms).max(1e-3);
-        let clone = c
-            .iter()
-            .map(|v| {
-                *v + Vec3::new(
-                    rng.gen_range(-eps..eps),
-                    rng.gen_range(-eps..eps),
-                    rng.gen_range(-eps..eps),
-                )
-            })
+        let eps = (0.1 * rms).max(1e-3);
+        let g = Vec3::new(unit(), unit(), unit()).normalize_or(Vec3::Z);
+        let colour = Vec3::new(unit(), unit(), unit()) * eps;
+        let d: Vec<Vec3> = (0..c.len())
+            .map(|k| colour * g.dot(oct.direction(k)))
             .collect();
-        out.push(c.clone());
-        out.push(clone);
+        out.push(c.iter().zip(&d).map(|(v, d)| *v + *d).collect());
+        out.push(c.iter().zip(&d).map(|(v, d)| *v - *d).collect());
     }
     out
 }
@@ -162,4 +162,58 @@ pub fn assign(
             best.1
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fit::Sample;
+
+    #[test]
+    fn four_constant_clusters_take_four_codewords() {
+        let oct = Octahedron::new(2);
+        let colours = [
+            Vec3::new(0.5, 0.0, 0.0),
+            Vec3::new(0.0, 0.5, 0.0),
+            Vec3::new(0.0, 0.0, 0.5),
+            Vec3::splat(-0.3),
+        ];
+        let dirs = igi_geometry::procedural::fibonacci_directions(24, 0.0);
+        let data: Vec<DataLumisphere> = (0..200)
+            .map(|i| DataLumisphere {
+                samples: dirs
+                    .iter()
+                    .skip(i % 5)
+                    .map(|d| Sample {
+                        bary: oct.locate(*d),
+                        colour: colours[i % 4],
+                    })
+                    .collect(),
+            })
+            .collect();
+        let opts = FqOptions {
+            codewords: 4,
+            training: 100,
+            ..FqOptions::default()
+        };
+        let cb = fit_fq(&oct, &data, &opts);
+        for k in 0..4 {
+            let first = cb.index[k];
+            assert!(
+                (0..200)
+                    .filter(|i| i % 4 == k)
+                    .all(|i| cb.index[i] == first),
+                "cluster {k} split over codewords: {:?}",
+                &cb.index[..8]
+            );
+            let v = oct.eval(&cb.codewords[first as usize], Vec3::Z);
+            assert!(
+                (v - colours[k]).length() < 0.02,
+                "cluster {k}: {v} vs {}",
+                colours[k]
+            );
+        }
+        let used: std::collections::BTreeSet<u32> = cb.index.iter().copied().collect();
+        assert_eq!(used.len(), 4);
+    }
 }

@@ -4,6 +4,7 @@ mod common;
 
 use common::{make, psnr, Synth};
 use glam::Vec3;
+use igi_lightfield::plot::{plot_error_against_size, SizePoint};
 use igi_lightfield::{BuildOptions, Method, Prepared, RenderSlfOptions, SurfaceLightField, View};
 use igi_render::embree::RtScene;
 use std::sync::OnceLock;
@@ -198,4 +199,66 @@ fn bias_one_half_is_the_identity() {
         )
         .unwrap();
     assert_ne!(a.pixels, c.pixels, "another bias changes the picture");
+}
+
+/// The colour bytes and held-out PSNR (after 8-bit storage) of one method.
+fn stored_point(
+    s: &Synth,
+    prep: &Prepared,
+    dir: &std::path::Path,
+    label: &str,
+    m: Method,
+) -> SizePoint {
+    let t = std::time::Instant::now();
+    let f = prep.fit(m, &opts()).unwrap();
+    let seconds = t.elapsed().as_secs_f64();
+    if let igi_lightfield::Coding::Quantized(c) = &f.coding {
+        let used: std::collections::BTreeSet<u32> = c.index.iter().copied().collect();
+        eprintln!(
+            "{label}: {} of {} codewords used",
+            used.len(),
+            c.codewords.len()
+        );
+    }
+    let out = dir.join(label);
+    let rep = igi_lightfield::store::save(&out, &f, &s.atlas.mesh, serde_json::json!({})).unwrap();
+    let (loaded, _) = igi_lightfield::store::load(&out).unwrap();
+    let psnr_db = held_out_psnr(s, &loaded, &[0, 1, 2]);
+    eprintln!(
+        "| {label} | {} | {:.1}:1 | {psnr_db:.2} dB | {seconds:.0} s |",
+        rep.colour_bytes, rep.compression_ratio
+    );
+    SizePoint {
+        label: label.into(),
+        colour_bytes: rep.colour_bytes,
+        psnr_db,
+    }
+}
+
+#[test]
+#[ignore = "several minutes: every coding stored, the error-against-size plot written to target/ (docs/LIGHTFIELD.md)"]
+fn error_against_size_of_every_coding() {
+    let s = synth();
+    let prep = prepare(s, |_| true);
+    let dir = tempfile::tempdir().unwrap();
+    let mut methods = vec![
+        ("fair".to_string(), Method::Fair),
+        ("median".into(), Method::MedianOnly),
+    ];
+    methods.extend((1..=5).map(|q| (format!("pfa q={q}"), Method::Pfa { q })));
+    methods.extend([256, 1024].map(|c| (format!("fq {c}"), Method::Fq { codewords: c })));
+    eprintln!("| coding | colour bytes | against faired RGB8 | held-out PSNR | fit |");
+    let points: Vec<SizePoint> = methods
+        .into_iter()
+        .map(|(label, m)| stored_point(s, &prep, dir.path(), &label, m))
+        .collect();
+    let target = std::env::var_os("CARGO_TARGET_DIR")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../target"));
+    let png = target.join("slf_error_against_size.png");
+    plot_error_against_size(&png, &points).unwrap();
+    eprintln!("wrote {}", png.display());
+    let fair = points.iter().find(|p| p.label == "fair").unwrap();
+    let median = points.iter().find(|p| p.label == "median").unwrap();
+    assert!(fair.psnr_db > median.psnr_db && fair.colour_bytes > median.colour_bytes);
 }
