@@ -230,6 +230,12 @@ fn slf_build_from_a_rig_then_render_held_out_views() {
             report["extra"]["invalid_pixels"].as_u64().unwrap() >= 1,
             "{report}"
         );
+        // view 5's mask claims the whole frame but the sphere covers a part: warned, by name
+        let warnings = report["extra"]["warnings"].as_array().unwrap();
+        assert_eq!(warnings.len(), 1, "{report}");
+        let w = warnings[0].as_str().unwrap();
+        assert!(w.contains("\"v05\"") && w.contains("miss the mesh"), "{w}");
+        assert!(String::from_utf8_lossy(&o.stderr).contains("warning: view \"v05\""));
         let gather = &report["extra"]["gather"];
         assert!(
             gather["unseen_points"].as_u64().unwrap() * 50 < gather["points"].as_u64().unwrap(),

@@ -133,10 +133,14 @@ fn build(a: BuildArgs, ctx: &Ctx) -> anyhow::Result<()> {
         bar.set_message(capture::STAGES[k]);
     })?;
     bar.finish_and_clear();
+    for w in &built.warnings {
+        eprintln!("warning: {w}");
+    }
     let seconds = t.elapsed().as_secs_f64();
     let extra = serde_json::json!({
         "rig": a.rig, "mesh": a.mesh, "views": built.views, "invalid_pixels": built.invalid_pixels,
         "gather": built.report, "atlas_texel_m": built.atlas.texel_size, "seconds": seconds,
+        "warnings": built.warnings,
     });
     let report = igi_lightfield::store::save(&a.output, &built.field, &built.atlas.mesh, extra)?;
     if a.json {

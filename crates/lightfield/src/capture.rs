@@ -30,14 +30,30 @@ pub struct RigBuild {
     /// Views read, and their pixels marked invalid (masked or clipped).
     pub views: usize,
     pub invalid_pixels: usize,
+    /// One line per view whose mask has more than [`MAX_SILHOUETTE_MISS`] of its pixels off the
+    /// mesh (the mesh and the photographs disagree there), naming the view.
+    pub warnings: Vec<String>,
+}
+
+/// The fraction of a view's silhouette (mask) pixels whose centre ray may miss the mesh before
+/// the build warns about that view.
+pub const MAX_SILHOUETTE_MISS: f64 = 0.01;
+
+/// A loaded view: camera, photo with invalid pixels marked, and its silhouette when the rig
+/// gives a mask.
+pub struct LoadedView {
+    pub id: String,
+    pub camera: Camera,
+    pub photo: HdrImage,
+    pub mask: Option<Mask>,
 }
 
 /// Reads every view of `rig`: its camera and its photo with invalid pixels marked.
-pub fn load_views(rig: &Rig) -> Result<Vec<(Camera, HdrImage)>, LightFieldError> {
+pub fn load_views(rig: &Rig) -> Result<Vec<LoadedView>, LightFieldError> {
     rig.views.iter().map(|v| load_view(rig, v)).collect()
 }
 
-fn load_view(rig: &Rig, v: &RigView) -> Result<(Camera, HdrImage), LightFieldError> {
+fn load_view(rig: &Rig, v: &RigView) -> Result<LoadedView, LightFieldError> {
     let camera = rig.load_camera(v)?;
     let read = |p: &Path| -> Result<HdrImage, LightFieldError> {
         let img = read_image(p).map_err(|e| rig.view_error(v, e))?;
@@ -56,13 +72,56 @@ fn load_view(rig: &Rig, v: &RigView) -> Result<(Camera, HdrImage), LightFieldErr
     if is_8bit(&v.photo) {
         mask_clipped(&mut photo, CLIP_8BIT);
     }
-    if let Some(m) = &v.mask {
-        let mask = Mask::threshold(&read(m)?, 0.0);
+    let mask = match &v.mask {
+        Some(m) => Some(Mask::threshold(&read(m)?, 0.0)),
+        None => None,
+    };
+    if let Some(mask) = &mask {
         for (ok, inside) in photo.valid.iter_mut().zip(&mask.data) {
             *ok &= *inside;
         }
     }
-    Ok((camera, photo))
+    Ok(LoadedView {
+        id: v.id.clone(),
+        camera,
+        photo,
+        mask,
+    })
+}
+
+/// The fraction of `mask`'s pixels whose centre ray through `camera` misses the scene.
+pub fn silhouette_miss(rt: &RtScene, camera: &Camera, mask: &Mask) -> f64 {
+    use rayon::prelude::*;
+    let w = mask.width;
+    let inside: Vec<usize> = (0..mask.data.len()).filter(|&i| mask.data[i]).collect();
+    let missed = inside
+        .par_iter()
+        .filter(|&&i| {
+            let (o, d) = camera.pixel_ray((i % w) as f64, (i / w) as f64);
+            rt.intersect(o.as_vec3(), d.as_vec3(), 0.0, f32::INFINITY)
+                .is_none()
+        })
+        .count();
+    missed as f64 / inside.len().max(1) as f64
+}
+
+/// A warning for each view whose silhouette misses the mesh by more than
+/// [`MAX_SILHOUETTE_MISS`].
+fn silhouette_warnings(rt: &RtScene, views: &[LoadedView]) -> Vec<String> {
+    views
+        .iter()
+        .filter_map(|v| {
+            let miss = silhouette_miss(rt, &v.camera, v.mask.as_ref()?);
+            (miss > MAX_SILHOUETTE_MISS).then(|| {
+                format!(
+                    "view {:?}: {:.1} % of its mask's pixels miss the mesh (more than {} %): the mesh and the photographs disagree there",
+                    v.id,
+                    100.0 * miss,
+                    100.0 * MAX_SILHOUETTE_MISS
+                )
+            })
+        })
+        .collect()
 }
 
 /// PNG and JPEG photos are 8-bit (their top code value is clipped light).
@@ -139,16 +198,20 @@ pub fn build_from_rig(
     )])
     .map_err(LightFieldError::Render)?;
     stage(2);
+    let warnings = silhouette_warnings(&rt, &views);
     let refs: Vec<View> = views
         .iter()
-        .map(|(camera, image)| View { camera, image })
+        .map(|v| View {
+            camera: &v.camera,
+            image: &v.photo,
+        })
         .collect();
     let prepared = Prepared::new(&atlas, &rt, &refs, opts.level);
     stage(3);
     let field = prepared.fit(method, opts)?;
     let invalid_pixels = views
         .iter()
-        .map(|(_, im)| im.valid.iter().filter(|v| !**v).count())
+        .map(|v| v.photo.valid.iter().filter(|ok| !**ok).count())
         .sum();
     Ok(RigBuild {
         field,
@@ -156,5 +219,6 @@ pub fn build_from_rig(
         report: prepared.report.clone(),
         views: views.len(),
         invalid_pixels,
+        warnings,
     })
 }
