@@ -184,6 +184,17 @@ fn compare_reads_the_alpha(dir: &Path, img: &Path, rgba: &HdrImage, truth: &HdrI
         (c["psnr_db"].as_f64().unwrap() - psnr).abs() < 1e-6,
         "{c} vs {psnr}"
     );
+    // the truth judged on the render's pixels only (--within): exactly the covered pixels
+    let o = igi().ok(&["compare", s(&t), s(&t), "--within", s(img), "--json"]);
+    let c: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(c["pixels"].as_u64(), Some(covered), "{c}");
+    // --within a picture without alpha is refused, naming it
+    let o = igi().run(&["compare", s(img), s(&t), "--within", s(&t)]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("truth.exr") && err.contains("no alpha"),
+        "{err}"
+    );
 }
 
 fn psnr(img: &HdrImage, truth: &HdrImage) -> f64 {

@@ -23,6 +23,10 @@ pub struct CompareArgs {
     /// Per-pixel standard error of B.
     #[arg(long)]
     pub stderr_b: Option<PathBuf>,
+    /// Compare only the pixels this RGBA EXR covers (alpha > 0), e.g. another method's render,
+    /// so that two methods are judged on the same pixels.
+    #[arg(long)]
+    pub within: Option<PathBuf>,
 }
 
 /// An image whose pixels of alpha 0 (an RGBA EXR's uncovered pixels, e.g. `igi slf render`'s
@@ -44,8 +48,29 @@ pub fn run(a: CompareArgs, _ctx: &Ctx) -> anyhow::Result<()> {
     let read = |p: &PathBuf| {
         igi_imaging::read_image(p).with_context(|| format!("reading {}", p.display()))
     };
-    let ia = read_covered(&a.a)?;
+    let mut ia = read_covered(&a.a)?;
     let ib = read_covered(&a.b)?;
+    if let Some(w) = &a.within {
+        let alpha = igi_imaging::read_exr_alpha(w)
+            .with_context(|| format!("reading {}", w.display()))?
+            .with_context(|| {
+                format!(
+                    "{}: --within needs an RGBA EXR (it has no alpha)",
+                    w.display()
+                )
+            })?;
+        anyhow::ensure!(
+            alpha.len() == ia.valid.len(),
+            "{}: --within is {} pixels but {} is {}",
+            w.display(),
+            alpha.len(),
+            a.a.display(),
+            ia.valid.len()
+        );
+        for (v, al) in ia.valid.iter_mut().zip(alpha) {
+            *v &= al > 0.0;
+        }
+    }
     let sa = a.stderr_a.as_ref().map(read).transpose()?;
     let sb = a.stderr_b.as_ref().map(read).transpose()?;
     let c = compare_images(&ia, &ib, sa.as_ref(), sb.as_ref())
