@@ -8,7 +8,7 @@
 //! reparameterisation of Eqs. 9-10.
 
 use crate::fit::{DataLumisphere, Sample};
-use crate::lumisphere::{median_rgb, reflect, Octahedron};
+use crate::lumisphere::{median_rgb, reflect_about_normal, Octahedron};
 use glam::Vec3;
 use igi_imaging::{Camera, HdrImage};
 use igi_render::embree::RtScene;
@@ -168,7 +168,7 @@ pub fn reparameterise(
     let samples = obs
         .iter()
         .map(|(c, w)| Sample {
-            bary: oct.locate(reflect(*w, normal)),
+            bary: oct.locate(reflect_about_normal(*w, normal)),
             colour: *c - median,
         })
         .collect();

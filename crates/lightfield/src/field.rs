@@ -4,7 +4,7 @@
 //! output values; a rotated or deformed mesh with the same texture coordinates, whose new
 //! normals reflect the view directions).
 
-use crate::lumisphere::{eval_bary, reflect, Octahedron};
+use crate::lumisphere::{eval_bary, reflect_about_normal, Octahedron};
 use crate::pfa::Pfa;
 use crate::quantize::Codebook;
 use crate::LightFieldError;
@@ -120,7 +120,7 @@ impl SurfaceLightField {
 
     /// The outgoing colour of point `p` toward unit direction `w` with surface normal `n`.
     pub fn radiance(&self, p: usize, w: Vec3, n: Vec3) -> Vec3 {
-        (self.median[p] + self.lumisphere_value(p, reflect(w, n))).max(Vec3::ZERO)
+        (self.median[p] + self.lumisphere_value(p, reflect_about_normal(w, n))).max(Vec3::ZERO)
     }
 
     /// The grid point at a texture coordinate (nearest texel), if any.

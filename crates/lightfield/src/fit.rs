@@ -214,7 +214,6 @@ pub(crate) fn chunked_sum<T: Sync>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::lumisphere::reflect;
 
     fn sample(oct: &Octahedron, w: Vec3, c: Vec3) -> Sample {
         Sample {
@@ -270,7 +269,6 @@ mod tests {
             },
         );
         assert!(thin_energy(&oct, &smooth) < rough);
-        let _ = reflect(Vec3::Z, Vec3::Z);
     }
 
     #[test]

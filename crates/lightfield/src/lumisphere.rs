@@ -68,8 +68,10 @@ pub fn h_inverse(p: Vec3) -> Vec3 {
     Vec3::new((t * p.x).sin(), (t * p.y).sin(), (t * p.z).sin()).normalize_or(Vec3::Z)
 }
 
-/// Eq. 10: the direction reflected about the normal, 2 (n . w) n - w.
-pub fn reflect(w: Vec3, n: Vec3) -> Vec3 {
+/// Eq. 10: the direction reflected about the normal, 2 (n . w) n - w: the mirror of `w` across
+/// the line of `n`, both pointing away from the surface (glam's `reflect` is the other
+/// convention, an incident ray bounced: w - 2 (n . w) n).
+pub fn reflect_about_normal(w: Vec3, n: Vec3) -> Vec3 {
     2.0 * n.dot(w) * n - w
 }
 
@@ -391,9 +393,9 @@ mod tests {
     fn reflection_about_the_normal_and_the_median() {
         let n = Vec3::Z;
         let w = Vec3::new(0.6, 0.0, 0.8);
-        assert!((reflect(w, n) - Vec3::new(-0.6, 0.0, 0.8)).length() < 1e-6);
+        assert!((reflect_about_normal(w, n) - Vec3::new(-0.6, 0.0, 0.8)).length() < 1e-6);
         assert!(
-            (reflect(n, n) - n).length() < 1e-6,
+            (reflect_about_normal(n, n) - n).length() < 1e-6,
             "the normal reflects to itself"
         );
         let m = median_rgb(&[
