@@ -39,6 +39,16 @@ pub enum ImagingError {
     },
     #[error("invalid input: {0}")]
     InvalidInput(String),
+    /// Exposure times and brackets that cannot be merged.
+    #[error(transparent)]
+    Hdr(#[from] HdrError),
+    /// A problem inside a file (the file named, the problem as its own error).
+    #[error("{}: {source}", path.display())]
+    InFile {
+        path: PathBuf,
+        #[source]
+        source: Box<ImagingError>,
+    },
     #[error("{}: is a file, not a folder (cannot write into {})", path.display(), wanted.display())]
     NotAFolder { path: PathBuf, wanted: PathBuf },
     #[error("{}: output folder does not exist", path.display())]
@@ -73,4 +83,40 @@ impl ImagingError {
             source,
         }
     }
+}
+
+/// Exposure times and brackets that cannot be merged (`hdr`).
+#[derive(Debug, thiserror::Error)]
+pub enum HdrError {
+    #[error("cannot parse exposure time {0:?} (want seconds, e.g. 0.004 or 1/250)")]
+    TimeSyntax(String),
+    #[error("exposure time {0:?} must be positive and finite")]
+    TimeValue(String),
+    #[error("no brackets given")]
+    NoBrackets,
+    #[error("missing exposure times: {images} image(s) but {times} time(s)")]
+    TimeCount { images: usize, times: usize },
+    #[error("{name}: brackets of different sizes: {}x{} but {first} is {}x{}", size.0, size.1, first_size.0, first_size.1)]
+    Sizes {
+        name: String,
+        size: (usize, usize),
+        first: String,
+        first_size: (usize, usize),
+    },
+    #[error("{name}: exposure time {time} must be positive and finite")]
+    BracketTime { name: String, time: f64 },
+    #[error("{name}: exposure times must be strictly monotonic with no duplicates (sort the brackets): {time} follows {previous}")]
+    Order {
+        name: String,
+        time: f64,
+        previous: f64,
+    },
+    #[error("noise floor {noise_floor} must be below saturation {saturation}")]
+    Levels { noise_floor: f32, saturation: f32 },
+    #[error("slope merge range [{lo}, {hi}] is empty")]
+    SlopeRange { lo: f32, hi: f32 },
+    #[error("response recovery: smoothness (lambda) must be finite and >= 0 and samples at least 2, got lambda {lambda} and {samples} samples")]
+    ResponseParams { lambda: f64, samples: usize },
+    #[error("response least squares failed: {0}")]
+    Solve(String),
 }

@@ -13,6 +13,7 @@
 //! (its value is the best bound available: the shortest exposure for saturated pixels, the
 //! longest one for pixels under the noise floor).
 
+use crate::error::HdrError;
 use crate::{HdrImage, ImagingError};
 use nalgebra::{DMatrix, DVector};
 use rand::{Rng, SeedableRng};
@@ -24,11 +25,7 @@ pub const LEVELS: usize = 256;
 /// Parse an exposure time: a decimal number of seconds or a fraction such as `1/250`.
 pub fn parse_time(s: &str) -> Result<f64, ImagingError> {
     let s = s.trim();
-    let bad = || {
-        ImagingError::InvalidInput(format!(
-            "cannot parse exposure time {s:?} (want seconds, e.g. 0.004 or 1/250)"
-        ))
-    };
+    let bad = || HdrError::TimeSyntax(s.to_string());
     let v = match s.split_once('/') {
         Some((a, b)) => {
             a.trim().parse::<f64>().map_err(|_| bad())?
@@ -37,9 +34,7 @@ pub fn parse_time(s: &str) -> Result<f64, ImagingError> {
         None => s.parse::<f64>().map_err(|_| bad())?,
     };
     if !(v.is_finite() && v > 0.0) {
-        return Err(ImagingError::InvalidInput(format!(
-            "exposure time {s:?} must be positive and finite"
-        )));
+        return Err(HdrError::TimeValue(s.to_string()).into());
     }
     Ok(v)
 }
@@ -49,8 +44,10 @@ pub fn read_times_file(path: &Path) -> Result<Vec<f64>, ImagingError> {
     let text = std::fs::read_to_string(path).map_err(|e| ImagingError::io(path, e))?;
     text.split_whitespace()
         .map(|t| {
-            parse_time(t)
-                .map_err(|e| ImagingError::InvalidInput(format!("{}: {e}", path.display())))
+            parse_time(t).map_err(|e| ImagingError::InFile {
+                path: path.to_path_buf(),
+                source: Box::new(e),
+            })
         })
         .collect()
 }
@@ -105,35 +102,34 @@ pub fn validate_brackets(
             .unwrap_or_else(|| format!("bracket {i}"))
     };
     if images.is_empty() {
-        return Err(ImagingError::InvalidInput("no brackets given".into()));
+        return Err(HdrError::NoBrackets.into());
     }
     if times.len() != images.len() {
-        return Err(ImagingError::InvalidInput(format!(
-            "missing exposure times: {} image(s) but {} time(s)",
-            images.len(),
-            times.len()
-        )));
+        return Err(HdrError::TimeCount {
+            images: images.len(),
+            times: times.len(),
+        }
+        .into());
     }
     let (w, h) = (images[0].width, images[0].height);
     for (i, im) in images.iter().enumerate() {
         if (im.width, im.height) != (w, h) {
-            return Err(ImagingError::InvalidInput(format!(
-                "{}: brackets of different sizes: {}x{} but {} is {}x{}",
-                name(i),
-                im.width,
-                im.height,
-                name(0),
-                w,
-                h
-            )));
+            return Err(HdrError::Sizes {
+                name: name(i),
+                size: (im.width, im.height),
+                first: name(0),
+                first_size: (w, h),
+            }
+            .into());
         }
     }
     for (i, &t) in times.iter().enumerate() {
         if !(t.is_finite() && t > 0.0) {
-            return Err(ImagingError::InvalidInput(format!(
-                "{}: exposure time {t} must be positive and finite",
-                name(i)
-            )));
+            return Err(HdrError::BracketTime {
+                name: name(i),
+                time: t,
+            }
+            .into());
         }
     }
     if times.len() > 1 {
@@ -145,12 +141,12 @@ pub fn validate_brackets(
                 times[i] < times[i - 1]
             };
             if !ok {
-                return Err(ImagingError::InvalidInput(format!(
-                    "{}: exposure times must be strictly monotonic with no duplicates (sort the brackets): {} follows {}",
-                    name(i),
-                    times[i],
-                    times[i - 1]
-                )));
+                return Err(HdrError::Order {
+                    name: name(i),
+                    time: times[i],
+                    previous: times[i - 1],
+                }
+                .into());
             }
         }
     }
@@ -220,10 +216,11 @@ pub fn merge_linear(
 ) -> Result<(HdrImage, MergeStats), ImagingError> {
     validate_brackets(images, times, &[])?;
     if !(p.noise_floor < p.saturation) {
-        return Err(ImagingError::InvalidInput(format!(
-            "noise floor {} must be below saturation {}",
-            p.noise_floor, p.saturation
-        )));
+        return Err(HdrError::Levels {
+            noise_floor: p.noise_floor,
+            saturation: p.saturation,
+        }
+        .into());
     }
     let (w, h) = (images[0].width, images[0].height);
     let (short, long) = extreme_indices(times);
@@ -294,10 +291,7 @@ pub fn merge_slope(
 ) -> Result<(HdrImage, MergeStats), ImagingError> {
     validate_brackets(images, times, &[])?;
     if !(p.lo < p.hi) {
-        return Err(ImagingError::InvalidInput(format!(
-            "slope merge range [{}, {}] is empty",
-            p.lo, p.hi
-        )));
+        return Err(HdrError::SlopeRange { lo: p.lo, hi: p.hi }.into());
     }
     let (w, h) = (images[0].width, images[0].height);
     let (short, _) = extreme_indices(times);
@@ -480,10 +474,11 @@ pub fn recover_response(
         ));
     }
     if !(p.lambda >= 0.0 && p.lambda.is_finite()) || p.samples < 2 {
-        return Err(ImagingError::InvalidInput(format!(
-            "response recovery: smoothness (lambda) must be finite and >= 0 and samples at least 2, got lambda {} and {} samples",
-            p.lambda, p.samples
-        )));
+        return Err(HdrError::ResponseParams {
+            lambda: p.lambda,
+            samples: p.samples,
+        }
+        .into());
     }
     let mut g: [Vec<f64>; 3] = Default::default();
     for (c, gc) in g.iter_mut().enumerate() {
@@ -518,7 +513,7 @@ fn channel_response(
     let x = s_mat
         .svd(true, true)
         .solve(&rhs, 1e-12)
-        .map_err(|e| ImagingError::InvalidInput(format!("response least squares failed: {e}")))?;
+        .map_err(|e| HdrError::Solve(e.to_string()))?;
     // The data and smoothness rows are invariant under g += const; the weighted g(128) = 0
     // row picks the constant only approximately, so impose it exactly.
     let g128 = x[128];
