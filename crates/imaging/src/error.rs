@@ -42,6 +42,9 @@ pub enum ImagingError {
     /// Exposure times and brackets that cannot be merged.
     #[error(transparent)]
     Hdr(#[from] HdrError),
+    /// Flat fields or a colour checker that cannot be fitted.
+    #[error(transparent)]
+    RadiometryFit(#[from] RadiometryError),
     /// A problem inside a file (the file named, the problem as its own error).
     #[error("{}: {source}", path.display())]
     InFile {
@@ -119,4 +122,36 @@ pub enum HdrError {
     ResponseParams { lambda: f64, samples: usize },
     #[error("response least squares failed: {0}")]
     Solve(String),
+}
+
+/// Flat fields and colour-checker patches that cannot be fitted (`radiometry`).
+#[derive(Debug, thiserror::Error)]
+pub enum RadiometryError {
+    #[error("falloff fit needs at least 4 samples, got {0}")]
+    FewSamples(usize),
+    #[error("{what} least squares failed: {msg}")]
+    Solve { what: &'static str, msg: String },
+    #[error("colour matrix: {patches} source patches but {targets} targets")]
+    PatchCount { patches: usize, targets: usize },
+    #[error("falloff fit needs at least one flat field")]
+    NoFlats,
+    #[error("flat field {index} is {}x{} but the first is {}x{}", size.0, size.1, first.0, first.1)]
+    FlatSize {
+        index: usize,
+        size: (usize, usize),
+        first: (usize, usize),
+    },
+    #[error("colour checker patch {index} ({usable} of 81 samples usable): is it inside the image and unsaturated?")]
+    Patch { index: usize, usable: usize },
+    #[error("colour checker: {0} patches, expected 24")]
+    CheckerPatches(usize),
+    #[error("colour checker white radiance {0} must be positive")]
+    White(f64),
+    #[error("radiometry needs flat fields, a colour checker, or both")]
+    NothingToFit,
+    #[error("the colour checker photograph is {}x{} but the flat fields are {}x{}", size.0, size.1, flats.0, flats.1)]
+    CheckerSize {
+        size: (usize, usize),
+        flats: (usize, usize),
+    },
 }

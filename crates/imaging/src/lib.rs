@@ -46,7 +46,7 @@ pub mod rig;
 pub mod run;
 
 pub use camera::{Camera, CameraFile, CameraToWorld, Distortion, Intrinsics, WorldToCamera};
-pub use error::{HdrError, ImagingError};
+pub use error::{HdrError, ImagingError, RadiometryError};
 pub use image::HdrImage;
 pub use io::{
     read_exr_alpha, read_image, write_exr, write_exr_rgba, write_hdr, write_png_tonemapped,

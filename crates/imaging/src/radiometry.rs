@@ -2,7 +2,7 @@
 //! (reference values and patch sampling from its four corners), and the camera radiometry file
 //! that `igi camera radiometry` writes and surveys apply to every photograph on load.
 
-use crate::{HdrImage, ImagingError};
+use crate::{HdrImage, ImagingError, RadiometryError};
 use glam::DVec2;
 use nalgebra::{DMatrix, DVector, Matrix3};
 use std::path::Path;
@@ -34,10 +34,7 @@ impl Falloff {
     /// Returns the falloff and `s`.
     pub fn fit(samples: &[(f64, f64)]) -> Result<(Falloff, f64), ImagingError> {
         if samples.len() < 4 {
-            return Err(ImagingError::InvalidInput(format!(
-                "falloff fit needs at least 4 samples, got {}",
-                samples.len()
-            )));
+            return Err(RadiometryError::FewSamples(samples.len()).into());
         }
         if samples
             .iter()
@@ -58,7 +55,10 @@ impl Falloff {
             b[i] = v;
         }
         let x = a.svd(true, true).solve(&b, 1e-12).map_err(|e| {
-            ImagingError::InvalidInput(format!("falloff least squares failed: {e}"))
+            ImagingError::from(RadiometryError::Solve {
+                what: "falloff",
+                msg: e.to_string(),
+            })
         })?;
         let s = x[0];
         if !(s.abs() > 0.0) || !s.is_finite() {
@@ -134,11 +134,11 @@ pub fn fit_color_matrix(
     target: &[[f64; 3]],
 ) -> Result<[[f64; 3]; 3], ImagingError> {
     if source.len() != target.len() {
-        return Err(ImagingError::InvalidInput(format!(
-            "colour matrix: {} source patches but {} targets",
-            source.len(),
-            target.len()
-        )));
+        return Err(RadiometryError::PatchCount {
+            patches: source.len(),
+            targets: target.len(),
+        }
+        .into());
     }
     if source.len() < 3 {
         return Err(ImagingError::InvalidInput(
@@ -169,7 +169,10 @@ pub fn fit_color_matrix(
     for r in 0..3 {
         let b = DVector::<f64>::from_fn(n, |i, _| target[i][r]);
         let x = svd.solve(&b, 1e-12).map_err(|e| {
-            ImagingError::InvalidInput(format!("colour matrix least squares failed: {e}"))
+            ImagingError::from(RadiometryError::Solve {
+                what: "colour matrix",
+                msg: e.to_string(),
+            })
         })?;
         m[r] = [x[0], x[1], x[2]];
     }
@@ -190,21 +193,19 @@ pub fn apply_color_matrix(img: &mut HdrImage, m: &[[f64; 3]; 3]) {
 /// `stride`-th pixel so that at most about 200 000 samples are used). Returns the falloff and
 /// the RMS of the relative residual `v / (s f(r)) - 1`.
 pub fn fit_falloff_flats(flats: &[HdrImage]) -> Result<(Falloff, f64), ImagingError> {
-    let first = flats.first().ok_or_else(|| {
-        ImagingError::InvalidInput("falloff fit needs at least one flat field".into())
-    })?;
+    let first = flats
+        .first()
+        .ok_or_else(|| ImagingError::from(RadiometryError::NoFlats))?;
     if let Some(k) = flats
         .iter()
         .position(|f| f.width != first.width || f.height != first.height)
     {
-        return Err(ImagingError::InvalidInput(format!(
-            "flat field {} is {}x{} but the first is {}x{}",
-            k + 1,
-            flats[k].width,
-            flats[k].height,
-            first.width,
-            first.height
-        )));
+        return Err(RadiometryError::FlatSize {
+            index: k + 1,
+            size: (flats[k].width, flats[k].height),
+            first: (first.width, first.height),
+        }
+        .into());
     }
     let n = first.width * first.height;
     let stride = (n * flats.len()).div_ceil(200_000).max(1);
@@ -307,11 +308,11 @@ pub fn sample_checker(img: &HdrImage, corners: &[DVec2; 4]) -> Result<Vec<[f64; 
             }
         }
         if n < 41 {
-            return Err(ImagingError::InvalidInput(format!(
-                "colour checker patch {} ({} of 81 samples usable): is it inside the image and unsaturated?",
-                k + 1,
-                n
-            )));
+            return Err(RadiometryError::Patch {
+                index: k + 1,
+                usable: n,
+            }
+            .into());
         }
         out.push(sum.map(|s| s / n as f64));
     }
@@ -380,16 +381,11 @@ pub fn fit_checker_matrix(
     white: Option<f64>,
 ) -> Result<([[f64; 3]; 3], f64), ImagingError> {
     if camera_rgb.len() != CHECKER_COLS * CHECKER_ROWS {
-        return Err(ImagingError::InvalidInput(format!(
-            "colour checker: {} patches, expected 24",
-            camera_rgb.len()
-        )));
+        return Err(RadiometryError::CheckerPatches(camera_rgb.len()).into());
     }
     if let Some(w) = white {
         if !(w > 0.0) || !w.is_finite() {
-            return Err(ImagingError::InvalidInput(format!(
-                "colour checker white radiance {w} must be positive"
-            )));
+            return Err(RadiometryError::White(w).into());
         }
     }
     let reference = checker_reference();
@@ -553,18 +549,15 @@ pub fn fit_radiometry(inputs: &RadiometryInputs) -> Result<CameraRadiometry, Ima
     let size = match (inputs.flats.first(), &inputs.checker) {
         (Some(f), _) => (f.width, f.height),
         (None, Some((c, _))) => (c.width, c.height),
-        (None, None) => {
-            return Err(ImagingError::InvalidInput(
-                "radiometry needs flat fields, a colour checker, or both".into(),
-            ))
-        }
+        (None, None) => return Err(RadiometryError::NothingToFit.into()),
     };
     if let Some((c, _)) = &inputs.checker {
         if (c.width, c.height) != size {
-            return Err(ImagingError::InvalidInput(format!(
-                "the colour checker photograph is {}x{} but the flat fields are {}x{}",
-                c.width, c.height, size.0, size.1
-            )));
+            return Err(RadiometryError::CheckerSize {
+                size: (c.width, c.height),
+                flats: size,
+            }
+            .into());
         }
     }
     let (falloff, falloff_rms) = match inputs.flats.is_empty() {
