@@ -240,29 +240,10 @@ pub fn cluster(
         ));
     }
     let locals: Vec<Local> = lumitexels.iter().map(to_local).collect();
-    let usable: Vec<usize> = (0..locals.len())
-        .filter(|&t| !locals[t].light.is_empty())
-        .collect();
-    let total: usize = usable.iter().map(|&t| locals[t].light.len()).sum();
-    if usable.len() < opts.k || total < 5 * opts.k {
-        return Err(BrdfError::Invalid(format!(
-            "{} usable lumitexels with {} samples above the surface cannot make {} clusters",
-            usable.len(),
-            total,
-            opts.k
-        )));
-    }
-    let mut mean = [0.0f64; 3];
-    for &t in &usable {
-        for v in &locals[t].value {
-            for c in 0..3 {
-                mean[c] += v[c] / total as f64;
-            }
-        }
-    }
+    let usable = usable_lumitexels(&locals, opts.k)?;
     let ctx = Ctx {
         locals: &locals,
-        floor: mean.map(|m| opts.rel_floor * m + 1e-12),
+        floor: residual_floor(&locals, &usable, opts.rel_floor),
         model: Model::plain(opts.max_n),
         opts,
     };
@@ -271,26 +252,95 @@ pub fn cluster(
     let mut params: Vec<[f64; NP]> = vec![p0];
     let mut assignment = ctx.assign(&usable, &params);
     while params.len() < opts.k {
-        // the cluster with the largest total error
+        assignment = ctx.split_worst(&usable, &mut params, assignment)?;
+    }
+    ctx.refit_from_scratch(&usable, &mut params, &assignment);
+    assignment = ctx.assign(&usable, &params);
+    let brdfs: Vec<Lafortune> = params.iter().map(|p| ctx.model.to_lafortune(p)).collect();
+    let weights = lumitexels
+        .iter()
+        .map(|lt| basis_weights(&brdfs, lt))
+        .collect();
+    let errors = ctx.errors(&assignment, &params);
+    Ok(ClusterResult {
+        brdfs,
+        assignment,
+        weights,
+        errors,
+    })
+}
+
+/// Indices of the lumitexels with samples above the surface; an error when they are too few
+/// (or carry too few samples) for `k` clusters.
+fn usable_lumitexels(locals: &[Local], k: usize) -> Result<Vec<usize>, BrdfError> {
+    let usable: Vec<usize> = (0..locals.len())
+        .filter(|&t| !locals[t].light.is_empty())
+        .collect();
+    let total: usize = usable.iter().map(|&t| locals[t].light.len()).sum();
+    if usable.len() < k || total < 5 * k {
+        return Err(BrdfError::Invalid(format!(
+            "{} usable lumitexels with {} samples above the surface cannot make {} clusters",
+            usable.len(),
+            total,
+            k
+        )));
+    }
+    Ok(usable)
+}
+
+/// The relative-residual floor per channel: `rel_floor` times the mean sample value of the
+/// usable lumitexels (plus a tiny constant, so a black channel still has a floor).
+fn residual_floor(locals: &[Local], usable: &[usize], rel_floor: f64) -> [f64; 3] {
+    let total: usize = usable.iter().map(|&t| locals[t].light.len()).sum();
+    let mut mean = [0.0f64; 3];
+    for &t in usable {
+        for v in &locals[t].value {
+            for c in 0..3 {
+                mean[c] += v[c] / total as f64;
+            }
+        }
+    }
+    mean.map(|m| rel_floor * m + 1e-12)
+}
+
+impl Ctx<'_> {
+    /// The usable lumitexels assigned to cluster `c`.
+    fn members(&self, usable: &[usize], assignment: &[usize], c: usize) -> Vec<usize> {
+        usable
+            .iter()
+            .copied()
+            .filter(|&t| assignment[t] == c)
+            .collect()
+    }
+
+    /// The cluster (of at least two members) with the largest total error.
+    fn worst_cluster(&self, usable: &[usize], assignment: &[usize], params: &[[f64; NP]]) -> usize {
         let mut worst = (0usize, -1.0f64);
         for k in 0..params.len() {
             let e: f64 = usable
                 .iter()
                 .filter(|&&t| assignment[t] == k)
-                .map(|&t| ctx.err(t, &params[k]))
+                .map(|&t| self.err(t, &params[k]))
                 .sum();
             let members = usable.iter().filter(|&&t| assignment[t] == k).count();
             if members >= 2 && e > worst.1 {
                 worst = (k, e);
             }
         }
-        let k = worst.0;
-        let members: Vec<usize> = usable
-            .iter()
-            .copied()
-            .filter(|&t| assignment[t] == k)
-            .collect();
-        let (a, b, proj) = ctx.split(&params[k], &members).ok_or_else(|| {
+        worst.0
+    }
+
+    /// Splits the worst cluster in two (one child replaces it, the other is appended to
+    /// `params`), then assigns and refits until the assignment settles; returns the assignment.
+    fn split_worst(
+        &self,
+        usable: &[usize],
+        params: &mut Vec<[f64; NP]>,
+        assignment: Vec<usize>,
+    ) -> Result<Vec<usize>, BrdfError> {
+        let k = self.worst_cluster(usable, &assignment, params);
+        let members = self.members(usable, &assignment, k);
+        let (a, b, proj) = self.split(&params[k], &members).ok_or_else(|| {
             BrdfError::Invalid(format!(
                 "cluster {k} cannot be split further ({} members agree)",
                 members.len()
@@ -299,7 +349,7 @@ pub fn cluster(
         let kb = params.len();
         params[k] = a;
         params.push(b);
-        assignment = ctx.assign(&usable, &params);
+        let mut assignment = self.assign(usable, params);
         // a degenerate split (one child empty): fall back to the sign of the projection
         if !usable.iter().any(|&t| assignment[t] == kb)
             || !usable.iter().any(|&t| assignment[t] == k)
@@ -308,61 +358,61 @@ pub fn cluster(
                 assignment[t] = if proj[m] >= 0.0 { k } else { kb };
             }
         }
-        for _round in 0..opts.max_rounds {
+        Ok(self.settle(usable, params, assignment))
+    }
+
+    /// Alternates a warm-started refit of every cluster and a reassignment, at most
+    /// `max_rounds` times or until no lumitexel changes cluster.
+    fn settle(
+        &self,
+        usable: &[usize],
+        params: &mut [[f64; NP]],
+        mut assignment: Vec<usize>,
+    ) -> Vec<usize> {
+        for _round in 0..self.opts.max_rounds {
             for (c, p) in params.iter_mut().enumerate() {
-                let mem: Vec<usize> = usable
-                    .iter()
-                    .copied()
-                    .filter(|&t| assignment[t] == c)
-                    .collect();
+                let mem = self.members(usable, &assignment, c);
                 if !mem.is_empty() {
-                    *p = refine(&ctx.model, &ctx.data_of(&mem), *p).0;
+                    *p = refine(&self.model, &self.data_of(&mem), *p).0;
                 }
             }
-            let next = ctx.assign(&usable, &params);
+            let next = self.assign(usable, params);
             let changed = next != assignment;
             assignment = next;
             if !changed {
                 break;
             }
         }
+        assignment
     }
-    // final full refit of every cluster from scratch (multi-start), then a last assignment
-    for (c, p) in params.iter_mut().enumerate() {
-        let mem: Vec<usize> = usable
-            .iter()
-            .copied()
-            .filter(|&t| assignment[t] == c)
-            .collect();
-        if !mem.is_empty() {
-            let d = ctx.data_of(&mem);
-            let (q, cost, _) = fit_data(&ctx.model, &d);
-            if cost <= d.cost(&ctx.model, p) {
-                *p = q;
+
+    /// A final full refit of every cluster from scratch (multi-start), kept where it lowers the
+    /// cluster's cost.
+    fn refit_from_scratch(&self, usable: &[usize], params: &mut [[f64; NP]], assignment: &[usize]) {
+        for (c, p) in params.iter_mut().enumerate() {
+            let mem = self.members(usable, assignment, c);
+            if !mem.is_empty() {
+                let d = self.data_of(&mem);
+                let (q, cost, _) = fit_data(&self.model, &d);
+                if cost <= d.cost(&self.model, p) {
+                    *p = q;
+                }
             }
         }
     }
-    assignment = ctx.assign(&usable, &params);
-    let brdfs: Vec<Lafortune> = params.iter().map(|p| ctx.model.to_lafortune(p)).collect();
-    let weights = lumitexels
-        .iter()
-        .map(|lt| basis_weights(&brdfs, lt))
-        .collect();
-    let errors = (0..locals.len())
-        .map(|t| {
-            if assignment[t] == usize::MAX {
-                0.0
-            } else {
-                ctx.err(t, &params[assignment[t]]).sqrt()
-            }
-        })
-        .collect();
-    Ok(ClusterResult {
-        brdfs,
-        assignment,
-        weights,
-        errors,
-    })
+
+    /// RMS relative residual of every lumitexel under its cluster's BRDF (0 when unassigned).
+    fn errors(&self, assignment: &[usize], params: &[[f64; NP]]) -> Vec<f64> {
+        (0..self.locals.len())
+            .map(|t| {
+                if assignment[t] == usize::MAX {
+                    0.0
+                } else {
+                    self.err(t, &params[assignment[t]]).sqrt()
+                }
+            })
+            .collect()
+    }
 }
 
 /// Least-squares weights `w` with `rgb ~ sum_k w_k pi f_k(light, view)` over the lumitexel's
@@ -400,6 +450,12 @@ pub fn basis_weights(brdfs: &[Lafortune], lt: &Lumitexel) -> Vec<f32> {
     }
 }
 
+/// The numeric columns of a lumitexels CSV, in the order [`lumitexel_row`] returns them.
+const LUMITEXEL_COLUMNS: [&str; 15] = [
+    "px", "py", "pz", "nx", "ny", "nz", "light_x", "light_y", "light_z", "view_x", "view_y",
+    "view_z", "r", "g", "b",
+];
+
 /// Lumitexels CSV: `id,px,py,pz,nx,ny,nz,light_x,light_y,light_z,view_x,view_y,view_z,r,g,b`,
 /// one row per sample, rows of one lumitexel share `id` (world directions, r g b = pi f).
 /// Returns the ids (in order of first appearance) and the lumitexels.
@@ -408,11 +464,6 @@ pub fn read_lumitexels(path: &std::path::Path) -> Result<(Vec<String>, Vec<Lumit
         path: path.into(),
         source,
     })?;
-    let perr = |line: usize, msg: String| BrdfError::Parse {
-        path: path.into(),
-        line,
-        msg,
-    };
     let mut it = text
         .lines()
         .enumerate()
@@ -423,52 +474,26 @@ pub fn read_lumitexels(path: &std::path::Path) -> Result<(Vec<String>, Vec<Lumit
         msg: "empty file (no header)".into(),
     })?;
     let header: Vec<&str> = header.split(',').map(|c| c.trim()).collect();
-    const COLS: [&str; 15] = [
-        "px", "py", "pz", "nx", "ny", "nz", "light_x", "light_y", "light_z", "view_x", "view_y",
-        "view_z", "r", "g", "b",
-    ];
-    let col = |name: &str| {
-        header
-            .iter()
-            .position(|h| h.eq_ignore_ascii_case(name))
-            .ok_or_else(|| perr(hl, format!("header lacks column `{name}`")))
-    };
-    let iid = col("id")?;
-    let idx: Vec<usize> = COLS.iter().map(|c| col(c)).collect::<Result<_, _>>()?;
+    let (iid, idx) = lumitexel_columns(path, hl, &header)?;
     let mut ids: Vec<String> = Vec::new();
     let mut lts: Vec<Lumitexel> = Vec::new();
     let mut index = std::collections::HashMap::new();
     for (line, l) in it {
         let cells: Vec<&str> = l.split(',').map(|c| c.trim()).collect();
         if cells.len() != header.len() {
-            return Err(perr(
+            return Err(parse_error(
+                path,
                 line,
                 format!("{} cells, header has {}", cells.len(), header.len()),
             ));
         }
-        let mut v = [0.0f32; 15];
-        for k in 0..15 {
-            let cell = cells[idx[k]];
-            v[k] = cell
-                .parse()
-                .map_err(|_| perr(line, format!("`{}` = `{cell}` is not a number", COLS[k])))?;
-            if !v[k].is_finite() {
-                return Err(perr(
-                    line,
-                    format!("`{}` = `{cell}` is not finite", COLS[k]),
-                ));
-            }
-        }
-        let normal = Vec3::new(v[3], v[4], v[5]);
-        if normal.length() < 1e-6 {
-            return Err(perr(line, "zero normal".into()));
-        }
+        let v = lumitexel_row(path, line, &cells, &idx)?;
         let id = cells[iid].to_string();
         let t = *index.entry(id.clone()).or_insert_with(|| {
             ids.push(id);
             lts.push(Lumitexel {
                 position: Vec3::new(v[0], v[1], v[2]),
-                normal: normal.normalize(),
+                normal: Vec3::new(v[3], v[4], v[5]).normalize(),
                 samples: vec![],
             });
             lts.len() - 1
@@ -486,6 +511,63 @@ pub fn read_lumitexels(path: &std::path::Path) -> Result<(Vec<String>, Vec<Lumit
         });
     }
     Ok((ids, lts))
+}
+
+fn parse_error(path: &std::path::Path, line: usize, msg: String) -> BrdfError {
+    BrdfError::Parse {
+        path: path.into(),
+        line,
+        msg,
+    }
+}
+
+/// Positions in `header` (on line `hl`) of the `id` column and of [`LUMITEXEL_COLUMNS`].
+fn lumitexel_columns(
+    path: &std::path::Path,
+    hl: usize,
+    header: &[&str],
+) -> Result<(usize, Vec<usize>), BrdfError> {
+    let col = |name: &str| {
+        header
+            .iter()
+            .position(|h| h.eq_ignore_ascii_case(name))
+            .ok_or_else(|| parse_error(path, hl, format!("header lacks column `{name}`")))
+    };
+    let iid = col("id")?;
+    let idx: Vec<usize> = LUMITEXEL_COLUMNS
+        .iter()
+        .map(|c| col(c))
+        .collect::<Result<_, _>>()?;
+    Ok((iid, idx))
+}
+
+/// The finite numbers of [`LUMITEXEL_COLUMNS`] in one row's `cells` (at positions `idx`);
+/// an error for a non-number, a non-finite value or a zero normal.
+fn lumitexel_row(
+    path: &std::path::Path,
+    line: usize,
+    cells: &[&str],
+    idx: &[usize],
+) -> Result<[f32; 15], BrdfError> {
+    let mut v = [0.0f32; 15];
+    for k in 0..15 {
+        let cell = cells[idx[k]];
+        let name = LUMITEXEL_COLUMNS[k];
+        v[k] = cell
+            .parse()
+            .map_err(|_| parse_error(path, line, format!("`{name}` = `{cell}` is not a number")))?;
+        if !v[k].is_finite() {
+            return Err(parse_error(
+                path,
+                line,
+                format!("`{name}` = `{cell}` is not finite"),
+            ));
+        }
+    }
+    if Vec3::new(v[3], v[4], v[5]).length() < 1e-6 {
+        return Err(parse_error(path, line, "zero normal".into()));
+    }
+    Ok(v)
 }
 
 #[cfg(test)]

@@ -594,8 +594,8 @@ fn grid_starts(
     a: usize,
     m: usize,
 ) -> Vec<[f64; NP]> {
-    let spec = colour == SR;
-    let cxys: &[f64] = if spec {
+    let grid = LobeGrid::new(model, data, p, colour, a, m);
+    let cxys: &[f64] = if grid.spec {
         &[
             0.7, 0.85, 0.95, 1.0, 1.02, 1.05, 1.1, 1.2, 1.35, 1.6, 2.0, 2.5,
         ]
@@ -603,102 +603,14 @@ fn grid_starts(
         &[0.2, 0.5, 0.8, 0.95, 1.0, 1.05, 1.2, 1.5]
     };
     let ns = n_grid(model.max_n);
-    let pi = std::f64::consts::PI;
-    let len = data.light.len();
-    // the other lobe, as it stands (a basis only if it has any colour)
-    let oc = if spec { RR } else { SR };
-    let (_, retro, specl) = model.lobes(p);
-    let other = if spec { retro } else { specl };
-    let has_other = (0..3).any(|c| p[oc + c] > -39.0);
-    let g1: Vec<f64> = data
-        .light
-        .iter()
-        .zip(&data.view)
-        .map(|(l, v)| pi * shape(other.cxy, other.n, l, v))
-        .collect();
-    let k = if has_other { 3 } else { 2 };
-    // Gram sums that do not involve the grid lobe
-    let mut g_fix = [[[0.0f64; 3]; 3]; 3];
-    let mut b_fix = [[0.0f64; 3]; 3];
-    for i in 0..len {
-        for c in 0..3 {
-            let w2 = data.weight[i][c] * data.weight[i][c];
-            let d = data.value[i][c];
-            g_fix[c][0][0] += w2;
-            g_fix[c][0][1] += w2 * g1[i];
-            g_fix[c][1][1] += w2 * g1[i] * g1[i];
-            b_fix[c][0] += w2 * d;
-            b_fix[c][1] += w2 * g1[i] * d;
-        }
-    }
-    let bucket = |n: f64| {
-        if n < 8.0 {
-            0
-        } else if n < 60.0 {
-            1
-        } else if n < 500.0 {
-            2
-        } else {
-            3
-        }
-    };
     let mut best: [Option<(f64, [f64; NP])>; 4] = [None; 4];
-    let mut g2 = vec![0.0f64; len];
+    let mut g2 = vec![0.0f64; data.light.len()];
     for &cxy in cxys {
         for &n in &ns {
-            let signed = if spec { -cxy } else { cxy };
-            let mut big = false;
-            for i in 0..len {
-                g2[i] = pi * shape(signed, n, &data.light[i], &data.view[i]);
-                big |= g2[i] > 1e12;
-            }
-            if big {
+            let Some((cost, q)) = grid.node(p, cxy, n, &mut g2) else {
                 continue;
-            }
-            let mut q = *p;
-            q[a] = cxy.ln();
-            q[m] = (n - 1.0).max(1e-6).ln();
-            let mut cost = 0.0;
-            for c in 0..3 {
-                let mut g = g_fix[c];
-                let mut b = b_fix[c];
-                for i in 0..len {
-                    let w2 = data.weight[i][c] * data.weight[i][c];
-                    g[0][2] += w2 * g2[i];
-                    g[1][2] += w2 * g1[i] * g2[i];
-                    g[2][2] += w2 * g2[i] * g2[i];
-                    b[2] += w2 * g2[i] * data.value[i][c];
-                }
-                // unknown order: rho_d, [other lobe], this lobe
-                let (gg, bb) = if has_other {
-                    let mut s = g;
-                    for r in 0..3 {
-                        for cc in r..3 {
-                            s[cc][r] = s[r][cc];
-                        }
-                    }
-                    (s, b)
-                } else {
-                    (
-                        [[g[0][0], g[0][2], 0.0], [g[0][2], g[2][2], 0.0], [0.0; 3]],
-                        [b[0], b[2], 0.0],
-                    )
-                };
-                let (x, val) = nnls_small(&gg, &bb, k);
-                cost += val;
-                let (xd, xo, xs) = if has_other {
-                    (x[0], x[1], x[2])
-                } else {
-                    (x[0], 0.0, x[1])
-                };
-                let ln = |v: f64| if v > 0.0 { v.ln().max(-40.0) } else { -40.0 };
-                q[LD + c] = ln(xd);
-                if has_other {
-                    q[oc + c] = ln(xo);
-                }
-                q[colour + c] = ln(xs);
-            }
-            let slot = &mut best[bucket(n)];
+            };
+            let slot = &mut best[exponent_bucket(n)];
             if slot.as_ref().is_none_or(|s| cost < s.0) {
                 *slot = Some((cost, q));
             }
@@ -707,6 +619,152 @@ fn grid_starts(
     let mut v: Vec<(f64, [f64; NP])> = best.into_iter().flatten().collect();
     v.sort_by(|x, y| x.0.total_cmp(&y.0));
     v.into_iter().map(|x| x.1).collect()
+}
+
+/// The exponent range of a grid node: N < 8, < 60, < 500, >= 500.
+fn exponent_bucket(n: f64) -> usize {
+    if n < 8.0 {
+        0
+    } else if n < 60.0 {
+        1
+    } else if n < 500.0 {
+        2
+    } else {
+        3
+    }
+}
+
+/// What [`grid_starts`] keeps fixed over its grid: the lobe's parameter indices, the other lobe's
+/// basis values `g1` and the weighted Gram sums that do not involve the grid lobe.
+struct LobeGrid<'a> {
+    data: &'a Data,
+    /// The grid lobe is the specular one (its `Cxy` is negative).
+    spec: bool,
+    colour: usize,
+    a: usize,
+    m: usize,
+    /// Colour index of the other lobe.
+    oc: usize,
+    /// The other lobe has any colour (and so is a basis function).
+    has_other: bool,
+    g1: Vec<f64>,
+    g_fix: [[[f64; 3]; 3]; 3],
+    b_fix: [[f64; 3]; 3],
+}
+
+impl<'a> LobeGrid<'a> {
+    fn new(
+        model: &Model,
+        data: &'a Data,
+        p: &[f64; NP],
+        colour: usize,
+        a: usize,
+        m: usize,
+    ) -> Self {
+        let spec = colour == SR;
+        let pi = std::f64::consts::PI;
+        // the other lobe, as it stands (a basis only if it has any colour)
+        let oc = if spec { RR } else { SR };
+        let (_, retro, specl) = model.lobes(p);
+        let other = if spec { retro } else { specl };
+        let has_other = (0..3).any(|c| p[oc + c] > -39.0);
+        let g1: Vec<f64> = data
+            .light
+            .iter()
+            .zip(&data.view)
+            .map(|(l, v)| pi * shape(other.cxy, other.n, l, v))
+            .collect();
+        let mut g_fix = [[[0.0f64; 3]; 3]; 3];
+        let mut b_fix = [[0.0f64; 3]; 3];
+        for i in 0..data.light.len() {
+            for c in 0..3 {
+                let w2 = data.weight[i][c] * data.weight[i][c];
+                let d = data.value[i][c];
+                g_fix[c][0][0] += w2;
+                g_fix[c][0][1] += w2 * g1[i];
+                g_fix[c][1][1] += w2 * g1[i] * g1[i];
+                b_fix[c][0] += w2 * d;
+                b_fix[c][1] += w2 * g1[i] * d;
+            }
+        }
+        LobeGrid {
+            data,
+            spec,
+            colour,
+            a,
+            m,
+            oc,
+            has_other,
+            g1,
+            g_fix,
+            b_fix,
+        }
+    }
+
+    /// The cost and parameters (from `p`, with the lobe's shape set and every colour solved) at
+    /// the node `(cxy, n)`; `None` where the lobe overflows. `g2` is scratch of the data's length.
+    fn node(&self, p: &[f64; NP], cxy: f64, n: f64, g2: &mut [f64]) -> Option<(f64, [f64; NP])> {
+        let data = self.data;
+        let signed = if self.spec { -cxy } else { cxy };
+        let mut big = false;
+        for i in 0..data.light.len() {
+            g2[i] = std::f64::consts::PI * shape(signed, n, &data.light[i], &data.view[i]);
+            big |= g2[i] > 1e12;
+        }
+        if big {
+            return None;
+        }
+        let mut q = *p;
+        q[self.a] = cxy.ln();
+        q[self.m] = (n - 1.0).max(1e-6).ln();
+        let mut cost = 0.0;
+        for c in 0..3 {
+            let (x, val) = self.solve_channel(c, g2);
+            cost += val;
+            let (xd, xo, xs) = if self.has_other {
+                (x[0], x[1], x[2])
+            } else {
+                (x[0], 0.0, x[1])
+            };
+            let ln = |v: f64| if v > 0.0 { v.ln().max(-40.0) } else { -40.0 };
+            q[LD + c] = ln(xd);
+            if self.has_other {
+                q[self.oc + c] = ln(xo);
+            }
+            q[self.colour + c] = ln(xs);
+        }
+        Some((cost, q))
+    }
+
+    /// Channel `c`'s non-negative least-squares colours with the grid lobe's basis `g2`;
+    /// unknown order: rho_d, [other lobe], this lobe.
+    fn solve_channel(&self, c: usize, g2: &[f64]) -> ([f64; 3], f64) {
+        let data = self.data;
+        let mut g = self.g_fix[c];
+        let mut b = self.b_fix[c];
+        for i in 0..data.light.len() {
+            let w2 = data.weight[i][c] * data.weight[i][c];
+            g[0][2] += w2 * g2[i];
+            g[1][2] += w2 * self.g1[i] * g2[i];
+            g[2][2] += w2 * g2[i] * g2[i];
+            b[2] += w2 * g2[i] * data.value[i][c];
+        }
+        if self.has_other {
+            let mut s = g;
+            for r in 0..3 {
+                for cc in r..3 {
+                    s[cc][r] = s[r][cc];
+                }
+            }
+            nnls_small(&s, &b, 3)
+        } else {
+            nnls_small(
+                &[[g[0][0], g[0][2], 0.0], [g[0][2], g[2][2], 0.0], [0.0; 3]],
+                &[b[0], b[2], 0.0],
+                2,
+            )
+        }
+    }
 }
 
 /// One lobe fitted alone: LM over the lobe's colour, `Cxy` and `N` from fixed starting exponents
@@ -989,55 +1047,113 @@ pub fn fit_material(
         material: material.to_string(),
         msg,
     };
-    if samples.len() < 5 {
-        return Err(fail(format!(
-            "{} samples are too few for the {NP}-parameter model (need at least 5, i.e. 15 values)",
-            samples.len()
-        )));
-    }
-    for (i, s) in samples.iter().enumerate() {
-        if !(s.light.is_finite() && s.view.is_finite() && s.value.is_finite())
-            || s.value.min_element() < 0.0
-        {
-            return Err(fail(format!(
-                "sample {i} has non-finite or negative values"
-            )));
-        }
-        if s.light.z <= 0.0 || s.view.z <= 0.0 {
-            return Err(fail(format!(
-                "sample {i} has a direction below the surface"
-            )));
-        }
-    }
+    check_samples(samples).map_err(fail)?;
     let data = prepared_data(samples, opts);
     let (model, cv) = select_model(&data, opts);
     let (p, cost, termination) = fit_staged(&model, &data, true);
     if !cost.is_finite() || p.iter().any(|x| !x.is_finite()) {
         return Err(fail("the optimiser produced non-finite values".into()));
     }
-    let all: Vec<usize> = (0..NP).collect();
+    let stats = FitStats::new(&model, &data, p);
+    let stderr = parameter_stderr(&model, &p, &stats.stderr());
+    let brdf = model.to_lafortune(&p);
+    if !brdf.rho_d.is_finite()
+        || brdf
+            .lobes
+            .iter()
+            .any(|l| !l.rho.is_finite() || !l.n.is_finite())
+    {
+        return Err(fail("the fitted parameters overflow f32".into()));
+    }
+    Ok(FitReport {
+        material: material.to_string(),
+        brdf,
+        rms: stats.rms,
+        rms_abs: stats.rms_abs,
+        stderr,
+        samples: samples.len(),
+        termination,
+        params: p,
+        covariance: stats.cov * stats.sigma2,
+        max_n: opts.max_n,
+        retro: model.retro,
+        lobes_used: if model.retro { 2 } else { 1 },
+        cv,
+    })
+}
 
-    // Statistics.
-    let prob = Problem {
-        model: &model,
-        data: &data,
-        p,
-        free: all.clone(),
-    };
-    let r = prob.residuals_at(&p);
-    let m = 3 * data.light.len(); // data residuals (the prior's two come after them)
-    let rms = (r.rows(0, m).norm_squared() / m as f64).sqrt();
-    let mut abs2 = 0.0;
-    for i in 0..data.light.len() {
-        let f = model.value(&p, &data.light[i], &data.view[i]);
-        for c in 0..3 {
-            abs2 += (f[c] - data.value[i][c]).powi(2);
+/// Enough samples for the model, every value finite and non-negative, every direction above the
+/// surface; the message of the first failure otherwise.
+fn check_samples(samples: &[BrdfSample]) -> Result<(), String> {
+    if samples.len() < 5 {
+        return Err(format!(
+            "{} samples are too few for the {NP}-parameter model (need at least 5, i.e. 15 values)",
+            samples.len()
+        ));
+    }
+    for (i, s) in samples.iter().enumerate() {
+        if !(s.light.is_finite() && s.view.is_finite() && s.value.is_finite())
+            || s.value.min_element() < 0.0
+        {
+            return Err(format!("sample {i} has non-finite or negative values"));
+        }
+        if s.light.z <= 0.0 || s.view.z <= 0.0 {
+            return Err(format!("sample {i} has a direction below the surface"));
         }
     }
-    let rms_abs = (abs2 / m as f64).sqrt();
-    let sigma2 = r.rows(0, m).norm_squared() / (m.saturating_sub(NP)).max(1) as f64;
-    let j = prob.jacobian_at(&p, &all);
-    let jtj = j.transpose() * &j;
+    Ok(())
+}
+
+/// Residual statistics of a fit: relative and absolute RMS, the residual variance and the
+/// (unscaled) parameter covariance `(J^T J)^-1`.
+struct FitStats {
+    rms: f64,
+    rms_abs: f64,
+    sigma2: f64,
+    cov: DMatrix<f64>,
+}
+
+impl FitStats {
+    fn new(model: &Model, data: &Data, p: [f64; NP]) -> Self {
+        let all: Vec<usize> = (0..NP).collect();
+        let prob = Problem {
+            model,
+            data,
+            p,
+            free: all.clone(),
+        };
+        let r = prob.residuals_at(&p);
+        let m = 3 * data.light.len(); // data residuals (the prior's two come after them)
+        let rms = (r.rows(0, m).norm_squared() / m as f64).sqrt();
+        let mut abs2 = 0.0;
+        for i in 0..data.light.len() {
+            let f = model.value(&p, &data.light[i], &data.view[i]);
+            for c in 0..3 {
+                abs2 += (f[c] - data.value[i][c]).powi(2);
+            }
+        }
+        let rms_abs = (abs2 / m as f64).sqrt();
+        let sigma2 = r.rows(0, m).norm_squared() / (m.saturating_sub(NP)).max(1) as f64;
+        let j = prob.jacobian_at(&p, &all);
+        let jtj = j.transpose() * &j;
+        FitStats {
+            rms,
+            rms_abs,
+            sigma2,
+            cov: pseudo_inverse(jtj),
+        }
+    }
+
+    /// Standard error of every (log-space) parameter.
+    fn stderr(&self) -> Vec<f64> {
+        (0..NP)
+            .map(|i| (self.cov[(i, i)].abs() * self.sigma2).sqrt().min(1e30))
+            .collect()
+    }
+}
+
+/// The inverse of the symmetric `jtj` by its SVD, tiny singular values clamped.
+fn pseudo_inverse(jtj: DMatrix<f64>) -> DMatrix<f64> {
     let svd = jtj.svd(true, true);
     let (u, vt) = (svd.u.expect("u"), svd.v_t.expect("v_t"));
     let smax = svd.singular_values.max().max(1e-300);
@@ -1046,12 +1162,15 @@ pub fn fit_material(
         let s = svd.singular_values[k].max(smax * 1e-14).max(1e-300);
         cov += (u.column(k) * vt.row(k)) / s;
     }
-    let se: Vec<f64> = (0..NP)
-        .map(|i| (cov[(i, i)].abs() * sigma2).sqrt().min(1e30))
-        .collect();
-    let (d, re, sp) = model.lobes(&p);
+    cov
+}
+
+/// Standard errors of the model's parameters at `p` from those `se` of the log-space parameters
+/// (first order: `d exp(x) = exp(x) dx`), capped at 1e30.
+fn parameter_stderr(model: &Model, p: &[f64; NP], se: &[f64]) -> Stderr {
+    let (d, re, sp) = model.lobes(p);
     let cap = |x: f64| if x.is_finite() { x.min(1e30) } else { 1e30 };
-    let stderr = Stderr {
+    Stderr {
         rho_d: [0, 1, 2].map(|c| cap(d[c] * se[LD + c])),
         lobes: vec![
             LobeStderr {
@@ -1065,31 +1184,7 @@ pub fn fit_material(
                 n: cap((sp.n - 1.0) * se[SM]),
             },
         ],
-    };
-    let brdf = model.to_lafortune(&p);
-    if !brdf.rho_d.is_finite()
-        || brdf
-            .lobes
-            .iter()
-            .any(|l| !l.rho.is_finite() || !l.n.is_finite())
-    {
-        return Err(fail("the fitted parameters overflow f32".into()));
     }
-    Ok(FitReport {
-        material: material.to_string(),
-        brdf,
-        rms,
-        rms_abs,
-        stderr,
-        samples: samples.len(),
-        termination,
-        params: p,
-        covariance: cov * sigma2,
-        max_n: opts.max_n,
-        retro: model.retro,
-        lobes_used: if model.retro { 2 } else { 1 },
-        cv,
-    })
 }
 
 #[cfg(test)]

@@ -59,6 +59,16 @@ fn in_plane_groups(samples: &[BrdfSample]) -> Vec<Group> {
     groups
 }
 
+/// One colour per light elevation group (cycled).
+const PALETTE: [RGBColor; 6] = [
+    RGBColor(31, 119, 180),
+    RGBColor(255, 127, 14),
+    RGBColor(44, 160, 44),
+    RGBColor(214, 39, 40),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
+];
+
 /// Draw the figure for `materials` = (name, samples, fitted BRDF) into a PNG (atomic write).
 pub fn plot_fits(
     path: &Path,
@@ -76,72 +86,10 @@ pub fn plot_fits(
             let root = BitMapBackend::new(tmp, (w, h)).into_drawing_area();
             root.fill(&WHITE)?;
             let panels = root.split_evenly((rows, 3));
-            let palette = [
-                RGBColor(31, 119, 180),
-                RGBColor(255, 127, 14),
-                RGBColor(44, 160, 44),
-                RGBColor(214, 39, 40),
-                RGBColor(148, 103, 189),
-                RGBColor(140, 86, 75),
-            ];
             for (r, (name, samples, brdf)) in materials.iter().enumerate() {
                 let groups = in_plane_groups(samples);
                 for c in 0..3 {
-                    let ymax = groups
-                        .iter()
-                        .flat_map(|g| g.2.iter().map(|p| p.1[c]))
-                        .fold(0.0f32, f32::max)
-                        .max(1e-6)
-                        * 1.15;
-                    let mut chart = ChartBuilder::on(&panels[r * 3 + c])
-                        .caption(
-                            format!("{name} - {}", ["red", "green", "blue"][c]),
-                            ("sans-serif", 18),
-                        )
-                        .margin(8)
-                        .x_label_area_size(30)
-                        .y_label_area_size(50)
-                        .build_cartesian_2d(-90f32..90f32, 0f32..ymax)?;
-                    chart
-                        .configure_mesh()
-                        .x_desc("view angle (deg, + = mirror side)")
-                        .y_desc("pi f")
-                        .draw()?;
-                    for (gi, (lt, phi_l, pts)) in groups.iter().enumerate() {
-                        let col = palette[gi % palette.len()];
-                        let light = Vec3::new(
-                            (*lt as f32).to_radians().sin() * phi_l.cos(),
-                            (*lt as f32).to_radians().sin() * phi_l.sin(),
-                            (*lt as f32).to_radians().cos(),
-                        );
-                        let curve = (0..=360).map(|k| {
-                            let a = -89.5 + 179.0 * k as f32 / 360.0;
-                            let phi = if a < 0.0 {
-                                *phi_l
-                            } else {
-                                phi_l + std::f32::consts::PI
-                            };
-                            let t = a.abs().to_radians();
-                            let v = Vec3::new(t.sin() * phi.cos(), t.sin() * phi.sin(), t.cos());
-                            (
-                                a,
-                                (brdf.as_ref().eval(light, v)[c] * std::f32::consts::PI).min(ymax),
-                            )
-                        });
-                        chart
-                            .draw_series(LineSeries::new(curve, col.stroke_width(2)))?
-                            .label(format!("light {lt} deg"))
-                            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], col));
-                        chart
-                            .draw_series(pts.iter().map(|(a, v)| {
-                                Circle::new((*a, v[c].min(ymax)), 3, col.filled())
-                            }))?;
-                    }
-                    chart
-                        .configure_series_labels()
-                        .background_style(WHITE.mix(0.8))
-                        .border_style(BLACK)
-                        .draw()?;
+                    draw_panel(&panels[r * 3 + c], name, c, &groups, brdf)?;
                 }
             }
             root.present()?;
@@ -153,6 +101,85 @@ pub fn plot_fits(
         })
     })
     .map_err(|e| perr(e.to_string()))
+}
+
+/// One panel: material `name`, channel `c`, the samples of every light group and the fitted
+/// curve in the plane of that light.
+fn draw_panel(
+    area: &DrawingArea<BitMapBackend<'_>, plotters::coord::Shift>,
+    name: &str,
+    c: usize,
+    groups: &[Group],
+    brdf: &Lafortune,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let ymax = groups
+        .iter()
+        .flat_map(|g| g.2.iter().map(|p| p.1[c]))
+        .fold(0.0f32, f32::max)
+        .max(1e-6)
+        * 1.15;
+    let mut chart = ChartBuilder::on(area)
+        .caption(
+            format!("{name} - {}", ["red", "green", "blue"][c]),
+            ("sans-serif", 18),
+        )
+        .margin(8)
+        .x_label_area_size(30)
+        .y_label_area_size(50)
+        .build_cartesian_2d(-90f32..90f32, 0f32..ymax)?;
+    chart
+        .configure_mesh()
+        .x_desc("view angle (deg, + = mirror side)")
+        .y_desc("pi f")
+        .draw()?;
+    for (gi, (lt, phi_l, pts)) in groups.iter().enumerate() {
+        let col = PALETTE[gi % PALETTE.len()];
+        let curve = fitted_curve(brdf, *lt, *phi_l, c, ymax);
+        chart
+            .draw_series(LineSeries::new(curve, col.stroke_width(2)))?
+            .label(format!("light {lt} deg"))
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], col));
+        chart.draw_series(
+            pts.iter()
+                .map(|(a, v)| Circle::new((*a, v[c].min(ymax)), 3, col.filled())),
+        )?;
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()?;
+    Ok(())
+}
+
+/// Channel `c` of pi times `brdf` in the plane of a light at elevation `lt` degrees and azimuth
+/// `phi_l`, over signed view angles from -89.5 to 89.5 degrees, capped at `ymax`.
+fn fitted_curve(
+    brdf: &Lafortune,
+    lt: i32,
+    phi_l: f32,
+    c: usize,
+    ymax: f32,
+) -> impl Iterator<Item = (f32, f32)> + '_ {
+    let light = Vec3::new(
+        (lt as f32).to_radians().sin() * phi_l.cos(),
+        (lt as f32).to_radians().sin() * phi_l.sin(),
+        (lt as f32).to_radians().cos(),
+    );
+    (0..=360).map(move |k| {
+        let a = -89.5 + 179.0 * k as f32 / 360.0;
+        let phi = if a < 0.0 {
+            phi_l
+        } else {
+            phi_l + std::f32::consts::PI
+        };
+        let t = a.abs().to_radians();
+        let v = Vec3::new(t.sin() * phi.cos(), t.sin() * phi.sin(), t.cos());
+        (
+            a,
+            (brdf.as_ref().eval(light, v)[c] * std::f32::consts::PI).min(ymax),
+        )
+    })
 }
 
 /// Write text to `path` atomically (temp file in the same folder, then rename).

@@ -2,6 +2,7 @@
 
 use crate::solver::SolveReport;
 use crate::ReflectError;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use std::path::Path;
 
@@ -30,7 +31,41 @@ pub fn plot_convergence(report: &SolveReport, path: &Path) -> Result<(), Reflect
         .fold(0.0, f64::max)
         .max(1e-4)
         * 1.15;
-    let draw = |tmp: &Path| -> Result<(), String> {
+    let figure = Figure {
+        fonts,
+        residual: &pts_res,
+        truth: &pts_truth,
+        xmax,
+        ymax,
+    };
+    igi_imaging::io::write_atomic(path, |tmp| {
+        figure
+            .draw(tmp)
+            .map_err(|e| igi_imaging::ImagingError::Encode {
+                path: path.to_path_buf(),
+                msg: format!("cannot draw plot: {e}"),
+            })
+    })?;
+    Ok(())
+}
+
+type Chart<'a, 'b> =
+    ChartContext<'a, BitMapBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+/// The convergence figure's data: (seconds, error) points and the axes' ranges; text (caption,
+/// axis descriptions, legend) only when `fonts` are available.
+struct Figure<'a> {
+    fonts: bool,
+    residual: &'a [(f64, f64)],
+    truth: &'a [(f64, f64)],
+    xmax: f64,
+    ymax: f64,
+}
+
+impl Figure<'_> {
+    /// Draws the figure into the PNG file `tmp`.
+    fn draw(&self, tmp: &Path) -> Result<(), String> {
+        let fonts = self.fonts;
         let root = BitMapBackend::new(tmp, (800, 500)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| e.to_string())?;
         let mut b = ChartBuilder::on(&root);
@@ -41,7 +76,7 @@ pub fn plot_convergence(report: &SolveReport, path: &Path) -> Result<(), Reflect
                 .y_label_area_size(60);
         }
         let mut chart = b
-            .build_cartesian_2d(0.0..xmax, 0.0..ymax)
+            .build_cartesian_2d(0.0..self.xmax, 0.0..self.ymax)
             .map_err(|e| e.to_string())?;
         if fonts {
             chart
@@ -51,29 +86,14 @@ pub fn plot_convergence(report: &SolveReport, path: &Path) -> Result<(), Reflect
                 .draw()
                 .map_err(|e| e.to_string())?;
         }
-        chart
-            .draw_series(LineSeries::new(
-                pts_res.iter().copied(),
-                BLUE.stroke_width(2),
-            ))
-            .map_err(|e| e.to_string())?
-            .label("photo residual, relative RMS")
-            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
-        chart
-            .draw_series(pts_res.iter().map(|p| Circle::new(*p, 4, BLUE.filled())))
-            .map_err(|e| e.to_string())?;
-        if !pts_truth.is_empty() {
-            chart
-                .draw_series(LineSeries::new(
-                    pts_truth.iter().copied(),
-                    RED.stroke_width(2),
-                ))
-                .map_err(|e| e.to_string())?
-                .label("rho_d RMS error vs truth")
-                .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED));
-            chart
-                .draw_series(pts_truth.iter().map(|p| Circle::new(*p, 4, RED.filled())))
-                .map_err(|e| e.to_string())?;
+        draw_curve(
+            &mut chart,
+            self.residual,
+            BLUE,
+            "photo residual, relative RMS",
+        )?;
+        if !self.truth.is_empty() {
+            draw_curve(&mut chart, self.truth, RED, "rho_d RMS error vs truth")?;
         }
         if fonts {
             chart
@@ -85,12 +105,23 @@ pub fn plot_convergence(report: &SolveReport, path: &Path) -> Result<(), Reflect
         }
         root.present().map_err(|e| e.to_string())?;
         Ok(())
-    };
-    igi_imaging::io::write_atomic(path, |tmp| {
-        draw(tmp).map_err(|e| igi_imaging::ImagingError::Encode {
-            path: path.to_path_buf(),
-            msg: format!("cannot draw plot: {e}"),
-        })
-    })?;
+    }
+}
+
+/// One curve: the points joined by a line (with a legend entry `label`) and marked by dots.
+fn draw_curve(
+    chart: &mut Chart<'_, '_>,
+    pts: &[(f64, f64)],
+    colour: RGBColor,
+    label: &str,
+) -> Result<(), String> {
+    chart
+        .draw_series(LineSeries::new(pts.iter().copied(), colour.stroke_width(2)))
+        .map_err(|e| e.to_string())?
+        .label(label)
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour));
+    chart
+        .draw_series(pts.iter().map(|p| Circle::new(*p, 4, colour.filled())))
+        .map_err(|e| e.to_string())?;
     Ok(())
 }

@@ -296,69 +296,13 @@ impl SolveResult {
         let (mut rho, mut weight_sum, mut observations, mut stderr, mut lobes) =
             (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
         for s in &report.parts {
-            let name = &s.name;
-            let mesh = match &s.stored {
-                None => read_mesh(&pdir.join(format!("{name}.ply")))?,
-                Some(_) => TriMesh::default(),
-            };
-            let coverage = read_image(&pdir.join(format!("{name}_coverage.exr")))?;
-            let pos = read_image(&pdir.join(format!("{name}_position.exr")))?;
-            let nrm = read_image(&pdir.join(format!("{name}_normal.exr")))?;
-            let r = coverage.width;
-            let sized = |im: &HdrImage, f: &str| -> Result<(), ReflectError> {
-                if im.width != r || im.height != r {
-                    return Err(ReflectError::file(
-                        pdir.join(f),
-                        format!("is {}x{}, expected {r}x{r}", im.width, im.height),
-                    ));
-                }
-                Ok(())
-            };
-            let rho_img = read_image(&pdir.join(format!("{name}_rho_d.exr")))?;
-            let w_img = read_image(&pdir.join(format!("{name}_weight.exr")))?;
-            let o_img = read_image(&pdir.join(format!("{name}_observations.exr")))?;
-            for (im, f) in [
-                (&pos, "position"),
-                (&nrm, "normal"),
-                (&rho_img, "rho_d"),
-                (&w_img, "weight"),
-                (&o_img, "observations"),
-            ] {
-                sized(im, &format!("{name}_{f}.exr"))?;
-            }
-            stderr.push(read_stderr(&pdir, name, r)?);
-            let texels = TexelCache::covered_texels(&pos, &nrm, &coverage);
-            let lp = pdir.join(format!("{name}_lobes.json"));
-            let l: Vec<Lobe> = if lp.exists() {
-                let t = std::fs::read_to_string(&lp)
-                    .map_err(|e| ReflectError::file(&lp, e.to_string()))?;
-                serde_json::from_str(&t)
-                    .map_err(|e| ReflectError::file(&lp, format!("not a lobe list: {e}")))?
-            } else {
-                Vec::new()
-            };
-            rho.push(
-                rho_img
-                    .pixels
-                    .iter()
-                    .map(|p| Vec3::from_array(*p))
-                    .collect(),
-            );
-            weight_sum.push(w_img.pixels.iter().map(|p| p[0]).collect());
-            observations.push(o_img.pixels.iter().map(|p| p[0].max(0.0) as u32).collect());
-            lobes.push(l);
-            parts.push(Part {
-                name: name.clone(),
-                mesh,
-                stored: s.stored.clone(),
-                texel_size: s.texel_size_m,
-                footprint_m: s.footprint_m,
-                cache: TexelCache {
-                    resolution: r,
-                    texels,
-                },
-                coverage,
-            });
+            let p = StoredPart::read(&pdir, s)?;
+            rho.push(p.rho);
+            weight_sum.push(p.weight_sum);
+            observations.push(p.observations);
+            stderr.push(p.stderr);
+            lobes.push(p.lobes);
+            parts.push(p.part);
         }
         let changed = vec![false; parts.len()];
         Ok(SolveResult {
@@ -373,6 +317,85 @@ impl SolveResult {
             basis: None,
         })
     }
+}
+
+/// One part of a result folder as read back from `parts/`.
+struct StoredPart {
+    part: Part,
+    rho: Vec<Vec3>,
+    weight_sum: Vec<f32>,
+    observations: Vec<u32>,
+    stderr: Vec<Vec3>,
+    lobes: Vec<Lobe>,
+}
+
+impl StoredPart {
+    /// Reads the part `s` of the report from the result's `parts/` folder `pdir`: its mesh
+    /// (unless it lives in a prepared site), texel cache, coverage, state atlases and lobes;
+    /// every atlas must have the coverage's size.
+    fn read(pdir: &Path, s: &crate::solver::PartSummary) -> Result<StoredPart, ReflectError> {
+        let name = &s.name;
+        let mesh = match &s.stored {
+            None => read_mesh(&pdir.join(format!("{name}.ply")))?,
+            Some(_) => TriMesh::default(),
+        };
+        let coverage = read_image(&pdir.join(format!("{name}_coverage.exr")))?;
+        let pos = read_image(&pdir.join(format!("{name}_position.exr")))?;
+        let nrm = read_image(&pdir.join(format!("{name}_normal.exr")))?;
+        let r = coverage.width;
+        let rho_img = read_image(&pdir.join(format!("{name}_rho_d.exr")))?;
+        let w_img = read_image(&pdir.join(format!("{name}_weight.exr")))?;
+        let o_img = read_image(&pdir.join(format!("{name}_observations.exr")))?;
+        for (im, f) in [
+            (&pos, "position"),
+            (&nrm, "normal"),
+            (&rho_img, "rho_d"),
+            (&w_img, "weight"),
+            (&o_img, "observations"),
+        ] {
+            if im.width != r || im.height != r {
+                return Err(ReflectError::file(
+                    pdir.join(format!("{name}_{f}.exr")),
+                    format!("is {}x{}, expected {r}x{r}", im.width, im.height),
+                ));
+            }
+        }
+        let stderr = read_stderr(pdir, name, r)?;
+        let texels = TexelCache::covered_texels(&pos, &nrm, &coverage);
+        let lobes = read_lobes(&pdir.join(format!("{name}_lobes.json")))?;
+        Ok(StoredPart {
+            part: Part {
+                name: name.clone(),
+                mesh,
+                stored: s.stored.clone(),
+                texel_size: s.texel_size_m,
+                footprint_m: s.footprint_m,
+                cache: TexelCache {
+                    resolution: r,
+                    texels,
+                },
+                coverage,
+            },
+            rho: rho_img
+                .pixels
+                .iter()
+                .map(|p| Vec3::from_array(*p))
+                .collect(),
+            weight_sum: w_img.pixels.iter().map(|p| p[0]).collect(),
+            observations: o_img.pixels.iter().map(|p| p[0].max(0.0) as u32).collect(),
+            stderr,
+            lobes,
+        })
+    }
+}
+
+/// A part's `NAME_lobes.json`; no lobes when the file does not exist.
+fn read_lobes(lp: &Path) -> Result<Vec<Lobe>, ReflectError> {
+    if !lp.exists() {
+        return Ok(Vec::new());
+    }
+    let t = std::fs::read_to_string(lp).map_err(|e| ReflectError::file(lp, e.to_string()))?;
+    serde_json::from_str(&t).map_err(|e| ReflectError::file(lp, format!("not a lobe list: {e}")))
 }
 
 /// A TOML basic string (quoted, with backslashes and quotes escaped).

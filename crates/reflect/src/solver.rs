@@ -680,13 +680,7 @@ pub fn solve(
         .map_or(0.0, |r| r.cumulative_s);
     let first_k = start.report.iterations.len() as u32;
     for k in first_k..opts.max_iterations {
-        let mut acc = match start.report.pending.take() {
-            Some(p) if p.iteration == k + 1 => p,
-            _ => Pending {
-                iteration: k + 1,
-                ..Pending::default()
-            },
-        };
+        let mut acc = resumed_pending(&mut start, k);
         let already_in_iteration = acc.wall_s;
         let ti = Instant::now();
         let todo: Vec<&Group> = plan
@@ -694,16 +688,7 @@ pub fn solve(
             .iter()
             .filter(|g| !g.parts.is_empty() && !acc.done.contains(&g.name))
             .collect();
-        let total: u64 = todo
-            .iter()
-            .map(|g| {
-                g.parts
-                    .iter()
-                    .map(|&i| start.parts[i].cache.texels.len() as u64)
-                    .sum::<u64>()
-            })
-            .sum::<u64>()
-            * photos.len() as u64;
+        let total = texels_of(&start, &todo) * photos.len() as u64;
         progress.begin(&format!("iteration {}", k + 1), total);
         // Jacobi: every group of this iteration sees the albedo of the previous one
         let snapshot =
@@ -747,6 +732,31 @@ pub fn solve(
         }
     }
     Ok(start)
+}
+
+/// The running statistics of iteration `k` (counted from 0): those a killed run left pending
+/// for the same iteration (taken from the report), else fresh ones.
+fn resumed_pending(start: &mut SolveResult, k: u32) -> Pending {
+    match start.report.pending.take() {
+        Some(p) if p.iteration == k + 1 => p,
+        _ => Pending {
+            iteration: k + 1,
+            ..Pending::default()
+        },
+    }
+}
+
+/// The number of covered texels in the parts of `groups`.
+fn texels_of(start: &SolveResult, groups: &[&Group]) -> u64 {
+    groups
+        .iter()
+        .map(|g| {
+            g.parts
+                .iter()
+                .map(|&i| start.parts[i].cache.texels.len() as u64)
+                .sum::<u64>()
+        })
+        .sum::<u64>()
 }
 
 /// The samples per estimate of iteration `k` (counted from 0).
@@ -936,60 +946,74 @@ fn update_parts(
     }
     acc.observations += obs.len() as u64;
     for &pi in group {
-        let p = &start.parts[pi];
-        let res = p.resolution();
-        let mut seen = vec![false; res * res];
-        let covered: Vec<bool> = p.coverage.pixels.iter().map(|c| c[0] == 1.0).collect();
-        let gutter: Vec<bool> = p.coverage.pixels.iter().map(|c| c[0] > 0.0).collect();
-        let (mut nseen_p, mut twice) = (0usize, 0usize);
-        let mut new_rho = start.rho[pi].clone();
-        for (ti, t) in p.cache.texels.iter().enumerate() {
-            let i = t.index as usize;
-            let props = &per_texel[pi][ti];
-            // seen only through occlusion boundaries or shadow edges: not reliable; filled
-            let combined = if any_clean[pi][ti] {
-                combine(props, &opts.rules)
-            } else {
-                None
-            };
-            start.observations[pi][i] = if combined.is_some() {
-                props.iter().filter(|p| p.weight > 0.0).count() as u32
-            } else {
-                0
-            };
-            match combined {
-                Some(c) => {
-                    let v = c.value;
-                    acc.delta += (v - start.rho[pi][i]).abs().max_element() as f64;
-                    let (noise2, systematic2) =
-                        change_against_noise(start.rho[pi][i], start.stderr[pi][i], &c);
-                    acc.noise2 += noise2;
-                    acc.systematic2 += systematic2;
-                    acc.seen_texels += 1;
-                    nseen_p += 1;
-                    if start.observations[pi][i] >= 2 {
-                        twice += 1;
-                    }
-                    new_rho[i] = v;
-                    start.weight_sum[pi][i] = c.weight;
-                    start.stderr[pi][i] = c.stderr;
-                    seen[i] = true;
+        update_part(start, pi, &per_texel[pi], &any_clean[pi], opts, acc);
+    }
+}
+
+/// The new state of part `pi` from its texels' proposals `per_texel` (`any_clean`: the texel has
+/// a proposal away from occlusion boundaries and shadow edges): each combined texel's albedo,
+/// weight, standard error and observation count, the unseen texels filled, the part summary.
+fn update_part(
+    start: &mut SolveResult,
+    pi: usize,
+    per_texel: &[Vec<Proposal>],
+    any_clean: &[bool],
+    opts: &SolveOptions,
+    acc: &mut Pending,
+) {
+    let p = &start.parts[pi];
+    let res = p.resolution();
+    let mut seen = vec![false; res * res];
+    let covered: Vec<bool> = p.coverage.pixels.iter().map(|c| c[0] == 1.0).collect();
+    let gutter: Vec<bool> = p.coverage.pixels.iter().map(|c| c[0] > 0.0).collect();
+    let (mut nseen_p, mut twice) = (0usize, 0usize);
+    let mut new_rho = start.rho[pi].clone();
+    for (ti, t) in p.cache.texels.iter().enumerate() {
+        let i = t.index as usize;
+        let props = &per_texel[ti];
+        // seen only through occlusion boundaries or shadow edges: not reliable; filled
+        let combined = if any_clean[ti] {
+            combine(props, &opts.rules)
+        } else {
+            None
+        };
+        start.observations[pi][i] = if combined.is_some() {
+            props.iter().filter(|p| p.weight > 0.0).count() as u32
+        } else {
+            0
+        };
+        match combined {
+            Some(c) => {
+                let v = c.value;
+                acc.delta += (v - start.rho[pi][i]).abs().max_element() as f64;
+                let (noise2, systematic2) =
+                    change_against_noise(start.rho[pi][i], start.stderr[pi][i], &c);
+                acc.noise2 += noise2;
+                acc.systematic2 += systematic2;
+                acc.seen_texels += 1;
+                nseen_p += 1;
+                if start.observations[pi][i] >= 2 {
+                    twice += 1;
                 }
-                None => {
-                    start.weight_sum[pi][i] = 0.0;
-                    start.stderr[pi][i] = UNKNOWN_STDERR;
-                }
+                new_rho[i] = v;
+                start.weight_sum[pi][i] = c.weight;
+                start.stderr[pi][i] = c.stderr;
+                seen[i] = true;
+            }
+            None => {
+                start.weight_sum[pi][i] = 0.0;
+                start.stderr[pi][i] = UNKNOWN_STDERR;
             }
         }
-        let fallback = Vec3::from_array(opts.initial_albedo);
-        let filled = fill_unseen(&mut new_rho, &seen, &covered, &gutter, res, fallback, 8);
-        start.rho[pi] = new_rho;
-        start.changed[pi] = true;
-        let s = &mut start.report.parts[pi];
-        s.seen_texels = nseen_p;
-        s.seen_twice_texels = twice;
-        s.filled_texels = filled;
     }
+    let fallback = Vec3::from_array(opts.initial_albedo);
+    let filled = fill_unseen(&mut new_rho, &seen, &covered, &gutter, res, fallback, 8);
+    start.rho[pi] = new_rho;
+    start.changed[pi] = true;
+    let s = &mut start.report.parts[pi];
+    s.seen_texels = nseen_p;
+    s.seen_twice_texels = twice;
+    s.filled_texels = filled;
 }
 
 /// A seen texel's squared photograph noise and its squared change beyond the Monte-Carlo noise

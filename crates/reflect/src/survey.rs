@@ -84,60 +84,18 @@ impl Survey {
         };
         let f = SurveyFile::read(&file)?;
         let root = file.parent().unwrap_or(Path::new(".")).to_path_buf();
-        let exists = |p: &Path, what: &str| -> Result<PathBuf, ReflectError> {
-            let full = root.join(p);
-            if full.exists() {
-                Ok(full)
-            } else {
-                Err(ReflectError::file(
-                    &file,
-                    format!("{what} {} does not exist", full.display()),
-                ))
-            }
+        let paths = SurveyPaths {
+            root: &root,
+            file: &file,
         };
-        let mut meshes = Vec::new();
-        let mut prepared = match &f.site.prepared {
-            Some(p) => Some(exists(p, "prepared site")?),
-            None => None,
-        };
-        for m in f.site.mesh.iter().chain(f.site.meshes.iter()) {
-            let full = exists(m, "site mesh")?;
-            if full.is_dir() && full.join("manifest.json").is_file() {
-                prepared = Some(full);
-            } else {
-                meshes.push(full);
-            }
-        }
-        if let Some(p) = &prepared {
-            if !meshes.is_empty() {
-                return Err(ReflectError::file(
-                    &file,
-                    "[site] names both a prepared site and meshes; give one or the other",
-                ));
-            }
-            if !p.join("manifest.json").is_file() {
-                return Err(ReflectError::file(
-                    &file,
-                    format!(
-                        "{} is not a prepared site (no manifest.json; run `igi prepare`)",
-                        p.display()
-                    ),
-                ));
-            }
-        } else if meshes.is_empty() {
-            return Err(ReflectError::file(
-                &file,
-                "[site] names no mesh (use `mesh = ...`, `meshes = [...]` or `prepared = ...`)",
-            ));
-        }
+        let (meshes, prepared) = paths.site(&f.site)?;
         if f.photo.is_empty() {
             return Err(ReflectError::file(&file, "no [[photo]] entries"));
         }
         let default_radiometry = match &f.radiometry {
-            Some(r) => Some(radiometry_file(exists(
-                &r.camera,
-                "camera radiometry file",
-            )?)?),
+            Some(r) => Some(radiometry_file(
+                paths.existing(&r.camera, "camera radiometry file")?,
+            )?),
             None => None,
         };
         let mut photos = Vec::new();
@@ -148,33 +106,11 @@ impl Survey {
                     format!("photo id `{}` appears twice", p.id),
                 ));
             }
-            photos.push(PhotoSpec {
-                id: p.id.clone(),
-                image: exists(&p.image, &format!("photo `{}` image", p.id))?,
-                camera: exists(&p.camera, &format!("photo `{}` camera", p.id))?,
-                lighting: match (&p.lighting, &p.probe) {
-                    (Some(l), None) => LightingSource::File(exists(l, &format!("photo `{}` lighting", p.id))?),
-                    (None, Some(b)) => LightingSource::Probe {
-                        image: exists(&b.image, &format!("photo `{}` probe image", p.id))?,
-                        camera: exists(&b.camera, &format!("photo `{}` probe camera", p.id))?,
-                        board: exists(&b.board, &format!("photo `{}` probe board", p.id))?,
-                    },
-                    _ => {
-                        return Err(ReflectError::file(
-                            &file,
-                            format!("photo `{}` needs exactly one of `lighting = ...` and a [photo.probe] capture", p.id),
-                        ))
-                    }
-                },
-                radiometry: match &p.radiometry {
-                    Some(r) => Some(radiometry_file(exists(r, &format!("photo `{}` radiometry file", p.id))?)?),
-                    None => default_radiometry.clone(),
-                },
-            });
+            photos.push(paths.photo(p, &default_radiometry)?);
             check_radiometry_size(photos.last().expect("just pushed"))?;
         }
         let brdf_samples = match &f.brdf {
-            Some(b) => Some(exists(&b.samples, "BRDF samples")?),
+            Some(b) => Some(paths.existing(&b.samples, "BRDF samples")?),
             None => None,
         };
         Ok(Survey {
@@ -185,6 +121,118 @@ impl Survey {
             photos,
             brdf_samples,
         })
+    }
+}
+
+/// Resolves the paths a survey file names against its folder, each checked to exist.
+struct SurveyPaths<'a> {
+    /// The folder holding the survey file.
+    root: &'a Path,
+    /// The survey file (named in errors).
+    file: &'a Path,
+}
+
+impl SurveyPaths<'_> {
+    /// `p` resolved against the survey folder; an error naming `what` when it does not exist.
+    fn existing(&self, p: &Path, what: &str) -> Result<PathBuf, ReflectError> {
+        let full = self.root.join(p);
+        if full.exists() {
+            Ok(full)
+        } else {
+            Err(ReflectError::file(
+                self.file,
+                format!("{what} {} does not exist", full.display()),
+            ))
+        }
+    }
+
+    /// The `[site]` section: its meshes, or a prepared site (named as `prepared` or as a `mesh`
+    /// folder with a `manifest.json`), never both, never neither.
+    fn site(
+        &self,
+        site: &igi_formats::survey::SiteSection,
+    ) -> Result<(Vec<PathBuf>, Option<PathBuf>), ReflectError> {
+        let mut meshes = Vec::new();
+        let mut prepared = match &site.prepared {
+            Some(p) => Some(self.existing(p, "prepared site")?),
+            None => None,
+        };
+        for m in site.mesh.iter().chain(site.meshes.iter()) {
+            let full = self.existing(m, "site mesh")?;
+            if full.is_dir() && full.join("manifest.json").is_file() {
+                prepared = Some(full);
+            } else {
+                meshes.push(full);
+            }
+        }
+        if let Some(p) = &prepared {
+            if !meshes.is_empty() {
+                return Err(ReflectError::file(
+                    self.file,
+                    "[site] names both a prepared site and meshes; give one or the other",
+                ));
+            }
+            if !p.join("manifest.json").is_file() {
+                return Err(ReflectError::file(
+                    self.file,
+                    format!(
+                        "{} is not a prepared site (no manifest.json; run `igi prepare`)",
+                        p.display()
+                    ),
+                ));
+            }
+        } else if meshes.is_empty() {
+            return Err(ReflectError::file(
+                self.file,
+                "[site] names no mesh (use `mesh = ...`, `meshes = [...]` or `prepared = ...`)",
+            ));
+        }
+        Ok((meshes, prepared))
+    }
+
+    /// One `[[photo]]` entry with its paths resolved; its radiometry file is its own or else
+    /// `default_radiometry`.
+    fn photo(
+        &self,
+        p: &igi_formats::survey::PhotoEntry,
+        default_radiometry: &Option<PathBuf>,
+    ) -> Result<PhotoSpec, ReflectError> {
+        Ok(PhotoSpec {
+            id: p.id.clone(),
+            image: self.existing(&p.image, &format!("photo `{}` image", p.id))?,
+            camera: self.existing(&p.camera, &format!("photo `{}` camera", p.id))?,
+            lighting: self.lighting(p)?,
+            radiometry: match &p.radiometry {
+                Some(r) => Some(radiometry_file(
+                    self.existing(r, &format!("photo `{}` radiometry file", p.id))?,
+                )?),
+                None => default_radiometry.clone(),
+            },
+        })
+    }
+
+    /// A photo's lighting: exactly one of a lighting file and a `[photo.probe]` capture.
+    fn lighting(
+        &self,
+        p: &igi_formats::survey::PhotoEntry,
+    ) -> Result<LightingSource, ReflectError> {
+        let id = &p.id;
+        match (&p.lighting, &p.probe) {
+            (Some(l), None) => Ok(LightingSource::File(
+                self.existing(l, &format!("photo `{id}` lighting"))?,
+            )),
+            (None, Some(b)) => Ok(LightingSource::Probe {
+                image: self.existing(&b.image, &format!("photo `{id}` probe image"))?,
+                camera: self.existing(&b.camera, &format!("photo `{id}` probe camera"))?,
+                board: self.existing(&b.board, &format!("photo `{id}` probe board"))?,
+            }),
+            _ => Err(ReflectError::file(
+                self.file,
+                format!(
+                    "photo `{id}` needs exactly one of `lighting = ...` and a [photo.probe] capture"
+                ),
+            )),
+        }
     }
 }
 
@@ -233,6 +281,28 @@ impl PhotoSpec {
     pub fn load(&self) -> Result<Photo, ReflectError> {
         let mut image = igi_imaging::read_image(&self.image)?;
         let camera = Camera::load(&self.camera)?;
+        self.check_image(&image, &camera)?;
+        if let Some(path) = &self.radiometry {
+            self.apply_radiometry(path, &mut image)?;
+        }
+        let lighting = match &self.lighting {
+            LightingSource::File(f) => Lighting::load(f)?,
+            LightingSource::Probe {
+                image,
+                camera,
+                board,
+            } => self.probe_lighting(image, camera, board)?,
+        };
+        Ok(Photo {
+            id: self.id.clone(),
+            image,
+            camera,
+            lighting,
+        })
+    }
+
+    /// The image has the camera's size and only finite, non-negative pixels.
+    fn check_image(&self, image: &HdrImage, camera: &Camera) -> Result<(), ReflectError> {
         if image.width != camera.width as usize || image.height != camera.height as usize {
             return Err(ReflectError::file(
                 &self.image,
@@ -260,58 +330,57 @@ impl PhotoSpec {
                 ),
             ));
         }
-        if let Some(path) = &self.radiometry {
-            let cal = igi_imaging::radiometry::CameraRadiometry::load(path)?;
-            if !cal.fits_size(image.width, image.height) {
-                return Err(ReflectError::file(
-                    &self.image,
-                    format!(
-                        "image is {}x{} but the radiometry {} was fitted at {}x{} (another aspect ratio)",
-                        image.width,
-                        image.height,
-                        path.display(),
-                        cal.width,
-                        cal.height
-                    ),
-                ));
-            }
-            cal.apply(&mut image);
+        Ok(())
+    }
+
+    /// Applies the camera radiometry file `path` to `image`, which must have the aspect ratio
+    /// the radiometry was fitted at.
+    fn apply_radiometry(&self, path: &Path, image: &mut HdrImage) -> Result<(), ReflectError> {
+        let cal = igi_imaging::radiometry::CameraRadiometry::load(path)?;
+        if !cal.fits_size(image.width, image.height) {
+            return Err(ReflectError::file(
+                &self.image,
+                format!(
+                    "image is {}x{} but the radiometry {} was fitted at {}x{} (another aspect ratio)",
+                    image.width,
+                    image.height,
+                    path.display(),
+                    cal.width,
+                    cal.height
+                ),
+            ));
         }
-        let lighting = match &self.lighting {
-            LightingSource::File(f) => Lighting::load(f)?,
-            LightingSource::Probe {
-                image,
-                camera,
-                board,
-            } => {
-                let img = igi_imaging::read_image(image)?;
-                let cam = Camera::load(camera)?;
-                let spec = igi_probe::BoardSpec::load(board)?;
-                let placement = igi_probe::fiducial::place_board(&spec, &img, &cam)?;
-                let opt = igi_probe::ProbeOptions {
-                    refine_centers: placement.refine_by_default(),
-                    ..igi_probe::ProbeOptions::default()
-                };
-                let r = igi_probe::process(&img, &cam, &placement.board, &opt).map_err(|e| {
-                    ReflectError::file(
-                        image,
-                        format!("processing the probe capture of photo `{}`: {e}", self.id),
-                    )
-                })?;
-                tracing::info!(
-                    "photo {}: lighting from its probe capture: {}",
-                    self.id,
-                    r.diagnostics.sun_decision
-                );
-                lighting_from_probe(&r)?
-            }
+        cal.apply(image);
+        Ok(())
+    }
+
+    /// The lighting recovered from a capture of the lighting board (as `igi probe` does).
+    fn probe_lighting(
+        &self,
+        image: &Path,
+        camera: &Path,
+        board: &Path,
+    ) -> Result<Lighting, ReflectError> {
+        let img = igi_imaging::read_image(image)?;
+        let cam = Camera::load(camera)?;
+        let spec = igi_probe::BoardSpec::load(board)?;
+        let placement = igi_probe::fiducial::place_board(&spec, &img, &cam)?;
+        let opt = igi_probe::ProbeOptions {
+            refine_centers: placement.refine_by_default(),
+            ..igi_probe::ProbeOptions::default()
         };
-        Ok(Photo {
-            id: self.id.clone(),
-            image,
-            camera,
-            lighting,
-        })
+        let r = igi_probe::process(&img, &cam, &placement.board, &opt).map_err(|e| {
+            ReflectError::file(
+                image,
+                format!("processing the probe capture of photo `{}`: {e}", self.id),
+            )
+        })?;
+        tracing::info!(
+            "photo {}: lighting from its probe capture: {}",
+            self.id,
+            r.diagnostics.sun_decision
+        );
+        lighting_from_probe(&r)
     }
 }
 

@@ -237,7 +237,6 @@ pub fn write_survey(
     let prepared = parts
         .iter()
         .find_map(|p| p.stored.as_ref().map(|s| s.site.clone()));
-    let mut truth_scene = SceneFile::default();
     let mut survey = SurveyFile {
         site: match &prepared {
             Some(site) => SiteSection {
@@ -250,6 +249,36 @@ pub fn write_survey(
         radiometry: None,
         photo: Vec::new(),
     };
+    let meshes = write_truth(dir, parts, truth)?;
+    if prepared.is_none() {
+        survey.site.meshes = meshes;
+    }
+    let scene = scene_with_albedo(parts, truth)?;
+    let shoot = Shoot {
+        dir,
+        scene: &scene,
+        lit: write_lightings(dir, lightings, recorded)?,
+        recorded,
+        spp,
+        seed,
+    };
+    for (i, s) in shots.iter().enumerate() {
+        progress(i, shots.len());
+        survey.photo.push(shoot.photo(i, s)?);
+    }
+    survey.write(&dir.join("survey.toml"), &[])?;
+    Ok(())
+}
+
+/// Writes every part's mesh to `geometry/`, its true albedo atlas to `truth/` and the truth
+/// scene `truth/scene.toml`; returns the mesh paths relative to `dir`.
+fn write_truth(
+    dir: &Path,
+    parts: &[Part],
+    truth: &[Vec<Vec3>],
+) -> Result<Vec<PathBuf>, ReflectError> {
+    let mut truth_scene = SceneFile::default();
+    let mut meshes = Vec::new();
     for (p, a) in parts.iter().zip(truth) {
         igi_geometry::write_ply(
             &dir.join("geometry").join(format!("{}.ply", p.name)),
@@ -270,18 +299,22 @@ pub fn write_survey(
             lobes: Vec::new(),
             lobe_maps: Vec::new(),
         });
-        if prepared.is_none() {
-            survey
-                .site
-                .meshes
-                .push(format!("geometry/{}.ply", p.name).into());
-        }
+        meshes.push(format!("geometry/{}.ply", p.name).into());
     }
     truth_scene.write(
         &dir.join("truth").join("scene.toml"),
         &["true albedo of the synthetic site (igi solve --truth)"],
     )?;
-    let scene = scene_with_albedo(parts, truth)?;
+    Ok(meshes)
+}
+
+/// Writes the `recorded` lighting files into `lighting/`; returns the in-memory `lightings` the
+/// photos are rendered under (one recorded file per lighting).
+fn write_lightings(
+    dir: &Path,
+    lightings: &[LightingSpec],
+    recorded: &[LightingSpec],
+) -> Result<Vec<Lighting>, ReflectError> {
     if recorded.len() != lightings.len() {
         return Err(ReflectError::Invalid(format!(
             "{} lightings but {} recorded lightings",
@@ -294,30 +327,45 @@ pub fn write_survey(
         r.write(&dir.join("lighting"))?;
         lit.push(l.lighting()?);
     }
-    for (i, s) in shots.iter().enumerate() {
-        progress(i, shots.len());
-        let l = recorded.get(s.lighting).ok_or_else(|| {
+    Ok(lit)
+}
+
+/// What every photograph of [`write_survey`] is rendered and written with.
+struct Shoot<'a> {
+    dir: &'a Path,
+    scene: &'a Scene,
+    /// The true lightings, rendered under.
+    lit: Vec<Lighting>,
+    /// The lightings the survey records.
+    recorded: &'a [LightingSpec],
+    spp: u32,
+    seed: u64,
+}
+
+impl Shoot<'_> {
+    /// Renders shot `i` into `photos/`, saves its camera into `cameras/`; returns its survey entry.
+    fn photo(&self, i: usize, s: &ShotSpec) -> Result<PhotoEntry, ReflectError> {
+        let l = self.recorded.get(s.lighting).ok_or_else(|| {
             ReflectError::Invalid(format!("shot {}: no lighting {}", s.id, s.lighting))
         })?;
         let opts = RenderOptions {
-            spp,
-            seed: seed.wrapping_add(i as u64 * 7919),
+            spp: self.spp,
+            seed: self.seed.wrapping_add(i as u64 * 7919),
             indirect: 2,
             russian_roulette: false,
         };
-        let out = render_image(&scene, &lit[s.lighting], &s.camera, &opts, &|_| {})?;
+        let out = render_image(self.scene, &self.lit[s.lighting], &s.camera, &opts, &|_| {})?;
+        let dir = self.dir;
         igi_imaging::write_exr(&dir.join("photos").join(format!("{}.exr", s.id)), &out.mean)?;
         s.camera
             .save(&dir.join("cameras").join(format!("{}.json", s.id)))?;
-        survey.photo.push(PhotoEntry {
+        Ok(PhotoEntry {
             id: s.id.clone(),
             image: format!("photos/{}.exr", s.id).into(),
             camera: format!("cameras/{}.json", s.id).into(),
             lighting: Some(format!("lighting/{}.toml", l.name).into()),
             radiometry: None,
             probe: None,
-        });
+        })
     }
-    survey.write(&dir.join("survey.toml"), &[])?;
-    Ok(())
 }
