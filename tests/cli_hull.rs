@@ -386,7 +386,9 @@ fn a_light_image_of_the_wrong_size() {
         "l0_3.exr is 10x10 but the view's camera is 256x192",
         "\"v0\"",
     );
-    // a missing one is found before any work
+    // a missing one is found before any work (in a capture whose other light images are good)
+    let t = tempfile::tempdir().unwrap();
+    let rig = make_lit_rig(&t.path().join("cap"), 3);
     std::fs::remove_file(t.path().join("cap/l2_5.exr")).unwrap();
     build_fails(&rig, t.path(), "l2_5.exr", "\"v2\"");
 }

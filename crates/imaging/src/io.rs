@@ -257,6 +257,28 @@ fn ext_of(path: &Path) -> String {
         .unwrap_or_default()
 }
 
+/// An image file's width and height from its header, without decoding the pixels (EXR:
+/// the first part's layer size; other formats: the image crate's header read).
+pub fn image_size(path: &Path) -> Result<(usize, usize), ImagingError> {
+    if ext_of(path) == "exr" {
+        let meta =
+            exr::meta::MetaData::read_from_file(path, false).map_err(|e| ImagingError::Decode {
+                path: path.to_path_buf(),
+                msg: e.to_string(),
+            })?;
+        let h = meta.headers.first().ok_or_else(|| ImagingError::Decode {
+            path: path.to_path_buf(),
+            msg: "no image part".into(),
+        })?;
+        return Ok((h.layer_size.0, h.layer_size.1));
+    }
+    let (w, h) = image::image_dimensions(path).map_err(|e| ImagingError::Decode {
+        path: path.to_path_buf(),
+        msg: e.to_string(),
+    })?;
+    Ok((w as usize, h as usize))
+}
+
 /// Read an image as linear `f32` RGB. EXR (RGB, RGBA, B/G/R in any order, half or float, any
 /// compression; a channel named `valid` becomes the mask; a luminance-only `Y` image is
 /// replicated), Radiance `.hdr`, and PNG/JPEG/TIFF (8/16-bit scaled to [0, 1] as stored, no
@@ -658,6 +680,20 @@ mod tests {
             }
         }
         im
+    }
+
+    #[test]
+    fn image_size_reads_headers_of_exr_and_png() {
+        let dir = tempfile::tempdir().unwrap();
+        let img = HdrImage::new(7, 3);
+        let (exr, png) = (dir.path().join("a.exr"), dir.path().join("a.png"));
+        write_exr(&exr, &img).unwrap();
+        write_png_tonemapped(&png, &img, 1.0).unwrap();
+        assert_eq!(image_size(&exr).unwrap(), (7, 3));
+        assert_eq!(image_size(&png).unwrap(), (7, 3));
+        let bad = dir.path().join("b.exr");
+        std::fs::write(&bad, b"not an exr").unwrap();
+        assert!(image_size(&bad).unwrap_err().to_string().contains("b.exr"));
     }
 
     #[test]

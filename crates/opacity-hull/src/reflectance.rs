@@ -224,14 +224,32 @@ pub fn build_fields(
     Ok(Some((fields, report)))
 }
 
-/// Before any work: every light image of the rig exists (their sizes are checked when the
-/// reflectance stage reads them; nothing is written before then).
+/// Before any work: every light image of the rig exists and has its view's camera size (read
+/// from its header).
 pub fn check_light_files(rig: &Rig) -> Result<(), HullError> {
-    for rv in &rig.views {
+    for rv in rig.views.iter().filter(|rv| !rv.lights.is_empty()) {
+        let camera = rig.load_camera(rv)?;
+        let want = (camera.width as usize, camera.height as usize);
         for l in &rv.lights {
             if let Err(e) = std::fs::metadata(&l.image) {
                 return Err(rig
                     .view_message(rv, format!("light image {}: {e}", l.image.display()))
+                    .into());
+            }
+            let got = igi_imaging::io::image_size(&l.image).map_err(|e| rig.view_error(rv, e))?;
+            if got != want {
+                return Err(rig
+                    .view_message(
+                        rv,
+                        format!(
+                            "light image {} is {}x{} but the view's camera is {}x{}",
+                            l.image.display(),
+                            got.0,
+                            got.1,
+                            want.0,
+                            want.1
+                        ),
+                    )
                     .into());
             }
         }
