@@ -27,10 +27,11 @@ pub struct Comparison {
 
 fn check_size(what: &str, img: &HdrImage, w: usize, h: usize) -> Result<(), RenderError> {
     if img.width != w || img.height != h {
-        return Err(RenderError::Invalid(format!(
-            "{what} is {} x {}, but the images are {w} x {h}",
-            img.width, img.height
-        )));
+        return Err(RenderError::ImageSize {
+            what: what.to_string(),
+            size: (img.width, img.height),
+            expected: (w, h),
+        });
     }
     Ok(())
 }

@@ -334,13 +334,11 @@ pub fn render_image(
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<RenderOutput, RenderError> {
     if opts.spp == 0 {
-        return Err(RenderError::Invalid("spp must be at least 1".into()));
+        return Err(RenderError::ZeroSpp);
     }
     let (w, h) = (camera.width as usize, camera.height as usize);
     if w == 0 || h == 0 {
-        return Err(RenderError::Invalid(format!(
-            "camera image size {w} x {h} is empty"
-        )));
+        return Err(RenderError::EmptyImage(w, h));
     }
     let pt = PathTracer::new(scene, lighting, opts);
     let stats = Stats::default();
@@ -407,14 +405,15 @@ pub fn radiance_toward(
     opts: &RenderOptions,
 ) -> Result<Vec<Estimate>, RenderError> {
     if points.len() != targets.len() {
-        return Err(RenderError::Invalid(format!(
-            "{} points but {} targets",
-            points.len(),
-            targets.len()
-        )));
+        return Err(RenderError::Unpaired {
+            what: "points",
+            len: points.len(),
+            other: "targets",
+            other_len: targets.len(),
+        });
     }
     if opts.spp == 0 {
-        return Err(RenderError::Invalid("spp must be at least 1".into()));
+        return Err(RenderError::ZeroSpp);
     }
     let pt = PathTracer::new(scene, lighting, opts);
     Ok(points
@@ -442,14 +441,15 @@ pub fn irradiance(
     opts: &RenderOptions,
 ) -> Result<Vec<Estimate>, RenderError> {
     if points.len() != normals.len() {
-        return Err(RenderError::Invalid(format!(
-            "{} points but {} normals",
-            points.len(),
-            normals.len()
-        )));
+        return Err(RenderError::Unpaired {
+            what: "points",
+            len: points.len(),
+            other: "normals",
+            other_len: normals.len(),
+        });
     }
     if opts.spp == 0 {
-        return Err(RenderError::Invalid("spp must be at least 1".into()));
+        return Err(RenderError::ZeroSpp);
     }
     let pt = PathTracer::new(scene, lighting, opts);
     let white = LafortuneRef {

@@ -73,6 +73,33 @@ pub enum RenderError {
     },
     #[error("{0}")]
     Invalid(String),
+    /// A render or query asked for no samples.
+    #[error("spp must be at least 1")]
+    ZeroSpp,
+    /// A camera without pixels.
+    #[error("camera image size {0} x {1} is empty")]
+    EmptyImage(usize, usize),
+    /// Two lists that must pair up do not (`what`: e.g. "points" and "targets").
+    #[error("{len} {what} but {other_len} {other}")]
+    Unpaired {
+        what: &'static str,
+        len: usize,
+        other: &'static str,
+        other_len: usize,
+    },
+    /// An image of a comparison whose size differs from the others.
+    #[error("{what} is {} x {}, but the images are {} x {}", size.0, size.1, expected.0, expected.1)]
+    ImageSize {
+        what: String,
+        size: (usize, usize),
+        expected: (usize, usize),
+    },
+    /// An object whose mesh cannot be rendered (`object`: its name).
+    #[error("{object}: {problem}")]
+    Mesh {
+        object: String,
+        problem: MeshProblem,
+    },
     #[error("photo is {}x{} but its camera is {}x{}", photo.0, photo.1, camera.0, camera.1)]
     PhotoSize {
         photo: (usize, usize),
@@ -103,3 +130,20 @@ impl RenderError {
 
 #[cfg(test)]
 mod integrator_tests;
+
+/// Why an object's mesh cannot be rendered.
+#[derive(Debug, thiserror::Error)]
+pub enum MeshProblem {
+    #[error("{normals} normals for {vertices} vertices")]
+    Normals { normals: usize, vertices: usize },
+    #[error("{uvs} UVs for {vertices} vertices")]
+    Uvs { uvs: usize, vertices: usize },
+    #[error("an albedo texture needs UVs, and the mesh has none")]
+    TextureWithoutUvs,
+    #[error("triangle {triangle} has vertex index {indices:?} out of range ({vertices} vertices)")]
+    IndexOutOfRange {
+        triangle: usize,
+        indices: [u32; 3],
+        vertices: usize,
+    },
+}

@@ -12,7 +12,7 @@
 
 use crate::embree::{Hit, RtScene};
 use crate::lighting::Lighting;
-use crate::RenderError;
+use crate::{MeshProblem, RenderError};
 use glam::{DVec3, Vec2, Vec3};
 use igi_brdf::{LafortuneRef, Lobe};
 use igi_formats::scene::{AlbedoEntry, ObjectEntry, SceneFile};
@@ -287,24 +287,28 @@ impl Scene {
             let nv = mesh.positions.len();
             if let Some(n) = &mesh.normals {
                 if n.len() != nv {
-                    return Err(RenderError::Invalid(format!(
-                        "{name}: {} normals for {nv} vertices",
-                        n.len()
-                    )));
+                    return Err(mesh_error(
+                        &name,
+                        MeshProblem::Normals {
+                            normals: n.len(),
+                            vertices: nv,
+                        },
+                    ));
                 }
             }
             if let Some(t) = &mesh.uvs {
                 if t.len() != nv {
-                    return Err(RenderError::Invalid(format!(
-                        "{name}: {} UVs for {nv} vertices",
-                        t.len()
-                    )));
+                    return Err(mesh_error(
+                        &name,
+                        MeshProblem::Uvs {
+                            uvs: t.len(),
+                            vertices: nv,
+                        },
+                    ));
                 }
             }
             if matches!(material.albedo, Albedo::Texture(_)) && mesh.uvs.is_none() {
-                return Err(RenderError::Invalid(format!(
-                    "{name}: an albedo texture needs UVs, and the mesh has none"
-                )));
+                return Err(mesh_error(&name, MeshProblem::TextureWithoutUvs));
             }
             let positions: Vec<Vec3> = mesh
                 .positions
@@ -314,9 +318,14 @@ impl Scene {
             let mut triangles = Vec::with_capacity(mesh.indices.len());
             for (k, tri) in mesh.indices.iter().enumerate() {
                 if tri.iter().any(|&i| i as usize >= nv) {
-                    return Err(RenderError::Invalid(format!(
-                        "{name}: triangle {k} has vertex index {tri:?} out of range ({nv} vertices)"
-                    )));
+                    return Err(mesh_error(
+                        &name,
+                        MeshProblem::IndexOutOfRange {
+                            triangle: k,
+                            indices: *tri,
+                            vertices: nv,
+                        },
+                    ));
                 }
                 let [a, b, c] = tri.map(|i| positions[i as usize]);
                 let cross = (b - a).cross(c - a);
@@ -569,9 +578,54 @@ fn load_object(
     Ok((mesh_path.display().to_string(), mesh, material))
 }
 
+fn mesh_error(object: &str, problem: MeshProblem) -> RenderError {
+    RenderError::Mesh {
+        object: object.to_string(),
+        problem,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Each unusable mesh is refused with a typed error naming the object.
+    #[test]
+    fn unusable_meshes_name_the_object_and_the_problem() {
+        let grey = || Material::lambertian(Vec3::splat(0.5));
+        let err = |mesh: TriMesh, material: Material| match Scene::new(vec![(
+            "wall".into(),
+            mesh,
+            material,
+        )]) {
+            Err(e @ RenderError::Mesh { .. }) => e.to_string(),
+            Err(e) => panic!("not a mesh error: {e}"),
+            Ok(_) => panic!("accepted"),
+        };
+        let mut m = quad_mesh(0.0, 1.0);
+        m.normals = Some(vec![[0.0, 0.0, 1.0]]);
+        assert_eq!(err(m, grey()), "wall: 1 normals for 4 vertices");
+        let mut m = quad_mesh(0.0, 1.0);
+        m.uvs = Some(vec![[0.0, 0.0]; 3]);
+        assert_eq!(err(m, grey()), "wall: 3 UVs for 4 vertices");
+        let texture = Material {
+            albedo: Albedo::Texture(Texture::from_image(&igi_imaging::HdrImage::new(2, 2))),
+            lobes: vec![],
+            lobe_map: None,
+        };
+        let mut m = quad_mesh(0.0, 1.0);
+        m.uvs = None;
+        assert_eq!(
+            err(m, texture),
+            "wall: an albedo texture needs UVs, and the mesh has none"
+        );
+        let mut m = quad_mesh(0.0, 1.0);
+        m.indices[1] = [0, 2, 9];
+        assert_eq!(
+            err(m, grey()),
+            "wall: triangle 1 has vertex index [0, 2, 9] out of range (4 vertices)"
+        );
+    }
 
     pub(crate) fn quad_mesh(z: f32, half: f32) -> TriMesh {
         TriMesh {
