@@ -397,8 +397,8 @@ fn camera_pose_from_correspondences() {
     ]);
     assert_failed(
         &o,
-        "corr.csv",
-        "line 2",
+        "corr.csv:2",
+        "expected 5 finite numbers",
         tmp.path(),
         &[cam.clone(), pts.clone(), out.clone()],
     );

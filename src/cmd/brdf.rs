@@ -8,8 +8,8 @@ use anyhow::{bail, Context};
 use glam::Vec3;
 use igi_brdf::{
     cluster, fit_materials, plot::plot_fits, plot::write_text_atomic, read_lumitexels, read_pairs,
-    read_samples, samples::group_by_material, samples::pairs_to_csv, Basis, ClusterOptions,
-    FitOptions, MaterialsFile,
+    read_samples, samples::group_by_material, samples::write_pairs, samples::write_samples, Basis,
+    ClusterOptions, FitOptions, MaterialsFile,
 };
 
 use crate::report::Ctx;
@@ -211,7 +211,7 @@ fn eval(a: EvalArgs) -> anyhow::Result<()> {
         .iter()
         .map(|r| m.as_ref().eval(r.light, r.view) * std::f32::consts::PI)
         .collect();
-    write_text_atomic(&a.output, &pairs_to_csv(&table, &values))?;
+    write_pairs(&a.output, &table, &values)?;
     Ok(())
 }
 
@@ -345,7 +345,7 @@ fn measure(a: MeasureArgs) -> anyhow::Result<()> {
         samples.extend(m.samples());
         reports.push(m);
     }
-    igi_imaging::io::write_text_atomic(&a.output, &igi_brdf::samples::samples_to_csv(&samples))?;
+    write_samples(&a.output, &samples)?;
     if a.json {
         crate::report::print_json(&reports)?;
         return Ok(());

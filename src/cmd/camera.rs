@@ -150,28 +150,9 @@ fn undistort(a: UndistortArgs) -> anyhow::Result<()> {
 
 fn read_correspondences(path: &Path) -> anyhow::Result<(Vec<DVec2>, Vec<DVec3>)> {
     let text = std::fs::read_to_string(path).with_context(|| format!("{}", path.display()))?;
-    let (mut px, mut world) = (Vec::new(), Vec::new());
-    for (n, line) in text.lines().enumerate() {
-        let line = line.trim();
-        if line.is_empty() || line.starts_with('#') {
-            continue;
-        }
-        let f: Vec<&str> = line.split(',').map(str::trim).collect();
-        let nums: Result<Vec<f64>, _> = f.iter().map(|s| s.parse::<f64>()).collect();
-        match nums {
-            Ok(v) if v.len() == 5 && v.iter().all(|x| x.is_finite()) => {
-                px.push(DVec2::new(v[0], v[1]));
-                world.push(DVec3::new(v[2], v[3], v[4]));
-            }
-            Err(_) if n == 0 && px.is_empty() => continue, // header
-            _ => bail!(
-                "{}: line {}: expected 5 finite numbers u,v,x,y,z, found {:?}",
-                path.display(),
-                n + 1,
-                line
-            ),
-        }
-    }
+    let rows = igi_imaging::csv::number_rows::<f64, 5>(&text, path, "u,v,x,y,z")?;
+    let px = rows.iter().map(|r| DVec2::new(r[0], r[1])).collect();
+    let world = rows.iter().map(|r| DVec3::new(r[2], r[3], r[4])).collect();
     Ok((px, world))
 }
 

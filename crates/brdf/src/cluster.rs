@@ -15,6 +15,7 @@
 //! BRDFs (SVD), `rgb ~ sum_k w_k pi f_k`.
 
 use glam::Vec3;
+use igi_imaging::csv::{Row, Table};
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 use rand::{seq::SliceRandom, SeedableRng};
 
@@ -464,31 +465,16 @@ pub fn read_lumitexels(path: &std::path::Path) -> Result<(Vec<String>, Vec<Lumit
         path: path.into(),
         source,
     })?;
-    let mut it = text
-        .lines()
-        .enumerate()
-        .map(|(i, l)| (i + 1, l.trim()))
-        .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'));
-    let (hl, header) = it.next().ok_or_else(|| BrdfError::File {
-        path: path.into(),
-        msg: "empty file (no header)".into(),
-    })?;
-    let header: Vec<&str> = header.split(',').map(|c| c.trim()).collect();
-    let (iid, idx) = lumitexel_columns(path, hl, &header)?;
+    let table = Table::parse(&text, path)?;
+    let iid = table.column("id")?;
+    let idx = table.columns(&LUMITEXEL_COLUMNS)?;
+    table.require_rows("lumitexel rows")?;
     let mut ids: Vec<String> = Vec::new();
     let mut lts: Vec<Lumitexel> = Vec::new();
     let mut index = std::collections::HashMap::new();
-    for (line, l) in it {
-        let cells: Vec<&str> = l.split(',').map(|c| c.trim()).collect();
-        if cells.len() != header.len() {
-            return Err(parse_error(
-                path,
-                line,
-                format!("{} cells, header has {}", cells.len(), header.len()),
-            ));
-        }
-        let v = lumitexel_row(path, line, &cells, &idx)?;
-        let id = cells[iid].to_string();
+    for row in table.rows() {
+        let v = lumitexel_row(&table, row, &idx)?;
+        let id = row.cells[iid].to_string();
         let t = *index.entry(id.clone()).or_insert_with(|| {
             ids.push(id);
             lts.push(Lumitexel {
@@ -504,68 +490,22 @@ pub fn read_lumitexels(path: &std::path::Path) -> Result<(Vec<String>, Vec<Lumit
             Vec3::new(v[12], v[13], v[14]),
         ));
     }
-    if lts.is_empty() {
-        return Err(BrdfError::File {
-            path: path.into(),
-            msg: "no lumitexel rows after the header".into(),
-        });
-    }
     Ok((ids, lts))
 }
 
-fn parse_error(path: &std::path::Path, line: usize, msg: String) -> BrdfError {
-    BrdfError::Parse {
-        path: path.into(),
-        line,
-        msg,
-    }
-}
-
-/// Positions in `header` (on line `hl`) of the `id` column and of [`LUMITEXEL_COLUMNS`].
-fn lumitexel_columns(
-    path: &std::path::Path,
-    hl: usize,
-    header: &[&str],
-) -> Result<(usize, Vec<usize>), BrdfError> {
-    let col = |name: &str| {
-        header
-            .iter()
-            .position(|h| h.eq_ignore_ascii_case(name))
-            .ok_or_else(|| parse_error(path, hl, format!("header lacks column `{name}`")))
-    };
-    let iid = col("id")?;
-    let idx: Vec<usize> = LUMITEXEL_COLUMNS
-        .iter()
-        .map(|c| col(c))
-        .collect::<Result<_, _>>()?;
-    Ok((iid, idx))
-}
-
-/// The finite numbers of [`LUMITEXEL_COLUMNS`] in one row's `cells` (at positions `idx`);
-/// an error for a non-number, a non-finite value or a zero normal.
-fn lumitexel_row(
-    path: &std::path::Path,
-    line: usize,
-    cells: &[&str],
-    idx: &[usize],
-) -> Result<[f32; 15], BrdfError> {
+/// The finite numbers of [`LUMITEXEL_COLUMNS`] in `row` (at positions `idx`); an error for a
+/// non-number, a non-finite value or a zero normal.
+fn lumitexel_row(table: &Table, row: &Row, idx: &[usize]) -> Result<[f32; 15], BrdfError> {
     let mut v = [0.0f32; 15];
     for k in 0..15 {
-        let cell = cells[idx[k]];
-        let name = LUMITEXEL_COLUMNS[k];
-        v[k] = cell
-            .parse()
-            .map_err(|_| parse_error(path, line, format!("`{name}` = `{cell}` is not a number")))?;
-        if !v[k].is_finite() {
-            return Err(parse_error(
-                path,
-                line,
-                format!("`{name}` = `{cell}` is not finite"),
-            ));
-        }
+        v[k] = table.number_f32(row, idx[k], LUMITEXEL_COLUMNS[k])?;
     }
     if Vec3::new(v[3], v[4], v[5]).length() < 1e-6 {
-        return Err(parse_error(path, line, "zero normal".into()));
+        return Err(BrdfError::Parse {
+            path: table.path().into(),
+            line: row.line,
+            msg: "zero normal".into(),
+        });
     }
     Ok(v)
 }

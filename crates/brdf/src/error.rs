@@ -22,6 +22,12 @@ pub enum BrdfError {
     Fit { material: String, msg: String },
     #[error("invalid input: {0}")]
     Invalid(String),
+    /// A BRDF-sample or pair file (read by `igi-formats`): the file and the problem.
+    #[error(transparent)]
+    Format(#[from] igi_formats::FormatsError),
+    /// A lumitexel table's structure (read through `igi_imaging::csv`).
+    #[error(transparent)]
+    Csv(#[from] igi_imaging::csv::CsvError),
     #[error("json: {0}")]
     Json(#[from] serde_json::Error),
 }

@@ -27,14 +27,18 @@
 //! does when it reads a TOML float into an `f32`. Writers of `f32` data pass it through
 //! [`f32_decimal`], so a file shows `0.1` rather than `0.10000000149011612`.
 //!
-//! The BRDF-sample CSV still lives with its pipeline (`igi-brdf`).
+//! - [`brdf_samples`]: the BRDF-sample CSV and the direction-pair table ([`BrdfSample`],
+//!   [`PairTable`]; [`brdf_samples::read_samples`], [`brdf_samples::write_samples`]), read
+//!   through `igi_imaging::csv`.
 
 pub mod board;
+pub mod brdf_samples;
 pub mod lighting;
 pub mod scene;
 pub mod survey;
 
 pub use board::BoardFile;
+pub use brdf_samples::{BrdfSample, PairRow, PairTable};
 pub use igi_imaging::{Camera, CameraFile};
 pub use lighting::LightingFile;
 pub use scene::SceneFile;
@@ -52,6 +56,8 @@ pub enum FileKind {
     Scene,
     Survey,
     Board,
+    BrdfSamples,
+    BrdfPairs,
 }
 
 impl fmt::Display for FileKind {
@@ -61,6 +67,8 @@ impl fmt::Display for FileKind {
             FileKind::Scene => "scene file",
             FileKind::Survey => "survey file",
             FileKind::Board => "board file",
+            FileKind::BrdfSamples => "BRDF-sample file",
+            FileKind::BrdfPairs => "direction-pair file",
         })
     }
 }
@@ -73,6 +81,8 @@ impl FileKind {
             FileKind::Scene => "scene file",
             FileKind::Survey => "survey",
             FileKind::Board => "board file",
+            FileKind::BrdfSamples => "BRDF samples",
+            FileKind::BrdfPairs => "direction pairs",
         }
     }
 }
@@ -113,9 +123,25 @@ pub enum FormatsError {
         #[source]
         source: Box<toml::ser::Error>,
     },
+    /// A CSV table's structure: no header, a missing column, a cell that is not a number.
+    #[error(transparent)]
+    Csv(Box<igi_imaging::csv::CsvError>),
+    /// A row of a BRDF-sample or pair table that cannot mean a measurement.
+    #[error("{path}:{line}: {problem}")]
+    Sample {
+        path: PathBuf,
+        line: usize,
+        problem: brdf_samples::SampleProblem,
+    },
     /// Writing the file failed (the atomic writer names the file).
     #[error(transparent)]
     Write(Box<igi_imaging::ImagingError>),
+}
+
+impl From<igi_imaging::csv::CsvError> for FormatsError {
+    fn from(e: igi_imaging::csv::CsvError) -> Self {
+        FormatsError::Csv(Box::new(e))
+    }
 }
 
 /// A file with one reader and one writer: the TOML text of a serde model.

@@ -20,6 +20,8 @@
 //!   frame contact, IoU).
 //! * [`run`]: run manifests (`run.json`): input fingerprints and result-changing options, so
 //!   a resumed command never mixes two runs' work.
+//! * [`csv`]: the one reader of igi's numeric CSV tables (header by name, comments, errors
+//!   naming file and line).
 //! * [`plot`]: font registration for plotters (diagnostic plots).
 //! * [`cv`]: OpenCV-backed calibration, PnP, homography and ArUco detection (cargo feature
 //!   `opencv`; without it the same functions return [`ImagingError::NoOpenCv`]).
@@ -32,6 +34,7 @@
 
 pub mod camera;
 pub mod color;
+pub mod csv;
 pub mod cv;
 mod error;
 pub mod hdr;

@@ -17,8 +17,16 @@ pub enum ProbeError {
     /// A sphere not fully seen by the camera ([`igi_capture::SphereError`]).
     #[error(transparent)]
     Sphere(#[from] SphereError),
-    #[error("{}: invalid reflectance samples: {msg}", path.display())]
-    Samples { path: PathBuf, msg: String },
+    /// A reflectance-sample row (or the whole file) the Fresnel fit cannot use.
+    #[error("{}: invalid reflectance samples: {}{problem}", path.display(), line.map(|l| format!("line {l}: ")).unwrap_or_default())]
+    Samples {
+        path: PathBuf,
+        line: Option<usize>,
+        problem: crate::fresnel::ReflectanceProblem,
+    },
+    /// A CSV table's structure (`igi_imaging::csv`): the file, the line and the problem.
+    #[error(transparent)]
+    Csv(#[from] igi_imaging::csv::CsvError),
     #[error("invalid input: {0}")]
     InvalidInput(String),
     #[error("fit failed: {0}")]

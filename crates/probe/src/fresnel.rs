@@ -2,6 +2,7 @@
 //! index of refraction from reflectance-versus-angle samples.
 
 use crate::ProbeError;
+use igi_imaging::csv::Table;
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{Complex, DVector, Dyn, OMatrix, Owned, Vector2, U2};
 use std::path::Path;
@@ -139,73 +140,75 @@ pub struct ReflectanceSamples {
     pub rgb: Vec<[f64; 3]>,
 }
 
+/// What a reflectance-sample row or file means that the fit cannot use.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ReflectanceProblem {
+    /// An incidence angle outside [0, 90) degrees.
+    Angle(f64),
+    /// A reflectance outside [0, 1].
+    Reflectance([f64; 3]),
+    /// Fewer than the 3 samples the fit needs.
+    TooFew(usize),
+}
+
+impl std::fmt::Display for ReflectanceProblem {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ReflectanceProblem::Angle(a) => write!(f, "angle {a} degrees is not in [0, 90)"),
+            ReflectanceProblem::Reflectance([r, g, b]) => {
+                write!(f, "reflectance ({r}, {g}, {b}) is not in [0, 1]")
+            }
+            ReflectanceProblem::TooFew(n) => write!(f, "{n} samples; the fit needs at least 3"),
+        }
+    }
+}
+
 impl ReflectanceSamples {
     pub fn load(path: &Path) -> Result<Self, ProbeError> {
         let text = std::fs::read_to_string(path).map_err(|e| ProbeError::Io {
             path: path.to_path_buf(),
             source: e,
         })?;
-        Self::from_csv_str(&text).map_err(|msg| ProbeError::Samples {
-            path: path.to_path_buf(),
-            msg,
-        })
+        Self::parse(&text, path)
     }
 
-    /// Parse the CSV text; blank lines and lines starting with `#` are skipped.
-    pub fn from_csv_str(text: &str) -> Result<Self, String> {
-        let mut lines = text
-            .lines()
-            .enumerate()
-            .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
-        let (_, header) = lines
-            .next()
-            .ok_or("empty file (want the header angle_deg,r,g,b)")?;
-        let names: Vec<&str> = header.split(',').map(str::trim).collect();
-        let col = |n: &str| {
-            names
-                .iter()
-                .position(|h| h.eq_ignore_ascii_case(n))
-                .ok_or(format!(
-                    "the header '{header}' has no column '{n}' (want angle_deg,r,g,b)"
-                ))
+    /// Parses the CSV text read from `path` (named in errors) through `igi_imaging::csv`:
+    /// blank lines and lines starting with `#` are skipped, columns are found by name.
+    pub fn parse(text: &str, path: &Path) -> Result<Self, ProbeError> {
+        let table = Table::parse(text, path)?;
+        let cols = table.columns(&["angle_deg", "r", "g", "b"])?;
+        let problem = |line, problem| ProbeError::Samples {
+            path: path.to_path_buf(),
+            line,
+            problem,
         };
-        let cols = [col("angle_deg")?, col("r")?, col("g")?, col("b")?];
         let mut out = ReflectanceSamples {
             angle_deg: Vec::new(),
             rgb: Vec::new(),
         };
-        for (i, line) in lines {
-            let f: Vec<&str> = line.split(',').map(str::trim).collect();
-            let v = cols.map(|c| f.get(c).and_then(|s| s.parse::<f64>().ok()));
-            let [Some(a), Some(r), Some(g), Some(b)] = v else {
-                return Err(format!(
-                    "line {}: want {} numbers, got '{line}'",
-                    i + 1,
-                    names.len()
-                ));
-            };
-            if !(a.is_finite() && (0.0..90.0).contains(&a)) {
-                return Err(format!(
-                    "line {}: angle {a} degrees is not in [0, 90)",
-                    i + 1
-                ));
-            }
-            if [r, g, b]
+        for row in table.rows() {
+            let v: Vec<f64> = ["angle_deg", "r", "g", "b"]
                 .iter()
-                .any(|x| !(x.is_finite() && (0.0..=1.0).contains(x)))
-            {
-                return Err(format!(
-                    "line {}: reflectance ({r}, {g}, {b}) is not in [0, 1]",
-                    i + 1
+                .zip(&cols)
+                .map(|(name, &c)| table.number(row, c, name))
+                .collect::<Result<_, _>>()?;
+            let (a, rgb) = (v[0], [v[1], v[2], v[3]]);
+            if !(0.0..90.0).contains(&a) {
+                return Err(problem(Some(row.line), ReflectanceProblem::Angle(a)));
+            }
+            if rgb.iter().any(|x| !(0.0..=1.0).contains(x)) {
+                return Err(problem(
+                    Some(row.line),
+                    ReflectanceProblem::Reflectance(rgb),
                 ));
             }
             out.angle_deg.push(a);
-            out.rgb.push([r, g, b]);
+            out.rgb.push(rgb);
         }
         if out.angle_deg.len() < 3 {
-            return Err(format!(
-                "{} samples; the fit needs at least 3",
-                out.angle_deg.len()
+            return Err(problem(
+                None,
+                ReflectanceProblem::TooFew(out.angle_deg.len()),
             ));
         }
         Ok(out)
@@ -296,7 +299,7 @@ mod tests {
             let r = truth.map(|(n, k)| conductor(a.to_radians().cos(), n, k));
             csv.push_str(&format!("{},{a},{},{}\n", r[0], r[1], r[2]));
         }
-        let s = ReflectanceSamples::from_csv_str(&csv).unwrap();
+        let s = ReflectanceSamples::parse(&csv, Path::new("s.csv")).unwrap();
         assert_eq!(s.angle_deg.len(), 30);
         let fits = fit_mirror_ior(&s).unwrap();
         for c in 0..3 {
@@ -307,13 +310,15 @@ mod tests {
             );
         }
         for (bad, want) in [
-            ("angle,r,g,b\n1,0.5,0.5,0.5\n", "no column 'angle_deg'"),
-            ("angle_deg,r,g,b\n1,0.5,0.5\n", "line 2"),
+            ("angle,r,g,b\n1,0.5,0.5,0.5\n", "lacks column `angle_deg`"),
+            ("angle_deg,r,g,b\n1,0.5,0.5\n", "s.csv:2"),
             ("angle_deg,r,g,b\n95,0.5,0.5,0.5\n", "not in [0, 90)"),
             ("angle_deg,r,g,b\n5,0.5,1.5,0.5\n", "not in [0, 1]"),
             ("angle_deg,r,g,b\n5,0.5,0.5,0.5\n", "at least 3"),
         ] {
-            let e = ReflectanceSamples::from_csv_str(bad).unwrap_err();
+            let e = ReflectanceSamples::parse(bad, Path::new("s.csv"))
+                .unwrap_err()
+                .to_string();
             assert!(e.contains(want), "{e}");
         }
     }

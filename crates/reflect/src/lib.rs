@@ -81,6 +81,9 @@ pub enum ReflectError {
     },
     #[error(transparent)]
     Probe(#[from] igi_probe::ProbeError),
+    /// A numeric CSV table (`igi sample`'s points): the file, the line and the problem.
+    #[error(transparent)]
+    Csv(#[from] igi_imaging::csv::CsvError),
 }
 
 impl ReflectError {

@@ -827,36 +827,12 @@ impl TexelIndex {
 pub fn read_points(path: &Path) -> Result<Vec<(Vec3, Vec3)>, ReflectError> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| ReflectError::file(path, format!("cannot read: {e}")))?;
-    let mut out = Vec::new();
-    for (ln, line) in text
-        .strip_prefix('\u{feff}')
-        .unwrap_or(&text)
-        .lines()
-        .enumerate()
-    {
-        let line = line.trim();
-        if line.is_empty() || line.starts_with('#') {
-            continue;
-        }
-        let vals: Result<Vec<f32>, _> = line.split(',').map(|s| s.trim().parse::<f32>()).collect();
-        match vals {
-            Ok(v) if v.len() == 6 && v.iter().all(|x| x.is_finite()) => {
-                out.push((Vec3::new(v[0], v[1], v[2]), Vec3::new(v[3], v[4], v[5])));
-            }
-            Err(_) if ln == 0 && out.is_empty() => continue, // header
-            _ => {
-                return Err(ReflectError::file(
-                    path,
-                    format!(
-                        "line {}: expected six finite numbers x,y,z,nx,ny,nz",
-                        ln + 1
-                    ),
-                ))
-            }
-        }
-    }
-    if out.is_empty() {
+    let rows = igi_imaging::csv::number_rows::<f32, 6>(&text, path, "x,y,z,nx,ny,nz")?;
+    if rows.is_empty() {
         return Err(ReflectError::file(path, "no points"));
     }
-    Ok(out)
+    Ok(rows
+        .iter()
+        .map(|r| (Vec3::new(r[0], r[1], r[2]), Vec3::new(r[3], r[4], r[5])))
+        .collect())
 }
