@@ -25,36 +25,24 @@ pub fn hash2(seed: u64, index: u64) -> u64 {
     mix64(mix64(seed) ^ index.wrapping_mul(0xD6E8_FEB8_6659_FD93))
 }
 
-/// PCG32 (XSH-RR) generator.
+/// PCG32 (XSH-RR) generator: `rand_pcg::Pcg32` seeded per stream.
+///
+/// `Pcg32::new(h, stream)` is the reference `pcg32_srandom_r(h, stream)` (state 0, one step,
+/// add `h`, one step), so the stream is exactly the one igi's own PCG32 produced before it
+/// was replaced by the crate: same seed, same bytes (`rng_matches_the_reference_pcg32`).
 #[derive(Clone, Debug)]
-pub struct Rng {
-    state: u64,
-    inc: u64,
-}
+pub struct Rng(rand_pcg::Pcg32);
 
 impl Rng {
     /// A generator for stream `index` of run `seed`.
     pub fn new(seed: u64, index: u64) -> Self {
         let h = hash2(seed, index);
-        let mut r = Rng {
-            state: 0,
-            inc: (mix64(h ^ 0xA5A5_A5A5) << 1) | 1,
-        };
-        r.next_u32();
-        r.state = r.state.wrapping_add(h);
-        r.next_u32();
-        r
+        Rng(rand_pcg::Pcg32::new(h, mix64(h ^ 0xA5A5_A5A5)))
     }
 
     #[inline]
     pub fn next_u32(&mut self) -> u32 {
-        let old = self.state;
-        self.state = old
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(self.inc);
-        let xorshifted = (((old >> 18) ^ old) >> 27) as u32;
-        let rot = (old >> 59) as u32;
-        xorshifted.rotate_right(rot)
+        rand::RngCore::next_u32(&mut self.0)
     }
 
     /// Uniform in [0, 1) (24 random bits, never returns 1.0).
@@ -317,6 +305,34 @@ pub fn power_heuristic(pdf_a: f32, pdf_b: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The reference PCG32 (O'Neill's `pcg32_srandom_r` and `pcg32_random_r`), which igi's
+    /// own generator implemented before `rand_pcg` replaced it.
+    fn reference_pcg32(h: u64, stream: u64, n: usize) -> Vec<u32> {
+        const MUL: u64 = 6_364_136_223_846_793_005;
+        let inc = (stream << 1) | 1;
+        let mut state = 0u64;
+        let mut next = |state: &mut u64| {
+            let old = *state;
+            *state = old.wrapping_mul(MUL).wrapping_add(inc);
+            ((((old >> 18) ^ old) >> 27) as u32).rotate_right((old >> 59) as u32)
+        };
+        next(&mut state);
+        state = state.wrapping_add(h);
+        next(&mut state);
+        (0..n).map(|_| next(&mut state)).collect()
+    }
+
+    #[test]
+    fn rng_matches_the_reference_pcg32() {
+        for (seed, index) in [(0u64, 0u64), (7, 123_456), (u64::MAX, 1 << 40)] {
+            let h = hash2(seed, index);
+            let want = reference_pcg32(h, mix64(h ^ 0xA5A5_A5A5), 1000);
+            let mut r = Rng::new(seed, index);
+            let got: Vec<u32> = (0..1000).map(|_| r.next_u32()).collect();
+            assert_eq!(got, want, "seed {seed} index {index}");
+        }
+    }
 
     #[test]
     fn rng_is_deterministic_and_uniform() {
