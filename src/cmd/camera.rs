@@ -57,7 +57,8 @@ pub struct RadiometryArgs {
     #[arg(long)]
     checker: Option<PathBuf>,
     /// The checker's patch-grid outer corners in pixels, x,y four times: top-left (dark skin),
-    /// top-right (bluish green), bottom-right (black), bottom-left (white).
+    /// top-right (bluish green), bottom-right (black), bottom-left (white). Without it the
+    /// chart is found automatically (OpenCV's mcc detector; builds with --features opencv).
     #[arg(long, allow_hyphen_values = true)]
     corners: Option<String>,
     /// Radiance of a perfect white diffuser under the checker's light, for an absolute
@@ -244,16 +245,16 @@ fn radiometry(a: RadiometryArgs, ctx: &Ctx) -> anyhow::Result<()> {
         bail!("{}: output must be .json", a.output.display());
     }
     if a.flat.is_empty() && a.checker.is_none() {
-        bail!("give flat fields (--flat), a colour checker (--checker with --corners), or both");
+        bail!("give flat fields (--flat), a colour checker (--checker, optionally --corners), or both");
     }
-    let corners = match (&a.checker, &a.corners) {
+    let given = match (&a.checker, &a.corners) {
         (Some(_), Some(c)) => Some(parse_corners(c)?),
-        (Some(c), None) => bail!(
-            "{}: give the checker's four corners with --corners (automatic detection with OpenCV's mcc module is not built)",
+        (Some(c), None) if !cfg!(feature = "opencv") => bail!(
+            "{}: give the checker's four corners with --corners (automatic detection needs a build with --features opencv)",
             c.display()
         ),
         (None, Some(_)) => bail!("--corners needs --checker"),
-        (None, None) => None,
+        _ => None,
     };
     let pb = ctx.progress(a.flat.len() as u64 + a.checker.is_some() as u64, "reading");
     let mut flats = Vec::new();
@@ -279,6 +280,10 @@ fn radiometry(a: RadiometryArgs, ctx: &Ctx) -> anyhow::Result<()> {
             bail!("{}: image is {}x{} but the first is {w}x{h}; all must come from the same camera setting", p.display(), img.width, img.height);
         }
     }
+    let corners = match (&a.checker, &checker, given) {
+        (Some(path), Some(img), None) => Some(detect_checker(path, img)?),
+        (_, _, given) => given,
+    };
     let inputs = RadiometryInputs {
         flats: &flats,
         checker: checker.as_ref().zip(corners),
@@ -286,6 +291,7 @@ fn radiometry(a: RadiometryArgs, ctx: &Ctx) -> anyhow::Result<()> {
     };
     let cal = fit_radiometry(&inputs).context("fitting the camera radiometry")?;
     cal.save(&a.output)?;
+    let corners_px = corners.map(|c| c.map(|p| p.to_array()));
     if a.json {
         crate::report::print_json(&serde_json::json!({
             "output": a.output,
@@ -294,9 +300,30 @@ fn radiometry(a: RadiometryArgs, ctx: &Ctx) -> anyhow::Result<()> {
             "falloff": cal.falloff,
             "color_matrix": cal.color_matrix,
             "fit": cal.fit,
+            "checker_corners": corners_px,
+            "checker_corners_detected": a.checker.is_some() && a.corners.is_none(),
         }))?;
+    } else if let (Some(c), None) = (corners_px, &a.corners) {
+        println!(
+            "checker detected; --corners {}",
+            c.iter()
+                .flatten()
+                .map(|v| format!("{v:.1}"))
+                .collect::<Vec<_>>()
+                .join(",")
+        );
     }
     Ok(())
+}
+
+/// The checker's patch-grid corners found by OpenCV's mcc detector, the file named on failure.
+fn detect_checker(path: &Path, img: &igi_imaging::HdrImage) -> anyhow::Result<[DVec2; 4]> {
+    cv::detect_color_checker(img).with_context(|| {
+        format!(
+            "{}: automatic colour-checker detection (OpenCV mcc) failed; give the patch grid's corners with --corners",
+            path.display()
+        )
+    })
 }
 
 fn refine(a: RefineArgs) -> anyhow::Result<()> {

@@ -745,6 +745,101 @@ pub fn aruco_marker_image(
     imp::aruco_marker_image(dict, id, side_px)
 }
 
+/// Finds a ColorChecker Classic (6 x 4 patches) with OpenCV's `mcc` detector and returns its
+/// patch grid's outer corners in pixels, in the order [`crate::radiometry::sample_checker`]
+/// takes them: top-left (dark skin), top-right (bluish green), bottom-right (black),
+/// bottom-left (white). The linear image is tone-mapped to 8-bit sRGB for the detector (its
+/// 99.5th percentile brightest channel to white); the detector's chart box is turned into the
+/// patch grid, oriented by the patch colours
+/// ([`crate::radiometry::checker_corners_from_box`]) and refined by the patches' centroids
+/// ([`crate::radiometry::refine_checker_corners`]).
+/// [`crate::RadiometryError::CheckerNotFound`] when no chart is found.
+pub fn detect_color_checker(img: &HdrImage) -> Result<[DVec2; 4], ImagingError> {
+    let chart_box = mcc_imp::chart_box(img)?
+        .ok_or_else(|| ImagingError::from(crate::RadiometryError::CheckerNotFound))?;
+    let (corners, _) = crate::radiometry::checker_corners_from_box(img, &chart_box)?;
+    Ok(crate::radiometry::refine_checker_corners(img, &corners))
+}
+
+/// 8-bit sRGB bytes (B, G, R per pixel, row-major) of a linear image, scaled so that the
+/// 99.5th percentile of the pixels' brightest channel is white (invalid pixels black).
+#[cfg_attr(not(feature = "opencv"), allow(dead_code))]
+fn bgr8_tonemapped(img: &HdrImage) -> Vec<u8> {
+    let mut peaks: Vec<f32> = img
+        .pixels
+        .iter()
+        .zip(&img.valid)
+        .filter(|(_, v)| **v)
+        .map(|(p, _)| p[0].max(p[1]).max(p[2]))
+        .filter(|v| v.is_finite())
+        .collect();
+    let k = (peaks.len() * 995 / 1000).min(peaks.len().saturating_sub(1));
+    let white = match peaks.is_empty() {
+        true => 1.0,
+        false => *peaks.select_nth_unstable_by(k, |a, b| a.total_cmp(b)).1,
+    };
+    let scale = if white > 0.0 { 1.0 / white } else { 1.0 };
+    let mut out = Vec::with_capacity(img.pixels.len() * 3);
+    for (p, ok) in img.pixels.iter().zip(&img.valid) {
+        for c in [2, 1, 0] {
+            let v = if *ok && p[c].is_finite() {
+                p[c] * scale
+            } else {
+                0.0
+            };
+            out.push((crate::io::linear_to_srgb(v) * 255.0 + 0.5) as u8);
+        }
+    }
+    out
+}
+
+#[cfg(not(feature = "opencv"))]
+mod mcc_imp {
+    use super::*;
+    pub fn chart_box(_: &HdrImage) -> Result<Option<[DVec2; 4]>, ImagingError> {
+        Err(ImagingError::NoOpenCv)
+    }
+}
+
+#[cfg(feature = "opencv")]
+mod mcc_imp {
+    use super::*;
+    use opencv::core::{Mat, Point2f, Ptr, Vector, CV_8UC3};
+    use opencv::mcc::{MCC_CCheckerDetector, MCC_TYPECHART};
+    use opencv::prelude::*;
+
+    fn cv_err(e: opencv::Error) -> ImagingError {
+        ImagingError::OpenCv(e.to_string())
+    }
+
+    /// The chart box of the best ColorChecker Classic `mcc` finds (corners in its own order),
+    /// or `None`.
+    pub fn chart_box(img: &HdrImage) -> Result<Option<[DVec2; 4]>, ImagingError> {
+        let bytes = bgr8_tonemapped(img);
+        let flat = Mat::from_slice(&bytes).map_err(cv_err)?;
+        let bgr = flat
+            .reshape(3, img.height as i32)
+            .map_err(cv_err)?
+            .try_clone()
+            .map_err(cv_err)?;
+        debug_assert_eq!(bgr.typ(), CV_8UC3);
+        let mut det: Ptr<MCC_CCheckerDetector> = MCC_CCheckerDetector::create().map_err(cv_err)?;
+        if !det
+            .process_def(&bgr, MCC_TYPECHART::MCC24)
+            .map_err(cv_err)?
+        {
+            return Ok(None);
+        }
+        let mut best = det.get_best_color_checker().map_err(cv_err)?;
+        let bx: Vector<Point2f> = best.get_box().map_err(cv_err)?;
+        let corners: Vec<DVec2> = bx
+            .iter()
+            .map(|q| DVec2::new(q.x as f64, q.y as f64))
+            .collect();
+        Ok(<[DVec2; 4]>::try_from(corners).ok())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

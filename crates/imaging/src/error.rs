@@ -154,4 +154,6 @@ pub enum RadiometryError {
         size: (usize, usize),
         flats: (usize, usize),
     },
+    #[error("no ColorChecker Classic (6 x 4 patches) found in the image")]
+    CheckerNotFound,
 }
