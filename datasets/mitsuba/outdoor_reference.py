@@ -275,15 +275,20 @@ def sensor_dict(spp=16, far_clip=1e7):
     }
 
 
-def sun_disk_dict(radiance=SUN_RADIANCE):
-    sun = sun_direction()
-    r = SUN_DISTANCE * math.tan(math.radians(SUN_ANGULAR_DIAMETER_DEG / 2))
+def sun_disk_emitter(direction, radiance, angular_diameter_deg, distance=SUN_DISTANCE):
+    """Mitsuba's stand-in for an infinitely far sun: an emitting disk of the sun's angular
+    diameter at `distance` along the unit `direction` (shared with survey_reference.py)."""
+    r = distance * math.tan(math.radians(angular_diameter_deg / 2))
     # look_at points the disk's local +z (its emitting side) toward the scene origin.
-    up = [0, 0, 1] if abs(sun[2]) < 0.99 else [1, 0, 0]
-    tw = mi.ScalarTransform4f().look_at(origin=(SUN_DISTANCE * sun).tolist(), target=[0, 0, 0], up=up) \
+    up = [0, 0, 1] if abs(direction[2]) < 0.99 else [1, 0, 0]
+    tw = mi.ScalarTransform4f().look_at(origin=(distance * direction).tolist(), target=[0, 0, 0], up=up) \
         @ mi.ScalarTransform4f().scale([r, r, 1.0])
     return {"type": "disk", "to_world": tw,
             "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [float(x) for x in radiance]}}}
+
+
+def sun_disk_dict(radiance=SUN_RADIANCE):
+    return sun_disk_emitter(sun_direction(), radiance, SUN_ANGULAR_DIAMETER_DEG)
 
 
 def mitsuba_sky(sky):

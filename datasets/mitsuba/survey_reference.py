@@ -316,12 +316,7 @@ def read_lighting(path):
 
 def sun_disk(sun):
     d, radiance, diam = sun
-    r = SUN_DISTANCE * math.tan(math.radians(diam / 2))
-    up = [0, 0, 1] if abs(d[2]) < 0.99 else [1, 0, 0]
-    tw = mi.ScalarTransform4f().look_at(origin=(SUN_DISTANCE * d).tolist(), target=[0, 0, 0], up=up) \
-        @ mi.ScalarTransform4f().scale([r, r, 1.0])
-    return {"type": "disk", "to_world": tw,
-            "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [float(x) for x in radiance]}}}
+    return ref.sun_disk_emitter(d, radiance, diam, SUN_DISTANCE)
 
 
 def emitters(lighting_path, workdir):
