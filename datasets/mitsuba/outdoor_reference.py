@@ -414,8 +414,9 @@ def check_envmap(out, sky):
     return worst
 
 
-def check_sun_irradiance():
-    sun = sun_direction()
+def plane_irradiance(emitter):
+    """Mitsuba's irradiance (RGB) on a horizontal white Lambertian plane lit by `emitter` alone,
+    seen from above by an orthographic camera (shared with survey_reference.py)."""
     cam = {"type": "orthographic", "near_clip": 0.01, "far_clip": 100.0,
            "to_world": mi.ScalarTransform4f().look_at(origin=[0, 0, 10], target=[0, 0, 0], up=[0, 1, 0])
            @ mi.ScalarTransform4f().scale([0.5, 0.5, 1]),
@@ -423,12 +424,17 @@ def check_sun_irradiance():
            "film": {"type": "hdrfilm", "width": 8, "height": 8, "pixel_format": "rgb", "rfilter": {"type": "box"}}}
     scene = mi.load_dict({
         "type": "scene", "integrator": {"type": "direct", "emitter_samples": 4, "bsdf_samples": 1},
-        "sensor": cam, "sun": sun_disk_dict(),
+        "sensor": cam, "sun": emitter,
         "plane": {"type": "rectangle", "to_world": mi.ScalarTransform4f().scale([5, 5, 1]),
                   "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [1.0, 1.0, 1.0]}}},
     })
     img = render(scene, 64, 3)
-    e_mi = img.reshape(-1, 3).mean(axis=0) * math.pi          # white Lambertian: L = E / pi
+    return img.reshape(-1, 3).mean(axis=0) * math.pi          # white Lambertian: L = E / pi
+
+
+def check_sun_irradiance():
+    sun = sun_direction()
+    e_mi = plane_irradiance(sun_disk_dict())
     alpha = math.radians(SUN_ANGULAR_DIAMETER_DEG / 2)
     omega = 2 * math.pi * (1 - math.cos(alpha))
     e_ref = SUN_RADIANCE * omega * sun[2]
