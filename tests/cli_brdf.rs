@@ -595,40 +595,8 @@ fn sparse_fixture_fit_then_eval_matches_the_library_and_the_goal() {
     let (m_default, m_plain) = (tmp.path().join("m.json"), tmp.path().join("plain.json"));
     fit(&m_default, &[]);
     fit(&m_plain, &["--plain"]);
-    let eval = |mats: &Path, name: &str, h: &[igi_brdf::BrdfSample]| -> Vec<Vec3> {
-        let pairs = tmp.path().join(format!("pairs_{name}.csv"));
-        let mut s = String::from("light_x,light_y,light_z,view_x,view_y,view_z\n");
-        for x in h {
-            let (l, v) = (x.light, x.view);
-            s.push_str(&format!(
-                "{},{},{},{},{},{}\n",
-                l.x, l.y, l.z, v.x, v.y, v.z
-            ));
-        }
-        std::fs::write(&pairs, s).unwrap();
-        let values = tmp.path().join(format!("values_{name}.csv"));
-        let o = igi(&[
-            "brdf",
-            "eval",
-            &p(mats),
-            "--material",
-            name,
-            "--pairs",
-            &p(&pairs),
-            "-o",
-            &p(&values),
-        ]);
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        std::fs::read_to_string(&values)
-            .unwrap()
-            .lines()
-            .skip(1)
-            .map(|l| {
-                let c: Vec<f32> = l.split(',').skip(6).map(|x| x.parse().unwrap()).collect();
-                Vec3::new(c[0], c[1], c[2])
-            })
-            .collect()
-    };
+    let eval =
+        |mats: &Path, name: &str, h: &[igi_brdf::BrdfSample]| cli_eval(tmp.path(), mats, name, h);
     for (k, ((name, s), (hname, h))) in train.iter().zip(&held).enumerate() {
         assert_eq!(name, hname);
         let cli = held_out_errors(&eval(&m_default, name, h), h);
@@ -656,6 +624,43 @@ fn sparse_fixture_fit_then_eval_matches_the_library_and_the_goal() {
             assert!(plain.0 / dense.0 > 1.25, "{name} --plain: {plain:?}");
         }
     }
+}
+
+/// `igi brdf eval` of material `name` of `mats` at the (light, view) pairs of `h`: pi f per pair.
+fn cli_eval(tmp: &Path, mats: &Path, name: &str, h: &[igi_brdf::BrdfSample]) -> Vec<Vec3> {
+    let p = |x: &Path| x.to_str().unwrap().to_string();
+    let pairs = tmp.join(format!("pairs_{name}.csv"));
+    let mut s = String::from("light_x,light_y,light_z,view_x,view_y,view_z\n");
+    for x in h {
+        let (l, v) = (x.light, x.view);
+        s.push_str(&format!(
+            "{},{},{},{},{},{}\n",
+            l.x, l.y, l.z, v.x, v.y, v.z
+        ));
+    }
+    std::fs::write(&pairs, s).unwrap();
+    let values = tmp.join(format!("values_{name}.csv"));
+    let o = igi(&[
+        "brdf",
+        "eval",
+        &p(mats),
+        "--material",
+        name,
+        "--pairs",
+        &p(&pairs),
+        "-o",
+        &p(&values),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    std::fs::read_to_string(&values)
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let c: Vec<f32> = l.split(',').skip(6).map(|x| x.parse().unwrap()).collect();
+            Vec3::new(c[0], c[1], c[2])
+        })
+        .collect()
 }
 
 /// Bad fit options fail before any work, naming the flag.

@@ -5,7 +5,9 @@
 //! clipped pixels of 8-bit photos (PNG, JPEG: a channel at 254/255 or more), are invalid and
 //! never contribute (`data::gather` skips bilinear lookups that touch them). The grid points
 //! are the covered texels of a fresh atlas of the mesh (`--atlas` texels a side, 1-texel
-//! gutters); the mesh's own texture coordinates, if any, are not used.
+//! gutters); the mesh's own texture coordinates, if any, are not used. Every pixel centre's
+//! ray is cast once ([`crate::data::pixel_hits`]) and serves both the silhouette check of the
+//! masks and the gathering's silhouette rule.
 
 use crate::build::{BuildOptions, Method, Prepared};
 use crate::data::{mask_clipped, pixel_hits, GatherReport, View};

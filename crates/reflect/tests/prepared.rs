@@ -396,16 +396,9 @@ fn run_tasks_and_merges(
         }
         merge(dist, work, inputs, opts).unwrap();
     }
-    let e = run_task(
-        dist,
-        work,
-        inputs,
-        opts,
-        "99_99_99",
-        &Default::default(),
-    )
-    .unwrap_err()
-    .to_string();
+    let e = run_task(dist, work, inputs, opts, "99_99_99", &Default::default())
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("99_99_99"), "{e}");
 }
 
