@@ -4,10 +4,11 @@
 
 use criterion::{black_box, criterion_group, criterion_main, BatchSize, Criterion, Throughput};
 use glam::{Vec2, Vec3};
+use igi_brdf::cluster::separated_materials;
 use igi_brdf::{
-    cluster, fit_material, BrdfSample, ClusterOptions, FitOptions, Frame, Lafortune, Lobe,
-    Lumitexel,
+    cluster, fit_material, BrdfSample, ClusterOptions, FitOptions, Frame, Lafortune, Lumitexel,
 };
+use igi_capture::synth::{specular_lobe, stone};
 
 fn dir(theta_deg: f32, phi_deg: f32) -> Vec3 {
     let (t, p) = (theta_deg.to_radians(), phi_deg.to_radians());
@@ -15,23 +16,8 @@ fn dir(theta_deg: f32, phi_deg: f32) -> Vec3 {
 }
 
 fn material(n_spec: f32) -> Lafortune {
-    Lafortune {
-        rho_d: Vec3::new(0.35, 0.3, 0.22),
-        lobes: vec![
-            Lobe {
-                rho: Vec3::new(0.1, 0.09, 0.07),
-                cxy: 0.7,
-                cz: 1.0,
-                n: 5.0,
-            },
-            Lobe {
-                rho: Vec3::splat(0.5 * (n_spec + 2.0) / std::f32::consts::TAU),
-                cxy: -1.0,
-                cz: 1.0,
-                n: n_spec,
-            },
-        ],
-    }
+    let rho = Vec3::splat(0.5 * (n_spec + 2.0) / std::f32::consts::TAU);
+    stone(specular_lobe(rho, n_spec))
 }
 
 /// Deterministic quasi-random directions (golden-ratio sequences), upper hemisphere.
@@ -142,35 +128,7 @@ fn bench_fit(c: &mut Criterion) {
 /// test's materials), 10 samples each (half of the views near the mirror direction), random
 /// normals, 3% noise; k = 3, default options (fits capped at 3000 samples).
 fn bench_cluster(c: &mut Criterion) {
-    let mats = [
-        Lafortune {
-            rho_d: Vec3::new(0.6, 0.12, 0.1),
-            lobes: vec![Lobe {
-                rho: Vec3::new(0.1, 0.02, 0.02),
-                cxy: 0.9,
-                cz: 1.0,
-                n: 3.0,
-            }],
-        },
-        Lafortune {
-            rho_d: Vec3::new(0.04, 0.06, 0.3),
-            lobes: vec![Lobe {
-                rho: Vec3::splat(6.0),
-                cxy: -1.0,
-                cz: 1.0,
-                n: 80.0,
-            }],
-        },
-        Lafortune {
-            rho_d: Vec3::splat(0.25),
-            lobes: vec![Lobe {
-                rho: Vec3::splat(0.6),
-                cxy: 1.0,
-                cz: 1.0,
-                n: 12.0,
-            }],
-        },
-    ];
+    let mats = separated_materials();
     let count: usize = std::env::var("IGI_BENCH_LUMITEXELS")
         .ok()
         .and_then(|v| v.parse().ok())

@@ -14,7 +14,7 @@
 use glam::Vec3;
 use igi_geometry::TriMesh;
 use igi_reflect::parts::build_parts;
-use igi_reflect::solver::{NoProgress, Truth};
+use igi_reflect::solver::Truth;
 use igi_reflect::survey::Photo;
 use igi_reflect::synth::{look_at_camera, scene_with_albedo, truth_atlas};
 use igi_reflect::{SolveOptions, SolveResult};
@@ -94,14 +94,20 @@ fn albedo(p: Vec3) -> Vec3 {
     )
 }
 
-fn main() {
-    let quick = std::env::var("IGI_BENCH_QUICK").is_ok();
+/// The bench scene: the solved voxel (part 0) and its three rings of neighbours, with their
+/// triangle counts (voxel, others).
+struct SiteScene {
+    parts: Vec<igi_reflect::Part>,
+    voxel_triangles: usize,
+    other_triangles: usize,
+}
+
+fn build_scene(quick: bool, atlas: u32) -> SiteScene {
     let scale = if quick { 4 } else { 1 };
     // triangles per voxel: 2 n^2
     let (n0, n1, n2) = (633 / scale, 283 / scale, 141 / scale);
-    let atlas = if quick { 128 } else { 512 };
     let t_build = Instant::now();
-    let mut centre = vec![("voxel".to_string(), voxel_mesh(0, 0, n0, true))];
+    let centre = vec![("voxel".to_string(), voxel_mesh(0, 0, n0, true))];
     let mut others = Vec::new();
     for j in -3i32..=3 {
         for i in -3i32..=3 {
@@ -115,16 +121,22 @@ fn main() {
     }
     let tri = |v: &[(String, TriMesh)]| v.iter().map(|(_, m)| m.indices.len()).sum::<usize>();
     let (t0, t_other) = (tri(&centre), tri(&others));
-    let mut parts = build_parts(std::mem::take(&mut centre), atlas).unwrap();
+    let mut parts = build_parts(centre, atlas).unwrap();
     parts.extend(build_parts(others, 64).unwrap());
-    let truth: Vec<Vec<Vec3>> = parts.iter().map(|p| truth_atlas(p, albedo)).collect();
-    let truth_scene = scene_with_albedo(&parts, &truth).unwrap();
     eprintln!(
         "scene: voxel {t0} triangles ({} covered texels of {atlas}^2), others {t_other} triangles, built in {:.1} s",
         parts[0].cache.texels.len(),
         t_build.elapsed().as_secs_f64()
     );
-    // eleven photos, each under its own sky and sun
+    SiteScene {
+        parts,
+        voxel_triangles: t0,
+        other_triangles: t_other,
+    }
+}
+
+/// Eleven photos of the voxel from all sides, each under its own sky and sun.
+fn render_photos(truth_scene: &igi_render::Scene) -> Vec<Photo> {
     let t_photo = Instant::now();
     let photos: Vec<Photo> = (0..11)
         .map(|k| {
@@ -146,7 +158,7 @@ fn main() {
                 indirect: 2,
                 russian_roulette: false,
             };
-            let image = render_image(&truth_scene, &lighting, &camera, &opts, &|_| {})
+            let image = render_image(truth_scene, &lighting, &camera, &opts, &|_| {})
                 .unwrap()
                 .mean;
             Photo {
@@ -161,7 +173,12 @@ fn main() {
         "photos rendered in {:.1} s",
         t_photo.elapsed().as_secs_f64()
     );
-    let gt: Truth = parts
+    photos
+}
+
+/// The true albedo of the solved voxel's texels (the other parts have none).
+fn voxel_truth(parts: &[igi_reflect::Part]) -> Truth {
+    parts
         .iter()
         .enumerate()
         .map(|(i, p)| {
@@ -177,7 +194,72 @@ fn main() {
                 })
                 .collect()
         })
-        .collect();
+        .collect()
+}
+
+/// Solves the voxel from 0.5 grey with the sample schedule `spp` for `iters` iterations (the
+/// other voxels keep the true albedo `truth`); prints the curve and returns its JSON row.
+fn run_schedule(
+    parts: &[igi_reflect::Part],
+    truth: &[Vec<Vec3>],
+    photos: &[Photo],
+    gt: &Truth,
+    atlas: u32,
+    (spp, iters): (Vec<u32>, u32),
+) -> serde_json::Value {
+    let opts = SolveOptions {
+        atlas_resolution: atlas,
+        max_iterations: iters,
+        min_iterations: iters,
+        spp: spp.clone(),
+        parts: Some(vec!["voxel".into()]),
+        ..SolveOptions::default()
+    };
+    let ids = photos.iter().map(|p| p.id.clone()).collect();
+    // the other voxels keep the true albedo (as if already solved)
+    let mut start = SolveResult::fresh(parts.to_vec(), ids, &opts);
+    let n = start.rho.len();
+    start.rho[1..].clone_from_slice(&truth[1..n]);
+    let t = Instant::now();
+    let r = igi_reflect::solve_in_memory(start, photos, None, Some(gt), &opts).unwrap();
+    let wall = t.elapsed().as_secs_f64();
+    let mut curve = Vec::new();
+    for it in &r.report.iterations {
+        let mae = it.truth_mae.unwrap_or([f32::NAN; 3]);
+        eprintln!(
+            "  spp {:?}: iteration {} ({} spp) at {:.1} s: {} observations, rho_d MAE {:.4} {:.4} {:.4}, RMS {:.4}",
+            spp,
+            it.iteration,
+            it.spp,
+            it.cumulative_s,
+            it.observations,
+            mae[0],
+            mae[1],
+            mae[2],
+            it.truth_rms.unwrap_or(f32::NAN)
+        );
+        curve.push(serde_json::json!({"iteration": it.iteration, "spp": it.spp, "cumulative_s": it.cumulative_s, "observations": it.observations, "mae": mae, "rms": it.truth_rms}));
+    }
+    println!(
+        "schedule {spp:?} x {iters}: {wall:.1} s, final RMS {:.4}",
+        r.report
+            .iterations
+            .last()
+            .and_then(|i| i.truth_rms)
+            .unwrap_or(f32::NAN)
+    );
+    serde_json::json!({"spp": spp, "iterations": iters, "wall_s": wall, "curve": curve})
+}
+
+fn main() {
+    let quick = std::env::var("IGI_BENCH_QUICK").is_ok();
+    let atlas = if quick { 128 } else { 512 };
+    let site = build_scene(quick, atlas);
+    let parts = &site.parts;
+    let truth: Vec<Vec<Vec3>> = parts.iter().map(|p| truth_atlas(p, albedo)).collect();
+    let truth_scene = scene_with_albedo(parts, &truth).unwrap();
+    let photos = render_photos(&truth_scene);
+    let gt = voxel_truth(parts);
     let schedules: Vec<(Vec<u32>, u32)> = vec![
         (vec![4], 1),
         (vec![4, 16], 2),
@@ -186,66 +268,14 @@ fn main() {
         (vec![16, 64], 2),
         (vec![16, 64, 256], 3),
     ];
-    let mut rows = Vec::new();
-    for (spp, iters) in schedules {
-        let opts = SolveOptions {
-            atlas_resolution: atlas,
-            max_iterations: iters,
-            min_iterations: iters,
-            spp: spp.clone(),
-            parts: Some(vec!["voxel".into()]),
-            ..SolveOptions::default()
-        };
-        let ids = photos.iter().map(|p| p.id.clone()).collect();
-        // the other voxels keep the true albedo (as if already solved)
-        let mut start = SolveResult::fresh(parts.clone(), ids, &opts);
-        let n = start.rho.len();
-        start.rho[1..].clone_from_slice(&truth[1..n]);
-        let t = Instant::now();
-        let r = igi_reflect::solve(
-            start,
-            &photos,
-            None,
-            Some(&gt),
-            &opts,
-            &NoProgress,
-            &mut |_| Ok(()),
-        )
-        .unwrap();
-        let wall = t.elapsed().as_secs_f64();
-        let mut curve = Vec::new();
-        for it in &r.report.iterations {
-            let mae = it.truth_mae.unwrap_or([f32::NAN; 3]);
-            eprintln!(
-                "  spp {:?}: iteration {} ({} spp) at {:.1} s: {} observations, rho_d MAE {:.4} {:.4} {:.4}, RMS {:.4}",
-                spp,
-                it.iteration,
-                it.spp,
-                it.cumulative_s,
-                it.observations,
-                mae[0],
-                mae[1],
-                mae[2],
-                it.truth_rms.unwrap_or(f32::NAN)
-            );
-            curve.push(serde_json::json!({"iteration": it.iteration, "spp": it.spp, "cumulative_s": it.cumulative_s, "observations": it.observations, "mae": mae, "rms": it.truth_rms}));
-        }
-        println!(
-            "schedule {spp:?} x {iters}: {wall:.1} s, final RMS {:.4}",
-            r.report
-                .iterations
-                .last()
-                .and_then(|i| i.truth_rms)
-                .unwrap_or(f32::NAN)
-        );
-        rows.push(
-            serde_json::json!({"spp": spp, "iterations": iters, "wall_s": wall, "curve": curve}),
-        );
-    }
+    let rows: Vec<serde_json::Value> = schedules
+        .into_iter()
+        .map(|s| run_schedule(parts, &truth, &photos, &gt, atlas, s))
+        .collect();
     let out = serde_json::json!({
-        "voxel_triangles": t0, "other_triangles": t_other, "atlas": atlas,
-        "covered_texels": parts[0].cache.texels.len(), "photos": 11, "indirect": 2,
-        "threads": rayon::current_num_threads(), "schedules": rows,
+        "voxel_triangles": site.voxel_triangles, "other_triangles": site.other_triangles,
+        "atlas": atlas, "covered_texels": parts[0].cache.texels.len(), "photos": 11,
+        "indirect": 2, "threads": rayon::current_num_threads(), "schedules": rows,
     });
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("target/solve_voxel.json");
     std::fs::write(&path, serde_json::to_string_pretty(&out).unwrap()).unwrap();

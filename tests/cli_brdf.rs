@@ -6,6 +6,7 @@ use std::process::Command;
 
 use glam::Vec3;
 use igi_brdf::{Lafortune, Lobe};
+use igi_capture::synth::{specular_lobe, stone};
 
 fn igi(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_igi"))
@@ -20,23 +21,7 @@ fn dir(theta_deg: f32, phi_deg: f32) -> Vec3 {
 }
 
 fn truth() -> Lafortune {
-    Lafortune {
-        rho_d: Vec3::new(0.35, 0.3, 0.22),
-        lobes: vec![
-            Lobe {
-                rho: Vec3::new(0.1, 0.09, 0.07),
-                cxy: 0.7,
-                cz: 1.0,
-                n: 5.0,
-            },
-            Lobe {
-                rho: Vec3::new(4.0, 4.0, 4.2),
-                cxy: -1.0,
-                cz: 1.0,
-                n: 90.0,
-            },
-        ],
-    }
+    stone(specular_lobe(Vec3::new(4.0, 4.0, 4.2), 90.0))
 }
 
 /// The paper's capture geometry: lights at 0, 30, 50, 75 degrees, views across the plane and out of it.
@@ -99,9 +84,15 @@ fn fit_then_eval_round_trip_reproduces_the_material() {
     );
     assert!(std::fs::read(&fig).unwrap().starts_with(b"\x89PNG"));
 
-    // the JSON has the documented layout and the recovered parameters
+    check_fitted_json(&mats, &t);
+    check_eval_at_held_out_pairs(tmp.path(), &mats, &t);
+    check_infer(&mats);
+}
+
+/// The JSON has the documented layout and the recovered parameters of `t`.
+fn check_fitted_json(mats: &Path, t: &Lafortune) {
     let j: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&mats).unwrap()).unwrap();
+        serde_json::from_str(&std::fs::read_to_string(mats).unwrap()).unwrap();
     let m = &j["materials"]["stone"];
     let f = |v: &serde_json::Value| v.as_f64().unwrap() as f32;
     for c in 0..3 {
@@ -118,8 +109,10 @@ fn fit_then_eval_round_trip_reproduces_the_material() {
     );
     assert!(f(&m["rms"]) < 0.01);
     assert!(m["stderr"]["lobes"][1]["n"].as_f64().unwrap() < 1.0, "{m}");
+}
 
-    // eval at held-out pairs, with a pass-through column
+/// `igi brdf eval` at held-out pairs, with a pass-through column, gives `t`'s values.
+fn check_eval_at_held_out_pairs(tmp: &Path, mats: &Path, t: &Lafortune) {
     let held: Vec<(Vec3, Vec3)> = (0..50)
         .map(|i| {
             (
@@ -128,7 +121,7 @@ fn fit_then_eval_round_trip_reproduces_the_material() {
             )
         })
         .collect();
-    let pairs_csv = tmp.path().join("pairs.csv");
+    let pairs_csv = tmp.join("pairs.csv");
     let mut s = String::from("id,light_x,light_y,light_z,view_x,view_y,view_z\n");
     for (i, (l, v)) in held.iter().enumerate() {
         s.push_str(&format!(
@@ -137,7 +130,7 @@ fn fit_then_eval_round_trip_reproduces_the_material() {
         ));
     }
     std::fs::write(&pairs_csv, s).unwrap();
-    let values = tmp.path().join("values.csv");
+    let values = tmp.join("values.csv");
     let out = igi(&[
         "brdf",
         "eval",
@@ -177,8 +170,11 @@ fn fit_then_eval_round_trip_reproduces_the_material() {
         n += 1;
     }
     assert_eq!(n, 50);
+}
 
-    // infer from the single fitted material: lobes of that material, rho_d as asked
+/// Infer from the single fitted material: lobes of that material, rho_d as asked.
+fn check_infer(mats: &Path) {
+    let f = |v: &serde_json::Value| v.as_f64().unwrap() as f32;
     let out = igi(&[
         "brdf",
         "infer",
@@ -200,7 +196,13 @@ fn fit_then_eval_round_trip_reproduces_the_material() {
 #[test]
 fn bad_input_gives_clear_errors() {
     let tmp = tempfile::tempdir().unwrap();
-    let bad = tmp.path().join("bad.csv");
+    bad_fit_input(tmp.path());
+    bad_eval_and_infer_input(tmp.path());
+}
+
+/// A cell that is not a number and too few samples for a material: clear errors, no output.
+fn bad_fit_input(tmp: &Path) {
+    let bad = tmp.join("bad.csv");
     std::fs::write(
         &bad,
         "material,light_x,light_y,light_z,view_x,view_y,view_z,r,g,b\na,0,0,1,0,0,1,0.5,oops,0.5\n",
@@ -211,7 +213,7 @@ fn bad_input_gives_clear_errors() {
         "fit",
         bad.to_str().unwrap(),
         "-o",
-        tmp.path().join("m.json").to_str().unwrap(),
+        tmp.join("m.json").to_str().unwrap(),
     ]);
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
@@ -219,17 +221,17 @@ fn bad_input_gives_clear_errors() {
         err.contains("bad.csv:2") && err.contains("`g` = `oops` is not a number"),
         "{err}"
     );
-    assert!(!tmp.path().join("m.json").exists(), "no output on failure");
+    assert!(!tmp.join("m.json").exists(), "no output on failure");
 
     // too few samples for a material
-    let few = tmp.path().join("few.csv");
+    let few = tmp.join("few.csv");
     write_samples(&few, "tiny", &truth(), &pairs()[..3]);
     let out = igi(&[
         "brdf",
         "fit",
         few.to_str().unwrap(),
         "-o",
-        tmp.path().join("m.json").to_str().unwrap(),
+        tmp.join("m.json").to_str().unwrap(),
     ]);
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
@@ -237,15 +239,18 @@ fn bad_input_gives_clear_errors() {
         err.contains("`tiny`") && err.contains("3 samples are too few"),
         "{err}"
     );
+}
 
-    // unknown material and missing file
-    let mats = tmp.path().join("m.json");
+/// An unknown material, a missing file and a bad colour: clear errors; a lambertian material
+/// evaluates to rho_d at any pair above the surface.
+fn bad_eval_and_infer_input(tmp: &Path) {
+    let mats = tmp.join("m.json");
     std::fs::write(
         &mats,
         r#"{"materials":{"stone":{"rho_d":[0.1,0.1,0.1],"lobes":[]}}}"#,
     )
     .unwrap();
-    let pairs_csv = tmp.path().join("p.csv");
+    let pairs_csv = tmp.join("p.csv");
     std::fs::write(
         &pairs_csv,
         "light_x,light_y,light_z,view_x,view_y,view_z\n0,0,1,0,0,1\n",
@@ -278,7 +283,7 @@ fn bad_input_gives_clear_errors() {
     ]);
     assert!(String::from_utf8_lossy(&out.stderr).contains("/nonexistent/m.json"));
     // a lambertian material evaluates to rho_d at any pair above the surface
-    let vals = tmp.path().join("v.csv");
+    let vals = tmp.join("v.csv");
     let out = igi(&[
         "brdf",
         "eval",
@@ -390,42 +395,16 @@ use igi_capture::synth as measure_synth;
 #[test]
 fn measure_from_synthetic_photos_then_fit() {
     use glam::DVec3;
-    use measure_synth::{camera, dir, true_corners, Synth, FRAME_JSON};
+    use measure_synth::FRAME_JSON;
     let tmp = tempfile::tempdir().unwrap();
     let frame = tmp.path().join("frame.json");
     std::fs::write(&frame, FRAME_JSON).unwrap();
-    let mut args: Vec<String> = vec!["brdf".into(), "measure".into(), frame.display().to_string()];
-    let mut cam_path = None;
-    let target = DVec3::new(-0.02, 0.02, 0.0);
-    for (k, (tl, tv, pv)) in [(0.0, 40.0, 0.0), (30.0, 20.0, 0.0), (50.0, 45.0, 180.0)]
-        .into_iter()
-        .enumerate()
-    {
-        let s = Synth::new(DVec3::new(-0.04, 0.0, 0.0) + dir(tl, 180.0) * 0.6);
-        let cam = camera(target + dir(tv, pv) * 0.5);
-        let photo = tmp.path().join(format!("photo{k}.exr"));
-        igi_imaging::write_exr(&photo, &s.render(&cam)).unwrap();
-        if cam_path.is_none() {
-            let p = tmp.path().join("camera.json");
-            cam.save(&p).unwrap();
-            cam_path = Some(p);
-        }
-        let c: Vec<String> = true_corners(&cam, &s.frame)
-            .iter()
-            .flat_map(|p| [format!("{:.3}", p.x), format!("{:.3}", p.y)])
-            .collect();
-        args.extend([
-            "--photo".into(),
-            photo.display().to_string(),
-            "--corners".into(),
-            c.join(","),
-        ]);
-    }
+    let mut args = photograph_the_frame(tmp.path(), &frame);
     let out = tmp.path().join("samples.csv");
     let ortho = tmp.path().join("ortho");
     args.extend([
         "--camera".into(),
-        cam_path.unwrap().display().to_string(),
+        tmp.path().join("camera.json").display().to_string(),
         "-o".into(),
         out.display().to_string(),
         "--ortho-dir".into(),
@@ -445,21 +424,7 @@ fn measure_from_synthetic_photos_then_fit() {
         l[2].as_f64().unwrap(),
     );
     assert!((got - truth).length() < 0.005, "light {got} vs {truth}");
-    let text = std::fs::read_to_string(&out).unwrap();
-    assert_eq!(text.lines().count(), 1 + 3 * 4, "{text}");
-    assert!(ortho.join("photo0_ortho.exr").exists());
-    // the measured samples against the true BRDFs at the measured directions
-    let samples = igi_brdf::read_samples(&out).unwrap();
-    for s in &samples {
-        let m = &measure_synth::materials()
-            .into_iter()
-            .find(|(n, _)| *n == s.material)
-            .unwrap()
-            .1;
-        let t = m.as_ref().eval(s.light, s.view) * std::f32::consts::PI;
-        let e = ((s.value - t).abs() / t).max_element();
-        assert!(e < 0.02, "{}: {} vs {t}", s.material, s.value);
-    }
+    check_measured_samples(&out, &ortho);
     let mats = tmp.path().join("materials.json");
     let r = igi(&[
         "brdf",
@@ -472,10 +437,68 @@ fn measure_from_synthetic_photos_then_fit() {
     let file = igi_brdf::MaterialsFile::read(&mats).unwrap();
     assert!(file.get("stone").is_ok() && file.get("tile").is_ok());
 
-    // bad input: a corner outside the photo, and --corners count mismatch
-    let bad_out = tmp.path().join("bad.csv");
-    let photo0 = tmp.path().join("photo0.exr");
-    let cam = tmp.path().join("camera.json");
+    bad_measure_input(tmp.path(), &frame);
+}
+
+/// Three synthetic photographs of the frame in `tmp` (and camera.json): the `igi brdf measure`
+/// arguments naming them with their true corners.
+fn photograph_the_frame(tmp: &Path, frame: &Path) -> Vec<String> {
+    use glam::DVec3;
+    use measure_synth::{camera, dir, true_corners, Synth};
+    let mut args: Vec<String> = vec!["brdf".into(), "measure".into(), frame.display().to_string()];
+    let mut cam_path = None;
+    let target = DVec3::new(-0.02, 0.02, 0.0);
+    for (k, (tl, tv, pv)) in [(0.0, 40.0, 0.0), (30.0, 20.0, 0.0), (50.0, 45.0, 180.0)]
+        .into_iter()
+        .enumerate()
+    {
+        let s = Synth::new(DVec3::new(-0.04, 0.0, 0.0) + dir(tl, 180.0) * 0.6);
+        let cam = camera(target + dir(tv, pv) * 0.5);
+        let photo = tmp.join(format!("photo{k}.exr"));
+        igi_imaging::write_exr(&photo, &s.render(&cam)).unwrap();
+        if cam_path.is_none() {
+            let p = tmp.join("camera.json");
+            cam.save(&p).unwrap();
+            cam_path = Some(p);
+        }
+        let c: Vec<String> = true_corners(&cam, &s.frame)
+            .iter()
+            .flat_map(|p| [format!("{:.3}", p.x), format!("{:.3}", p.y)])
+            .collect();
+        args.extend([
+            "--photo".into(),
+            photo.display().to_string(),
+            "--corners".into(),
+            c.join(","),
+        ]);
+    }
+    args
+}
+
+/// The measured samples (4 per photo) against the true BRDFs at the measured directions; the
+/// orthophoto is written.
+fn check_measured_samples(out: &Path, ortho: &Path) {
+    let text = std::fs::read_to_string(out).unwrap();
+    assert_eq!(text.lines().count(), 1 + 3 * 4, "{text}");
+    assert!(ortho.join("photo0_ortho.exr").exists());
+    let samples = igi_brdf::read_samples(out).unwrap();
+    for s in &samples {
+        let m = &measure_synth::materials()
+            .into_iter()
+            .find(|(n, _)| *n == s.material)
+            .unwrap()
+            .1;
+        let t = m.as_ref().eval(s.light, s.view) * std::f32::consts::PI;
+        let e = ((s.value - t).abs() / t).max_element();
+        assert!(e < 0.02, "{}: {} vs {t}", s.material, s.value);
+    }
+}
+
+/// Bad input: a corner outside the photo, and --corners count mismatch; nothing written.
+fn bad_measure_input(tmp: &Path, frame: &Path) {
+    let bad_out = tmp.join("bad.csv");
+    let photo0 = tmp.join("photo0.exr");
+    let cam = tmp.join("camera.json");
     let r = igi(&[
         "brdf",
         "measure",
@@ -572,40 +595,8 @@ fn sparse_fixture_fit_then_eval_matches_the_library_and_the_goal() {
     let (m_default, m_plain) = (tmp.path().join("m.json"), tmp.path().join("plain.json"));
     fit(&m_default, &[]);
     fit(&m_plain, &["--plain"]);
-    let eval = |mats: &Path, name: &str, h: &[igi_brdf::BrdfSample]| -> Vec<Vec3> {
-        let pairs = tmp.path().join(format!("pairs_{name}.csv"));
-        let mut s = String::from("light_x,light_y,light_z,view_x,view_y,view_z\n");
-        for x in h {
-            let (l, v) = (x.light, x.view);
-            s.push_str(&format!(
-                "{},{},{},{},{},{}\n",
-                l.x, l.y, l.z, v.x, v.y, v.z
-            ));
-        }
-        std::fs::write(&pairs, s).unwrap();
-        let values = tmp.path().join(format!("values_{name}.csv"));
-        let o = igi(&[
-            "brdf",
-            "eval",
-            &p(mats),
-            "--material",
-            name,
-            "--pairs",
-            &p(&pairs),
-            "-o",
-            &p(&values),
-        ]);
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        std::fs::read_to_string(&values)
-            .unwrap()
-            .lines()
-            .skip(1)
-            .map(|l| {
-                let c: Vec<f32> = l.split(',').skip(6).map(|x| x.parse().unwrap()).collect();
-                Vec3::new(c[0], c[1], c[2])
-            })
-            .collect()
-    };
+    let eval =
+        |mats: &Path, name: &str, h: &[igi_brdf::BrdfSample]| cli_eval(tmp.path(), mats, name, h);
     for (k, ((name, s), (hname, h))) in train.iter().zip(&held).enumerate() {
         assert_eq!(name, hname);
         let cli = held_out_errors(&eval(&m_default, name, h), h);
@@ -633,6 +624,43 @@ fn sparse_fixture_fit_then_eval_matches_the_library_and_the_goal() {
             assert!(plain.0 / dense.0 > 1.25, "{name} --plain: {plain:?}");
         }
     }
+}
+
+/// `igi brdf eval` of material `name` of `mats` at the (light, view) pairs of `h`: pi f per pair.
+fn cli_eval(tmp: &Path, mats: &Path, name: &str, h: &[igi_brdf::BrdfSample]) -> Vec<Vec3> {
+    let p = |x: &Path| x.to_str().unwrap().to_string();
+    let pairs = tmp.join(format!("pairs_{name}.csv"));
+    let mut s = String::from("light_x,light_y,light_z,view_x,view_y,view_z\n");
+    for x in h {
+        let (l, v) = (x.light, x.view);
+        s.push_str(&format!(
+            "{},{},{},{},{},{}\n",
+            l.x, l.y, l.z, v.x, v.y, v.z
+        ));
+    }
+    std::fs::write(&pairs, s).unwrap();
+    let values = tmp.join(format!("values_{name}.csv"));
+    let o = igi(&[
+        "brdf",
+        "eval",
+        &p(mats),
+        "--material",
+        name,
+        "--pairs",
+        &p(&pairs),
+        "-o",
+        &p(&values),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    std::fs::read_to_string(&values)
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let c: Vec<f32> = l.split(',').skip(6).map(|x| x.parse().unwrap()).collect();
+            Vec3::new(c[0], c[1], c[2])
+        })
+        .collect()
 }
 
 /// Bad fit options fail before any work, naming the flag.

@@ -6,6 +6,7 @@ use igi_imaging::camera::reprojection_rms;
 use igi_imaging::radiometry::{apply_color_matrix, render_checker, CameraRadiometry, Falloff};
 use igi_imaging::{write_exr, Camera, HdrImage, WorldToCamera};
 use igi_testkit::{assert_failed, s, Cli};
+use std::path::{Path, PathBuf};
 
 const MIX: [[f64; 3]; 3] = [[0.8, 0.15, 0.05], [0.1, 0.75, 0.15], [0.05, 0.2, 0.75]];
 const FALLOFF: Falloff = Falloff {
@@ -135,37 +136,11 @@ fn nalgebra_free_inverse(m: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
 #[test]
 fn refine_recovers_a_perturbed_pose_from_a_photo_of_the_model() {
     use igi_reflect::parts::build_parts;
-    use igi_reflect::synth::{ground_and_block, look_at_camera, scene_with_albedo, truth_atlas};
+    use igi_reflect::synth::ground_and_block;
     let cli = Cli::new(env!("CARGO_BIN_EXE_igi"));
     let tmp = tempfile::tempdir().unwrap();
     let parts = build_parts(ground_and_block(), 32).unwrap();
-    let atlases: Vec<Vec<Vec3>> = parts
-        .iter()
-        .map(|p| truth_atlas(p, |x| Vec3::new(0.5, 0.45, 0.3 + 0.05 * x.z)))
-        .collect();
-    let scene = scene_with_albedo(&parts, &atlases).unwrap();
-    let sky = igi_render::sky::overcast_sky(32, 16, 2.0, Vec3::splat(0.15));
-    let lighting = igi_render::Lighting {
-        environment: Some(igi_render::Environment::from_image(&sky, 1.0).unwrap()),
-        sun: None,
-    };
-    let truth = look_at_camera(
-        Vec3::new(5.5, 3.0, 3.0),
-        Vec3::new(0.0, 0.0, 0.5),
-        128,
-        96,
-        70.0,
-    )
-    .unwrap();
-    let opts = igi_render::RenderOptions {
-        spp: 32,
-        seed: 3,
-        indirect: 1,
-        russian_roulette: false,
-    };
-    let photo = igi_render::render_image(&scene, &lighting, &truth, &opts, &|_| {})
-        .unwrap()
-        .mean;
+    let (truth, photo) = photograph_of_the_model(&parts);
     let photo_path = tmp.path().join("photo.exr");
     write_exr(&photo_path, &photo).unwrap();
     let mut mesh_args = Vec::new();
@@ -178,22 +153,7 @@ fn refine_recovers_a_perturbed_pose_from_a_photo_of_the_model() {
         .iter()
         .flat_map(|p| p.cache.texels.iter().map(|t| t.position.as_dvec3()))
         .collect();
-    // a rigid motion scaled to 3 px of reprojection error
-    let at = |k: f64| {
-        let r = DMat3::from_axis_angle(DVec3::new(0.3, 1.0, 0.2).normalize(), 0.01 * k);
-        Camera {
-            pose: WorldToCamera {
-                r: r * truth.pose.r,
-                t: r * truth.pose.t + DVec3::new(0.03, -0.02, 0.05) * k,
-            },
-            ..truth.clone()
-        }
-    };
-    let mut k = 1.0;
-    for _ in 0..4 {
-        k *= 3.0 / reprojection_rms(&truth, &at(k), &points).unwrap();
-    }
-    let rough = at(k);
+    let rough = perturbed_by_3_px(&truth, &points);
     let before = reprojection_rms(&truth, &rough, &points).unwrap();
     let rough_path = tmp.path().join("rough.json");
     rough.save(&rough_path).unwrap();
@@ -231,25 +191,89 @@ fn refine_recovers_a_perturbed_pose_from_a_photo_of_the_model() {
         after <= 0.5,
         "refined pose is {after:.3} px off (from {before:.2})"
     );
-    // a camera of another size: error naming the photo, nothing written
-    let wrong = tmp.path().join("wrong.json");
+    let paths = [photo_path, rough_path, out];
+    wrong_camera_size_is_refused(tmp.path(), &paths, &rough, &mesh_args);
+}
+
+/// The true camera and its photograph of the ground and block (`parts`) under an overcast sky.
+fn photograph_of_the_model(parts: &[igi_reflect::Part]) -> (Camera, igi_imaging::HdrImage) {
+    use igi_reflect::synth::{look_at_camera, scene_with_albedo, truth_atlas};
+    let atlases: Vec<Vec<Vec3>> = parts
+        .iter()
+        .map(|p| truth_atlas(p, |x| Vec3::new(0.5, 0.45, 0.3 + 0.05 * x.z)))
+        .collect();
+    let scene = scene_with_albedo(parts, &atlases).unwrap();
+    let sky = igi_render::sky::overcast_sky(32, 16, 2.0, Vec3::splat(0.15));
+    let lighting = igi_render::Lighting {
+        environment: Some(igi_render::Environment::from_image(&sky, 1.0).unwrap()),
+        sun: None,
+    };
+    let truth = look_at_camera(
+        Vec3::new(5.5, 3.0, 3.0),
+        Vec3::new(0.0, 0.0, 0.5),
+        128,
+        96,
+        70.0,
+    )
+    .unwrap();
+    let opts = igi_render::RenderOptions {
+        spp: 32,
+        seed: 3,
+        indirect: 1,
+        russian_roulette: false,
+    };
+    let photo = igi_render::render_image(&scene, &lighting, &truth, &opts, &|_| {})
+        .unwrap()
+        .mean;
+    (truth, photo)
+}
+
+/// `truth` moved by a rigid motion scaled to 3 px of reprojection error of `points`.
+fn perturbed_by_3_px(truth: &Camera, points: &[DVec3]) -> Camera {
+    let at = |k: f64| {
+        let r = DMat3::from_axis_angle(DVec3::new(0.3, 1.0, 0.2).normalize(), 0.01 * k);
+        Camera {
+            pose: WorldToCamera {
+                r: r * truth.pose.r,
+                t: r * truth.pose.t + DVec3::new(0.03, -0.02, 0.05) * k,
+            },
+            ..truth.clone()
+        }
+    };
+    let mut k = 1.0;
+    for _ in 0..4 {
+        k *= 3.0 / reprojection_rms(truth, &at(k), points).unwrap();
+    }
+    at(k)
+}
+
+/// A camera of another size: error naming the photo, nothing written (`paths`: the photo, the
+/// rough camera and the refined one).
+fn wrong_camera_size_is_refused(
+    tmp: &Path,
+    [photo_path, rough_path, out]: &[PathBuf; 3],
+    rough: &Camera,
+    mesh_args: &[PathBuf],
+) {
+    let cli = Cli::new(env!("CARGO_BIN_EXE_igi"));
+    let wrong = tmp.join("wrong.json");
     Camera {
         width: 64,
         ..rough.clone()
     }
     .save(&wrong)
     .unwrap();
-    let out2 = tmp.path().join("r2.json");
+    let out2 = tmp.join("r2.json");
     let mut args = vec![
         "camera",
         "refine",
-        s(&photo_path),
+        s(photo_path),
         "--camera",
         s(&wrong),
         "-o",
         s(&out2),
     ];
-    for m in &mesh_args {
+    for m in mesh_args {
         args.extend(["--mesh", s(m)]);
     }
     let o = cli.run(&args);
@@ -260,5 +284,5 @@ fn refine_recovers_a_perturbed_pose_from_a_photo_of_the_model() {
         wrong.clone(),
     ];
     keep.extend(mesh_args.iter().cloned());
-    assert_failed(&o, "photo.exr", "128x96", tmp.path(), &keep);
+    assert_failed(&o, "photo.exr", "128x96", tmp, &keep);
 }

@@ -231,10 +231,44 @@ fn a_cluster_run_on_slurm_equals_the_local_jacobi_solve_and_recovers_failed_and_
     let mut args = vec!["solve", s(&survey), "-o", s(&local), "--schedule", "jacobi"];
     args.extend(SOLVE);
     igi().ok(&args);
+    let b = break_a_voxel(&tmp.path().join("site"));
+    let result = tmp.path().join("cluster");
+    let limit = Duration::from_secs(240);
+    first_iteration_fails(&slurm, &survey, &result, &b, limit);
+    // restored, resume finishes iteration 1; the merge submits iteration 2, in which a running
+    // task is cancelled (lost); resume repairs that too
+    std::fs::write(&b.level, &b.good).unwrap();
+    resume_repairs_failed_and_lost_tasks(&slurm, &result, limit);
+    assert_same_result(&local, &result);
+    skipped_voxel_stays_stale(
+        &slurm,
+        &survey,
+        &tmp.path().join("skipped"),
+        &local,
+        &b,
+        limit,
+    );
+}
 
-    // tasks made to fail: one voxel's full-resolution level truncated, which fails its own
-    // task and those of its neighbours (a Jacobi task loads its 26 neighbours at level 0)
-    let site = tmp.path().join("site");
+/// A voxel whose full-resolution level was truncated: its file, its good bytes, its name, and
+/// the (sorted) groups whose tasks fail for it.
+struct Broken {
+    level: PathBuf,
+    good: Vec<u8>,
+    broken: String,
+    failing: Vec<String>,
+}
+
+/// The failed tasks of a status, sorted.
+fn failed(st: &serde_json::Value) -> Vec<String> {
+    let mut f = states(st, "failed");
+    f.sort();
+    f
+}
+
+/// Tasks made to fail: one voxel's full-resolution level truncated, which fails its own task
+/// and those of its neighbours (a Jacobi task loads its 26 neighbours at level 0).
+fn break_a_voxel(site: &Path) -> Broken {
     let man: serde_json::Value =
         serde_json::from_slice(&std::fs::read(site.join("manifest.json")).unwrap()).unwrap();
     let ids: Vec<[i64; 3]> = man["voxels"]
@@ -256,25 +290,29 @@ fn a_cluster_run_on_slurm_equals_the_local_jacobi_solve_and_recovers_failed_and_
         failing.len() > 1 && failing.len() < ids.len(),
         "{failing:?}"
     );
-    let failed = |st: &serde_json::Value| {
-        let mut f = states(st, "failed");
-        f.sort();
-        f
-    };
     let level = site.join("voxels").join(&broken).join("level0.ply");
     assert!(level.is_file(), "{}", level.display());
     let good = std::fs::read(&level).unwrap();
     std::fs::write(&level, &good[..good.len() / 2]).unwrap();
+    Broken {
+        level,
+        good,
+        broken,
+        failing,
+    }
+}
 
-    let result = tmp.path().join("cluster");
-    let mut args = vec!["cluster", "submit", s(&survey), "-o", s(&result)];
+/// Submits the run with the voxel broken: iteration 1 settles with exactly the failing tasks
+/// failed, named in missing.txt, and iteration 2 is not submitted.
+fn first_iteration_fails(slurm: &Slurm, survey: &Path, result: &Path, b: &Broken, limit: Duration) {
+    let failing = &b.failing;
+    let mut args = vec!["cluster", "submit", s(survey), "-o", s(result)];
     args.extend(SOLVE);
     args.extend(["--max-parallel", "2"]);
     slurm.igi().ok(&args);
-    let limit = Duration::from_secs(240);
-    let st = slurm.settle(&result, limit);
+    let st = slurm.settle(result, limit);
     assert_eq!(st["iteration"], 1, "{st}");
-    assert_eq!(failed(&st), failing, "{st}");
+    assert_eq!(&failed(&st), failing, "{st}");
     assert_eq!(states(&st, "done").len(), 13 - failing.len(), "{st}");
     let config: serde_json::Value =
         serde_json::from_slice(&std::fs::read(result.join("cluster/cluster.json")).unwrap())
@@ -297,55 +335,64 @@ fn a_cluster_run_on_slurm_equals_the_local_jacobi_solve_and_recovers_failed_and_
         !result.join("cluster/iter_2").exists(),
         "the next iteration is not submitted after a failed task"
     );
+}
 
-    // restored, resume finishes iteration 1; the merge submits iteration 2, in which a running
-    // task is cancelled (lost); resume repairs that too
-    std::fs::write(&level, &good).unwrap();
-    slurm.igi().ok(&["cluster", "resume", s(&result)]);
+/// Resume finishes iteration 1; a task of iteration 2 is cancelled (lost) and resume repairs
+/// that too, and the run finishes.
+fn resume_repairs_failed_and_lost_tasks(slurm: &Slurm, result: &Path, limit: Duration) {
+    slurm.igi().ok(&["cluster", "resume", s(result)]);
     slurm.cancel_a_running_task(&result.join("cluster/iter_2/logs"), 2, limit);
-    let st = slurm.settle(&result, limit);
+    let st = slurm.settle(result, limit);
     assert_eq!(st["iteration"], 2, "{st}");
     let lost = states(&st, "lost");
     assert_eq!(lost.len(), 1, "the cancelled task shows as lost: {st}");
     assert_eq!(states(&st, "done").len(), 12, "{st}");
-    slurm.igi().ok(&["cluster", "resume", s(&result)]);
-    let st = slurm.settle(&result, limit);
+    slurm.igi().ok(&["cluster", "resume", s(result)]);
+    let st = slurm.settle(result, limit);
     assert_eq!(st["finished"], true, "{st}");
     let tasks = &st["tasks"];
     assert_eq!(tasks["finished"], 13, "{st}");
     let peak = tasks["peak_rss_bytes"].as_u64().unwrap();
     assert!(peak > 1 << 20 && peak < 4 << 30, "{st}");
     assert!(tasks["read_bytes"].as_u64().unwrap() > 13 << 10, "{st}");
-    assert_same_result(&local, &result);
+}
 
-    // a task that keeps failing: after --max-attempts, resume refuses it, and --skip-voxels
-    // keeps its previous albedo, marked stale, in a run that then never counts as converged
-    std::fs::write(&level, &good[..good.len() / 2]).unwrap();
-    let skipped = tmp.path().join("skipped");
-    let mut args = vec!["cluster", "submit", s(&survey), "-o", s(&skipped)];
+/// A task that keeps failing: after --max-attempts, resume refuses it, and --skip-voxels
+/// keeps its previous albedo, marked stale, in a run that then never counts as converged.
+fn skipped_voxel_stays_stale(
+    slurm: &Slurm,
+    survey: &Path,
+    skipped: &Path,
+    local: &Path,
+    b: &Broken,
+    limit: Duration,
+) {
+    let (level, good, broken, failing) = (&b.level, &b.good, &b.broken, &b.failing);
+    std::fs::write(level, &good[..good.len() / 2]).unwrap();
+    let mut args = vec!["cluster", "submit", s(survey), "-o", s(skipped)];
     args.extend(["--iterations", "1", "--spp", "4", "--indirect", "1"]);
     args.extend(["--max-attempts", "1"]);
     slurm.igi().ok(&args);
-    let st = slurm.settle(&skipped, limit);
-    assert_eq!(failed(&st), failing, "{st}");
-    let out = slurm.igi().run(&["cluster", "resume", s(&skipped)]);
+    let st = slurm.settle(skipped, limit);
+    assert_eq!(&failed(&st), failing, "{st}");
+    let out = slurm.igi().run(&["cluster", "resume", s(skipped)]);
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
-        err.contains(&broken) && err.contains("--skip-voxels"),
+        err.contains(broken.as_str()) && err.contains("--skip-voxels"),
         "{err}"
     );
     slurm
         .igi()
-        .ok(&["cluster", "resume", s(&skipped), "--skip-voxels"]);
-    let st = slurm.settle(&skipped, limit);
+        .ok(&["cluster", "resume", s(skipped), "--skip-voxels"]);
+    let st = slurm.settle(skipped, limit);
     assert_eq!(st["finished"], true, "{st}");
     let report: serde_json::Value =
         serde_json::from_slice(&std::fs::read(skipped.join("report.json")).unwrap()).unwrap();
     let it = &report["iterations"][0];
     let mut stale: Vec<String> = serde_json::from_value(it["stale"].clone()).unwrap();
     stale.sort();
-    assert_eq!(stale, failing, "{it}");
+    assert_eq!(&stale, failing, "{it}");
     assert_eq!(report["converged"], false, "{report}");
     let a = igi_imaging::read_image(&local.join(format!("parts/{broken}_rho_d.exr")));
     let b = igi_imaging::read_image(&skipped.join(format!("parts/{broken}_rho_d.exr")));
@@ -354,7 +401,7 @@ fn a_cluster_run_on_slurm_equals_the_local_jacobi_solve_and_recovers_failed_and_
         b.unwrap().pixels,
         "the stale voxel was not solved"
     );
-    std::fs::write(&level, &good).unwrap();
+    std::fs::write(level, good).unwrap();
 }
 
 #[test]
@@ -417,10 +464,15 @@ fn bad_cluster_input_is_refused_clearly() {
         err.contains("cluster.json") && err.contains("igi cluster submit"),
         "{err}"
     );
-    // a result submitted by another igi binary: a task of this one refuses to run (the copy
-    // gets a trailing byte, so it differs whether binaries are told apart by content or by
-    // path and time)
-    let other = tmp.path().join("igi-other");
+    task_of_another_binary_is_refused(tmp.path(), &survey);
+    task_with_changed_inputs_is_refused(tmp.path(), &survey, &result);
+}
+
+/// A result submitted by another igi binary: a task of this one refuses to run (the copy gets
+/// a trailing byte, so it differs whether binaries are told apart by content or by path and
+/// time), and writes no output.
+fn task_of_another_binary_is_refused(tmp: &Path, survey: &Path) {
+    let other = tmp.join("igi-other");
     std::fs::copy(env!("CARGO_BIN_EXE_igi"), &other).unwrap();
     {
         use std::io::Write;
@@ -430,8 +482,8 @@ fn bad_cluster_input_is_refused_clearly() {
             .unwrap();
         f.write_all(b"\0").unwrap();
     }
-    let by_other = tmp.path().join("by-other");
-    let mut args = vec!["cluster", "submit", s(&survey), "-o", s(&by_other)];
+    let by_other = tmp.join("by-other");
+    let mut args = vec!["cluster", "submit", s(survey), "-o", s(&by_other)];
     args.extend(SOLVE);
     args.push("--dry-run");
     Cli::new(s(&other)).ok(&args);
@@ -445,17 +497,20 @@ fn bad_cluster_input_is_refused_clearly() {
         .filter(|n| n != "logs" && !n.to_string_lossy().ends_with(".sh"))
         .collect();
     assert!(written.is_empty(), "no task output: {written:?}");
-    // a result whose inputs changed since submission: the task refuses to run
+}
+
+/// A result whose inputs changed since submission: the task refuses to run.
+fn task_with_changed_inputs_is_refused(tmp: &Path, survey: &Path, result: &Path) {
     let photo = fixture("survey/photos/v00-sunny.exr");
-    let copy = tmp.path().join("v00.exr");
+    let copy = tmp.join("v00.exr");
     std::fs::copy(&photo, &copy).unwrap();
-    let text = std::fs::read_to_string(&survey).unwrap();
-    std::fs::write(&survey, text.replace(s(&photo), s(&copy))).unwrap();
+    let text = std::fs::read_to_string(survey).unwrap();
+    std::fs::write(survey, text.replace(s(&photo), s(&copy))).unwrap();
     let img = igi_imaging::read_image(&copy).unwrap();
     let mut brighter = img.clone();
     brighter.pixels.iter_mut().for_each(|p| p[0] *= 1.01);
     igi_imaging::write_exr(&copy, &brighter).unwrap();
-    let out = igi().run(&["cluster", "task", s(&result), "--index", "0"]);
+    let out = igi().run(&["cluster", "task", s(result), "--index", "0"]);
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("--restart") || err.contains("differ"), "{err}");

@@ -2,7 +2,7 @@
 //! `igi sample` on the embedded default (quick size).
 
 use igi_testkit::run_ok;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn igi() -> Command {
@@ -16,11 +16,27 @@ fn json(s: &str) -> serde_json::Value {
 #[test]
 fn demo_then_solve_resume_relight_export_and_sample() {
     let tmp = tempfile::tempdir().unwrap();
-    let demo = tmp.path().join("demo");
+    let tmp = tmp.path();
+    let demo = tmp.join("demo");
+    run_demo(&demo);
+    let survey = demo.join("survey");
+    let res = solve_and_resume(tmp, &survey);
+    let img = relight(tmp, &res, &survey);
+    for fmt in ["ply", "obj", "mitsuba"] {
+        check_export(tmp, &res, &survey, &img, fmt);
+    }
+    check_sample(tmp, &res);
+    let (prepared_survey, man) = prepare_site(tmp, &survey);
+    solve_one_voxel(tmp, &prepared_survey, &man);
+    jacobi_voxels_are_independent(tmp, &prepared_survey, &man);
+}
+
+/// `igi demo --quick` into `demo`: its report and files.
+fn run_demo(demo: &Path) {
     let d = json(&run_ok(
         igi()
             .args(["demo", "--quick", "--quiet", "--json", "-o"])
-            .arg(&demo),
+            .arg(demo),
     ));
     assert_eq!(d["photos"], 8);
     let mae = d["albedo_mae"]
@@ -39,15 +55,17 @@ fn demo_then_solve_resume_relight_export_and_sample() {
     ] {
         assert!(demo.join(f).is_file(), "{f}");
     }
+}
 
-    // solve the demo's survey from the CLI: one iteration, then resume for a second
-    let survey = demo.join("survey");
-    let res = tmp.path().join("res");
+/// Solves the demo's survey from the CLI: one iteration, then resume for a second; returns
+/// the result folder.
+fn solve_and_resume(tmp: &Path, survey: &Path) -> PathBuf {
+    let res = tmp.join("res");
     let solve = |iters: &str| {
         json(&run_ok(
             igi()
                 .arg("solve")
-                .arg(&survey)
+                .arg(survey)
                 .arg("-o")
                 .arg(&res)
                 .args([
@@ -85,12 +103,16 @@ fn demo_then_solve_resume_relight_export_and_sample() {
         err(its.last().unwrap())
     );
 
-    // re-light the result
-    let relit = tmp.path().join("relit.exr");
+    res
+}
+
+/// Re-lights the result under the held-out lighting; returns the image.
+fn relight(tmp: &Path, res: &Path, survey: &Path) -> igi_imaging::HdrImage {
+    let relit = tmp.join("relit.exr");
     run_ok(
         igi()
             .arg("render")
-            .arg(&res)
+            .arg(res)
             .arg("--lighting")
             .arg(survey.join("lighting/held-out.toml"))
             .arg("--camera")
@@ -113,86 +135,92 @@ fn demo_then_solve_resume_relight_export_and_sample() {
     // without --lighting a result folder is refused clearly
     let out = igi()
         .arg("render")
-        .arg(&res)
+        .arg(res)
         .arg("--camera")
         .arg(survey.join("cameras/held-out.json"))
         .arg("-o")
-        .arg(tmp.path().join("x.exr"))
+        .arg(tmp.join("x.exr"))
         .output()
         .unwrap();
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("--lighting"));
-    assert!(!tmp.path().join("x.exr").exists());
+    assert!(!tmp.join("x.exr").exists());
 
-    // export: every file the Mitsuba scene names exists
-    for fmt in ["ply", "obj", "mitsuba"] {
-        let dir = tmp.path().join(format!("export-{fmt}"));
-        run_ok(
-            igi()
-                .arg("export")
-                .arg(&res)
-                .args(["--format", fmt, "-o"])
-                .arg(&dir),
-        );
-        assert!(dir.join("terrain_albedo.exr").is_file(), "{fmt}");
-        let png = igi_imaging::read_image(&dir.join("terrain_stderr.png")).unwrap();
-        assert_eq!(png.width, result_res(&res, "terrain"), "{fmt}");
-        // grey where known (a standard error below 0.05 is darker than white), magenta where not
-        assert!(
-            png.pixels
-                .iter()
-                .all(|p| p[0] == p[2] && (p[1] == p[0] || (p[0] == 1.0 && p[1] == 0.0))),
-            "{fmt}"
-        );
-        assert!(
-            png.pixels.iter().any(|p| p[1] < 1.0 && p[1] == p[0]),
-            "{fmt}"
-        );
-        // the export's scene.toml (albedo and lobe maps) renders exactly as the result does
-        let scene = std::fs::read_to_string(dir.join("scene.toml")).unwrap();
-        let result_scene = std::fs::read_to_string(res.join("scene.toml")).unwrap();
+    img
+}
+
+/// Export in `fmt`: every file the Mitsuba scene names exists, and the export renders as the
+/// result does.
+fn check_export(tmp: &Path, res: &Path, survey: &Path, img: &igi_imaging::HdrImage, fmt: &str) {
+    let dir = tmp.join(format!("export-{fmt}"));
+    run_ok(
+        igi()
+            .arg("export")
+            .arg(res)
+            .args(["--format", fmt, "-o"])
+            .arg(&dir),
+    );
+    assert!(dir.join("terrain_albedo.exr").is_file(), "{fmt}");
+    let png = igi_imaging::read_image(&dir.join("terrain_stderr.png")).unwrap();
+    assert_eq!(png.width, result_res(res, "terrain"), "{fmt}");
+    // grey where known (a standard error below 0.05 is darker than white), magenta where not
+    assert!(
+        png.pixels
+            .iter()
+            .all(|p| p[0] == p[2] && (p[1] == p[0] || (p[0] == 1.0 && p[1] == 0.0))),
+        "{fmt}"
+    );
+    assert!(
+        png.pixels.iter().any(|p| p[1] < 1.0 && p[1] == p[0]),
+        "{fmt}"
+    );
+    // the export's scene.toml (albedo and lobe maps) renders exactly as the result does
+    let scene = std::fs::read_to_string(dir.join("scene.toml")).unwrap();
+    let result_scene = std::fs::read_to_string(res.join("scene.toml")).unwrap();
+    assert_eq!(
+        scene.matches("lobe_maps").count(),
+        result_scene.matches("lobe_maps").count(),
+        "{fmt}: {scene}"
+    );
+    let again = tmp.join(format!("export-{fmt}.exr"));
+    run_ok(
+        igi()
+            .arg("render")
+            .arg(dir.join("scene.toml"))
+            .arg("--lighting")
+            .arg(survey.join("lighting/held-out.toml"))
+            .arg("--camera")
+            .arg(survey.join("cameras/held-out.json"))
+            .args(["--spp", "4", "--quiet", "-o"])
+            .arg(&again),
+    );
+    assert!(
+        igi_imaging::read_image(&again).unwrap().pixels == img.pixels,
+        "{fmt}: the export renders differently from the result"
+    );
+    if fmt == "mitsuba" {
+        let xml = std::fs::read_to_string(dir.join("scene.xml")).unwrap();
         assert_eq!(
-            scene.matches("lobe_maps").count(),
-            result_scene.matches("lobe_maps").count(),
-            "{fmt}: {scene}"
+            xml.contains("APPROXIMATION"),
+            result_scene.contains("lobe"),
+            "{xml}"
         );
-        let again = tmp.path().join(format!("export-{fmt}.exr"));
-        run_ok(
-            igi()
-                .arg("render")
-                .arg(dir.join("scene.toml"))
-                .arg("--lighting")
-                .arg(survey.join("lighting/held-out.toml"))
-                .arg("--camera")
-                .arg(survey.join("cameras/held-out.json"))
-                .args(["--spp", "4", "--quiet", "-o"])
-                .arg(&again),
-        );
-        assert!(
-            igi_imaging::read_image(&again).unwrap().pixels == img.pixels,
-            "{fmt}: the export renders differently from the result"
-        );
-        if fmt == "mitsuba" {
-            let xml = std::fs::read_to_string(dir.join("scene.xml")).unwrap();
-            assert_eq!(
-                xml.contains("APPROXIMATION"),
-                result_scene.contains("lobe"),
-                "{xml}"
-            );
-            for name in xml
-                .split("value=\"")
-                .skip(1)
-                .map(|s| s.split('"').next().unwrap())
-            {
-                if name.ends_with(".ply") || name.ends_with(".exr") {
-                    assert!(dir.join(name).is_file(), "scene.xml names {name}");
-                }
+        for name in xml
+            .split("value=\"")
+            .skip(1)
+            .map(|s| s.split('"').next().unwrap())
+        {
+            if name.ends_with(".ply") || name.ends_with(".exr") {
+                assert!(dir.join(name).is_file(), "scene.xml names {name}");
             }
         }
     }
+}
 
-    // sample: points on the surface get the albedo of the texel under them
-    let result = igi_reflect::SolveResult::load(&res).unwrap();
+/// `igi sample`: points on the surface get the albedo of the texel under them, a point off
+/// it the nearest covered texel's.
+fn check_sample(tmp: &Path, res: &Path) {
+    let result = igi_reflect::SolveResult::load(res).unwrap();
     let part = result.parts.iter().position(|p| p.name == "wall").unwrap();
     let texels: Vec<_> = result.parts[part]
         .cache
@@ -202,13 +230,7 @@ fn demo_then_solve_resume_relight_export_and_sample() {
         .take(5)
         .copied()
         .collect();
-    let mut csv = String::from("x,y,z,nx,ny,nz\n");
-    for t in &texels {
-        csv.push_str(&format!(
-            "{},{},{},{},{},{}\n",
-            t.position.x, t.position.y, t.position.z, t.normal.x, t.normal.y, t.normal.z
-        ));
-    }
+    let mut csv = points_csv(&texels);
     // and one 20 cm in front of the wall with a normal along it, so no short ray finds a
     // surface: the nearest covered texel of any part (k-d tree), checked against brute force
     let off = texels[2].position + texels[2].normal * 0.2;
@@ -217,22 +239,14 @@ fn demo_then_solve_resume_relight_export_and_sample() {
         "{},{},{},{},{},{}\n",
         off.x, off.y, off.z, along.x, along.y, along.z
     ));
-    let mut nearest = (f32::INFINITY, glam::Vec3::ZERO);
-    for (i, p) in result.parts.iter().enumerate() {
-        for t in &p.cache.texels {
-            let d = t.position.distance_squared(off);
-            if d < nearest.0 {
-                nearest = (d, result.rho[i][t.index as usize]);
-            }
-        }
-    }
-    let pts = tmp.path().join("points.csv");
+    let nearest = nearest_texel(&result, off);
+    let pts = tmp.join("points.csv");
     std::fs::write(&pts, csv).unwrap();
-    let vals = tmp.path().join("values.csv");
+    let vals = tmp.join("values.csv");
     run_ok(
         igi()
             .arg("sample")
-            .arg(&res)
+            .arg(res)
             .arg("--points")
             .arg(&pts)
             .arg("-o")
@@ -280,10 +294,41 @@ fn demo_then_solve_resume_relight_export_and_sample() {
     }
 
     assert!(known > 0, "no sampled point has a standard error");
+}
 
+/// The CSV of `igi sample --points`: the texels' positions and normals.
+fn points_csv(texels: &[igi_geometry::texels::Texel]) -> String {
+    let mut csv = String::from("x,y,z,nx,ny,nz\n");
+    for t in texels {
+        csv.push_str(&format!(
+            "{},{},{},{},{},{}\n",
+            t.position.x, t.position.y, t.position.z, t.normal.x, t.normal.y, t.normal.z
+        ));
+    }
+    csv
+}
+
+/// The squared distance to `off` of the nearest covered texel of any part, and its albedo
+/// (by brute force).
+fn nearest_texel(result: &igi_reflect::SolveResult, off: glam::Vec3) -> (f32, glam::Vec3) {
+    let mut nearest = (f32::INFINITY, glam::Vec3::ZERO);
+    for (i, p) in result.parts.iter().enumerate() {
+        for t in &p.cache.texels {
+            let d = t.position.distance_squared(off);
+            if d < nearest.0 {
+                nearest = (d, result.rho[i][t.index as usize]);
+            }
+        }
+    }
+    nearest
+}
+
+/// `igi prepare` the stylobate (with the terrain) and name it in a copy of the survey;
+/// returns that survey and the site's manifest.
+fn prepare_site(tmp: &Path, survey: &Path) -> (PathBuf, serde_json::Value) {
     // a prepared site: `igi prepare` the stylobate (with the terrain), name it in a copy of
     // the survey, and solve one voxel of it (--voxels); the others are not touched
-    let site = tmp.path().join("site.igi");
+    let site = tmp.join("site.igi");
     run_ok(
         igi()
             .arg("-q")
@@ -308,13 +353,18 @@ fn demo_then_solve_resume_relight_export_and_sample() {
     let man: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(site.join("manifest.json")).unwrap())
             .unwrap();
+    (prepared_survey, man)
+}
+
+/// Solves one voxel of the prepared site (--voxels); the others are not touched.
+fn solve_one_voxel(tmp: &Path, prepared_survey: &Path, man: &serde_json::Value) {
     let v = &man["voxels"][0]["voxel"];
     let name = format!("{}_{}_{}", v[0], v[1], v[2]);
-    let pres = tmp.path().join("prepared-result");
+    let pres = tmp.join("prepared-result");
     let r = json(&run_ok(
         igi()
             .arg("solve")
-            .arg(&prepared_survey)
+            .arg(prepared_survey)
             .arg("-o")
             .arg(&pres)
             .args([
@@ -348,6 +398,11 @@ fn demo_then_solve_resume_relight_export_and_sample() {
     }
     assert!(r["site"].as_str().unwrap().ends_with("site.igi"));
     assert!(pres.join(format!("parts/{name}_rho_d.exr")).is_file());
+}
+
+/// The Jacobi schedule makes the voxels of an iteration independent; an unknown voxel is
+/// refused.
+fn jacobi_voxels_are_independent(tmp: &Path, prepared_survey: &Path, man: &serde_json::Value) {
     // the Jacobi schedule makes the voxels of an iteration independent (what a cluster needs):
     // each voxel solved alone equals, byte for byte, that voxel in a solve of the whole site;
     // Gauss-Seidel, where later voxels see earlier ones' new albedo, does not
@@ -355,15 +410,15 @@ fn demo_then_solve_resume_relight_export_and_sample() {
         let mut cmd = igi();
         cmd.arg("-q")
             .arg("solve")
-            .arg(&prepared_survey)
+            .arg(prepared_survey)
             .arg("-o")
-            .arg(tmp.path().join(out))
+            .arg(tmp.join(out))
             .args(["--spp", "4", "--iterations", "1", "--schedule", schedule]);
         if let Some(v) = voxels {
             cmd.args(["--voxels", v]);
         }
         run_ok(&mut cmd);
-        let dir = tmp.path().join(out).join("parts");
+        let dir = tmp.join(out).join("parts");
         move |voxel: &str| std::fs::read(dir.join(format!("{voxel}_rho_d.exr"))).unwrap()
     };
     let names: Vec<String> = man["voxels"]
@@ -395,9 +450,9 @@ fn demo_then_solve_resume_relight_export_and_sample() {
     // an unknown voxel is refused
     let out = igi()
         .arg("solve")
-        .arg(&prepared_survey)
+        .arg(prepared_survey)
         .arg("-o")
-        .arg(tmp.path().join("x"))
+        .arg(tmp.join("x"))
         .args(["--voxels", "99_99_99", "--restart"])
         .output()
         .unwrap();

@@ -275,15 +275,20 @@ def sensor_dict(spp=16, far_clip=1e7):
     }
 
 
-def sun_disk_dict(radiance=SUN_RADIANCE):
-    sun = sun_direction()
-    r = SUN_DISTANCE * math.tan(math.radians(SUN_ANGULAR_DIAMETER_DEG / 2))
+def sun_disk_emitter(direction, radiance, angular_diameter_deg, distance=SUN_DISTANCE):
+    """Mitsuba's stand-in for an infinitely far sun: an emitting disk of the sun's angular
+    diameter at `distance` along the unit `direction` (shared with survey_reference.py)."""
+    r = distance * math.tan(math.radians(angular_diameter_deg / 2))
     # look_at points the disk's local +z (its emitting side) toward the scene origin.
-    up = [0, 0, 1] if abs(sun[2]) < 0.99 else [1, 0, 0]
-    tw = mi.ScalarTransform4f().look_at(origin=(SUN_DISTANCE * sun).tolist(), target=[0, 0, 0], up=up) \
+    up = [0, 0, 1] if abs(direction[2]) < 0.99 else [1, 0, 0]
+    tw = mi.ScalarTransform4f().look_at(origin=(distance * direction).tolist(), target=[0, 0, 0], up=up) \
         @ mi.ScalarTransform4f().scale([r, r, 1.0])
     return {"type": "disk", "to_world": tw,
             "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [float(x) for x in radiance]}}}
+
+
+def sun_disk_dict(radiance=SUN_RADIANCE):
+    return sun_disk_emitter(sun_direction(), radiance, SUN_ANGULAR_DIAMETER_DEG)
 
 
 def mitsuba_sky(sky):
@@ -409,8 +414,9 @@ def check_envmap(out, sky):
     return worst
 
 
-def check_sun_irradiance():
-    sun = sun_direction()
+def plane_irradiance(emitter):
+    """Mitsuba's irradiance (RGB) on a horizontal white Lambertian plane lit by `emitter` alone,
+    seen from above by an orthographic camera (shared with survey_reference.py)."""
     cam = {"type": "orthographic", "near_clip": 0.01, "far_clip": 100.0,
            "to_world": mi.ScalarTransform4f().look_at(origin=[0, 0, 10], target=[0, 0, 0], up=[0, 1, 0])
            @ mi.ScalarTransform4f().scale([0.5, 0.5, 1]),
@@ -418,12 +424,17 @@ def check_sun_irradiance():
            "film": {"type": "hdrfilm", "width": 8, "height": 8, "pixel_format": "rgb", "rfilter": {"type": "box"}}}
     scene = mi.load_dict({
         "type": "scene", "integrator": {"type": "direct", "emitter_samples": 4, "bsdf_samples": 1},
-        "sensor": cam, "sun": sun_disk_dict(),
+        "sensor": cam, "sun": emitter,
         "plane": {"type": "rectangle", "to_world": mi.ScalarTransform4f().scale([5, 5, 1]),
                   "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [1.0, 1.0, 1.0]}}},
     })
     img = render(scene, 64, 3)
-    e_mi = img.reshape(-1, 3).mean(axis=0) * math.pi          # white Lambertian: L = E / pi
+    return img.reshape(-1, 3).mean(axis=0) * math.pi          # white Lambertian: L = E / pi
+
+
+def check_sun_irradiance():
+    sun = sun_direction()
+    e_mi = plane_irradiance(sun_disk_dict())
     alpha = math.radians(SUN_ANGULAR_DIAMETER_DEG / 2)
     omega = 2 * math.pi * (1 - math.cos(alpha))
     e_ref = SUN_RADIANCE * omega * sun[2]

@@ -316,12 +316,7 @@ def read_lighting(path):
 
 def sun_disk(sun):
     d, radiance, diam = sun
-    r = SUN_DISTANCE * math.tan(math.radians(diam / 2))
-    up = [0, 0, 1] if abs(d[2]) < 0.99 else [1, 0, 0]
-    tw = mi.ScalarTransform4f().look_at(origin=(SUN_DISTANCE * d).tolist(), target=[0, 0, 0], up=up) \
-        @ mi.ScalarTransform4f().scale([r, r, 1.0])
-    return {"type": "disk", "to_world": tw,
-            "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [float(x) for x in radiance]}}}
+    return ref.sun_disk_emitter(d, radiance, diam, SUN_DISTANCE)
 
 
 def emitters(lighting_path, workdir):
@@ -414,17 +409,7 @@ def check_envmap(sky, sky_path, sun_dir):
 
 def check_sun(sun):
     d, radiance, diam = sun
-    cam = {"type": "orthographic", "near_clip": 0.01, "far_clip": 100.0,
-           "to_world": mi.ScalarTransform4f().look_at(origin=[0, 0, 10], target=[0, 0, 0], up=[0, 1, 0])
-           @ mi.ScalarTransform4f().scale([0.5, 0.5, 1]),
-           "sampler": {"type": "independent", "sample_count": 64},
-           "film": {"type": "hdrfilm", "width": 8, "height": 8, "pixel_format": "rgb", "rfilter": {"type": "box"}}}
-    scene = mi.load_dict({
-        "type": "scene", "integrator": {"type": "direct", "emitter_samples": 4, "bsdf_samples": 1},
-        "sensor": cam, "sun": sun_disk(sun),
-        "plane": {"type": "rectangle", "to_world": mi.ScalarTransform4f().scale([5, 5, 1]),
-                  "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [1.0, 1.0, 1.0]}}}})
-    e_mi = ref.render(scene, 64, 3).reshape(-1, 3).mean(axis=0) * math.pi
+    e_mi = ref.plane_irradiance(sun_disk(sun))
     alpha = math.radians(diam / 2)
     e_ref = radiance * 2 * math.pi * (1 - math.cos(alpha)) * d[2]
     rel = float(np.max(np.abs(e_mi / e_ref - 1)))

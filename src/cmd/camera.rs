@@ -130,14 +130,7 @@ pub fn run(c: CameraCmd, ctx: &Ctx) -> anyhow::Result<()> {
 }
 
 fn undistort(a: UndistortArgs) -> anyhow::Result<()> {
-    if a.output
-        .extension()
-        .map(|e| e.to_string_lossy().to_lowercase())
-        .as_deref()
-        != Some("exr")
-    {
-        bail!("{}: output must be .exr", a.output.display());
-    }
+    super::require_extension(&a.output, "exr")?;
     let cam = Camera::load(&a.camera)?;
     let img = read_image(&a.image)?;
     let (out, ocam) =
@@ -328,14 +321,7 @@ fn detect_checker(path: &Path, img: &igi_imaging::HdrImage) -> anyhow::Result<[D
 
 fn refine(a: RefineArgs) -> anyhow::Result<()> {
     use igi_render::refine::{refine_pose, rt_scene_of, RefineOptions};
-    if a.output
-        .extension()
-        .map(|e| e.to_string_lossy().to_lowercase())
-        .as_deref()
-        != Some("json")
-    {
-        bail!("{}: output must be .json", a.output.display());
-    }
+    super::require_extension(&a.output, "json")?;
     if !(a.search > 0.0 && a.search.is_finite()) {
         bail!("--search {}: must be a positive number of pixels", a.search);
     }

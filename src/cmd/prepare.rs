@@ -4,11 +4,13 @@
 use crate::report::Ctx;
 use anyhow::{bail, Context};
 use igi_geometry::atlas::AtlasOptions;
-use igi_geometry::repair::repair;
+use igi_geometry::repair::{repair, RepairReport};
+use igi_geometry::store::Manifest;
 use igi_geometry::{
-    check_prepare_output, read_mesh, PrepareOptions, PrepareRun, SiteStore, VoxelGrid, VoxelId,
+    check_prepare_output, read_mesh, PrepareOptions, PrepareRun, SiteStore, TriMesh, VoxelGrid,
+    VoxelId,
 };
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
 pub struct PrepareArgs {
@@ -74,7 +76,8 @@ fn parse_list(s: &str, what: &str) -> anyhow::Result<Vec<f64>> {
         .collect()
 }
 
-pub fn run_prepare(a: PrepareArgs, ctx: &Ctx) -> anyhow::Result<()> {
+/// The prepare options and run of the command line.
+fn prepare_options(a: &PrepareArgs) -> anyhow::Result<(PrepareOptions, PrepareRun)> {
     let origin = parse_list(&a.origin, "origin")?;
     let [x, y, z] = origin[..] else {
         bail!("--origin needs three numbers x,y,z, got `{}`", a.origin)
@@ -94,8 +97,12 @@ pub fn run_prepare(a: PrepareArgs, ctx: &Ctx) -> anyhow::Result<()> {
         terrain: a.terrain.clone(),
         restart: a.restart,
     };
-    check_prepare_output(&a.output, &run, &opts, a.terrain.is_some())?;
-    // read and check everything before creating the output folder
+    Ok((opts, run))
+}
+
+/// Reads and repairs the mesh (which must keep a triangle) and the terrain, reporting what the
+/// repair removed.
+fn read_repaired(a: &PrepareArgs) -> anyhow::Result<(TriMesh, Option<TriMesh>, RepairReport)> {
     let t0 = std::time::Instant::now();
     let mesh = read_mesh(&a.mesh)?;
     let terrain = a.terrain.as_deref().map(read_mesh).transpose()?;
@@ -120,6 +127,15 @@ pub fn run_prepare(a: PrepareArgs, ctx: &Ctx) -> anyhow::Result<()> {
         );
     }
     let terrain = terrain.map(|t| repair(&t).0);
+    Ok((mesh, terrain, report))
+}
+
+pub fn run_prepare(a: PrepareArgs, ctx: &Ctx) -> anyhow::Result<()> {
+    let (opts, run) = prepare_options(&a)?;
+    check_prepare_output(&a.output, &run, &opts, a.terrain.is_some())?;
+    // read and check everything before creating the output folder
+    let t0 = std::time::Instant::now();
+    let (mesh, terrain, report) = read_repaired(&a)?;
     let pb = ctx.progress(0, "voxels");
     let progress = |done: usize, total: usize| {
         pb.set_length(total as u64);
@@ -180,23 +196,28 @@ fn parse_voxel(s: &str, store: &SiteStore) -> anyhow::Result<VoxelId> {
     Ok([i, j, k])
 }
 
+/// Loads `voxel` as a solve would and measures it (parts, triangles against the full site,
+/// seconds).
+fn measure_load(store: &SiteStore, voxel: &str) -> anyhow::Result<serde_json::Value> {
+    let man = store.manifest();
+    let v = parse_voxel(voxel, store)?;
+    let t0 = std::time::Instant::now();
+    let parts = store.load_for_voxel(v, 1)?;
+    let secs = t0.elapsed().as_secs_f64();
+    let loaded: usize = parts.iter().map(|p| p.mesh.indices.len()).sum();
+    let full: usize =
+        man.triangles_per_level[0] + man.terrain.as_ref().map_or(0, |t| t.triangles[0]);
+    Ok(serde_json::json!({
+        "voxel": v, "parts": parts.len(), "triangles_loaded": loaded, "triangles_full": full,
+        "reduction": 1.0 - loaded as f64 / full as f64, "seconds": secs,
+    }))
+}
+
 pub fn run_info(a: InfoArgs, _ctx: &Ctx) -> anyhow::Result<()> {
     let store = SiteStore::open(&a.site)?;
     let man = store.manifest();
     let load = match &a.load_voxel {
-        Some(s) => {
-            let v = parse_voxel(s, &store)?;
-            let t0 = std::time::Instant::now();
-            let parts = store.load_for_voxel(v, 1)?;
-            let secs = t0.elapsed().as_secs_f64();
-            let loaded: usize = parts.iter().map(|p| p.mesh.indices.len()).sum();
-            let full: usize =
-                man.triangles_per_level[0] + man.terrain.as_ref().map_or(0, |t| t.triangles[0]);
-            Some(serde_json::json!({
-                "voxel": v, "parts": parts.len(), "triangles_loaded": loaded, "triangles_full": full,
-                "reduction": 1.0 - loaded as f64 / full as f64, "seconds": secs,
-            }))
-        }
+        Some(s) => Some(measure_load(&store, s)?),
         None => None,
     };
     if a.json {
@@ -206,8 +227,25 @@ pub fn run_info(a: InfoArgs, _ctx: &Ctx) -> anyhow::Result<()> {
         }
         return crate::report::print_json(&v);
     }
+    print_site(&a.site, man);
+    if let Some(l) = load {
+        println!(
+            "load      voxel {} with {} parts: {} of {} triangles ({:.1}% less) in {:.2} s",
+            l["voxel"],
+            l["parts"],
+            l["triangles_loaded"],
+            l["triangles_full"],
+            100.0 * l["reduction"].as_f64().unwrap_or(0.0),
+            l["seconds"].as_f64().unwrap_or(0.0)
+        );
+    }
+    Ok(())
+}
+
+/// The text report of a site's manifest: bounds, voxels, levels, terrain, atlas, repair.
+fn print_site(site: &Path, man: &Manifest) {
     let r = &man.voxel_range;
-    println!("site      {} (from {})", a.site.display(), man.source);
+    println!("site      {} (from {})", site.display(), man.source);
     println!("bounds    {:?} .. {:?} m", man.bounds[0], man.bounds[1]);
     println!(
         "voxels    {} non-empty of a {}x{}x{} lattice, {:.2} m, origin {:?}",
@@ -246,16 +284,4 @@ pub fn run_info(a: InfoArgs, _ctx: &Ctx) -> anyhow::Result<()> {
         "repair    {} -> {} triangles ({} degenerate, {} duplicate removed), {} non-manifold edges, {} border edges",
         rp.triangles_in, rp.triangles_out, rp.degenerate_removed, rp.duplicate_removed, rp.non_manifold_edges, rp.border_edges
     );
-    if let Some(l) = load {
-        println!(
-            "load      voxel {} with {} parts: {} of {} triangles ({:.1}% less) in {:.2} s",
-            l["voxel"],
-            l["parts"],
-            l["triangles_loaded"],
-            l["triangles_full"],
-            100.0 * l["reduction"].as_f64().unwrap_or(0.0),
-            l["seconds"].as_f64().unwrap_or(0.0)
-        );
-    }
-    Ok(())
 }

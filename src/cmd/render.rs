@@ -66,9 +66,10 @@ fn write_any(path: &Path, img: &igi_imaging::HdrImage) -> anyhow::Result<()> {
     Ok(())
 }
 
-pub fn run(a: RenderArgs, ctx: &Ctx) -> anyhow::Result<()> {
-    // A solve result folder is re-lit: its scene.toml holds the recovered materials and no
-    // lighting, so --lighting is required.
+/// The scene file to render and checks of the arguments, before any work: a solve result
+/// folder is re-lit (its scene.toml holds the recovered materials and no lighting, so
+/// --lighting is required); the outputs are checked before the render, not after it.
+fn checked_scene_file(a: &RenderArgs) -> anyhow::Result<PathBuf> {
     let scene_file = if a.input.is_dir() {
         if a.lighting.is_none() {
             bail!(
@@ -83,13 +84,17 @@ pub fn run(a: RenderArgs, ctx: &Ctx) -> anyhow::Result<()> {
     if a.spp == 0 {
         bail!("--spp must be at least 1");
     }
-    // the outputs are checked before the render, not after it
     for out in std::iter::once(&a.output).chain(a.stderr.as_ref()) {
         check_image_name(out)?;
         igi_imaging::io::check_output_file(out)?;
     }
-    let t0 = Instant::now();
-    let (scene, scene_lighting) = Scene::load(&scene_file)?;
+    Ok(scene_file)
+}
+
+/// The scene and the lighting it is rendered under (--lighting, else the scene's own), which
+/// must light something; its warnings are printed.
+fn load_scene(a: &RenderArgs, scene_file: &Path) -> anyhow::Result<(Scene, Lighting)> {
+    let (scene, scene_lighting) = Scene::load(scene_file)?;
     let lighting = match &a.lighting {
         Some(p) => Lighting::load(p)?,
         None => scene_lighting,
@@ -98,6 +103,13 @@ pub fn run(a: RenderArgs, ctx: &Ctx) -> anyhow::Result<()> {
     for w in lighting.warnings() {
         eprintln!("warning: {w}");
     }
+    Ok((scene, lighting))
+}
+
+pub fn run(a: RenderArgs, ctx: &Ctx) -> anyhow::Result<()> {
+    let scene_file = checked_scene_file(&a)?;
+    let t0 = Instant::now();
+    let (scene, lighting) = load_scene(&a, &scene_file)?;
     let camera = igi_imaging::Camera::load(&a.camera)?;
     let load_s = t0.elapsed().as_secs_f64();
     tracing::info!(

@@ -25,9 +25,7 @@ pub struct Basis {
 impl Basis {
     pub fn new(materials: Vec<(String, Lafortune)>) -> Result<Self, BrdfError> {
         if materials.is_empty() {
-            return Err(BrdfError::Invalid(
-                "a BRDF basis needs at least one material".into(),
-            ));
+            return Err(BrdfError::EmptyBasis);
         }
         let mut m = nalgebra::Matrix3::<f64>::zeros();
         for (_, b) in &materials {

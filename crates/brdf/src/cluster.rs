@@ -20,7 +20,7 @@ use nalgebra::{DMatrix, DVector, SymmetricEigen};
 use rand::{seq::SliceRandom, SeedableRng};
 
 use crate::fit::{fit_data, refine, Data, Model, Problem, NP};
-use crate::{BrdfError, Frame, Lafortune};
+use crate::{BrdfError, Frame, Lafortune, Lobe};
 
 /// A surface point with its radiance samples.
 #[derive(Clone, Debug, PartialEq)]
@@ -236,9 +236,7 @@ pub fn cluster(
     opts: &ClusterOptions,
 ) -> Result<ClusterResult, BrdfError> {
     if opts.k == 0 {
-        return Err(BrdfError::Invalid(
-            "the number of clusters k must be at least 1".into(),
-        ));
+        return Err(BrdfError::NoClusters);
     }
     let locals: Vec<Local> = lumitexels.iter().map(to_local).collect();
     let usable = usable_lumitexels(&locals, opts.k)?;
@@ -279,12 +277,11 @@ fn usable_lumitexels(locals: &[Local], k: usize) -> Result<Vec<usize>, BrdfError
         .collect();
     let total: usize = usable.iter().map(|&t| locals[t].light.len()).sum();
     if usable.len() < k || total < 5 * k {
-        return Err(BrdfError::Invalid(format!(
-            "{} usable lumitexels with {} samples above the surface cannot make {} clusters",
-            usable.len(),
-            total,
-            k
-        )));
+        return Err(BrdfError::TooFewLumitexels {
+            lumitexels: usable.len(),
+            samples: total,
+            k,
+        });
     }
     Ok(usable)
 }
@@ -341,12 +338,12 @@ impl Ctx<'_> {
     ) -> Result<Vec<usize>, BrdfError> {
         let k = self.worst_cluster(usable, &assignment, params);
         let members = self.members(usable, &assignment, k);
-        let (a, b, proj) = self.split(&params[k], &members).ok_or_else(|| {
-            BrdfError::Invalid(format!(
-                "cluster {k} cannot be split further ({} members agree)",
-                members.len()
-            ))
-        })?;
+        let (a, b, proj) = self
+            .split(&params[k], &members)
+            .ok_or(BrdfError::Unsplittable {
+                cluster: k,
+                members: members.len(),
+            })?;
         let kb = params.len();
         params[k] = a;
         params.push(b);
@@ -510,46 +507,51 @@ fn lumitexel_row(table: &Table, row: &Row, idx: &[usize]) -> Result<[f32; 15], B
     Ok(v)
 }
 
+/// Three well-separated materials, the ground truth of the clustering tests and benchmark:
+/// matte red with a weak retro lobe, glossy dark blue, and a strongly retroreflective grey.
+pub fn separated_materials() -> [Lafortune; 3] {
+    [
+        // matte red with a weak retro lobe
+        Lafortune {
+            rho_d: Vec3::new(0.6, 0.12, 0.1),
+            lobes: vec![Lobe {
+                rho: Vec3::new(0.1, 0.02, 0.02),
+                cxy: 0.9,
+                cz: 1.0,
+                n: 3.0,
+            }],
+        },
+        // glossy dark blue
+        Lafortune {
+            rho_d: Vec3::new(0.04, 0.06, 0.3),
+            lobes: vec![Lobe {
+                rho: Vec3::splat(6.0),
+                cxy: -1.0,
+                cz: 1.0,
+                n: 80.0,
+            }],
+        },
+        // grey, strongly retroreflective
+        Lafortune {
+            rho_d: Vec3::splat(0.25),
+            lobes: vec![Lobe {
+                rho: Vec3::splat(0.6),
+                cxy: 1.0,
+                cz: 1.0,
+                n: 12.0,
+            }],
+        },
+    ]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::fit::tests::dir;
-    use crate::Lobe;
     use rand::Rng;
 
     fn materials() -> Vec<Lafortune> {
-        vec![
-            // matte red with a weak retro lobe
-            Lafortune {
-                rho_d: Vec3::new(0.6, 0.12, 0.1),
-                lobes: vec![Lobe {
-                    rho: Vec3::new(0.1, 0.02, 0.02),
-                    cxy: 0.9,
-                    cz: 1.0,
-                    n: 3.0,
-                }],
-            },
-            // glossy dark blue
-            Lafortune {
-                rho_d: Vec3::new(0.04, 0.06, 0.3),
-                lobes: vec![Lobe {
-                    rho: Vec3::splat(6.0),
-                    cxy: -1.0,
-                    cz: 1.0,
-                    n: 80.0,
-                }],
-            },
-            // grey, strongly retroreflective
-            Lafortune {
-                rho_d: Vec3::splat(0.25),
-                lobes: vec![Lobe {
-                    rho: Vec3::splat(0.6),
-                    cxy: 1.0,
-                    cz: 1.0,
-                    n: 12.0,
-                }],
-            },
-        ]
+        separated_materials().to_vec()
     }
 
     /// `n_per` lumitexels per weight vector, `samples` random (light, view) pairs each, random normals.

@@ -20,14 +20,31 @@ pub enum BrdfError {
     File { path: PathBuf, msg: String },
     #[error("fit of material `{material}` failed: {msg}")]
     Fit { material: String, msg: String },
-    #[error("invalid input: {0}")]
-    Invalid(String),
     /// A BRDF-sample or pair file (read by `igi-formats`): the file and the problem.
     #[error(transparent)]
     Format(#[from] igi_formats::FormatsError),
     /// A lumitexel table's structure (read through `igi_imaging::csv`).
     #[error(transparent)]
     Csv(#[from] igi_imaging::csv::CsvError),
+    /// A BRDF basis of no material.
+    #[error("invalid input: a BRDF basis needs at least one material")]
+    EmptyBasis,
+    /// Clustering into no cluster.
+    #[error("invalid input: the number of clusters k must be at least 1")]
+    NoClusters,
+    /// Too few usable lumitexels (or samples above the surface) for `k` clusters.
+    #[error("invalid input: {lumitexels} usable lumitexels with {samples} samples above the surface cannot make {k} clusters")]
+    TooFewLumitexels {
+        lumitexels: usize,
+        samples: usize,
+        k: usize,
+    },
+    /// A cluster whose members all agree, so it cannot be split.
+    #[error("invalid input: cluster {cluster} cannot be split further ({members} members agree)")]
+    Unsplittable { cluster: usize, members: usize },
+    /// A material name not in the materials file; `have` lists its names.
+    #[error("invalid input: no material `{name}` (have: {have})")]
+    NoMaterial { name: String, have: String },
     #[error("json: {0}")]
     Json(#[from] serde_json::Error),
 }

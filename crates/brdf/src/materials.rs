@@ -114,16 +114,18 @@ impl MaterialsFile {
 
     /// The named material, or an error listing the available names.
     pub fn get(&self, name: &str) -> Result<Lafortune, BrdfError> {
-        self.materials.get(name).map(|e| e.brdf()).ok_or_else(|| {
-            BrdfError::Invalid(format!(
-                "no material `{name}` (have: {})",
-                self.materials
+        self.materials
+            .get(name)
+            .map(|e| e.brdf())
+            .ok_or_else(|| BrdfError::NoMaterial {
+                name: name.to_string(),
+                have: self
+                    .materials
                     .keys()
                     .cloned()
                     .collect::<Vec<_>>()
-                    .join(", ")
-            ))
-        })
+                    .join(", "),
+            })
     }
 
     /// All materials as (name, BRDF), sorted by name.

@@ -6,7 +6,7 @@
 use std::path::Path;
 
 use glam::Vec3;
-use plotters::prelude::*;
+use igi_imaging::plot::{write_chart_grid, Axis, Chart, Series, PALETTE};
 
 use crate::{BrdfError, BrdfSample, Lafortune};
 
@@ -59,97 +59,54 @@ fn in_plane_groups(samples: &[BrdfSample]) -> Vec<Group> {
     groups
 }
 
-/// One colour per light elevation group (cycled).
-const PALETTE: [RGBColor; 6] = [
-    RGBColor(31, 119, 180),
-    RGBColor(255, 127, 14),
-    RGBColor(44, 160, 44),
-    RGBColor(214, 39, 40),
-    RGBColor(148, 103, 189),
-    RGBColor(140, 86, 75),
-];
-
 /// Draw the figure for `materials` = (name, samples, fitted BRDF) into a PNG (atomic write).
 pub fn plot_fits(
     path: &Path,
     materials: &[(String, Vec<BrdfSample>, Lafortune)],
 ) -> Result<(), BrdfError> {
-    igi_imaging::plot::register_fonts();
     let rows = materials.len().max(1);
     let (w, h) = (1500u32, 380 * rows as u32);
-    let perr = |e: String| BrdfError::File {
+    let mut panels = Vec::with_capacity(3 * materials.len());
+    for (name, samples, brdf) in materials {
+        let groups = in_plane_groups(samples);
+        panels.extend((0..3).map(|c| panel(name, c, &groups, brdf)));
+    }
+    write_chart_grid(path, (w, h), (rows, 3), &panels).map_err(|e| BrdfError::File {
         path: path.into(),
         msg: format!("cannot draw the plot: {e}"),
-    };
-    igi_imaging::io::write_atomic(path, |tmp| {
-        let draw = || -> Result<(), Box<dyn std::error::Error>> {
-            let root = BitMapBackend::new(tmp, (w, h)).into_drawing_area();
-            root.fill(&WHITE)?;
-            let panels = root.split_evenly((rows, 3));
-            for (r, (name, samples, brdf)) in materials.iter().enumerate() {
-                let groups = in_plane_groups(samples);
-                for c in 0..3 {
-                    draw_panel(&panels[r * 3 + c], name, c, &groups, brdf)?;
-                }
-            }
-            root.present()?;
-            Ok(())
-        };
-        draw().map_err(|e| igi_imaging::ImagingError::Encode {
-            path: tmp.to_path_buf(),
-            msg: e.to_string(),
-        })
     })
-    .map_err(|e| perr(e.to_string()))
 }
 
-/// One panel: material `name`, channel `c`, the samples of every light group and the fitted
-/// curve in the plane of that light.
-fn draw_panel(
-    area: &DrawingArea<BitMapBackend<'_>, plotters::coord::Shift>,
-    name: &str,
-    c: usize,
-    groups: &[Group],
-    brdf: &Lafortune,
-) -> Result<(), Box<dyn std::error::Error>> {
+/// One panel: material `name`, channel `c`, the samples of every light group (one colour per
+/// group, cycled) and the fitted curve in the plane of that light.
+fn panel(name: &str, c: usize, groups: &[Group], brdf: &Lafortune) -> Chart {
     let ymax = groups
         .iter()
         .flat_map(|g| g.2.iter().map(|p| p.1[c]))
         .fold(0.0f32, f32::max)
         .max(1e-6)
         * 1.15;
-    let mut chart = ChartBuilder::on(area)
-        .caption(
-            format!("{name} - {}", ["red", "green", "blue"][c]),
-            ("sans-serif", 18),
-        )
-        .margin(8)
-        .x_label_area_size(30)
-        .y_label_area_size(50)
-        .build_cartesian_2d(-90f32..90f32, 0f32..ymax)?;
-    chart
-        .configure_mesh()
-        .x_desc("view angle (deg, + = mirror side)")
-        .y_desc("pi f")
-        .draw()?;
+    let mut series = Vec::new();
     for (gi, (lt, phi_l, pts)) in groups.iter().enumerate() {
-        let col = PALETTE[gi % PALETTE.len()];
+        let colour = PALETTE[gi % PALETTE.len()];
         let curve = fitted_curve(brdf, *lt, *phi_l, c, ymax);
-        chart
-            .draw_series(LineSeries::new(curve, col.stroke_width(2)))?
-            .label(format!("light {lt} deg"))
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], col));
-        chart.draw_series(
-            pts.iter()
-                .map(|(a, v)| Circle::new((*a, v[c].min(ymax)), 3, col.filled())),
-        )?;
+        series.push(Series {
+            legend: Some(format!("light {lt} deg")),
+            ..Series::line(
+                curve.map(|(a, v)| (a as f64, v as f64)).collect(),
+                colour,
+                2,
+            )
+        });
+        let dots = pts.iter().map(|(a, v)| (*a as f64, v[c].min(ymax) as f64));
+        series.push(Series::dots(dots.collect(), colour, 3));
     }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()?;
-    Ok(())
+    Chart {
+        title: format!("{name} - {}", ["red", "green", "blue"][c]),
+        x: Axis::linear("view angle (deg, + = mirror side)", -90.0..90.0),
+        y: Axis::linear("pi f", 0.0..ymax as f64),
+        series,
+    }
 }
 
 /// Channel `c` of pi times `brdf` in the plane of a light at elevation `lt` degrees and azimuth

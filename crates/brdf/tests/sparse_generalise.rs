@@ -300,65 +300,36 @@ fn error_against_number_of_lights() {
 
 /// Two panels (mean |log ratio|, relative RMS; each over the dense fit's) against light positions.
 fn plot_curves(path: &Path, names: &[&str], curves: &[(&str, Vec<Curve>)]) {
-    use plotters::prelude::*;
-    igi_imaging::plot::register_fonts();
-    let root = BitMapBackend::new(path, (1200, 520)).into_drawing_area();
-    root.fill(&WHITE).unwrap();
-    let panels = root.split_evenly((1, 2));
+    use igi_imaging::plot::{write_chart_grid, Axis, Chart, Series, PALETTE};
     let ymax = 3.0;
-    for (p, (area, title)) in panels
+    let panels: Vec<Chart> = ["mean |log ratio|", "relative RMS"]
         .iter()
-        .zip(["mean |log ratio|", "relative RMS"])
         .enumerate()
-    {
-        let mut chart = ChartBuilder::on(area)
-            .caption(
-                format!("held-out {title} / dense fit's"),
-                ("sans-serif", 20),
-            )
-            .margin(10)
-            .x_label_area_size(40)
-            .y_label_area_size(50)
-            .build_cartesian_2d(1.0..8.0, 0.8..ymax)
-            .unwrap();
-        chart
-            .configure_mesh()
-            .x_desc("light positions (20 views each)")
-            .y_desc("ratio to the dense fit (goal <= 1.2)")
-            .draw()
-            .unwrap();
-        chart
-            .draw_series(LineSeries::new(
-                [(1.0, 1.2), (8.0, 1.2)],
-                BLACK.mix(0.5).stroke_width(1),
-            ))
-            .unwrap();
-        for (o, (label, per)) in curves.iter().enumerate() {
-            for (k, pts) in per.iter().enumerate() {
-                let col = Palette99::pick(k).to_rgba();
-                let style = if o == 0 {
-                    col.stroke_width(3)
-                } else {
-                    col.mix(0.6).stroke_width(1)
-                };
-                let y = |q: &(f64, f64, f64)| if p == 0 { q.1 } else { q.2 };
-                chart
-                    .draw_series(LineSeries::new(
-                        pts.iter().map(|q| (q.0, y(q).min(ymax))),
-                        style,
-                    ))
-                    .unwrap()
-                    .label(format!("{} {label}", names[k]))
-                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
+        .map(|(p, title)| {
+            let goal = Series {
+                opacity: 0.5,
+                ..Series::line(vec![(1.0, 1.2), (8.0, 1.2)], [0, 0, 0], 1)
+            };
+            let mut series = vec![goal];
+            for (o, (label, per)) in curves.iter().enumerate() {
+                for (k, pts) in per.iter().enumerate() {
+                    let y = |q: &(f64, f64, f64)| if p == 0 { q.1 } else { q.2 };
+                    let pts = pts.iter().map(|q| (q.0, y(q).min(ymax))).collect();
+                    let colour = PALETTE[k % PALETTE.len()];
+                    series.push(Series {
+                        opacity: if o == 0 { 1.0 } else { 0.6 },
+                        legend: Some(format!("{} {label}", names[k])),
+                        ..Series::line(pts, colour, if o == 0 { 3 } else { 1 })
+                    });
+                }
             }
-        }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .draw()
-            .unwrap();
-    }
-    root.present().unwrap();
+            Chart {
+                title: format!("held-out {title} / dense fit's"),
+                x: Axis::linear("light positions (20 views each)", 1.0..8.0),
+                y: Axis::linear("ratio to the dense fit (goal <= 1.2)", 0.8..ymax),
+                series,
+            }
+        })
+        .collect();
+    write_chart_grid(path, (1200, 520), (1, 2), &panels).unwrap();
 }

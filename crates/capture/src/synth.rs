@@ -44,27 +44,38 @@ pub fn frame() -> SampleFrame {
     SampleFrame::from_json_str(FRAME_JSON, Path::new("frame.json")).expect("test frame parses")
 }
 
+/// The test stone: a warm diffuse base and a broad off-specular lobe, plus `specular` (the
+/// frame's stone, the fit tests' material and the BRDF bench's differ only there).
+pub fn stone(specular: Lobe) -> Lafortune {
+    Lafortune {
+        rho_d: Vec3::new(0.35, 0.3, 0.22),
+        lobes: vec![
+            Lobe {
+                rho: Vec3::new(0.1, 0.09, 0.07),
+                cxy: 0.7,
+                cz: 1.0,
+                n: 5.0,
+            },
+            specular,
+        ],
+    }
+}
+
+/// A specular (mirror-direction) lobe `rho max(0, -ux vx - uy vy + uz vz)^n`.
+pub fn specular_lobe(rho: Vec3, n: f32) -> Lobe {
+    Lobe {
+        rho,
+        cxy: -1.0,
+        cz: 1.0,
+        n,
+    }
+}
+
 pub fn materials() -> Vec<(String, Lafortune)> {
     vec![
         (
             "stone".into(),
-            Lafortune {
-                rho_d: Vec3::new(0.35, 0.3, 0.22),
-                lobes: vec![
-                    Lobe {
-                        rho: Vec3::new(0.1, 0.09, 0.07),
-                        cxy: 0.7,
-                        cz: 1.0,
-                        n: 5.0,
-                    },
-                    Lobe {
-                        rho: Vec3::new(0.5, 0.5, 0.52),
-                        cxy: -1.0,
-                        cz: 1.0,
-                        n: 12.0,
-                    },
-                ],
-            },
+            stone(specular_lobe(Vec3::new(0.5, 0.5, 0.52), 12.0)),
         ),
         (
             "tile".into(),

@@ -113,8 +113,7 @@ impl ClusterConfig {
 
     /// Refuses to go on when the running binary is not the one submitted.
     pub fn check_binary(&self) -> Result<(), ClusterError> {
-        let exe = std::env::current_exe()
-            .map_err(|e| ClusterError::Invalid(format!("cannot find the running binary: {e}")))?;
+        let exe = std::env::current_exe().map_err(ClusterError::CurrentExe)?;
         let now = Fingerprint::of("igi binary", &exe)?;
         if !now.same_content(&self.binary_fingerprint) {
             return Err(ClusterError::Mismatch {

@@ -36,8 +36,23 @@ use std::path::PathBuf;
 pub enum ClusterError {
     #[error("{}: {msg}", path.display())]
     File { path: PathBuf, msg: String },
-    #[error("{0}")]
-    Invalid(String),
+    /// `--max-attempts 0`.
+    #[error("--max-attempts must be at least 1")]
+    NoAttempts,
+    /// A task index outside the run's tasks.
+    #[error("--index {index} is out of range: the run has {tasks} tasks (0..={})", tasks.saturating_sub(1))]
+    IndexOutOfRange { index: usize, tasks: usize },
+    /// Tasks that failed `attempts` times already; `list` is the iteration's missing.txt.
+    #[error("iteration {iteration}: {} task(s) failed {attempts} time(s) already ({}); see {}; `--skip-voxels` keeps their previous albedo, marked stale", groups.len(), groups.join(", "), list.display())]
+    AttemptsSpent {
+        iteration: u32,
+        attempts: u32,
+        groups: Vec<String>,
+        list: PathBuf,
+    },
+    /// The path of the running binary cannot be found.
+    #[error("cannot find the running binary: {0}")]
+    CurrentExe(#[source] std::io::Error),
     /// A Slurm command could not run or failed.
     #[error("`{command}`: {msg}")]
     Slurm { command: String, msg: String },

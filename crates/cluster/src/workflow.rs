@@ -43,9 +43,7 @@ pub fn submit(req: SubmitRequest) -> Result<(ClusterConfig, Vec<PathBuf>), Clust
         ..req.options.clone()
     };
     if req.max_attempts == 0 {
-        return Err(ClusterError::Invalid(
-            "--max-attempts must be at least 1".into(),
-        ));
+        return Err(ClusterError::NoAttempts);
     }
     if ClusterConfig::path(&req.result).exists() {
         return Err(ClusterError::file(
@@ -276,13 +274,13 @@ fn reopen(
 pub fn run_task(result: &Path, index: usize) -> Result<PathBuf, ClusterError> {
     let config = ClusterConfig::read(result)?;
     let k = distributed::next_iteration(result)?;
-    let group = config.groups.get(index).ok_or_else(|| {
-        ClusterError::Invalid(format!(
-            "--index {index} is out of range: the run has {} tasks (0..={})",
-            config.groups.len(),
-            config.groups.len().saturating_sub(1)
-        ))
-    })?;
+    let group = config
+        .groups
+        .get(index)
+        .ok_or(ClusterError::IndexOutOfRange {
+            index,
+            tasks: config.groups.len(),
+        })?;
     let work = result.join("cluster");
     let dir = distributed::task_dir(&work, k, group);
     if let Some(d) = distributed::read_done(&dir)? {
@@ -576,14 +574,12 @@ pub fn resume(result: &Path, skip: bool) -> Result<Option<IterationJobs>, Cluste
         .into_iter()
         .partition(|&i| tried(i) >= config.max_attempts);
     if !spent.is_empty() && !skip {
-        let names: Vec<&str> = spent.iter().map(|&i| config.groups[i].as_str()).collect();
-        return Err(ClusterError::Invalid(format!(
-            "iteration {k}: {} task(s) failed {} time(s) already ({}); see {}; `--skip-voxels` keeps their previous albedo, marked stale",
-            spent.len(),
-            config.max_attempts,
-            names.join(", "),
-            config.iteration_dir(k).join("missing.txt").display()
-        )));
+        return Err(ClusterError::AttemptsSpent {
+            iteration: k,
+            attempts: config.max_attempts,
+            groups: spent.iter().map(|&i| config.groups[i].clone()).collect(),
+            list: config.iteration_dir(k).join("missing.txt"),
+        });
     }
     if !spent.is_empty() {
         skip_groups(&config, k, &spent)?;

@@ -107,100 +107,53 @@ pub struct Target {
     run: fn(&Path) -> Result<(), String>,
 }
 
+/// A parser's outcome as a target reports it: any value is a pass, an error its message.
+fn checked<T, E: std::fmt::Display>(r: Result<T, E>) -> Result<(), String> {
+    r.map(drop).map_err(|e| e.to_string())
+}
+
+/// Parse a lighting file (igi-formats), then build it (igi-render).
+fn run_lighting(p: &Path) -> Result<(), String> {
+    let f = igi_formats::LightingFile::read(p).map_err(|e| e.to_string())?;
+    checked(igi_render::Lighting::from_file(&f, p))
+}
+
+/// Parse a scene file (igi-formats), then build it (igi-render).
+fn run_scene(p: &Path) -> Result<(), String> {
+    let f = igi_formats::SceneFile::read(p).map_err(|e| e.to_string())?;
+    checked(igi_render::Scene::from_file(&f, p))
+}
+
 /// Every target, by name.
 pub fn targets() -> Vec<Target> {
+    type Run = fn(&Path) -> Result<(), String>;
+    let t = |name, input, setup: SetupFn, run: Run| Target {
+        name,
+        input,
+        setup,
+        run,
+    };
     vec![
-        Target {
-            name: "ply",
-            input: "in.ply",
-            setup: setup_ply,
-            run: |p| {
-                igi_geometry::read_ply(p)
-                    .map(drop)
-                    .map_err(|e| e.to_string())
-            },
-        },
-        Target {
-            name: "obj",
-            input: "in.obj",
-            setup: setup_obj,
-            run: |p| {
-                igi_geometry::read_obj(p)
-                    .map(drop)
-                    .map_err(|e| e.to_string())
-            },
-        },
-        Target {
-            name: "exr",
-            input: "in.exr",
-            setup: setup_exr,
-            run: run_image,
-        },
-        Target {
-            name: "hdr",
-            input: "in.hdr",
-            setup: setup_hdr,
-            run: run_image,
-        },
-        Target {
-            name: "camera",
-            input: "in.json",
-            setup: setup_camera,
-            run: |p| {
-                igi_imaging::Camera::load(p)
-                    .map(drop)
-                    .map_err(|e| e.to_string())
-            },
-        },
-        Target {
-            name: "lighting",
-            input: "light/in.toml",
-            setup: setup_lighting,
-            // parse (igi-formats), then build (igi-render)
-            run: |p| {
-                let f = igi_formats::LightingFile::read(p).map_err(|e| e.to_string())?;
-                igi_render::Lighting::from_file(&f, p)
-                    .map(drop)
-                    .map_err(|e| e.to_string())
-            },
-        },
-        Target {
-            name: "scene",
-            input: "scene/in.toml",
-            setup: setup_scene,
-            run: |p| {
-                let f = igi_formats::SceneFile::read(p).map_err(|e| e.to_string())?;
-                igi_render::Scene::from_file(&f, p)
-                    .map(drop)
-                    .map_err(|e| e.to_string())
-            },
-        },
-        Target {
-            name: "survey",
-            input: "survey/survey.toml",
-            setup: setup_survey,
-            run: |p| {
-                igi_reflect::Survey::load(p)
-                    .map(drop)
-                    .map_err(|e| e.to_string())
-            },
-        },
-        Target {
-            name: "board",
-            input: "in.json",
-            setup: setup_board,
-            run: run_board,
-        },
-        Target {
-            name: "brdf",
-            input: "in.csv",
-            setup: setup_brdf,
-            run: |p| {
-                igi_brdf::read_samples(p)
-                    .map(drop)
-                    .map_err(|e| e.to_string())
-            },
-        },
+        t("ply", "in.ply", setup_ply, |p| {
+            checked(igi_geometry::read_ply(p))
+        }),
+        t("obj", "in.obj", setup_obj, |p| {
+            checked(igi_geometry::read_obj(p))
+        }),
+        t("exr", "in.exr", setup_exr, run_image),
+        t("hdr", "in.hdr", setup_hdr, run_image),
+        t("camera", "in.json", setup_camera, |p| {
+            checked(igi_imaging::Camera::load(p))
+        }),
+        t("lighting", "light/in.toml", setup_lighting, run_lighting),
+        t("scene", "scene/in.toml", setup_scene, run_scene),
+        t("survey", "survey/survey.toml", setup_survey, |p| {
+            checked(igi_reflect::Survey::load(p))
+        }),
+        t("board", "in.json", setup_board, run_board),
+        t("brdf", "in.csv", setup_brdf, |p| {
+            checked(igi_brdf::read_samples(p))
+        }),
     ]
 }
 
@@ -215,16 +168,12 @@ pub fn target(name: &str) -> Result<Target, FuzzError> {
 }
 
 fn run_image(p: &Path) -> Result<(), String> {
-    igi_imaging::read_image(p)
-        .map(drop)
-        .map_err(|e| e.to_string())
+    checked(igi_imaging::read_image(p))
 }
 
 fn run_board(p: &Path) -> Result<(), String> {
     igi_probe::board::BoardSpec::load(p).map_err(|e| e.to_string())?;
-    igi_probe::board::Board::load(p)
-        .map(drop)
-        .map_err(|e| e.to_string())
+    checked(igi_probe::board::Board::load(p))
 }
 
 fn read(p: &Path) -> Result<Vec<u8>, String> {

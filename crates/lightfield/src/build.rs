@@ -1,7 +1,7 @@
 //! From photographs to a surface light field: grid points from the atlas, data lumispheres,
 //! reparameterisation, then one of the fits.
 
-use crate::data::{gather, reparameterise, GatherReport, GridPoint, View};
+use crate::data::{gather_with_hits, pixel_hits, reparameterise, GatherReport, GridPoint, View};
 use crate::field::{Coding, SurfaceLightField};
 use crate::fit::{fair_pointwise, DataLumisphere, FitOptions};
 use crate::lumisphere::Octahedron;
@@ -12,6 +12,7 @@ use glam::Vec3;
 use igi_geometry::atlas::Atlas;
 use igi_geometry::texels::TexelCache;
 use igi_render::embree::RtScene;
+use rayon::prelude::*;
 
 /// How the lumispheres are estimated.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -108,8 +109,20 @@ pub struct Prepared {
 impl Prepared {
     /// Gathers and reparameterises the data lumispheres of the atlas's grid points.
     pub fn new(atlas: &Atlas, scene: &RtScene, views: &[View], level: u32) -> Self {
+        let hits: Vec<Vec<bool>> = views.par_iter().map(|v| pixel_hits(scene, v)).collect();
+        Prepared::with_hits(atlas, scene, views, &hits, level)
+    }
+
+    /// [`Prepared::new`] with each view's [`pixel_hits`] already cast (one per view, in order).
+    pub fn with_hits(
+        atlas: &Atlas,
+        scene: &RtScene,
+        views: &[View],
+        hits: &[Vec<bool>],
+        level: u32,
+    ) -> Self {
         let (texels, points) = grid_points(atlas);
-        let (obs, report) = gather(scene, &points, views);
+        let (obs, report) = gather_with_hits(scene, &points, views, hits);
         let oct = Octahedron::new(level);
         let (medians, data): (Vec<Vec3>, Vec<DataLumisphere>) = obs
             .iter()

@@ -5,10 +5,12 @@
 //! clipped pixels of 8-bit photos (PNG, JPEG: a channel at 254/255 or more), are invalid and
 //! never contribute (`data::gather` skips bilinear lookups that touch them). The grid points
 //! are the covered texels of a fresh atlas of the mesh (`--atlas` texels a side, 1-texel
-//! gutters); the mesh's own texture coordinates, if any, are not used.
+//! gutters); the mesh's own texture coordinates, if any, are not used. Every pixel centre's
+//! ray is cast once ([`crate::data::pixel_hits`]) and serves both the silhouette check of the
+//! masks and the gathering's silhouette rule.
 
 use crate::build::{BuildOptions, Method, Prepared};
-use crate::data::{mask_clipped, GatherReport, View};
+use crate::data::{mask_clipped, pixel_hits, GatherReport, View};
 use crate::field::SurfaceLightField;
 use crate::LightFieldError;
 use igi_geometry::atlas::{build_atlas, Atlas, AtlasOptions};
@@ -16,6 +18,7 @@ use igi_geometry::TriMesh;
 use igi_imaging::rig::RigView;
 use igi_imaging::{read_image, Camera, HdrImage, Mask, Rig};
 use igi_render::embree::RtScene;
+use rayon::prelude::*;
 use std::path::Path;
 
 /// The value at or above which an 8-bit photo's channel counts as clipped (254 of 255).
@@ -89,29 +92,27 @@ fn load_view(rig: &Rig, v: &RigView) -> Result<LoadedView, LightFieldError> {
     })
 }
 
-/// The fraction of `mask`'s pixels whose centre ray through `camera` misses the scene.
-pub fn silhouette_miss(rt: &RtScene, camera: &Camera, mask: &Mask) -> f64 {
-    use rayon::prelude::*;
-    let w = mask.width;
-    let inside: Vec<usize> = (0..mask.data.len()).filter(|&i| mask.data[i]).collect();
-    let missed = inside
-        .par_iter()
-        .filter(|&&i| {
-            let (o, d) = camera.pixel_ray((i % w) as f64, (i / w) as f64);
-            rt.intersect(o.as_vec3(), d.as_vec3(), 0.0, f32::INFINITY)
-                .is_none()
-        })
+/// The fraction of `mask`'s pixels whose centre ray misses the scene, from the view's
+/// [`pixel_hits`] (`hits`, the mask's size).
+pub fn silhouette_miss(hits: &[bool], mask: &Mask) -> f64 {
+    let inside = mask.data.iter().filter(|m| **m).count();
+    let missed = mask
+        .data
+        .iter()
+        .zip(hits)
+        .filter(|(m, h)| **m && !**h)
         .count();
-    missed as f64 / inside.len().max(1) as f64
+    missed as f64 / inside.max(1) as f64
 }
 
 /// A warning for each view whose silhouette misses the mesh by more than
-/// [`MAX_SILHOUETTE_MISS`].
-fn silhouette_warnings(rt: &RtScene, views: &[LoadedView]) -> Vec<String> {
+/// [`MAX_SILHOUETTE_MISS`] (`hits`: each view's [`pixel_hits`]).
+fn silhouette_warnings(views: &[LoadedView], hits: &[Vec<bool>]) -> Vec<String> {
     views
         .iter()
-        .filter_map(|v| {
-            let miss = silhouette_miss(rt, &v.camera, v.mask.as_ref()?);
+        .zip(hits)
+        .filter_map(|(v, hit)| {
+            let miss = silhouette_miss(hit, v.mask.as_ref()?);
             (miss > MAX_SILHOUETTE_MISS).then(|| {
                 format!(
                     "view {:?}: {:.1} % of its mask's pixels miss the mesh (more than {} %): the mesh and the photographs disagree there",
@@ -198,7 +199,6 @@ pub fn build_from_rig(
     )])
     .map_err(LightFieldError::Render)?;
     stage(2);
-    let warnings = silhouette_warnings(&rt, &views);
     let refs: Vec<View> = views
         .iter()
         .map(|v| View {
@@ -206,7 +206,10 @@ pub fn build_from_rig(
             image: &v.photo,
         })
         .collect();
-    let prepared = Prepared::new(&atlas, &rt, &refs, opts.level);
+    // every pixel's ray is cast once: for the silhouette check and for the gathering
+    let hits: Vec<Vec<bool>> = refs.par_iter().map(|v| pixel_hits(&rt, v)).collect();
+    let warnings = silhouette_warnings(&views, &hits);
+    let prepared = Prepared::with_hits(&atlas, &rt, &refs, &hits, opts.level);
     stage(3);
     let field = prepared.fit(method, opts)?;
     let invalid_pixels = views

@@ -63,8 +63,22 @@ pub fn gather(
     points: &[GridPoint],
     views: &[View],
 ) -> (Vec<Observations>, GatherReport) {
-    let cleaned: Vec<(HdrImage, usize)> =
-        views.par_iter().map(|v| without_edges(scene, v)).collect();
+    let hits: Vec<Vec<bool>> = views.par_iter().map(|v| pixel_hits(scene, v)).collect();
+    gather_with_hits(scene, points, views, &hits)
+}
+
+/// [`gather`] with each view's [`pixel_hits`] already cast (one per view, in order).
+pub fn gather_with_hits(
+    scene: &RtScene,
+    points: &[GridPoint],
+    views: &[View],
+    hits: &[Vec<bool>],
+) -> (Vec<Observations>, GatherReport) {
+    let cleaned: Vec<(HdrImage, usize)> = views
+        .par_iter()
+        .zip(hits)
+        .map(|(v, hit)| without_edges(v, hit))
+        .collect();
     let views: Vec<View> = views
         .iter()
         .zip(&cleaned)
@@ -93,12 +107,11 @@ pub fn gather(
     (obs, report)
 }
 
-/// A copy of the view's photograph whose pixels off the mesh or on its silhouette are invalid (a
-/// pixel is kept when its centre ray and those of its 8 neighbours hit the mesh), and the number
-/// of valid pixels on the mesh dropped as silhouette pixels.
-fn without_edges(scene: &RtScene, v: &View) -> (HdrImage, usize) {
-    let (w, h) = (v.image.width, v.image.height);
-    let hit: Vec<bool> = (0..w * h)
+/// Whether each pixel centre's ray through the view's camera hits the scene (row-major, the
+/// photograph's size).
+pub fn pixel_hits(scene: &RtScene, v: &View) -> Vec<bool> {
+    let w = v.image.width;
+    (0..w * v.image.height)
         .into_par_iter()
         .map(|i| {
             let (o, d) = v.camera.pixel_ray((i % w) as f64, (i / w) as f64);
@@ -106,7 +119,14 @@ fn without_edges(scene: &RtScene, v: &View) -> (HdrImage, usize) {
                 .intersect(o.as_vec3(), d.as_vec3(), 0.0, f32::INFINITY)
                 .is_some()
         })
-        .collect();
+        .collect()
+}
+
+/// A copy of the view's photograph whose pixels off the mesh or on its silhouette are invalid (a
+/// pixel is kept when its centre ray and those of its 8 neighbours hit the mesh: `hit`, from
+/// [`pixel_hits`]), and the number of valid pixels on the mesh dropped as silhouette pixels.
+fn without_edges(v: &View, hit: &[bool]) -> (HdrImage, usize) {
+    let (w, h) = (v.image.width, v.image.height);
     let mut img = v.image.clone();
     let mut dropped = 0;
     for (i, valid) in img.valid.iter_mut().enumerate() {

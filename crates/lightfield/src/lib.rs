@@ -32,7 +32,9 @@ pub mod store;
 
 pub use build::{grid_points, BuildOptions, Method, Prepared};
 pub use capture::{build_from_rig, GridOptions, RigBuild};
-pub use data::{gather, reparameterise, GatherReport, GridPoint, View};
+pub use data::{
+    gather, gather_with_hits, pixel_hits, reparameterise, GatherReport, GridPoint, View,
+};
 pub use field::{Coding, FieldRenderer, RenderSlfOptions, SurfaceLightField};
 pub use fit::{fair_pointwise, DataLumisphere, FitOptions};
 pub use lumisphere::Octahedron;

@@ -2,6 +2,7 @@
 //! colour bytes of each stored field, colour bytes on a logarithmic axis.
 
 use crate::LightFieldError;
+use igi_imaging::plot::{write_chart, Axis, Chart, Series, BLUE_RGB};
 use std::path::Path;
 
 /// One stored field: its label (the method), colour bytes and held-out PSNR (dB).
@@ -14,8 +15,6 @@ pub struct SizePoint {
 
 /// Writes the plot as a PNG (atomically).
 pub fn plot_error_against_size(path: &Path, points: &[SizePoint]) -> Result<(), LightFieldError> {
-    use plotters::prelude::*;
-    igi_imaging::plot::register_fonts();
     let bytes = points.iter().map(|p| p.colour_bytes.max(1) as f64);
     let (xlo, xhi) = bytes.fold((f64::INFINITY, 0f64), |(a, b), x| (a.min(x), b.max(x)));
     let psnr = points.iter().map(|p| p.psnr_db).filter(|p| p.is_finite());
@@ -28,40 +27,22 @@ pub fn plot_error_against_size(path: &Path, points: &[SizePoint]) -> Result<(), 
             msg: "nothing to plot (no finite PSNR)".into(),
         });
     }
-    igi_imaging::io::write_atomic(path, |tmp| {
-        let enc = |e: String| igi_imaging::ImagingError::Encode {
-            path: path.to_path_buf(),
-            msg: e,
-        };
-        let root = BitMapBackend::new(tmp, (800, 500)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| enc(e.to_string()))?;
-        let mut chart = ChartBuilder::on(&root)
-            .caption(
-                "surface light field: held-out PSNR against colour bytes",
-                ("sans-serif", 20),
-            )
-            .margin(10)
-            .x_label_area_size(40)
-            .y_label_area_size(60)
-            .build_cartesian_2d((xlo / 1.5..xhi * 1.5).log_scale(), (ylo - 1.0)..(yhi + 1.0))
-            .map_err(|e| enc(e.to_string()))?;
-        chart
-            .configure_mesh()
-            .x_desc("colour bytes (median + coding)")
-            .y_desc("held-out PSNR (dB)")
-            .draw()
-            .map_err(|e| enc(e.to_string()))?;
-        for p in points {
-            let xy = (p.colour_bytes.max(1) as f64, p.psnr_db);
-            let marker = EmptyElement::at(xy)
-                + Circle::new((0, 0), 5, BLUE.filled())
-                + Text::new(p.label.clone(), (9, -7), ("sans-serif", 14));
-            chart
-                .draw_series(std::iter::once(marker))
-                .map_err(|e| enc(e.to_string()))?;
-        }
-        root.present().map_err(|e| enc(e.to_string()))
-    })?;
+    let mut marks = Series::dots(
+        points
+            .iter()
+            .map(|p| (p.colour_bytes.max(1) as f64, p.psnr_db))
+            .collect(),
+        BLUE_RGB,
+        5,
+    );
+    marks.point_labels = points.iter().map(|p| p.label.clone()).collect();
+    let chart = Chart {
+        title: "surface light field: held-out PSNR against colour bytes".into(),
+        x: Axis::log("colour bytes (median + coding)", xlo / 1.5..xhi * 1.5),
+        y: Axis::linear("held-out PSNR (dB)", (ylo - 1.0)..(yhi + 1.0)),
+        series: vec![marks],
+    };
+    write_chart(path, (800, 500), &chart)?;
     Ok(())
 }
 

@@ -47,9 +47,7 @@ pub fn pattern_file_name(lambda: f64, n: i32) -> String {
 /// is checked). Returns the paths written.
 pub fn write_patterns(dir: &Path, width: usize, height: usize) -> Result<Vec<PathBuf>, HullError> {
     if width == 0 || height == 0 || width > 1 << 15 || height > 1 << 15 {
-        return Err(HullError::InvalidArgument(format!(
-            "backdrop size {width}x{height} must be 1..32768 on each side"
-        )));
+        return Err(HullError::BackdropSize { width, height });
     }
     std::fs::create_dir_all(dir).map_err(|e| HullError::io(dir, e))?;
     let mut out = Vec::new();

@@ -112,10 +112,7 @@ pub fn build(
     progress: &mut dyn FnMut(Stage),
 ) -> Result<BuildReport, HullError> {
     if opts.resolution < 256 {
-        return Err(HullError::InvalidArgument(format!(
-            "resolution {} is coarser than bbox/256",
-            opts.resolution
-        )));
+        return Err(HullError::CoarseResolution(opts.resolution));
     }
     check_output(out)?;
     let mut t = Timings::default();

@@ -56,9 +56,18 @@ pub enum HullError {
     /// The SVD of a block of light images did not converge.
     #[error("view {view:?}: the SVD of the light images' block ({bx}, {by}) did not converge")]
     Svd { view: String, bx: u32, by: u32 },
-    /// A bad argument (resolution, image size...).
-    #[error("invalid argument: {0}")]
-    InvalidArgument(String),
+    /// A carving resolution outside 2..=2048 cells per axis.
+    #[error("invalid argument: carving resolution {0} must be 2..=2048 cells per axis")]
+    CarvingResolution(usize),
+    /// Relighting with no light direction.
+    #[error("invalid argument: relighting needs at least one light direction")]
+    NoLights,
+    /// A build resolution coarser than the bounding box over 256.
+    #[error("invalid argument: resolution {0} is coarser than bbox/256")]
+    CoarseResolution(usize),
+    /// A backdrop pattern size outside 1..32768 on a side.
+    #[error("invalid argument: backdrop size {width}x{height} must be 1..32768 on each side")]
+    BackdropSize { width: usize, height: usize },
 }
 
 impl HullError {

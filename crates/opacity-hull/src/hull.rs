@@ -45,9 +45,7 @@ pub fn carve_hull(
     resolution: usize,
 ) -> Result<VisualHull, HullError> {
     if !(2..=2048).contains(&resolution) {
-        return Err(HullError::InvalidArgument(format!(
-            "carving resolution {resolution} must be 2..=2048 cells per axis"
-        )));
+        return Err(HullError::CarvingResolution(resolution));
     }
     let grid = CellGrid::new(min, max, resolution);
     let carver = carve(&grid, views);
@@ -163,8 +161,7 @@ pub fn volume_curves(
 
 /// Plot volume curves (relative volume against the number of views) to a PNG, atomically.
 pub fn plot_volume_curves(path: &Path, curves: &[Vec<f64>]) -> Result<(), HullError> {
-    use plotters::prelude::*;
-    igi_imaging::plot::register_fonts();
+    use igi_imaging::plot::{write_chart, Axis, Chart, Series, BLUE_RGB};
     let n = curves.first().map_or(1, Vec::len);
     let ymax = curves
         .iter()
@@ -172,39 +169,23 @@ pub fn plot_volume_curves(path: &Path, curves: &[Vec<f64>]) -> Result<(), HullEr
         .fold(1.0f64, |a, &b| a.max(b))
         .min(50.0)
         * 1.05;
-    igi_imaging::io::write_atomic(path, |tmp| {
-        let enc = |e: String| igi_imaging::ImagingError::Encode {
-            path: path.to_path_buf(),
-            msg: e,
-        };
-        let root = BitMapBackend::new(tmp, (800, 500)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| enc(e.to_string()))?;
-        let mut chart = ChartBuilder::on(&root)
-            .caption(
-                "visual hull volume against views (random orders)",
-                ("sans-serif", 20),
-            )
-            .margin(10)
-            .x_label_area_size(40)
-            .y_label_area_size(60)
-            .build_cartesian_2d(1f64..n as f64, 0.9f64..ymax)
-            .map_err(|e| enc(e.to_string()))?;
-        chart
-            .configure_mesh()
-            .x_desc("number of views")
-            .y_desc("volume / final volume")
-            .draw()
-            .map_err(|e| enc(e.to_string()))?;
-        for c in curves {
-            let pts = c
-                .iter()
-                .enumerate()
-                .map(|(i, &v)| ((i + 1) as f64, v.min(ymax)));
-            chart
-                .draw_series(LineSeries::new(pts, BLUE.mix(0.4).stroke_width(1)))
-                .map_err(|e| enc(e.to_string()))?;
-        }
-        root.present().map_err(|e| enc(e.to_string()))
-    })?;
+    let series = curves
+        .iter()
+        .map(|c| {
+            let pts = c.iter().enumerate();
+            let pts = pts.map(|(i, &v)| ((i + 1) as f64, v.min(ymax))).collect();
+            Series {
+                opacity: 0.4,
+                ..Series::line(pts, BLUE_RGB, 1)
+            }
+        })
+        .collect();
+    let chart = Chart {
+        title: "visual hull volume against views (random orders)".into(),
+        x: Axis::linear("number of views", 1f64..n as f64),
+        y: Axis::linear("volume / final volume", 0.9f64..ymax),
+        series,
+    };
+    write_chart(path, (800, 500), &chart)?;
     Ok(())
 }

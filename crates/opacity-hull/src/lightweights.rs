@@ -50,9 +50,7 @@ pub fn light_weights(
     directions: &[[f64; 3]],
 ) -> Result<Vec<[f64; 3]>, HullError> {
     if directions.is_empty() {
-        return Err(HullError::InvalidArgument(
-            "relighting needs at least one light direction".into(),
-        ));
+        return Err(HullError::NoLights);
     }
     let cells = Cells {
         tree: ImmutableKdTree::new_from_slice(directions),

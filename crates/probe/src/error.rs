@@ -27,10 +27,41 @@ pub enum ProbeError {
     /// A CSV table's structure (`igi_imaging::csv`): the file, the line and the problem.
     #[error(transparent)]
     Csv(#[from] igi_imaging::csv::CsvError),
-    #[error("invalid input: {0}")]
-    InvalidInput(String),
+    /// Too few of the board's fiducials found for a pose.
+    #[error("invalid input: found {found} of the board's {markers} fiducials ({dictionary} dictionary; {seen} markers of that dictionary in the image): the pose needs at least 2")]
+    TooFewFiducials {
+        found: usize,
+        markers: usize,
+        dictionary: String,
+        seen: usize,
+    },
+    /// A photograph whose size is not its camera's.
+    #[error(
+        "invalid input: the image is {image_w}x{image_h} but the camera is {camera_w}x{camera_h}"
+    )]
+    ImageSize {
+        image_w: usize,
+        image_h: usize,
+        camera_w: u32,
+        camera_h: u32,
+    },
+    /// Map and convolution widths that do not fit together.
+    #[error("invalid input: map width {map} must be even and a multiple of the convolution width {conv}")]
+    MapWidth { map: usize, conv: usize },
+    /// The sun sphere (black, else mirror) has no pixel to look for the sun in.
+    #[error("invalid input: the sun sphere has no usable pixels")]
+    NoSunPixels,
+    /// A non-finite value in an unwarped map.
+    #[error("invalid input: non-finite value in the unwarped map")]
+    NonFiniteMap,
+    /// Too few usable diffuse sphere pixels for its solve.
+    #[error(
+        "invalid input: only {used} usable diffuse sphere pixels ({masked} saturated or invalid)"
+    )]
+    TooFewDiffusePixels { used: usize, masked: usize },
+    /// The complex index of refraction could not be fitted (the reason says why).
     #[error("fit failed: {0}")]
-    Fit(String),
+    Fit(IorFitProblem),
     /// A lighting file could not be written.
     #[error(transparent)]
     Format(#[from] igi_formats::FormatsError),
@@ -44,4 +75,15 @@ pub enum ProbeError {
         #[source]
         source: ImagingError,
     },
+}
+
+/// Why a complex index of refraction could not be fitted.
+#[derive(Debug, thiserror::Error)]
+pub enum IorFitProblem {
+    #[error("need at least 3 reflectance samples, got {0}")]
+    TooFewSamples(usize),
+    #[error("bad sample (angle {angle} rad, reflectance {reflectance}): want angle in [0, pi/2) and reflectance in [0, 1]")]
+    BadSample { angle: f64, reflectance: f64 },
+    #[error("Levenberg-Marquardt stopped: {0}")]
+    Stopped(String),
 }

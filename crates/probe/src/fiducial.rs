@@ -50,14 +50,12 @@ pub fn estimate_board_pose(
     // a marker id seen twice is ambiguous: it counts as missing
     let m = match_markers(&fid.markers, &found);
     if m.found.len() < 2 {
-        return Err(ProbeError::InvalidInput(format!(
-            "found {} of the board's {} fiducials ({} dictionary; {} markers of that dictionary in the image): \
-             the pose needs at least 2",
-            m.found.len(),
-            fid.markers.len(),
-            fid.dictionary.name(),
-            found.len()
-        )));
+        return Err(ProbeError::TooFewFiducials {
+            found: m.found.len(),
+            markers: fid.markers.len(),
+            dictionary: fid.dictionary.name().to_string(),
+            seen: found.len(),
+        });
     }
     let pnp = cv::solve_pnp_matched(&camera.intrinsics, &m.target, &m.pixels, PNP_THRESHOLD_PX)?;
     let r = pnp.pose.r.transpose().to_cols_array_2d();

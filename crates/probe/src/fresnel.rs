@@ -1,7 +1,7 @@
 //! Fresnel reflectance of the calibration spheres and a Levenberg-Marquardt fit of a complex
 //! index of refraction from reflectance-versus-angle samples.
 
-use crate::ProbeError;
+use crate::{IorFitProblem, ProbeError};
 use igi_imaging::csv::Table;
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{Complex, DVector, Dyn, OMatrix, Owned, Vector2, U2};
@@ -94,10 +94,7 @@ impl LeastSquaresProblem<f64, Dyn, U2> for IorProblem<'_> {
 /// grazing make `n` and `k` separable (normal incidence alone fixes only one combination).
 pub fn fit_complex_ior(samples: &[(f64, f64)], init: (f64, f64)) -> Result<IorFit, ProbeError> {
     if samples.len() < 3 {
-        return Err(ProbeError::Fit(format!(
-            "need at least 3 reflectance samples, got {}",
-            samples.len()
-        )));
+        return Err(ProbeError::Fit(IorFitProblem::TooFewSamples(samples.len())));
     }
     if let Some(s) = samples.iter().find(|(t, r)| {
         !(t.is_finite()
@@ -106,10 +103,10 @@ pub fn fit_complex_ior(samples: &[(f64, f64)], init: (f64, f64)) -> Result<IorFi
             && *t < std::f64::consts::FRAC_PI_2
             && (0.0..=1.0).contains(r))
     }) {
-        return Err(ProbeError::Fit(format!(
-            "bad sample (angle {} rad, reflectance {}): want angle in [0, pi/2) and reflectance in [0, 1]",
-            s.0, s.1
-        )));
+        return Err(ProbeError::Fit(IorFitProblem::BadSample {
+            angle: s.0,
+            reflectance: s.1,
+        }));
     }
     let problem = IorProblem {
         samples,
@@ -117,10 +114,10 @@ pub fn fit_complex_ior(samples: &[(f64, f64)], init: (f64, f64)) -> Result<IorFi
     };
     let (problem, report) = LevenbergMarquardt::new().minimize(problem);
     if !report.termination.was_successful() {
-        return Err(ProbeError::Fit(format!(
-            "Levenberg-Marquardt stopped: {:?}",
+        return Err(ProbeError::Fit(IorFitProblem::Stopped(format!(
+            "{:?}",
             report.termination
-        )));
+        ))));
     }
     let p = problem.p;
     let rms = (problem.res_at(&p).norm_squared() / samples.len() as f64).sqrt();

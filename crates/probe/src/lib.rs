@@ -49,5 +49,5 @@ pub mod resample;
 pub mod synth;
 
 pub use board::{Board, BoardSpec, BoardSphere, SphereKind};
-pub use error::ProbeError;
+pub use error::{IorFitProblem, ProbeError};
 pub use pipeline::{process, Diagnostics, ProbeOptions, ProbeResult, SunEstimate};

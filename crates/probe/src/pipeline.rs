@@ -253,20 +253,22 @@ impl Ctx<'_> {
 
 fn check_inputs(image: &HdrImage, camera: &Camera, opt: &ProbeOptions) -> Result<(), ProbeError> {
     if image.width != camera.width as usize || image.height != camera.height as usize {
-        return Err(ProbeError::InvalidInput(format!(
-            "the image is {}x{} but the camera is {}x{}",
-            image.width, image.height, camera.width, camera.height
-        )));
+        return Err(ProbeError::ImageSize {
+            image_w: image.width,
+            image_h: image.height,
+            camera_w: camera.width,
+            camera_h: camera.height,
+        });
     }
     if opt.map_width < 8
         || opt.map_width % 2 != 0
         || opt.conv_width == 0
         || opt.map_width % opt.conv_width != 0
     {
-        return Err(ProbeError::InvalidInput(format!(
-            "map width {} must be even and a multiple of the convolution width {}",
-            opt.map_width, opt.conv_width
-        )));
+        return Err(ProbeError::MapWidth {
+            map: opt.map_width,
+            conv: opt.conv_width,
+        });
     }
     Ok(())
 }
@@ -351,9 +353,7 @@ fn find_sun(
             saturated: &spot_sat,
             peak,
         };
-        let l = locate_spot(&spots, opt.sun_diameter_deg).ok_or_else(|| {
-            ProbeError::InvalidInput("the sun sphere has no usable pixels".into())
-        })?;
+        let l = locate_spot(&spots, opt.sun_diameter_deg).ok_or(ProbeError::NoSunPixels)?;
         if l.direction.is_none() {
             warnings.push("the sun spot's centre does not lie on the sphere; sun ignored".into());
         }
@@ -413,6 +413,18 @@ struct MirrorMaps {
 /// Mask the sun's neighbourhood in the mirror (its light goes into the disk; `solved_sun` is
 /// the direction of a sun whose radiance is solved separately) and unwarp the mirror into the
 /// lat-long sky (holes filled) and the hemisphere pictures.
+impl MirrorMaps {
+    /// Refuses a non-finite value in the sky or the mirror's hemisphere.
+    fn check_finite(&self) -> Result<(), ProbeError> {
+        for p in self.sky.pixels.iter().chain(self.mirror_hemi.pixels.iter()) {
+            if p.iter().any(|c| !c.is_finite()) {
+                return Err(ProbeError::NonFiniteMap);
+            }
+        }
+        Ok(())
+    }
+}
+
 fn unwarp_mirror(ctx: &Ctx, views: &BoardViews, solved_sun: Option<DVec3>) -> MirrorMaps {
     let (img, opt) = (ctx.img, ctx.opt);
     let mut mirror_img = img.clone();
@@ -565,9 +577,7 @@ fn diffuse_samples<'a>(ctx: &Ctx, px: &'a [SpherePixel]) -> Result<DiffuseSample
         tracing::info!("{masked} saturated/invalid diffuse sphere pixels left out of the solve");
     }
     if used < 10 {
-        return Err(ProbeError::InvalidInput(format!(
-            "only {used} usable diffuse sphere pixels ({masked} saturated or invalid)"
-        )));
+        return Err(ProbeError::TooFewDiffusePixels { used, masked });
     }
     let d_meas = good
         .iter()
@@ -710,14 +720,15 @@ pub fn process(
     check_inputs(image, camera, opt)?;
     let mut warnings = Vec::new();
     let img = working_copy(image, opt.saturation);
-    let mut outline_fits = Vec::new();
-    let refined = opt.refine_centers.then(|| {
-        let (b, fits, w) = crate::outline::refine_board(&img, camera, board, 0.5);
-        log_outline_fits(&fits);
-        warnings.extend(w);
-        outline_fits = fits;
-        b
-    });
+    let (refined, outline_fits) = match opt.refine_centers {
+        true => {
+            let (b, fits, w) = crate::outline::refine_board(&img, camera, board, 0.5);
+            log_outline_fits(&fits);
+            warnings.extend(w);
+            (Some(b), fits)
+        }
+        false => (None, Vec::new()),
+    };
     let board = refined.as_ref().unwrap_or(board);
     let views = BoardViews::new(camera, board);
     let radii = views.check_sizes(opt.min_radius_px, &mut warnings)?;
@@ -742,13 +753,7 @@ pub fn process(
         Some(dv) => solve_diffuse(&ctx, dv, &maps.sky, solved_sun, &mut warnings)?,
         None => DiffuseSolve::default(),
     };
-    for p in maps.sky.pixels.iter().chain(maps.mirror_hemi.pixels.iter()) {
-        if p.iter().any(|c| !c.is_finite()) {
-            return Err(ProbeError::InvalidInput(
-                "non-finite value in the unwarped map".into(),
-            ));
-        }
-    }
+    maps.check_finite()?;
     let sun = sun_dir.map(|s| sun_estimate(s, &search, &maps, &diffuse, opt));
     let sky_valid_fraction = maps.sky_measured.valid_fraction();
     Ok(ProbeResult {

@@ -78,12 +78,77 @@ fn board_json() -> String {
 #[cfg(feature = "opencv")]
 #[test]
 fn fiducials_give_the_board_pose_and_the_same_lighting() {
-    use igi_probe::synth::{direction_from_angles, render_board_with_panel, SynthPanel, SynthSun};
+    use igi_probe::synth::{direction_from_angles, SynthSun};
     use igi_probe::{process, ProbeOptions};
     let spec = BoardSpec::from_json_str(&board_json(), Path::new("board.json")).unwrap();
     let cam = camera();
     let pose = true_pose();
     let board_true = spec.with_pose(&pose).unwrap();
+    let sun = SynthSun {
+        direction: direction_from_angles(35.0, 200.0),
+        radiance: [3.0e4, 2.9e4, 2.7e4],
+        diameter_deg: 3.0,
+    };
+    let img = photograph(&spec, &cam, &pose, &board_true, sun);
+    let placed = place_board(&spec, &img, &cam).unwrap();
+    let centre_err = check_pose(&placed, &pose, &board_true);
+    // the lighting from the fiducial placement against the lighting from the known pose
+    // a 3 degree sun: the 0.53 degree disk would cover a tenth of a pixel of the 54 px black sphere
+    let opt = ProbeOptions {
+        sun_diameter_deg: 3.0,
+        ..ProbeOptions::default()
+    };
+    let a = process(&img, &cam, &board_true, &opt).unwrap();
+    let b = process(&img, &cam, &placed.board, &opt).unwrap();
+    let (sa, sb) = (
+        a.diagnostics.sun.as_ref().unwrap(),
+        b.diagnostics.sun.as_ref().unwrap(),
+    );
+    let (da, db) = (
+        DVec3::from_array(sa.direction),
+        DVec3::from_array(sb.direction),
+    );
+    let sun_angle = da.angle_between(db).to_degrees();
+    let truth_angle = da.angle_between(sun.direction).to_degrees();
+    let (ra, rb) = (sa.radiance.unwrap(), sb.radiance.unwrap());
+    let rad_rel: Vec<f64> = (0..3).map(|c| (rb[c] / ra[c] - 1.0) as f64).collect();
+    let sky_rel = sky_relative_rms(&a.sky_measured, &b.sky_measured);
+    eprintln!(
+        "lighting, fiducial vs known pose: sun {sun_angle:.4} deg apart (vs truth: known pose {truth_angle:.3} deg, \
+         fiducials {:.3} deg), radiance {rad_rel:?}, sky relative RMS {sky_rel:.5}",
+        db.angle_between(sun.direction).to_degrees()
+    );
+    // a black-sphere centre off by dc tilts the normal at the sun's spot by about dc / r and
+    // the reflected sun direction by twice that (0.33 deg for 0.17 mm on a 60 mm sphere)
+    let bound = (1.5 * 2.0 * centre_err[1] / 0.06).to_degrees();
+    assert!(
+        sun_angle < bound.min(0.5),
+        "sun directions {sun_angle} deg apart (bound {bound})"
+    );
+    assert!(rad_rel.iter().all(|r| r.abs() < 0.01), "{rad_rel:?}");
+    assert!(sky_rel < 0.02, "sky maps differ by {sky_rel}");
+    check_refined(
+        &img,
+        &cam,
+        &placed,
+        &board_true,
+        &opt,
+        (da, sun_angle),
+        sun.direction,
+    );
+}
+
+/// The synthetic photograph: the board at `pose` on its printed panel (the four markers),
+/// under the sunny fixture sky and `sun`.
+#[cfg(feature = "opencv")]
+fn photograph(
+    spec: &BoardSpec,
+    cam: &Camera,
+    pose: &WorldToCamera,
+    board_true: &igi_probe::Board,
+    sun: igi_probe::synth::SynthSun,
+) -> igi_imaging::HdrImage {
+    use igi_probe::synth::{render_board_with_panel, SynthPanel};
     let markers = (0..4)
         .map(|i| {
             (
@@ -99,21 +164,24 @@ fn fiducials_give_the_board_pose_and_the_same_lighting() {
         })
         .collect();
     let panel = SynthPanel {
-        board_to_camera: pose,
+        board_to_camera: *pose,
         extent: [-0.4, -0.27, 0.4, 0.27],
         white: 0.8,
         black: 0.04,
         markers,
     };
     let sky = read_image(&fixture("sunny/sky_truth.exr")).unwrap();
-    let sun = SynthSun {
-        direction: direction_from_angles(35.0, 200.0),
-        radiance: [3.0e4, 2.9e4, 2.7e4],
-        diameter_deg: 3.0,
-    };
-    let img = render_board_with_panel(&cam, &board_true, &sky, Some(sun), 3, Some(&panel));
+    render_board_with_panel(cam, board_true, &sky, Some(sun), 3, Some(&panel))
+}
 
-    let placed = place_board(&spec, &img, &cam).unwrap();
+/// The pose from the fiducials against the true one: rotation, translation, sphere centres
+/// and the corners' RMS; returns the centres' errors (mirror, black, diffuse) in metres.
+#[cfg(feature = "opencv")]
+fn check_pose(
+    placed: &igi_probe::fiducial::Placement,
+    pose: &WorldToCamera,
+    board_true: &igi_probe::Board,
+) -> [f64; 3] {
     let est = placed.pose.as_ref().expect("pose from the fiducials");
     assert_eq!(est.markers_found, vec![0, 1, 2, 3]);
     let p = est.board_to_camera();
@@ -153,67 +221,45 @@ fn fiducials_give_the_board_pose_and_the_same_lighting() {
     assert!(t_err < 1e-3, "translation error {t_err} m");
     assert!(centre_err.iter().all(|e| *e < 1e-3), "{centre_err:?}");
     assert!(est.rms_px < 0.3, "{}", est.rms_px);
+    centre_err
+}
 
-    // the lighting from the fiducial placement against the lighting from the known pose
-    // a 3 degree sun: the 0.53 degree disk would cover a tenth of a pixel of the 54 px black sphere
-    let opt = ProbeOptions {
-        sun_diameter_deg: 3.0,
-        ..ProbeOptions::default()
-    };
-    let a = process(&img, &cam, &board_true, &opt).unwrap();
-    let b = process(&img, &cam, &placed.board, &opt).unwrap();
-    let (sa, sb) = (
-        a.diagnostics.sun.as_ref().unwrap(),
-        b.diagnostics.sun.as_ref().unwrap(),
-    );
-    let (da, db) = (
-        DVec3::from_array(sa.direction),
-        DVec3::from_array(sb.direction),
-    );
-    let sun_angle = da.angle_between(db).to_degrees();
-    let truth_angle = da.angle_between(sun.direction).to_degrees();
-    let (ra, rb) = (sa.radiance.unwrap(), sb.radiance.unwrap());
-    let rad_rel: Vec<f64> = (0..3).map(|c| (rb[c] / ra[c] - 1.0) as f64).collect();
-    // sky maps where both are valid, relative RMS
+/// The relative RMS difference of two lat-long sky maps where both are valid (solid-angle
+/// weighted).
+fn sky_relative_rms(a: &igi_imaging::HdrImage, b: &igi_imaging::HdrImage) -> f64 {
     let (mut se, mut st) = (0.0f64, 0.0f64);
-    for k in 0..a.sky_measured.pixels.len() {
-        if a.sky_measured.valid[k] && b.sky_measured.valid[k] {
-            let i = k / a.sky_measured.width;
-            let w = igi_imaging::latlong::pixel_solid_angle(
-                i,
-                a.sky_measured.width,
-                a.sky_measured.height,
-            ) as f64;
+    for k in 0..a.pixels.len() {
+        if a.valid[k] && b.valid[k] {
+            let i = k / a.width;
+            let w = igi_imaging::latlong::pixel_solid_angle(i, a.width, a.height) as f64;
             for c in 0..3 {
-                se +=
-                    w * (a.sky_measured.pixels[k][c] - b.sky_measured.pixels[k][c]).powi(2) as f64;
-                st += w * (a.sky_measured.pixels[k][c] as f64).powi(2);
+                se += w * (a.pixels[k][c] - b.pixels[k][c]).powi(2) as f64;
+                st += w * (a.pixels[k][c] as f64).powi(2);
             }
         }
     }
-    let sky_rel = (se / st).sqrt();
-    eprintln!(
-        "lighting, fiducial vs known pose: sun {sun_angle:.4} deg apart (vs truth: known pose {truth_angle:.3} deg, \
-         fiducials {:.3} deg), radiance {rad_rel:?}, sky relative RMS {sky_rel:.5}",
-        db.angle_between(sun.direction).to_degrees()
-    );
-    // a black-sphere centre off by dc tilts the normal at the sun's spot by about dc / r and
-    // the reflected sun direction by twice that (0.33 deg for 0.17 mm on a 60 mm sphere)
-    let bound = (1.5 * 2.0 * centre_err[1] / 0.06).to_degrees();
-    assert!(
-        sun_angle < bound.min(0.5),
-        "sun directions {sun_angle} deg apart (bound {bound})"
-    );
-    assert!(rad_rel.iter().all(|r| r.abs() < 0.01), "{rad_rel:?}");
-    assert!(sky_rel < 0.02, "sky maps differ by {sky_rel}");
+    (se / st).sqrt()
+}
 
-    // the fiducial placement with the mirror and black centres refined from their outlines
-    // (igi probe --refine-spheres)
+/// The fiducial placement with the mirror and black centres refined from their outlines
+/// (igi probe --refine-spheres): `(da, sun_angle)` are the known pose's sun direction and the
+/// fiducial placement's angle from it.
+#[cfg(feature = "opencv")]
+fn check_refined(
+    img: &igi_imaging::HdrImage,
+    cam: &Camera,
+    placed: &igi_probe::fiducial::Placement,
+    board_true: &igi_probe::Board,
+    opt: &igi_probe::ProbeOptions,
+    (da, sun_angle): (DVec3, f64),
+    sun_direction: DVec3,
+) {
+    use igi_probe::{process, ProbeOptions};
     let opt_r = ProbeOptions {
         refine_centers: true,
         ..opt.clone()
     };
-    let c = process(&img, &cam, &placed.board, &opt_r).unwrap();
+    let c = process(img, cam, &placed.board, &opt_r).unwrap();
     let dc = DVec3::from_array(c.diagnostics.sun.as_ref().unwrap().direction);
     let refined_angle = dc.angle_between(da).to_degrees();
     let across = |a: DVec3, t: DVec3| {
@@ -226,7 +272,7 @@ fn fiducials_give_the_board_pose_and_the_same_lighting() {
     eprintln!(
         "refined from the outlines: sun {refined_angle:.4} deg from the known pose's (fiducials \
          {sun_angle:.4}), {:.4} deg from the truth; black centre across the line of sight {:.3} mm (fiducials {:.3} mm); fits {:?}",
-        dc.angle_between(sun.direction).to_degrees(),
+        dc.angle_between(sun_direction).to_degrees(),
         across(black_ref, black_t),
         across(black_fid, black_t),
         c.diagnostics.outline_fits

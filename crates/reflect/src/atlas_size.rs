@@ -208,7 +208,7 @@ fn choice_at(
             ..AtlasOptions::default()
         },
     )
-    .map_err(|e| ReflectError::Invalid(format!("trial atlas: {e}")))?;
+    .map_err(|e| ReflectError::TrialAtlas(Box::new(e)))?;
     let efficiency = trial.coverage_fraction();
     Ok(AtlasChoice {
         resolution: resolution_for(mesh.total_area(), footprint, efficiency, max),
@@ -272,9 +272,9 @@ pub fn plan_parts(
         plan_mesh(name, mesh, footprint, cameras, max, 0, &mut out)?;
     }
     crate::parts::check_names(out.iter().map(|p| p.name.as_str())).map_err(|e| {
-        ReflectError::Invalid(format!(
-            "{e}: a site mesh has the name `--atlas auto` gives a piece cut from another (NAME-K); rename the mesh"
-        ))
+        ReflectError::PieceName {
+            source: Box::new(e),
+        }
     })?;
     Ok(out)
 }

@@ -19,8 +19,8 @@
 
 use crate::result::SolveResult;
 use crate::solver::{
-    finish_iteration, part_lobes, plan, solve_group, PartSummary, Pending, Schedule, SolveInputs,
-    SolveOptions,
+    finish_iteration, part_lobes, plan, solve_group, PartSummary, Pending, Plan, Schedule,
+    SolveInputs, SolveOptions,
 };
 use crate::ReflectError;
 use glam::Vec3;
@@ -87,16 +87,40 @@ pub fn groups(
     inputs: &SolveInputs,
     opts: &SolveOptions,
 ) -> Result<Vec<String>, ReflectError> {
-    let mut state = SolveResult::load(result)?;
-    let plan = plan(&mut state, inputs, &jacobi(opts)?)?;
-    Ok(plan.group_names())
+    Ok(Checkpoint::load(result, inputs, opts)?.plan.group_names())
+}
+
+/// The committed checkpoint in a result folder, planned for its next Jacobi iteration.
+struct Checkpoint {
+    opts: SolveOptions,
+    state: SolveResult,
+    /// The iterations it holds (the next one is `k + 1`).
+    k: u32,
+    plan: Plan,
+}
+
+impl Checkpoint {
+    fn load(
+        result: &Path,
+        inputs: &SolveInputs,
+        opts: &SolveOptions,
+    ) -> Result<Checkpoint, ReflectError> {
+        let opts = jacobi(opts)?;
+        let mut state = SolveResult::load(result)?;
+        let k = state.report.iterations.len() as u32;
+        let plan = plan(&mut state, inputs, &opts)?;
+        Ok(Checkpoint {
+            opts,
+            state,
+            k,
+            plan,
+        })
+    }
 }
 
 fn jacobi(opts: &SolveOptions) -> Result<SolveOptions, ReflectError> {
     if opts.schedule != Schedule::Jacobi {
-        return Err(ReflectError::Invalid(
-            "distributed iterations need the Jacobi schedule".into(),
-        ));
+        return Err(ReflectError::NotJacobi);
     }
     Ok(opts.clone())
 }
@@ -111,11 +135,13 @@ pub fn run_task(
     group: &str,
     meta: &TaskMeta,
 ) -> Result<PathBuf, ReflectError> {
-    let opts = jacobi(opts)?;
     let t0 = Instant::now();
-    let mut state = SolveResult::load(result)?;
-    let k = state.report.iterations.len() as u32;
-    let plan = plan(&mut state, inputs, &opts)?;
+    let Checkpoint {
+        opts,
+        mut state,
+        k,
+        plan,
+    } = Checkpoint::load(result, inputs, opts)?;
     let g = plan.group(group)?;
     let snapshot = (state.rho.clone(), state.lobes.clone());
     let progress = crate::solver::NoProgress;
@@ -155,10 +181,7 @@ pub fn write_stale(
     group: &str,
     meta: &TaskMeta,
 ) -> Result<PathBuf, ReflectError> {
-    let opts = jacobi(opts)?;
-    let mut state = SolveResult::load(result)?;
-    let k = state.report.iterations.len() as u32;
-    let plan = plan(&mut state, inputs, &opts)?;
+    let Checkpoint { state, k, plan, .. } = Checkpoint::load(result, inputs, opts)?;
     let g = plan.group(group)?;
     let dir = task_dir(work, k + 1, group);
     let done = TaskDone {
@@ -271,10 +294,12 @@ pub fn merge(
     inputs: &SolveInputs,
     opts: &SolveOptions,
 ) -> Result<bool, ReflectError> {
-    let opts = jacobi(opts)?;
-    let mut state = SolveResult::load(result)?;
-    let k = state.report.iterations.len() as u32;
-    let plan = plan(&mut state, inputs, &opts)?;
+    let Checkpoint {
+        opts,
+        mut state,
+        k,
+        plan,
+    } = Checkpoint::load(result, inputs, opts)?;
     let mut dones = Vec::new();
     let mut missing = Vec::new();
     for name in plan.group_names() {

@@ -45,7 +45,9 @@ pub use result::{
     UNKNOWN_STDERR,
 };
 pub use session::SolveSession;
-pub use solver::{solve, IterationRecord, Progress, Schedule, SolveOptions, SolveReport};
+pub use solver::{
+    solve, solve_in_memory, IterationRecord, Progress, Schedule, SolveOptions, SolveReport,
+};
 pub use survey::{lighting_from_probe, LightingSource, PhotoSpec, Survey};
 
 /// Errors of the inverse solver.
@@ -54,8 +56,76 @@ pub enum ReflectError {
     /// A file is missing, unreadable or malformed.
     #[error("{path}: {msg}")]
     File { path: PathBuf, msg: String },
+    /// Input that cannot be used (kept for callers' own checks, e.g. a checkpoint callback).
     #[error("invalid input: {0}")]
     Invalid(String),
+    /// Solve options that cannot mean a solve (the message names the option).
+    #[error("invalid input: {0}")]
+    Options(String),
+    /// No photograph to solve from.
+    #[error("invalid input: no photographs to solve from")]
+    NoPhotos,
+    /// A part name that cannot name files (empty, or with a path separator).
+    #[error("invalid input: `{0}` cannot name a part")]
+    UnnamablePart(String),
+    /// Two site meshes with the same name.
+    #[error("invalid input: two site meshes are both named `{0}`")]
+    DuplicatePart(String),
+    /// `--atlas auto` cut a piece whose name another mesh has.
+    #[error("invalid input: {source}: a site mesh has the name `--atlas auto` gives a piece cut from another (NAME-K); rename the mesh")]
+    PieceName {
+        #[source]
+        source: Box<ReflectError>,
+    },
+    /// The atlas of a part could not be built.
+    #[error("invalid input: atlas of `{part}`: {source}")]
+    Atlas {
+        part: String,
+        #[source]
+        source: Box<igi_geometry::GeometryError>,
+    },
+    /// The trial atlas of `--atlas auto` could not be built.
+    #[error("invalid input: trial atlas: {0}")]
+    TrialAtlas(#[source] Box<igi_geometry::GeometryError>),
+    /// A part selection (`--parts`) names no part; `known` lists some of the parts.
+    #[error("invalid input: --parts: no part named `{name}` in the site (parts: {known})")]
+    UnknownPart { name: String, known: String },
+    /// A voxel or part to solve that the plan does not hold; `known` lists some of them.
+    #[error("invalid input: no voxel or part `{name}` to solve (there are {count}: {known})")]
+    UnknownGroup {
+        name: String,
+        count: usize,
+        known: String,
+    },
+    /// A prepared site's voxel that the result has no part for.
+    #[error("invalid input: the prepared site holds {0}, which the result does not")]
+    UnknownVoxel(String),
+    /// A voxel group without the prepared site it comes from.
+    #[error("invalid input: a voxel group needs its prepared site")]
+    NoPreparedSite,
+    /// Prepared voxels mixed with plain meshes.
+    #[error("invalid input: a site is either prepared or a set of meshes, not both")]
+    MixedSite,
+    /// Distributed iterations under another schedule than Jacobi.
+    #[error("invalid input: distributed iterations need the Jacobi schedule")]
+    NotJacobi,
+    /// A synthetic camera whose eye and target do not give a pose.
+    #[error("invalid input: camera at {eye} looking at {target} is degenerate")]
+    DegenerateCamera { eye: glam::Vec3, target: glam::Vec3 },
+    /// A synthetic survey whose true and recorded lightings differ in number.
+    #[error("invalid input: {lightings} lightings but {recorded} recorded lightings")]
+    LightingCount { lightings: usize, recorded: usize },
+    /// A synthetic shot naming a lighting that does not exist.
+    #[error("invalid input: shot {shot}: no lighting {lighting}")]
+    NoLighting { shot: String, lighting: usize },
+    /// A query point of `igi sample` too far from every surface of the result (1-based index).
+    #[error("invalid input: point {index} ({}, {}, {}) is {distance:.3e} m from the nearest surface of the result (at most {far:.2} m)", point.x, point.y, point.z)]
+    FarPoint {
+        index: usize,
+        point: glam::Vec3,
+        distance: f32,
+        far: f32,
+    },
     /// No photograph saw any texel of the parts being solved.
     #[error("no photograph sees any solved part (0 observations in iteration {0}): check the cameras' poses and sizes against the site, and the part selection")]
     NoObservations(u32),

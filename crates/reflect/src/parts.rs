@@ -243,12 +243,10 @@ pub(crate) fn check_names<'a>(names: impl Iterator<Item = &'a str>) -> Result<()
     let mut seen = std::collections::HashSet::new();
     for a in names {
         if a.is_empty() || a.contains(['/', '\\']) {
-            return Err(ReflectError::Invalid(format!("`{a}` cannot name a part")));
+            return Err(ReflectError::UnnamablePart(a.to_string()));
         }
         if !seen.insert(a) {
-            return Err(ReflectError::Invalid(format!(
-                "two site meshes are both named `{a}`"
-            )));
+            return Err(ReflectError::DuplicatePart(a.to_string()));
         }
     }
     Ok(())
@@ -283,5 +281,8 @@ fn part_atlas(name: &str, mesh: &TriMesh, resolution: u32) -> Result<Atlas, Refl
             ..AtlasOptions::default()
         },
     )
-    .map_err(|e| ReflectError::Invalid(format!("atlas of `{name}`: {e}")))
+    .map_err(|e| ReflectError::Atlas {
+        part: name.to_string(),
+        source: Box::new(e),
+    })
 }

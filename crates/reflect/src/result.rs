@@ -702,14 +702,8 @@ fn stderr_at(stderr: &[Vec3], r: usize, uv: glam::Vec2) -> Vec3 {
     stderr[y * r + x]
 }
 
-/// The recovered diffuse albedo (and its standard error) of the surface nearest each query
-/// point: a short ray along the point's normal (both ways) finds the surface; when it misses,
-/// the nearest covered texel.
-pub fn sample_albedo(
-    result_dir: &Path,
-    points: &[(Vec3, Vec3)],
-) -> Result<Vec<AlbedoSample>, ReflectError> {
-    let res = SolveResult::load(result_dir)?;
+/// The result's parts as a render scene textured with their recovered albedo (no lobes).
+fn albedo_scene(res: &SolveResult) -> Result<igi_render::Scene, ReflectError> {
     let objects: Vec<(String, TriMesh, igi_render::Material)> = res
         .parts
         .iter()
@@ -732,7 +726,18 @@ pub fn sample_albedo(
             ))
         })
         .collect::<Result<_, ReflectError>>()?;
-    let scene = igi_render::Scene::new(objects)?;
+    Ok(igi_render::Scene::new(objects)?)
+}
+
+/// The recovered diffuse albedo (and its standard error) of the surface nearest each query
+/// point: a short ray along the point's normal (both ways) finds the surface; when it misses,
+/// the nearest covered texel.
+pub fn sample_albedo(
+    result_dir: &Path,
+    points: &[(Vec3, Vec3)],
+) -> Result<Vec<AlbedoSample>, ReflectError> {
+    let res = SolveResult::load(result_dir)?;
+    let scene = albedo_scene(&res)?;
     // how far off the surface a query point may lie: half the finest texel, 1 mm to 5 cm
     let reach = (res
         .parts
@@ -769,14 +774,12 @@ pub fn sample_albedo(
             let index = texels.get_or_init(|| TexelIndex::new(&res));
             let best = index.nearest(&res, p);
             if !(best.0.sqrt() <= far) {
-                return Err(ReflectError::Invalid(format!(
-                    "point {} ({}, {}, {}) is {:.3e} m from the nearest surface of the result (at most {far:.2} m)",
-                    k + 1,
-                    p.x,
-                    p.y,
-                    p.z,
-                    best.0.sqrt()
-                )));
+                return Err(ReflectError::FarPoint {
+                    index: k + 1,
+                    point: p,
+                    distance: best.0.sqrt(),
+                    far,
+                });
             }
             Ok(AlbedoSample {
                 rho: best.1,

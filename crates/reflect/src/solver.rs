@@ -109,7 +109,7 @@ impl Default for SolveOptions {
 impl SolveOptions {
     /// Refuses options that cannot mean a solve (checked before any work or output).
     pub fn validate(&self) -> Result<(), ReflectError> {
-        let bad = |m: String| Err(ReflectError::Invalid(m));
+        let bad = |m: String| Err(ReflectError::Options(m));
         if self.max_iterations == 0 {
             return bad("--iterations 0 would solve nothing; give at least 1".into());
         }
@@ -178,11 +178,14 @@ pub fn check_selection(parts: &[Part], opts: &SolveOptions) -> Result<(), Reflec
     for s in opts.parts.iter().flatten() {
         if !parts.iter().any(|p| selects(s, &p.name)) {
             let names: Vec<&str> = parts.iter().map(|p| p.name.as_str()).take(12).collect();
-            return Err(ReflectError::Invalid(format!(
-                "--parts: no part named `{s}` in the site (parts: {}{})",
-                names.join(", "),
-                if parts.len() > 12 { ", ..." } else { "" }
-            )));
+            return Err(ReflectError::UnknownPart {
+                name: s.clone(),
+                known: format!(
+                    "{}{}",
+                    names.join(", "),
+                    if parts.len() > 12 { ", ..." } else { "" }
+                ),
+            });
         }
     }
     Ok(())
@@ -465,20 +468,12 @@ fn group_scene(
                     .parts
                     .iter()
                     .position(|p| p.name == name)
-                    .ok_or_else(|| {
-                        ReflectError::Invalid(format!(
-                            "the prepared site holds {name}, which the result does not"
-                        ))
-                    })?;
+                    .ok_or_else(|| ReflectError::UnknownVoxel(name.clone()))?;
                 objects.push((name, lp.mesh, material(i)));
             }
             objects
         }
-        (_, None) => {
-            return Err(ReflectError::Invalid(
-                "a voxel group needs its prepared site".into(),
-            ))
-        }
+        (_, None) => return Err(ReflectError::NoPreparedSite),
     };
     let triangles = objects
         .iter()
@@ -521,9 +516,7 @@ fn make_groups(
         }]);
     }
     if stored != parts.len() {
-        return Err(ReflectError::Invalid(
-            "a site is either prepared or a set of meshes, not both".into(),
-        ));
+        return Err(ReflectError::MixedSite);
     }
     Ok(parts
         .iter()
@@ -574,12 +567,15 @@ impl Plan {
             .find(|g| g.name == name && !g.parts.is_empty())
             .ok_or_else(|| {
                 let names = self.group_names();
-                ReflectError::Invalid(format!(
-                    "no voxel or part `{name}` to solve (there are {}: {}{})",
-                    names.len(),
-                    names.iter().take(8).cloned().collect::<Vec<_>>().join(", "),
-                    if names.len() > 8 { ", ..." } else { "" }
-                ))
+                ReflectError::UnknownGroup {
+                    name: name.to_string(),
+                    count: names.len(),
+                    known: format!(
+                        "{}{}",
+                        names.iter().take(8).cloned().collect::<Vec<_>>().join(", "),
+                        if names.len() > 8 { ", ..." } else { "" }
+                    ),
+                }
             })
     }
 }
@@ -592,7 +588,7 @@ pub(crate) fn plan(
     opts: &SolveOptions,
 ) -> Result<Plan, ReflectError> {
     if inputs.photos.is_empty() {
-        return Err(ReflectError::Invalid("no photographs to solve from".into()));
+        return Err(ReflectError::NoPhotos);
     }
     opts.validate()?;
     check_selection(&start.parts, opts)?;
@@ -680,41 +676,8 @@ pub fn solve(
         .map_or(0.0, |r| r.cumulative_s);
     let first_k = start.report.iterations.len() as u32;
     for k in first_k..opts.max_iterations {
-        let mut acc = resumed_pending(&mut start, k);
-        let already_in_iteration = acc.wall_s;
-        let ti = Instant::now();
-        let todo: Vec<&Group> = plan
-            .groups
-            .iter()
-            .filter(|g| !g.parts.is_empty() && !acc.done.contains(&g.name))
-            .collect();
-        let total = texels_of(&start, &todo) * photos.len() as u64;
-        progress.begin(&format!("iteration {}", k + 1), total);
-        // Jacobi: every group of this iteration sees the albedo of the previous one
-        let snapshot =
-            (opts.schedule == Schedule::Jacobi).then(|| (start.rho.clone(), start.lobes.clone()));
-        for g in todo {
-            let sums = solve_group(
-                &mut start,
-                g,
-                &plan,
-                snapshot.as_ref(),
-                &inputs,
-                opts,
-                k,
-                progress,
-            )?;
-            acc.add(&sums);
-            acc.done.push(g.name.clone());
-            if plan.groups.len() > 1 && opts.schedule == Schedule::GaussSeidel {
-                acc.wall_s = already_in_iteration + ti.elapsed().as_secs_f64();
-                start.report.pending = Some(acc.clone());
-                checkpoint(&start)?;
-                start.changed.iter_mut().for_each(|c| *c = false);
-            }
-        }
-        progress.finish();
-        let wall = already_in_iteration + ti.elapsed().as_secs_f64();
+        let (acc, wall, already_in_iteration) =
+            solve_iteration(&mut start, k, &plan, &inputs, opts, progress, checkpoint)?;
         let cumulative = already + t0.elapsed().as_secs_f64() + already_in_iteration;
         let done = finish_iteration(
             &mut start,
@@ -732,6 +695,61 @@ pub fn solve(
         }
     }
     Ok(start)
+}
+
+/// Solves the groups of iteration `k` that a killed run left undone (all of them in a fresh
+/// iteration), with a checkpoint after each group under Gauss-Seidel. Returns the iteration's
+/// statistics, its wall time, and the part of that time spent before a resume.
+fn solve_iteration(
+    start: &mut SolveResult,
+    k: u32,
+    plan: &Plan,
+    inputs: &SolveInputs,
+    opts: &SolveOptions,
+    progress: &dyn Progress,
+    checkpoint: &mut dyn FnMut(&SolveResult) -> Result<(), ReflectError>,
+) -> Result<(Pending, f64, f64), ReflectError> {
+    let mut acc = resumed_pending(start, k);
+    let already_in_iteration = acc.wall_s;
+    let ti = Instant::now();
+    let todo: Vec<&Group> = plan
+        .groups
+        .iter()
+        .filter(|g| !g.parts.is_empty() && !acc.done.contains(&g.name))
+        .collect();
+    let total = texels_of(start, &todo) * inputs.photos.len() as u64;
+    progress.begin(&format!("iteration {}", k + 1), total);
+    // Jacobi: every group of this iteration sees the albedo of the previous one
+    let snapshot =
+        (opts.schedule == Schedule::Jacobi).then(|| (start.rho.clone(), start.lobes.clone()));
+    for g in todo {
+        let sums = solve_group(start, g, plan, snapshot.as_ref(), inputs, opts, k, progress)?;
+        acc.add(&sums);
+        acc.done.push(g.name.clone());
+        if plan.groups.len() > 1 && opts.schedule == Schedule::GaussSeidel {
+            acc.wall_s = already_in_iteration + ti.elapsed().as_secs_f64();
+            start.report.pending = Some(acc.clone());
+            checkpoint(start)?;
+            start.changed.iter_mut().for_each(|c| *c = false);
+        }
+    }
+    progress.finish();
+    let wall = already_in_iteration + ti.elapsed().as_secs_f64();
+    Ok((acc, wall, already_in_iteration))
+}
+
+/// [`solve`] without progress reports or checkpoints: the in-memory solve of the tests and
+/// benchmarks.
+pub fn solve_in_memory(
+    start: SolveResult,
+    photos: &[Photo],
+    basis: Option<&Basis>,
+    truth: Option<&Truth>,
+    opts: &SolveOptions,
+) -> Result<SolveResult, ReflectError> {
+    solve(start, photos, basis, truth, opts, &NoProgress, &mut |_| {
+        Ok(())
+    })
 }
 
 /// The running statistics of iteration `k` (counted from 0): those a killed run left pending

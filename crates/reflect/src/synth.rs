@@ -185,10 +185,8 @@ pub fn look_at_camera(
     height: u32,
     hfov_deg: f64,
 ) -> Result<Camera, ReflectError> {
-    let pose =
-        WorldToCamera::look_at(eye.as_dvec3(), target.as_dvec3(), DVec3::Z).ok_or_else(|| {
-            ReflectError::Invalid(format!("camera at {eye} looking at {target} is degenerate"))
-        })?;
+    let pose = WorldToCamera::look_at(eye.as_dvec3(), target.as_dvec3(), DVec3::Z)
+        .ok_or(ReflectError::DegenerateCamera { eye, target })?;
     let f = 0.5 * width as f64 / (0.5 * hfov_deg.to_radians()).tan();
     let mut cam = Camera::pinhole(
         width,
@@ -316,11 +314,10 @@ fn write_lightings(
     recorded: &[LightingSpec],
 ) -> Result<Vec<Lighting>, ReflectError> {
     if recorded.len() != lightings.len() {
-        return Err(ReflectError::Invalid(format!(
-            "{} lightings but {} recorded lightings",
-            lightings.len(),
-            recorded.len()
-        )));
+        return Err(ReflectError::LightingCount {
+            lightings: lightings.len(),
+            recorded: recorded.len(),
+        });
     }
     let mut lit = Vec::new();
     for (l, r) in lightings.iter().zip(recorded) {
@@ -345,9 +342,13 @@ struct Shoot<'a> {
 impl Shoot<'_> {
     /// Renders shot `i` into `photos/`, saves its camera into `cameras/`; returns its survey entry.
     fn photo(&self, i: usize, s: &ShotSpec) -> Result<PhotoEntry, ReflectError> {
-        let l = self.recorded.get(s.lighting).ok_or_else(|| {
-            ReflectError::Invalid(format!("shot {}: no lighting {}", s.id, s.lighting))
-        })?;
+        let l = self
+            .recorded
+            .get(s.lighting)
+            .ok_or_else(|| ReflectError::NoLighting {
+                shot: s.id.clone(),
+                lighting: s.lighting,
+            })?;
         let opts = RenderOptions {
             spp: self.spp,
             seed: self.seed.wrapping_add(i as u64 * 7919),

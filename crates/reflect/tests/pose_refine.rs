@@ -8,7 +8,7 @@ use glam::{DMat3, DVec3, Vec3};
 use igi_imaging::camera::{points_in_frame, reprojection_rms};
 use igi_imaging::{Camera, WorldToCamera};
 use igi_reflect::parts::build_parts;
-use igi_reflect::solver::{truth_from_scene, NoProgress};
+use igi_reflect::solver::truth_from_scene;
 use igi_reflect::survey::Photo;
 use igi_reflect::synth::{
     ground_and_block, look_at_camera, scene_with_albedo, truth_atlas, LightingSpec,
@@ -62,14 +62,12 @@ fn solve_mae(
         ..SolveOptions::default()
     };
     let ids: Vec<String> = photos.iter().map(|p| p.id.clone()).collect();
-    let done = igi_reflect::solve(
+    let done = igi_reflect::solve_in_memory(
         SolveResult::fresh(parts, ids, &opts),
         photos,
         None,
         Some(truth),
         &opts,
-        &NoProgress,
-        &mut |_| Ok(()),
     )
     .unwrap();
     let m = done.report.iterations.last().unwrap().truth_mae.unwrap();
@@ -117,54 +115,11 @@ fn refinement_from_2_to_5_px_reaches_half_a_pixel_and_the_albedo_of_true_poses()
         for (li, l) in lightings.iter().enumerate() {
             let i = 2 * k + li;
             let camera = look_at_camera(eye, Vec3::new(0.0, 0.0, 0.5), 128, 96, 70.0).unwrap();
-            let lighting = l.lighting().unwrap();
-            let opts = RenderOptions {
-                spp: 128,
-                seed: 40 + i as u64,
-                indirect: 2,
-                russian_roulette: false,
-            };
-            let image = render_image(&scene, &lighting, &camera, &opts, &|_| {})
-                .unwrap()
-                .mean;
-            let target = 2.0 + 3.0 * i as f64 / 5.0; // 2 to 5 px
-            let seen = points_in_frame(&camera, &surface);
-            let rough = perturbed(&camera, &seen, target, 100 + i as u64);
-            let (refined, report) =
-                refine_pose(&image, &rough, &rt, &RefineOptions::default()).unwrap();
-            let before = reprojection_rms(&camera, &rough, &seen).unwrap();
-            let after = reprojection_rms(&camera, &refined, &seen).unwrap();
-            let all_after = reprojection_rms(&camera, &refined, &surface).unwrap();
-            eprintln!(
-                "photo {i} ({}): reprojection RMS in frame {before:.2} px -> {after:.3} px \
-                 (all {} texels in front: {all_after:.3} px); {report:?}",
-                l.name,
-                surface.len()
-            );
-            assert!(
-                (before - target).abs() < 0.05,
-                "perturbation {before} px (wanted {target})"
-            );
+            let ([t, r, f], after) = photo_three_ways((k, i), camera, l, &scene, &surface, &rt);
             worst = worst.max(after);
-            let id = format!("cam{k}-{}", l.name);
-            truth_photos.push(Photo {
-                id: id.clone(),
-                image: image.clone(),
-                camera,
-                lighting: l.lighting().unwrap(),
-            });
-            rough_photos.push(Photo {
-                id: id.clone(),
-                image: image.clone(),
-                camera: rough,
-                lighting: l.lighting().unwrap(),
-            });
-            refined_photos.push(Photo {
-                id,
-                image,
-                camera: refined,
-                lighting,
-            });
+            truth_photos.push(t);
+            rough_photos.push(r);
+            refined_photos.push(f);
         }
     }
     assert!(
@@ -188,4 +143,64 @@ fn refinement_from_2_to_5_px_reaches_half_a_pixel_and_the_albedo_of_true_poses()
         mae_rough > mae_refined,
         "perturbed poses should be worse: {mae_rough} vs {mae_refined}"
     );
+}
+
+/// Photo `i` (view `k` under `l`): rendered from the true `camera`, whose pose is then
+/// perturbed by 2 to 5 px and refined against it. Returns the photo with the true, the
+/// perturbed and the refined camera, and the refined reprojection RMS in frame.
+fn photo_three_ways(
+    (k, i): (usize, usize),
+    camera: Camera,
+    l: &LightingSpec,
+    scene: &igi_render::Scene,
+    surface: &[DVec3],
+    rt: &igi_render::embree::RtScene,
+) -> ([Photo; 3], f64) {
+    let lighting = l.lighting().unwrap();
+    let opts = RenderOptions {
+        spp: 128,
+        seed: 40 + i as u64,
+        indirect: 2,
+        russian_roulette: false,
+    };
+    let image = render_image(scene, &lighting, &camera, &opts, &|_| {})
+        .unwrap()
+        .mean;
+    let target = 2.0 + 3.0 * i as f64 / 5.0; // 2 to 5 px
+    let seen = points_in_frame(&camera, surface);
+    let rough = perturbed(&camera, &seen, target, 100 + i as u64);
+    let (refined, report) = refine_pose(&image, &rough, rt, &RefineOptions::default()).unwrap();
+    let before = reprojection_rms(&camera, &rough, &seen).unwrap();
+    let after = reprojection_rms(&camera, &refined, &seen).unwrap();
+    let all_after = reprojection_rms(&camera, &refined, surface).unwrap();
+    eprintln!(
+        "photo {i} ({}): reprojection RMS in frame {before:.2} px -> {after:.3} px \
+         (all {} texels in front: {all_after:.3} px); {report:?}",
+        l.name,
+        surface.len()
+    );
+    assert!(
+        (before - target).abs() < 0.05,
+        "perturbation {before} px (wanted {target})"
+    );
+    let id = format!("cam{k}-{}", l.name);
+    let truth_photo = Photo {
+        id: id.clone(),
+        image: image.clone(),
+        camera,
+        lighting: l.lighting().unwrap(),
+    };
+    let rough_photo = Photo {
+        id: id.clone(),
+        image: image.clone(),
+        camera: rough,
+        lighting: l.lighting().unwrap(),
+    };
+    let refined_photo = Photo {
+        id,
+        image,
+        camera: refined,
+        lighting,
+    };
+    ([truth_photo, rough_photo, refined_photo], after)
 }

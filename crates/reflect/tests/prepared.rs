@@ -160,6 +160,35 @@ fn a_prepared_site_is_solved_voxel_by_voxel_with_the_multiresolution_load_and_re
     .unwrap();
     // a checkpoint after every voxel (and the terrain) and after every iteration
     assert_eq!(checkpoints, 2 * (voxels + 1) + 2);
+    check_uninterrupted(&a, &store, voxels);
+
+    // 2. killed after three voxels of the second iteration, then resumed from disk
+    let out_b = dir.path().join("b");
+    let b = killed_and_resumed(fresh(&out_b), &out_b, &photos, &truth, &opts, voxels);
+    assert_eq!(b.report.iterations.len(), 2);
+    let mut worst = 0.0f32;
+    for (x, y) in a.rho.iter().flatten().zip(b.rho.iter().flatten()) {
+        worst = worst.max((*x - *y).abs().max_element());
+    }
+    assert!(
+        worst == 0.0,
+        "resumed run differs from the uninterrupted one by {worst}"
+    );
+    assert_eq!(
+        a.report.iterations[1].observations,
+        b.report.iterations[1].observations
+    );
+
+    // 3. the result re-renders: its scene names the site's full-resolution levels
+    let scene_file = igi_reflect::result::load_result_scene(&out_b).unwrap();
+    let (scene, _) = igi_render::Scene::load(&scene_file).unwrap();
+    assert_eq!(scene.objects.len(), voxels + 1);
+}
+
+/// The uninterrupted solve: the albedo error is small and the residual falls; every voxel's
+/// scene (the multiresolution load) is far smaller than the whole site at full resolution and
+/// holds the voxel itself at full resolution.
+fn check_uninterrupted(a: &SolveResult, store: &SiteStore, voxels: usize) {
     assert!(a.report.pending.is_none());
     let its = &a.report.iterations;
     for r in its {
@@ -176,8 +205,6 @@ fn a_prepared_site_is_solved_voxel_by_voxel_with_the_multiresolution_load_and_re
     let mae = its.last().unwrap().truth_mae.expect("texels seen twice");
     assert!(mae.iter().all(|m| *m < 0.02), "rho_d MAE {mae:?}");
     assert!(its[1].residual_rel_rms < its[0].residual_rel_rms);
-    // the multiresolution load: every voxel's scene is far smaller than the whole site at full
-    // resolution, and holds the voxel itself at full resolution
     let man = store.manifest();
     let full: u64 = man.triangles_per_level[0] as u64
         + man.terrain.as_ref().map_or(0, |t| t.triangles[0] as u64);
@@ -202,28 +229,36 @@ fn a_prepared_site_is_solved_voxel_by_voxel_with_the_multiresolution_load_and_re
         .iter()
         .flatten()
         .all(|v| v.is_finite() && v.min_element() >= 0.0 && v.max_element() <= 1.0));
+}
 
-    // 2. killed after three voxels of the second iteration, then resumed from disk
-    let out_b = dir.path().join("b");
-    let start = fresh(&out_b);
+/// A solve from `start` killed (its checkpoint fails) after three voxels of the second
+/// iteration, then resumed from its result folder `out`.
+fn killed_and_resumed(
+    start: SolveResult,
+    out: &Path,
+    photos: &[igi_reflect::survey::Photo],
+    truth: &igi_reflect::solver::Truth,
+    opts: &SolveOptions,
+    voxels: usize,
+) -> SolveResult {
     let mut n = 0;
     let killed = igi_reflect::solve(
         start,
-        &photos,
+        photos,
         None,
-        Some(&truth),
-        &opts,
+        Some(truth),
+        opts,
         &NoProgress,
         &mut |r| {
             n += 1;
             if n > voxels + 2 + 3 {
                 return Err(ReflectError::Invalid("killed".into()));
             }
-            r.write_state(&out_b)
+            r.write_state(out)
         },
     );
     assert!(killed.is_err());
-    let resumed = SolveResult::load(&out_b).unwrap();
+    let resumed = SolveResult::load(out).unwrap();
     let pending = resumed
         .report
         .pending
@@ -231,34 +266,16 @@ fn a_prepared_site_is_solved_voxel_by_voxel_with_the_multiresolution_load_and_re
         .expect("an iteration in progress");
     assert_eq!((pending.iteration, pending.done.len()), (2, 3));
     assert_eq!(resumed.report.iterations.len(), 1);
-    let b = igi_reflect::solve(
+    igi_reflect::solve(
         resumed,
-        &photos,
+        photos,
         None,
-        Some(&truth),
-        &opts,
+        Some(truth),
+        opts,
         &NoProgress,
-        &mut |r| r.write_state(&out_b),
+        &mut |r| r.write_state(out),
     )
-    .unwrap();
-    assert_eq!(b.report.iterations.len(), 2);
-    let mut worst = 0.0f32;
-    for (x, y) in a.rho.iter().flatten().zip(b.rho.iter().flatten()) {
-        worst = worst.max((*x - *y).abs().max_element());
-    }
-    assert!(
-        worst == 0.0,
-        "resumed run differs from the uninterrupted one by {worst}"
-    );
-    assert_eq!(
-        a.report.iterations[1].observations,
-        b.report.iterations[1].observations
-    );
-
-    // 3. the result re-renders: its scene names the site's full-resolution levels
-    let scene_file = igi_reflect::result::load_result_scene(&out_b).unwrap();
-    let (scene, _) = igi_render::Scene::load(&scene_file).unwrap();
-    assert_eq!(scene.objects.len(), voxels + 1);
+    .unwrap()
 }
 
 /// A Jacobi iteration split into one task per voxel (and the terrain) plus a merge writes the
@@ -267,7 +284,7 @@ fn a_prepared_site_is_solved_voxel_by_voxel_with_the_multiresolution_load_and_re
 #[test]
 fn jacobi_tasks_and_merge_equal_a_local_jacobi_solve() {
     const ITERS: u32 = 2;
-    use igi_reflect::distributed::{groups, initialise, merge, run_task};
+    use igi_reflect::distributed::{groups, initialise};
     use igi_reflect::solver::{Schedule, SolveInputs};
     let dir = tempfile::tempdir().unwrap();
     let Colonnade {
@@ -302,30 +319,13 @@ fn jacobi_tasks_and_merge_equal_a_local_jacobi_solve() {
         &mut |r| r.write_state(&local_dir),
     )
     .unwrap();
-    let gauss_opts = SolveOptions {
-        schedule: Schedule::GaussSeidel,
-        ..opts.clone()
-    };
-    let gauss = igi_reflect::solve(
+    print_gauss_seidel_against(
+        &local,
         fresh(&dir.path().join("gauss")),
         &photos,
-        None,
-        Some(&truth),
-        &gauss_opts,
-        &NoProgress,
-        &mut |_| Ok(()),
-    )
-    .unwrap();
-    for (g, j) in gauss.report.iterations.iter().zip(&local.report.iterations) {
-        eprintln!(
-            "iteration {}: rho_d RMS error Gauss-Seidel {:.5} Jacobi {:.5}; MAE {:?} / {:?}",
-            g.iteration,
-            g.truth_rms.unwrap(),
-            j.truth_rms.unwrap(),
-            g.truth_mae.unwrap(),
-            j.truth_mae.unwrap()
-        );
-    }
+        &truth,
+        &opts,
+    );
 
     let inputs = SolveInputs {
         photos: &photos,
@@ -337,34 +337,74 @@ fn jacobi_tasks_and_merge_equal_a_local_jacobi_solve() {
     initialise(&dist, fresh(&dist), &inputs, &opts).unwrap();
     let names = groups(&dist, &inputs, &opts).unwrap();
     assert_eq!(names.len(), voxels + 1, "every voxel and the terrain");
-    for it in 0..ITERS {
+    run_tasks_and_merges(&dist, &work, &inputs, &opts, &names, ITERS);
+    assert_same_result(&local_dir, &dist, voxels);
+}
+
+/// Prints the truth error per iteration of a Gauss-Seidel solve from `start` beside the local
+/// Jacobi solve's (docs/SOLVER.md).
+fn print_gauss_seidel_against(
+    local: &SolveResult,
+    start: SolveResult,
+    photos: &[igi_reflect::survey::Photo],
+    truth: &igi_reflect::solver::Truth,
+    opts: &SolveOptions,
+) {
+    use igi_reflect::solver::Schedule;
+    let gauss_opts = SolveOptions {
+        schedule: Schedule::GaussSeidel,
+        ..opts.clone()
+    };
+    let gauss =
+        igi_reflect::solve_in_memory(start, photos, None, Some(truth), &gauss_opts).unwrap();
+    for (g, j) in gauss.report.iterations.iter().zip(&local.report.iterations) {
+        eprintln!(
+            "iteration {}: rho_d RMS error Gauss-Seidel {:.5} Jacobi {:.5}; MAE {:?} / {:?}",
+            g.iteration,
+            g.truth_rms.unwrap(),
+            j.truth_rms.unwrap(),
+            g.truth_mae.unwrap(),
+            j.truth_mae.unwrap()
+        );
+    }
+}
+
+/// `iters` distributed iterations: a task per group, then a merge; in the first, one task is
+/// lost, and the merge names it and writes nothing until it has run.
+fn run_tasks_and_merges(
+    dist: &Path,
+    work: &Path,
+    inputs: &igi_reflect::solver::SolveInputs,
+    opts: &SolveOptions,
+    names: &[String],
+    iters: u32,
+) {
+    use igi_reflect::distributed::{merge, run_task};
+    for it in 0..iters {
         for (n, g) in names.iter().enumerate() {
             if it == 0 && n == 3 {
                 continue; // a lost task
             }
-            run_task(&dist, &work, &inputs, &opts, g, &Default::default()).unwrap();
+            run_task(dist, work, inputs, opts, g, &Default::default()).unwrap();
         }
         if it == 0 {
             let before = std::fs::read(dist.join("report.json")).unwrap();
-            let e = merge(&dist, &work, &inputs, &opts).unwrap_err().to_string();
+            let e = merge(dist, work, inputs, opts).unwrap_err().to_string();
             assert!(e.contains(&names[3]) && e.contains("1 task(s)"), "{e}");
             assert_eq!(std::fs::read(dist.join("report.json")).unwrap(), before);
-            run_task(&dist, &work, &inputs, &opts, &names[3], &Default::default()).unwrap();
+            run_task(dist, work, inputs, opts, &names[3], &Default::default()).unwrap();
         }
-        merge(&dist, &work, &inputs, &opts).unwrap();
+        merge(dist, work, inputs, opts).unwrap();
     }
-    let e = run_task(
-        &dist,
-        &work,
-        &inputs,
-        &opts,
-        "99_99_99",
-        &Default::default(),
-    )
-    .unwrap_err()
-    .to_string();
+    let e = run_task(dist, work, inputs, opts, "99_99_99", &Default::default())
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("99_99_99"), "{e}");
-    // the same bytes: every atlas, the scene, the report but for its wall-clock fields
+}
+
+/// The same bytes in the result folders `local` and `dist`: every atlas, the scene, the report
+/// but for its wall-clock fields.
+fn assert_same_result(local_dir: &Path, dist: &Path, voxels: usize) {
     let mut files = 0;
     let mut differ = Vec::new();
     for entry in std::fs::read_dir(local_dir.join("parts")).unwrap() {
@@ -395,7 +435,7 @@ fn jacobi_tasks_and_merge_equal_a_local_jacobi_solve() {
         }
         r
     };
-    assert_eq!(report(&local_dir), report(&dist));
+    assert_eq!(report(local_dir), report(dist));
 }
 
 /// A group whose task cannot finish can be skipped: it keeps its previous albedo, the

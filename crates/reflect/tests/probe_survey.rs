@@ -20,50 +20,9 @@ fn a_probe_capture_in_the_survey_gives_the_photo_its_lighting() {
     for sub in ["geometry", "photos", "cameras", "probes"] {
         std::fs::create_dir_all(d.join(sub)).unwrap();
     }
-    // the site and the photograph itself (contents do not matter here)
-    let quad = igi_geometry::TriMesh {
-        positions: vec![
-            [-1.0, -1.0, 0.0],
-            [1.0, -1.0, 0.0],
-            [1.0, 1.0, 0.0],
-            [-1.0, 1.0, 0.0],
-        ],
-        normals: None,
-        uvs: None,
-        colors: None,
-        indices: vec![[0, 1, 2], [0, 2, 3]],
-    };
-    igi_geometry::write_ply(&d.join("geometry/site.ply"), &quad).unwrap();
-    let cam = look_at_camera(Vec3::new(0.0, -3.0, 2.0), Vec3::ZERO, 16, 12, 50.0).unwrap();
-    cam.save(&d.join("cameras/p.json")).unwrap();
-    let mut img = HdrImage::new(16, 12);
-    img.pixels.iter_mut().for_each(|p| *p = [0.2; 3]);
-    write_exr(&d.join("photos/p.exr"), &img).unwrap();
-    // the board capture under a known sky and sun
-    let sun = sun_direction(40.0, 120.0);
-    let radiance = Vec3::new(6.0e4, 5.7e4, 5.2e4);
-    let sky = clear_sky(128, 64, sun, 0.6, Vec3::splat(0.08));
-    std::fs::write(d.join("probes/board.json"), BOARD).unwrap();
-    let board = igi_probe::Board::load(&d.join("probes/board.json")).unwrap();
-    let board_cam = look_at_camera(
-        Vec3::new(0.0, 0.0, 1.5),
-        Vec3::new(0.0, 1.0, 1.5),
-        640,
-        480,
-        40.0,
-    )
-    .unwrap();
-    board_cam.save(&d.join("probes/p_camera.json")).unwrap();
-    let s = SynthSun {
-        direction: sun.as_dvec3(),
-        radiance: radiance.to_array(),
-        diameter_deg: 0.53,
-    };
-    write_exr(
-        &d.join("probes/p.exr"),
-        &render_board(&board_cam, &board, &sky, Some(s), 3),
-    )
-    .unwrap();
+    write_site_and_photo(d);
+    let (sun, radiance) = (sun_direction(40.0, 120.0), Vec3::new(6.0e4, 5.7e4, 5.2e4));
+    write_board_capture(d, sun, radiance);
     let photo = "[[photo]]\nid = \"p\"\nimage = \"photos/p.exr\"\ncamera = \"cameras/p.json\"\n";
     let probe = "[photo.probe]\nimage = \"probes/p.exr\"\ncamera = \"probes/p_camera.json\"\nboard = \"probes/board.json\"\n";
     std::fs::write(
@@ -104,4 +63,53 @@ fn a_probe_capture_in_the_survey_gives_the_photo_its_lighting() {
             "{e}"
         );
     }
+}
+
+/// The site (a quad) and the photograph itself with its camera (contents do not matter here).
+fn write_site_and_photo(d: &std::path::Path) {
+    let quad = igi_geometry::TriMesh {
+        positions: vec![
+            [-1.0, -1.0, 0.0],
+            [1.0, -1.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [-1.0, 1.0, 0.0],
+        ],
+        normals: None,
+        uvs: None,
+        colors: None,
+        indices: vec![[0, 1, 2], [0, 2, 3]],
+    };
+    igi_geometry::write_ply(&d.join("geometry/site.ply"), &quad).unwrap();
+    let cam = look_at_camera(Vec3::new(0.0, -3.0, 2.0), Vec3::ZERO, 16, 12, 50.0).unwrap();
+    cam.save(&d.join("cameras/p.json")).unwrap();
+    let mut img = HdrImage::new(16, 12);
+    img.pixels.iter_mut().for_each(|p| *p = [0.2; 3]);
+    write_exr(&d.join("photos/p.exr"), &img).unwrap();
+}
+
+/// The board capture (probes/p.exr, its camera and the board file) under a clear sky and a sun
+/// of direction `sun` and radiance `radiance`.
+fn write_board_capture(d: &std::path::Path, sun: Vec3, radiance: Vec3) {
+    let sky = clear_sky(128, 64, sun, 0.6, Vec3::splat(0.08));
+    std::fs::write(d.join("probes/board.json"), BOARD).unwrap();
+    let board = igi_probe::Board::load(&d.join("probes/board.json")).unwrap();
+    let board_cam = look_at_camera(
+        Vec3::new(0.0, 0.0, 1.5),
+        Vec3::new(0.0, 1.0, 1.5),
+        640,
+        480,
+        40.0,
+    )
+    .unwrap();
+    board_cam.save(&d.join("probes/p_camera.json")).unwrap();
+    let s = SynthSun {
+        direction: sun.as_dvec3(),
+        radiance: radiance.to_array(),
+        diameter_deg: 0.53,
+    };
+    write_exr(
+        &d.join("probes/p.exr"),
+        &render_board(&board_cam, &board, &sky, Some(s), 3),
+    )
+    .unwrap();
 }

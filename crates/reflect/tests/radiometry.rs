@@ -11,7 +11,7 @@ use igi_imaging::radiometry::{
 };
 use igi_imaging::HdrImage;
 use igi_reflect::parts::build_parts;
-use igi_reflect::solver::{truth_from_scene, NoProgress};
+use igi_reflect::solver::truth_from_scene;
 use igi_reflect::synth::{
     ground_and_block, look_at_camera, truth_atlas, write_survey, LightingSpec, ShotSpec,
 };
@@ -96,14 +96,12 @@ fn solve_mae(survey: &Path, res: u32) -> [f32; 3] {
         ..SolveOptions::default()
     };
     let ids: Vec<String> = photos.iter().map(|p| p.id.clone()).collect();
-    let done = igi_reflect::solve(
+    let done = igi_reflect::solve_in_memory(
         SolveResult::fresh(parts, ids, &opts),
         &photos,
         None,
         Some(&truth),
         &opts,
-        &NoProgress,
-        &mut |_| Ok(()),
     )
     .unwrap();
     done.report.iterations.last().unwrap().truth_mae.unwrap()
@@ -113,6 +111,30 @@ fn solve_mae(survey: &Path, res: u32) -> [f32; 3] {
 fn calibrated_photos_solve_as_well_as_clean_ones_and_uncalibrated_ones_do_not() {
     let dir = tempfile::tempdir().unwrap();
     let res = 32;
+    let (w, h) = (96usize, 96usize);
+    let shots = write_clean_survey(dir.path(), res, (w, h));
+    let (cal, calibrated) = write_raw_surveys(dir.path(), &shots, (w, h));
+    let mean = |m: [f32; 3]| m.iter().sum::<f32>() / 3.0;
+    let mae_clean = solve_mae(&dir.path().join("survey.toml"), res);
+    let mae_cal = solve_mae(&dir.path().join("calibrated.toml"), res);
+    let mae_raw = solve_mae(&dir.path().join("raw.toml"), res);
+    eprintln!("albedo MAE: clean {mae_clean:?} (mean {:.4}), calibrated {mae_cal:?} (mean {:.4}), uncalibrated {mae_raw:?} (mean {:.4})", mean(mae_clean), mean(mae_cal), mean(mae_raw));
+    let ratio = mean(mae_cal) / mean(mae_clean);
+    assert!(
+        (ratio - 1.0).abs() <= 0.10,
+        "calibrated / clean albedo MAE = {ratio:.3} (goal within 10 %)"
+    );
+    assert!(
+        mean(mae_raw) > 2.0 * mean(mae_clean),
+        "uncalibrated MAE {mae_raw:?} is not measurably worse than clean {mae_clean:?}"
+    );
+
+    refuses_bad_radiometry(dir.path(), &cal, &calibrated);
+}
+
+/// The ground and block survey (six clean photos: three views under a sunny and an overcast
+/// sky) at an atlas of `res`; returns its shots.
+fn write_clean_survey(dir: &Path, res: u32, (w, h): (usize, usize)) -> Vec<ShotSpec> {
     let parts = build_parts(ground_and_block(), res).unwrap();
     let truth: Vec<Vec<Vec3>> = parts
         .iter()
@@ -135,7 +157,6 @@ fn calibrated_photos_solve_as_well_as_clean_ones_and_uncalibrated_ones_do_not() 
             sun: None,
         },
     ];
-    let (w, h) = (96usize, 96usize);
     let mut shots = Vec::new();
     for (k, az) in [20.0f32, 140.0, 260.0].iter().enumerate() {
         let a = az.to_radians();
@@ -151,7 +172,7 @@ fn calibrated_photos_solve_as_well_as_clean_ones_and_uncalibrated_ones_do_not() 
         }
     }
     write_survey(
-        dir.path(),
+        dir,
         &parts,
         &truth,
         &lightings,
@@ -163,54 +184,53 @@ fn calibrated_photos_solve_as_well_as_clean_ones_and_uncalibrated_ones_do_not() 
     )
     .unwrap();
 
-    // the same photographs through the synthetic camera, in photos_raw/
-    let raw = dir.path().join("photos_raw");
+    shots
+}
+
+/// The same photographs through the synthetic camera, in photos_raw/, its fitted radiometry
+/// (radiometry.json), and the surveys raw.toml (uncalibrated) and calibrated.toml; returns the
+/// radiometry and calibrated.toml's text.
+fn write_raw_surveys(
+    dir: &Path,
+    shots: &[ShotSpec],
+    (w, h): (usize, usize),
+) -> (CameraRadiometry, String) {
+    let raw = dir.join("photos_raw");
     std::fs::create_dir_all(&raw).unwrap();
-    for s in &shots {
-        let mut img =
-            igi_imaging::read_image(&dir.path().join(format!("photos/{}.exr", s.id))).unwrap();
+    for s in shots {
+        let mut img = igi_imaging::read_image(&dir.join(format!("photos/{}.exr", s.id))).unwrap();
         through_camera(&mut img);
         igi_imaging::write_exr(&raw.join(format!("{}.exr", s.id)), &img).unwrap();
     }
     let cal = calibrate(w, h);
     eprintln!("fitted radiometry: {cal:?}");
-    cal.save(&dir.path().join("radiometry.json")).unwrap();
-    let clean = std::fs::read_to_string(dir.path().join("survey.toml")).unwrap();
+    cal.save(&dir.join("radiometry.json")).unwrap();
+    let clean = std::fs::read_to_string(dir.join("survey.toml")).unwrap();
     let uncalibrated = clean.replace("\"photos/", "\"photos_raw/");
     assert_ne!(uncalibrated, clean);
     let calibrated = format!("[radiometry]\ncamera = \"radiometry.json\"\n\n{uncalibrated}");
-    std::fs::write(dir.path().join("raw.toml"), &uncalibrated).unwrap();
-    std::fs::write(dir.path().join("calibrated.toml"), &calibrated).unwrap();
+    std::fs::write(dir.join("raw.toml"), &uncalibrated).unwrap();
+    std::fs::write(dir.join("calibrated.toml"), &calibrated).unwrap();
 
-    let mean = |m: [f32; 3]| m.iter().sum::<f32>() / 3.0;
-    let mae_clean = solve_mae(&dir.path().join("survey.toml"), res);
-    let mae_cal = solve_mae(&dir.path().join("calibrated.toml"), res);
-    let mae_raw = solve_mae(&dir.path().join("raw.toml"), res);
-    eprintln!("albedo MAE: clean {mae_clean:?} (mean {:.4}), calibrated {mae_cal:?} (mean {:.4}), uncalibrated {mae_raw:?} (mean {:.4})", mean(mae_clean), mean(mae_cal), mean(mae_raw));
-    let ratio = mean(mae_cal) / mean(mae_clean);
-    assert!(
-        (ratio - 1.0).abs() <= 0.10,
-        "calibrated / clean albedo MAE = {ratio:.3} (goal within 10 %)"
-    );
-    assert!(
-        mean(mae_raw) > 2.0 * mean(mae_clean),
-        "uncalibrated MAE {mae_raw:?} is not measurably worse than clean {mae_clean:?}"
-    );
+    (cal, calibrated)
+}
 
-    // a photo whose shape does not match the calibration is refused when the survey is read,
-    // naming the radiometry file and the photo
+/// A photo whose shape does not match the calibration is refused when the survey is read,
+/// naming the radiometry file and the photo; a broken radiometry file fails when the survey is
+/// read, before any work.
+fn refuses_bad_radiometry(dir: &Path, cal: &CameraRadiometry, calibrated: &str) {
     let bad = CameraRadiometry {
         width: 40,
         height: 30,
-        ..cal
+        ..cal.clone()
     };
-    bad.save(&dir.path().join("wide.json")).unwrap();
+    bad.save(&dir.join("wide.json")).unwrap();
     std::fs::write(
-        dir.path().join("wide.toml"),
+        dir.join("wide.toml"),
         calibrated.replace("radiometry.json", "wide.json"),
     )
     .unwrap();
-    let e = match Survey::load(&dir.path().join("wide.toml")) {
+    let e = match Survey::load(&dir.join("wide.toml")) {
         Ok(_) => panic!("a radiometry file of another aspect ratio was accepted"),
         Err(e) => e.to_string(),
     };
@@ -219,13 +239,13 @@ fn calibrated_photos_solve_as_well_as_clean_ones_and_uncalibrated_ones_do_not() 
         "{e}"
     );
     // a broken radiometry file fails when the survey is read, before any work
-    std::fs::write(dir.path().join("broken.json"), "{}").unwrap();
+    std::fs::write(dir.join("broken.json"), "{}").unwrap();
     std::fs::write(
-        dir.path().join("broken.toml"),
+        dir.join("broken.toml"),
         calibrated.replace("radiometry.json", "broken.json"),
     )
     .unwrap();
-    let e = Survey::load(&dir.path().join("broken.toml"))
+    let e = Survey::load(&dir.join("broken.toml"))
         .unwrap_err()
         .to_string();
     assert!(e.contains("broken.json"), "{e}");

@@ -2,83 +2,56 @@
 //! from a true albedo atlas under a sunny and an overcast sky, then recovered by the solver.
 
 use glam::Vec3;
-use igi_geometry::TriMesh;
 use igi_reflect::parts::build_parts;
 use igi_reflect::solver::{truth_from_scene, NoProgress};
-use igi_reflect::synth::{look_at_camera, truth_atlas, write_survey, LightingSpec, ShotSpec};
+use igi_reflect::synth::{
+    ground_and_block, look_at_camera, truth_atlas, write_survey, LightingSpec, ShotSpec,
+};
 use igi_reflect::{SolveOptions, SolveResult, Survey};
 use igi_render::sky::{clear_sky, overcast_sky, sun_direction};
-
-fn quad_grid(size: f32, n: usize) -> TriMesh {
-    let mut positions = Vec::new();
-    let mut indices = Vec::new();
-    for j in 0..=n {
-        for i in 0..=n {
-            positions.push([
-                -size / 2.0 + size * i as f32 / n as f32,
-                -size / 2.0 + size * j as f32 / n as f32,
-                0.0,
-            ]);
-        }
-    }
-    for j in 0..n {
-        for i in 0..n {
-            let a = (j * (n + 1) + i) as u32;
-            let (b, c, d) = (a + 1, a + (n + 1) as u32, a + (n + 2) as u32);
-            indices.push([a, b, d]);
-            indices.push([a, d, c]);
-        }
-    }
-    let normals = Some(vec![[0.0, 0.0, 1.0]; positions.len()]);
-    TriMesh {
-        positions,
-        normals,
-        uvs: None,
-        colors: None,
-        indices,
-    }
-}
-
-fn block(c: Vec3, h: Vec3) -> TriMesh {
-    // 6 faces, 4 vertices each, outward normals
-    let mut m = TriMesh {
-        positions: vec![],
-        normals: Some(vec![]),
-        uvs: None,
-        colors: None,
-        indices: vec![],
-    };
-    let faces: [(Vec3, Vec3, Vec3); 6] = [
-        (Vec3::X, Vec3::Y, Vec3::Z),
-        (-Vec3::X, Vec3::Z, Vec3::Y),
-        (Vec3::Y, Vec3::Z, Vec3::X),
-        (-Vec3::Y, Vec3::X, Vec3::Z),
-        (Vec3::Z, Vec3::X, Vec3::Y),
-        (-Vec3::Z, Vec3::Y, Vec3::X),
-    ];
-    for (n, u, v) in faces {
-        let base = m.positions.len() as u32;
-        for (su, sv) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
-            let p = c + (n + u * su + v * sv) * h;
-            m.positions.push(p.to_array());
-            m.normals.as_mut().unwrap().push(n.to_array());
-        }
-        m.indices.push([base, base + 1, base + 2]);
-        m.indices.push([base, base + 2, base + 3]);
-    }
-    m
-}
 
 #[test]
 fn solve_recovers_known_albedo_from_synthetic_photos_and_resumes() {
     let dir = tempfile::tempdir().unwrap();
-    let meshes = vec![
-        ("ground".to_string(), quad_grid(8.0, 4)),
-        (
-            "block".to_string(),
-            block(Vec3::new(0.0, 0.0, 1.0), Vec3::new(0.6, 0.6, 1.0)),
-        ),
-    ];
+    write_synthetic_survey(dir.path());
+    let (photos, parts, truth) = load_survey(dir.path());
+    let opts = SolveOptions {
+        atlas_resolution: 32,
+        max_iterations: 1,
+        spp: vec![32, 128],
+        ..SolveOptions::default()
+    };
+    let ids: Vec<String> = photos.iter().map(|p| p.id.clone()).collect();
+    let out = dir.path().join("result");
+    std::fs::create_dir_all(&out).unwrap();
+    let start = SolveResult::fresh(parts, ids, &opts);
+    start.write_geometry(&out).unwrap();
+    let mut first = igi_reflect::solve(
+        start,
+        &photos,
+        None,
+        Some(&truth),
+        &opts,
+        &NoProgress,
+        &mut |r| r.write_state(&out),
+    )
+    .unwrap();
+    assert_eq!(first.report.iterations.len(), 1);
+    let it1 = first.report.iterations[0].clone();
+
+    check_checkpoint_transactions(&mut first, dir.path());
+
+    let done = resume_for_two_more(&out, &first, &photos, &truth, opts);
+    assert_eq!(done.report.iterations[0].observations, it1.observations);
+    check_final_iteration(&done);
+    check_z_scores(&done, &truth);
+    check_result_folder(&out, &done);
+}
+
+/// The ground and block survey: a smooth true albedo, six photos (three views under a sunny and
+/// an overcast sky) with the truth scene.
+fn write_synthetic_survey(dir: &std::path::Path) {
+    let meshes = ground_and_block();
     let parts = build_parts(meshes, 32).unwrap();
     // A smooth albedo field: texel-scale patterns are blurred by the photos' pixel footprints,
     // which is a limit of the atlas resolution, not of the solver.
@@ -116,7 +89,7 @@ fn solve_recovers_known_albedo_from_synthetic_photos_and_resumes() {
         }
     }
     write_survey(
-        dir.path(),
+        dir,
         &parts,
         &truth,
         &lightings,
@@ -127,8 +100,17 @@ fn solve_recovers_known_albedo_from_synthetic_photos_and_resumes() {
         &|_, _| {},
     )
     .unwrap();
+}
 
-    let survey = Survey::load(dir.path()).unwrap();
+/// The survey's photos, its parts at a 32-texel atlas, and the truth looked up in its scene.
+fn load_survey(
+    dir: &std::path::Path,
+) -> (
+    Vec<igi_reflect::survey::Photo>,
+    Vec<igi_reflect::Part>,
+    igi_reflect::solver::Truth,
+) {
+    let survey = Survey::load(dir).unwrap();
     assert_eq!(survey.photos.len(), 6);
     let photos: Vec<_> = survey.photos.iter().map(|p| p.load().unwrap()).collect();
     let meshes: Vec<_> = survey
@@ -142,7 +124,7 @@ fn solve_recovers_known_albedo_from_synthetic_photos_and_resumes() {
         })
         .collect();
     let parts = build_parts(meshes, 32).unwrap();
-    let (truth_scene, _) = igi_render::Scene::load(&dir.path().join("truth/scene.toml")).unwrap();
+    let (truth_scene, _) = igi_render::Scene::load(&dir.join("truth/scene.toml")).unwrap();
     let truth = truth_from_scene(&parts, &truth_scene);
     let found = truth.iter().flatten().filter(|t| t.is_some()).count();
     let total: usize = parts.iter().map(|p| p.cache.texels.len()).sum();
@@ -151,35 +133,19 @@ fn solve_recovers_known_albedo_from_synthetic_photos_and_resumes() {
         found as f64 > 0.95 * total as f64,
         "truth lookup found {found} of {total} texels"
     );
+    (photos, parts, truth)
+}
 
-    let opts = SolveOptions {
-        atlas_resolution: 32,
-        max_iterations: 1,
-        spp: vec![32, 128],
-        ..SolveOptions::default()
-    };
-    let ids: Vec<String> = photos.iter().map(|p| p.id.clone()).collect();
-    let out = dir.path().join("result");
-    std::fs::create_dir_all(&out).unwrap();
-    let start = SolveResult::fresh(parts, ids, &opts);
-    start.write_geometry(&out).unwrap();
-    let mut first = igi_reflect::solve(
-        start,
-        &photos,
-        None,
-        Some(&truth),
-        &opts,
-        &NoProgress,
-        &mut |r| r.write_state(&out),
-    )
-    .unwrap();
-    assert_eq!(first.report.iterations.len(), 1);
-    let it1 = first.report.iterations[0].clone();
-
-    check_checkpoint_transactions(&mut first, dir.path());
-
-    // resume from disk for two more iterations (as a killed and restarted run would)
-    let resumed = SolveResult::load(&out).unwrap();
+/// Resumes the one-iteration result in `out` from disk for two more iterations (as a killed
+/// and restarted run would).
+fn resume_for_two_more(
+    out: &std::path::Path,
+    first: &SolveResult,
+    photos: &[igi_reflect::survey::Photo],
+    truth: &igi_reflect::solver::Truth,
+    opts: SolveOptions,
+) -> SolveResult {
+    let resumed = SolveResult::load(out).unwrap();
     assert_eq!(resumed.report.iterations.len(), 1);
     for (a, b) in resumed.rho.iter().flatten().zip(first.rho.iter().flatten()) {
         assert!(
@@ -192,19 +158,23 @@ fn solve_recovers_known_albedo_from_synthetic_photos_and_resumes() {
         min_iterations: 3,
         ..opts
     };
-    let done = igi_reflect::solve(
+    igi_reflect::solve(
         resumed,
-        &photos,
+        photos,
         None,
-        Some(&truth),
+        Some(truth),
         &opts3,
         &NoProgress,
-        &mut |r| r.write_state(&out),
+        &mut |r| r.write_state(out),
     )
-    .unwrap();
+    .unwrap()
+}
+
+/// After three iterations the albedo error is small, the residual has fallen, the error has
+/// not grown, and every part was seen.
+fn check_final_iteration(done: &SolveResult) {
     let its = &done.report.iterations;
     assert_eq!(its.len(), 3, "resumed after iteration 1 and ran 2 and 3");
-    assert_eq!(its[0].observations, it1.observations);
     for r in its {
         eprintln!(
             "iteration {}: spp {}, {:.2} s, obs {}, residual {:.4} ({:.2}%), delta {:.4}, MAE {:?}, RMS {:?}",
@@ -234,22 +204,26 @@ fn solve_recovers_known_albedo_from_synthetic_photos_and_resumes() {
     for p in &done.report.parts {
         assert!(p.seen_texels > 0, "{} seen", p.name);
     }
-    check_z_scores(&done, &truth);
+}
+
+/// The standard errors round-trip through the result folder `out`; a result written before
+/// they existed loads with every standard error unknown; the folder re-renders as a scene.
+fn check_result_folder(out: &std::path::Path, done: &SolveResult) {
     // the standard errors round-trip through the result folder; a result written before they
     // existed (no NAME_stderr.exr) loads with every standard error unknown
-    let back = SolveResult::load(&out).unwrap();
+    let back = SolveResult::load(out).unwrap();
     assert_eq!(back.stderr, done.stderr);
     for p in &done.parts {
         std::fs::remove_file(out.join(format!("parts/{}_stderr.exr", p.name))).unwrap();
     }
-    let old = SolveResult::load(&out).unwrap();
+    let old = SolveResult::load(out).unwrap();
     assert!(old
         .stderr
         .iter()
         .flatten()
         .all(|s| *s == igi_reflect::UNKNOWN_STDERR));
     // the result folder re-renders as a scene
-    let scene_file = igi_reflect::load_result_scene(&out).unwrap();
+    let scene_file = igi_reflect::load_result_scene(out).unwrap();
     let (scene, _) = igi_render::Scene::load(&scene_file).unwrap();
     assert_eq!(scene.objects.len(), 2);
 }
@@ -289,46 +263,12 @@ fn check_z_scores(state: &SolveResult, truth: &igi_reflect::solver::Truth) {
 /// maps that re-render.
 #[test]
 fn glossy_lobes_inferred_per_texel_from_the_basis_are_recovered_and_written() {
-    use igi_brdf::{Basis, Lafortune, Lobe};
-    use igi_reflect::survey::Photo;
-    use igi_render::{render_image, Albedo, LobeMap, Material, RenderOptions, Scene, Texture};
+    use igi_render::Scene;
     let dir = tempfile::tempdir().unwrap();
-    let meshes = vec![
-        ("ground".to_string(), quad_grid(8.0, 4)),
-        (
-            "block".to_string(),
-            block(Vec3::new(0.0, 0.0, 1.0), Vec3::new(0.6, 0.6, 1.0)),
-        ),
-    ];
+    let meshes = ground_and_block();
     let res = 32;
     let parts = build_parts(meshes, res as u32).unwrap();
-    let basis = Basis::new(vec![
-        (
-            "dark".into(),
-            Lafortune {
-                rho_d: Vec3::new(0.12, 0.11, 0.1),
-                lobes: vec![Lobe {
-                    rho: Vec3::splat(0.25),
-                    cxy: -1.0,
-                    cz: 1.0,
-                    n: 12.0,
-                }],
-            },
-        ),
-        (
-            "light".into(),
-            Lafortune {
-                rho_d: Vec3::new(0.7, 0.62, 0.55),
-                lobes: vec![Lobe {
-                    rho: Vec3::splat(0.05),
-                    cxy: -1.0,
-                    cz: 1.0,
-                    n: 4.0,
-                }],
-            },
-        ),
-    ])
-    .unwrap();
+    let basis = two_material_basis();
     let truth: Vec<Vec<Vec3>> = parts
         .iter()
         .map(|p| {
@@ -337,69 +277,8 @@ fn glossy_lobes_inferred_per_texel_from_the_basis_are_recovered_and_written() {
             })
         })
         .collect();
-    let lobe_map = |rho: &[Vec3]| {
-        let lobes: Vec<Lobe> = rho.iter().flat_map(|r| basis.infer(*r).lobes).collect();
-        LobeMap {
-            width: res,
-            height: res,
-            per_texel: 1,
-            lobes,
-        }
-    };
-    let objects = parts
-        .iter()
-        .zip(&truth)
-        .map(|(p, t)| {
-            let m = Material {
-                albedo: Albedo::Texture(Texture {
-                    width: res,
-                    height: res,
-                    texels: t.clone(),
-                }),
-                lobes: vec![],
-                lobe_map: Some(lobe_map(t)),
-            };
-            (p.name.clone(), p.mesh.clone(), m)
-        })
-        .collect();
-    let truth_scene = Scene::new(objects).unwrap();
-    let sun = sun_direction(40.0, 30.0);
-    let lightings = [
-        LightingSpec {
-            name: "sunny".into(),
-            sky: clear_sky(64, 32, sun, 0.6, Vec3::splat(0.08)),
-            sun: Some((sun, Vec3::new(6.0e4, 5.7e4, 5.2e4))),
-        },
-        LightingSpec {
-            name: "overcast".into(),
-            sky: overcast_sky(64, 32, 2.0, Vec3::splat(0.15)),
-            sun: None,
-        },
-    ];
-    let mut photos = Vec::new();
-    for (k, az) in [20.0f32, 140.0, 260.0].iter().enumerate() {
-        let a = az.to_radians();
-        let eye = Vec3::new(6.5 * a.cos(), 6.5 * a.sin(), 3.5);
-        for (li, l) in lightings.iter().enumerate() {
-            let camera = look_at_camera(eye, Vec3::new(0.0, 0.0, 0.5), 96, 96, 70.0).unwrap();
-            let lighting = l.lighting().unwrap();
-            let opts = RenderOptions {
-                spp: 256,
-                seed: 40 + (2 * k + li) as u64,
-                indirect: 2,
-                russian_roulette: false,
-            };
-            let image = render_image(&truth_scene, &lighting, &camera, &opts, &|_| {})
-                .unwrap()
-                .mean;
-            photos.push(Photo {
-                id: format!("cam{k}-{}", l.name),
-                image,
-                camera,
-                lighting,
-            });
-        }
-    }
+    let truth_scene = glossy_scene(&parts, &truth, &basis, res);
+    let photos = glossy_photos(&truth_scene);
     let gt = truth_from_scene(&parts, &truth_scene);
     let opts = SolveOptions {
         atlas_resolution: res as u32,
@@ -428,30 +307,11 @@ fn glossy_lobes_inferred_per_texel_from_the_basis_are_recovered_and_written() {
     assert!(mae.iter().all(|m| *m < 0.015), "glossy rho_d MAE {mae:?}");
     // without the basis the solver takes the glossy photos for Lambertian and is further off
     let start = SolveResult::fresh(
-        build_parts(
-            vec![
-                ("ground".to_string(), quad_grid(8.0, 4)),
-                (
-                    "block".to_string(),
-                    block(Vec3::new(0.0, 0.0, 1.0), Vec3::new(0.6, 0.6, 1.0)),
-                ),
-            ],
-            res as u32,
-        )
-        .unwrap(),
+        build_parts(ground_and_block(), res as u32).unwrap(),
         ids,
         &opts,
     );
-    let lambertian = igi_reflect::solve(
-        start,
-        &photos,
-        None,
-        Some(&gt),
-        &opts,
-        &NoProgress,
-        &mut |_| Ok(()),
-    )
-    .unwrap();
+    let lambertian = igi_reflect::solve_in_memory(start, &photos, None, Some(&gt), &opts).unwrap();
     let mae_l = lambertian
         .report
         .iterations
@@ -464,7 +324,132 @@ fn glossy_lobes_inferred_per_texel_from_the_basis_are_recovered_and_written() {
         mae_l.iter().sum::<f32>() > 1.5 * mae.iter().sum::<f32>(),
         "{mae_l:?} vs {mae:?}"
     );
-    // per-texel lobe maps: written, and the lobes of each texel are the basis's for its albedo
+    check_lobe_maps(&done, &out, &basis);
+    let (scene, _) = Scene::load(&igi_reflect::load_result_scene(&out).unwrap()).unwrap();
+    assert!(scene.objects.iter().all(|o| o
+        .material
+        .lobe_map
+        .as_ref()
+        .is_some_and(|m| m.per_texel == 1 && m.width == res)));
+    check_export_keeps_lobes(dir.path(), &out, &scene);
+}
+
+/// A dark and a light glossy material.
+fn two_material_basis() -> igi_brdf::Basis {
+    use igi_brdf::{Basis, Lafortune, Lobe};
+    Basis::new(vec![
+        (
+            "dark".into(),
+            Lafortune {
+                rho_d: Vec3::new(0.12, 0.11, 0.1),
+                lobes: vec![Lobe {
+                    rho: Vec3::splat(0.25),
+                    cxy: -1.0,
+                    cz: 1.0,
+                    n: 12.0,
+                }],
+            },
+        ),
+        (
+            "light".into(),
+            Lafortune {
+                rho_d: Vec3::new(0.7, 0.62, 0.55),
+                lobes: vec![Lobe {
+                    rho: Vec3::splat(0.05),
+                    cxy: -1.0,
+                    cz: 1.0,
+                    n: 4.0,
+                }],
+            },
+        ),
+    ])
+    .unwrap()
+}
+
+/// The truth scene: every texel of `parts` with its true albedo and the lobes the basis infers
+/// from it.
+fn glossy_scene(
+    parts: &[igi_reflect::Part],
+    truth: &[Vec<Vec3>],
+    basis: &igi_brdf::Basis,
+    res: usize,
+) -> igi_render::Scene {
+    use igi_brdf::Lobe;
+    use igi_render::{Albedo, LobeMap, Material, Scene, Texture};
+    let lobe_map = |rho: &[Vec3]| {
+        let lobes: Vec<Lobe> = rho.iter().flat_map(|r| basis.infer(*r).lobes).collect();
+        LobeMap {
+            width: res,
+            height: res,
+            per_texel: 1,
+            lobes,
+        }
+    };
+    let objects = parts
+        .iter()
+        .zip(truth)
+        .map(|(p, t)| {
+            let m = Material {
+                albedo: Albedo::Texture(Texture {
+                    width: res,
+                    height: res,
+                    texels: t.clone(),
+                }),
+                lobes: vec![],
+                lobe_map: Some(lobe_map(t)),
+            };
+            (p.name.clone(), p.mesh.clone(), m)
+        })
+        .collect();
+    Scene::new(objects).unwrap()
+}
+
+/// Six photos of the truth scene: three views under a sunny and an overcast sky.
+fn glossy_photos(truth_scene: &igi_render::Scene) -> Vec<igi_reflect::survey::Photo> {
+    use igi_reflect::survey::Photo;
+    use igi_render::{render_image, RenderOptions};
+    let sun = sun_direction(40.0, 30.0);
+    let lightings = [
+        LightingSpec {
+            name: "sunny".into(),
+            sky: clear_sky(64, 32, sun, 0.6, Vec3::splat(0.08)),
+            sun: Some((sun, Vec3::new(6.0e4, 5.7e4, 5.2e4))),
+        },
+        LightingSpec {
+            name: "overcast".into(),
+            sky: overcast_sky(64, 32, 2.0, Vec3::splat(0.15)),
+            sun: None,
+        },
+    ];
+    let mut photos = Vec::new();
+    for (k, az) in [20.0f32, 140.0, 260.0].iter().enumerate() {
+        let a = az.to_radians();
+        let eye = Vec3::new(6.5 * a.cos(), 6.5 * a.sin(), 3.5);
+        for (li, l) in lightings.iter().enumerate() {
+            let camera = look_at_camera(eye, Vec3::new(0.0, 0.0, 0.5), 96, 96, 70.0).unwrap();
+            let lighting = l.lighting().unwrap();
+            let opts = RenderOptions {
+                spp: 256,
+                seed: 40 + (2 * k + li) as u64,
+                indirect: 2,
+                russian_roulette: false,
+            };
+            let image = render_image(truth_scene, &lighting, &camera, &opts, &|_| {})
+                .unwrap()
+                .mean;
+            photos.push(Photo {
+                id: format!("cam{k}-{}", l.name),
+                image,
+                camera,
+                lighting,
+            });
+        }
+    }
+    photos
+}
+
+/// Per-texel lobe maps: written, and the lobes of each texel are the basis's for its albedo.
+fn check_lobe_maps(done: &SolveResult, out: &std::path::Path, basis: &igi_brdf::Basis) {
     for (i, p) in done.parts.iter().enumerate() {
         let rho =
             igi_imaging::read_image(&out.join(format!("parts/{}_lobe0_rho.exr", p.name))).unwrap();
@@ -482,16 +467,18 @@ fn glossy_lobes_inferred_per_texel_from_the_basis_are_recovered_and_written() {
             assert!((shape.pixels[k][2] - want.n).abs() < 1e-3 * want.n);
         }
     }
-    let (scene, _) = Scene::load(&igi_reflect::load_result_scene(&out).unwrap()).unwrap();
-    assert!(scene.objects.iter().all(|o| o
-        .material
-        .lobe_map
-        .as_ref()
-        .is_some_and(|m| m.per_texel == 1 && m.width == res)));
-    // the export keeps the lobes: its scene file holds the result's lobe maps texel for texel,
-    // and the Mitsuba scene says that it leaves them out
-    let exported = dir.path().join("export");
-    igi_reflect::export(&out, igi_reflect::ExportFormat::Mitsuba, &exported).unwrap();
+}
+
+/// The export keeps the lobes: its scene file holds the result's lobe maps texel for texel,
+/// and the Mitsuba scene says that it leaves them out.
+fn check_export_keeps_lobes(
+    dir: &std::path::Path,
+    out: &std::path::Path,
+    scene: &igi_render::Scene,
+) {
+    use igi_render::Scene;
+    let exported = dir.join("export");
+    igi_reflect::export(out, igi_reflect::ExportFormat::Mitsuba, &exported).unwrap();
     let (again, _) = Scene::load(&exported.join("scene.toml")).unwrap();
     assert_eq!(again.objects.len(), scene.objects.len());
     for (a, b) in scene.objects.iter().zip(&again.objects) {

@@ -312,7 +312,7 @@ mod tests {
         const MUL: u64 = 6_364_136_223_846_793_005;
         let inc = (stream << 1) | 1;
         let mut state = 0u64;
-        let mut next = |state: &mut u64| {
+        let next = |state: &mut u64| {
             let old = *state;
             *state = old.wrapping_mul(MUL).wrapping_add(inc);
             ((((old >> 18) ^ old) >> 27) as u32).rotate_right((old >> 59) as u32)
