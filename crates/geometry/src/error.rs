@@ -15,6 +15,13 @@ pub enum GeometryError {
     /// A file whose content is not what its format promises (truncated, bad header, counts that do not match...).
     #[error("{}: {msg}", path.display())]
     Format { path: PathBuf, msg: String },
+    /// A JSON file of the site store that does not parse.
+    #[error("{}: bad JSON: {source}", path.display())]
+    Json {
+        path: PathBuf,
+        #[source]
+        source: serde_json::Error,
+    },
     /// A value of an ASCII PLY file that is not a number.
     #[error("{}: {element} element {index}: `{token}` is not a number", path.display())]
     PlyNumber {

@@ -240,7 +240,10 @@ fn write_json<T: Serialize>(path: &Path, v: &T) -> Result<(), GeometryError> {
 
 fn read_json<T: for<'de> Deserialize<'de>>(path: &Path) -> Result<T, GeometryError> {
     let text = std::fs::read_to_string(path).map_err(|e| GeometryError::io(path, e))?;
-    serde_json::from_str(&text).map_err(|e| GeometryError::format(path, format!("bad JSON: {e}")))
+    serde_json::from_str(&text).map_err(|source| GeometryError::Json {
+        path: path.to_path_buf(),
+        source,
+    })
 }
 
 fn mkdir(p: &Path) -> Result<(), GeometryError> {
