@@ -152,13 +152,13 @@ mod imp {
 #[cfg(feature = "opencv")]
 mod imp {
     use super::*;
-    use crate::{PlanarError, PnpError};
+    use crate::PnpError;
     use opencv::core::{self, Mat, Point2f, Point3f, Vector};
     use opencv::prelude::*;
     use opencv::{aruco, calib3d, imgproc};
 
     fn cv_err(e: opencv::Error) -> ImagingError {
-        ImagingError::OpenCv(Box::new(e))
+        ImagingError::OpenCvCall(Box::new(e))
     }
 
     fn k_mat(i: &Intrinsics) -> Result<Mat, ImagingError> {
@@ -529,18 +529,18 @@ mod imp {
         threshold_px: f64,
     ) -> Result<DMat3, ImagingError> {
         if src.len() != dst.len() || src.len() < 4 {
-            return Err(PlanarError::HomographyPoints {
-                src: src.len(),
-                dst: dst.len(),
-            }
-            .into());
+            return Err(ImagingError::InvalidInput(format!(
+                "homography needs at least 4 matching points ({} and {})",
+                src.len(),
+                dst.len()
+            )));
         }
         let mut mask = Mat::default();
         let h =
             calib3d::find_homography(&p2(src), &p2(dst), &mut mask, calib3d::RANSAC, threshold_px)
                 .map_err(cv_err)?;
         if h.empty() {
-            return Err(PlanarError::NoHomography.into());
+            return Err(ImagingError::InvalidInput("no homography found".into()));
         }
         let mut rows = [[0.0; 3]; 3];
         for (r, row) in rows.iter_mut().enumerate() {
@@ -583,10 +583,10 @@ mod imp {
         aruco::draw_marker(&d, id, side_px as i32, &mut m, 1).map_err(cv_err)?;
         let bytes = m.data_bytes().map_err(cv_err)?.to_vec();
         if bytes.len() != side_px * side_px {
-            return Err(ImagingError::MarkerImage {
-                bytes: bytes.len(),
-                side_px,
-            });
+            return Err(ImagingError::OpenCv(format!(
+                "draw_marker gave {} bytes for a {side_px} px marker",
+                bytes.len()
+            )));
         }
         Ok(bytes)
     }

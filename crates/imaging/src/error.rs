@@ -114,12 +114,12 @@ pub enum ImagingError {
     },
     #[error("built without opencv: rebuild with --features opencv")]
     NoOpenCv,
-    /// An OpenCV call failed (`cv`, feature `opencv`).
+    /// OpenCV gave a result that cannot be used (`cv`, feature `opencv`).
     #[error("opencv: {0}")]
-    OpenCv(#[source] Box<dyn std::error::Error + Send + Sync>),
-    /// OpenCV drew a marker of the wrong size.
-    #[error("opencv: draw_marker gave {bytes} bytes for a {side_px} px marker")]
-    MarkerImage { bytes: usize, side_px: usize },
+    OpenCv(String),
+    /// An OpenCV call failed (`cv`, feature `opencv`; `opencv::Error` as the source).
+    #[error("opencv: {0}")]
+    OpenCvCall(#[source] Box<dyn std::error::Error + Send + Sync>),
     /// Correspondences from which no camera pose can be solved (`cv`).
     #[error("invalid input: {0}")]
     Pnp(#[from] PnpError),
@@ -286,8 +286,6 @@ pub enum PlanarError {
     RankDeficient,
     #[error("homography: non-finite result")]
     NonFiniteHomography,
-    #[error("no homography found")]
-    NoHomography,
     #[error(
         "planar pose needs at least 4 matching points ({plane} plane points, {pixels} pixels)"
     )]
