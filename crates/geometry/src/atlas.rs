@@ -568,23 +568,16 @@ fn dilate_into_gutters(cache: &mut TexelCache, g: usize) {
                 }
                 let mut chart = u32::MAX;
                 let (mut sp, mut sn, mut cnt) = ([0.0f32; 3], [0.0f32; 3], 0.0f32);
-                for dy in -1i64..=1 {
-                    for dx in -1i64..=1 {
-                        let (xx, yy) = (x as i64 + dx, y as i64 + dy);
-                        if xx < 0 || yy < 0 || xx >= res as i64 || yy >= res as i64 {
-                            continue;
-                        }
-                        let j = yy as usize * res + xx as usize;
-                        if prev[j] == u32::MAX || (chart != u32::MAX && prev[j] != chart) {
-                            continue;
-                        }
-                        chart = prev[j];
-                        for k in 0..3 {
-                            sp[k] += cache.position.pixels[j][k];
-                            sn[k] += cache.normal.pixels[j][k];
-                        }
-                        cnt += 1.0;
+                for j in crate::texels::window3x3(x, y, res) {
+                    if prev[j] == u32::MAX || (chart != u32::MAX && prev[j] != chart) {
+                        continue;
                     }
+                    chart = prev[j];
+                    for k in 0..3 {
+                        sp[k] += cache.position.pixels[j][k];
+                        sn[k] += cache.normal.pixels[j][k];
+                    }
+                    cnt += 1.0;
                 }
                 if cnt > 0.0 {
                     cache.owner[i] = chart;

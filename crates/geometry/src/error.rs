@@ -15,12 +15,37 @@ pub enum GeometryError {
     /// A file whose content is not what its format promises (truncated, bad header, counts that do not match...).
     #[error("{}: {msg}", path.display())]
     Format { path: PathBuf, msg: String },
+    /// A JSON file of the site store that does not parse.
+    #[error("{}: bad JSON: {source}", path.display())]
+    Json {
+        path: PathBuf,
+        #[source]
+        source: serde_json::Error,
+    },
+    /// A value of an ASCII PLY file that is not a number.
+    #[error("{}: {element} element {index}: `{token}` is not a number", path.display())]
+    PlyNumber {
+        path: PathBuf,
+        element: String,
+        index: usize,
+        token: String,
+        #[source]
+        source: std::num::ParseFloatError,
+    },
     /// A file name whose extension names no format this crate reads or writes.
     #[error("{}: unknown mesh format (expected .ply or .obj)", path.display())]
     UnknownFormat { path: PathBuf },
-    /// A mesh that breaks an invariant (empty, NaN coordinates, index out of range, attribute length).
+    /// A mesh or point cloud that breaks an invariant (empty, NaN coordinates, index out of
+    /// range, attribute length).
     #[error("invalid mesh: {0}")]
-    InvalidMesh(String),
+    InvalidMesh(#[from] MeshInvariant),
+    /// A mesh file whose mesh breaks an invariant.
+    #[error("{}: {problem}", path.display())]
+    MeshInFile {
+        path: PathBuf,
+        #[source]
+        problem: MeshInvariant,
+    },
     /// A bad argument (voxel size, level list, voxel id...).
     #[error("invalid argument: {0}")]
     InvalidArgument(String),
@@ -48,8 +73,47 @@ impl GeometryError {
     /// Attach a file name to an `InvalidMesh` error (other variants already name their file).
     pub(crate) fn in_file(self, path: &std::path::Path) -> Self {
         match self {
-            GeometryError::InvalidMesh(m) => GeometryError::format(path, m),
+            GeometryError::InvalidMesh(problem) => GeometryError::MeshInFile {
+                path: path.to_path_buf(),
+                problem,
+            },
             e => e,
         }
     }
+}
+
+/// The invariant a mesh or point cloud breaks (`TriMesh::validate`, `PointCloud::validate`).
+#[derive(Debug, thiserror::Error)]
+pub enum MeshInvariant {
+    #[error("empty mesh ({vertices} vertices, {triangles} triangles)")]
+    Empty { vertices: usize, triangles: usize },
+    #[error("empty point cloud")]
+    EmptyCloud,
+    #[error("vertex {vertex} has a non-finite coordinate {position:?}")]
+    NonFiniteVertex { vertex: usize, position: [f32; 3] },
+    /// A per-vertex (`element` "vertices") or per-point ("points") attribute of the wrong length.
+    #[error("{name} has {entries} entries for {count} {element}")]
+    AttributeLength {
+        name: String,
+        entries: usize,
+        count: usize,
+        element: &'static str,
+    },
+    /// A non-finite attribute value of vertex or point (`element`) `index`.
+    #[error("{name} of {element} {index} is not finite")]
+    NonFiniteAttribute {
+        name: String,
+        element: &'static str,
+        index: usize,
+    },
+    #[error(
+        "triangle {triangle} uses vertex index {index} but there are only {vertices} vertices"
+    )]
+    IndexOutOfRange {
+        triangle: usize,
+        index: u32,
+        vertices: usize,
+    },
+    #[error("property name {0:?} is not a new PLY identifier")]
+    PropertyName(String),
 }

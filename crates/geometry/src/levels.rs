@@ -100,14 +100,7 @@ mod tests {
                 m.positions.push([x, y, z(x, y)]);
             }
         }
-        let w = (n + 1) as u32;
-        for j in 0..n as u32 {
-            for i in 0..n as u32 {
-                let a = j * w + i;
-                m.indices.push([a, a + 1, a + w + 1]);
-                m.indices.push([a, a + w + 1, a + w]);
-            }
-        }
+        m.indices.extend(crate::mesh::grid_triangles(0, n, n));
         m
     }
 

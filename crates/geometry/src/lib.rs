@@ -37,7 +37,7 @@ pub mod store;
 pub mod texels;
 pub mod voxel;
 
-pub use error::GeometryError;
+pub use error::{GeometryError, MeshInvariant};
 pub use marching::{marching_cubes, Grid};
 pub use mesh::TriMesh;
 pub use obj::{read_obj, write_obj};

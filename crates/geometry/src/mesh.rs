@@ -1,6 +1,6 @@
 //! The triangle mesh type shared by the whole toolkit.
 
-use crate::error::GeometryError;
+use crate::error::{GeometryError, MeshInvariant};
 
 /// An indexed triangle mesh with optional per-vertex attributes.
 ///
@@ -96,21 +96,22 @@ impl TriMesh {
     pub fn validate(&self) -> Result<(), GeometryError> {
         let nv = self.positions.len();
         if nv == 0 || self.indices.is_empty() {
-            return Err(GeometryError::InvalidMesh(format!(
-                "empty mesh ({} vertices, {} triangles)",
-                nv,
-                self.indices.len()
-            )));
+            return Err(MeshInvariant::Empty {
+                vertices: nv,
+                triangles: self.indices.len(),
+            }
+            .into());
         }
         if let Some(i) = self
             .positions
             .iter()
             .position(|p| !p.iter().all(|x| x.is_finite()))
         {
-            return Err(GeometryError::InvalidMesh(format!(
-                "vertex {i} has a non-finite coordinate {:?}",
-                self.positions[i]
-            )));
+            return Err(MeshInvariant::NonFiniteVertex {
+                vertex: i,
+                position: self.positions[i],
+            }
+            .into());
         }
         fn check<const N: usize>(
             name: &str,
@@ -119,15 +120,21 @@ impl TriMesh {
         ) -> Result<(), GeometryError> {
             if let Some(a) = a {
                 if a.len() != nv {
-                    return Err(GeometryError::InvalidMesh(format!(
-                        "{name} has {} entries for {nv} vertices",
-                        a.len()
-                    )));
+                    return Err(MeshInvariant::AttributeLength {
+                        name: name.to_string(),
+                        entries: a.len(),
+                        count: nv,
+                        element: "vertices",
+                    }
+                    .into());
                 }
                 if let Some(i) = a.iter().position(|p| !p.iter().all(|x| x.is_finite())) {
-                    return Err(GeometryError::InvalidMesh(format!(
-                        "{name} of vertex {i} is not finite"
-                    )));
+                    return Err(MeshInvariant::NonFiniteAttribute {
+                        name: name.to_string(),
+                        element: "vertex",
+                        index: i,
+                    }
+                    .into());
                 }
             }
             Ok(())
@@ -137,9 +144,12 @@ impl TriMesh {
         check("colors", &self.colors, nv)?;
         for (t, tri) in self.indices.iter().enumerate() {
             if let Some(&i) = tri.iter().find(|&&i| i as usize >= nv) {
-                return Err(GeometryError::InvalidMesh(format!(
-                    "triangle {t} uses vertex index {i} but there are only {nv} vertices"
-                )));
+                return Err(MeshInvariant::IndexOutOfRange {
+                    triangle: t,
+                    index: i,
+                    vertices: nv,
+                }
+                .into());
             }
         }
         Ok(())
@@ -179,6 +189,18 @@ pub(crate) fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 
 pub(crate) fn norm(a: [f64; 3]) -> f64 {
     (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
+}
+
+/// The triangles of a row-major grid of `(nu + 1) x (nv + 1)` vertices numbered from `base`:
+/// two per cell, `[a, a + 1, a + w + 1]` and `[a, a + w + 1, a + w]` with `w = nu + 1`.
+pub fn grid_triangles(base: u32, nu: usize, nv: usize) -> impl Iterator<Item = [u32; 3]> {
+    let w = (nu + 1) as u32;
+    (0..nv as u32).flat_map(move |j| {
+        (0..nu as u32).flat_map(move |i| {
+            let a = base + j * w + i;
+            [[a, a + 1, a + w + 1], [a, a + w + 1, a + w]]
+        })
+    })
 }
 
 /// Area of a triangle given by f32 corners, in f64.

@@ -307,7 +307,11 @@ enum Source<R: BufRead> {
 enum Eof {
     End,
     Io(std::io::Error),
-    Bad(String),
+    /// An ASCII token that does not parse as a number.
+    NotANumber {
+        token: String,
+        source: std::num::ParseFloatError,
+    },
 }
 
 impl<R: BufRead> Source<R> {
@@ -325,8 +329,10 @@ impl<R: BufRead> Source<R> {
                 }
                 let t = &toks[*pos];
                 *pos += 1;
-                t.parse::<f64>()
-                    .map_err(|_| Eof::Bad(format!("`{t}` is not a number")))
+                t.parse::<f64>().map_err(|source| Eof::NotANumber {
+                    token: t.clone(),
+                    source,
+                })
             }
             Source::Binary { r, enc } => {
                 let mut b = [0u8; 8];
@@ -468,7 +474,13 @@ fn element_error(path: &Path, el: &Element, e: Eof, i: usize) -> GeometryError {
             ),
         ),
         Eof::Io(e) => GeometryError::io(path, e),
-        Eof::Bad(m) => GeometryError::format(path, format!("{} element {i}: {m}", el.name)),
+        Eof::NotANumber { token, source } => GeometryError::PlyNumber {
+            path: path.to_path_buf(),
+            element: el.name.clone(),
+            index: i,
+            token,
+            source,
+        },
     }
 }
 
@@ -740,11 +752,7 @@ pub fn write_ply(path: &Path, mesh: &TriMesh) -> Result<(), GeometryError> {
         let mut rec = Vec::with_capacity(44);
         for i in 0..mesh.positions.len() {
             rec.clear();
-            let mut put = |v: &[f32]| {
-                for x in v {
-                    rec.extend_from_slice(&x.to_le_bytes());
-                }
-            };
+            let mut put = |v: &[f32]| crate::ply::push_le_f32(&mut rec, v);
             put(&mesh.positions[i]);
             if let Some(n) = &mesh.normals {
                 put(&n[i]);
@@ -767,6 +775,13 @@ pub fn write_ply(path: &Path, mesh: &TriMesh) -> Result<(), GeometryError> {
         }
         Ok(())
     })
+}
+
+/// Appends the little-endian bytes of `v` to a binary PLY record.
+pub(crate) fn push_le_f32(rec: &mut Vec<u8>, v: &[f32]) {
+    for x in v {
+        rec.extend_from_slice(&x.to_le_bytes());
+    }
 }
 
 #[cfg(test)]

@@ -7,7 +7,7 @@
 //! `radius` when present, then the extra properties in order.
 
 use crate::atomic::write_atomic_with;
-use crate::error::GeometryError;
+use crate::error::{GeometryError, MeshInvariant};
 use std::io::Write;
 use std::path::Path;
 
@@ -48,16 +48,27 @@ impl PointCloud {
     /// standard ones.
     pub fn validate(&self) -> Result<(), GeometryError> {
         let n = self.positions.len();
-        let bad = |m: String| Err(GeometryError::InvalidMesh(m));
+        let bad = |m: MeshInvariant| Err(GeometryError::InvalidMesh(m));
+        let length = |name: &str, entries: usize| MeshInvariant::AttributeLength {
+            name: name.to_string(),
+            entries,
+            count: n,
+            element: "points",
+        };
+        let not_finite = |name: &str, index: usize| MeshInvariant::NonFiniteAttribute {
+            name: name.to_string(),
+            element: "point",
+            index,
+        };
         if n == 0 {
-            return bad("empty point cloud".into());
+            return bad(MeshInvariant::EmptyCloud);
         }
         let finite3 = |name: &str, a: &[[f32; 3]]| -> Result<(), GeometryError> {
             if a.len() != n {
-                return bad(format!("{name} has {} entries for {n} points", a.len()));
+                return bad(length(name, a.len()));
             }
             match a.iter().position(|p| !p.iter().all(|x| x.is_finite())) {
-                Some(i) => bad(format!("{name} of point {i} is not finite")),
+                Some(i) => bad(not_finite(name, i)),
                 None => Ok(()),
             }
         };
@@ -77,19 +88,17 @@ impl PointCloud {
             .map(|r| ("radius".to_string(), r.clone()));
         for (name, v) in radii.iter().chain(&self.properties) {
             if v.len() != n {
-                return bad(format!("{name} has {} entries for {n} points", v.len()));
+                return bad(length(name, v.len()));
             }
             if let Some(i) = v.iter().position(|x| !x.is_finite()) {
-                return bad(format!("{name} of point {i} is not finite"));
+                return bad(not_finite(name, i));
             }
         }
         for (name, _) in &self.properties {
             let ok =
                 !name.is_empty() && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
             if !ok || names.contains(&name.as_str()) {
-                return bad(format!(
-                    "property name {name:?} is not a new PLY identifier"
-                ));
+                return bad(MeshInvariant::PropertyName(name.clone()));
             }
             names.push(name);
         }
@@ -144,11 +153,7 @@ pub fn write_points_ply(path: &Path, cloud: &PointCloud) -> Result<(), GeometryE
         let mut rec = Vec::with_capacity(64);
         for i in 0..cloud.len() {
             rec.clear();
-            let mut put = |v: &[f32]| {
-                for x in v {
-                    rec.extend_from_slice(&x.to_le_bytes());
-                }
-            };
+            let mut put = |v: &[f32]| crate::ply::push_le_f32(&mut rec, v);
             put(&cloud.positions[i]);
             if let Some(n) = &cloud.normals {
                 put(&n[i]);

@@ -9,6 +9,7 @@
 //! million at detail 75 (20.7 million without the terrain). [`colonnade_field`] repeats the
 //! colonnade on a grid 20 m apart over a larger terrain, for sites that span many voxels.
 
+use crate::mesh::grid_triangles;
 use crate::mesh::TriMesh;
 
 /// Deterministic tiny RNG (SplitMix64) so the generator needs no dependency.
@@ -79,14 +80,7 @@ impl Builder {
                 self.vert(p, n, uv);
             }
         }
-        let w = (nu + 1) as u32;
-        for j in 0..nv as u32 {
-            for i in 0..nu as u32 {
-                let a = base + j * w + i;
-                self.idx.push([a, a + 1, a + w + 1]);
-                self.idx.push([a, a + w + 1, a + w]);
-            }
-        }
+        self.idx.extend(grid_triangles(base, nu, nv));
     }
 
     /// An axis-aligned box, `per_m` quads per metre on each face, faces drawn into tiles
@@ -243,20 +237,12 @@ fn terrain(size: f64, n: usize, waves: &[(f64, f64, f64, f64)], centres: &[[f64;
             b.vert([x, y, z], normalize([-gx, -gy, 1.0]), [s, t]);
         }
     }
-    let w = (n + 1) as u32;
-    for j in 0..n as u32 {
-        for i in 0..n as u32 {
-            let a = j * w + i;
-            b.idx.push([a, a + 1, a + w + 1]);
-            b.idx.push([a, a + w + 1, a + w]);
-        }
-    }
+    b.idx.extend(grid_triangles(0, n, n));
     b.finish()
 }
 
 /// The temple at the origin: stylobate, six columns, wall, architrave.
 fn structures(d: usize) -> Vec<(String, TriMesh)> {
-    let mut out = Vec::new();
     let per_m = d as f64;
     // stylobate: three steps of 0.3 m, each inset by 0.4 m
     let mut b = Builder::default();
@@ -265,63 +251,14 @@ fn structures(d: usize) -> Vec<(String, TriMesh)> {
         let (z0, z1) = (0.3 * k as f64, 0.3 * (k + 1) as f64);
         b.aabox([-hx, -hy, z0], [hx, hy, z1], per_m, 5 * k, 15, false);
     }
-    out.push(("stylobate".to_string(), b.finish()));
-
-    // columns: a row along x at y = -2, base on the top step (z = 0.9), 5 m tall, tapered
-    let (z0, height, r0) = (0.9, 5.0, 0.45);
-    let sides = 24 * d;
-    let rings = 8 * d;
+    let mut out = vec![("stylobate".to_string(), b.finish())];
+    // columns: a row along x at y = -2
     for c in 0..6 {
-        let (cx, cy) = (-5.0 + 2.0 * c as f64, -2.0);
-        let taper = 0.12;
-        let radius = |t: f64| r0 * (1.0 - taper * t);
-        let mut b = Builder::default();
-        // side: uv rect [0,1] x [0.34,1]
-        for j in 0..=rings {
-            let t = j as f64 / rings as f64;
-            for i in 0..=sides {
-                let a = std::f64::consts::TAU * i as f64 / sides as f64;
-                let r = radius(t);
-                let nrm = normalize([a.cos(), a.sin(), r0 * taper / height]);
-                b.vert(
-                    [cx + r * a.cos(), cy + r * a.sin(), z0 + t * height],
-                    nrm,
-                    [0.01 + 0.98 * i as f64 / sides as f64, 0.34 + 0.65 * t],
-                );
-            }
-        }
-        let w = (sides + 1) as u32;
-        for j in 0..rings as u32 {
-            for i in 0..sides as u32 {
-                let a = j * w + i;
-                b.idx.push([a, a + 1, a + w + 1]);
-                b.idx.push([a, a + w + 1, a + w]);
-            }
-        }
-        // caps: discs in uv rects [0,0.5]x[0,0.32] (bottom) and [0.5,1]x[0,0.32] (top)
-        for (top, uc) in [(false, 0.25), (true, 0.75)] {
-            let t = if top { 1.0 } else { 0.0 };
-            let (z, r) = (z0 + t * height, radius(t));
-            let nz = if top { 1.0 } else { -1.0 };
-            let centre = b.vert([cx, cy, z], [0.0, 0.0, nz], [uc, 0.16]);
-            let first = b.p.len() as u32;
-            for i in 0..sides {
-                let a = std::f64::consts::TAU * i as f64 / sides as f64;
-                b.vert(
-                    [cx + r * a.cos(), cy + r * a.sin(), z],
-                    [0.0, 0.0, nz],
-                    [uc + 0.15 * a.cos(), 0.16 + 0.15 * a.sin()],
-                );
-            }
-            for i in 0..sides as u32 {
-                let (p, q) = (first + i, first + (i + 1) % sides as u32);
-                b.idx
-                    .push(if top { [centre, p, q] } else { [centre, q, p] });
-            }
-        }
-        out.push((format!("column_{c:02}"), b.finish()));
+        out.push((
+            format!("column_{c:02}"),
+            column(-5.0 + 2.0 * c as f64, -2.0, d),
+        ));
     }
-
     // back wall and architrave slab
     let mut b = Builder::default();
     b.aabox([-6.0, 2.0, 0.9], [6.0, 2.6, 6.9], per_m, 0, 5, false);
@@ -330,6 +267,53 @@ fn structures(d: usize) -> Vec<(String, TriMesh)> {
     b.aabox([-6.3, -2.7, 5.9], [6.3, 2.6, 6.8], per_m, 0, 6, true);
     out.push(("architrave".to_string(), b.finish()));
     out
+}
+
+/// A column of the temple centred at (`cx`, `cy`): base on the top step (z = 0.9), 5 m tall,
+/// tapered, `24 d` sides and `8 d` rings; its side in uv rect [0,1] x [0.34,1], its caps below.
+fn column(cx: f64, cy: f64, d: usize) -> TriMesh {
+    let (z0, height, r0) = (0.9, 5.0, 0.45);
+    let sides = 24 * d;
+    let rings = 8 * d;
+    let taper = 0.12;
+    let radius = |t: f64| r0 * (1.0 - taper * t);
+    let mut b = Builder::default();
+    for j in 0..=rings {
+        let t = j as f64 / rings as f64;
+        for i in 0..=sides {
+            let a = std::f64::consts::TAU * i as f64 / sides as f64;
+            let r = radius(t);
+            let nrm = normalize([a.cos(), a.sin(), r0 * taper / height]);
+            b.vert(
+                [cx + r * a.cos(), cy + r * a.sin(), z0 + t * height],
+                nrm,
+                [0.01 + 0.98 * i as f64 / sides as f64, 0.34 + 0.65 * t],
+            );
+        }
+    }
+    b.idx.extend(grid_triangles(0, sides, rings));
+    // caps: discs in uv rects [0,0.5]x[0,0.32] (bottom) and [0.5,1]x[0,0.32] (top)
+    for (top, uc) in [(false, 0.25), (true, 0.75)] {
+        let t = if top { 1.0 } else { 0.0 };
+        let (z, r) = (z0 + t * height, radius(t));
+        let nz = if top { 1.0 } else { -1.0 };
+        let centre = b.vert([cx, cy, z], [0.0, 0.0, nz], [uc, 0.16]);
+        let first = b.p.len() as u32;
+        for i in 0..sides {
+            let a = std::f64::consts::TAU * i as f64 / sides as f64;
+            b.vert(
+                [cx + r * a.cos(), cy + r * a.sin(), z],
+                [0.0, 0.0, nz],
+                [uc + 0.15 * a.cos(), 0.16 + 0.15 * a.sin()],
+            );
+        }
+        for i in 0..sides as u32 {
+            let (p, q) = (first + i, first + (i + 1) % sides as u32);
+            b.idx
+                .push(if top { [centre, p, q] } else { [centre, q, p] });
+        }
+    }
+    b.finish()
 }
 
 /// A UV-less latitude-longitude sphere of radius `r` about the origin (poles on the Z axis),

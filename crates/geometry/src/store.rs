@@ -240,7 +240,10 @@ fn write_json<T: Serialize>(path: &Path, v: &T) -> Result<(), GeometryError> {
 
 fn read_json<T: for<'de> Deserialize<'de>>(path: &Path) -> Result<T, GeometryError> {
     let text = std::fs::read_to_string(path).map_err(|e| GeometryError::io(path, e))?;
-    serde_json::from_str(&text).map_err(|e| GeometryError::format(path, format!("bad JSON: {e}")))
+    serde_json::from_str(&text).map_err(|source| GeometryError::Json {
+        path: path.to_path_buf(),
+        source,
+    })
 }
 
 fn mkdir(p: &Path) -> Result<(), GeometryError> {
@@ -671,23 +674,65 @@ mod tests {
             levels: vec![1.0, 0.2, 0.05],
             ..Default::default()
         };
-        let man = prepare(
-            m.clone(),
-            None,
-            rep.clone(),
-            &out,
-            "bunny",
-            &opts,
-            &|_, _| {},
-        )
-        .unwrap();
+        let prepare_bunny = |opts: &PrepareOptions| {
+            prepare(
+                m.clone(),
+                None,
+                rep.clone(),
+                &out,
+                "bunny",
+                opts,
+                &|_, _| {},
+            )
+        };
+        let man = prepare_bunny(&opts).unwrap();
         assert!(man.voxels.len() >= 8, "{} voxels", man.voxels.len());
         let store = SiteStore::open(&out).unwrap();
         let ids = store.voxel_ids();
-        // 1. area: every piece of surface in exactly one voxel, inside its bounds
+        let levels = bunny_voxels_cover_the_area_once(&store, &opts, &ids, area);
+        bunny_neighbours_share_their_border_edges(&opts, &ids, &levels);
+        bunny_levels_shrink_with_growing_error(&man);
+        let v = ids[ids.len() / 2];
+        bunny_texel_cache_lies_on_the_mesh(&man, &store, &levels[&(v, 0)], v);
+        bunny_loader_picks_levels_by_distance(&man, &store, &ids, v);
+        // 6. resume: a finished voxel is not rewritten; a broken one is redone
+        let f0 = store.voxel_folder(ids[0]).unwrap().join("level0.ply");
+        let t0 = std::fs::metadata(&f0).unwrap().modified().unwrap();
+        let f1 = store.voxel_folder(ids[1]).unwrap();
+        std::fs::remove_file(f1.join("level2.ply")).unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(20));
+        let man2 = prepare_bunny(&opts).unwrap();
+        assert_eq!(std::fs::metadata(&f0).unwrap().modified().unwrap(), t0);
+        assert!(f1.join("level2.ply").exists());
+        assert_eq!(man2.voxels.len(), man.voxels.len());
+        for (a, b) in man2.voxels.iter().zip(&man.voxels) {
+            assert_eq!(
+                (a.voxel, &a.triangles, a.charts),
+                (b.voxel, &b.triangles, b.charts)
+            );
+            assert!((a.texel_size - b.texel_size).abs() < 1e-12 && (a.area - b.area).abs() < 1e-9);
+        }
+        // different settings on the same folder are refused
+        let mut other = opts.clone();
+        other.grid.size = 3.0;
+        let e = prepare_bunny(&other).unwrap_err().to_string();
+        assert!(
+            e.contains("option --voxel") && e.contains("--restart"),
+            "{e}"
+        );
+    }
+
+    /// Step 1 of the bunny test: every piece of surface in exactly one voxel, inside its
+    /// bounds; returns every voxel's mesh at every level.
+    fn bunny_voxels_cover_the_area_once(
+        store: &SiteStore,
+        opts: &PrepareOptions,
+        ids: &[VoxelId],
+        area: f64,
+    ) -> HashMap<(VoxelId, usize), TriMesh> {
         let mut sum = 0.0;
         let mut levels: HashMap<(VoxelId, usize), TriMesh> = HashMap::new();
-        for &v in &ids {
+        for &v in ids {
             let (lo, hi) = opts.grid.bounds(v);
             for l in 0..3 {
                 let mesh = store.load_voxel(v, l).unwrap();
@@ -708,9 +753,17 @@ mod tests {
             (sum - area).abs() < 1e-5 * area,
             "voxel area {sum} vs mesh {area}"
         );
-        // 2. boundary edges of face neighbours match exactly, at every pair of levels
+        levels
+    }
+
+    /// Step 2: boundary edges of face neighbours match exactly, at every pair of levels.
+    fn bunny_neighbours_share_their_border_edges(
+        opts: &PrepareOptions,
+        ids: &[VoxelId],
+        levels: &HashMap<(VoxelId, usize), TriMesh>,
+    ) {
         let mut checked = 0;
-        for &a in &ids {
+        for &a in ids {
             for axis in 0..3 {
                 let mut b = a;
                 b[axis] += 1;
@@ -747,7 +800,10 @@ mod tests {
             }
         }
         assert!(checked >= 3, "only {checked} shared faces checked");
-        // 3. levels really are smaller and report their error
+    }
+
+    /// Step 3: levels really are smaller and report their error.
+    fn bunny_levels_shrink_with_growing_error(man: &Manifest) {
         let t: Vec<usize> = man.triangles_per_level.clone();
         assert_eq!(
             t[0],
@@ -771,17 +827,24 @@ mod tests {
             "{:?}",
             man.voxels.iter().map(|e| e.errors[2]).collect::<Vec<_>>()
         );
-        // 4. coverage and texel caches: cached positions lie on the mesh
+    }
+
+    /// Step 4: coverage and texel caches: the cached positions of voxel `v` (level-0 mesh
+    /// `m0`) lie on the mesh.
+    fn bunny_texel_cache_lies_on_the_mesh(
+        man: &Manifest,
+        store: &SiteStore,
+        m0: &TriMesh,
+        v: VoxelId,
+    ) {
         assert!(
             man.coverage_mean > 0.05 && man.coverage_mean <= 1.0,
             "{}",
             man.coverage_mean
         );
-        let v = ids[ids.len() / 2];
         let e = man.voxels.iter().find(|e| e.voxel == Some(v)).unwrap();
         let pos =
             igi_imaging::read_image(&store.voxel_folder(v).unwrap().join("position.exr")).unwrap();
-        let m0 = &levels[&(v, 0)];
         let uv = m0.uvs.as_ref().unwrap();
         // "Texel caches reproduce positions on the mesh within half a texel": for points on
         // the mesh (three per triangle), the cache looked up bilinearly at the point's UV is
@@ -794,24 +857,9 @@ mod tests {
         for tri in &m0.indices {
             let p = tri.map(|i| m0.positions[i as usize].map(f64::from));
             let t = tri.map(|i| uv[i as usize].map(f64::from));
-            // Jacobian d(world)/d(uv) of the triangle
-            let (du1, dv1) = (t[1][0] - t[0][0], t[1][1] - t[0][1]);
-            let (du2, dv2) = (t[2][0] - t[0][0], t[2][1] - t[0][1]);
-            let det = du1 * dv2 - du2 * dv1;
-            if det.abs() < 1e-14 {
+            let Some(half_diag) = half_texel_diagonal(p, t, res) else {
                 continue;
-            }
-            let e1 = [0, 1, 2].map(|k| p[1][k] - p[0][k]);
-            let e2 = [0, 1, 2].map(|k| p[2][k] - p[0][k]);
-            let ju = [0, 1, 2].map(|k| (e1[k] * dv2 - e2[k] * dv1) / det);
-            let jv = [0, 1, 2].map(|k| (e2[k] * du1 - e1[k] * du2) / det);
-            let norm = |a: [f64; 3]| (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
-            // half a texel diagonal on this triangle (the longer of the two diagonals)
-            let h = 0.5 / res as f64;
-            let half_diag = [1.0, -1.0]
-                .map(|s| norm([0, 1, 2].map(|k| h * (ju[k] + s * jv[k]))))
-                .into_iter()
-                .fold(0.0, f64::max);
+            };
             for (a, b) in [
                 (1.0 / 6.0, 1.0 / 6.0),
                 (2.0 / 3.0, 1.0 / 6.0),
@@ -847,7 +895,44 @@ mod tests {
             worst_bilinear / ts,
             worst_nearest_ratio
         );
-        // 5. loader: v high, neighbours medium (or high, as a Jacobi task loads them), the rest low
+    }
+
+    fn norm(a: [f64; 3]) -> f64 {
+        (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
+    }
+
+    /// Half a texel diagonal of a `res` atlas on the triangle with corners `p` and UVs `t`
+    /// (the longer of the two diagonals, through the triangle's Jacobian d(world)/d(uv));
+    /// `None` when its UVs are degenerate.
+    fn half_texel_diagonal(p: [[f64; 3]; 3], t: [[f64; 2]; 3], res: usize) -> Option<f64> {
+        let (du1, dv1) = (t[1][0] - t[0][0], t[1][1] - t[0][1]);
+        let (du2, dv2) = (t[2][0] - t[0][0], t[2][1] - t[0][1]);
+        let det = du1 * dv2 - du2 * dv1;
+        if det.abs() < 1e-14 {
+            return None;
+        }
+        let e1 = [0, 1, 2].map(|k| p[1][k] - p[0][k]);
+        let e2 = [0, 1, 2].map(|k| p[2][k] - p[0][k]);
+        let ju = [0, 1, 2].map(|k| (e1[k] * dv2 - e2[k] * dv1) / det);
+        let jv = [0, 1, 2].map(|k| (e2[k] * du1 - e1[k] * du2) / det);
+        let h = 0.5 / res as f64;
+        Some(
+            [1.0, -1.0]
+                .map(|s| norm([0, 1, 2].map(|k| h * (ju[k] + s * jv[k]))))
+                .into_iter()
+                .fold(0.0, f64::max),
+        )
+    }
+
+    /// Step 5: the loader gives `v` high, its neighbours medium (or high, as a Jacobi task
+    /// loads them), the rest low.
+    fn bunny_loader_picks_levels_by_distance(
+        man: &Manifest,
+        store: &SiteStore,
+        ids: &[VoxelId],
+        v: VoxelId,
+    ) {
+        let t = &man.triangles_per_level;
         let jacobi = store.load_for_voxel(v, 0).unwrap();
         for p in &jacobi {
             let u = p.voxel.unwrap();
@@ -873,42 +958,6 @@ mod tests {
         }
         assert!(loaded < t[0]);
         assert!(store.load_for_voxel([99, 99, 99], 1).is_err());
-        // 6. resume: a finished voxel is not rewritten; a broken one is redone
-        let f0 = store.voxel_folder(ids[0]).unwrap().join("level0.ply");
-        let t0 = std::fs::metadata(&f0).unwrap().modified().unwrap();
-        let f1 = store.voxel_folder(ids[1]).unwrap();
-        std::fs::remove_file(f1.join("level2.ply")).unwrap();
-        std::thread::sleep(std::time::Duration::from_millis(20));
-        let man2 = prepare(
-            m.clone(),
-            None,
-            rep.clone(),
-            &out,
-            "bunny",
-            &opts,
-            &|_, _| {},
-        )
-        .unwrap();
-        assert_eq!(std::fs::metadata(&f0).unwrap().modified().unwrap(), t0);
-        assert!(f1.join("level2.ply").exists());
-        assert_eq!(man2.voxels.len(), man.voxels.len());
-        for (a, b) in man2.voxels.iter().zip(&man.voxels) {
-            assert_eq!(
-                (a.voxel, &a.triangles, a.charts),
-                (b.voxel, &b.triangles, b.charts)
-            );
-            assert!((a.texel_size - b.texel_size).abs() < 1e-12 && (a.area - b.area).abs() < 1e-9);
-        }
-        // different settings on the same folder are refused
-        let mut other = opts.clone();
-        other.grid.size = 3.0;
-        let e = prepare(m, None, rep, &out, "bunny", &other, &|_, _| {})
-            .unwrap_err()
-            .to_string();
-        assert!(
-            e.contains("option --voxel") && e.contains("--restart"),
-            "{e}"
-        );
     }
 
     #[test]

@@ -99,20 +99,28 @@ fn known_neighbour_mean(
     y: usize,
 ) -> Option<Vec3> {
     let (mut s, mut n) = (Vec3::ZERO, 0.0f32);
-    for dy in -1i64..=1 {
-        for dx in -1i64..=1 {
-            let (xx, yy) = (x as i64 + dx, y as i64 + dy);
-            if xx < 0 || yy < 0 || xx >= res as i64 || yy >= res as i64 {
-                continue;
-            }
-            let j = yy as usize * res + xx as usize;
-            if known[j] {
-                s += values[j];
-                n += 1.0;
-            }
+    for j in window3x3(x, y, res) {
+        if known[j] {
+            s += values[j];
+            n += 1.0;
         }
     }
     (n > 0.0).then(|| s / n)
+}
+
+/// Indices of the texels of the 3x3 window around texel (x, y) of a `res` x `res` grid that lie
+/// inside it (the centre included), row by row from the top left.
+pub(crate) fn window3x3(x: usize, y: usize, res: usize) -> impl Iterator<Item = usize> {
+    (-1i64..=1).flat_map(move |dy| {
+        (-1i64..=1).filter_map(move |dx| {
+            let (xx, yy) = (x as i64 + dx, y as i64 + dy);
+            if xx < 0 || yy < 0 || xx >= res as i64 || yy >= res as i64 {
+                None
+            } else {
+                Some(yy as usize * res + xx as usize)
+            }
+        })
+    })
 }
 
 #[cfg(test)]

@@ -217,20 +217,7 @@ impl VoxelBuilder {
 /// interpolated at cut points, colours likewise; input UVs are dropped (each voxel gets its own
 /// atlas). Returns the non-empty voxels in lexicographic order of their ids.
 pub fn partition(mesh: &TriMesh, grid: &VoxelGrid) -> BTreeMap<VoxelId, TriMesh> {
-    let computed;
-    let normals = match &mesh.normals {
-        Some(n) => n,
-        None => {
-            let mut m = TriMesh {
-                positions: mesh.positions.clone(),
-                indices: mesh.indices.clone(),
-                ..Default::default()
-            };
-            m.compute_vertex_normals();
-            computed = m.normals.unwrap();
-            &computed
-        }
-    };
+    let normals = vertex_normals(mesh);
     let has_colors = mesh.colors.is_some();
     let cv = |i: u32| CV {
         p: mesh.positions[i as usize],
@@ -239,49 +226,16 @@ pub fn partition(mesh: &TriMesh, grid: &VoxelGrid) -> BTreeMap<VoxelId, TriMesh>
         src: i,
     };
     let mut out: BTreeMap<VoxelId, VoxelBuilder> = BTreeMap::new();
-    let mut pieces: Vec<(Vec<CV>, VoxelId)> = Vec::new();
-    let mut next: Vec<(Vec<CV>, VoxelId)> = Vec::new();
+    let mut pieces = Pieces::default();
     for tri in &mesh.indices {
         let vs = tri.map(cv);
-        let mut lo = [i32::MAX; 3];
-        let mut hi = [i32::MIN; 3];
-        for v in &vs {
-            for k in 0..3 {
-                let c = grid.cell(k, v.p[k]);
-                lo[k] = lo[k].min(c);
-                hi[k] = hi[k].max(c);
-            }
-        }
+        let (lo, hi) = cell_range(grid, &vs);
         if lo == hi {
             out.entry(lo).or_default().polygon(&vs);
             continue;
         }
-        pieces.clear();
-        pieces.push((vs.to_vec(), lo));
-        for axis in 0..3 {
-            next.clear();
-            for (poly, id) in pieces.drain(..) {
-                let mut rest = poly;
-                let mut id = id;
-                for i in lo[axis]..hi[axis] {
-                    let (below, above) = split(&rest, axis, grid.plane(axis, i + 1));
-                    if below.len() >= 3 {
-                        id[axis] = i;
-                        next.push((below, id));
-                    }
-                    rest = above;
-                    if rest.len() < 3 {
-                        break;
-                    }
-                }
-                if rest.len() >= 3 {
-                    id[axis] = hi[axis];
-                    next.push((rest, id));
-                }
-            }
-            std::mem::swap(&mut pieces, &mut next);
-        }
-        for (poly, id) in &pieces {
+        pieces.clip_to_cells(grid, &vs, lo, hi);
+        for (poly, id) in &pieces.cur {
             out.entry(*id).or_default().polygon(poly);
         }
     }
@@ -294,6 +248,76 @@ pub fn partition(mesh: &TriMesh, grid: &VoxelGrid) -> BTreeMap<VoxelId, TriMesh>
             (id, m)
         })
         .collect()
+}
+
+/// The mesh's vertex normals, computed from its triangles when it has none.
+fn vertex_normals(mesh: &TriMesh) -> std::borrow::Cow<'_, [[f32; 3]]> {
+    match &mesh.normals {
+        Some(n) => std::borrow::Cow::Borrowed(n),
+        None => {
+            let mut m = TriMesh {
+                positions: mesh.positions.clone(),
+                indices: mesh.indices.clone(),
+                ..Default::default()
+            };
+            m.compute_vertex_normals();
+            std::borrow::Cow::Owned(m.normals.unwrap())
+        }
+    }
+}
+
+/// The lowest and highest cell, per axis, of the cells a triangle's corners lie in.
+fn cell_range(grid: &VoxelGrid, vs: &[CV; 3]) -> (VoxelId, VoxelId) {
+    let mut lo = [i32::MAX; 3];
+    let mut hi = [i32::MIN; 3];
+    for v in vs {
+        for k in 0..3 {
+            let c = grid.cell(k, v.p[k]);
+            lo[k] = lo[k].min(c);
+            hi[k] = hi[k].max(c);
+        }
+    }
+    (lo, hi)
+}
+
+/// The polygons a triangle is clipped into, with the voxel each lies in (and scratch space
+/// reused from triangle to triangle).
+#[derive(Default)]
+struct Pieces {
+    cur: Vec<(Vec<CV>, VoxelId)>,
+    next: Vec<(Vec<CV>, VoxelId)>,
+}
+
+impl Pieces {
+    /// Clips triangle `vs`, whose corners span cells `lo..=hi`, at the lattice planes between
+    /// them, axis by axis: `cur` becomes the polygons (3 or more corners) with their voxels.
+    fn clip_to_cells(&mut self, grid: &VoxelGrid, vs: &[CV; 3], lo: VoxelId, hi: VoxelId) {
+        self.cur.clear();
+        self.cur.push((vs.to_vec(), lo));
+        for axis in 0..3 {
+            self.next.clear();
+            for (poly, id) in self.cur.drain(..) {
+                let mut rest = poly;
+                let mut id = id;
+                for i in lo[axis]..hi[axis] {
+                    let (below, above) = split(&rest, axis, grid.plane(axis, i + 1));
+                    if below.len() >= 3 {
+                        id[axis] = i;
+                        self.next.push((below, id));
+                    }
+                    rest = above;
+                    if rest.len() < 3 {
+                        break;
+                    }
+                }
+                if rest.len() >= 3 {
+                    id[axis] = hi[axis];
+                    self.next.push((rest, id));
+                }
+            }
+            std::mem::swap(&mut self.cur, &mut self.next);
+        }
+    }
 }
 
 #[cfg(test)]

@@ -162,11 +162,8 @@ impl WorldToCamera {
         self.r * p_world + self.t
     }
     pub fn inverse(&self) -> CameraToWorld {
-        let rt = self.r.transpose();
-        CameraToWorld {
-            r: rt,
-            t: -(rt * self.t),
-        }
+        let (r, t) = invert_rigid(self.r, self.t);
+        CameraToWorld { r, t }
     }
 }
 
@@ -175,12 +172,15 @@ impl CameraToWorld {
         self.r * p_cam + self.t
     }
     pub fn inverse(&self) -> WorldToCamera {
-        let rt = self.r.transpose();
-        WorldToCamera {
-            r: rt,
-            t: -(rt * self.t),
-        }
+        let (r, t) = invert_rigid(self.r, self.t);
+        WorldToCamera { r, t }
     }
+}
+
+/// The inverse of the rigid transform `x -> r x + t`: `x -> r^T x - r^T t`.
+fn invert_rigid(r: DMat3, t: DVec3) -> (DMat3, DVec3) {
+    let rt = r.transpose();
+    (rt, -(rt * t))
 }
 
 /// RMS pixel distance between where two cameras project the same world points (the points in
@@ -234,38 +234,105 @@ pub struct CameraFile {
     pub t: serde_json::Value,
 }
 
-fn json_numbers(v: &serde_json::Value, what: &str) -> Result<Vec<f64>, String> {
-    let arr = v
-        .as_array()
-        .ok_or_else(|| format!("{what} must be an array of numbers"))?;
+/// Why a camera file (FORMATS.md JSON) cannot be used; the message is the problem alone, the
+/// file is named by [`ImagingError::Camera`].
+#[derive(Debug, thiserror::Error)]
+pub enum CameraFileError {
+    /// The text is not the JSON of a camera file.
+    #[error("{0}")]
+    Json(#[source] serde_json::Error),
+    #[error("{what} must be a positive integer, found {found}")]
+    Dimension {
+        what: &'static str,
+        found: serde_json::Value,
+    },
+    #[error("{width}x{height} is {} Mpixel, beyond the limit of {} Mpixel (an image that size needs more than {} GiB)", *width as u64 * *height as u64 / 1_000_000, MAX_CAMERA_PIXELS / 1_000_000, (MAX_CAMERA_PIXELS * 13) >> 30)]
+    TooLarge { width: u32, height: u32 },
+    #[error("{what} must be an array of numbers")]
+    NotNumbers { what: &'static str },
+    #[error("{what} contains a non-number: {value}")]
+    NonNumber {
+        what: &'static str,
+        value: serde_json::Value,
+    },
+    #[error("{what} must be a 3x3 array of rows")]
+    NotMatrix { what: &'static str },
+    #[error("{what} must have 3 rows, found {rows}")]
+    Rows { what: &'static str, rows: usize },
+    #[error("{what} row {row} must have 3 entries, found {entries}")]
+    RowLength {
+        what: &'static str,
+        row: usize,
+        entries: usize,
+    },
+    #[error("{what} has a non-finite entry")]
+    NonFinite { what: &'static str },
+    #[error("K must be [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] (no skew), found {0:?}")]
+    Skew([[f64; 3]; 3]),
+    #[error("focal lengths must be positive, found fx={fx}, fy={fy}")]
+    Focal { fx: f64, fy: f64 },
+    #[error("dist must have 5 entries [k1, k2, p1, p2, k3] (or 4), found {0}")]
+    DistLength(usize),
+    #[error("t must have 3 entries, found {0}")]
+    TranslationLength(usize),
+    #[error(transparent)]
+    Rotation(#[from] RotationError),
+}
+
+/// Why a matrix is not a rotation ([`check_rotation`]).
+#[derive(Debug, thiserror::Error)]
+pub enum RotationError {
+    #[error("R has a NaN or infinite entry")]
+    NonFinite,
+    #[error("R is not orthonormal: max |R^T R - I| = {max:.3e} > 1e-6")]
+    NotOrthonormal { max: f64 },
+    #[error("R is not a rotation: det(R) = {det:.6} (must be +1)")]
+    NotRotation { det: f64 },
+}
+
+fn json_numbers(v: &serde_json::Value, what: &'static str) -> Result<Vec<f64>, CameraFileError> {
+    let arr = v.as_array().ok_or(CameraFileError::NotNumbers { what })?;
     arr.iter()
         .map(|x| {
-            x.as_f64()
-                .ok_or_else(|| format!("{what} contains a non-number: {x}"))
+            x.as_f64().ok_or_else(|| CameraFileError::NonNumber {
+                what,
+                value: x.clone(),
+            })
         })
         .collect()
 }
 
-fn json_matrix3(v: &serde_json::Value, what: &str) -> Result<DMat3, String> {
-    let rows = v
-        .as_array()
-        .ok_or_else(|| format!("{what} must be a 3x3 array of rows"))?;
+/// The finite numbers of JSON array `v` (`what` names it in errors).
+fn json_finite(v: &serde_json::Value, what: &'static str) -> Result<Vec<f64>, CameraFileError> {
+    let d = json_numbers(v, what)?;
+    if d.iter().any(|x| !x.is_finite()) {
+        return Err(CameraFileError::NonFinite { what });
+    }
+    Ok(d)
+}
+
+fn json_matrix3(v: &serde_json::Value, what: &'static str) -> Result<DMat3, CameraFileError> {
+    let rows = v.as_array().ok_or(CameraFileError::NotMatrix { what })?;
     if rows.len() != 3 {
-        return Err(format!("{what} must have 3 rows, found {}", rows.len()));
+        return Err(CameraFileError::Rows {
+            what,
+            rows: rows.len(),
+        });
     }
     let mut m = [[0.0; 3]; 3];
     for (i, r) in rows.iter().enumerate() {
         let r = json_numbers(r, what)?;
         if r.len() != 3 {
-            return Err(format!(
-                "{what} row {i} must have 3 entries, found {}",
-                r.len()
-            ));
+            return Err(CameraFileError::RowLength {
+                what,
+                row: i,
+                entries: r.len(),
+            });
         }
         m[i] = [r[0], r[1], r[2]];
     }
     if m.iter().flatten().any(|x| !x.is_finite()) {
-        return Err(format!("{what} has a non-finite entry"));
+        return Err(CameraFileError::NonFinite { what });
     }
     Ok(DMat3::from_cols_array_2d(&m).transpose())
 }
@@ -275,24 +342,92 @@ fn rows_of(m: &DMat3) -> [[f64; 3]; 3] {
 }
 
 /// Check that `r` is a rotation: |R^T R - I| <= 1e-6 elementwise and det within 1e-6 of +1.
-pub fn check_rotation(r: &DMat3) -> Result<(), String> {
+pub fn check_rotation(r: &DMat3) -> Result<(), RotationError> {
     if !r.is_finite() {
-        return Err("R has a NaN or infinite entry".into());
+        return Err(RotationError::NonFinite);
     }
     let e = r.transpose() * *r - DMat3::IDENTITY;
     let max = e.to_cols_array().iter().fold(0.0f64, |a, x| a.max(x.abs()));
     if max > 1e-6 {
-        return Err(format!(
-            "R is not orthonormal: max |R^T R - I| = {max:.3e} > 1e-6"
-        ));
+        return Err(RotationError::NotOrthonormal { max });
     }
     let det = r.determinant();
     if (det - 1.0).abs() > 1e-6 {
-        return Err(format!(
-            "R is not a rotation: det(R) = {det:.6} (must be +1)"
-        ));
+        return Err(RotationError::NotRotation { det });
     }
     Ok(())
+}
+
+/// Image size of a camera file: positive integers, at most [`MAX_CAMERA_PIXELS`] pixels.
+fn camera_size(j: &CameraFile) -> Result<(u32, u32), CameraFileError> {
+    let dim = |v: &serde_json::Value, what: &'static str| -> Result<u32, CameraFileError> {
+        v.as_u64()
+            .filter(|&x| x > 0 && x <= u32::MAX as u64)
+            .map(|x| x as u32)
+            .ok_or_else(|| CameraFileError::Dimension {
+                what,
+                found: v.clone(),
+            })
+    };
+    let width = dim(&j.width, "width")?;
+    let height = dim(&j.height, "height")?;
+    if width as u64 * height as u64 > MAX_CAMERA_PIXELS {
+        return Err(CameraFileError::TooLarge { width, height });
+    }
+    Ok((width, height))
+}
+
+/// Intrinsics of a camera file: K without skew and with positive focal lengths, and the
+/// distortion (none when absent or null).
+fn camera_intrinsics(j: &CameraFile) -> Result<Intrinsics, CameraFileError> {
+    let k = json_matrix3(&j.K, "K")?;
+    let kr = rows_of(&k);
+    if kr[0][1] != 0.0 || kr[1][0] != 0.0 || kr[2] != [0.0, 0.0, 1.0] {
+        return Err(CameraFileError::Skew(kr));
+    }
+    let (fx, fy, cx, cy) = (kr[0][0], kr[1][1], kr[0][2], kr[1][2]);
+    if !(fx > 0.0 && fy > 0.0) {
+        return Err(CameraFileError::Focal { fx, fy });
+    }
+    let dist = match &j.dist {
+        None | Some(serde_json::Value::Null) => Distortion::default(),
+        Some(v) => {
+            let d = json_numbers(v, "dist")?;
+            if !(d.len() == 4 || d.len() == 5) {
+                return Err(CameraFileError::DistLength(d.len()));
+            }
+            let d = json_finite(v, "dist")?;
+            Distortion {
+                k1: d[0],
+                k2: d[1],
+                p1: d[2],
+                p2: d[3],
+                k3: d.get(4).copied().unwrap_or(0.0),
+            }
+        }
+    };
+    Ok(Intrinsics {
+        fx,
+        fy,
+        cx,
+        cy,
+        dist,
+    })
+}
+
+/// Pose of a camera file: R a rotation, t three finite numbers.
+fn camera_pose(j: &CameraFile) -> Result<WorldToCamera, CameraFileError> {
+    let r = json_matrix3(&j.R, "R")?;
+    check_rotation(&r)?;
+    let t = json_numbers(&j.t, "t")?;
+    if t.len() != 3 {
+        return Err(CameraFileError::TranslationLength(t.len()));
+    }
+    let t = json_finite(&j.t, "t")?;
+    Ok(WorldToCamera {
+        r,
+        t: DVec3::new(t[0], t[1], t[2]),
+    })
 }
 
 /// The most pixels a camera file may have: 2^29 (536 Mpixel); an HDR image that size needs
@@ -318,94 +453,22 @@ impl Camera {
 
     /// Parse and validate a camera from FORMATS.md JSON text; `path` is used in errors.
     pub fn from_json_str(text: &str, path: &Path) -> Result<Camera, ImagingError> {
-        let err = |msg: String| ImagingError::Camera {
-            path: path.to_path_buf(),
-            msg,
-        };
-        let j: CameraFile = serde_json::from_str(text).map_err(|e| err(e.to_string()))?;
+        let j: CameraFile = serde_json::from_str(text)
+            .map_err(|e| ImagingError::camera(path, CameraFileError::Json(e)))?;
         Self::from_file(&j, path)
     }
 
     /// Checks a parsed camera file and builds the camera; `path` is used in errors.
     pub fn from_file(j: &CameraFile, path: &Path) -> Result<Camera, ImagingError> {
-        let err = |msg: String| ImagingError::Camera {
-            path: path.to_path_buf(),
-            msg,
-        };
-        let dim = |v: &serde_json::Value, what: &str| -> Result<u32, ImagingError> {
-            v.as_u64()
-                .filter(|&x| x > 0 && x <= u32::MAX as u64)
-                .map(|x| x as u32)
-                .ok_or_else(|| err(format!("{what} must be a positive integer, found {v}")))
-        };
-        let width = dim(&j.width, "width")?;
-        let height = dim(&j.height, "height")?;
-        if width as u64 * height as u64 > MAX_CAMERA_PIXELS {
-            return Err(err(format!(
-                "{width}x{height} is {} Mpixel, beyond the limit of {} Mpixel (an image that size needs more than {} GiB)",
-                width as u64 * height as u64 / 1_000_000,
-                MAX_CAMERA_PIXELS / 1_000_000,
-                (MAX_CAMERA_PIXELS * 13) >> 30
-            )));
-        }
-        let k = json_matrix3(&j.K, "K").map_err(err)?;
-        let kr = rows_of(&k);
-        if kr[0][1] != 0.0 || kr[1][0] != 0.0 || kr[2] != [0.0, 0.0, 1.0] {
-            return Err(err(format!(
-                "K must be [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] (no skew), found {kr:?}"
-            )));
-        }
-        let (fx, fy, cx, cy) = (kr[0][0], kr[1][1], kr[0][2], kr[1][2]);
-        if !(fx > 0.0 && fy > 0.0) {
-            return Err(err(format!(
-                "focal lengths must be positive, found fx={fx}, fy={fy}"
-            )));
-        }
-        let dist = match &j.dist {
-            None | Some(serde_json::Value::Null) => Distortion::default(),
-            Some(v) => {
-                let d = json_numbers(v, "dist").map_err(err)?;
-                if !(d.len() == 4 || d.len() == 5) {
-                    return Err(err(format!(
-                        "dist must have 5 entries [k1, k2, p1, p2, k3] (or 4), found {}",
-                        d.len()
-                    )));
-                }
-                if d.iter().any(|x| !x.is_finite()) {
-                    return Err(err("dist has a non-finite entry".into()));
-                }
-                Distortion {
-                    k1: d[0],
-                    k2: d[1],
-                    p1: d[2],
-                    p2: d[3],
-                    k3: d.get(4).copied().unwrap_or(0.0),
-                }
-            }
-        };
-        let r = json_matrix3(&j.R, "R").map_err(err)?;
-        check_rotation(&r).map_err(err)?;
-        let t = json_numbers(&j.t, "t").map_err(err)?;
-        if t.len() != 3 {
-            return Err(err(format!("t must have 3 entries, found {}", t.len())));
-        }
-        if t.iter().any(|x| !x.is_finite()) {
-            return Err(err("t has a non-finite entry".into()));
-        }
+        let err = |problem| ImagingError::camera(path, problem);
+        let (width, height) = camera_size(j).map_err(err)?;
+        let intrinsics = camera_intrinsics(j).map_err(err)?;
+        let pose = camera_pose(j).map_err(err)?;
         Ok(Camera {
             width,
             height,
-            intrinsics: Intrinsics {
-                fx,
-                fy,
-                cx,
-                cy,
-                dist,
-            },
-            pose: WorldToCamera {
-                r,
-                t: DVec3::new(t[0], t[1], t[2]),
-            },
+            intrinsics,
+            pose,
         })
     }
 

@@ -152,12 +152,13 @@ mod imp {
 #[cfg(feature = "opencv")]
 mod imp {
     use super::*;
+    use crate::PnpError;
     use opencv::core::{self, Mat, Point2f, Point3f, Vector};
     use opencv::prelude::*;
     use opencv::{aruco, calib3d, imgproc};
 
     fn cv_err(e: opencv::Error) -> ImagingError {
-        ImagingError::OpenCv(e.to_string())
+        ImagingError::OpenCvCall(Box::new(e))
     }
 
     fn k_mat(i: &Intrinsics) -> Result<Mat, ImagingError> {
@@ -227,21 +228,32 @@ mod imp {
         pixels: &[DVec2],
         threshold_px: f64,
     ) -> Result<PnpResult, ImagingError> {
-        if world.len() != pixels.len() {
-            return Err(ImagingError::InvalidInput(format!(
-                "PnP: {} world points but {} pixels",
-                world.len(),
-                pixels.len()
-            )));
-        }
-        if world.len() < 6 {
-            return Err(ImagingError::InvalidInput(format!(
-                "PnP needs at least 6 correspondences, got {}",
-                world.len()
-            )));
-        }
+        check_correspondences(world, pixels, 6)?;
         let (obj, imgp) = (p3(world), p2(pixels));
         let (k, d) = (k_mat(intr)?, dist_mat(intr)?);
+        let (mut rvec, mut tvec, inliers) = pnp_ransac(&obj, &imgp, &k, &d, threshold_px)?;
+        let io: Vector<Point3f> = inliers.iter().map(|&i| obj.get(i).unwrap()).collect();
+        let ii: Vector<Point2f> = inliers.iter().map(|&i| imgp.get(i).unwrap()).collect();
+        calib3d::solve_pnp_refine_lm(&io, &ii, &k, &d, &mut rvec, &mut tvec, lm_criteria()?)
+            .map_err(cv_err)?;
+        let pose = pose_of(&rvec, &tvec)?;
+        let errs = reprojection_errors(intr, pose, world, pixels);
+        Ok(PnpResult {
+            pose,
+            rms_px: inlier_rms(&errs, &inliers),
+            inliers,
+        })
+    }
+
+    /// OpenCV's RANSAC PnP (iterative solver): the pose (Rodrigues vector, translation) and
+    /// the indices of the inliers within `threshold_px`.
+    fn pnp_ransac(
+        obj: &Vector<Point3f>,
+        imgp: &Vector<Point2f>,
+        k: &Mat,
+        d: &Mat,
+        threshold_px: f64,
+    ) -> Result<(Mat, Mat, Vec<usize>), ImagingError> {
         let mut rvec = Mat::default();
         let mut tvec = Mat::default();
         let mut inl = Mat::default();
@@ -261,42 +273,48 @@ mod imp {
         )
         .map_err(cv_err)?;
         if !ok {
-            return Err(ImagingError::InvalidInput(
-                "PnP RANSAC found no consistent pose".into(),
-            ));
+            return Err(PnpError::RansacFailed.into());
         }
         let mut inliers = Vec::new();
         for k in 0..inl.total() as i32 {
             inliers.push(*inl.at::<i32>(k).map_err(cv_err)? as usize);
         }
-        let io: Vector<Point3f> = inliers.iter().map(|&i| obj.get(i).unwrap()).collect();
-        let ii: Vector<Point2f> = inliers.iter().map(|&i| imgp.get(i).unwrap()).collect();
-        let crit =
-            core::TermCriteria::new(core::TermCriteria_COUNT + core::TermCriteria_EPS, 50, 1e-12)
-                .map_err(cv_err)?;
-        calib3d::solve_pnp_refine_lm(&io, &ii, &k, &d, &mut rvec, &mut tvec, crit)
-            .map_err(cv_err)?;
-        let pose = pose_of(&rvec, &tvec)?;
-        let cam = Camera {
-            width: 1,
-            height: 1,
-            intrinsics: *intr,
-            pose,
-        };
-        let mut se = 0.0;
-        for &i in &inliers {
-            let p = cam
-                .project(world[i])
-                .map(|q| (q - pixels[i]).length_squared())
-                .unwrap_or(f64::INFINITY);
-            se += p;
+        Ok((rvec, tvec, inliers))
+    }
+
+    /// Levenberg-Marquardt refinement's stopping rule: 50 iterations or a step below 1e-12.
+    fn lm_criteria() -> Result<core::TermCriteria, ImagingError> {
+        core::TermCriteria::new(core::TermCriteria_COUNT + core::TermCriteria_EPS, 50, 1e-12)
+            .map_err(cv_err)
+    }
+
+    /// One pixel per world point, and at least `min` of them.
+    fn check_correspondences(
+        world: &[DVec3],
+        pixels: &[DVec2],
+        min: usize,
+    ) -> Result<(), ImagingError> {
+        if world.len() != pixels.len() {
+            return Err(PnpError::Unpaired {
+                world: world.len(),
+                pixels: pixels.len(),
+            }
+            .into());
         }
-        let rms_px = (se / inliers.len().max(1) as f64).sqrt();
-        Ok(PnpResult {
-            pose,
-            inliers,
-            rms_px,
-        })
+        if world.len() < min {
+            return Err(PnpError::TooFew {
+                need: min,
+                got: world.len(),
+            }
+            .into());
+        }
+        Ok(())
+    }
+
+    /// RMS of the reprojection errors `errs` over the `inliers`.
+    fn inlier_rms(errs: &[f64], inliers: &[usize]) -> f64 {
+        (inliers.iter().map(|&i| errs[i] * errs[i]).sum::<f64>() / inliers.len().max(1) as f64)
+            .sqrt()
     }
 
     /// Reprojection errors (pixels) of `world` under `pose`.
@@ -345,9 +363,7 @@ mod imp {
         )
         .map_err(cv_err)?;
         if !ok {
-            return Err(ImagingError::InvalidInput(
-                "PnP (SQPnP) found no pose".into(),
-            ));
+            return Err(PnpError::SqpnpFailed.into());
         }
         calib3d::solve_pnp_refine_lm(&obj, &imgp, k, d, &mut rvec, &mut tvec, crit)
             .map_err(cv_err)?;
@@ -376,46 +392,30 @@ mod imp {
         pixels: &[DVec2],
         threshold_px: f64,
     ) -> Result<PnpResult, ImagingError> {
-        if world.len() != pixels.len() {
-            return Err(ImagingError::InvalidInput(format!(
-                "PnP: {} world points but {} pixels",
-                world.len(),
-                pixels.len()
-            )));
-        }
-        if world.len() < 4 {
-            return Err(ImagingError::InvalidInput(format!(
-                "PnP needs at least 4 correspondences, got {}",
-                world.len()
-            )));
-        }
+        check_correspondences(world, pixels, 4)?;
         let (k, d) = (k_mat(intr)?, dist_mat(intr)?);
-        let crit =
-            core::TermCriteria::new(core::TermCriteria_COUNT + core::TermCriteria_EPS, 50, 1e-12)
-                .map_err(cv_err)?;
+        let crit = lm_criteria()?;
         let solve = |idx: &[usize]| sqpnp_refined(&k, &d, crit, world, pixels, idx);
         let all: Vec<usize> = (0..world.len()).collect();
         let mut pose = solve(&all)?;
         let mut inliers = within_threshold(intr, pose, world, pixels, threshold_px);
         if inliers.len() < world.len() {
             if inliers.len() < 4 {
-                return Err(ImagingError::InvalidInput(format!(
-                    "PnP: only {} of {} points reproject within {threshold_px} px",
-                    inliers.len(),
-                    world.len()
-                )));
+                return Err(PnpError::FewInliers {
+                    inliers: inliers.len(),
+                    points: world.len(),
+                    threshold_px,
+                }
+                .into());
             }
             pose = solve(&inliers)?;
             inliers = within_threshold(intr, pose, world, pixels, threshold_px);
         }
         let errs = reprojection_errors(intr, pose, world, pixels);
-        let rms_px = (inliers.iter().map(|&i| errs[i] * errs[i]).sum::<f64>()
-            / inliers.len().max(1) as f64)
-            .sqrt();
         Ok(PnpResult {
             pose,
+            rms_px: inlier_rms(&errs, &inliers),
             inliers,
-            rms_px,
         })
     }
 

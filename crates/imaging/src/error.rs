@@ -14,16 +14,48 @@ pub enum ImagingError {
     Decode { path: PathBuf, msg: String },
     #[error("{}: cannot encode image: {msg}", path.display())]
     Encode { path: PathBuf, msg: String },
+    /// The image library could not read a file (`source`: its error).
+    #[error("{}: cannot decode image: {source}", path.display())]
+    DecodeFailed {
+        path: PathBuf,
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
+    /// The image library could not write a file (`source`: its error).
+    #[error("{}: cannot encode image: {source}", path.display())]
+    EncodeFailed {
+        path: PathBuf,
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
     #[error("{}: bad image data: {msg}", path.display())]
     BadPixels { path: PathBuf, msg: String },
-    #[error("{}: invalid camera file: {msg}", path.display())]
-    Camera { path: PathBuf, msg: String },
+    #[error("{}: invalid camera file: {problem}", path.display())]
+    Camera {
+        path: PathBuf,
+        #[source]
+        problem: crate::camera::CameraFileError,
+    },
     #[error("{}: invalid camera radiometry file: {msg}", path.display())]
     Radiometry { path: PathBuf, msg: String },
     #[error("{}: exif: {msg}", path.display())]
     Exif { path: PathBuf, msg: String },
+    /// A photograph without readable EXIF data.
+    #[error("{}: exif: no EXIF data ({source}); give the exposure times explicitly", path.display())]
+    NoExif {
+        path: PathBuf,
+        #[source]
+        source: exif::Error,
+    },
     #[error("{}: {msg}", path.display())]
     Rig { path: PathBuf, msg: String },
+    /// A rig file that is not TOML of a rig.
+    #[error("{}: {source}", path.display())]
+    RigSyntax {
+        path: PathBuf,
+        #[source]
+        source: toml::de::Error,
+    },
     #[error("{}: view {view:?}: {msg}", path.display())]
     RigView {
         path: PathBuf,
@@ -45,6 +77,9 @@ pub enum ImagingError {
     /// Flat fields or a colour checker that cannot be fitted.
     #[error(transparent)]
     RadiometryFit(#[from] RadiometryError),
+    /// Images that cannot be compared (`metrics`).
+    #[error(transparent)]
+    Compare(#[from] CompareError),
     /// A problem inside a file (the file named, the problem as its own error).
     #[error("{}: {source}", path.display())]
     InFile {
@@ -71,15 +106,59 @@ pub enum ImagingError {
     },
     #[error("{}: {msg}", path.display())]
     NotARunFolder { path: PathBuf, msg: String },
-    #[error("{}: unreadable run manifest: {msg}; use --restart to start afresh", path.display())]
-    BadManifest { path: PathBuf, msg: String },
+    #[error("{}: unreadable run manifest: {source}; use --restart to start afresh", path.display())]
+    BadManifest {
+        path: PathBuf,
+        #[source]
+        source: serde_json::Error,
+    },
     #[error("built without opencv: rebuild with --features opencv")]
     NoOpenCv,
+    /// OpenCV gave a result that cannot be used (`cv`, feature `opencv`).
     #[error("opencv: {0}")]
     OpenCv(String),
+    /// An OpenCV call failed (`cv`, feature `opencv`; `opencv::Error` as the source).
+    #[error("opencv: {0}")]
+    OpenCvCall(#[source] Box<dyn std::error::Error + Send + Sync>),
+    /// Correspondences from which no camera pose can be solved (`cv`).
+    #[error("invalid input: {0}")]
+    Pnp(#[from] PnpError),
+    /// Points from which no homography or plane pose can be solved (`planar`, `cv`).
+    #[error("invalid input: {0}")]
+    Planar(#[from] PlanarError),
 }
 
 impl ImagingError {
+    /// [`ImagingError::DecodeFailed`] for `path`.
+    pub(crate) fn decode_failed(
+        path: &std::path::Path,
+        source: impl std::error::Error + Send + Sync + 'static,
+    ) -> Self {
+        ImagingError::DecodeFailed {
+            path: path.to_path_buf(),
+            source: Box::new(source),
+        }
+    }
+
+    /// [`ImagingError::EncodeFailed`] for `path`.
+    pub(crate) fn encode_failed(
+        path: &std::path::Path,
+        source: impl std::error::Error + Send + Sync + 'static,
+    ) -> Self {
+        ImagingError::EncodeFailed {
+            path: path.to_path_buf(),
+            source: Box::new(source),
+        }
+    }
+
+    /// [`ImagingError::Camera`] for `path`.
+    pub(crate) fn camera(path: &std::path::Path, problem: crate::camera::CameraFileError) -> Self {
+        ImagingError::Camera {
+            path: path.to_path_buf(),
+            problem,
+        }
+    }
+
     pub(crate) fn io(path: &std::path::Path, source: std::io::Error) -> Self {
         ImagingError::Io {
             path: path.to_path_buf(),
@@ -120,8 +199,9 @@ pub enum HdrError {
     SlopeRange { lo: f32, hi: f32 },
     #[error("response recovery: smoothness (lambda) must be finite and >= 0 and samples at least 2, got lambda {lambda} and {samples} samples")]
     ResponseParams { lambda: f64, samples: usize },
+    /// The SVD solve failed (nalgebra's reason).
     #[error("response least squares failed: {0}")]
-    Solve(String),
+    Solve(&'static str),
 }
 
 /// Flat fields and colour-checker patches that cannot be fitted (`radiometry`).
@@ -156,4 +236,66 @@ pub enum RadiometryError {
     },
     #[error("no ColorChecker Classic (6 x 4 patches) found in the image")]
     CheckerNotFound,
+}
+
+/// Images that cannot be compared (`metrics`).
+#[derive(Debug, thiserror::Error)]
+pub enum CompareError {
+    /// An image whose size differs from the reference's.
+    #[error("{what} is {} x {}, but the images are {} x {}", size.0, size.1, expected.0, expected.1)]
+    ImageSize {
+        what: String,
+        size: (usize, usize),
+        expected: (usize, usize),
+    },
+    #[error("no pixel is valid in both images")]
+    NoCommonPixels,
+}
+
+/// Correspondences from which no camera pose can be solved (`cv::solve_pnp*`).
+#[derive(Debug, thiserror::Error)]
+pub enum PnpError {
+    #[error("PnP: {world} world points but {pixels} pixels")]
+    Unpaired { world: usize, pixels: usize },
+    #[error("PnP needs at least {need} correspondences, got {got}")]
+    TooFew { need: usize, got: usize },
+    #[error("PnP RANSAC found no consistent pose")]
+    RansacFailed,
+    #[error("PnP (SQPnP) found no pose")]
+    SqpnpFailed,
+    #[error("PnP: only {inliers} of {points} points reproject within {threshold_px} px")]
+    FewInliers {
+        inliers: usize,
+        points: usize,
+        threshold_px: f64,
+    },
+}
+
+/// Points from which no homography or plane pose can be solved (`planar`, `cv`).
+#[derive(Debug, thiserror::Error)]
+pub enum PlanarError {
+    #[error("homography: the points coincide or are not finite")]
+    Coincident,
+    #[error("homography needs at least 4 matching points ({src} and {dst})")]
+    HomographyPoints { src: usize, dst: usize },
+    #[error("homography: a point is not finite")]
+    NonFinitePoint,
+    #[error("homography: three of the four points are (nearly) collinear (normalised triangle area {area:.2e})")]
+    Collinear { area: f64 },
+    #[error("homography: SVD failed")]
+    Svd,
+    #[error("homography: degenerate point configuration (rank-deficient system)")]
+    RankDeficient,
+    #[error("homography: non-finite result")]
+    NonFiniteHomography,
+    #[error(
+        "planar pose needs at least 4 matching points ({plane} plane points, {pixels} pixels)"
+    )]
+    PosePoints { plane: usize, pixels: usize },
+    #[error("planar pose: a point lies behind the camera")]
+    Behind,
+    #[error("planar pose: no finite solution")]
+    NonFinitePose,
+    #[error("pixel ({x:.2}, {y:.2}) cannot be undistorted (outside the lens model)")]
+    Undistort { x: f64, y: f64 },
 }

@@ -62,10 +62,9 @@ pub fn exif_exposure_time(path: &Path) -> Result<f64, ImagingError> {
     let mut r = std::io::BufReader::new(f);
     let ex = exif::Reader::new()
         .read_from_container(&mut r)
-        .map_err(|e| {
-            err(format!(
-                "no EXIF data ({e}); give the exposure times explicitly"
-            ))
+        .map_err(|source| ImagingError::NoExif {
+            path: path.to_path_buf(),
+            source,
         })?;
     let field = ex
         .get_field(exif::Tag::ExposureTime, exif::In::PRIMARY)
@@ -222,44 +221,30 @@ pub fn merge_linear(
         }
         .into());
     }
-    let (w, h) = (images[0].width, images[0].height);
     let (short, long) = extreme_indices(times);
-    let mut out = HdrImage::new(w, h);
-    for i in 0..w * h {
-        let mut ok = true;
-        for c in 0..3 {
-            let (mut num, mut den) = (0.0f64, 0.0f64);
-            for (im, &t) in images.iter().zip(times) {
-                if !im.valid[i] {
-                    continue;
-                }
-                let z = im.pixels[i][c];
-                let wt = hat(z, p.noise_floor, p.saturation) as f64;
-                num += wt * z as f64 / t;
-                den += wt;
+    Ok(merge_per_channel(images, |i, c| {
+        let (mut num, mut den) = (0.0f64, 0.0f64);
+        for (im, &t) in images.iter().zip(times) {
+            if !im.valid[i] {
+                continue;
             }
-            out.pixels[i][c] = if den > 0.0 {
-                (num / den) as f32
-            } else {
-                ok = false;
-                // bound: saturated everywhere -> shortest exposure, dark everywhere -> longest
-                let zs = images[short].pixels[i][c];
-                if zs >= p.saturation {
-                    (zs as f64 / times[short]) as f32
-                } else {
-                    (images[long].pixels[i][c].max(0.0) as f64 / times[long]) as f32
-                }
-            };
+            let z = im.pixels[i][c];
+            let wt = hat(z, p.noise_floor, p.saturation) as f64;
+            num += wt * z as f64 / t;
+            den += wt;
         }
-        out.valid[i] = ok;
-    }
-    let stats = MergeStats {
-        exposures: images.len(),
-        width: w,
-        height: h,
-        valid_fraction: out.valid_fraction(),
-    };
-    Ok((out, stats))
+        if den > 0.0 {
+            Ok((num / den) as f32)
+        } else {
+            // bound: saturated everywhere -> shortest exposure, dark everywhere -> longest
+            let zs = images[short].pixels[i][c];
+            Err(if zs >= p.saturation {
+                (zs as f64 / times[short]) as f32
+            } else {
+                (images[long].pixels[i][c].max(0.0) as f64 / times[long]) as f32
+            })
+        }
+    }))
 }
 
 /// Usable range for [`merge_slope`], in the images' own units (for a 10-bit sensor stored as
@@ -293,30 +278,44 @@ pub fn merge_slope(
     if !(p.lo < p.hi) {
         return Err(HdrError::SlopeRange { lo: p.lo, hi: p.hi }.into());
     }
-    let (w, h) = (images[0].width, images[0].height);
     let (short, _) = extreme_indices(times);
+    Ok(merge_per_channel(images, |i, c| {
+        let pts: Vec<(f64, f64)> = images
+            .iter()
+            .zip(times)
+            .filter(|(im, _)| im.valid[i] && (p.lo..=p.hi).contains(&im.pixels[i][c]))
+            .map(|(im, &t)| (t, im.pixels[i][c] as f64))
+            .collect();
+        match slope_through(&pts) {
+            Some(s) => Ok(s as f32),
+            None => {
+                let zs = images[short].pixels[i][c];
+                Err(if zs > p.hi {
+                    (zs as f64 / times[short]) as f32
+                } else {
+                    0.0
+                })
+            }
+        }
+    }))
+}
+
+/// The merged image of same-sized `images`: channel `c` of pixel `i` is `value(i, c)`, `Ok`
+/// when the brackets determine it and `Err(bound)` when they do not (the pixel is then
+/// invalid, its value the bound); with the merge's summary.
+fn merge_per_channel(
+    images: &[HdrImage],
+    mut value: impl FnMut(usize, usize) -> Result<f32, f32>,
+) -> (HdrImage, MergeStats) {
+    let (w, h) = (images[0].width, images[0].height);
     let mut out = HdrImage::new(w, h);
     for i in 0..w * h {
         let mut ok = true;
         for c in 0..3 {
-            let pts: Vec<(f64, f64)> = images
-                .iter()
-                .zip(times)
-                .filter(|(im, _)| im.valid[i] && (p.lo..=p.hi).contains(&im.pixels[i][c]))
-                .map(|(im, &t)| (t, im.pixels[i][c] as f64))
-                .collect();
-            out.pixels[i][c] = match slope_through(&pts) {
-                Some(s) => s as f32,
-                None => {
-                    ok = false;
-                    let zs = images[short].pixels[i][c];
-                    if zs > p.hi {
-                        (zs as f64 / times[short]) as f32
-                    } else {
-                        0.0
-                    }
-                }
-            };
+            out.pixels[i][c] = value(i, c).unwrap_or_else(|bound| {
+                ok = false;
+                bound
+            });
         }
         out.valid[i] = ok;
     }
@@ -326,7 +325,7 @@ pub fn merge_slope(
         height: h,
         valid_fraction: out.valid_fraction(),
     };
-    Ok((out, stats))
+    (out, stats)
 }
 
 /// Least-squares slope of `v = a + b t` through the points (through the origin for one point).
@@ -513,7 +512,7 @@ fn channel_response(
     let x = s_mat
         .svd(true, true)
         .solve(&rhs, 1e-12)
-        .map_err(|e| HdrError::Solve(e.to_string()))?;
+        .map_err(HdrError::Solve)?;
     // The data and smoothness rows are invariant under g += const; the weighted g(128) = 0
     // row picks the constant only approximately, so impose it exactly.
     let g128 = x[128];
@@ -576,45 +575,31 @@ pub fn merge_ldr(
     resp: &Response,
 ) -> Result<(HdrImage, MergeStats), ImagingError> {
     validate_brackets(images, times, &[])?;
-    let (w, h) = (images[0].width, images[0].height);
     let (short, long) = extreme_indices(times);
     let ln_t: Vec<f64> = times.iter().map(|t| t.ln()).collect();
-    let mut out = HdrImage::new(w, h);
-    for i in 0..w * h {
-        let mut ok = true;
-        for c in 0..3 {
-            let (mut num, mut den) = (0.0f64, 0.0f64);
-            for (im, lt) in images.iter().zip(&ln_t) {
-                if !im.valid[i] {
-                    continue;
-                }
-                let z = code_value(im.pixels[i][c]);
-                let wt = debevec_weight(z);
-                num += wt * (resp.g[c][z as usize] - lt);
-                den += wt;
+    Ok(merge_per_channel(images, |i, c| {
+        let (mut num, mut den) = (0.0f64, 0.0f64);
+        for (im, lt) in images.iter().zip(&ln_t) {
+            if !im.valid[i] {
+                continue;
             }
-            let ln_e = if den > 0.0 {
-                num / den
-            } else {
-                ok = false;
-                let zs = code_value(images[short].pixels[i][c]);
-                if zs == 255 {
-                    resp.g[c][255] - ln_t[short]
-                } else {
-                    resp.g[c][code_value(images[long].pixels[i][c]) as usize] - ln_t[long]
-                }
-            };
-            out.pixels[i][c] = ln_e.exp() as f32;
+            let z = code_value(im.pixels[i][c]);
+            let wt = debevec_weight(z);
+            num += wt * (resp.g[c][z as usize] - lt);
+            den += wt;
         }
-        out.valid[i] = ok;
-    }
-    let stats = MergeStats {
-        exposures: images.len(),
-        width: w,
-        height: h,
-        valid_fraction: out.valid_fraction(),
-    };
-    Ok((out, stats))
+        if den > 0.0 {
+            Ok((num / den).exp() as f32)
+        } else {
+            let zs = code_value(images[short].pixels[i][c]);
+            let ln_e = if zs == 255 {
+                resp.g[c][255] - ln_t[short]
+            } else {
+                resp.g[c][code_value(images[long].pixels[i][c]) as usize] - ln_t[long]
+            };
+            Err(ln_e.exp() as f32)
+        }
+    }))
 }
 
 #[cfg(test)]

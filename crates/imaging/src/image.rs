@@ -93,22 +93,18 @@ impl HdrImage {
 
     /// PSNR in dB of `self` against `reference` over the pixels where `inside` is true (every
     /// channel counted), with `peak` the reference's white: `None` when no pixel is inside or
-    /// the sizes differ, infinite when the two agree exactly there.
+    /// the sizes differ, infinite when the two agree exactly there (see [`crate::metrics`]).
     pub fn psnr_inside(&self, reference: &HdrImage, inside: &[bool], peak: f64) -> Option<f64> {
         if (self.width, self.height) != (reference.width, reference.height)
             || inside.len() != self.pixels.len()
         {
             return None;
         }
-        let (mut se, mut n) = (0.0f64, 0usize);
+        let mut sums = crate::metrics::ErrorSums::default();
         for (i, _) in inside.iter().enumerate().filter(|(_, &m)| m) {
-            for c in 0..3 {
-                let d = (self.pixels[i][c] - reference.pixels[i][c]) as f64;
-                se += d * d;
-            }
-            n += 3;
+            sums.add(self.pixels[i], reference.pixels[i], [0.0; 3], [0.0; 3]);
         }
-        (n > 0).then(|| 10.0 * (peak * peak / (se / n as f64)).log10())
+        (sums.pixels > 0).then(|| crate::metrics::psnr_db(peak, sums.rmse()))
     }
 
     /// Multiply every pixel by `s`.

@@ -261,21 +261,15 @@ fn ext_of(path: &Path) -> String {
 /// the first part's layer size; other formats: the image crate's header read).
 pub fn image_size(path: &Path) -> Result<(usize, usize), ImagingError> {
     if ext_of(path) == "exr" {
-        let meta =
-            exr::meta::MetaData::read_from_file(path, false).map_err(|e| ImagingError::Decode {
-                path: path.to_path_buf(),
-                msg: e.to_string(),
-            })?;
+        let meta = exr::meta::MetaData::read_from_file(path, false)
+            .map_err(|e| ImagingError::decode_failed(path, e))?;
         let h = meta.headers.first().ok_or_else(|| ImagingError::Decode {
             path: path.to_path_buf(),
             msg: "no image part".into(),
         })?;
         return Ok((h.layer_size.0, h.layer_size.1));
     }
-    let (w, h) = image::image_dimensions(path).map_err(|e| ImagingError::Decode {
-        path: path.to_path_buf(),
-        msg: e.to_string(),
-    })?;
+    let (w, h) = image::image_dimensions(path).map_err(|e| ImagingError::decode_failed(path, e))?;
     Ok((w as usize, h as usize))
 }
 
@@ -332,10 +326,7 @@ fn check_finite(path: &Path, img: &HdrImage) -> Result<(), ImagingError> {
 }
 
 fn read_with_image_crate(path: &Path) -> Result<HdrImage, ImagingError> {
-    let dec = |e: ::image::ImageError| ImagingError::Decode {
-        path: path.to_path_buf(),
-        msg: e.to_string(),
-    };
+    let dec = |e: ::image::ImageError| ImagingError::decode_failed(path, e);
     let reader = ::image::ImageReader::open(path)
         .map_err(|e| ImagingError::io(path, e))?
         .with_guessed_format()
@@ -366,7 +357,8 @@ fn check_exr_header(path: &Path) -> Result<(), ImagingError> {
     let file_len = std::fs::metadata(path)
         .map_err(|e| ImagingError::io(path, e))?
         .len() as u128;
-    let meta = exr::meta::MetaData::read_from_file(path, false).map_err(|e| dec(e.to_string()))?;
+    let meta = exr::meta::MetaData::read_from_file(path, false)
+        .map_err(|e| ImagingError::decode_failed(path, e))?;
     for h in meta.headers.iter() {
         if h.deep {
             return Err(dec("deep-data EXR files are not supported".into()));
@@ -408,7 +400,7 @@ fn read_exr(path: &Path) -> Result<HdrImage, ImagingError> {
         .all_layers()
         .all_attributes()
         .from_file(path)
-        .map_err(|e| dec(e.to_string()))?;
+        .map_err(|e| ImagingError::decode_failed(path, e))?;
     let base =
         |name: &str| -> String { name.rsplit('.').next().unwrap_or(name).to_ascii_lowercase() };
     for layer in &image.layer_data {
@@ -507,10 +499,7 @@ pub fn read_exr_alpha(path: &Path) -> Result<Option<Vec<f32>>, ImagingError> {
         .first_valid_layer()
         .all_attributes()
         .from_file(path)
-        .map_err(|e| ImagingError::Decode {
-            path: path.to_path_buf(),
-            msg: e.to_string(),
-        })?;
+        .map_err(|e| ImagingError::decode_failed(path, e))?;
     let chans = &image.layer_data.channel_data.list;
     Ok(chans
         .iter()
@@ -560,10 +549,7 @@ fn write_exr_channels(
         image
             .write()
             .to_file(tmp)
-            .map_err(|e| ImagingError::Encode {
-                path: path.to_path_buf(),
-                msg: e.to_string(),
-            })
+            .map_err(|e| ImagingError::encode_failed(path, e))
     })
 }
 
@@ -581,10 +567,7 @@ pub fn write_hdr(path: &Path, img: &HdrImage) -> Result<(), ImagingError> {
         let w = std::io::BufWriter::new(f);
         ::image::codecs::hdr::HdrEncoder::new(w)
             .encode(&data, img.width, img.height)
-            .map_err(|e| ImagingError::Encode {
-                path: path.to_path_buf(),
-                msg: e.to_string(),
-            })
+            .map_err(|e| ImagingError::encode_failed(path, e))
     })
 }
 
@@ -637,10 +620,7 @@ pub fn write_png_tonemapped(
             ::image::ExtendedColorType::Rgb8,
             ::image::ImageFormat::Png,
         )
-        .map_err(|e| ImagingError::Encode {
-            path: path.to_path_buf(),
-            msg: e.to_string(),
-        })
+        .map_err(|e| ImagingError::encode_failed(path, e))
     })
 }
 

@@ -16,6 +16,8 @@
 //!   more points (no OpenCV needed).
 //! * [`rig`]: the multi-view capture file `rig.toml` (FORMATS.md) with paths resolved
 //!   against its folder.
+//! * [`metrics`]: image comparison (RMSE, relative mean difference, PSNR, noise-explained
+//!   RMSE) and false-colour difference pictures.
 //! * [`mask`]: binary masks (threshold, disk dilation and erosion, hole filling up to an area,
 //!   frame contact, IoU).
 //! * [`run`]: run manifests (`run.json`): input fingerprints and result-changing options, so
@@ -42,6 +44,7 @@ mod image;
 pub mod io;
 pub mod latlong;
 pub mod mask;
+pub mod metrics;
 pub mod planar;
 pub mod plot;
 pub mod radiometry;
@@ -49,7 +52,7 @@ pub mod rig;
 pub mod run;
 
 pub use camera::{Camera, CameraFile, CameraToWorld, Distortion, Intrinsics, WorldToCamera};
-pub use error::{HdrError, ImagingError, RadiometryError};
+pub use error::{CompareError, HdrError, ImagingError, PlanarError, PnpError, RadiometryError};
 pub use image::HdrImage;
 pub use io::{
     read_exr_alpha, read_image, write_exr, write_exr_rgba, write_hdr, write_png_tonemapped,

@@ -83,10 +83,7 @@ impl Mask {
             })?;
         crate::io::write_atomic(path, |tmp| {
             img.save_with_format(tmp, ::image::ImageFormat::Png)
-                .map_err(|e| ImagingError::Encode {
-                    path: path.to_path_buf(),
-                    msg: e.to_string(),
-                })
+                .map_err(|e| ImagingError::encode_failed(path, e))
         })
     }
 

@@ -4,7 +4,7 @@
 //!
 //! The plane is the world plane z = 0; points on it are given as (x, y).
 
-use crate::{ImagingError, Intrinsics, WorldToCamera};
+use crate::{ImagingError, Intrinsics, PlanarError, WorldToCamera};
 use glam::{DMat3, DVec2, DVec3};
 use nalgebra::{DMatrix, Matrix3, SVD};
 
@@ -22,9 +22,7 @@ fn normaliser(p: &[DVec2]) -> Result<DMat3, ImagingError> {
     let c = p.iter().fold(DVec2::ZERO, |a, x| a + *x) / n;
     let d = p.iter().map(|x| (*x - c).length()).sum::<f64>() / n;
     if !(d > 0.0) || !d.is_finite() {
-        return Err(ImagingError::InvalidInput(
-            "homography: the points coincide or are not finite".into(),
-        ));
+        return Err(PlanarError::Coincident.into());
     }
     let s = std::f64::consts::SQRT_2 / d;
     Ok(DMat3::from_cols(
@@ -53,16 +51,14 @@ fn min_triangle_area(p: &[DVec2]) -> f64 {
 /// collinear in either set; in general a rank-deficient system.
 pub fn homography_dlt(src: &[DVec2], dst: &[DVec2]) -> Result<DMat3, ImagingError> {
     if src.len() != dst.len() || src.len() < 4 {
-        return Err(ImagingError::InvalidInput(format!(
-            "homography needs at least 4 matching points ({} and {})",
-            src.len(),
-            dst.len()
-        )));
+        return Err(PlanarError::HomographyPoints {
+            src: src.len(),
+            dst: dst.len(),
+        }
+        .into());
     }
     if src.iter().chain(dst).any(|p| !p.is_finite()) {
-        return Err(ImagingError::InvalidInput(
-            "homography: a point is not finite".into(),
-        ));
+        return Err(PlanarError::NonFinitePoint.into());
     }
     let (ts, td) = (normaliser(src)?, normaliser(dst)?);
     let s: Vec<DVec2> = src.iter().map(|p| ts.transform_point2(*p)).collect();
@@ -71,10 +67,7 @@ pub fn homography_dlt(src: &[DVec2], dst: &[DVec2]) -> Result<DMat3, ImagingErro
         // normalised coordinates have unit scale: a triangle of area < 1e-3 is a degenerate one
         let (a, b) = (min_triangle_area(&s), min_triangle_area(&d));
         if a.min(b) < 1e-3 {
-            return Err(ImagingError::InvalidInput(format!(
-                "homography: three of the four points are (nearly) collinear (normalised triangle area {:.2e})",
-                a.min(b)
-            )));
+            return Err(PlanarError::Collinear { area: a.min(b) }.into());
         }
     }
     let rows = (2 * src.len()).max(9);
@@ -91,7 +84,7 @@ pub fn homography_dlt(src: &[DVec2], dst: &[DVec2]) -> Result<DMat3, ImagingErro
     let svd = SVD::new(a, false, true);
     let vt = svd
         .v_t
-        .ok_or_else(|| ImagingError::InvalidInput("homography: SVD failed".into()))?;
+        .ok_or_else(|| ImagingError::from(PlanarError::Svd))?;
     let sv = &svd.singular_values;
     let (imin, _) =
         sv.iter().enumerate().fold(
@@ -101,9 +94,7 @@ pub fn homography_dlt(src: &[DVec2], dst: &[DVec2]) -> Result<DMat3, ImagingErro
     let mut sorted: Vec<f64> = sv.iter().copied().collect();
     sorted.sort_by(|a, b| a.total_cmp(b));
     if !(sorted[1] > 1e-9 * sorted[8]) {
-        return Err(ImagingError::InvalidInput(
-            "homography: degenerate point configuration (rank-deficient system)".into(),
-        ));
+        return Err(PlanarError::RankDeficient.into());
     }
     let h = vt.row(imin);
     let hn =
@@ -118,9 +109,7 @@ pub fn homography_dlt(src: &[DVec2], dst: &[DVec2]) -> Result<DMat3, ImagingErro
     };
     let out = hm * (1.0 / scale);
     if !out.is_finite() {
-        return Err(ImagingError::InvalidInput(
-            "homography: non-finite result".into(),
-        ));
+        return Err(PlanarError::NonFiniteHomography.into());
     }
     Ok(out)
 }
@@ -193,25 +182,22 @@ pub fn pose_from_plane(
     pixels: &[DVec2],
 ) -> Result<PlanarPose, ImagingError> {
     if plane_xy.len() != pixels.len() || plane_xy.len() < 4 {
-        return Err(ImagingError::InvalidInput(format!(
-            "planar pose needs at least 4 matching points ({} plane points, {} pixels)",
-            plane_xy.len(),
-            pixels.len()
-        )));
+        return Err(PlanarError::PosePoints {
+            plane: plane_xy.len(),
+            pixels: pixels.len(),
+        }
+        .into());
     }
     let norm = undistort_all(intr, pixels)?;
     let pose = pose_from_homography(plane_xy, &norm)?;
     let world: Vec<DVec3> = plane_xy.iter().map(|p| DVec3::new(p.x, p.y, 0.0)).collect();
-    let res = residuals(intr, &pose, &world, pixels).ok_or_else(|| {
-        ImagingError::InvalidInput("planar pose: a point lies behind the camera".into())
-    })?;
+    let res = residuals(intr, &pose, &world, pixels)
+        .ok_or_else(|| ImagingError::from(PlanarError::Behind))?;
     let (mut pose, res) = refine_pose(intr, pose, res, &world, pixels);
     pose.r = nearest_rotation(&pose.r);
     let rms_px = (sum_of_squares(&res) / world.len() as f64).sqrt();
     if !rms_px.is_finite() || !pose.t.is_finite() {
-        return Err(ImagingError::InvalidInput(
-            "planar pose: no finite solution".into(),
-        ));
+        return Err(PlanarError::NonFinitePose.into());
     }
     Ok(PlanarPose { pose, rms_px })
 }
@@ -220,12 +206,10 @@ pub fn pose_from_plane(
 fn undistort_all(intr: &Intrinsics, pixels: &[DVec2]) -> Result<Vec<DVec2>, ImagingError> {
     let mut norm = Vec::with_capacity(pixels.len());
     for p in pixels {
-        norm.push(intr.to_normalized(*p).ok_or_else(|| {
-            ImagingError::InvalidInput(format!(
-                "pixel ({:.2}, {:.2}) cannot be undistorted (outside the lens model)",
-                p.x, p.y
-            ))
-        })?);
+        norm.push(
+            intr.to_normalized(*p)
+                .ok_or_else(|| ImagingError::from(PlanarError::Undistort { x: p.x, y: p.y }))?,
+        );
     }
     Ok(norm)
 }

@@ -79,7 +79,10 @@ impl Rig {
 
     /// Parse rig TOML text as if read from `path` (relative paths resolve against its folder).
     pub fn from_toml_str(text: &str, path: &Path) -> Result<Rig, ImagingError> {
-        let mut rig: Rig = toml::from_str(text).map_err(|e| rig_error(path, e.to_string()))?;
+        let mut rig: Rig = toml::from_str(text).map_err(|source| ImagingError::RigSyntax {
+            path: path.to_path_buf(),
+            source,
+        })?;
         rig.path = path.to_path_buf();
         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
         for v in &mut rig.views {
@@ -180,23 +183,11 @@ impl Rig {
     pub fn to_toml_string(&self, dir: &Path) -> String {
         let mut out = self.clone();
         for v in &mut out.views {
-            let rel = |p: &mut PathBuf| {
+            v.for_each_path(|p| {
                 if let Ok(r) = p.strip_prefix(dir) {
                     *p = r.to_path_buf();
                 }
-            };
-            rel(&mut v.camera);
-            rel(&mut v.photo);
-            if let Some(m) = &mut v.mask {
-                rel(m);
-            }
-            for b in &mut v.backdrops {
-                rel(&mut b.backdrop);
-                rel(&mut b.object);
-            }
-            for l in &mut v.lights {
-                rel(&mut l.image);
-            }
+            });
         }
         toml::to_string(&out).expect("rig serialises")
     }
@@ -216,22 +207,28 @@ fn rig_error(path: &Path, msg: String) -> ImagingError {
 }
 
 fn resolve_view(v: &mut RigView, base: &Path) {
-    let abs = |p: &mut PathBuf| {
+    v.for_each_path(|p| {
         if p.is_relative() {
             *p = base.join(&*p);
         }
-    };
-    abs(&mut v.camera);
-    abs(&mut v.photo);
-    if let Some(m) = &mut v.mask {
-        abs(m);
-    }
-    for b in &mut v.backdrops {
-        abs(&mut b.backdrop);
-        abs(&mut b.object);
-    }
-    for l in &mut v.lights {
-        abs(&mut l.image);
+    });
+}
+
+impl RigView {
+    /// Calls `f` on every file path of the view (camera, photo, mask, backdrops, lights).
+    fn for_each_path(&mut self, mut f: impl FnMut(&mut PathBuf)) {
+        f(&mut self.camera);
+        f(&mut self.photo);
+        if let Some(m) = &mut self.mask {
+            f(m);
+        }
+        for b in &mut self.backdrops {
+            f(&mut b.backdrop);
+            f(&mut b.object);
+        }
+        for l in &mut self.lights {
+            f(&mut l.image);
+        }
     }
 }
 

@@ -163,7 +163,7 @@ impl RunManifest {
         let text = std::fs::read_to_string(&path).map_err(|e| ImagingError::io(&path, e))?;
         let m = serde_json::from_str(&text).map_err(|e| ImagingError::BadManifest {
             path: path.clone(),
-            msg: e.to_string(),
+            source: e,
         })?;
         Ok(Some(m))
     }

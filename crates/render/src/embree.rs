@@ -42,8 +42,16 @@ pub struct RtScene {
     n_meshes: u32,
 }
 
-fn embree_err(what: &str, e: embree3::Error) -> RenderError {
-    RenderError::Embree(format!("{what}: {e}"))
+/// An Embree error code as an error (`embree3::Error` only implements `Display`).
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct EmbreeCode(pub embree3::Error);
+
+fn embree_err(what: &'static str, e: embree3::Error) -> RenderError {
+    RenderError::Embree {
+        what,
+        source: EmbreeCode(e),
+    }
 }
 
 impl RtScene {
@@ -95,9 +103,7 @@ impl RtScene {
             let g = g.commit();
             let id = scene.attach_geometry(&g);
             if id != k as u32 {
-                return Err(RenderError::Embree(format!(
-                    "Embree gave geometry id {id} to mesh {k}; expected sequential ids"
-                )));
+                return Err(RenderError::EmbreeGeometryId { id, mesh: k });
             }
         }
         scene.commit();
@@ -136,48 +142,16 @@ impl RtScene {
 
     /// Closest hits of a batch of rays through Embree's stream API (`rtcIntersect1M`).
     pub fn intersect_batch(&self, rays: &[RaySegment], coherent: bool) -> Vec<Option<Hit>> {
-        let mut ctx = if coherent {
-            IntersectContext::coherent()
-        } else {
-            IntersectContext::incoherent()
-        };
-        let mut rh: Vec<RayHit> = rays
-            .iter()
-            .enumerate()
-            .map(|(i, r)| {
-                RayHit::from(Ray::segment_with_id(
-                    r.origin.to_array(),
-                    r.dir.to_array(),
-                    r.tnear,
-                    r.tfar,
-                    i as u32,
-                ))
-            })
-            .collect();
+        let mut ctx = stream_context(coherent);
+        let mut rh: Vec<RayHit> = embree_rays(rays).map(RayHit::from).collect();
         self.scene.intersect_stream_aos(&mut ctx, &mut rh);
         rh.iter().map(to_hit).collect()
     }
 
     /// Occlusion of a batch of rays through Embree's stream API (`rtcOccluded1M`).
     pub fn occluded_batch(&self, rays: &[RaySegment], coherent: bool) -> Vec<bool> {
-        let mut ctx = if coherent {
-            IntersectContext::coherent()
-        } else {
-            IntersectContext::incoherent()
-        };
-        let mut rs: Vec<Ray> = rays
-            .iter()
-            .enumerate()
-            .map(|(i, r)| {
-                Ray::segment_with_id(
-                    r.origin.to_array(),
-                    r.dir.to_array(),
-                    r.tnear,
-                    r.tfar,
-                    i as u32,
-                )
-            })
-            .collect();
+        let mut ctx = stream_context(coherent);
+        let mut rs: Vec<Ray> = embree_rays(rays).collect();
         self.scene.occluded_stream_aos(&mut ctx, &mut rs);
         rs.iter().map(|r| r.tfar == f32::NEG_INFINITY).collect()
     }
@@ -190,6 +164,28 @@ impl RtScene {
             Vec3::new(b.upper_x, b.upper_y, b.upper_z),
         )
     }
+}
+
+/// The context of a ray stream: coherent for camera-like bundles, else incoherent.
+fn stream_context(coherent: bool) -> IntersectContext {
+    if coherent {
+        IntersectContext::coherent()
+    } else {
+        IntersectContext::incoherent()
+    }
+}
+
+/// Embree rays for a batch, each carrying its index as its id.
+fn embree_rays(rays: &[RaySegment]) -> impl Iterator<Item = Ray> + '_ {
+    rays.iter().enumerate().map(|(i, r)| {
+        Ray::segment_with_id(
+            r.origin.to_array(),
+            r.dir.to_array(),
+            r.tnear,
+            r.tfar,
+            i as u32,
+        )
+    })
 }
 
 #[inline]

@@ -6,7 +6,7 @@
 //! of x1 .. x_{K+1} gets direct light (a sun sample, an environment sample, and the BSDF-sampled
 //! ray that escapes to the sky); the path continues by BSDF sampling from x1 .. x_K.
 
-use crate::lighting::Lighting;
+use crate::lighting::{Environment, LightSample, Lighting, Sun};
 use crate::sampling::{power_heuristic, Rng};
 use crate::scene::{Scene, SurfacePoint};
 use crate::RenderError;
@@ -225,47 +225,21 @@ impl<'a> PathTracer<'a> {
             .filter(|e| e.is_nonzero());
         let sun = self.lighting.sun.as_ref();
         loop {
-            // Two-sided surfaces: orient the normals toward the outgoing direction.
-            let ng = if sp.ng.dot(wo) < 0.0 { -sp.ng } else { sp.ng };
-            let ns = if sp.ns.dot(ng) < 0.0 { -sp.ns } else { sp.ns };
-            let frame = Frame::from_normal(ns);
-            let wo_l = frame.to_local(wo);
-            let brdf = Shading {
-                brdf: match (vertex, first_brdf) {
-                    (1, Some(b)) => b,
-                    _ => self.scene.objects[sp.object as usize]
-                        .material
-                        .brdf_at(sp.uv),
-                },
-            };
-            let origin = offset_origin(sp.position, ng);
+            let brdf_override = if vertex == 1 { first_brdf } else { None };
+            let v = self.vertex(&sp, wo, brdf_override);
 
             // Next-event estimation: one sample of the sun and one of the environment.
             if let Some(sun) = sun {
                 let ls = sun.sample(rng.uniform2());
-                if ls.wi.dot(ng) > 0.0 {
-                    let wi_l = frame.to_local(ls.wi);
-                    let (f, pdf_b) = brdf.eval_pdf(wi_l, wo_l);
-                    if f != Vec3::ZERO {
-                        *rays += 1;
-                        if !self.scene.occluded(origin, ls.wi, f32::INFINITY) {
-                            let w = power_heuristic(ls.pdf, pdf_b);
-                            l += beta * f * ls.radiance * (wi_l.z * w / ls.pdf);
-                        }
-                    }
+                if let Some(c) = self.light_sample(&v, beta, &ls, rays) {
+                    l += c;
                 }
             }
             if let Some(env) = env {
                 if let Some(ls) = env.sample(rng.uniform2()) {
-                    if ls.wi.dot(ng) > 0.0 && ls.radiance != Vec3::ZERO {
-                        let wi_l = frame.to_local(ls.wi);
-                        let (f, pdf_b) = brdf.eval_pdf(wi_l, wo_l);
-                        if f != Vec3::ZERO {
-                            *rays += 1;
-                            if !self.scene.occluded(origin, ls.wi, f32::INFINITY) {
-                                let w = power_heuristic(ls.pdf, pdf_b);
-                                l += beta * f * ls.radiance * (wi_l.z * w / ls.pdf);
-                            }
+                    if ls.radiance != Vec3::ZERO {
+                        if let Some(c) = self.light_sample(&v, beta, &ls, rays) {
+                            l += c;
                         }
                     }
                 }
@@ -274,11 +248,11 @@ impl<'a> PathTracer<'a> {
             // BSDF sampling: the MIS partner of the light samples and the path continuation.
             let u_sel = rng.uniform();
             let u = rng.uniform2();
-            let Some(bs) = brdf.sample(wo_l, u_sel, u) else {
+            let Some(bs) = v.brdf.sample(v.wo_l, u_sel, u) else {
                 break;
             };
-            let wi = frame.to_world(bs.wi);
-            if !(bs.pdf > 0.0) || wi.dot(ng) <= 0.0 || !wi.is_finite() {
+            let wi = v.frame.to_world(bs.wi);
+            if !(bs.pdf > 0.0) || wi.dot(v.ng) <= 0.0 || !wi.is_finite() {
                 break;
             }
             beta *= bs.value * (bs.wi.z / bs.pdf);
@@ -286,40 +260,118 @@ impl<'a> PathTracer<'a> {
                 break;
             }
             *rays += 1;
-            match self.scene.intersect(origin, wi) {
-                None => {
-                    let mut le = Vec3::ZERO;
-                    if let Some(sun) = sun {
-                        if sun.contains(wi) {
-                            le += sun.radiance * power_heuristic(bs.pdf, sun.pdf(wi));
-                        }
-                    }
-                    if let Some(env) = env {
-                        let (l_env, pdf_env) = env.eval_pdf(wi);
-                        le += l_env * power_heuristic(bs.pdf, pdf_env);
-                    }
-                    l += beta * le;
-                    break;
-                }
-                Some(h) => {
-                    if vertex >= self.max_vertices {
-                        break;
-                    }
-                    if self.rr && vertex >= 2 {
-                        let q = beta.max_element().min(0.95);
-                        if rng.uniform() >= q {
-                            break;
-                        }
-                        beta /= q;
-                    }
-                    sp = self.scene.surface_point(&h);
-                    wo = -wi;
-                    vertex += 1;
-                }
+            let Some(h) = self.scene.intersect(v.origin, wi) else {
+                l += beta * escaped_mis(sun, env, wi, bs.pdf);
+                break;
+            };
+            if vertex >= self.max_vertices || !self.survives_roulette(vertex, &mut beta, rng) {
+                break;
             }
+            sp = self.scene.surface_point(&h);
+            wo = -wi;
+            vertex += 1;
         }
         l
     }
+
+    /// The shading context of a path vertex: two-sided surfaces have their normals oriented
+    /// toward the outgoing direction; `brdf_override` replaces the material's BRDF.
+    #[inline]
+    fn vertex<'s>(
+        &'s self,
+        sp: &SurfacePoint,
+        wo: Vec3,
+        brdf_override: Option<LafortuneRef<'s>>,
+    ) -> Vertex<'s> {
+        let ng = if sp.ng.dot(wo) < 0.0 { -sp.ng } else { sp.ng };
+        let ns = if sp.ns.dot(ng) < 0.0 { -sp.ns } else { sp.ns };
+        let frame = Frame::from_normal(ns);
+        let brdf = Shading {
+            brdf: brdf_override.unwrap_or_else(|| {
+                self.scene.objects[sp.object as usize]
+                    .material
+                    .brdf_at(sp.uv)
+            }),
+        };
+        Vertex {
+            ng,
+            frame,
+            wo_l: frame.to_local(wo),
+            brdf,
+            origin: offset_origin(sp.position, ng),
+        }
+    }
+
+    /// The MIS-weighted contribution (times the path throughput `beta`) of one light sample at
+    /// vertex `v`, or `None` when the light is below the surface, the BRDF is zero there, or the
+    /// shadow ray is blocked. Counts the shadow ray in `rays`.
+    #[inline]
+    fn light_sample(
+        &self,
+        v: &Vertex<'_>,
+        beta: Vec3,
+        ls: &LightSample,
+        rays: &mut u64,
+    ) -> Option<Vec3> {
+        if !(ls.wi.dot(v.ng) > 0.0) {
+            return None;
+        }
+        let wi_l = v.frame.to_local(ls.wi);
+        let (f, pdf_b) = v.brdf.eval_pdf(wi_l, v.wo_l);
+        if f == Vec3::ZERO {
+            return None;
+        }
+        *rays += 1;
+        if self.scene.occluded(v.origin, ls.wi, f32::INFINITY) {
+            return None;
+        }
+        let w = power_heuristic(ls.pdf, pdf_b);
+        Some(beta * f * ls.radiance * (wi_l.z * w / ls.pdf))
+    }
+
+    /// Russian roulette from the second bounce on (when enabled): whether the path goes on;
+    /// a surviving path's throughput is divided by its survival probability.
+    #[inline]
+    fn survives_roulette(&self, vertex: u32, beta: &mut Vec3, rng: &mut Rng) -> bool {
+        if self.rr && vertex >= 2 {
+            let q = beta.max_element().min(0.95);
+            if rng.uniform() >= q {
+                return false;
+            }
+            *beta /= q;
+        }
+        true
+    }
+}
+
+/// A path vertex ready for shading (see [`PathTracer::vertex`]).
+struct Vertex<'b> {
+    /// Geometric normal on the side of the outgoing direction.
+    ng: Vec3,
+    /// Shading frame around the (oriented) shading normal.
+    frame: Frame,
+    /// Outgoing direction in `frame`.
+    wo_l: Vec3,
+    brdf: Shading<'b>,
+    /// Ray origin offset off the surface along `ng`.
+    origin: Vec3,
+}
+
+/// Radiance of the sun and the environment seen along an escaping BSDF-sampled direction `wi`,
+/// each MIS-weighted against the BSDF pdf `pdf_bsdf`.
+#[inline]
+fn escaped_mis(sun: Option<&Sun>, env: Option<&Environment>, wi: Vec3, pdf_bsdf: f32) -> Vec3 {
+    let mut le = Vec3::ZERO;
+    if let Some(sun) = sun {
+        if sun.contains(wi) {
+            le += sun.radiance * power_heuristic(pdf_bsdf, sun.pdf(wi));
+        }
+    }
+    if let Some(env) = env {
+        let (l_env, pdf_env) = env.eval_pdf(wi);
+        le += l_env * power_heuristic(pdf_bsdf, pdf_env);
+    }
+    le
 }
 
 /// Renders an image through `camera` (OpenCV model with distortion, via `Camera::pixel_ray`).
@@ -404,17 +456,7 @@ pub fn radiance_toward(
     targets: &[Vec3],
     opts: &RenderOptions,
 ) -> Result<Vec<Estimate>, RenderError> {
-    if points.len() != targets.len() {
-        return Err(RenderError::Unpaired {
-            what: "points",
-            len: points.len(),
-            other: "targets",
-            other_len: targets.len(),
-        });
-    }
-    if opts.spp == 0 {
-        return Err(RenderError::ZeroSpp);
-    }
+    check_query(points.len(), "targets", targets.len(), opts)?;
     let pt = PathTracer::new(scene, lighting, opts);
     Ok(points
         .par_iter()
@@ -440,17 +482,7 @@ pub fn irradiance(
     normals: &[Vec3],
     opts: &RenderOptions,
 ) -> Result<Vec<Estimate>, RenderError> {
-    if points.len() != normals.len() {
-        return Err(RenderError::Unpaired {
-            what: "points",
-            len: points.len(),
-            other: "normals",
-            other_len: normals.len(),
-        });
-    }
-    if opts.spp == 0 {
-        return Err(RenderError::ZeroSpp);
-    }
+    check_query(points.len(), "normals", normals.len(), opts)?;
     let pt = PathTracer::new(scene, lighting, opts);
     let white = LafortuneRef {
         rho_d: Vec3::ONE,
@@ -488,4 +520,25 @@ pub fn irradiance(
             }
         })
         .collect())
+}
+
+/// A query batch needs one `other` per point and at least one sample each.
+fn check_query(
+    points: usize,
+    other: &'static str,
+    other_len: usize,
+    opts: &RenderOptions,
+) -> Result<(), RenderError> {
+    if points != other_len {
+        return Err(RenderError::Unpaired {
+            what: "points",
+            len: points,
+            other,
+            other_len,
+        });
+    }
+    if opts.spp == 0 {
+        return Err(RenderError::ZeroSpp);
+    }
+    Ok(())
 }

@@ -447,60 +447,13 @@ fn renders_are_deterministic_per_seed() {
 
 #[test]
 fn no_nan_for_grazing_views_zero_albedo_degenerate_triangles_and_extreme_lobes() {
-    let mut ground = quad(0.0, 10.0);
-    // Degenerate and duplicate triangles.
-    ground.indices.push([0, 0, 1]);
-    ground.indices.push([0, 1, 2]);
-    ground.positions.push([1.0, 1.0, 0.0]);
-    ground.uvs.as_mut().unwrap().push([0.5, 0.5]);
-    ground.indices.push([0, 2, 4]); // collinear: (-10,-10), (10,10), (1,1)
-    let mut shiny = Material::lambertian(Vec3::ZERO);
-    shiny.lobes = vec![
-        Lobe {
-            rho: Vec3::splat(1.0),
-            cxy: -1.0,
-            cz: 1.0,
-            n: 5000.0,
-        },
-        Lobe {
-            rho: Vec3::splat(0.5),
-            cxy: 0.9,
-            cz: 0.9,
-            n: 3.0,
-        },
-    ];
-    let scene = Scene::new(vec![
-        ("ground".into(), ground, Material::lambertian(Vec3::ZERO)),
-        (
-            "box".into(),
-            cube(Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 1.0)),
-            shiny,
-        ),
-        (
-            "sphere".into(),
-            sphere(Vec3::new(3.0, 0.0, 1.0), 1.0, 8, 16),
-            Material::lambertian(Vec3::ONE),
-        ),
-    ])
-    .unwrap();
+    let scene = stiff_scene();
     assert!(scene.skipped_triangles >= 2);
     let lighting = Lighting {
         environment: Some(Environment::constant(Vec3::ONE)),
         sun: Some(sun_from_zenith(89.7, 1e5)),
     };
-    // Grazing camera: eye a millimetre above the ground looking along +X (R rows: camera x =
-    // -Y, camera y = -Z, camera z = +X; DMat3::from_cols takes the columns of R).
-    let rows = DMat3::from_cols(
-        DVec3::new(0.0, 0.0, 1.0),
-        DVec3::new(-1.0, 0.0, 0.0),
-        DVec3::new(0.0, -1.0, 0.0),
-    );
-    let c = DVec3::new(-8.0, 0.0, 1e-3);
-    let mut cam = Camera::pinhole(20, 12, 10.0, 10.0, 9.5, 5.5);
-    cam.pose = WorldToCamera {
-        r: rows,
-        t: -(rows * c),
-    };
+    let cam = grazing_camera();
     let out = render_image(
         &scene,
         &lighting,
@@ -559,4 +512,63 @@ fn no_nan_for_grazing_views_zero_albedo_degenerate_triangles_and_extreme_lobes()
     )
     .unwrap();
     assert_eq!(ir[0].mean, Vec3::ZERO);
+}
+
+/// Ground with degenerate, duplicate and collinear triangles (black), a box of extreme lobes
+/// (an exponent of 5000 and a mirror-like lobe) and a white sphere.
+fn stiff_scene() -> Scene {
+    let mut ground = quad(0.0, 10.0);
+    // Degenerate and duplicate triangles.
+    ground.indices.push([0, 0, 1]);
+    ground.indices.push([0, 1, 2]);
+    ground.positions.push([1.0, 1.0, 0.0]);
+    ground.uvs.as_mut().unwrap().push([0.5, 0.5]);
+    ground.indices.push([0, 2, 4]); // collinear: (-10,-10), (10,10), (1,1)
+    let mut shiny = Material::lambertian(Vec3::ZERO);
+    shiny.lobes = vec![
+        Lobe {
+            rho: Vec3::splat(1.0),
+            cxy: -1.0,
+            cz: 1.0,
+            n: 5000.0,
+        },
+        Lobe {
+            rho: Vec3::splat(0.5),
+            cxy: 0.9,
+            cz: 0.9,
+            n: 3.0,
+        },
+    ];
+    Scene::new(vec![
+        ("ground".into(), ground, Material::lambertian(Vec3::ZERO)),
+        (
+            "box".into(),
+            cube(Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 1.0)),
+            shiny,
+        ),
+        (
+            "sphere".into(),
+            sphere(Vec3::new(3.0, 0.0, 1.0), 1.0, 8, 16),
+            Material::lambertian(Vec3::ONE),
+        ),
+    ])
+    .unwrap()
+}
+
+/// A camera a millimetre above the ground looking along +X, at grazing incidence.
+fn grazing_camera() -> Camera {
+    // Eye a millimetre above the ground looking along +X (R rows: camera x =
+    // -Y, camera y = -Z, camera z = +X; DMat3::from_cols takes the columns of R).
+    let rows = DMat3::from_cols(
+        DVec3::new(0.0, 0.0, 1.0),
+        DVec3::new(-1.0, 0.0, 0.0),
+        DVec3::new(0.0, -1.0, 0.0),
+    );
+    let c = DVec3::new(-8.0, 0.0, 1e-3);
+    let mut cam = Camera::pinhole(20, 12, 10.0, 10.0, 9.5, 5.5);
+    cam.pose = WorldToCamera {
+        r: rows,
+        t: -(rows * c),
+    };
+    cam
 }

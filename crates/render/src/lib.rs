@@ -7,7 +7,7 @@
 //!   (`igi_formats::scene`); surface points.
 //! - [`integrator`]: the path tracer (NEE + MIS), image rendering and the batched solver queries.
 //! - [`refine`]: camera pose refinement by matching the model's edges and silhouette to a photograph's.
-//! - [`compare`]: RMSE / relative mean / PSNR / noise-explained RMSE between two images.
+//! - [`compare_images`], [`difference_image`]: re-exported from `igi_imaging::metrics`.
 //! - [`sampling`]: per-pixel PCG streams, piecewise-constant 1D/2D distributions, cone sampling, MIS.
 //!
 //! Conventions: world Z up, metres; linear f32 RGB radiance; directions are unit vectors.
@@ -20,7 +20,6 @@
     clippy::type_complexity
 )]
 
-pub mod compare;
 pub mod embree;
 pub mod integrator;
 pub mod lighting;
@@ -29,7 +28,8 @@ pub mod sampling;
 pub mod scene;
 pub mod sky;
 
-pub use compare::{compare_images, difference_image, Comparison};
+/// Image comparison lives in `igi_imaging::metrics`; re-exported for the renderer's users.
+pub use igi_imaging::metrics::{compare_images, difference_image, Comparison};
 pub use integrator::{
     irradiance, radiance_toward, render_image, Estimate, PathTracer, RenderOptions, RenderOutput,
 };
@@ -41,8 +41,16 @@ use std::path::PathBuf;
 /// Errors of the renderer. Every file error names the file.
 #[derive(Debug, thiserror::Error)]
 pub enum RenderError {
-    #[error("Embree: {0}")]
-    Embree(String),
+    /// An Embree call failed (`what`: the call, e.g. "creating the Embree scene").
+    #[error("Embree: {what}: {source}")]
+    Embree {
+        what: &'static str,
+        #[source]
+        source: embree::EmbreeCode,
+    },
+    /// Embree numbered the meshes of a scene out of order.
+    #[error("Embree: Embree gave geometry id {id} to mesh {mesh}; expected sequential ids")]
+    EmbreeGeometryId { id: u32, mesh: usize },
     /// A scene or lighting file that parses but describes nothing usable.
     #[error("{path}: {msg}")]
     File { path: PathBuf, msg: String },
@@ -71,8 +79,9 @@ pub enum RenderError {
         #[source]
         source: Box<RenderError>,
     },
-    #[error("{0}")]
-    Invalid(String),
+    /// Lighting that can only render black.
+    #[error("no lighting: the scene names no lighting file and none was given (--lighting)")]
+    NoLighting,
     /// A render or query asked for no samples.
     #[error("spp must be at least 1")]
     ZeroSpp,
@@ -86,13 +95,6 @@ pub enum RenderError {
         len: usize,
         other: &'static str,
         other_len: usize,
-    },
-    /// An image of a comparison whose size differs from the others.
-    #[error("{what} is {} x {}, but the images are {} x {}", size.0, size.1, expected.0, expected.1)]
-    ImageSize {
-        what: String,
-        size: (usize, usize),
-        expected: (usize, usize),
     },
     /// An object whose mesh cannot be rendered (`object`: its name).
     #[error("{object}: {problem}")]

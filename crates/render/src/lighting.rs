@@ -327,10 +327,7 @@ impl Lighting {
     /// `lighting`, and no other lighting given).
     pub fn check_lights_something(&self) -> Result<(), RenderError> {
         if self.environment.is_none() && self.sun.is_none() {
-            return Err(RenderError::Invalid(
-                "no lighting: the scene names no lighting file and none was given (--lighting)"
-                    .into(),
-            ));
+            return Err(RenderError::NoLighting);
         }
         Ok(())
     }

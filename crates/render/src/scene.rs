@@ -15,7 +15,7 @@ use crate::lighting::Lighting;
 use crate::{MeshProblem, RenderError};
 use glam::{DVec3, Vec2, Vec3};
 use igi_brdf::{LafortuneRef, Lobe};
-use igi_formats::scene::{AlbedoEntry, ObjectEntry, SceneFile};
+use igi_formats::scene::{AlbedoEntry, LobeMapEntry, ObjectEntry, SceneFile};
 use igi_formats::TomlFile;
 use igi_geometry::TriMesh;
 use igi_imaging::HdrImage;
@@ -43,16 +43,7 @@ impl Texture {
     #[inline]
     pub fn lookup(&self, uv: Vec2) -> Vec3 {
         let (w, h) = (self.width, self.height);
-        let u = if uv.x.is_finite() {
-            uv.x.clamp(0.0, 1.0)
-        } else {
-            0.5
-        };
-        let v = if uv.y.is_finite() {
-            uv.y.clamp(0.0, 1.0)
-        } else {
-            0.5
-        };
+        let (u, v) = clamp_uv(uv);
         let x = (u * w as f32 - 0.5).clamp(0.0, (w - 1) as f32);
         let y = ((1.0 - v) * h as f32 - 0.5).clamp(0.0, (h - 1) as f32);
         let (x0, y0) = (x.floor() as usize, y.floor() as usize);
@@ -63,6 +54,19 @@ impl Texture {
         let bot = t(y1, x0) * (1.0 - fx) + t(y1, x1) * fx;
         top * (1.0 - fy) + bot * fy
     }
+}
+
+/// A UV clamped to [0, 1] (a non-finite coordinate reads the centre, 0.5).
+#[inline]
+fn clamp_uv(uv: Vec2) -> (f32, f32) {
+    let c = |x: f32| {
+        if x.is_finite() {
+            x.clamp(0.0, 1.0)
+        } else {
+            0.5
+        }
+    };
+    (c(uv.x), c(uv.y))
 }
 
 /// Diffuse albedo of an object.
@@ -90,16 +94,7 @@ impl LobeMap {
     #[inline]
     pub fn at(&self, uv: Vec2) -> &[Lobe] {
         let (w, h) = (self.width, self.height);
-        let u = if uv.x.is_finite() {
-            uv.x.clamp(0.0, 1.0)
-        } else {
-            0.5
-        };
-        let v = if uv.y.is_finite() {
-            uv.y.clamp(0.0, 1.0)
-        } else {
-            0.5
-        };
+        let (u, v) = clamp_uv(uv);
         let x = ((u * w as f32) as usize).min(w - 1);
         let y = (((1.0 - v) * h as f32) as usize).min(h - 1);
         let i = (y * w + x) * self.per_texel;
@@ -253,6 +248,111 @@ pub struct Object {
     pub material: Material,
 }
 
+impl Object {
+    /// The object `name` of a scene: `mesh` checked against `material`, its zero-area and
+    /// non-finite triangles dropped (their number returned beside it), its normals unit length.
+    fn from_mesh(
+        name: String,
+        mesh: &TriMesh,
+        material: Material,
+    ) -> Result<(Object, usize), RenderError> {
+        check_mesh(&name, mesh, &material)?;
+        let positions: Vec<Vec3> = mesh
+            .positions
+            .iter()
+            .map(|p| Vec3::from_array(*p))
+            .collect();
+        let (triangles, skipped) = kept_triangles(&name, &mesh.indices, &positions)?;
+        let normals = mesh.normals.as_ref().map(|n| {
+            n.iter()
+                .map(|v| unit_or_zero(Vec3::from_array(*v)))
+                .collect()
+        });
+        let uvs = mesh
+            .uvs
+            .as_ref()
+            .map(|t| t.iter().map(|v| Vec2::from_array(*v)).collect());
+        let object = Object {
+            name,
+            positions,
+            normals,
+            uvs,
+            triangles,
+            material,
+        };
+        Ok((object, skipped))
+    }
+}
+
+/// Per-vertex attributes must match the vertex count; a texture needs UVs.
+fn check_mesh(name: &str, mesh: &TriMesh, material: &Material) -> Result<(), RenderError> {
+    let nv = mesh.positions.len();
+    if let Some(n) = &mesh.normals {
+        if n.len() != nv {
+            let problem = MeshProblem::Normals {
+                normals: n.len(),
+                vertices: nv,
+            };
+            return Err(mesh_error(name, problem));
+        }
+    }
+    if let Some(t) = &mesh.uvs {
+        if t.len() != nv {
+            let problem = MeshProblem::Uvs {
+                uvs: t.len(),
+                vertices: nv,
+            };
+            return Err(mesh_error(name, problem));
+        }
+    }
+    if matches!(material.albedo, Albedo::Texture(_)) && mesh.uvs.is_none() {
+        return Err(mesh_error(name, MeshProblem::TextureWithoutUvs));
+    }
+    Ok(())
+}
+
+/// The triangles with finite corners and non-zero area, and how many others were dropped; an
+/// index out of range is an error.
+fn kept_triangles(
+    name: &str,
+    indices: &[[u32; 3]],
+    positions: &[Vec3],
+) -> Result<(Vec<[u32; 3]>, usize), RenderError> {
+    let nv = positions.len();
+    let mut triangles = Vec::with_capacity(indices.len());
+    let mut skipped = 0;
+    for (k, tri) in indices.iter().enumerate() {
+        if tri.iter().any(|&i| i as usize >= nv) {
+            let problem = MeshProblem::IndexOutOfRange {
+                triangle: k,
+                indices: *tri,
+                vertices: nv,
+            };
+            return Err(mesh_error(name, problem));
+        }
+        let [a, b, c] = tri.map(|i| positions[i as usize]);
+        let cross = (b - a).cross(c - a);
+        if !(a.is_finite() && b.is_finite() && c.is_finite())
+            || !(cross.length_squared() > 0.0)
+            || !cross.is_finite()
+        {
+            skipped += 1;
+            continue;
+        }
+        triangles.push(*tri);
+    }
+    Ok((triangles, skipped))
+}
+
+/// `v` normalised, or zero when it is zero or not finite.
+fn unit_or_zero(v: Vec3) -> Vec3 {
+    if v.is_finite() && v.length_squared() > 0.0 {
+        v.normalize()
+    } else {
+        Vec3::ZERO
+    }
+}
+
 /// A point on a surface of the scene, as the queries of the solver take it.
 #[derive(Clone, Copy, Debug)]
 pub struct SurfacePoint {
@@ -284,84 +384,9 @@ impl Scene {
         let mut out = Vec::with_capacity(objects.len());
         let mut skipped = 0usize;
         for (name, mesh, material) in objects {
-            let nv = mesh.positions.len();
-            if let Some(n) = &mesh.normals {
-                if n.len() != nv {
-                    return Err(mesh_error(
-                        &name,
-                        MeshProblem::Normals {
-                            normals: n.len(),
-                            vertices: nv,
-                        },
-                    ));
-                }
-            }
-            if let Some(t) = &mesh.uvs {
-                if t.len() != nv {
-                    return Err(mesh_error(
-                        &name,
-                        MeshProblem::Uvs {
-                            uvs: t.len(),
-                            vertices: nv,
-                        },
-                    ));
-                }
-            }
-            if matches!(material.albedo, Albedo::Texture(_)) && mesh.uvs.is_none() {
-                return Err(mesh_error(&name, MeshProblem::TextureWithoutUvs));
-            }
-            let positions: Vec<Vec3> = mesh
-                .positions
-                .iter()
-                .map(|p| Vec3::from_array(*p))
-                .collect();
-            let mut triangles = Vec::with_capacity(mesh.indices.len());
-            for (k, tri) in mesh.indices.iter().enumerate() {
-                if tri.iter().any(|&i| i as usize >= nv) {
-                    return Err(mesh_error(
-                        &name,
-                        MeshProblem::IndexOutOfRange {
-                            triangle: k,
-                            indices: *tri,
-                            vertices: nv,
-                        },
-                    ));
-                }
-                let [a, b, c] = tri.map(|i| positions[i as usize]);
-                let cross = (b - a).cross(c - a);
-                if !(a.is_finite() && b.is_finite() && c.is_finite())
-                    || !(cross.length_squared() > 0.0)
-                    || !cross.is_finite()
-                {
-                    skipped += 1;
-                    continue;
-                }
-                triangles.push(*tri);
-            }
-            let normals = mesh.normals.as_ref().map(|n| {
-                n.iter()
-                    .map(|v| {
-                        let v = Vec3::from_array(*v);
-                        if v.is_finite() && v.length_squared() > 0.0 {
-                            v.normalize()
-                        } else {
-                            Vec3::ZERO
-                        }
-                    })
-                    .collect()
-            });
-            let uvs = mesh
-                .uvs
-                .as_ref()
-                .map(|t| t.iter().map(|v| Vec2::from_array(*v)).collect());
-            out.push(Object {
-                name,
-                positions,
-                normals,
-                uvs,
-                triangles,
-                material,
-            });
+            let (object, dropped) = Object::from_mesh(name, &mesh, material)?;
+            skipped += dropped;
+            out.push(object);
         }
         let pos_arrays: Vec<Vec<[f32; 3]>> = out
             .iter()
@@ -504,42 +529,11 @@ fn load_object(
     k: usize,
     o: &ObjectEntry,
 ) -> Result<(String, TriMesh, Material), RenderError> {
-    let dir = path.parent().unwrap_or(Path::new("."));
-    let in_object = |what: String, source: Box<dyn std::error::Error + Send + Sync>| {
-        RenderError::in_file(path, format!("object {k}: {what}"), source)
-    };
-    let mesh_path = dir.join(&o.mesh);
+    let ctx = ObjectContext { path, k };
+    let mesh_path = ctx.dir().join(&o.mesh);
     let mesh = igi_geometry::read_mesh(&mesh_path)
-        .map_err(|e| in_object(format!("mesh {}", mesh_path.display()), e.into()))?;
-    let file_err = |msg: String| RenderError::File {
-        path: path.to_path_buf(),
-        msg: format!("object {k}: {msg}"),
-    };
-    let albedo = match &o.albedo {
-        AlbedoEntry::Constant(c) => {
-            let c = DVec3::from_array(*c).as_vec3();
-            if !c.is_finite() || c.min_element() < 0.0 {
-                return Err(file_err(format!("albedo {c:?} must be finite and >= 0")));
-            }
-            Albedo::Constant(c)
-        }
-        AlbedoEntry::Texture(t) => {
-            let tp = dir.join(t);
-            let img = igi_imaging::read_image(&tp)
-                .map_err(|e| in_object(format!("albedo texture {}", tp.display()), e.into()))?;
-            if img
-                .pixels
-                .iter()
-                .any(|p| p.iter().any(|c| !c.is_finite() || *c < 0.0))
-            {
-                return Err(file_err(format!(
-                    "albedo texture {} has negative or non-finite texels",
-                    tp.display()
-                )));
-            }
-            Albedo::Texture(Texture::from_image(&img))
-        }
-    };
+        .map_err(|e| ctx.in_object(format!("mesh {}", mesh_path.display()), e.into()))?;
+    let albedo = ctx.albedo(&o.albedo)?;
     let lobes: Vec<Lobe> = o
         .lobes
         .iter()
@@ -551,31 +545,95 @@ fn load_object(
         })
         .collect();
     if let Some((li, l)) = lobes.iter().enumerate().find(|(_, l)| !lobe_is_valid(l)) {
-        return Err(file_err(format!("lobe {li} {l:?} has invalid parameters")));
+        return Err(ctx.file_err(format!("lobe {li} {l:?} has invalid parameters")));
     }
-    let lobe_map = if o.lobe_maps.is_empty() {
-        None
-    } else {
-        let mut imgs = Vec::new();
-        for (li, m) in o.lobe_maps.iter().enumerate() {
-            let read = |p: &PathBuf| {
-                let full = dir.join(p);
-                igi_imaging::read_image(&full)
-                    .map_err(|e| in_object(format!("lobe map {li} {}", full.display()), e.into()))
-            };
-            imgs.push((read(&m.rho)?, read(&m.shape)?));
-        }
-        Some(
-            LobeMap::from_images(&imgs)
-                .map_err(|e| RenderError::in_file(path, format!("object {k}"), e.into()))?,
-        )
-    };
+    let lobe_map = ctx.lobe_map(&o.lobe_maps)?;
     let material = Material {
         albedo,
         lobes,
         lobe_map,
     };
     Ok((mesh_path.display().to_string(), mesh, material))
+}
+
+/// Object `k` of scene file `path`, for reading what it names and for its errors.
+struct ObjectContext<'p> {
+    path: &'p Path,
+    k: usize,
+}
+
+impl ObjectContext<'_> {
+    /// The folder relative paths start from.
+    fn dir(&self) -> &Path {
+        self.path.parent().unwrap_or(Path::new("."))
+    }
+
+    /// A file the object names could not be read (`what` names it).
+    fn in_object(
+        &self,
+        what: String,
+        source: Box<dyn std::error::Error + Send + Sync>,
+    ) -> RenderError {
+        RenderError::in_file(self.path, format!("object {}: {what}", self.k), source)
+    }
+
+    /// A value of the object is unusable.
+    fn file_err(&self, msg: String) -> RenderError {
+        RenderError::File {
+            path: self.path.to_path_buf(),
+            msg: format!("object {}: {msg}", self.k),
+        }
+    }
+
+    /// The albedo: a constant (finite, >= 0) or a texture read and checked texel by texel.
+    fn albedo(&self, entry: &AlbedoEntry) -> Result<Albedo, RenderError> {
+        match entry {
+            AlbedoEntry::Constant(c) => {
+                let c = DVec3::from_array(*c).as_vec3();
+                if !c.is_finite() || c.min_element() < 0.0 {
+                    return Err(self.file_err(format!("albedo {c:?} must be finite and >= 0")));
+                }
+                Ok(Albedo::Constant(c))
+            }
+            AlbedoEntry::Texture(t) => {
+                let tp = self.dir().join(t);
+                let img = igi_imaging::read_image(&tp).map_err(|e| {
+                    self.in_object(format!("albedo texture {}", tp.display()), e.into())
+                })?;
+                if img
+                    .pixels
+                    .iter()
+                    .any(|p| p.iter().any(|c| !c.is_finite() || *c < 0.0))
+                {
+                    return Err(self.file_err(format!(
+                        "albedo texture {} has negative or non-finite texels",
+                        tp.display()
+                    )));
+                }
+                Ok(Albedo::Texture(Texture::from_image(&img)))
+            }
+        }
+    }
+
+    /// The per-texel lobes of the object's `lobe_maps`, if it has any.
+    fn lobe_map(&self, maps: &[LobeMapEntry]) -> Result<Option<LobeMap>, RenderError> {
+        if maps.is_empty() {
+            return Ok(None);
+        }
+        let mut imgs = Vec::new();
+        for (li, m) in maps.iter().enumerate() {
+            let read = |p: &PathBuf| {
+                let full = self.dir().join(p);
+                igi_imaging::read_image(&full).map_err(|e| {
+                    self.in_object(format!("lobe map {li} {}", full.display()), e.into())
+                })
+            };
+            imgs.push((read(&m.rho)?, read(&m.shape)?));
+        }
+        LobeMap::from_images(&imgs)
+            .map(Some)
+            .map_err(|e| RenderError::in_file(self.path, format!("object {}", self.k), e.into()))
+    }
 }
 
 fn mesh_error(object: &str, problem: MeshProblem) -> RenderError {
@@ -588,6 +646,7 @@ fn mesh_error(object: &str, problem: MeshProblem) -> RenderError {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::integrator_tests::quad;
 
     /// Each unusable mesh is refused with a typed error naming the object.
     #[test]
@@ -602,10 +661,10 @@ mod tests {
             Err(e) => panic!("not a mesh error: {e}"),
             Ok(_) => panic!("accepted"),
         };
-        let mut m = quad_mesh(0.0, 1.0);
+        let mut m = quad(0.0, 1.0);
         m.normals = Some(vec![[0.0, 0.0, 1.0]]);
         assert_eq!(err(m, grey()), "wall: 1 normals for 4 vertices");
-        let mut m = quad_mesh(0.0, 1.0);
+        let mut m = quad(0.0, 1.0);
         m.uvs = Some(vec![[0.0, 0.0]; 3]);
         assert_eq!(err(m, grey()), "wall: 3 UVs for 4 vertices");
         let texture = Material {
@@ -613,33 +672,18 @@ mod tests {
             lobes: vec![],
             lobe_map: None,
         };
-        let mut m = quad_mesh(0.0, 1.0);
+        let mut m = quad(0.0, 1.0);
         m.uvs = None;
         assert_eq!(
             err(m, texture),
             "wall: an albedo texture needs UVs, and the mesh has none"
         );
-        let mut m = quad_mesh(0.0, 1.0);
+        let mut m = quad(0.0, 1.0);
         m.indices[1] = [0, 2, 9];
         assert_eq!(
             err(m, grey()),
             "wall: triangle 1 has vertex index [0, 2, 9] out of range (4 vertices)"
         );
-    }
-
-    pub(crate) fn quad_mesh(z: f32, half: f32) -> TriMesh {
-        TriMesh {
-            positions: vec![
-                [-half, -half, z],
-                [half, -half, z],
-                [half, half, z],
-                [-half, half, z],
-            ],
-            normals: None,
-            uvs: Some(vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]),
-            colors: None,
-            indices: vec![[0, 1, 2], [0, 2, 3]],
-        }
     }
 
     #[test]
@@ -715,7 +759,7 @@ mod tests {
 
     #[test]
     fn degenerate_and_duplicate_triangles_are_handled() {
-        let mut m = quad_mesh(0.0, 1.0);
+        let mut m = quad(0.0, 1.0);
         m.positions.push([5.0, 5.0, 0.0]);
         m.positions.push([f32::NAN, 0.0, 0.0]);
         m.uvs.as_mut().unwrap().extend([[0.0, 0.0], [0.0, 0.0]]);
@@ -737,7 +781,7 @@ mod tests {
         assert!(sp.ng.abs_diff_eq(Vec3::Z, 1e-6) && sp.ns.abs_diff_eq(Vec3::Z, 1e-6));
         assert!(sp.uv.abs_diff_eq(Vec2::new(0.65, 0.6), 1e-5));
         // Index out of range is a clear error.
-        let mut bad = quad_mesh(0.0, 1.0);
+        let mut bad = quad(0.0, 1.0);
         bad.indices.push([0, 1, 9]);
         let e = Scene::new(vec![(
             "bad.ply".into(),
@@ -752,7 +796,7 @@ mod tests {
 
     #[test]
     fn interpolated_shading_normals_face_the_geometric_side() {
-        let mut m = quad_mesh(0.0, 1.0);
+        let mut m = quad(0.0, 1.0);
         let tilt = Vec3::new(0.3, 0.0, -1.0).normalize(); // points below: must be flipped
         m.normals = Some(vec![tilt.to_array(); 4]);
         let s = Scene::new(vec![("m".into(), m, Material::lambertian(Vec3::ONE))]).unwrap();
@@ -765,11 +809,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         std::fs::create_dir_all(dir.path().join("geometry")).unwrap();
         std::fs::create_dir_all(dir.path().join("lighting")).unwrap();
-        igi_geometry::write_ply(
-            &dir.path().join("geometry/ground.ply"),
-            &quad_mesh(0.0, 2.0),
-        )
-        .unwrap();
+        igi_geometry::write_ply(&dir.path().join("geometry/ground.ply"), &quad(0.0, 2.0)).unwrap();
         let mut tex = HdrImage::new(2, 2);
         tex.set(0, 0, [0.9, 0.1, 0.1]);
         igi_imaging::write_exr(&dir.path().join("geometry/tex.exr"), &tex).unwrap();

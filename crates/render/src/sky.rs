@@ -13,39 +13,33 @@ use igi_imaging::{latlong, HdrImage};
 /// direction toward the sun; `zenith` the radiance at the zenith (blue channel).
 pub fn clear_sky(width: usize, height: usize, sun: Vec3, zenith: f32, ground: Vec3) -> HdrImage {
     let sun = sun.normalize_or(Vec3::Z);
-    let mut img = HdrImage::new(width, height);
-    for i in 0..height {
-        for j in 0..width {
-            let d = latlong::pixel_center_direction(i, j, width, height);
-            let v = if d.z <= 0.0 {
-                ground
-            } else {
-                let base = Vec3::new(0.30, 0.50, 1.0) * zenith;
-                let horizon = Vec3::new(0.85, 0.90, 1.0) * zenith * 1.6;
-                let t = (1.0 - d.z).powi(3);
-                let gamma = d.dot(sun).clamp(-1.0, 1.0).acos();
-                let glow = Vec3::new(1.0, 0.9, 0.75)
-                    * zenith
-                    * (2.5 * (-gamma / 0.15).exp() + 0.4 * (-gamma / 0.8).exp());
-                base * (1.0 - t) + horizon * t + glow
-            };
-            img.set(j, i, v.to_array());
-        }
-    }
-    img
+    sky_map(width, height, ground, |d| {
+        let base = Vec3::new(0.30, 0.50, 1.0) * zenith;
+        let horizon = Vec3::new(0.85, 0.90, 1.0) * zenith * 1.6;
+        let t = (1.0 - d.z).powi(3);
+        let gamma = d.dot(sun).clamp(-1.0, 1.0).acos();
+        let glow = Vec3::new(1.0, 0.9, 0.75)
+            * zenith
+            * (2.5 * (-gamma / 0.15).exp() + 0.4 * (-gamma / 0.8).exp());
+        base * (1.0 - t) + horizon * t + glow
+    })
 }
 
 /// The CIE standard overcast sky, L(theta) = L_z (1 + 2 cos theta) / 3, grey.
 pub fn overcast_sky(width: usize, height: usize, zenith: f32, ground: Vec3) -> HdrImage {
+    sky_map(width, height, ground, |d| {
+        Vec3::splat(zenith * (1.0 + 2.0 * d.z) / 3.0)
+    })
+}
+
+/// A lat-long map of `sky(d)` for the pixel-centre directions `d` above the horizon (`d.z > 0`)
+/// and `ground` below it.
+fn sky_map(width: usize, height: usize, ground: Vec3, sky: impl Fn(Vec3) -> Vec3) -> HdrImage {
     let mut img = HdrImage::new(width, height);
     for i in 0..height {
         for j in 0..width {
             let d = latlong::pixel_center_direction(i, j, width, height);
-            let v = if d.z <= 0.0 {
-                ground
-            } else {
-                Vec3::splat(zenith * (1.0 + 2.0 * d.z) / 3.0)
-            };
+            let v = if d.z <= 0.0 { ground } else { sky(d) };
             img.set(j, i, v.to_array());
         }
     }

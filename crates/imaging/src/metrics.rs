@@ -1,9 +1,10 @@
-//! Image comparison metrics shared by `igi compare`, the Mitsuba reference test and the
-//! benchmarks: RMSE, relative mean difference, PSNR, and the RMSE that Monte-Carlo noise alone
-//! explains when per-pixel standard errors are known.
+//! Image comparison metrics, the one home of the maths behind `igi compare`, the Mitsuba
+//! reference tests, the demo and [`HdrImage::psnr_inside`]: RMSE, relative mean difference,
+//! PSNR, and the RMSE that Monte-Carlo noise alone explains when per-pixel standard errors are
+//! known.
 
-use crate::RenderError;
-use igi_imaging::HdrImage;
+use crate::error::CompareError;
+use crate::{HdrImage, ImagingError};
 use serde::Serialize;
 
 /// Metrics of image `a` against reference `b` over pixels valid in both (all channels).
@@ -25,9 +26,61 @@ pub struct Comparison {
     pub noise_rmse: Option<f64>,
 }
 
-fn check_size(what: &str, img: &HdrImage, w: usize, h: usize) -> Result<(), RenderError> {
+/// PSNR in dB of an error `rmse` against a signal peak `peak`: 20 log10(peak / rmse), infinite
+/// when `rmse` is 0.
+pub fn psnr_db(peak: f64, rmse: f64) -> f64 {
+    if rmse > 0.0 {
+        20.0 * (peak / rmse).log10()
+    } else {
+        f64::INFINITY
+    }
+}
+
+/// Running sums over compared pixels (every channel counted), in f64.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct ErrorSums {
+    /// Sum of (a - b)^2.
+    pub squared_error: f64,
+    pub sum_a: f64,
+    pub sum_b: f64,
+    /// Largest channel value of b.
+    pub peak_b: f64,
+    /// Sum of se_a^2 + se_b^2.
+    pub noise: f64,
+    /// Pixels added.
+    pub pixels: usize,
+}
+
+impl ErrorSums {
+    /// Adds one pixel of `a` and `b`, with the standard errors `se_a` and `se_b` (0 if unknown).
+    #[inline]
+    pub fn add(&mut self, a: [f32; 3], b: [f32; 3], se_a: [f32; 3], se_b: [f32; 3]) {
+        self.pixels += 1;
+        for c in 0..3 {
+            let (x, y) = (a[c] as f64, b[c] as f64);
+            self.squared_error += (x - y) * (x - y);
+            self.sum_a += x;
+            self.sum_b += y;
+            self.peak_b = self.peak_b.max(y);
+            let (ea, eb) = (se_a[c] as f64, se_b[c] as f64);
+            self.noise += ea * ea + eb * eb;
+        }
+    }
+
+    /// Number of channel values added.
+    fn values(&self) -> f64 {
+        (3 * self.pixels) as f64
+    }
+
+    /// sqrt(mean((a - b)^2)) (NaN when nothing was added).
+    pub fn rmse(&self) -> f64 {
+        (self.squared_error / self.values()).sqrt()
+    }
+}
+
+fn check_size(what: &str, img: &HdrImage, w: usize, h: usize) -> Result<(), CompareError> {
     if img.width != w || img.height != h {
-        return Err(RenderError::ImageSize {
+        return Err(CompareError::ImageSize {
             what: what.to_string(),
             size: (img.width, img.height),
             expected: (w, h),
@@ -42,7 +95,7 @@ pub fn compare_images(
     b: &HdrImage,
     se_a: Option<&HdrImage>,
     se_b: Option<&HdrImage>,
-) -> Result<Comparison, RenderError> {
+) -> Result<Comparison, ImagingError> {
     let (w, h) = (b.width, b.height);
     check_size("image A", a, w, h)?;
     if let Some(s) = se_a {
@@ -51,36 +104,23 @@ pub fn compare_images(
     if let Some(s) = se_b {
         check_size("standard-error image of B", s, w, h)?;
     }
-    let (mut se2, mut sa, mut sb, mut noise, mut n) = (0f64, 0f64, 0f64, 0f64, 0usize);
-    let mut peak = 0f64;
+    let mut sums = ErrorSums::default();
+    let se_at = |s: Option<&HdrImage>, i: usize| s.map_or([0.0; 3], |s| s.pixels[i]);
     for i in 0..w * h {
-        if !(a.valid[i] && b.valid[i]) {
-            continue;
-        }
-        n += 1;
-        for c in 0..3 {
-            let (x, y) = (a.pixels[i][c] as f64, b.pixels[i][c] as f64);
-            se2 += (x - y) * (x - y);
-            sa += x;
-            sb += y;
-            peak = peak.max(y);
-            let ea = se_a.map_or(0.0, |s| s.pixels[i][c] as f64);
-            let eb = se_b.map_or(0.0, |s| s.pixels[i][c] as f64);
-            noise += ea * ea + eb * eb;
+        if a.valid[i] && b.valid[i] {
+            sums.add(a.pixels[i], b.pixels[i], se_at(se_a, i), se_at(se_b, i));
         }
     }
-    if n == 0 {
-        return Err(RenderError::Invalid(
-            "no pixel is valid in both images".into(),
-        ));
+    if sums.pixels == 0 {
+        return Err(CompareError::NoCommonPixels.into());
     }
-    let m = (3 * n) as f64;
-    let rmse = (se2 / m).sqrt();
-    let (mean_a, mean_b) = (sa / m, sb / m);
+    let m = sums.values();
+    let rmse = sums.rmse();
+    let (mean_a, mean_b) = (sums.sum_a / m, sums.sum_b / m);
     Ok(Comparison {
         width: w,
         height: h,
-        pixels: n,
+        pixels: sums.pixels,
         rmse,
         relative_mean_difference: if mean_b != 0.0 {
             (mean_a - mean_b) / mean_b
@@ -89,16 +129,8 @@ pub fn compare_images(
         },
         mean_a,
         mean_b,
-        psnr_db: if rmse > 0.0 {
-            20.0 * (peak / rmse).log10()
-        } else {
-            f64::INFINITY
-        },
-        noise_rmse: if se_a.is_some() || se_b.is_some() {
-            Some((noise / m).sqrt())
-        } else {
-            None
-        },
+        psnr_db: psnr_db(sums.peak_b, rmse),
+        noise_rmse: (se_a.is_some() || se_b.is_some()).then(|| (sums.noise / m).sqrt()),
     })
 }
 
@@ -109,7 +141,7 @@ pub fn difference_image(
     a: &HdrImage,
     b: &HdrImage,
     max_abs: Option<f32>,
-) -> Result<HdrImage, RenderError> {
+) -> Result<HdrImage, ImagingError> {
     check_size("image A", a, b.width, b.height)?;
     let diffs: Vec<f32> = a
         .pixels
@@ -136,7 +168,7 @@ pub fn difference_image(
         let k = (t.floor() as usize).min(3);
         let f = t - k as f32;
         let srgb: [f32; 3] = std::array::from_fn(|c| STOPS[k][c] * (1.0 - f) + STOPS[k + 1][c] * f);
-        out.pixels[i] = srgb.map(igi_imaging::io::srgb_to_linear);
+        out.pixels[i] = srgb.map(crate::io::srgb_to_linear);
     }
     Ok(out)
 }
