@@ -53,8 +53,9 @@ pub enum ImagingError {
     #[error("{}: {source}", path.display())]
     RigSyntax {
         path: PathBuf,
+        /// Boxed so that the error stays small inside other crates' errors.
         #[source]
-        source: toml::de::Error,
+        source: Box<toml::de::Error>,
     },
     #[error("{}: view {view:?}: {msg}", path.display())]
     RigView {

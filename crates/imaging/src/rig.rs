@@ -81,7 +81,7 @@ impl Rig {
     pub fn from_toml_str(text: &str, path: &Path) -> Result<Rig, ImagingError> {
         let mut rig: Rig = toml::from_str(text).map_err(|source| ImagingError::RigSyntax {
             path: path.to_path_buf(),
-            source,
+            source: Box::new(source),
         })?;
         rig.path = path.to_path_buf();
         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();

@@ -73,7 +73,7 @@ pub enum ProbeError {
     Merge {
         files: String,
         #[source]
-        source: ImagingError,
+        source: Box<ImagingError>,
     },
 }
 

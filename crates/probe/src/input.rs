@@ -60,7 +60,7 @@ pub fn load_photograph(
                         .map(|p| p.display().to_string())
                         .collect::<Vec<_>>()
                         .join(", "),
-                    source,
+                    source: Box::new(source),
                 })?;
             tracing::info!(
                 "merged {} brackets, {:.2}% of pixels valid",
