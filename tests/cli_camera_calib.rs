@@ -20,28 +20,109 @@ fn through_camera(img: &mut HdrImage) {
     apply_color_matrix(img, &MIX);
 }
 
-#[test]
-fn radiometry_from_flats_and_checker_and_its_errors() {
-    let cli = Cli::new(env!("CARGO_BIN_EXE_igi"));
-    let tmp = tempfile::tempdir().unwrap();
-    let (w, h) = (120, 90);
-    let flat = tmp.path().join("flat.exr");
+/// The corners of the test chart, and the same as the `--corners` argument.
+const CHART_CORNERS: [DVec2; 4] = [
+    DVec2::new(10.0, 12.0),
+    DVec2::new(110.0, 10.0),
+    DVec2::new(108.0, 80.0),
+    DVec2::new(12.0, 78.0),
+];
+const CORNER_ARG: &str = "10,12,110,10,108,80,12,78";
+
+/// A flat field and a chart (white radiance 2) photographed through the test camera.
+fn flat_and_chart(dir: &Path, w: usize, h: usize) -> (PathBuf, PathBuf) {
+    let flat = dir.join("flat.exr");
     let mut f = HdrImage::new(w, h);
     f.pixels.iter_mut().for_each(|p| *p = [0.8; 3]);
     through_camera(&mut f);
     write_exr(&flat, &f).unwrap();
-    let corners = [
-        DVec2::new(10.0, 12.0),
-        DVec2::new(110.0, 10.0),
-        DVec2::new(108.0, 80.0),
-        DVec2::new(12.0, 78.0),
-    ];
-    let chart = tmp.path().join("chart.exr");
-    let mut c = render_checker(w, h, &corners, 2.0, 0.2).unwrap();
+    let chart = dir.join("chart.exr");
+    let mut c = render_checker(w, h, &CHART_CORNERS, 2.0, 0.2).unwrap();
     through_camera(&mut c);
     write_exr(&chart, &c).unwrap();
+    (flat, chart)
+}
+
+/// The calibration file against the test camera's falloff and inverse crosstalk.
+fn check_calibration(out: &Path) {
+    let cal = CameraRadiometry::load(out).unwrap();
+    assert!((cal.falloff.unwrap().eval(1.0) - FALLOFF.eval(1.0)).abs() < 2e-3);
+    let m = cal.color_matrix.unwrap();
+    let inv = nalgebra_free_inverse(&MIX);
+    for r in 0..3 {
+        for k in 0..3 {
+            assert!((m[r][k] - inv[r][k]).abs() < 0.01, "{m:?} vs {inv:?}");
+        }
+    }
+}
+
+/// A checker without corners: found by OpenCV's mcc detector with the `opencv` feature (even
+/// this small one, 16 px patch pitch), else an error naming the file and --corners.
+fn check_checker_without_corners(cli: &Cli, dir: &Path, chart: &Path, keep: &[PathBuf]) {
+    let out2 = dir.join("r2.json");
+    let o = cli.run(&[
+        "camera",
+        "radiometry",
+        "--checker",
+        s(chart),
+        "--json",
+        "-o",
+        s(&out2),
+    ]);
+    if cfg!(feature = "opencv") {
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{err}");
+        let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        for (k, t) in CHART_CORNERS.iter().enumerate() {
+            let c = &r["checker_corners"][k];
+            let p = DVec2::new(c[0].as_f64().unwrap(), c[1].as_f64().unwrap());
+            assert!((p - *t).length() < 1.0, "corner {k}: {p} vs {t}");
+        }
+        std::fs::remove_file(&out2).unwrap();
+    } else {
+        assert_failed(&o, "chart.exr", "--corners", dir, keep);
+    }
+}
+
+/// A flat of another size and malformed corners: errors naming the file or the flag, nothing
+/// written.
+fn check_bad_inputs(cli: &Cli, dir: &Path, flat: &Path, chart: &Path, keep: &[PathBuf]) {
+    let out2 = dir.join("r2.json");
+    let small = dir.join("small.exr");
+    write_exr(&small, &HdrImage::new(60, 45)).unwrap();
+    let mut keep2 = keep.to_vec();
+    keep2.push(small.clone());
+    let o = cli.run(&[
+        "camera",
+        "radiometry",
+        "--flat",
+        s(flat),
+        s(&small),
+        "-o",
+        s(&out2),
+    ]);
+    assert_failed(&o, "small.exr", "60x45", dir, &keep2);
+    let o = cli.run(&[
+        "camera",
+        "radiometry",
+        "--flat",
+        s(flat),
+        "--checker",
+        s(chart),
+        "--corners",
+        "1,2,3",
+        "-o",
+        s(&out2),
+    ]);
+    assert_failed(&o, "--corners", "8 finite numbers", dir, &keep2);
+}
+
+#[test]
+fn radiometry_from_flats_and_checker_and_its_errors() {
+    let cli = Cli::new(env!("CARGO_BIN_EXE_igi"));
+    let tmp = tempfile::tempdir().unwrap();
+    let (flat, chart) = flat_and_chart(tmp.path(), 120, 90);
     let out = tmp.path().join("radiometry.json");
-    let corner_arg = "10,12,110,10,108,80,12,78";
     let o = cli.ok(&[
         "camera",
         "radiometry",
@@ -50,7 +131,7 @@ fn radiometry_from_flats_and_checker_and_its_errors() {
         "--checker",
         s(&chart),
         "--corners",
-        corner_arg,
+        CORNER_ARG,
         "--white",
         "2",
         "--json",
@@ -62,69 +143,10 @@ fn radiometry_from_flats_and_checker_and_its_errors() {
         report["fit"]["color_rms"].as_f64().unwrap() < 0.01,
         "{report}"
     );
-    let cal = CameraRadiometry::load(&out).unwrap();
-    assert!((cal.falloff.unwrap().eval(1.0) - FALLOFF.eval(1.0)).abs() < 2e-3);
-    let m = cal.color_matrix.unwrap();
-    let inv = nalgebra_free_inverse(&MIX);
-    for r in 0..3 {
-        for k in 0..3 {
-            assert!((m[r][k] - inv[r][k]).abs() < 0.01, "{m:?} vs {inv:?}");
-        }
-    }
+    check_calibration(&out);
     let keep = vec![flat.clone(), chart.clone(), out.clone()];
-    // a checker without corners: found by OpenCV's mcc detector with the `opencv` feature (even
-    // this small one, 16 px patch pitch), else an error naming the file and --corners
-    let out2 = tmp.path().join("r2.json");
-    let o = cli.run(&[
-        "camera",
-        "radiometry",
-        "--checker",
-        s(&chart),
-        "--json",
-        "-o",
-        s(&out2),
-    ]);
-    if cfg!(feature = "opencv") {
-        let err = String::from_utf8_lossy(&o.stderr);
-        assert!(o.status.success(), "{err}");
-        let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-        for (k, t) in corners.iter().enumerate() {
-            let c = &r["checker_corners"][k];
-            let p = DVec2::new(c[0].as_f64().unwrap(), c[1].as_f64().unwrap());
-            assert!((p - *t).length() < 1.0, "corner {k}: {p} vs {t}");
-        }
-        std::fs::remove_file(&out2).unwrap();
-    } else {
-        assert_failed(&o, "chart.exr", "--corners", tmp.path(), &keep);
-    }
-    // a flat of another size: an error naming the file, nothing written
-    let small = tmp.path().join("small.exr");
-    write_exr(&small, &HdrImage::new(60, 45)).unwrap();
-    let mut keep2 = keep.clone();
-    keep2.push(small.clone());
-    let o = cli.run(&[
-        "camera",
-        "radiometry",
-        "--flat",
-        s(&flat),
-        s(&small),
-        "-o",
-        s(&out2),
-    ]);
-    assert_failed(&o, "small.exr", "60x45", tmp.path(), &keep2);
-    let o = cli.run(&[
-        "camera",
-        "radiometry",
-        "--flat",
-        s(&flat),
-        "--checker",
-        s(&chart),
-        "--corners",
-        "1,2,3",
-        "-o",
-        s(&out2),
-    ]);
-    assert_failed(&o, "--corners", "8 finite numbers", tmp.path(), &keep2);
+    check_checker_without_corners(&cli, tmp.path(), &chart, &keep);
+    check_bad_inputs(&cli, tmp.path(), &flat, &chart, &keep);
 }
 
 fn nalgebra_free_inverse(m: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {

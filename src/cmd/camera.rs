@@ -229,14 +229,7 @@ fn parse_corners(text: &str) -> anyhow::Result<[DVec2; 4]> {
 
 fn radiometry(a: RadiometryArgs, ctx: &Ctx) -> anyhow::Result<()> {
     use igi_imaging::radiometry::{fit_radiometry, RadiometryInputs};
-    if a.output
-        .extension()
-        .map(|e| e.to_string_lossy().to_lowercase())
-        .as_deref()
-        != Some("json")
-    {
-        bail!("{}: output must be .json", a.output.display());
-    }
+    super::require_extension(&a.output, "json")?;
     if a.flat.is_empty() && a.checker.is_none() {
         bail!("give flat fields (--flat), a colour checker (--checker, optionally --corners), or both");
     }
@@ -249,6 +242,26 @@ fn radiometry(a: RadiometryArgs, ctx: &Ctx) -> anyhow::Result<()> {
         (None, Some(_)) => bail!("--corners needs --checker"),
         _ => None,
     };
+    let (flats, checker) = read_radiometry_images(&a, ctx)?;
+    let corners = match (&a.checker, &checker, given) {
+        (Some(path), Some(img), None) => Some(detect_checker(path, img)?),
+        (_, _, given) => given,
+    };
+    let inputs = RadiometryInputs {
+        flats: &flats,
+        checker: checker.as_ref().zip(corners),
+        white: a.white,
+    };
+    let cal = fit_radiometry(&inputs).context("fitting the camera radiometry")?;
+    cal.save(&a.output)?;
+    report_radiometry(&a, &cal, corners)
+}
+
+/// The flat fields and the checker photo, all of one size (the first one's).
+fn read_radiometry_images(
+    a: &RadiometryArgs,
+    ctx: &Ctx,
+) -> anyhow::Result<(Vec<igi_imaging::HdrImage>, Option<igi_imaging::HdrImage>)> {
     let pb = ctx.progress(a.flat.len() as u64 + a.checker.is_some() as u64, "reading");
     let mut flats = Vec::new();
     for p in &a.flat {
@@ -273,17 +286,15 @@ fn radiometry(a: RadiometryArgs, ctx: &Ctx) -> anyhow::Result<()> {
             bail!("{}: image is {}x{} but the first is {w}x{h}; all must come from the same camera setting", p.display(), img.width, img.height);
         }
     }
-    let corners = match (&a.checker, &checker, given) {
-        (Some(path), Some(img), None) => Some(detect_checker(path, img)?),
-        (_, _, given) => given,
-    };
-    let inputs = RadiometryInputs {
-        flats: &flats,
-        checker: checker.as_ref().zip(corners),
-        white: a.white,
-    };
-    let cal = fit_radiometry(&inputs).context("fitting the camera radiometry")?;
-    cal.save(&a.output)?;
+    Ok((flats, checker))
+}
+
+/// The fit as JSON (`--json`), or the detected corners as a `--corners` argument.
+fn report_radiometry(
+    a: &RadiometryArgs,
+    cal: &igi_imaging::radiometry::CameraRadiometry,
+    corners: Option<[DVec2; 4]>,
+) -> anyhow::Result<()> {
     let corners_px = corners.map(|c| c.map(|p| p.to_array()));
     if a.json {
         crate::report::print_json(&serde_json::json!({

@@ -818,56 +818,55 @@ mod tests {
         }
     }
 
-    /// Flat fields and a checker photographed through a vignetting lens with colour crosstalk:
-    /// the fit recovers the falloff and the inverse of the crosstalk, and the calibration file
-    /// corrects a photograph back to the truth.
-    #[test]
-    fn radiometry_fit_recovers_falloff_and_inverse_crosstalk() {
-        let truth = Falloff {
-            a2: -0.4,
-            a4: 0.1,
-            a6: -0.05,
-        };
-        let mix = [[0.8, 0.15, 0.05], [0.1, 0.75, 0.15], [0.05, 0.2, 0.7]];
-        let camera = |img: &mut HdrImage| {
-            truth.vignette(img);
-            apply_color_matrix(img, &mix);
-        };
-        let (w, h) = (160, 120);
+    const CROSSTALK: [[f64; 3]; 3] = [[0.8, 0.15, 0.05], [0.1, 0.75, 0.15], [0.05, 0.2, 0.7]];
+    const TRUE_FALLOFF: Falloff = Falloff {
+        a2: -0.4,
+        a4: 0.1,
+        a6: -0.05,
+    };
+    const CHECKER_CORNERS: [DVec2; 4] = [
+        DVec2::new(20.0, 18.0),
+        DVec2::new(145.0, 25.0),
+        DVec2::new(140.0, 105.0),
+        DVec2::new(15.0, 98.0),
+    ];
+
+    /// The test camera: vignetting by [`TRUE_FALLOFF`], then [`CROSSTALK`].
+    fn through_camera(img: &mut HdrImage) {
+        TRUE_FALLOFF.vignette(img);
+        apply_color_matrix(img, &CROSSTALK);
+    }
+
+    /// Two noisy flat fields and a noisy checker of white radiance `white`, `w x h`.
+    fn calibration_photos(w: usize, h: usize, white: f64) -> (Vec<HdrImage>, HdrImage) {
         let mut flats = Vec::new();
         for (k, level) in [0.4f32, 0.9].iter().enumerate() {
             let mut f = HdrImage::new(w, h);
             f.pixels.iter_mut().for_each(|p| *p = [*level; 3]);
-            camera(&mut f);
+            through_camera(&mut f);
             noisy(&mut f, 0.003, k as u64);
             flats.push(f);
         }
-        let corners = [
-            DVec2::new(20.0, 18.0),
-            DVec2::new(145.0, 25.0),
-            DVec2::new(140.0, 105.0),
-            DVec2::new(15.0, 98.0),
-        ];
-        let white = 2.5;
-        let mut checker = render_checker(w, h, &corners, white, 0.3).unwrap();
-        camera(&mut checker);
+        let mut checker = render_checker(w, h, &CHECKER_CORNERS, white, 0.3).unwrap();
+        through_camera(&mut checker);
         noisy(&mut checker, 0.003, 9);
-        let cal = fit_radiometry(&RadiometryInputs {
-            flats: &flats,
-            checker: Some((&checker, corners)),
-            white: Some(white),
-        })
-        .unwrap();
+        (flats, checker)
+    }
+
+    /// The fitted falloff and matrix against the truth and the inverse crosstalk.
+    fn check_fit(cal: &CameraRadiometry) {
         let f = cal.falloff.unwrap();
         for r in [0.0, 0.5, 0.8, 1.0] {
             assert!(
-                (f.eval(r) - truth.eval(r)).abs() < 3e-3,
+                (f.eval(r) - TRUE_FALLOFF.eval(r)).abs() < 3e-3,
                 "falloff at {r}: {} vs {}",
                 f.eval(r),
-                truth.eval(r)
+                TRUE_FALLOFF.eval(r)
             );
         }
-        let inv = Matrix3::from_fn(|r, c| mix[r][c]).try_inverse().unwrap();
+        let inv = Matrix3::from_fn(|r, c| CROSSTALK[r][c])
+            .try_inverse()
+            .unwrap();
         let m = cal.color_matrix.unwrap();
         for r in 0..3 {
             for c in 0..3 {
@@ -882,7 +881,11 @@ mod tests {
             "{:?}",
             cal.fit
         );
-        // a photograph through the same camera is corrected back to within 1 %
+    }
+
+    /// Saves and loads `cal`, then corrects a photograph through the test camera back to
+    /// within 2 % of the scene.
+    fn check_round_trip_and_correction(cal: &CameraRadiometry, w: usize, h: usize) {
         let mut scene = HdrImage::new(w, h);
         for (i, p) in scene.pixels.iter_mut().enumerate() {
             *p = [
@@ -892,7 +895,7 @@ mod tests {
             ];
         }
         let mut photo = scene.clone();
-        camera(&mut photo);
+        through_camera(&mut photo);
         let dir = tempfile::tempdir().unwrap();
         let file = dir.path().join("radiometry.json");
         cal.save(&file).unwrap();
@@ -912,16 +915,35 @@ mod tests {
                 assert!((a[c] / b[c] - 1.0).abs() < 0.02, "{a:?} vs {b:?}");
             }
         }
+    }
+
+    /// Flat fields and a checker photographed through a vignetting lens with colour crosstalk:
+    /// the fit recovers the falloff and the inverse of the crosstalk, and the calibration file
+    /// corrects a photograph back to the truth.
+    #[test]
+    fn radiometry_fit_recovers_falloff_and_inverse_crosstalk() {
+        let (w, h) = (160, 120);
+        let white = 2.5;
+        let (flats, checker) = calibration_photos(w, h, white);
+        let cal = fit_radiometry(&RadiometryInputs {
+            flats: &flats,
+            checker: Some((&checker, CHECKER_CORNERS)),
+            white: Some(white),
+        })
+        .unwrap();
+        check_fit(&cal);
+        // a photograph through the same camera is corrected back to within 1 %
+        check_round_trip_and_correction(&cal, w, h);
         // without the white radiance the matrix keeps the grey patches' luminance
         let rel = fit_radiometry(&RadiometryInputs {
             flats: &flats,
-            checker: Some((&checker, corners)),
+            checker: Some((&checker, CHECKER_CORNERS)),
             white: None,
         })
         .unwrap();
         let cm = rel.color_matrix.unwrap();
         let g = [0.3, 0.3, 0.3];
-        let mixed = mat_vec(&mix, &g);
+        let mixed = mat_vec(&CROSSTALK, &g);
         assert!(
             (crate::color::luminance_f64(mat_vec(&cm, &mixed))
                 / crate::color::luminance_f64(mixed)
