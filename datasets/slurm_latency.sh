@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Scheduling latency of `igi cluster` on the one-node loopback Slurm (docs/SOLVER.md, "Scale"):
-# the survey fixture's block prepared in 12 voxels plus the terrain (tests/cli_cluster.rs's
+# the survey fixture's block prepared in 12 voxels plus the terrain (tests/cli/cli_cluster.rs's
 # layout), three iterations at --spp 4,8 and --max-parallel 2, then the timeline of every
 # task's done.json and every merge log (seconds after the first script) and the tasks' own
 # time. Needs root, slurm-wlm and munge (scripts/deps.sh test) and a debug build (cargo build).

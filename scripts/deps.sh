@@ -3,7 +3,7 @@
 # Usage: bash scripts/deps.sh [demo|test]
 #   demo: what the default build needs (Embree 3 for ray tracing, a font for plot labels)
 #   test: also OpenCV with contrib and clang/libclang (the `opencv` feature generates its
-#         bindings with libclang), Slurm and munge (tests/cli_cluster.rs runs a one-node
+#         bindings with libclang), Slurm and munge (tests/cli/cli_cluster.rs runs a one-node
 #         loopback cluster, scripts/slurm-loopback.sh), everything the test command builds and runs
 set -euo pipefail
 profile="${1:-test}"

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Mitsuba 3 render of an `igi export --format mitsuba` scene, the reference for
-tests/mitsuba_export.rs (issue 16, item 6: the exported scene agrees with `igi render RESULT_DIR`).
+tests/cli/mitsuba_export.rs (issue 16, item 6: the exported scene agrees with `igi render RESULT_DIR`).
 
 Steps (OUT defaults to datasets/fixtures/export):
   1. `igi solve` the Mitsuba survey fixture (datasets/fixtures/survey: diffuse, no BRDF samples)
