@@ -183,33 +183,13 @@ impl<'a> Table<'a> {
 
     /// [`Table::number`] parsed straight to `f32`.
     pub fn number_f32(&self, row: &Row, idx: usize, name: &str) -> Result<f32, CsvError> {
-        number_cell_f32(self.path, row.line, &row.cells, idx, name)
+        number_cell(self.path, row.line, &row.cells, idx, name)
     }
 }
 
-/// The finite number in `cells[idx]` (named `name` in errors) of line `line` of `path`.
-pub fn number_cell(
-    path: &Path,
-    line: usize,
-    cells: &[&str],
-    idx: usize,
-    name: &str,
-) -> Result<f64, CsvError> {
-    parse_cell(path, line, cells, idx, name)
-}
-
-/// [`number_cell`] parsed straight to `f32` (no rounding through `f64`).
-pub fn number_cell_f32(
-    path: &Path,
-    line: usize,
-    cells: &[&str],
-    idx: usize,
-    name: &str,
-) -> Result<f32, CsvError> {
-    parse_cell(path, line, cells, idx, name)
-}
-
-fn parse_cell<T: std::str::FromStr + Into<f64> + Copy>(
+/// The finite number in `cells[idx]` (named `name` in errors) of line `line` of `path`,
+/// parsed straight to `T` (`f32` is not rounded through `f64`).
+pub fn number_cell<T: std::str::FromStr + Into<f64> + Copy>(
     path: &Path,
     line: usize,
     cells: &[&str],
@@ -324,7 +304,7 @@ mod tests {
         assert_eq!(e("x\n"), "t.csv: no rows after the header");
         assert_eq!(e("x\n\nfoo\n"), "t.csv:3: `x` = `foo` is not a number");
         assert_eq!(e("x\nNaN\n"), "t.csv:2: `x` = `NaN` is not finite");
-        let short = number_cell(Path::new(P), 7, &["1"], 3, "z").unwrap_err();
+        let short = number_cell::<f64>(Path::new(P), 7, &["1"], 3, "z").unwrap_err();
         assert_eq!(
             short.to_string(),
             "t.csv:7: missing value for `z` (1 cells)"
