@@ -9,7 +9,7 @@
 //! order (so the iteration's sums are added in the same order as in a local run) and writes
 //! the result folder's next checkpoint. A local `igi solve --schedule jacobi` and tasks plus
 //! merge therefore write the same bytes (wall-clock fields and the plot of error against time
-//! aside): `crates/reflect/tests/prepared.rs`.
+//! aside): `crates/reflect/tests/integration/prepared.rs`.
 //!
 //! ```text
 //! WORK/iter_K/GROUP/NAME_rho_d.exr, NAME_weight.exr, NAME_observations.exr,

@@ -1,6 +1,6 @@
 //! The must-show experiments on the CI-sized synthetic glossy bunny (see tests/common).
 
-mod common;
+use crate::common;
 
 use common::{make, psnr, Synth};
 use glam::Vec3;

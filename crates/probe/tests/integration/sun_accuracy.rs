@@ -8,7 +8,7 @@
 //! blur before pixel integration, the sun's spot rendered exactly), the cause of the old
 //! synthetic boards' excess error, and the sphere centres refined from their outlines.
 //!
-//! `cargo test -p igi-probe --test sun_accuracy -- --nocapture` prints the errors;
+//! `cargo test -p igi-probe --test integration sun_accuracy:: -- --nocapture` prints the errors;
 //! `-- --ignored --nocapture` runs the sweeps of docs/PROBE.md.
 
 use glam::DVec3;
@@ -436,7 +436,7 @@ fn outline_refinement_undoes_a_perturbed_sphere_placement() {
 }
 
 /// The table of docs/PROBE.md: error against sphere radius in pixels (40 to 600).
-/// `cargo test -p igi-probe --test sun_accuracy -- --ignored --nocapture`
+/// `cargo test -p igi-probe --test integration sun_accuracy:: -- --ignored --nocapture`
 #[test]
 #[ignore]
 fn error_against_sphere_radius() {
@@ -449,7 +449,7 @@ fn error_against_sphere_radius() {
 
 /// Where 0.25 deg is missed: smaller spheres (20, 30 px) with the same lens, and a sharper lens
 /// (blur 0.25 px) from 20 to 150 px.
-/// `cargo test -p igi-probe --test sun_accuracy sharp -- --ignored --nocapture`
+/// `cargo test -p igi-probe --test integration sun_accuracy::error_against_sphere_radius_small_spheres_and_sharp_lens -- --ignored --nocapture`
 #[test]
 #[ignore]
 fn error_against_sphere_radius_small_spheres_and_sharp_lens() {
@@ -468,7 +468,7 @@ fn error_against_sphere_radius_small_spheres_and_sharp_lens() {
 /// Where the sun's spot centroid lands against the true reflection point, the old synthetic
 /// camera (box samples fine enough to hit the spot, then the blur) against the sensor model, on
 /// the same boards (docs/PROBE.md).
-/// `cargo test -p igi-probe --test sun_accuracy old_renderer -- --ignored --nocapture`
+/// `cargo test -p igi-probe --test integration sun_accuracy::old_renderer -- --ignored --nocapture`
 #[test]
 #[ignore]
 fn old_renderer_against_sensor_model() {

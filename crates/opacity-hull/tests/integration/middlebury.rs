@@ -108,7 +108,7 @@ fn dino_volume_against_views() {
 }
 
 /// The Fig. 12 plot at the carving resolution (256 cells per axis), written to
-/// `target/hull_fig12_dino_volume.png` (`cargo test -p igi-opacity-hull --test middlebury --
+/// `target/hull_fig12_dino_volume.png` (`cargo test -p igi-opacity-hull --test integration middlebury:: --
 /// --ignored --nocapture`).
 #[test]
 #[ignore = "writes the Fig. 12 plot at 256 cells per axis into target/"]

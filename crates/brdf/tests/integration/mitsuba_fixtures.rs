@@ -12,7 +12,7 @@
 //! The "bound" fits Lafortune to the held-out pairs themselves: no fit from training data can beat
 //! it (up to local minima), so it measures what the model can represent at all.
 //!
-//! `cargo test -p igi-brdf --test cli mitsuba_fixtures:: -- --nocapture` prints the table of docs/BRDF.md.
+//! `cargo test -p igi-brdf --test integration mitsuba_fixtures:: -- --nocapture` prints the table of docs/BRDF.md.
 
 use std::path::{Path, PathBuf};
 

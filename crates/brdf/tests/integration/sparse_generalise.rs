@@ -9,7 +9,7 @@
 //! - relative RMS = `sqrt(sum (model - truth)^2 / sum truth^2)` per channel (energy-weighted),
 //!   the mean over the channels.
 //!
-//! `cargo test -p igi-brdf --test sparse_generalise -- --nocapture` prints the table of
+//! `cargo test -p igi-brdf --test integration sparse_generalise:: -- --nocapture` prints the table of
 //! docs/BRDF.md; `... -- --ignored --nocapture` also sweeps 1 to 8 light positions and draws
 //! `docs/img/brdf_error_vs_lights.png`.
 

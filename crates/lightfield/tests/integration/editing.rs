@@ -2,7 +2,7 @@
 //! an ellipsoid (same triangles and UVs, new normals), against path-traced renders of the
 //! rotated / deformed object under the same (fixed) lighting.
 
-mod common;
+use crate::common;
 
 use common::{camera_toward, psnr, sphere_dirs};
 use glam::{Mat3, Vec3};

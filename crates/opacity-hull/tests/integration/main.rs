@@ -1,0 +1,7 @@
+//! The integration tests of `igi-opacity-hull` in one test target (`cargo test -p igi-opacity-hull --test
+//! integration`; one area with `... --test integration AREA::`), so the crate links one test
+//! binary instead of one per file.
+
+mod middlebury;
+mod relight;
+mod synthetic_matting;
