@@ -4,8 +4,9 @@
 //! takes seconds and hundreds of MiB, so a statistical sampler adds nothing but hours. Each
 //! (file, reader) pair runs `MESH_READERS_RUNS` times (default 3) in a fresh child process
 //! (this same binary with `--one READER FILE`), so every run's peak RSS (`VmHWM` of
-//! /proc/self/status) is its own; the table reports the best wall time of the read call and the
-//! largest peak RSS. Every reader must return the same number of triangles, the same number of
+//! /proc/self/status) is its own; the readers of one file take turns (round by round) so a
+//! change in the machine's load hits them alike; the table reports the best wall time of the
+//! read call and the largest peak RSS. Every reader must return the same number of triangles, the same number of
 //! vertices used by them (tobj's `single_index` drops unreferenced ones; the bunny has 1,113)
 //! and the same checksum over the triangles' corner positions, or the bench panics.
 //!
@@ -302,34 +303,42 @@ fn parse_run(stdout: &str) -> Run {
     }
 }
 
-/// `runs` child runs of `reader` on `path`: the best time and the largest peak RSS.
-fn measure(reader: Reader, path: &Path, runs: usize) -> Run {
-    let exe = std::env::current_exe().unwrap();
-    let mut best: Option<Run> = None;
+/// One child run of `reader` on `path`.
+fn run_child(reader: Reader, path: &Path) -> Run {
+    let out = Command::new(std::env::current_exe().unwrap())
+        .args(["--one", reader.name()])
+        .arg(path)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{} on {}: {}",
+        reader.name(),
+        path.display(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    parse_run(&String::from_utf8_lossy(&out.stdout))
+}
+
+/// `runs` rounds of every reader on `path`, interleaved (a round runs each reader once) so a
+/// change in the machine's load hits all readers alike: per reader the best time and the
+/// largest peak RSS.
+fn measure(readers: &[Reader], path: &Path, runs: usize) -> Vec<Run> {
+    let mut best: Vec<Option<Run>> = readers.iter().map(|_| None).collect();
     for _ in 0..runs {
-        let out = Command::new(&exe)
-            .args(["--one", reader.name()])
-            .arg(path)
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{} on {}: {}",
-            reader.name(),
-            path.display(),
-            String::from_utf8_lossy(&out.stderr)
-        );
-        let r = parse_run(&String::from_utf8_lossy(&out.stdout));
-        best = Some(match best {
-            None => r,
-            Some(b) => Run {
-                secs: b.secs.min(r.secs),
-                peak_kib: b.peak_kib.max(r.peak_kib),
-                ..b
-            },
-        });
+        for (slot, &reader) in best.iter_mut().zip(readers) {
+            let r = run_child(reader, path);
+            *slot = Some(match slot.take() {
+                None => r,
+                Some(b) => Run {
+                    secs: b.secs.min(r.secs),
+                    peak_kib: b.peak_kib.max(r.peak_kib),
+                    ..b
+                },
+            });
+        }
     }
-    best.unwrap()
+    best.into_iter().map(Option::unwrap).collect()
 }
 
 /// The OBJ copy of `ply`, written once (igi_geometry::write_obj) under the temp folder.
@@ -366,23 +375,21 @@ fn mib(path: &Path) -> f64 {
 /// used vertices, checksum), as table rows; returns the
 /// first reader's run.
 fn bench_file(path: &Path, readers: &[Reader], runs: usize) -> Run {
-    let mut first: Option<Run> = None;
-    for &reader in readers {
-        let r = measure(reader, path, runs);
-        if let Some(f) = &first {
-            assert_eq!(
-                (r.tris, r.used),
-                (f.tris, f.used),
-                "{}: counts differ",
-                reader.name()
-            );
-            assert_eq!(
-                r.checksum,
-                f.checksum,
-                "{}: geometry differs",
-                reader.name()
-            );
-        }
+    let runs = measure(readers, path, runs);
+    let f = &runs[0];
+    for (r, &reader) in runs.iter().zip(readers) {
+        assert_eq!(
+            (r.tris, r.used),
+            (f.tris, f.used),
+            "{}: counts differ",
+            reader.name()
+        );
+        assert_eq!(
+            r.checksum,
+            f.checksum,
+            "{}: geometry differs",
+            reader.name()
+        );
         println!(
             "| {} ({:.0} MiB) | {} | {} | {} | {:.3} s | {:.0} MiB | {} |",
             path.file_name().unwrap().to_string_lossy(),
@@ -394,9 +401,8 @@ fn bench_file(path: &Path, readers: &[Reader], runs: usize) -> Run {
             r.peak_kib as f64 / 1024.0,
             load_average()
         );
-        first.get_or_insert(r);
     }
-    first.unwrap()
+    runs.into_iter().next().unwrap()
 }
 
 fn main() {
