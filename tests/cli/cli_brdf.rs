@@ -542,7 +542,7 @@ fn bad_measure_input(tmp: &Path, frame: &Path) {
 }
 
 /// Mean |log ratio| and relative RMS (mean over channels) of predicted `pi f` against the truth
-/// of held-out samples: the metrics of `crates/brdf/tests/sparse_generalise.rs`.
+/// of held-out samples: the metrics of `crates/brdf/tests/integration/sparse_generalise.rs`.
 fn held_out_errors(pred: &[Vec3], truth: &[igi_brdf::BrdfSample]) -> (f64, f64) {
     let n = truth.len() as f64;
     let mean: [f64; 3] =
