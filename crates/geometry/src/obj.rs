@@ -13,12 +13,20 @@ use std::path::Path;
 /// a file whose faces use positions only keeps its vertex order.
 pub fn read_obj(path: &Path) -> Result<TriMesh, GeometryError> {
     let f = std::fs::File::open(path).map_err(|e| GeometryError::io(path, e))?;
-    let r = BufReader::with_capacity(1 << 20, f);
+    let mut r = BufReader::with_capacity(1 << 20, f);
     let mut obj = ObjData::default();
     let mut corners: Vec<[u32; 3]> = Vec::with_capacity(8);
-    for (ln, line) in r.lines().enumerate() {
-        let line = line.map_err(|e| GeometryError::io(path, e))?;
-        obj.parse_line(&line, ln + 1, path, &mut corners)?;
+    // one line buffer for the whole file (its line ending is whitespace to the parser)
+    let mut line = String::new();
+    for ln in 1.. {
+        line.clear();
+        if r.read_line(&mut line)
+            .map_err(|e| GeometryError::io(path, e))?
+            == 0
+        {
+            break;
+        }
+        obj.parse_line(&line, ln, path, &mut corners)?;
     }
     let mesh = obj.into_mesh();
     mesh.validate().map_err(|e| e.in_file(path))?;
@@ -56,33 +64,43 @@ impl ObjData {
         let line = line.split('#').next().unwrap_or("");
         let mut it = line.split_whitespace();
         let Some(key) = it.next() else { return Ok(()) };
-        let nums = |it: std::str::SplitWhitespace, min: usize| -> Result<Vec<f32>, GeometryError> {
-            let v: Result<Vec<f32>, _> = it.map(|t| t.parse::<f32>()).collect();
-            let v = v.map_err(|_| {
-                bad(&format!(
-                    "`{}` has a value that is not a number",
-                    line.trim()
-                ))
-            })?;
-            if v.len() < min {
+        // the first six numbers (zeros past the last) and how many there are, without a Vec
+        let nums = |it: std::str::SplitWhitespace,
+                    min: usize|
+         -> Result<([f32; 6], usize), GeometryError> {
+            let mut v = [0.0f32; 6];
+            let mut n = 0;
+            for t in it {
+                let x = t.parse::<f32>().map_err(|_| {
+                    bad(&format!(
+                        "`{}` has a value that is not a number",
+                        line.trim()
+                    ))
+                })?;
+                if n < v.len() {
+                    v[n] = x;
+                }
+                n += 1;
+            }
+            if n < min {
                 return Err(bad(&format!("`{key}` needs {min} numbers")));
             }
-            Ok(v)
+            Ok((v, n))
         };
         match key {
             "v" => {
-                let v = nums(it, 3)?;
+                let (v, n) = nums(it, 3)?;
                 self.pos.push([v[0], v[1], v[2]]);
-                if v.len() >= 6 {
+                if n >= 6 {
                     self.col.push([v[3], v[4], v[5]]);
                 }
             }
             "vt" => {
-                let v = nums(it, 1)?;
-                self.tex.push([v[0], v.get(1).copied().unwrap_or(0.0)]);
+                let (v, _) = nums(it, 1)?;
+                self.tex.push([v[0], v[1]]);
             }
             "vn" => {
-                let v = nums(it, 3)?;
+                let (v, _) = nums(it, 3)?;
                 self.nrm.push([v[0], v[1], v[2]]);
             }
             "f" => self.parse_face(it, ln, path, corners)?,
