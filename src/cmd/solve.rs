@@ -174,7 +174,13 @@ pub fn run_solve(a: SolveArgs, ctx: &Ctx) -> anyhow::Result<()> {
         r
     } else {
         let cameras: Vec<_> = photos.iter().map(|p| p.camera.clone()).collect();
-        let parts = survey_parts(&survey, store.as_ref(), &opts, &cameras)?;
+        let parts = survey_parts(
+            &survey,
+            store.as_ref(),
+            opts.atlas_resolution,
+            opts.atlas_auto,
+            &cameras,
+        )?;
         session.start(parts, photo_ids, &opts)?
     };
     let truth = truth_scene.map(|scene| truth_from_scene(&state.parts, &scene));

@@ -3,6 +3,7 @@
 //! Convention (FORMATS.md): camera x right, y down, z forward; `x_cam = R x_world + t`;
 //! pixel centres at integer coordinates, the top-left pixel centre at (0, 0).
 
+pub use crate::error::{CameraFileError, RotationError};
 use crate::{HdrImage, ImagingError};
 use glam::{DMat3, DVec2, DVec3};
 use rayon::prelude::*;
@@ -234,62 +235,6 @@ pub struct CameraFile {
     pub t: serde_json::Value,
 }
 
-/// Why a camera file (FORMATS.md JSON) cannot be used; the message is the problem alone, the
-/// file is named by [`ImagingError::Camera`].
-#[derive(Debug, thiserror::Error)]
-pub enum CameraFileError {
-    /// The text is not the JSON of a camera file.
-    #[error("{0}")]
-    Json(#[source] serde_json::Error),
-    #[error("{what} must be a positive integer, found {found}")]
-    Dimension {
-        what: &'static str,
-        found: serde_json::Value,
-    },
-    #[error("{width}x{height} is {} Mpixel, beyond the limit of {} Mpixel (an image that size needs more than {} GiB)", *width as u64 * *height as u64 / 1_000_000, MAX_CAMERA_PIXELS / 1_000_000, (MAX_CAMERA_PIXELS * 13) >> 30)]
-    TooLarge { width: u32, height: u32 },
-    #[error("{what} must be an array of numbers")]
-    NotNumbers { what: &'static str },
-    #[error("{what} contains a non-number: {value}")]
-    NonNumber {
-        what: &'static str,
-        value: serde_json::Value,
-    },
-    #[error("{what} must be a 3x3 array of rows")]
-    NotMatrix { what: &'static str },
-    #[error("{what} must have 3 rows, found {rows}")]
-    Rows { what: &'static str, rows: usize },
-    #[error("{what} row {row} must have 3 entries, found {entries}")]
-    RowLength {
-        what: &'static str,
-        row: usize,
-        entries: usize,
-    },
-    #[error("{what} has a non-finite entry")]
-    NonFinite { what: &'static str },
-    #[error("K must be [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] (no skew), found {0:?}")]
-    Skew([[f64; 3]; 3]),
-    #[error("focal lengths must be positive, found fx={fx}, fy={fy}")]
-    Focal { fx: f64, fy: f64 },
-    #[error("dist must have 5 entries [k1, k2, p1, p2, k3] (or 4), found {0}")]
-    DistLength(usize),
-    #[error("t must have 3 entries, found {0}")]
-    TranslationLength(usize),
-    #[error(transparent)]
-    Rotation(#[from] RotationError),
-}
-
-/// Why a matrix is not a rotation ([`check_rotation`]).
-#[derive(Debug, thiserror::Error)]
-pub enum RotationError {
-    #[error("R has a NaN or infinite entry")]
-    NonFinite,
-    #[error("R is not orthonormal: max |R^T R - I| = {max:.3e} > 1e-6")]
-    NotOrthonormal { max: f64 },
-    #[error("R is not a rotation: det(R) = {det:.6} (must be +1)")]
-    NotRotation { det: f64 },
-}
-
 fn json_numbers(v: &serde_json::Value, what: &'static str) -> Result<Vec<f64>, CameraFileError> {
     let arr = v.as_array().ok_or(CameraFileError::NotNumbers { what })?;
     arr.iter()
@@ -372,7 +317,11 @@ fn camera_size(j: &CameraFile) -> Result<(u32, u32), CameraFileError> {
     let width = dim(&j.width, "width")?;
     let height = dim(&j.height, "height")?;
     if width as u64 * height as u64 > MAX_CAMERA_PIXELS {
-        return Err(CameraFileError::TooLarge { width, height });
+        return Err(CameraFileError::TooLarge {
+            width,
+            height,
+            limit: MAX_CAMERA_PIXELS,
+        });
     }
     Ok((width, height))
 }
@@ -430,9 +379,10 @@ fn camera_pose(j: &CameraFile) -> Result<WorldToCamera, CameraFileError> {
     })
 }
 
-/// The most pixels a camera file may have: 2^29 (536 Mpixel); an HDR image that size needs
-/// 6.5 GiB. Larger sizes are refused when the camera is read, before any allocation.
-pub const MAX_CAMERA_PIXELS: u64 = 1 << 29;
+/// The most pixels a camera file may have: the image limit, [`crate::io::MAX_IMAGE_PIXELS`]
+/// (2^29, 536 Mpixel); an HDR image that size needs 6.5 GiB. Larger sizes are refused when the
+/// camera is read, before any allocation.
+pub const MAX_CAMERA_PIXELS: u64 = crate::io::MAX_IMAGE_PIXELS;
 
 impl Camera {
     /// Camera without distortion and identity pose.

@@ -34,7 +34,7 @@ pub enum ImagingError {
     Camera {
         path: PathBuf,
         #[source]
-        problem: crate::camera::CameraFileError,
+        problem: CameraFileError,
     },
     #[error("{}: invalid camera radiometry file: {msg}", path.display())]
     Radiometry { path: PathBuf, msg: String },
@@ -153,7 +153,7 @@ impl ImagingError {
     }
 
     /// [`ImagingError::Camera`] for `path`.
-    pub(crate) fn camera(path: &std::path::Path, problem: crate::camera::CameraFileError) -> Self {
+    pub(crate) fn camera(path: &std::path::Path, problem: CameraFileError) -> Self {
         ImagingError::Camera {
             path: path.to_path_buf(),
             problem,
@@ -299,4 +299,60 @@ pub enum PlanarError {
     NonFinitePose,
     #[error("pixel ({x:.2}, {y:.2}) cannot be undistorted (outside the lens model)")]
     Undistort { x: f64, y: f64 },
+}
+
+/// Why a camera file (FORMATS.md JSON) cannot be used; the message is the problem alone, the
+/// file is named by [`ImagingError::Camera`].
+#[derive(Debug, thiserror::Error)]
+pub enum CameraFileError {
+    /// The text is not the JSON of a camera file.
+    #[error("{0}")]
+    Json(#[source] serde_json::Error),
+    #[error("{what} must be a positive integer, found {found}")]
+    Dimension {
+        what: &'static str,
+        found: serde_json::Value,
+    },
+    #[error("{width}x{height} is {} Mpixel, beyond the limit of {} Mpixel (an image that size needs more than {} GiB)", *width as u64 * *height as u64 / 1_000_000, limit / 1_000_000, (limit * 13) >> 30)]
+    TooLarge { width: u32, height: u32, limit: u64 },
+    #[error("{what} must be an array of numbers")]
+    NotNumbers { what: &'static str },
+    #[error("{what} contains a non-number: {value}")]
+    NonNumber {
+        what: &'static str,
+        value: serde_json::Value,
+    },
+    #[error("{what} must be a 3x3 array of rows")]
+    NotMatrix { what: &'static str },
+    #[error("{what} must have 3 rows, found {rows}")]
+    Rows { what: &'static str, rows: usize },
+    #[error("{what} row {row} must have 3 entries, found {entries}")]
+    RowLength {
+        what: &'static str,
+        row: usize,
+        entries: usize,
+    },
+    #[error("{what} has a non-finite entry")]
+    NonFinite { what: &'static str },
+    #[error("K must be [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] (no skew), found {0:?}")]
+    Skew([[f64; 3]; 3]),
+    #[error("focal lengths must be positive, found fx={fx}, fy={fy}")]
+    Focal { fx: f64, fy: f64 },
+    #[error("dist must have 5 entries [k1, k2, p1, p2, k3] (or 4), found {0}")]
+    DistLength(usize),
+    #[error("t must have 3 entries, found {0}")]
+    TranslationLength(usize),
+    #[error(transparent)]
+    Rotation(#[from] RotationError),
+}
+
+/// Why a matrix is not a rotation ([`crate::camera::check_rotation`]).
+#[derive(Debug, thiserror::Error)]
+pub enum RotationError {
+    #[error("R has a NaN or infinite entry")]
+    NonFinite,
+    #[error("R is not orthonormal: max |R^T R - I| = {max:.3e} > 1e-6")]
+    NotOrthonormal { max: f64 },
+    #[error("R is not a rotation: det(R) = {det:.6} (must be +1)")]
+    NotRotation { det: f64 },
 }

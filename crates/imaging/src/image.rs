@@ -91,22 +91,6 @@ impl HdrImage {
         Some(out)
     }
 
-    /// PSNR in dB of `self` against `reference` over the pixels where `inside` is true (every
-    /// channel counted), with `peak` the reference's white: `None` when no pixel is inside or
-    /// the sizes differ, infinite when the two agree exactly there (see [`crate::metrics`]).
-    pub fn psnr_inside(&self, reference: &HdrImage, inside: &[bool], peak: f64) -> Option<f64> {
-        if (self.width, self.height) != (reference.width, reference.height)
-            || inside.len() != self.pixels.len()
-        {
-            return None;
-        }
-        let mut sums = crate::metrics::ErrorSums::default();
-        for (i, _) in inside.iter().enumerate().filter(|(_, &m)| m) {
-            sums.add(self.pixels[i], reference.pixels[i], [0.0; 3], [0.0; 3]);
-        }
-        (sums.pixels > 0).then(|| crate::metrics::psnr_db(peak, sums.rmse()))
-    }
-
     /// Multiply every pixel by `s`.
     pub fn scale(&mut self, s: f32) {
         for p in &mut self.pixels {

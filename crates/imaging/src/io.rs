@@ -345,8 +345,12 @@ fn read_with_image_crate(path: &Path) -> Result<HdrImage, ImagingError> {
 /// its input, rounded up: 1032:1.
 const MAX_EXR_COMPRESSION: u128 = 1100;
 
+/// The most pixels an image (or a camera file, `camera::MAX_CAMERA_PIXELS`) may have: 2^29
+/// (536 Mpixel); an HDR image that size needs 6.5 GiB.
+pub const MAX_IMAGE_PIXELS: u64 = 1 << 29;
+
 /// Reads the EXR headers and refuses, before the decoder allocates anything, a file that
-/// declares more pixels than [`crate::camera::MAX_CAMERA_PIXELS`] or more uncompressed pixel
+/// declares more pixels than [`MAX_IMAGE_PIXELS`] or more uncompressed pixel
 /// bytes than its size could hold at the best compression any EXR codec reaches (a header that
 /// lies about its size would otherwise make the decoder allocate gigabytes for a 1 kB file).
 fn check_exr_header(path: &Path) -> Result<(), ImagingError> {
@@ -364,10 +368,10 @@ fn check_exr_header(path: &Path) -> Result<(), ImagingError> {
             return Err(dec("deep-data EXR files are not supported".into()));
         }
         let (w, hh) = (h.layer_size.0 as u128, h.layer_size.1 as u128);
-        if w * hh > crate::camera::MAX_CAMERA_PIXELS as u128 {
+        if w * hh > MAX_IMAGE_PIXELS as u128 {
             return Err(dec(format!(
                 "declares {w} x {hh} pixels, more than the {} Mpixel limit",
-                crate::camera::MAX_CAMERA_PIXELS / 1_000_000
+                MAX_IMAGE_PIXELS / 1_000_000
             )));
         }
         let sample_bytes: u128 = h

@@ -173,6 +173,26 @@ pub fn difference_image(
     Ok(out)
 }
 
+/// Comparison of an image against a reference over a pixel mask (defined here, beside the
+/// sums it uses, so the image type does not depend on the metrics).
+impl HdrImage {
+    /// PSNR in dB of `self` against `reference` over the pixels where `inside` is true (every
+    /// channel counted), with `peak` the reference's white: `None` when no pixel is inside or
+    /// the sizes differ, infinite when the two agree exactly there (this module's sums).
+    pub fn psnr_inside(&self, reference: &HdrImage, inside: &[bool], peak: f64) -> Option<f64> {
+        if (self.width, self.height) != (reference.width, reference.height)
+            || inside.len() != self.pixels.len()
+        {
+            return None;
+        }
+        let mut sums = ErrorSums::default();
+        for (i, _) in inside.iter().enumerate().filter(|(_, &m)| m) {
+            sums.add(self.pixels[i], reference.pixels[i], [0.0; 3], [0.0; 3]);
+        }
+        (sums.pixels > 0).then(|| psnr_db(peak, sums.rmse()))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

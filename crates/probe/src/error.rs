@@ -22,7 +22,7 @@ pub enum ProbeError {
     Samples {
         path: PathBuf,
         line: Option<usize>,
-        problem: crate::fresnel::ReflectanceProblem,
+        problem: ReflectanceProblem,
     },
     /// A CSV table's structure (`igi_imaging::csv`): the file, the line and the problem.
     #[error(transparent)]
@@ -86,4 +86,27 @@ pub enum IorFitProblem {
     BadSample { angle: f64, reflectance: f64 },
     #[error("Levenberg-Marquardt stopped: {0}")]
     Stopped(String),
+}
+
+/// What a reflectance-sample row or file means that the fit cannot use.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ReflectanceProblem {
+    /// An incidence angle outside [0, 90) degrees.
+    Angle(f64),
+    /// A reflectance outside [0, 1].
+    Reflectance([f64; 3]),
+    /// Fewer than the 3 samples the fit needs.
+    TooFew(usize),
+}
+
+impl std::fmt::Display for ReflectanceProblem {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ReflectanceProblem::Angle(a) => write!(f, "angle {a} degrees is not in [0, 90)"),
+            ReflectanceProblem::Reflectance([r, g, b]) => {
+                write!(f, "reflectance ({r}, {g}, {b}) is not in [0, 1]")
+            }
+            ReflectanceProblem::TooFew(n) => write!(f, "{n} samples; the fit needs at least 3"),
+        }
+    }
 }

@@ -1,6 +1,7 @@
 //! Fresnel reflectance of the calibration spheres and a Levenberg-Marquardt fit of a complex
 //! index of refraction from reflectance-versus-angle samples.
 
+pub use crate::error::ReflectanceProblem;
 use crate::{IorFitProblem, ProbeError};
 use igi_imaging::csv::Table;
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
@@ -135,29 +136,6 @@ pub fn fit_complex_ior(samples: &[(f64, f64)], init: (f64, f64)) -> Result<IorFi
 pub struct ReflectanceSamples {
     pub angle_deg: Vec<f64>,
     pub rgb: Vec<[f64; 3]>,
-}
-
-/// What a reflectance-sample row or file means that the fit cannot use.
-#[derive(Clone, Debug, PartialEq)]
-pub enum ReflectanceProblem {
-    /// An incidence angle outside [0, 90) degrees.
-    Angle(f64),
-    /// A reflectance outside [0, 1].
-    Reflectance([f64; 3]),
-    /// Fewer than the 3 samples the fit needs.
-    TooFew(usize),
-}
-
-impl std::fmt::Display for ReflectanceProblem {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            ReflectanceProblem::Angle(a) => write!(f, "angle {a} degrees is not in [0, 90)"),
-            ReflectanceProblem::Reflectance([r, g, b]) => {
-                write!(f, "reflectance ({r}, {g}, {b}) is not in [0, 1]")
-            }
-            ReflectanceProblem::TooFew(n) => write!(f, "{n} samples; the fit needs at least 3"),
-        }
-    }
 }
 
 impl ReflectanceSamples {

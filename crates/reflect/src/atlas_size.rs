@@ -262,7 +262,7 @@ pub fn plan_parts(
     cameras: &[Camera],
     max: u32,
 ) -> Result<Vec<PlannedPart>, ReflectError> {
-    crate::parts::check_names(meshes.iter().map(|(n, _)| n.as_str()))?;
+    check_names(meshes.iter().map(|(n, _)| n.as_str()))?;
     let mut out = Vec::new();
     for (name, mut mesh) in meshes {
         if mesh.normals.is_none() {
@@ -271,10 +271,8 @@ pub fn plan_parts(
         let footprint = pixel_footprint(&mesh, cameras);
         plan_mesh(name, mesh, footprint, cameras, max, 0, &mut out)?;
     }
-    crate::parts::check_names(out.iter().map(|p| p.name.as_str())).map_err(|e| {
-        ReflectError::PieceName {
-            source: Box::new(e),
-        }
+    check_names(out.iter().map(|p| p.name.as_str())).map_err(|e| ReflectError::PieceName {
+        source: Box::new(e),
     })?;
     Ok(out)
 }
@@ -322,6 +320,20 @@ fn plan_mesh(
     }
     let choice = choice_at(&mesh, footprint, max)?;
     out.push(PlannedPart { name, mesh, choice });
+    Ok(())
+}
+
+/// Refuses part names that repeat or cannot name files.
+pub(crate) fn check_names<'a>(names: impl Iterator<Item = &'a str>) -> Result<(), ReflectError> {
+    let mut seen = std::collections::HashSet::new();
+    for a in names {
+        if a.is_empty() || a.contains(['/', '\\']) {
+            return Err(ReflectError::UnnamablePart(a.to_string()));
+        }
+        if !seen.insert(a) {
+            return Err(ReflectError::DuplicatePart(a.to_string()));
+        }
+    }
     Ok(())
 }
 

@@ -30,6 +30,7 @@ pub mod distributed;
 pub mod fill;
 pub mod parts;
 pub mod plot;
+pub mod record;
 pub mod result;
 pub mod session;
 pub mod solver;

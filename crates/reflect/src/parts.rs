@@ -140,12 +140,13 @@ pub fn prepared_parts(store: &SiteStore) -> Result<Vec<Part>, ReflectError> {
 
 /// The parts a fresh solve of `survey` starts from: the prepared site's (`store`, opened from
 /// the survey's `prepared` key) when there is one, else the survey's meshes, each named by its
-/// file stem, packed at `opts.atlas_resolution` or, with `opts.atlas_auto`, cut and sized from
-/// the photographs' `cameras` ([`build_parts_auto`]).
+/// file stem, packed at `atlas_resolution` or, with `atlas_auto` (both from `SolveOptions`),
+/// cut and sized from the photographs' `cameras` ([`build_parts_auto`]).
 pub fn survey_parts(
     survey: &crate::Survey,
     store: Option<&SiteStore>,
-    opts: &crate::SolveOptions,
+    atlas_resolution: u32,
+    atlas_auto: Option<crate::atlas_size::AutoAtlas>,
     cameras: &[Camera],
 ) -> Result<Vec<Part>, ReflectError> {
     if let Some(store) = store {
@@ -162,8 +163,8 @@ pub fn survey_parts(
             Ok((name, igi_geometry::read_mesh(m)?))
         })
         .collect::<Result<Vec<_>, ReflectError>>()?;
-    match opts.atlas_auto {
-        None => build_parts(meshes, opts.atlas_resolution),
+    match atlas_auto {
+        None => build_parts(meshes, atlas_resolution),
         Some(auto) => build_parts_auto(meshes, cameras, auto.max),
     }
 }
@@ -203,7 +204,7 @@ pub fn build_parts_with(
     meshes: Vec<(String, TriMesh)>,
     choose: impl Fn(&str, &TriMesh) -> Result<AtlasChoice, ReflectError> + Sync,
 ) -> Result<Vec<Part>, ReflectError> {
-    check_names(meshes.iter().map(|(n, _)| n.as_str()))?;
+    crate::atlas_size::check_names(meshes.iter().map(|(n, _)| n.as_str()))?;
     meshes
         .into_par_iter()
         .map(|(name, mut mesh)| {
@@ -236,20 +237,6 @@ pub fn build_parts_with(
             })
         })
         .collect()
-}
-
-/// Refuses part names that repeat or cannot name files.
-pub(crate) fn check_names<'a>(names: impl Iterator<Item = &'a str>) -> Result<(), ReflectError> {
-    let mut seen = std::collections::HashSet::new();
-    for a in names {
-        if a.is_empty() || a.contains(['/', '\\']) {
-            return Err(ReflectError::UnnamablePart(a.to_string()));
-        }
-        if !seen.insert(a) {
-            return Err(ReflectError::DuplicatePart(a.to_string()));
-        }
-    }
-    Ok(())
 }
 
 /// The atlas of part `name` at the chosen resolution; with a footprint, grown in steps of 16

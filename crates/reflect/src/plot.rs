@@ -1,6 +1,6 @@
 //! The error-against-run-time plot of a solve (`convergence.png`).
 
-use crate::solver::SolveReport;
+use crate::record::SolveReport;
 use crate::ReflectError;
 use igi_imaging::plot::{write_chart, Axis, Chart, Series, BLUE_RGB, RED_RGB};
 use std::path::Path;

@@ -31,7 +31,7 @@
 //! checkpoint and never mixes the albedo of one iteration with the report of another.
 
 use crate::parts::{Part, TexelCache};
-use crate::solver::{SolveOptions, SolveReport};
+use crate::record::{SolveOptions, SolveReport};
 use crate::ReflectError;
 use glam::Vec3;
 use igi_brdf::Lobe;
@@ -333,7 +333,7 @@ impl StoredPart {
     /// Reads the part `s` of the report from the result's `parts/` folder `pdir`: its mesh
     /// (unless it lives in a prepared site), texel cache, coverage, state atlases and lobes;
     /// every atlas must have the coverage's size.
-    fn read(pdir: &Path, s: &crate::solver::PartSummary) -> Result<StoredPart, ReflectError> {
+    fn read(pdir: &Path, s: &crate::record::PartSummary) -> Result<StoredPart, ReflectError> {
         let name = &s.name;
         let mesh = match &s.stored {
             None => read_mesh(&pdir.join(format!("{name}.ply")))?,
