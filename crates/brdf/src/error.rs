@@ -20,9 +20,6 @@ pub enum BrdfError {
     File { path: PathBuf, msg: String },
     #[error("fit of material `{material}` failed: {msg}")]
     Fit { material: String, msg: String },
-    /// A BRDF-sample or pair file (read by `igi-formats`): the file and the problem.
-    #[error(transparent)]
-    Format(#[from] igi_formats::FormatsError),
     /// A lumitexel table's structure (read through `igi_imaging::csv`).
     #[error(transparent)]
     Csv(#[from] igi_imaging::csv::CsvError),
