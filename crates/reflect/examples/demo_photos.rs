@@ -2,7 +2,9 @@
 //! demo_photos -- OUT WIDTH HEIGHT SPP` runs the embedded default with photographs of
 //! WIDTH x HEIGHT at SPP samples per pixel (the defaults are 240 160 256) and prints the rho_d
 //! MAE per channel, the photograph, solve and total seconds and the re-lighting RMSE as JSON.
-//! docs/SOLVER.md ("Error against run time") reports a run at 480 320 64.
+//! From the environment, `DEBLUR=N` sets the rounds of footprint deblurring (the demo's default: 4) and
+//! `SOLVE_SPP=a,b,c` the solve's samples per iteration (one iteration per entry).
+//! docs/SOLVER.md ("Error against run time") reports the runs.
 
 use igi_reflect::demo::{run_demo, DemoOptions};
 use igi_reflect::solver::NoProgress;
@@ -13,12 +15,22 @@ fn main() {
     let usage = "usage: demo_photos OUT WIDTH HEIGHT SPP";
     assert_eq!(args.len(), 4, "{usage}");
     let number = |s: &str| -> u32 { s.parse().unwrap_or_else(|_| panic!("{usage}: `{s}`")) };
-    let opts = DemoOptions {
+    let mut opts = DemoOptions {
         photo_width: number(&args[1]),
         photo_height: number(&args[2]),
         photo_spp: number(&args[3]),
         ..DemoOptions::default()
     };
+    if let Ok(v) = std::env::var("DEBLUR") {
+        opts.deblur = v.parse().expect("DEBLUR takes a number of rounds");
+    }
+    if let Ok(v) = std::env::var("SOLVE_SPP") {
+        opts.solve_spp = v
+            .split(',')
+            .map(|x| x.parse().expect("SOLVE_SPP takes numbers a,b,c"))
+            .collect();
+        opts.iterations = opts.solve_spp.len() as u32;
+    }
     let out = PathBuf::from(&args[0]);
     let r =
         run_demo(&out, &opts, &NoProgress, &|s| eprintln!("{s}")).unwrap_or_else(|e| panic!("{e}"));

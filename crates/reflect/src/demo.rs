@@ -51,6 +51,9 @@ pub struct DemoOptions {
     pub solve_spp: Vec<u32>,
     pub iterations: u32,
     pub relight_spp: u32,
+    /// Rounds of footprint deblurring per solve iteration (`SolveOptions::deblur`; 4 by
+    /// default: the demo's albedo has detail near the pixel size).
+    pub deblur: u32,
 }
 
 impl Default for DemoOptions {
@@ -65,6 +68,7 @@ impl Default for DemoOptions {
             solve_spp: vec![16, 64, 128],
             iterations: 3,
             relight_spp: 128,
+            deblur: 4,
         }
     }
 }
@@ -374,6 +378,7 @@ fn solve_demo(
         max_iterations: opts.iterations,
         spp: opts.solve_spp.clone(),
         seed: opts.seed,
+        deblur: opts.deblur,
         ..SolveOptions::default()
     };
     let result_dir = out.join("result");

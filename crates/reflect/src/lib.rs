@@ -25,6 +25,7 @@
 //! [`result`] (the result folder: atlases, `scene.toml`, `report.json`, export, sampling).
 
 pub mod atlas_size;
+mod deblur;
 pub mod demo;
 pub mod distributed;
 pub mod fill;

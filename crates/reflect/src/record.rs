@@ -6,7 +6,35 @@
 use crate::parts::StoredPart;
 use crate::weights::WeightRules;
 use crate::ReflectError;
+use glam::{Vec2, Vec3};
 use serde::{Deserialize, Serialize};
+
+/// One texel's observation in one photograph: its ratio proposal and what the combination,
+/// the statistics and the footprint deblurring (`crate::deblur`) need.
+pub(crate) struct Obs {
+    pub part: u32,
+    pub texel: u32,
+    /// Atlas index of the texel.
+    pub atlas: u32,
+    pub photo: u32,
+    /// Where the texel projects in the photograph (pixel coordinates).
+    pub px: Vec2,
+    /// Radiance toward the camera per unit albedo, per channel (`L / rho_eval`; 0 where the
+    /// channel is unlit and the proposal keeps the current albedo).
+    pub shading: Vec3,
+    /// How much of the deblurring correction the proposal takes: (texel / pixel footprint)^2,
+    /// at most 1. Where a pixel covers several texels, the footprint operator cannot be
+    /// inverted and the correction would mostly amplify noise.
+    pub deblur_gain: f32,
+    pub proposal: Vec3,
+    pub weight: f32,
+    /// Variance of `proposal` from the Monte-Carlo noise of the rendered radiance.
+    pub mc_var: Vec3,
+    /// Neither near an occlusion boundary nor on a shadow edge.
+    pub clean: bool,
+    pub residual: Vec3,
+    pub pixel: Vec3,
+}
 
 /// Options of a solve.
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -42,6 +70,12 @@ pub struct SolveOptions {
     /// In which order a prepared site's voxels see each other's new albedo.
     #[serde(default)]
     pub schedule: Schedule,
+    /// Rounds of footprint deblurring of the proposals per iteration (`crate::deblur`; 0, the
+    /// default: each texel reads its photographs with one bilinear sample). It helps where the
+    /// albedo has detail near the pixel size and adds noise on smooth albedo (docs/SOLVER.md).
+    /// Options files written before the field existed read 0, their meaning.
+    #[serde(default)]
+    pub deblur: u32,
 }
 
 /// The order of updates within an iteration of a voxel-by-voxel solve.
@@ -95,6 +129,7 @@ impl Default for SolveOptions {
             rules: WeightRules::default(),
             parts: None,
             schedule: Schedule::GaussSeidel,
+            deblur: 0,
         }
     }
 }

@@ -1,7 +1,10 @@
 //! The iteration of the inverse global illumination solve (see the crate overview).
 
+use crate::atlas_size::point_footprint;
+use crate::deblur::Footprint;
 use crate::fill::fill_unseen;
 use crate::parts::{stored_part_name, Part};
+use crate::record::Obs;
 pub use crate::record::{
     IterationRecord, PartSummary, Pending, Schedule, SolveOptions, SolveReport,
 };
@@ -110,19 +113,6 @@ pub fn z_scores(state: &SolveResult, truth: &Truth) -> Option<ZScores> {
     })
 }
 
-struct Obs {
-    part: u32,
-    texel: u32,
-    proposal: Vec3,
-    weight: f32,
-    /// Variance of `proposal` from the Monte-Carlo noise of the rendered radiance.
-    mc_var: Vec3,
-    /// Neither near an occlusion boundary nor on a shadow edge.
-    clean: bool,
-    residual: Vec3,
-    pixel: Vec3,
-}
-
 /// Everything the per-photo pass needs about one texel.
 #[derive(Clone, Copy)]
 struct TexelRef {
@@ -168,7 +158,7 @@ fn group_scene(
     group: &Group,
     store: Option<&igi_geometry::SiteStore>,
     albedo: Albedos,
-) -> Result<(Scene, u64), ReflectError> {
+) -> Result<(Scene, u64, Vec<Option<usize>>), ReflectError> {
     let material = |i: usize| {
         let r = state.parts[i].resolution();
         let tex = Texture {
@@ -182,12 +172,16 @@ fn group_scene(
             lobes: albedo.lobes[i].clone(),
         }
     };
+    let mut object_part = Vec::new();
     let objects = match (&group.load, store) {
         (GroupLoad::Meshes, _) => state
             .parts
             .iter()
             .enumerate()
-            .map(|(i, p)| (p.name.clone(), p.mesh.clone(), material(i)))
+            .map(|(i, p)| {
+                object_part.push(Some(i));
+                (p.name.clone(), p.mesh.clone(), material(i))
+            })
             .collect(),
         (load, Some(store)) => {
             let loaded = match load {
@@ -202,6 +196,7 @@ fn group_scene(
                     .iter()
                     .position(|p| p.name == name)
                     .ok_or_else(|| ReflectError::UnknownVoxel(name.clone()))?;
+                object_part.push(Some(i));
                 objects.push((name, lp.mesh, material(i)));
             }
             objects
@@ -212,7 +207,7 @@ fn group_scene(
         .iter()
         .map(|(_, m, _): &(String, igi_geometry::TriMesh, Material)| m.indices.len() as u64)
         .sum();
-    Ok((Scene::new(objects)?, triangles))
+    Ok((Scene::new(objects)?, triangles, object_part))
 }
 
 /// Lobes of one part: inferred from its mean albedo with the basis, or none.
@@ -538,7 +533,8 @@ pub(crate) fn solve_group(
             lobes: &start.lobes,
         },
     };
-    let (scene, triangles) = group_scene(start, g, plan.store.as_ref(), albedo)?;
+    let shown_rho = albedo.rho;
+    let (scene, triangles, object_part) = group_scene(start, g, plan.store.as_ref(), albedo)?;
     for &i in &g.parts {
         start.report.parts[i].scene_triangles = triangles;
     }
@@ -564,6 +560,14 @@ pub(crate) fn solve_group(
         };
         obs.extend(pass.observe(progress));
     }
+    let footprint = Footprint {
+        scene: &scene,
+        object_part: &object_part,
+        photos: inputs.photos,
+        parts: &start.parts,
+        rho: shown_rho,
+    };
+    footprint.deblur(&mut obs, opts.deblur);
     drop(scene);
     let mut sums = Pending::default();
     update_parts(start, &g.parts, &obs, opts, &mut sums);
@@ -791,7 +795,7 @@ fn change_against_noise(old: Vec3, old_se: Vec3, c: &Combined) -> (f64, f64) {
 
 /// One texel's raw observation in a photo: texel index and the per-texel estimates the
 /// ratio update needs (see [`PhotoPass`]).
-type RawObservation = (u32, Vec3, Vec3, Vec3, f32, bool, Vec3);
+type RawObservation = (u32, Vec3, Vec3, Vec3, f32, bool, Vec3, Vec2, f32);
 
 /// The per-photo pass of a group: everything it reads, in one context. [`PhotoPass::observe`]
 /// traces every texel of the group toward the photograph's camera under its lighting and
@@ -960,8 +964,28 @@ impl PhotoPass<'_> {
         }
         let (est, rho_eval) = self.estimate(t, n, wo, gi, pt);
         Some((
-            gi as u32, pixel, est.mean, est.stderr, weight, clean, rho_eval,
+            gi as u32,
+            pixel,
+            est.mean,
+            est.stderr,
+            weight,
+            clean,
+            rho_eval,
+            px.as_vec2(),
+            self.deblur_gain(t, cos),
         ))
+    }
+
+    /// The share of the deblurring correction texel `t` takes in this photograph (seen at
+    /// `cos` to its normal): (texel / pixel footprint)^2 at most 1, the footprint taken as the
+    /// pixel's depth over the focal length divided by sqrt(cos) (the geometric mean of its two
+    /// sides on the surface).
+    fn deblur_gain(&self, t: &TexelRef, cos: f32) -> f32 {
+        let texel = self.state.parts[t.part as usize].texel_size;
+        match point_footprint(&self.photo.camera, t.position.as_dvec3()) {
+            Some(f) => ((texel * (cos as f64).sqrt() / f).min(1.0).powi(2)) as f32,
+            None => 0.0,
+        }
     }
 
     /// The occlusion-boundary / misregistration test: rays through the pixels around the
@@ -1060,7 +1084,7 @@ impl PhotoPass<'_> {
     /// keeps the current value), its Monte-Carlo variance (the relative error of `L`), and the
     /// residual of the rendering with the current albedo.
     fn proposal(&self, r: RawObservation, floor: f32) -> Obs {
-        let (gi, pixel, l, se, weight, clean, rho_eval) = r;
+        let (gi, pixel, l, se, weight, clean, rho_eval, px, deblur_gain) = r;
         let t = &self.texels[gi as usize];
         let rho = self.rho(t);
         let lit = |ch: usize| l[ch] > floor * 1e-3;
@@ -1078,11 +1102,24 @@ impl PhotoPass<'_> {
                 0.0
             }
         }));
+        let shading = Vec3::from_array(std::array::from_fn(|ch| {
+            if lit(ch) {
+                l[ch] / rho_eval[ch]
+            } else {
+                0.0
+            }
+        }));
         // rendered radiance with the current albedo (linear in the first vertex's albedo)
         let current = l * (rho / rho_eval);
+        let part = &self.state.parts[t.part as usize];
         Obs {
             part: t.part,
             texel: t.texel,
+            atlas: part.cache.texels[t.texel as usize].index,
+            photo: self.photo_index as u32,
+            px,
+            shading,
+            deblur_gain,
             proposal,
             weight,
             mc_var,
