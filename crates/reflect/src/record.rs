@@ -1,7 +1,9 @@
 //! What a solve is asked and what it did: [`SolveOptions`] (with the update [`Schedule`]),
 //! the per-iteration [`IterationRecord`], the per-part [`PartSummary`], the [`SolveReport`]
-//! written to `report.json`, and the running sums of an iteration in progress ([`Pending`]).
-//! Below the solver, the result folder and the plots, which all read these types.
+//! written to `report.json`, the running sums of an iteration in progress ([`Pending`]), and
+//! one texel's observation in one photograph (`Obs`, crate-private), which the solver makes
+//! and the footprint deblurring (`crate::deblur`) corrects. Below the solver, the deblurring,
+//! the result folder and the plots, which all read these types.
 
 use crate::parts::StoredPart;
 use crate::weights::WeightRules;
