@@ -4,9 +4,10 @@
 //! that the output folder is (or can become) a writable folder, and builds the run manifest
 //! (`run.json`, see `igi_imaging::run`): fingerprints of the survey file, meshes or prepared
 //! site, photographs, cameras, lighting and BRDF samples, and every result-changing option
-//! (`--atlas`, `--spp`, `--indirect`, `--seed`, `--initial`, the weighting rules) with the part
-//! selection as the shard's `owns`. `--iterations` and `--tolerance` are left out on purpose:
-//! they say how far to go, and a resume with more iterations continues the same run.
+//! (`--atlas`, `--spp`, `--indirect`, `--seed`, `--initial`, the weighting rules, `--schedule`
+//! and `--deblur` when not their defaults) with the part selection as the shard's `owns`.
+//! `--iterations` and `--tolerance` are left out on purpose: they say how far to go, and a
+//! resume with more iterations continues the same run.
 //!
 //! A folder with a `run.json` is resumed only when the manifests are equal; otherwise the
 //! error names the first differing option or input and suggests `--restart`. Two shards
@@ -127,6 +128,9 @@ fn run_manifest(survey: &Survey, opts: &SolveOptions) -> Result<RunManifest, Ref
     // recorded only when not the default, so folders of earlier igi versions still resume
     if opts.schedule != crate::Schedule::GaussSeidel {
         m.option("--schedule", opts.schedule.name());
+    }
+    if opts.deblur != 0 {
+        m.option("--deblur", opts.deblur);
     }
     m.owns = opts.parts.as_ref().map(|p| {
         let mut v = p.clone();
