@@ -299,7 +299,7 @@ fn parse_corners(s: &str) -> anyhow::Result<Vec<glam::DVec2>> {
         .map(|x| x.trim().parse::<f64>())
         .collect::<Result<_, _>>()
         .ok()
-        .filter(|v: &Vec<f64>| v.len() >= 8 && v.len() % 2 == 0 && v.iter().all(|x| x.is_finite()))
+        .filter(|v: &Vec<f64>| v.len() >= 8 && v.len().is_multiple_of(2) && v.iter().all(|x| x.is_finite()))
         .with_context(|| format!("--corners {s:?}: expected u,v pairs for the four fiducials, e.g. 101.5,88,912,90.2,905,700,98,702"))?;
     Ok(v.chunks(2).map(|c| glam::DVec2::new(c[0], c[1])).collect())
 }

@@ -230,7 +230,7 @@ fn probe_options(a: &ProbeArgs, refine_auto: bool, saturation: Option<f32>) -> P
         ..ProbeOptions::default()
     };
     ProbeOptions {
-        conv_width: if a.map_width % opt.conv_width == 0 {
+        conv_width: if a.map_width.is_multiple_of(opt.conv_width) {
             opt.conv_width
         } else {
             a.map_width

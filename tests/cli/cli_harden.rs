@@ -127,6 +127,47 @@ fn a_second_shard_cannot_claim_a_folder_of_another() {
 }
 
 #[test]
+fn a_folder_being_written_is_refused_to_a_second_run_fresh_or_resuming() {
+    let d = tempfile::tempdir().unwrap();
+    let survey = fixture("survey");
+    let out = d.path().join("res");
+    let holder = format!("process {} on host", std::process::id());
+    let refused = |o: &std::process::Output, what: &str| {
+        let e = stderr(o);
+        assert!(
+            !o.status.success() && e.contains("another igi run") && e.contains(&holder),
+            "{what}: {e}"
+        );
+    };
+    // this test process stands for a run in progress: it holds the folder's lock
+    std::fs::create_dir_all(&out).unwrap();
+    let lock = igi_imaging::FolderLock::acquire(&out).unwrap();
+    let o = igi().run(&solve_args(s(&survey), s(&out), &[]));
+    refused(&o, "fresh solve");
+    assert!(
+        !out.join("run.json").exists(),
+        "the refused run wrote its manifest"
+    );
+    drop(lock);
+    igi().ok(&solve_args(s(&survey), s(&out), &[]));
+    let report = std::fs::read(out.join("report.json")).unwrap();
+    let lock = igi_imaging::FolderLock::acquire(&out).unwrap();
+    let o = igi().run(&solve_args(s(&survey), s(&out), &["--iterations", "2"]));
+    refused(&o, "resumed solve");
+    assert_eq!(std::fs::read(out.join("report.json")).unwrap(), report);
+    drop(lock);
+    igi().ok(&solve_args(s(&survey), s(&out), &["--iterations", "2"]));
+    // the same for a prepare
+    let site = d.path().join("site.igi");
+    std::fs::create_dir_all(&site).unwrap();
+    let _lock = igi_imaging::FolderLock::acquire(&site).unwrap();
+    let ground = fixture("outdoor/ground.ply");
+    let o = igi().run(&["prepare", s(&ground), "-o", s(&site), "--voxel", "20"]);
+    refused(&o, "prepare");
+    assert!(!site.join("run.json").exists());
+}
+
+#[test]
 fn prepare_resume_refuses_another_source_mesh() {
     let d = tempfile::tempdir().unwrap();
     let out = d.path().join("site.igi");

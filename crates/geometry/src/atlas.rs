@@ -211,7 +211,7 @@ fn group_charts(mesh: &TriMesh, label: &[u8]) -> (Vec<Chart>, Vec<u32>) {
             let l = label[t] as usize;
             charts.push(Chart {
                 axis: l / 2,
-                sign: if l % 2 == 0 { 1.0 } else { -1.0 },
+                sign: if l.is_multiple_of(2) { 1.0 } else { -1.0 },
                 tris: Vec::new(),
                 lo: [f64::INFINITY; 2],
                 hi: [f64::NEG_INFINITY; 2],

@@ -13,7 +13,9 @@
 //! when `prepare` runs again on the same folder with the same run manifest (the same source
 //! files, by content hash, and the same options; see `igi_imaging::run`). A different one is
 //! refused with the differing option named, unless the run asks to restart. Temporary files of
-//! killed runs are removed on resume.
+//! killed runs are removed on resume. A running prepare holds the folder's lock
+//! (`site.igi/.igi-lock`, `igi_imaging::FolderLock`): a second prepare on the same folder
+//! meanwhile is refused.
 
 use crate::atlas::{build_atlas, AtlasOptions};
 use crate::error::GeometryError;
@@ -350,6 +352,10 @@ pub fn prepare_run(
     }
     let manifest = check_prepare_output(out, run, opts, terrain.is_some())?;
     check_resources(&site, terrain.as_ref(), opts)?;
+    mkdir(out)?;
+    // one writer at a time; the folder is checked again under the lock
+    let _lock = igi_imaging::FolderLock::acquire(out)?;
+    manifest.check_folder(out, run.restart, "settings.json", "site")?;
     if run.restart {
         remove_site_entries(out)?;
     }

@@ -107,6 +107,8 @@ pub enum ImagingError {
     },
     #[error("{}: {msg}", path.display())]
     NotARunFolder { path: PathBuf, msg: String },
+    #[error("{}: another igi run ({holder}) is writing this folder; wait for it to finish, or choose another output", path.display())]
+    FolderBusy { path: PathBuf, holder: String },
     #[error("{}: unreadable run manifest: {source}; use --restart to start afresh", path.display())]
     BadManifest {
         path: PathBuf,

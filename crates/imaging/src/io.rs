@@ -55,7 +55,7 @@ pub fn write_atomic(
 
 /// This machine's host name, reduced to letters, digits and `-` (it goes into temporary names,
 /// so that writers on several hosts of a shared file system never collide).
-fn this_host() -> String {
+pub(crate) fn this_host() -> String {
     let h = std::fs::read_to_string("/proc/sys/kernel/hostname")
         .or_else(|_| std::env::var("HOSTNAME"))
         .unwrap_or_default();

@@ -59,4 +59,4 @@ pub use io::{
 };
 pub use mask::Mask;
 pub use rig::Rig;
-pub use run::{Fingerprint, RunManifest};
+pub use run::{Fingerprint, FolderLock, RunManifest};

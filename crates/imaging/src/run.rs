@@ -12,6 +12,13 @@
 //! folder (their `owns` differ, so the second is refused): each shard writes its own folder,
 //! and a merge step (not here) combines folders whose `owns` are disjoint.
 //!
+//! One writer at a time: a run that writes into a folder holds a [`FolderLock`] (an advisory
+//! `flock` on `FOLDER/.igi-lock`, released when the process ends, however it ends) from its
+//! first byte of output to its last, so a second run on the same folder, started by mistake
+//! beside the first, is refused with the first one's process and host named instead of
+//! mixing the two runs' files. The lock file stays behind (removing it would race with a
+//! waiting opener); [`RunManifest::check_folder`] ignores it.
+//!
 //! Fingerprints: files up to [`HASH_LIMIT`] bytes are hashed (64-bit FNV-1a of the content);
 //! larger files are recorded by size and modification time. Paths are recorded as given
 //! (for messages) but compared only when no content hash is available.
@@ -26,6 +33,56 @@ pub const HASH_LIMIT: u64 = 64 << 20;
 
 /// The file name of a run manifest inside an output folder.
 pub const RUN_FILE: &str = "run.json";
+
+/// The lock file a running writer holds inside its output folder (see [`FolderLock`]).
+pub const LOCK_FILE: &str = ".igi-lock";
+
+/// An exclusive claim on an output folder for as long as the value lives (see the module
+/// overview). Advisory: it keeps igi runs apart, not other programs.
+#[derive(Debug)]
+pub struct FolderLock {
+    _file: std::fs::File,
+}
+
+impl FolderLock {
+    /// Claims the existing folder `dir`, or fails with [`ImagingError::FolderBusy`] naming the
+    /// process and host that hold it. Never waits.
+    pub fn acquire(dir: &Path) -> Result<FolderLock, ImagingError> {
+        use std::io::Write;
+        let path = dir.join(LOCK_FILE);
+        let mut file = std::fs::OpenOptions::new()
+            .create(true)
+            .truncate(false)
+            .read(true)
+            .write(true)
+            .open(&path)
+            .map_err(|e| ImagingError::io(&path, e))?;
+        match file.try_lock() {
+            Ok(()) => {}
+            Err(std::fs::TryLockError::WouldBlock) => {
+                let holder = std::fs::read_to_string(&path).unwrap_or_default();
+                let holder = match holder.trim() {
+                    "" => "holder unknown".to_string(),
+                    h => h.to_string(),
+                };
+                return Err(ImagingError::FolderBusy {
+                    path: dir.to_path_buf(),
+                    holder,
+                });
+            }
+            Err(std::fs::TryLockError::Error(e)) => return Err(ImagingError::io(&path, e)),
+        }
+        let holder = format!(
+            "process {} on host {}",
+            std::process::id(),
+            crate::io::this_host()
+        );
+        file.set_len(0)
+            .and_then(|()| file.write_all(holder.as_bytes()))
+            .map_err(|e| ImagingError::io(&path, e))?;
+        Ok(FolderLock { _file: file })
+    }
+}
 
 /// The identity of one input file.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -205,8 +262,8 @@ impl RunManifest {
         }
         let empty = dir
             .read_dir()
-            .map(|mut d| d.next().is_none())
-            .map_err(|e| ImagingError::io(dir, e))?;
+            .map_err(|e| ImagingError::io(dir, e))?
+            .all(|e| e.is_ok_and(|e| e.file_name() == LOCK_FILE));
         if !empty {
             return Err(refuse(format!(
                 "exists and is not a {kind} folder; choose another output"
@@ -282,6 +339,28 @@ impl RunManifest {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_folder_has_one_writer_at_a_time_and_the_busy_error_names_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let first = FolderLock::acquire(dir.path()).unwrap();
+        // flock locks belong to open files: a second open, even in this process, is refused
+        let e = FolderLock::acquire(dir.path()).unwrap_err();
+        let msg = e.to_string();
+        assert!(matches!(e, ImagingError::FolderBusy { .. }), "{msg}");
+        let me = format!("process {} on host", std::process::id());
+        assert!(
+            msg.contains(&me) && msg.contains("another igi run"),
+            "{msg}"
+        );
+        drop(first);
+        let again = FolderLock::acquire(dir.path()).unwrap();
+        // the lock file alone does not make a folder someone else's
+        let m = RunManifest::new("solve");
+        let state = m.check_folder(dir.path(), false, "report.json", "result");
+        assert_eq!(state.unwrap(), FolderState::Fresh);
+        drop(again);
+    }
 
     #[test]
     fn fnv_matches_reference_values() {

@@ -261,9 +261,9 @@ fn check_inputs(image: &HdrImage, camera: &Camera, opt: &ProbeOptions) -> Result
         });
     }
     if opt.map_width < 8
-        || opt.map_width % 2 != 0
+        || !opt.map_width.is_multiple_of(2)
         || opt.conv_width == 0
-        || opt.map_width % opt.conv_width != 0
+        || !opt.map_width.is_multiple_of(opt.conv_width)
     {
         return Err(ProbeError::MapWidth {
             map: opt.map_width,

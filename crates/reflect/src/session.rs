@@ -14,6 +14,11 @@
 //! (different `--parts`) therefore never share a folder. `--restart` removes what an earlier
 //! solve wrote (only the names a solve writes) before starting afresh. Temporary files of
 //! killed runs are removed on resume.
+//!
+//! From [`SolveSession::start`] or [`SolveSession::load`] on, the session holds the folder's
+//! [`FolderLock`]: a second solve on the same folder while this one runs is refused, naming
+//! this process. `start` checks the folder again under the lock, so two fresh runs racing
+//! past [`SolveSession::check`] cannot both write.
 
 use crate::parts::Part;
 use crate::result::SolveResult;
@@ -21,7 +26,8 @@ use crate::solver::SolveOptions;
 use crate::survey::{LightingSource, Survey};
 use crate::ReflectError;
 use igi_imaging::run::{FolderState, RUN_FILE};
-use igi_imaging::RunManifest;
+use igi_imaging::{FolderLock, RunManifest};
+use std::cell::OnceCell;
 use std::path::{Path, PathBuf};
 
 /// The names a solve writes into its result folder (what `--restart` removes).
@@ -40,6 +46,7 @@ pub struct SolveSession {
     manifest: RunManifest,
     resume: bool,
     restart: bool,
+    lock: OnceCell<FolderLock>,
 }
 
 impl SolveSession {
@@ -54,18 +61,13 @@ impl SolveSession {
         igi_imaging::io::check_output_folder(dir)?;
         let manifest = run_manifest(survey, opts)?;
         let state = manifest.check_folder(dir, restart, "report.json", "result")?;
-        // a checkpoint: committed, or staged past its commit point (rolled forward on load)
-        let resume = state == FolderState::Resume
-            && (dir.join("report.json").is_file()
-                || dir
-                    .join(crate::result::STAGED)
-                    .join("report.json")
-                    .is_file());
+        let resume = state == FolderState::Resume && has_checkpoint(dir);
         Ok(SolveSession {
             dir: dir.to_path_buf(),
             manifest,
             resume,
             restart,
+            lock: OnceCell::new(),
         })
     }
 
@@ -76,6 +78,7 @@ impl SolveSession {
 
     /// Loads the checkpoint to continue from (after removing dead runs' temporary files).
     pub fn load(&self) -> Result<SolveResult, ReflectError> {
+        self.claim()?;
         igi_imaging::io::remove_dead_temps(&self.dir, true)?;
         SolveResult::recover(&self.dir)?;
         SolveResult::load(&self.dir)
@@ -91,16 +94,48 @@ impl SolveSession {
         opts: &SolveOptions,
     ) -> Result<SolveResult, ReflectError> {
         crate::solver::check_selection(&parts, opts)?;
+        std::fs::create_dir_all(&self.dir)
+            .map_err(|e| ReflectError::file(&self.dir, format!("cannot create folder: {e}")))?;
+        self.claim()?;
         if self.restart {
             igi_imaging::run::remove_entries(&self.dir, &RESULT_ENTRIES)?;
         }
-        std::fs::create_dir_all(&self.dir)
-            .map_err(|e| ReflectError::file(&self.dir, format!("cannot create folder: {e}")))?;
+        // another run may have written here since `check`
+        let state = self
+            .manifest
+            .check_folder(&self.dir, self.restart, "report.json", "result")?;
+        if state == FolderState::Resume && has_checkpoint(&self.dir) {
+            return Err(ReflectError::file(
+                &self.dir,
+                "another solve wrote this folder while this one was starting; run again to resume it",
+            ));
+        }
         igi_imaging::io::remove_dead_temps(&self.dir, true)?;
         self.manifest.write(&self.dir)?;
         let r = SolveResult::fresh(parts, photo_ids, opts);
         r.write_geometry(&self.dir)?;
         Ok(r)
+    }
+}
+
+/// Whether `dir` holds a checkpoint: committed, or staged past its commit point (rolled
+/// forward on load).
+fn has_checkpoint(dir: &Path) -> bool {
+    dir.join("report.json").is_file()
+        || dir
+            .join(crate::result::STAGED)
+            .join("report.json")
+            .is_file()
+}
+
+impl SolveSession {
+    /// Takes the folder's lock (once; held until the session is dropped).
+    fn claim(&self) -> Result<(), ReflectError> {
+        if self.lock.get().is_none() {
+            let lock = FolderLock::acquire(&self.dir)?;
+            let _ = self.lock.set(lock);
+        }
+        Ok(())
     }
 }
 
