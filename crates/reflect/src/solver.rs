@@ -793,9 +793,26 @@ fn change_against_noise(old: Vec3, old_se: Vec3, c: &Combined) -> (f64, f64) {
     )
 }
 
-/// One texel's raw observation in a photo: texel index and the per-texel estimates the
-/// ratio update needs (see [`PhotoPass`]).
-type RawObservation = (u32, Vec3, Vec3, Vec3, f32, bool, Vec3, Vec2, f32);
+/// One texel's raw observation in a photo: what the ratio update needs (see [`PhotoPass`]).
+struct RawObservation {
+    /// The texel's number in the group.
+    gi: u32,
+    /// The photograph at the texel's projection (bilinear).
+    pixel: Vec3,
+    /// The radiance rendered toward the camera with the evaluation albedo, and its standard
+    /// error.
+    radiance: Vec3,
+    stderr: Vec3,
+    weight: f32,
+    /// Neither at an occlusion boundary nor at a shadow edge.
+    clean: bool,
+    /// The evaluation albedo the radiance was rendered with.
+    rho_eval: Vec3,
+    /// The texel's projection (pixels).
+    px: Vec2,
+    /// See [`PhotoPass::deblur_gain`].
+    deblur_gain: f32,
+}
 
 /// The per-photo pass of a group: everything it reads, in one context. [`PhotoPass::observe`]
 /// traces every texel of the group toward the photograph's camera under its lighting and
@@ -963,17 +980,17 @@ impl PhotoPass<'_> {
             clean = false;
         }
         let (est, rho_eval) = self.estimate(t, n, wo, gi, pt);
-        Some((
-            gi as u32,
+        Some(RawObservation {
+            gi: gi as u32,
             pixel,
-            est.mean,
-            est.stderr,
+            radiance: est.mean,
+            stderr: est.stderr,
             weight,
             clean,
             rho_eval,
-            px.as_vec2(),
-            self.deblur_gain(t, cos),
-        ))
+            px: px.as_vec2(),
+            deblur_gain: self.deblur_gain(t, cos),
+        })
     }
 
     /// The share of the deblurring correction texel `t` takes in this photograph (seen at
@@ -1058,7 +1075,7 @@ impl PhotoPass<'_> {
         let mut lums: Vec<f32> = raw
             .iter()
             .flatten()
-            .map(|r| luminance(r.2))
+            .map(|r| luminance(r.radiance))
             .filter(|l| *l > 0.0)
             .collect();
         let median = if lums.is_empty() {
@@ -1071,7 +1088,7 @@ impl PhotoPass<'_> {
         raw.into_iter()
             .flatten()
             .filter_map(|r| {
-                let (ll, se) = (luminance(r.2), luminance(r.3));
+                let (ll, se) = (luminance(r.radiance), luminance(r.stderr));
                 if !(ll > floor) || se > rules.max_rel_stderr * ll {
                     return None;
                 }
@@ -1084,7 +1101,17 @@ impl PhotoPass<'_> {
     /// keeps the current value), its Monte-Carlo variance (the relative error of `L`), and the
     /// residual of the rendering with the current albedo.
     fn proposal(&self, r: RawObservation, floor: f32) -> Obs {
-        let (gi, pixel, l, se, weight, clean, rho_eval, px, deblur_gain) = r;
+        let RawObservation {
+            gi,
+            pixel,
+            radiance: l,
+            stderr: se,
+            weight,
+            clean,
+            rho_eval,
+            px,
+            deblur_gain,
+        } = r;
         let t = &self.texels[gi as usize];
         let rho = self.rho(t);
         let lit = |ch: usize| l[ch] > floor * 1e-3;
