@@ -1,17 +1,21 @@
 #!/usr/bin/env bash
 # Installs the system packages igi builds against, only when they are missing (idempotent).
-# Usage: bash scripts/deps.sh [demo|test]
+# Usage: bash scripts/deps.sh [demo|test|mitsuba]
 #   demo: what the default build needs (Embree 3 for ray tracing, a font for plot labels)
 #   test: also OpenCV with contrib and clang/libclang (the `opencv` feature generates its
 #         bindings with libclang), Slurm and munge (tests/cli/cli_cluster.rs runs a one-node
 #         loopback cluster, scripts/slurm-loopback.sh), everything the test command builds and runs
+#   mitsuba: what regenerating the reference data of datasets/mitsuba/ needs (never igi itself,
+#         nor the tests): Mitsuba 3.9.1 for python3 and Debian's libllvm19 for its llvm_ad_rgb
+#         variant (the scripts find libLLVM-19.so with `dpkg -L libllvm19`)
 set -euo pipefail
 profile="${1:-test}"
 pkgs=(libembree-dev pkg-config fonts-dejavu-core)
 case "$profile" in
   demo) ;;
   test) pkgs+=(libopencv-dev clang libclang-dev slurm-wlm slurmctld slurmd slurm-client munge) ;;
-  *) echo "igi: deps.sh: unknown profile '$profile' (demo or test)" >&2; exit 2 ;;
+  mitsuba) pkgs=(libllvm19 python3) ;;
+  *) echo "igi: deps.sh: unknown profile '$profile' (demo, test or mitsuba)" >&2; exit 2 ;;
 esac
 missing=()
 for p in "${pkgs[@]}"; do
@@ -23,6 +27,18 @@ if ((${#missing[@]})); then
   if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
   $SUDO apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >&2
+fi
+if [ "$profile" = mitsuba ]; then
+  if ! python3 -c 'import mitsuba, sys; sys.exit(mitsuba.__version__ != "3.9.1")' 2>/dev/null; then
+    if ! python3 -m pip --version >/dev/null 2>&1; then
+      echo "igi: python3 has no pip; install python3-pip (Debian) or use a virtual environment" >&2
+      exit 1
+    fi
+    echo "igi: installing mitsuba==3.9.1 for python3 (pip)" >&2
+    python3 -m pip install -q "mitsuba==3.9.1" \
+      || python3 -m pip install -q --break-system-packages "mitsuba==3.9.1"
+  fi
+  exit 0
 fi
 if ! command -v cargo >/dev/null 2>&1; then
   echo "igi: cargo not found; install the Rust toolchain (rustup) first" >&2
