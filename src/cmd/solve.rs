@@ -34,6 +34,12 @@ pub struct IterationArgs {
     /// each round adds noise (docs/SOLVER.md). 0: one bilinear read per texel and photograph.
     #[arg(long, default_value_t = 0)]
     pub deblur: u32,
+    /// Average each texel's rendered shading with its neighbours' of the same surface and
+    /// light (3 x 3 texels, never across a shadow edge or a crease) before dividing the
+    /// photograph by it: the shading is smooth where the albedo is not, so this takes most of
+    /// the solve's Monte-Carlo noise out of rho_d (docs/SOLVER.md). `false`: each texel's own.
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
+    pub shading_smoothing: bool,
 }
 
 impl IterationArgs {
@@ -50,6 +56,7 @@ impl IterationArgs {
             seed: self.seed,
             initial_albedo: [r, g, b],
             deblur: self.deblur,
+            smooth_shading: self.shading_smoothing,
             ..SolveOptions::default()
         })
     }

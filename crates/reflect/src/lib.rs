@@ -34,6 +34,7 @@ pub mod plot;
 pub mod record;
 pub mod result;
 pub mod session;
+mod smooth;
 pub mod solver;
 pub mod survey;
 pub mod synth;

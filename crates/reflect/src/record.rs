@@ -1,9 +1,10 @@
 //! What a solve is asked and what it did: [`SolveOptions`] (with the update [`Schedule`]),
 //! the per-iteration [`IterationRecord`], the per-part [`PartSummary`], the [`SolveReport`]
 //! written to `report.json`, the running sums of an iteration in progress ([`Pending`]), and
-//! one texel's observation in one photograph (`Obs`, crate-private), which the solver makes
-//! and the footprint deblurring (`crate::deblur`) corrects. Below the solver, the deblurring,
-//! the result folder and the plots, which all read these types.
+//! one texel's observation in one photograph (`Obs`, crate-private), which the solver makes,
+//! the shading smoothing (`crate::smooth`) denoises and the footprint deblurring
+//! (`crate::deblur`) corrects. Below the solver, the smoothing, the deblurring, the result
+//! folder and the plots, which all read these types.
 
 use crate::parts::StoredPart;
 use crate::weights::WeightRules;
@@ -12,7 +13,8 @@ use glam::{Vec2, Vec3};
 use serde::{Deserialize, Serialize};
 
 /// One texel's observation in one photograph: its ratio proposal and what the combination,
-/// the statistics and the footprint deblurring (`crate::deblur`) need.
+/// the statistics, the shading smoothing and the footprint deblurring (`crate::deblur`) need.
+#[derive(Clone)]
 pub(crate) struct Obs {
     pub part: u32,
     pub texel: u32,
@@ -78,6 +80,12 @@ pub struct SolveOptions {
     /// Options files written before the field existed read 0, their meaning.
     #[serde(default)]
     pub deblur: u32,
+    /// Average each observation's rendered shading over its 3 x 3 texel neighbourhood of the
+    /// same surface and light before dividing (`crate::smooth`; on by default: it takes most
+    /// of the solve's Monte-Carlo noise out of the albedo). Options files written before the
+    /// field existed read `false`, their meaning.
+    #[serde(default)]
+    pub smooth_shading: bool,
 }
 
 /// The order of updates within an iteration of a voxel-by-voxel solve.
@@ -132,6 +140,7 @@ impl Default for SolveOptions {
             parts: None,
             schedule: Schedule::GaussSeidel,
             deblur: 0,
+            smooth_shading: true,
         }
     }
 }

@@ -5,7 +5,7 @@
 //! (`run.json`, see `igi_imaging::run`): fingerprints of the survey file, meshes or prepared
 //! site, photographs, cameras, lighting and BRDF samples, and every result-changing option
 //! (`--atlas`, `--spp`, `--indirect`, `--seed`, `--initial`, the weighting rules, `--schedule`
-//! and `--deblur` when not their defaults) with the part selection as the shard's `owns`.
+//! and `--deblur` when not their defaults, `--shading-smoothing` when on) with the part selection as the shard's `owns`.
 //! `--iterations` and `--tolerance` are left out on purpose: they say how far to go, and a
 //! resume with more iterations continues the same run.
 //!
@@ -166,6 +166,10 @@ fn run_manifest(survey: &Survey, opts: &SolveOptions) -> Result<RunManifest, Ref
     }
     if opts.deblur != 0 {
         m.option("--deblur", opts.deblur);
+    }
+    // recorded when on (the default): a folder of an igi without it resumes only with it off
+    if opts.smooth_shading {
+        m.option("--shading-smoothing", true);
     }
     m.owns = opts.parts.as_ref().map(|p| {
         let mut v = p.clone();

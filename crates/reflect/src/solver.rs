@@ -560,6 +560,9 @@ pub(crate) fn solve_group(
         };
         obs.extend(pass.observe(progress));
     }
+    if opts.smooth_shading {
+        crate::smooth::smooth_shading(&mut obs, &start.parts);
+    }
     let footprint = Footprint {
         scene: &scene,
         object_part: &object_part,
