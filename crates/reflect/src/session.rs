@@ -5,7 +5,8 @@
 //! (`run.json`, see `igi_imaging::run`): fingerprints of the survey file, meshes or prepared
 //! site, photographs, cameras, lighting and BRDF samples, and every result-changing option
 //! (`--atlas`, `--spp`, `--indirect`, `--seed`, `--initial`, the weighting rules, `--schedule`
-//! and `--deblur` when not their defaults, `--shading-smoothing` when on) with the part selection as the shard's `owns`.
+//! and `--deblur` when not their defaults, `--shading-smoothing` when on) with the part
+//! selection as the shard's `owns`.
 //! `--iterations` and `--tolerance` are left out on purpose: they say how far to go, and a
 //! resume with more iterations continues the same run.
 //!
