@@ -47,6 +47,7 @@ fn solve_resume_refuses_other_options_and_names_them() {
         ("--seed", "7"),
         ("--initial", "0.3,0.3,0.3"),
         ("--deblur", "2"),
+        ("--shading-smoothing", "false"),
     ] {
         let mut args = solve_args(s(&survey), s(&out), &[]);
         match args.iter().position(|a| *a == flag) {
