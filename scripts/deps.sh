@@ -29,14 +29,15 @@ if ((${#missing[@]})); then
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >&2
 fi
 if [ "$profile" = mitsuba ]; then
-  if ! python3 -c 'import mitsuba, sys; sys.exit(mitsuba.__version__ != "3.9.1")' 2>/dev/null; then
+  # the reference scripts (datasets/mitsuba, datasets/demo_error.py) need numpy beside Mitsuba
+  if ! python3 -c 'import numpy, mitsuba, sys; sys.exit(mitsuba.__version__ != "3.9.1")' 2>/dev/null; then
     if ! python3 -m pip --version >/dev/null 2>&1; then
       echo "igi: python3 has no pip; install python3-pip (Debian) or use a virtual environment" >&2
       exit 1
     fi
-    echo "igi: installing mitsuba==3.9.1 for python3 (pip)" >&2
-    python3 -m pip install -q "mitsuba==3.9.1" \
-      || python3 -m pip install -q --break-system-packages "mitsuba==3.9.1"
+    echo "igi: installing mitsuba==3.9.1 and numpy for python3 (pip)" >&2
+    python3 -m pip install -q "mitsuba==3.9.1" numpy \
+      || python3 -m pip install -q --break-system-packages "mitsuba==3.9.1" numpy
   fi
   exit 0
 fi
