@@ -1066,7 +1066,7 @@ impl PhotoPass<'_> {
         );
         let mut rng = Rng::new(stream, self.offset + gi);
         (
-            pt.lo_estimate(&sp, wo, Some(brdf), self.spp, &mut rng),
+            pt.lo_estimate_stratified(&sp, wo, Some(brdf), self.spp, &mut rng),
             rho_eval,
         )
     }

@@ -7,7 +7,7 @@
 //! ray that escapes to the sky); the path continues by BSDF sampling from x1 .. x_K.
 
 use crate::lighting::{Environment, LightSample, Lighting, Sun};
-use crate::sampling::{power_heuristic, Rng};
+use crate::sampling::{jittered, power_heuristic, shifted_hammersley, Rng};
 use crate::scene::{Scene, SurfacePoint};
 use crate::RenderError;
 use glam::{DVec3, Vec2, Vec3};
@@ -95,6 +95,48 @@ pub struct RenderOutput {
     pub stderr: HdrImage,
     pub rays: u64,
     pub bad_samples: u64,
+}
+
+/// The random numbers one sample spends at the first path vertex: the sun, the environment,
+/// the BSDF's lobe choice and direction.
+#[derive(Clone, Copy, Debug)]
+struct FirstVertex {
+    sun: Vec2,
+    env: Vec2,
+    select: f32,
+    bsdf: Vec2,
+}
+
+/// Stratified first-vertex numbers for `n` samples: each 2-D pair is its own
+/// [`shifted_hammersley`] set and the lobe choice one [`jittered`] set, each dealt to the samples
+/// in its own random order, so the pairs are independent of each other (pbrt's padding). An
+/// unbiased estimator (each number is uniform on its own) whose variance, for a smooth
+/// integrand, falls faster than `1 / n`.
+struct FirstVertexSamples {
+    sun: Vec<Vec2>,
+    env: Vec<Vec2>,
+    select: Vec<f32>,
+    bsdf: Vec<Vec2>,
+}
+
+impl FirstVertexSamples {
+    fn new(n: usize, rng: &mut Rng) -> Self {
+        FirstVertexSamples {
+            sun: shifted_hammersley(n, rng),
+            env: shifted_hammersley(n, rng),
+            select: jittered(n, rng),
+            bsdf: shifted_hammersley(n, rng),
+        }
+    }
+
+    fn get(&self, j: usize) -> FirstVertex {
+        FirstVertex {
+            sun: self.sun[j],
+            env: self.env[j],
+            select: self.select[j],
+            bsdf: self.bsdf[j],
+        }
+    }
 }
 
 /// Offsets a ray origin off a surface along `n`, by an amount that scales with the coordinates.
@@ -189,6 +231,29 @@ impl<'a> PathTracer<'a> {
         acc.estimate()
     }
 
+    /// [`Self::lo_estimate`] with the first vertex's random numbers stratified across the
+    /// `spp` samples ([`FirstVertexSamples`]): the direct light and the first bounce, most of
+    /// the variance of a surface lit by the sky, converge faster than `1 / sqrt(spp)`; deeper
+    /// vertices draw from `rng`. The standard error is still the samples' spread over
+    /// `sqrt(spp)`, which stratification makes an upper bound (docs/RENDER.md).
+    pub fn lo_estimate_stratified(
+        &self,
+        sp: &SurfacePoint,
+        wo: Vec3,
+        first_brdf: Option<LafortuneRef<'_>>,
+        spp: u32,
+        rng: &mut Rng,
+    ) -> Estimate {
+        let first = FirstVertexSamples::new(spp as usize, rng);
+        let mut acc = Accumulator::default();
+        let mut rays = 0;
+        for j in 0..spp as usize {
+            let v = self.lo_from(sp, wo, first_brdf, Some(first.get(j)), rng, &mut rays);
+            acc.add(if v.is_finite() { v } else { Vec3::ZERO });
+        }
+        acc.estimate()
+    }
+
     /// Radiance arriving at `origin` along `-dir` (a camera ray). Rays that leave the scene
     /// see the environment and the sun disk.
     #[inline]
@@ -213,6 +278,19 @@ impl<'a> PathTracer<'a> {
         rng: &mut Rng,
         rays: &mut u64,
     ) -> Vec3 {
+        self.lo_from(sp, wo, first_brdf, None, rng, rays)
+    }
+
+    /// [`Self::lo`] with the first vertex's random numbers given (`first`) instead of drawn.
+    fn lo_from(
+        &self,
+        sp: &SurfacePoint,
+        wo: Vec3,
+        first_brdf: Option<LafortuneRef<'_>>,
+        first: Option<FirstVertex>,
+        rng: &mut Rng,
+        rays: &mut u64,
+    ) -> Vec3 {
         let mut l = Vec3::ZERO;
         let mut beta = Vec3::ONE;
         let mut sp = *sp;
@@ -227,16 +305,21 @@ impl<'a> PathTracer<'a> {
         loop {
             let brdf_override = if vertex == 1 { first_brdf } else { None };
             let v = self.vertex(&sp, wo, brdf_override);
+            let given = first.filter(|_| vertex == 1);
 
             // Next-event estimation: one sample of the sun and one of the environment.
             if let Some(sun) = sun {
-                let ls = sun.sample(rng.uniform2());
+                let ls = sun.sample(given.map_or_else(|| rng.uniform2(), |f| f.sun));
                 if let Some(c) = self.light_sample(&v, beta, &ls, rays) {
                     l += c;
                 }
             }
             if let Some(env) = env {
-                if let Some(ls) = env.sample(rng.uniform2()) {
+                let ls = match given {
+                    Some(f) => env.sample_monotone(f.env),
+                    None => env.sample(rng.uniform2()),
+                };
+                if let Some(ls) = ls {
                     if ls.radiance != Vec3::ZERO {
                         if let Some(c) = self.light_sample(&v, beta, &ls, rays) {
                             l += c;
@@ -246,8 +329,10 @@ impl<'a> PathTracer<'a> {
             }
 
             // BSDF sampling: the MIS partner of the light samples and the path continuation.
-            let u_sel = rng.uniform();
-            let u = rng.uniform2();
+            let (u_sel, u) = match given {
+                Some(f) => (f.select, f.bsdf),
+                None => (rng.uniform(), rng.uniform2()),
+            };
             let Some(bs) = v.brdf.sample(v.wo_l, u_sel, u) else {
                 break;
             };

@@ -572,3 +572,76 @@ fn grazing_camera() -> Camera {
     };
     cam
 }
+
+#[test]
+fn stratified_first_vertex_is_unbiased_and_far_less_noisy_beside_an_occluder() {
+    // A grey ground beside a box, under a sky brighter toward one horizon plus a sun: the
+    // estimate mixes a smooth sky integral, the box's visibility edge and one bounce.
+    let scene = Scene::new(vec![
+        (
+            "ground".into(),
+            quad(0.0, 20.0),
+            Material::lambertian(Vec3::splat(0.4)),
+        ),
+        (
+            "box".into(),
+            cube(Vec3::new(0.5, -1.0, 0.0), Vec3::new(1.5, 1.0, 1.2)),
+            Material::lambertian(Vec3::splat(0.7)),
+        ),
+    ])
+    .unwrap();
+    let (w, h) = (64, 32);
+    let sky: Vec<[f32; 3]> = (0..w * h)
+        .map(|i| {
+            let u = (i % w) as f32 / w as f32;
+            let v = (i / w) as f32 / h as f32;
+            let l = if v < 0.5 {
+                0.3 + 2.0 * u * (1.0 - v)
+            } else {
+                0.0
+            };
+            [l, l * 0.9, l * 0.8]
+        })
+        .collect();
+    let lighting = Lighting {
+        environment: Some(Environment::from_scaled(w, h, &sky)),
+        sun: Some(sun_from_zenith(50.0, 2.0e3)),
+    };
+    let pt = PathTracer::new(&scene, &lighting, &RenderOptions::default());
+    let sp = pt_on(&scene, Vec3::new(0.2, 0.3, 0.0));
+    let wo = Vec3::new(-0.3, 0.1, 1.0).normalize();
+    let reference = pt.lo_estimate(&sp, wo, None, 1 << 18, &mut crate::sampling::Rng::new(9, 0));
+
+    let runs = 96;
+    let spp = 64;
+    let (mut sq_random, mut sq_strat, mut sum_strat, mut se_strat) = (0.0, 0.0, 0.0, 0.0);
+    for i in 0..runs {
+        let r = pt.lo_estimate(&sp, wo, None, spp, &mut crate::sampling::Rng::new(1, i));
+        let s = pt.lo_estimate_stratified(&sp, wo, None, spp, &mut crate::sampling::Rng::new(2, i));
+        assert!(s.mean.is_finite() && s.stderr.is_finite());
+        sq_random += ((r.mean.y - reference.mean.y) as f64).powi(2);
+        sq_strat += ((s.mean.y - reference.mean.y) as f64).powi(2);
+        sum_strat += s.mean.y as f64;
+        se_strat += s.stderr.y as f64;
+    }
+    let rms_random = (sq_random / runs as f64).sqrt();
+    let rms_strat = (sq_strat / runs as f64).sqrt();
+    // Unbiased: the mean of the stratified runs agrees with the reference within its noise.
+    let mean_strat = sum_strat / runs as f64;
+    let noise = (rms_strat.powi(2) / runs as f64 + (reference.stderr.y as f64).powi(2)).sqrt();
+    assert!(
+        (mean_strat - reference.mean.y as f64).abs() < 4.0 * noise,
+        "stratified mean {mean_strat} against {:?} (noise {noise})",
+        reference
+    );
+    // Far less noisy than independent samples, and the reported standard error bounds it.
+    assert!(
+        rms_strat < 0.5 * rms_random,
+        "RMS error stratified {rms_strat}, random {rms_random}"
+    );
+    let reported = se_strat / runs as f64;
+    assert!(
+        rms_strat < reported,
+        "stratified RMS error {rms_strat} above its reported standard error {reported}"
+    );
+}

@@ -178,13 +178,30 @@ impl Environment {
         (self.eval_uv(u, v), self.pdf_uv(d, u, v))
     }
 
-    /// Importance-samples a direction from two uniform numbers.
+    /// Importance-samples a direction from two uniform numbers (alias table: fast, but
+    /// neighbouring `s` may land far apart).
     #[inline]
     pub fn sample(&self, s: Vec2) -> Option<LightSample> {
+        self.sample_from(s, false)
+    }
+
+    /// [`Self::sample`] through the inverse cdfs, monotone in `s`: stratified numbers give
+    /// stratified directions.
+    #[inline]
+    pub fn sample_monotone(&self, s: Vec2) -> Option<LightSample> {
+        self.sample_from(s, true)
+    }
+
+    #[inline]
+    fn sample_from(&self, s: Vec2, monotone: bool) -> Option<LightSample> {
         if !self.nonzero {
             return None;
         }
-        let (uv, pdf_uv) = self.dist.sample(s);
+        let (uv, pdf_uv) = if monotone {
+            self.dist.sample_inverse_cdf(s)
+        } else {
+            self.dist.sample(s)
+        };
         let wi = latlong::uv_to_direction(uv.x, uv.y);
         let sin_t = (PI * uv.y).sin();
         if !(pdf_uv > 0.0) || !(sin_t > 0.0) {

@@ -6,6 +6,8 @@
 //!   [0, 1)^2 (marginal over rows, conditional over columns), as in pbrt-v4.
 //! - [`sample_cone`]: uniform directions in a cone, accurate for tiny cones (the sun).
 //! - [`power_heuristic`]: MIS weight (beta = 2).
+//! - [`shifted_hammersley`] / [`jittered`]: stratified sets in random order, for the first
+//!   vertex of the solver's estimates (`PathTracer::lo_estimate_stratified`).
 
 use glam::{Vec2, Vec3};
 use igi_brdf::Frame;
@@ -55,6 +57,59 @@ impl Rng {
     pub fn uniform2(&mut self) -> Vec2 {
         let a = self.uniform();
         Vec2::new(a, self.uniform())
+    }
+}
+
+/// `n` points of [0, 1)^2 spread evenly, in random order: the Hammersley set (`x = (i + 1/2) /
+/// n`, `y` the base-2 radical inverse of `i`) under one random toroidal shift, shuffled. Each
+/// point alone is uniform; together they fill every one of `n` columns once, and every one of
+/// `n` rows once when `n` is a power of two.
+pub fn shifted_hammersley(n: usize, rng: &mut Rng) -> Vec<Vec2> {
+    let shift = rng.uniform2();
+    let mut v: Vec<Vec2> = (0..n)
+        .map(|i| {
+            let p = Vec2::new((i as f32 + 0.5) / n as f32, radical_inverse_2(i as u32));
+            Vec2::new(wrap_unit(p.x + shift.x), wrap_unit(p.y + shift.y))
+        })
+        .collect();
+    shuffle(&mut v, rng);
+    v
+}
+
+/// `n` numbers of [0, 1), one uniform in each of `n` equal strata, in random order.
+pub fn jittered(n: usize, rng: &mut Rng) -> Vec<f32> {
+    let mut v: Vec<f32> = (0..n)
+        .map(|i| ((i as f32 + rng.uniform()) / n as f32).min(ONE_MINUS_EPSILON))
+        .collect();
+    shuffle(&mut v, rng);
+    v
+}
+
+/// The largest f32 below 1.
+const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
+
+/// Base-2 radical inverse of `i` (van der Corput), in [0, 1), 24 bits.
+#[inline]
+fn radical_inverse_2(i: u32) -> f32 {
+    (i.reverse_bits() >> 8) as f32 * (1.0 / 16_777_216.0)
+}
+
+/// `x` modulo 1, kept below 1.
+#[inline]
+fn wrap_unit(x: f32) -> f32 {
+    let f = x - x.floor();
+    if f < 1.0 {
+        f
+    } else {
+        0.0
+    }
+}
+
+/// Fisher-Yates shuffle drawing from `rng`.
+fn shuffle<T>(v: &mut [T], rng: &mut Rng) {
+    for i in (1..v.len()).rev() {
+        let j = ((rng.next_u32() as u64 * (i as u64 + 1)) >> 32) as usize;
+        v.swap(i, j);
     }
 }
 
@@ -249,6 +304,16 @@ impl Distribution2D {
         (Vec2::new(u, v), pdf_v * pdf_u)
     }
 
+    /// Samples (u, v) by inverting the marginal and conditional cdfs: monotone in each
+    /// coordinate of `s`, so stratified `s` stay stratified (O(log n) against the alias
+    /// table's O(1)).
+    #[inline]
+    pub fn sample_inverse_cdf(&self, s: Vec2) -> (Vec2, f32) {
+        let (v, pdf_v, row) = self.marginal.sample_inverse_cdf(s.y);
+        let (u, pdf_u, _) = self.conditional[row].sample_inverse_cdf(s.x);
+        (Vec2::new(u, v), pdf_v * pdf_u)
+    }
+
     /// Density w.r.t. du dv at (u, v).
     #[inline]
     pub fn pdf(&self, uv: Vec2) -> f32 {
@@ -321,6 +386,53 @@ mod tests {
         state = state.wrapping_add(h);
         next(&mut state);
         (0..n).map(|_| next(&mut state)).collect()
+    }
+
+    #[test]
+    fn stratified_sets_fill_every_stratum_once_and_differ_per_stream() {
+        for n in [1usize, 16, 64, 100, 128] {
+            let mut rng = Rng::new(3, n as u64);
+            let pts = shifted_hammersley(n, &mut rng);
+            let once = |coord: &dyn Fn(&Vec2) -> f32| {
+                let mut count = vec![0u32; n];
+                for p in &pts {
+                    let c = coord(p);
+                    assert!((0.0..1.0).contains(&c), "{c}");
+                    count[((c * n as f32) as usize).min(n - 1)] += 1;
+                }
+                count
+            };
+            // x: the shift moves the column grid, so each column holds one point, up to a
+            // rounding at a stratum's edge for counts that are not powers of two.
+            let cols = once(&|p| p.x);
+            assert!(cols.iter().all(|&c| c <= 2), "n {n}: {cols:?}");
+            assert!(
+                cols.iter().filter(|&&c| c == 1).count() + 2 >= n,
+                "n {n}: {cols:?}"
+            );
+            if n.is_power_of_two() {
+                let rows = once(&|p| p.y);
+                assert!(rows.iter().all(|&c| c <= 2), "n {n}: {rows:?}");
+                assert!(
+                    rows.iter().filter(|&&c| c == 1).count() + 2 >= n,
+                    "n {n}: {rows:?}"
+                );
+            }
+            let j = jittered(n, &mut rng);
+            let mut strata: Vec<usize> = j.iter().map(|x| (x * n as f32) as usize).collect();
+            strata.sort_unstable();
+            assert_eq!(strata, (0..n).collect::<Vec<_>>());
+        }
+        // another stream: another shift and order
+        let a = shifted_hammersley(64, &mut Rng::new(1, 0));
+        let b = shifted_hammersley(64, &mut Rng::new(1, 1));
+        assert_ne!(a, b);
+        // each point alone is uniform: the mean of many sets' first points is 1/2
+        let m = (0..4000)
+            .map(|i| shifted_hammersley(8, &mut Rng::new(5, i))[0])
+            .fold(Vec2::ZERO, |a, p| a + p)
+            / 4000.0;
+        assert!((m - Vec2::splat(0.5)).abs().max_element() < 0.02, "{m}");
     }
 
     #[test]
