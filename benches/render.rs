@@ -126,6 +126,7 @@ fn bench(c: &mut Criterion) {
         seed: 1,
         indirect: 2,
         russian_roulette: false,
+        stratified: false,
     };
     let rays_per_render = render_image(&scene, &lighting, &small, &opts, &|_| {})
         .unwrap()

@@ -157,6 +157,7 @@ fn render_photos(truth_scene: &igi_render::Scene) -> Vec<Photo> {
                 seed: 100 + k as u64,
                 indirect: 2,
                 russian_roulette: false,
+                stratified: false,
             };
             let image = render_image(truth_scene, &lighting, &camera, &opts, &|_| {})
                 .unwrap()

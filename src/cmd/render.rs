@@ -30,6 +30,10 @@ pub struct RenderArgs {
     /// Russian roulette on long paths.
     #[arg(long)]
     pub rr: bool,
+    /// Stratify each pixel's samples (pixel position, first light and bounce): far less noise
+    /// for the same samples; --stderr then bounds the error from above instead of estimating it.
+    #[arg(long)]
+    pub stratified: bool,
     /// Output image: .exr (f32), .hdr (RGBE) or .png (sRGB preview).
     #[arg(short, long)]
     pub output: PathBuf,
@@ -125,6 +129,7 @@ pub fn run(a: RenderArgs, ctx: &Ctx) -> anyhow::Result<()> {
         seed: a.seed,
         indirect: a.indirect,
         russian_roulette: a.rr,
+        stratified: a.stratified,
     };
     let pb = ctx.progress(camera.height as u64, "render");
     let t1 = Instant::now();

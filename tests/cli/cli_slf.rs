@@ -84,6 +84,7 @@ fn shoot(scene: &Scene, lighting: &Lighting, dir: Vec3, spp: u32, seed: u64) -> 
         seed,
         indirect: 1,
         russian_roulette: false,
+        stratified: false,
     };
     let img = render_image(scene, lighting, &cam, &opts, &|_| {})
         .unwrap()

@@ -362,6 +362,7 @@ mod tests {
             seed: 3,
             indirect: 0,
             russian_roulette: false,
+            stratified: false,
         };
         let image = render_image(&scene, &lighting, &camera, &opts, &|_| {})
             .unwrap()

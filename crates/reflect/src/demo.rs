@@ -62,12 +62,12 @@ impl Default for DemoOptions {
             seed: 7,
             atlas: 128,
             atlas_auto_max: None,
-            photo_width: 240,
-            photo_height: 160,
-            photo_spp: 256,
+            photo_width: 480,
+            photo_height: 320,
+            photo_spp: 64,
             solve_spp: vec![16, 64, 128],
             iterations: 3,
-            relight_spp: 128,
+            relight_spp: 32,
             deblur: 4,
         }
     }
@@ -241,6 +241,8 @@ pub fn run_demo(
         &recorded,
         &shots,
         opts.photo_spp,
+        // the simulation's Monte-Carlo noise is not a camera's: as little of it as the samples allow
+        true,
         opts.seed,
         &|_, _| progress.advance(1),
     )?;
@@ -433,6 +435,7 @@ fn relight_held_out(
         seed: opts.seed ^ 0xABCD,
         indirect: 2,
         russian_roulette: false,
+        stratified: false,
     };
     let recovered = scene_with_albedo(&solved.result.parts, &solved.result.rho)?;
     let relit = render_image(&recovered, &lighting, &cam, &ropts, &|_| {})?;

@@ -911,6 +911,8 @@ impl PhotoPass<'_> {
             seed: self.opts.seed,
             indirect: self.opts.indirect,
             russian_roulette: false,
+            // the first vertex's light and bounce numbers spread evenly over the samples
+            stratified: true,
         };
         let pt = PathTracer::new(self.scene, &self.photo.lighting, &render_opts);
         let chunk = 4096;
@@ -1066,7 +1068,7 @@ impl PhotoPass<'_> {
         );
         let mut rng = Rng::new(stream, self.offset + gi);
         (
-            pt.lo_estimate_stratified(&sp, wo, Some(brdf), self.spp, &mut rng),
+            pt.lo_estimate(&sp, wo, Some(brdf), self.spp, &mut rng),
             rho_eval,
         )
     }

@@ -211,7 +211,8 @@ pub struct ShotSpec {
 /// Writes a complete survey folder: `geometry/NAME.ply` per part (the atlas meshes; for the parts
 /// of a prepared site the survey names the site instead), `truth/`
 /// (true albedo atlases and `scene.toml`), `lighting/`, `cameras/`, `photos/` (path-traced at
-/// `spp`) and `survey.toml`. Photos are rendered under `lightings`; the survey's lighting files
+/// `spp`, with stratified samples when `stratified`: less noise, docs/RENDER.md) and
+/// `survey.toml`. Photos are rendered under `lightings`; the survey's lighting files
 /// are `recorded` (for example what probe captures recovered of the same skies, as in a real
 /// survey; pass `lightings` again to record the truth). `progress(i, n)` is called before each
 /// photo.
@@ -224,6 +225,7 @@ pub fn write_survey(
     recorded: &[LightingSpec],
     shots: &[ShotSpec],
     spp: u32,
+    stratified: bool,
     seed: u64,
     progress: &dyn Fn(usize, usize),
 ) -> Result<(), ReflectError> {
@@ -258,6 +260,7 @@ pub fn write_survey(
         lit: write_lightings(dir, lightings, recorded)?,
         recorded,
         spp,
+        stratified,
         seed,
     };
     for (i, s) in shots.iter().enumerate() {
@@ -336,6 +339,7 @@ struct Shoot<'a> {
     /// The lightings the survey records.
     recorded: &'a [LightingSpec],
     spp: u32,
+    stratified: bool,
     seed: u64,
 }
 
@@ -354,6 +358,7 @@ impl Shoot<'_> {
             seed: self.seed.wrapping_add(i as u64 * 7919),
             indirect: 2,
             russian_roulette: false,
+            stratified: self.stratified,
         };
         let out = render_image(self.scene, &self.lit[s.lighting], &s.camera, &opts, &|_| {})?;
         let dir = self.dir;

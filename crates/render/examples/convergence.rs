@@ -35,6 +35,7 @@ fn main() {
             seed: 7,
             indirect: 2,
             russian_roulette: false,
+            stratified: false,
         };
         let t = Instant::now();
         let out = render_image(&scene, &lighting, &camera, &opts, &|_| {}).unwrap();

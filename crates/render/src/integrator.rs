@@ -26,6 +26,11 @@ pub struct RenderOptions {
     pub indirect: u32,
     /// Russian roulette from the third vertex on (unbiased; shortens long paths).
     pub russian_roulette: bool,
+    /// Stratify each pixel's (or query's) samples: the pixel position and the first vertex's
+    /// light and BSDF numbers are spread evenly over the samples instead of drawn independently
+    /// (unbiased, far less noise for the same samples, docs/RENDER.md). The standard error is
+    /// then an upper bound, so validation against a reference's noise keeps it off.
+    pub stratified: bool,
 }
 
 impl Default for RenderOptions {
@@ -35,6 +40,7 @@ impl Default for RenderOptions {
             seed: 0,
             indirect: 2,
             russian_roulette: false,
+            stratified: false,
         }
     }
 }
@@ -200,6 +206,7 @@ pub struct PathTracer<'a> {
     /// Number of vertices that receive direct light: K + 1.
     max_vertices: u32,
     rr: bool,
+    stratified: bool,
 }
 
 impl<'a> PathTracer<'a> {
@@ -209,11 +216,16 @@ impl<'a> PathTracer<'a> {
             lighting,
             max_vertices: opts.indirect.saturating_add(1),
             rr: opts.russian_roulette,
+            stratified: opts.stratified,
         }
     }
 
     /// Mean and standard error of `spp` samples of [`lo`](Self::lo) (a non-finite sample counts
-    /// as zero), drawn from `rng`.
+    /// as zero), drawn from `rng`. With [`RenderOptions::stratified`] the first vertex's numbers
+    /// are stratified across the samples ([`FirstVertexSamples`]): the direct light and the
+    /// first bounce, most of the variance of a surface lit by the sky, converge faster than
+    /// `1 / sqrt(spp)`; deeper vertices draw from `rng`. The standard error is still the
+    /// samples' spread over `sqrt(spp)`, which stratification makes an upper bound.
     pub fn lo_estimate(
         &self,
         sp: &SurfacePoint,
@@ -222,33 +234,14 @@ impl<'a> PathTracer<'a> {
         spp: u32,
         rng: &mut Rng,
     ) -> Estimate {
-        let mut acc = Accumulator::default();
-        let mut rays = 0;
-        for _ in 0..spp {
-            let v = self.lo(sp, wo, first_brdf, rng, &mut rays);
-            acc.add(if v.is_finite() { v } else { Vec3::ZERO });
-        }
-        acc.estimate()
-    }
-
-    /// [`Self::lo_estimate`] with the first vertex's random numbers stratified across the
-    /// `spp` samples ([`FirstVertexSamples`]): the direct light and the first bounce, most of
-    /// the variance of a surface lit by the sky, converge faster than `1 / sqrt(spp)`; deeper
-    /// vertices draw from `rng`. The standard error is still the samples' spread over
-    /// `sqrt(spp)`, which stratification makes an upper bound (docs/RENDER.md).
-    pub fn lo_estimate_stratified(
-        &self,
-        sp: &SurfacePoint,
-        wo: Vec3,
-        first_brdf: Option<LafortuneRef<'_>>,
-        spp: u32,
-        rng: &mut Rng,
-    ) -> Estimate {
-        let first = FirstVertexSamples::new(spp as usize, rng);
+        let first = self
+            .stratified
+            .then(|| FirstVertexSamples::new(spp as usize, rng));
         let mut acc = Accumulator::default();
         let mut rays = 0;
         for j in 0..spp as usize {
-            let v = self.lo_from(sp, wo, first_brdf, Some(first.get(j)), rng, &mut rays);
+            let given = first.as_ref().map(|f| f.get(j));
+            let v = self.lo_from(sp, wo, first_brdf, given, rng, &mut rays);
             acc.add(if v.is_finite() { v } else { Vec3::ZERO });
         }
         acc.estimate()
@@ -258,12 +251,25 @@ impl<'a> PathTracer<'a> {
     /// see the environment and the sun disk.
     #[inline]
     pub fn li(&self, origin: Vec3, dir: Vec3, rng: &mut Rng, rays: &mut u64) -> Vec3 {
+        self.li_from(origin, dir, None, rng, rays)
+    }
+
+    /// [`Self::li`] with the first vertex's random numbers given (`first`) instead of drawn.
+    #[inline]
+    fn li_from(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        first: Option<FirstVertex>,
+        rng: &mut Rng,
+        rays: &mut u64,
+    ) -> Vec3 {
         *rays += 1;
         match self.scene.intersect(origin, dir) {
             None => self.lighting.escaped(dir),
             Some(h) => {
                 let sp = self.scene.surface_point(&h);
-                self.lo(&sp, -dir, None, rng, rays)
+                self.lo_from(&sp, -dir, None, first, rng, rays)
             }
         }
     }
@@ -489,15 +495,23 @@ pub fn render_image(
             for x in 0..w {
                 let mut rng = Rng::new(opts.seed, (y * w + x) as u64);
                 let mut acc = Accumulator::default();
-                for _ in 0..opts.spp {
-                    let jitter = rng.uniform2();
+                let spp = opts.spp as usize;
+                let strata = opts.stratified.then(|| {
+                    let jitter = shifted_hammersley(spp, &mut rng);
+                    (jitter, FirstVertexSamples::new(spp, &mut rng))
+                });
+                for j in 0..spp {
+                    let (jitter, first) = match &strata {
+                        Some((jitter, first)) => (jitter[j], Some(first.get(j))),
+                        None => (rng.uniform2(), None),
+                    };
                     let (o, d) = camera.pixel_ray(
                         x as f64 - 0.5 + jitter.x as f64,
                         y as f64 - 0.5 + jitter.y as f64,
                     );
                     let (o, d) = (o.as_vec3(), d.as_vec3());
                     let mut v = if o.is_finite() && d.is_finite() && d != Vec3::ZERO {
-                        pt.li(o, d, &mut rng, &mut rays)
+                        pt.li_from(o, d, first, &mut rng, &mut rays)
                     } else {
                         Vec3::ZERO
                     };

@@ -7,7 +7,7 @@ use crate::scene::{Material, Scene, SurfacePoint};
 use glam::{DMat3, DVec3, Vec2, Vec3};
 use igi_brdf::{LafortuneRef, Lobe};
 use igi_geometry::TriMesh;
-use igi_imaging::{Camera, WorldToCamera};
+use igi_imaging::{Camera, HdrImage, WorldToCamera};
 use std::f32::consts::PI;
 
 pub(crate) fn quad(z: f32, half: f32) -> TriMesh {
@@ -152,6 +152,7 @@ fn white_furnace_sphere_under_uniform_sky() {
         seed: 1,
         indirect: 2,
         russian_roulette: false,
+        stratified: false,
     };
     let out = render_image(&scene, &lighting, &cam, &opts, &|_| {}).unwrap();
     assert_eq!(out.bad_samples, 0);
@@ -198,6 +199,7 @@ fn white_furnace_concave_scene_with_many_bounces() {
         seed: 3,
         indirect: 1000,
         russian_roulette: true,
+        stratified: false,
     };
     let est = radiance_toward(&scene, &lighting, &points, &targets, &opts).unwrap();
     for e in &est {
@@ -208,6 +210,7 @@ fn white_furnace_concave_scene_with_many_bounces() {
     let opts0 = RenderOptions {
         indirect: 0,
         russian_roulette: false,
+        stratified: false,
         ..opts
     };
     let est0 = radiance_toward(&scene, &lighting, &points[..1], &targets[..1], &opts0).unwrap();
@@ -365,6 +368,7 @@ fn bright_sun_over_dim_sky_has_no_fireflies_and_noise_falls_as_one_over_spp() {
                 seed,
                 indirect: 2,
                 russian_roulette: false,
+                stratified: false,
             },
             &|_| {},
         )
@@ -463,6 +467,7 @@ fn no_nan_for_grazing_views_zero_albedo_degenerate_triangles_and_extreme_lobes()
             seed: 5,
             indirect: 3,
             russian_roulette: true,
+            stratified: false,
         },
         &|_| {},
     )
@@ -608,6 +613,14 @@ fn stratified_first_vertex_is_unbiased_and_far_less_noisy_beside_an_occluder() {
         sun: Some(sun_from_zenith(50.0, 2.0e3)),
     };
     let pt = PathTracer::new(&scene, &lighting, &RenderOptions::default());
+    let strat = PathTracer::new(
+        &scene,
+        &lighting,
+        &RenderOptions {
+            stratified: true,
+            ..Default::default()
+        },
+    );
     let sp = pt_on(&scene, Vec3::new(0.2, 0.3, 0.0));
     let wo = Vec3::new(-0.3, 0.1, 1.0).normalize();
     let reference = pt.lo_estimate(&sp, wo, None, 1 << 18, &mut crate::sampling::Rng::new(9, 0));
@@ -617,7 +630,7 @@ fn stratified_first_vertex_is_unbiased_and_far_less_noisy_beside_an_occluder() {
     let (mut sq_random, mut sq_strat, mut sum_strat, mut se_strat) = (0.0, 0.0, 0.0, 0.0);
     for i in 0..runs {
         let r = pt.lo_estimate(&sp, wo, None, spp, &mut crate::sampling::Rng::new(1, i));
-        let s = pt.lo_estimate_stratified(&sp, wo, None, spp, &mut crate::sampling::Rng::new(2, i));
+        let s = strat.lo_estimate(&sp, wo, None, spp, &mut crate::sampling::Rng::new(2, i));
         assert!(s.mean.is_finite() && s.stderr.is_finite());
         sq_random += ((r.mean.y - reference.mean.y) as f64).powi(2);
         sq_strat += ((s.mean.y - reference.mean.y) as f64).powi(2);
@@ -643,5 +656,79 @@ fn stratified_first_vertex_is_unbiased_and_far_less_noisy_beside_an_occluder() {
     assert!(
         rms_strat < reported,
         "stratified RMS error {rms_strat} above its reported standard error {reported}"
+    );
+}
+
+#[test]
+fn stratified_renders_are_unbiased_less_noisy_and_their_stderr_bounds_the_noise() {
+    let scene = Scene::new(vec![
+        (
+            "ground".into(),
+            quad(0.0, 20.0),
+            Material::lambertian(Vec3::splat(0.3)),
+        ),
+        (
+            "box".into(),
+            cube(Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 1.5)),
+            Material::lambertian(Vec3::splat(0.6)),
+        ),
+    ])
+    .unwrap();
+    let lighting = Lighting {
+        environment: Some(Environment::constant(Vec3::ONE)),
+        sun: Some(sun_from_zenith(35.0, 1.0e4)),
+    };
+    let cam = down_camera(Vec3::new(0.0, 0.0, 8.0), 24, 24, 12.0);
+    let render = |spp: u32, seed: u64, stratified: bool| {
+        let opts = RenderOptions {
+            spp,
+            seed,
+            stratified,
+            ..Default::default()
+        };
+        let out = render_image(&scene, &lighting, &cam, &opts, &|_| {}).unwrap();
+        assert_eq!(out.bad_samples, 0);
+        out
+    };
+    let (s1, s2) = (render(64, 1, true), render(64, 2, true));
+    let (r1, r2) = (render(64, 3, false), render(64, 4, false));
+    let reference = render(4096, 5, false);
+    let g = |img: &HdrImage, i: usize| img.pixels[i][1] as f64;
+    let n = s1.mean.pixels.len();
+    let diff2 = |a: &HdrImage, b: &HdrImage| {
+        (0..n).map(|i| (g(a, i) - g(b, i)).powi(2)).sum::<f64>() / n as f64
+    };
+    // less noisy: the spread between two seeds
+    let (noise_s, noise_r) = (diff2(&s1.mean, &s2.mean), diff2(&r1.mean, &r2.mean));
+    assert!(
+        noise_s < 0.5 * noise_r,
+        "stratified {noise_s}, independent {noise_r}"
+    );
+    // unbiased: against the reference, z-scores with the independent reference's noise and the
+    // stratified images' own measured noise (half the squared seed-to-seed difference)
+    let z2 = (0..n)
+        .map(|i| {
+            let d = 0.5 * (g(&s1.mean, i) + g(&s2.mean, i)) - g(&reference.mean, i);
+            let v = 0.25 * (g(&s1.mean, i) - g(&s2.mean, i)).powi(2)
+                + g(&reference.stderr, i).powi(2)
+                + 1e-12;
+            d * d / v
+        })
+        .sum::<f64>()
+        / n as f64;
+    assert!(z2 < 3.0, "mean squared z against the reference {z2}");
+    let bias = (0..n)
+        .map(|i| 0.5 * (g(&s1.mean, i) + g(&s2.mean, i)) - g(&reference.mean, i))
+        .sum::<f64>()
+        / (0..n).map(|i| g(&reference.mean, i)).sum::<f64>();
+    assert!(bias.abs() < 0.003, "relative bias {bias}");
+    // the reported standard error bounds the seed-to-seed noise from above
+    let reported = (0..n)
+        .map(|i| g(&s1.stderr, i).powi(2) + g(&s2.stderr, i).powi(2))
+        .sum::<f64>()
+        / n as f64;
+    assert!(
+        noise_s <= reported,
+        "noise {noise_s} above reported {reported}"
     );
 }

@@ -123,6 +123,9 @@ pub struct Distribution1D {
     cdf: Vec<f32>,
     /// Walker/Vose alias table: (probability of keeping cell i, alias of cell i).
     alias: Vec<(f32, u32)>,
+    /// Guide table of the cdf (Chen and Asau's cutpoints): `guide[k]` is the last cell whose
+    /// cdf is at most `k / n`, where [`Self::sample_inverse_cdf`] starts its search.
+    guide: Vec<u32>,
     /// Integral of `func` over [0, 1] (= mean of func).
     integral: f64,
 }
@@ -162,11 +165,13 @@ impl Distribution1D {
             })
             .collect();
         let alias = build_alias(&func, integral * n as f64);
+        let guide = build_guide(&cdf);
         Distribution1D {
             func,
             pdf,
             cdf,
             alias,
+            guide,
             integral,
         }
     }
@@ -216,13 +221,19 @@ impl Distribution1D {
         (x, self.pdf[i], i)
     }
 
-    /// Samples x in [0, 1) by inverting the cdf (monotone in `u`, O(log n)).
+    /// Samples x in [0, 1) by inverting the cdf (monotone in `u`; O(1) on average through the
+    /// guide table).
+    #[inline]
     pub fn sample_inverse_cdf(&self, u: f32) -> (f32, f32, usize) {
         let n = self.func.len();
-        let mut i = self.cdf[..n]
-            .partition_point(|&c| c <= u)
-            .saturating_sub(1)
-            .min(n - 1);
+        // the last cell whose cdf is at most u: at or after the guide's cell for u's bucket
+        let mut i = self.guide[((u * n as f32) as usize).min(n - 1)] as usize;
+        while i > 0 && self.cdf[i] > u {
+            i -= 1; // u * n rounded up to the next bucket
+        }
+        while i + 1 < n && self.cdf[i + 1] <= u {
+            i += 1;
+        }
         // Skip zero-probability cells (u landed exactly on a flat stretch of the cdf).
         while i + 1 < n && self.cdf[i + 1] <= self.cdf[i] {
             i += 1;
@@ -239,6 +250,21 @@ impl Distribution1D {
         let x = ((i as f32 + du) / n as f32).min(1.0 - f32::EPSILON * 0.5);
         (x, self.pdf_cell(i), i)
     }
+}
+
+/// `guide[k]` = the last cell `i < n` with `cdf[i] <= k / n` (`cdf` has `n + 1` entries).
+fn build_guide(cdf: &[f32]) -> Vec<u32> {
+    let n = cdf.len() - 1;
+    let mut i = 0;
+    (0..n)
+        .map(|k| {
+            let t = k as f32 / n as f32;
+            while i + 1 < n && cdf[i + 1] <= t {
+                i += 1;
+            }
+            i as u32
+        })
+        .collect()
 }
 
 /// Vose's alias table for non-negative weights `func` whose sum is `total`.
@@ -386,6 +412,53 @@ mod tests {
         state = state.wrapping_add(h);
         next(&mut state);
         (0..n).map(|_| next(&mut state)).collect()
+    }
+
+    #[test]
+    fn guided_inverse_cdf_finds_the_cell_a_binary_search_finds() {
+        let mut rng = Rng::new(11, 0);
+        for (len, zeros) in [
+            (1usize, false),
+            (7, true),
+            (64, false),
+            (129, true),
+            (1000, true),
+        ] {
+            let func: Vec<f32> = (0..len)
+                .map(|i| {
+                    let f = rng.uniform() * rng.uniform() * 10.0;
+                    if zeros && (i % 5 == 1 || i > len * 2 / 3) {
+                        0.0
+                    } else {
+                        f
+                    }
+                })
+                .collect();
+            let d = Distribution1D::new(&func);
+            let edges: Vec<f32> = d
+                .cdf
+                .iter()
+                .flat_map(|&c| [c, c.next_down(), c.next_up()])
+                .collect();
+            let us = (0..5000)
+                .map(|_| rng.uniform())
+                .chain(edges.into_iter().filter(|u| (0.0..1.0).contains(u)));
+            for u in us {
+                let n = d.len();
+                let expect = d.cdf[..n]
+                    .partition_point(|&c| c <= u)
+                    .saturating_sub(1)
+                    .min(n - 1);
+                let (_, _, got) = d.sample_inverse_cdf(u);
+                // the search may step off a zero-probability cell it landed on; compare where both
+                // land on a cell of positive probability
+                if d.pdf_cell(expect) > 0.0 {
+                    assert_eq!(got, expect, "len {len}, u {u}");
+                } else {
+                    assert!(d.pdf_cell(got) > 0.0, "len {len}, u {u}: zero cell {got}");
+                }
+            }
+        }
     }
 
     #[test]

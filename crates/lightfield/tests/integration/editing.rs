@@ -85,6 +85,7 @@ impl Setup {
             seed,
             indirect: 1,
             russian_roulette: false,
+            stratified: false,
         };
         let img = render_image(&scene, &self.lighting, &cam, &opts, &|_| {})
             .unwrap()

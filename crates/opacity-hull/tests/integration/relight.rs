@@ -127,6 +127,7 @@ fn shoot(scene: &Scene, lighting: &Lighting, cam: &Camera, spp: u32, seed: u64) 
         seed,
         indirect: 0,
         russian_roulette: false,
+        stratified: false,
     };
     render_image(scene, lighting, cam, &opts, &|_| {})
         .unwrap()

@@ -162,6 +162,7 @@ fn capture(scene: &Scene, cam: &Camera, lighting: &Lighting) -> Capture {
         seed: 5,
         indirect: 1,
         russian_roulette: false,
+        stratified: false,
     };
     let pt = PathTracer::new(scene, lighting, &opts);
     let (w, h) = (W as usize, H as usize);

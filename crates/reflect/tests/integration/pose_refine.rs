@@ -162,6 +162,7 @@ fn photo_three_ways(
         seed: 40 + i as u64,
         indirect: 2,
         russian_roulette: false,
+        stratified: false,
     };
     let image = render_image(scene, &lighting, &camera, &opts, &|_| {})
         .unwrap()

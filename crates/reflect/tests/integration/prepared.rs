@@ -91,6 +91,7 @@ fn colonnade(dir: &Path) -> Colonnade {
         &lightings,
         &shots,
         128,
+        false,
         5,
         &|_, _| {},
     )

@@ -179,6 +179,7 @@ fn write_clean_survey(dir: &Path, res: u32, (w, h): (usize, usize)) -> Vec<ShotS
         &lightings,
         &shots,
         128,
+        false,
         11,
         &|_, _| {},
     )

@@ -96,6 +96,7 @@ fn write_synthetic_survey(dir: &std::path::Path) {
         &lightings,
         &shots,
         256,
+        false,
         11,
         &|_, _| {},
     )
@@ -433,6 +434,7 @@ fn glossy_photos(truth_scene: &igi_render::Scene) -> Vec<igi_reflect::survey::Ph
                 seed: 40 + (2 * k + li) as u64,
                 indirect: 2,
                 russian_roulette: false,
+                stratified: false,
             };
             let image = render_image(truth_scene, &lighting, &camera, &opts, &|_| {})
                 .unwrap()
