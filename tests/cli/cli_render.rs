@@ -233,3 +233,85 @@ fn bad_inputs_give_clear_errors() {
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("camera.json"));
 }
+
+/// `igi render --stratified` under a graded sky and the sun: the same image on average, with far
+/// less noise between seeds than independent samples at the same `spp`, and a standard error
+/// that bounds that noise from above.
+#[test]
+fn stratified_render_is_the_same_image_with_less_noise() {
+    let dir = tempfile::tempdir().unwrap();
+    write_scene(dir.path(), true);
+    let mut sky = igi_imaging::HdrImage::new(16, 8);
+    for y in 0..8 {
+        for x in 0..16 {
+            let l = if y < 4 {
+                0.5 + 3.0 * x as f32 / 16.0
+            } else {
+                0.0
+            };
+            sky.set(x, y, [l, l, l]);
+        }
+    }
+    igi_imaging::write_exr(&dir.path().join("lighting/sky.exr"), &sky).unwrap();
+    let sun = std::fs::read_to_string(dir.path().join("lighting/sun.toml")).unwrap();
+    std::fs::write(
+        dir.path().join("lighting/sun.toml"),
+        format!("[environment]\nmap = \"sky.exr\"\n\n{sun}"),
+    )
+    .unwrap();
+    let render = |seed: &str, spp: &str, stratified: bool| {
+        let out = dir.path().join(format!("r{seed}_{stratified}.exr"));
+        let se = dir.path().join(format!("r{seed}_{stratified}_se.exr"));
+        let mut cmd = igi();
+        cmd.args(["-q", "render"])
+            .arg(dir.path().join("scene.toml"))
+            .arg("--camera")
+            .arg(dir.path().join("camera.json"))
+            .args(["--spp", spp, "--seed", seed, "--stderr"])
+            .arg(&se)
+            .arg("-o")
+            .arg(&out);
+        if stratified {
+            cmd.arg("--stratified");
+        }
+        let st = cmd.output().unwrap();
+        assert!(
+            st.status.success(),
+            "{}",
+            String::from_utf8_lossy(&st.stderr)
+        );
+        (
+            igi_imaging::read_image(&out).unwrap(),
+            igi_imaging::read_image(&se).unwrap(),
+        )
+    };
+    let spread = |a: &igi_imaging::HdrImage, b: &igi_imaging::HdrImage| {
+        a.pixels
+            .iter()
+            .zip(&b.pixels)
+            .map(|(p, q)| ((p[1] - q[1]) as f64).powi(2))
+            .sum::<f64>()
+            / a.pixels.len() as f64
+    };
+    let mean = |a: &igi_imaging::HdrImage| {
+        a.pixels.iter().map(|p| p[1] as f64).sum::<f64>() / a.pixels.len() as f64
+    };
+    let (s1, se1) = render("1", "16", true);
+    let (s2, se2) = render("2", "16", true);
+    let (r1, _) = render("3", "16", false);
+    let (r2, _) = render("4", "16", false);
+    let (noise_s, noise_r) = (spread(&s1, &s2), spread(&r1, &r2));
+    assert!(
+        noise_s < 0.25 * noise_r,
+        "seed-to-seed squared difference: stratified {noise_s}, independent {noise_r}"
+    );
+    let reported = spread(&se1, &igi_imaging::HdrImage::new(16, 12))
+        + spread(&se2, &igi_imaging::HdrImage::new(16, 12));
+    assert!(noise_s <= reported, "noise {noise_s}, reported {reported}");
+    let (reference, _) = render("5", "1024", false);
+    let (m, m_ref) = (0.5 * (mean(&s1) + mean(&s2)), mean(&reference));
+    assert!(
+        (m - m_ref).abs() < 2e-3 * m_ref,
+        "image mean stratified {m}, reference {m_ref}"
+    );
+}
