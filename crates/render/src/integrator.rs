@@ -222,7 +222,7 @@ impl<'a> PathTracer<'a> {
 
     /// Mean and standard error of `spp` samples of [`lo`](Self::lo) (a non-finite sample counts
     /// as zero), drawn from `rng`. With [`RenderOptions::stratified`] the first vertex's numbers
-    /// are stratified across the samples ([`FirstVertexSamples`]): the direct light and the
+    /// are stratified across the samples (`FirstVertexSamples`): the direct light and the
     /// first bounce, most of the variance of a surface lit by the sky, converge faster than
     /// `1 / sqrt(spp)`; deeper vertices draw from `rng`. The standard error is still the
     /// samples' spread over `sqrt(spp)`, which stratification makes an upper bound.
