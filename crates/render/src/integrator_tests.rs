@@ -116,6 +116,20 @@ pub(crate) fn down_camera(eye: Vec3, w: u32, h: u32, f: f64) -> Camera {
     cam
 }
 
+/// A Lambertian ground quad of half-size `half` (albedo `ground`) with a Lambertian box from
+/// `lo` to `hi` (albedo `box_albedo`) on it.
+fn ground_and_box(half: f32, ground: Vec3, lo: Vec3, hi: Vec3, box_albedo: Vec3) -> Scene {
+    Scene::new(vec![
+        (
+            "ground".into(),
+            quad(0.0, half),
+            Material::lambertian(ground),
+        ),
+        ("box".into(), cube(lo, hi), Material::lambertian(box_albedo)),
+    ])
+    .unwrap()
+}
+
 fn pt_on(scene: &Scene, p: Vec3) -> SurfacePoint {
     scene
         .trace_point(p + Vec3::Z * 1.0, -Vec3::Z)
@@ -175,19 +189,13 @@ fn white_furnace_sphere_under_uniform_sky() {
 #[test]
 fn white_furnace_concave_scene_with_many_bounces() {
     // A unit-albedo ground with a box on it: concave corners need many bounces to reach 1.
-    let scene = Scene::new(vec![
-        (
-            "ground".into(),
-            quad(0.0, 20.0),
-            Material::lambertian(Vec3::ONE),
-        ),
-        (
-            "box".into(),
-            cube(Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 2.0)),
-            Material::lambertian(Vec3::ONE),
-        ),
-    ])
-    .unwrap();
+    let scene = ground_and_box(
+        20.0,
+        Vec3::ONE,
+        Vec3::new(-1.0, -1.0, 0.0),
+        Vec3::new(1.0, 1.0, 2.0),
+        Vec3::ONE,
+    );
     let lighting = Lighting::uniform(Vec3::ONE);
     let points = vec![
         pt_on(&scene, Vec3::new(1.05, 0.0, 0.0)),
@@ -411,19 +419,13 @@ fn bright_sun_over_dim_sky_has_no_fireflies_and_noise_falls_as_one_over_spp() {
 
 #[test]
 fn renders_are_deterministic_per_seed() {
-    let scene = Scene::new(vec![
-        (
-            "ground".into(),
-            quad(0.0, 5.0),
-            Material::lambertian(Vec3::splat(0.5)),
-        ),
-        (
-            "box".into(),
-            cube(Vec3::splat(-0.5), Vec3::splat(0.5)),
-            Material::lambertian(Vec3::splat(0.7)),
-        ),
-    ])
-    .unwrap();
+    let scene = ground_and_box(
+        5.0,
+        Vec3::splat(0.5),
+        Vec3::splat(-0.5),
+        Vec3::splat(0.5),
+        Vec3::splat(0.7),
+    );
     let lighting = Lighting {
         environment: Some(Environment::constant(Vec3::ONE)),
         sun: Some(sun_from_zenith(20.0, 1e3)),
@@ -582,19 +584,13 @@ fn grazing_camera() -> Camera {
 fn stratified_first_vertex_is_unbiased_and_far_less_noisy_beside_an_occluder() {
     // A grey ground beside a box, under a sky brighter toward one horizon plus a sun: the
     // estimate mixes a smooth sky integral, the box's visibility edge and one bounce.
-    let scene = Scene::new(vec![
-        (
-            "ground".into(),
-            quad(0.0, 20.0),
-            Material::lambertian(Vec3::splat(0.4)),
-        ),
-        (
-            "box".into(),
-            cube(Vec3::new(0.5, -1.0, 0.0), Vec3::new(1.5, 1.0, 1.2)),
-            Material::lambertian(Vec3::splat(0.7)),
-        ),
-    ])
-    .unwrap();
+    let scene = ground_and_box(
+        20.0,
+        Vec3::splat(0.4),
+        Vec3::new(0.5, -1.0, 0.0),
+        Vec3::new(1.5, 1.0, 1.2),
+        Vec3::splat(0.7),
+    );
     let (w, h) = (64, 32);
     let sky: Vec<[f32; 3]> = (0..w * h)
         .map(|i| {
@@ -661,19 +657,13 @@ fn stratified_first_vertex_is_unbiased_and_far_less_noisy_beside_an_occluder() {
 
 #[test]
 fn stratified_renders_are_unbiased_less_noisy_and_their_stderr_bounds_the_noise() {
-    let scene = Scene::new(vec![
-        (
-            "ground".into(),
-            quad(0.0, 20.0),
-            Material::lambertian(Vec3::splat(0.3)),
-        ),
-        (
-            "box".into(),
-            cube(Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 1.5)),
-            Material::lambertian(Vec3::splat(0.6)),
-        ),
-    ])
-    .unwrap();
+    let scene = ground_and_box(
+        20.0,
+        Vec3::splat(0.3),
+        Vec3::new(-1.0, -1.0, 0.0),
+        Vec3::new(1.0, 1.0, 1.5),
+        Vec3::splat(0.6),
+    );
     let lighting = Lighting {
         environment: Some(Environment::constant(Vec3::ONE)),
         sun: Some(sun_from_zenith(35.0, 1.0e4)),
