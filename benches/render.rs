@@ -127,6 +127,7 @@ fn bench(c: &mut Criterion) {
         indirect: 2,
         russian_roulette: false,
         stratified: false,
+        adaptive: false,
     };
     let rays_per_render = render_image(&scene, &lighting, &small, &opts, &|_| {})
         .unwrap()

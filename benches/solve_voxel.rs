@@ -158,6 +158,7 @@ fn render_photos(truth_scene: &igi_render::Scene) -> Vec<Photo> {
                 indirect: 2,
                 russian_roulette: false,
                 stratified: false,
+                adaptive: false,
             };
             let image = render_image(truth_scene, &lighting, &camera, &opts, &|_| {})
                 .unwrap()

@@ -244,6 +244,7 @@ fn photograph_of_the_model(parts: &[igi_reflect::Part]) -> (Camera, igi_imaging:
         indirect: 1,
         russian_roulette: false,
         stratified: false,
+        adaptive: false,
     };
     let photo = igi_render::render_image(&scene, &lighting, &truth, &opts, &|_| {})
         .unwrap()

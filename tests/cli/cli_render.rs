@@ -245,13 +245,9 @@ fn bad_inputs_give_clear_errors() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("camera.json"));
 }
 
-/// `igi render --stratified` under a graded sky and the sun: the same image on average, with far
-/// less noise between seeds than independent samples at the same `spp`, and a standard error
-/// that bounds that noise from above.
-#[test]
-fn stratified_render_is_the_same_image_with_less_noise() {
-    let dir = tempfile::tempdir().unwrap();
-    write_scene(dir.path(), true);
+/// The scene of [`write_scene`] (with its occluder) lit by the sun and a graded sky.
+fn write_sky_scene(dir: &Path) {
+    write_scene(dir, true);
     let mut sky = igi_imaging::HdrImage::new(16, 8);
     for y in 0..8 {
         for x in 0..16 {
@@ -263,13 +259,22 @@ fn stratified_render_is_the_same_image_with_less_noise() {
             sky.set(x, y, [l, l, l]);
         }
     }
-    igi_imaging::write_exr(&dir.path().join("lighting/sky.exr"), &sky).unwrap();
-    let sun = std::fs::read_to_string(dir.path().join("lighting/sun.toml")).unwrap();
+    igi_imaging::write_exr(&dir.join("lighting/sky.exr"), &sky).unwrap();
+    let sun = std::fs::read_to_string(dir.join("lighting/sun.toml")).unwrap();
     std::fs::write(
-        dir.path().join("lighting/sun.toml"),
+        dir.join("lighting/sun.toml"),
         format!("[environment]\nmap = \"sky.exr\"\n\n{sun}"),
     )
     .unwrap();
+}
+
+/// `igi render --stratified` under a graded sky and the sun: the same image on average, with far
+/// less noise between seeds than independent samples at the same `spp`, and a standard error
+/// that bounds that noise from above.
+#[test]
+fn stratified_render_is_the_same_image_with_less_noise() {
+    let dir = tempfile::tempdir().unwrap();
+    write_sky_scene(dir.path());
     let render = |seed: &str, spp: &str, stratified: bool| {
         let extra: &[&str] = if stratified { &["--stratified"] } else { &[] };
         let (out, se) = render_cli(
@@ -315,4 +320,37 @@ fn stratified_render_is_the_same_image_with_less_noise() {
         (m - m_ref).abs() < 2e-3 * m_ref,
         "image mean stratified {m}, reference {m_ref}"
     );
+}
+
+/// `igi render --adaptive`: the same image on average (against 1024 independent samples a
+/// pixel); too few samples for its pilot is an error that writes nothing.
+#[test]
+fn adaptive_render_is_the_same_image_and_needs_samples_for_its_pilot() {
+    let dir = tempfile::tempdir().unwrap();
+    write_sky_scene(dir.path());
+    let mean = |p: &Path| {
+        let a = igi_imaging::read_image(p).unwrap();
+        a.pixels.iter().map(|p| p[1] as f64).sum::<f64>() / a.pixels.len() as f64
+    };
+    let (a, _) = render_cli(dir.path(), "32", "1", "adaptive", &["--adaptive"]);
+    let (reference, _) = render_cli(dir.path(), "1024", "2", "reference", &[]);
+    let (m, m_ref) = (mean(&a), mean(&reference));
+    assert!(
+        (m - m_ref).abs() < 4e-3 * m_ref,
+        "image mean adaptive {m}, reference {m_ref}"
+    );
+    let out = dir.path().join("few.exr");
+    let st = igi()
+        .args(["-q", "render"])
+        .arg(dir.path().join("scene.toml"))
+        .arg("--camera")
+        .arg(dir.path().join("camera.json"))
+        .args(["--spp", "8", "--adaptive", "-o"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(!st.status.success());
+    let e = String::from_utf8_lossy(&st.stderr);
+    assert!(e.contains("--adaptive needs --spp 16"), "{e}");
+    assert!(!out.exists());
 }

@@ -85,6 +85,7 @@ fn shoot(scene: &Scene, lighting: &Lighting, dir: Vec3, spp: u32, seed: u64) -> 
         indirect: 1,
         russian_roulette: false,
         stratified: false,
+        adaptive: false,
     };
     let img = render_image(scene, lighting, &cam, &opts, &|_| {})
         .unwrap()

@@ -28,6 +28,7 @@ fn igi_matches_mitsuba_on_the_outdoor_reference() {
         indirect: 2,
         russian_roulette: false,
         stratified: false,
+        adaptive: false,
     };
     let t = std::time::Instant::now();
     let out = render_image(&scene, &lighting, &camera, &opts, &|_| {}).unwrap();

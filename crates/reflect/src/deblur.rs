@@ -363,6 +363,7 @@ mod tests {
             indirect: 0,
             russian_roulette: false,
             stratified: false,
+            adaptive: false,
         };
         let image = render_image(&scene, &lighting, &camera, &opts, &|_| {})
             .unwrap()

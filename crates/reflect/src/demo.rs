@@ -240,10 +240,15 @@ pub fn run_demo(
         &lights,
         &recorded,
         &shots,
-        opts.photo_spp,
-        // the simulation's Monte-Carlo noise is not a camera's: as little of it as the samples allow
-        true,
-        opts.seed,
+        // the simulation's Monte-Carlo noise is not a camera's: as little of it as the samples
+        // allow
+        &RenderOptions {
+            spp: opts.photo_spp,
+            seed: opts.seed,
+            stratified: true,
+            adaptive: true,
+            ..RenderOptions::default()
+        },
         &|_, _| progress.advance(1),
     )?;
     progress.finish();
@@ -436,6 +441,7 @@ fn relight_held_out(
         indirect: 2,
         russian_roulette: false,
         stratified: false,
+        adaptive: false,
     };
     let recovered = scene_with_albedo(&solved.result.parts, &solved.result.rho)?;
     let relit = render_image(&recovered, &lighting, &cam, &ropts, &|_| {})?;

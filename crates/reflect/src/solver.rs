@@ -913,6 +913,7 @@ impl PhotoPass<'_> {
             russian_roulette: false,
             // the first vertex's light and bounce numbers spread evenly over the samples
             stratified: true,
+            adaptive: false,
         };
         let pt = PathTracer::new(self.scene, &self.photo.lighting, &render_opts);
         let chunk = 4096;

@@ -210,9 +210,9 @@ pub struct ShotSpec {
 
 /// Writes a complete survey folder: `geometry/NAME.ply` per part (the atlas meshes; for the parts
 /// of a prepared site the survey names the site instead), `truth/`
-/// (true albedo atlases and `scene.toml`), `lighting/`, `cameras/`, `photos/` (path-traced at
-/// `spp`, with stratified samples when `stratified`: less noise, docs/RENDER.md) and
-/// `survey.toml`. Photos are rendered under `lightings`; the survey's lighting files
+/// (true albedo atlases and `scene.toml`), `lighting/`, `cameras/`, `photos/` (path-traced with
+/// `render`, photograph `i` with its seed plus `7919 i`; stratified and adaptive sampling take
+/// noise out, docs/RENDER.md) and `survey.toml`. Photos are rendered under `lightings`; the survey's lighting files
 /// are `recorded` (for example what probe captures recovered of the same skies, as in a real
 /// survey; pass `lightings` again to record the truth). `progress(i, n)` is called before each
 /// photo.
@@ -224,9 +224,7 @@ pub fn write_survey(
     lightings: &[LightingSpec],
     recorded: &[LightingSpec],
     shots: &[ShotSpec],
-    spp: u32,
-    stratified: bool,
-    seed: u64,
+    render: &RenderOptions,
     progress: &dyn Fn(usize, usize),
 ) -> Result<(), ReflectError> {
     for sub in ["geometry", "truth", "lighting", "cameras", "photos"] {
@@ -259,9 +257,7 @@ pub fn write_survey(
         scene: &scene,
         lit: write_lightings(dir, lightings, recorded)?,
         recorded,
-        spp,
-        stratified,
-        seed,
+        render,
     };
     for (i, s) in shots.iter().enumerate() {
         progress(i, shots.len());
@@ -338,9 +334,8 @@ struct Shoot<'a> {
     lit: Vec<Lighting>,
     /// The lightings the survey records.
     recorded: &'a [LightingSpec],
-    spp: u32,
-    stratified: bool,
-    seed: u64,
+    /// Photograph `i` is rendered with these options, its seed plus `7919 i`.
+    render: &'a RenderOptions,
 }
 
 impl Shoot<'_> {
@@ -354,11 +349,8 @@ impl Shoot<'_> {
                 lighting: s.lighting,
             })?;
         let opts = RenderOptions {
-            spp: self.spp,
-            seed: self.seed.wrapping_add(i as u64 * 7919),
-            indirect: 2,
-            russian_roulette: false,
-            stratified: self.stratified,
+            seed: self.render.seed.wrapping_add(i as u64 * 7919),
+            ..*self.render
         };
         let out = render_image(self.scene, &self.lit[s.lighting], &s.camera, &opts, &|_| {})?;
         let dir = self.dir;

@@ -36,6 +36,7 @@ fn main() {
             indirect: 2,
             russian_roulette: false,
             stratified: false,
+            adaptive: false,
         };
         let t = Instant::now();
         let out = render_image(&scene, &lighting, &camera, &opts, &|_| {}).unwrap();

@@ -6,8 +6,9 @@
 //! of x1 .. x_{K+1} gets direct light (a sun sample, an environment sample, and the BSDF-sampled
 //! ray that escapes to the sky); the path continues by BSDF sampling from x1 .. x_K.
 
+use crate::adaptive::{self, PilotPixel};
 use crate::lighting::{Environment, LightSample, Lighting, Sun};
-use crate::sampling::{jittered, power_heuristic, shifted_hammersley, Rng};
+use crate::sampling::{hash2, jittered, power_heuristic, shifted_hammersley, Rng};
 use crate::scene::{Scene, SurfacePoint};
 use crate::RenderError;
 use glam::{DVec3, Vec2, Vec3};
@@ -31,6 +32,12 @@ pub struct RenderOptions {
     /// (unbiased, far less noise for the same samples, docs/RENDER.md). The standard error is
     /// then an upper bound, so validation against a reference's noise keeps it off.
     pub stratified: bool,
+    /// Deal a render's samples by each pixel's noise ([`render_image`] only; queries take
+    /// `spp` each): `spp` is then the mean over the image, a pilot of an eighth of it (on its
+    /// own stream, discarded) measures every pixel's relative noise and cost, and the rest goes
+    /// where it lowers the image's summed relative variance most, between `spp / 4` and
+    /// `4 spp` a pixel ([`crate::adaptive`]). Unbiased; needs `spp >= 16`.
+    pub adaptive: bool,
 }
 
 impl Default for RenderOptions {
@@ -41,6 +48,7 @@ impl Default for RenderOptions {
             indirect: 2,
             russian_roulette: false,
             stratified: false,
+            adaptive: false,
         }
     }
 }
@@ -465,6 +473,82 @@ fn escaped_mis(sun: Option<&Sun>, env: Option<&Environment>, wi: Vec3, pdf_bsdf:
     le
 }
 
+/// Pixel (x, y)'s estimate from `spp` camera samples on the pixel's own stream of
+/// `opts.seed`, and the rays they traced (also added to `stats`).
+fn render_pixel(
+    pt: &PathTracer,
+    camera: &Camera,
+    opts: &RenderOptions,
+    spp: u32,
+    x: usize,
+    y: usize,
+    stats: &Stats,
+) -> (Estimate, u64) {
+    let mut rng = Rng::new(opts.seed, (y * camera.width as usize + x) as u64);
+    let mut acc = Accumulator::default();
+    let spp = spp as usize;
+    let (mut rays, mut bad) = (0u64, 0u64);
+    let strata = opts.stratified.then(|| {
+        let jitter = shifted_hammersley(spp, &mut rng);
+        (jitter, FirstVertexSamples::new(spp, &mut rng))
+    });
+    for j in 0..spp {
+        let (jitter, first) = match &strata {
+            Some((jitter, first)) => (jitter[j], Some(first.get(j))),
+            None => (rng.uniform2(), None),
+        };
+        let (o, d) = camera.pixel_ray(
+            x as f64 - 0.5 + jitter.x as f64,
+            y as f64 - 0.5 + jitter.y as f64,
+        );
+        let (o, d) = (o.as_vec3(), d.as_vec3());
+        let mut v = if o.is_finite() && d.is_finite() && d != Vec3::ZERO {
+            pt.li_from(o, d, first, &mut rng, &mut rays)
+        } else {
+            Vec3::ZERO
+        };
+        if !v.is_finite() {
+            bad += 1;
+            v = Vec3::ZERO;
+        }
+        acc.add(v);
+    }
+    stats.rays.fetch_add(rays, Ordering::Relaxed);
+    stats.bad_samples.fetch_add(bad, Ordering::Relaxed);
+    (acc.estimate(), rays)
+}
+
+/// The per-pixel sample counts of an adaptive render ([`crate::adaptive`]): a pilot on the
+/// stream `hash2(opts.seed, PILOT_STREAM)`, its rays counted in `stats`, its samples discarded.
+fn adaptive_counts(
+    pt: &PathTracer,
+    camera: &Camera,
+    opts: &RenderOptions,
+    stats: &Stats,
+) -> Vec<u32> {
+    let (w, h) = (camera.width as usize, camera.height as usize);
+    let pilot_spp = adaptive::pilot_spp(opts.spp);
+    let pilot_opts = RenderOptions {
+        seed: hash2(opts.seed, PILOT_STREAM),
+        ..*opts
+    };
+    let pilot: Vec<PilotPixel> = (0..w * h)
+        .into_par_iter()
+        .map(|i| {
+            let (e, rays) = render_pixel(pt, camera, &pilot_opts, pilot_spp, i % w, i / w, stats);
+            PilotPixel {
+                mean: e.mean.element_sum() / 3.0,
+                sd: e.stderr.element_sum() / 3.0 * (pilot_spp as f32).sqrt(),
+                cost: rays as f32 / pilot_spp as f32,
+            }
+        })
+        .collect();
+    adaptive::sample_counts(&pilot, w, h, opts.spp)
+}
+
+/// The stream number (under the render's seed) of an adaptive render's pilot.
+const PILOT_STREAM: u64 = 0x0070_696c_6f74;
+
 /// Renders an image through `camera` (OpenCV model with distortion, via `Camera::pixel_ray`).
 /// Pixel (x, y) averages `spp` rays through points uniform in [x - 0.5, x + 0.5] x
 /// [y - 0.5, y + 0.5] (box filter). Returns the mean and the per-pixel standard error.
@@ -479,54 +563,29 @@ pub fn render_image(
     if opts.spp == 0 {
         return Err(RenderError::ZeroSpp);
     }
+    if opts.adaptive && opts.spp < adaptive::MIN_SPP {
+        return Err(RenderError::AdaptiveSpp(opts.spp, adaptive::MIN_SPP));
+    }
     let (w, h) = (camera.width as usize, camera.height as usize);
     if w == 0 || h == 0 {
         return Err(RenderError::EmptyImage(w, h));
     }
     let pt = PathTracer::new(scene, lighting, opts);
     let stats = Stats::default();
+    let counts = opts
+        .adaptive
+        .then(|| adaptive_counts(&pt, camera, opts, &stats));
     let rows: Vec<(Vec<[f32; 3]>, Vec<[f32; 3]>)> = (0..h)
         .into_par_iter()
         .map(|y| {
             let mut mean_row = Vec::with_capacity(w);
             let mut se_row = Vec::with_capacity(w);
-            let mut rays = 0u64;
-            let mut bad = 0u64;
             for x in 0..w {
-                let mut rng = Rng::new(opts.seed, (y * w + x) as u64);
-                let mut acc = Accumulator::default();
-                let spp = opts.spp as usize;
-                let strata = opts.stratified.then(|| {
-                    let jitter = shifted_hammersley(spp, &mut rng);
-                    (jitter, FirstVertexSamples::new(spp, &mut rng))
-                });
-                for j in 0..spp {
-                    let (jitter, first) = match &strata {
-                        Some((jitter, first)) => (jitter[j], Some(first.get(j))),
-                        None => (rng.uniform2(), None),
-                    };
-                    let (o, d) = camera.pixel_ray(
-                        x as f64 - 0.5 + jitter.x as f64,
-                        y as f64 - 0.5 + jitter.y as f64,
-                    );
-                    let (o, d) = (o.as_vec3(), d.as_vec3());
-                    let mut v = if o.is_finite() && d.is_finite() && d != Vec3::ZERO {
-                        pt.li_from(o, d, first, &mut rng, &mut rays)
-                    } else {
-                        Vec3::ZERO
-                    };
-                    if !v.is_finite() {
-                        bad += 1;
-                        v = Vec3::ZERO;
-                    }
-                    acc.add(v);
-                }
-                let e = acc.estimate();
+                let spp = counts.as_ref().map_or(opts.spp, |c| c[y * w + x]);
+                let (e, _) = render_pixel(&pt, camera, opts, spp, x, y, &stats);
                 mean_row.push(e.mean.to_array());
                 se_row.push(e.stderr.to_array());
             }
-            stats.rays.fetch_add(rays, Ordering::Relaxed);
-            stats.bad_samples.fetch_add(bad, Ordering::Relaxed);
             progress(1);
             (mean_row, se_row)
         })

@@ -167,6 +167,7 @@ fn white_furnace_sphere_under_uniform_sky() {
         indirect: 2,
         russian_roulette: false,
         stratified: false,
+        adaptive: false,
     };
     let out = render_image(&scene, &lighting, &cam, &opts, &|_| {}).unwrap();
     assert_eq!(out.bad_samples, 0);
@@ -208,6 +209,7 @@ fn white_furnace_concave_scene_with_many_bounces() {
         indirect: 1000,
         russian_roulette: true,
         stratified: false,
+        adaptive: false,
     };
     let est = radiance_toward(&scene, &lighting, &points, &targets, &opts).unwrap();
     for e in &est {
@@ -219,6 +221,7 @@ fn white_furnace_concave_scene_with_many_bounces() {
         indirect: 0,
         russian_roulette: false,
         stratified: false,
+        adaptive: false,
         ..opts
     };
     let est0 = radiance_toward(&scene, &lighting, &points[..1], &targets[..1], &opts0).unwrap();
@@ -377,6 +380,7 @@ fn bright_sun_over_dim_sky_has_no_fireflies_and_noise_falls_as_one_over_spp() {
                 indirect: 2,
                 russian_roulette: false,
                 stratified: false,
+                adaptive: false,
             },
             &|_| {},
         )
@@ -470,6 +474,7 @@ fn no_nan_for_grazing_views_zero_albedo_degenerate_triangles_and_extreme_lobes()
             indirect: 3,
             russian_roulette: true,
             stratified: false,
+            adaptive: false,
         },
         &|_| {},
     )
@@ -614,6 +619,7 @@ fn stratified_first_vertex_is_unbiased_and_far_less_noisy_beside_an_occluder() {
         &lighting,
         &RenderOptions {
             stratified: true,
+            adaptive: false,
             ..Default::default()
         },
     );
@@ -721,4 +727,86 @@ fn stratified_renders_are_unbiased_less_noisy_and_their_stderr_bounds_the_noise(
         noise_s <= reported,
         "noise {noise_s} above reported {reported}"
     );
+}
+
+#[test]
+fn adaptive_renders_are_unbiased_and_spend_their_rays_where_the_noise_is() {
+    // A tower casting a long shadow on the ground under a low, strong sun: the shadow, lit by
+    // a dim sky and the bounce off the tower's sunlit side, is far noisier relative to its
+    // radiance than the sunlit ground.
+    let scene = ground_and_box(
+        20.0,
+        Vec3::splat(0.4),
+        Vec3::new(0.0, -1.0, 0.0),
+        Vec3::new(1.5, 1.0, 3.0),
+        Vec3::splat(0.6),
+    );
+    let lighting = Lighting {
+        environment: Some(Environment::constant(Vec3::splat(0.05))),
+        sun: Some(sun_from_zenith(60.0, 2.0e4)),
+    };
+    let cam = down_camera(Vec3::new(-1.5, 0.0, 8.0), 32, 32, 30.0);
+    let render = |spp: u32, seed: u64, adaptive: bool| {
+        let opts = RenderOptions {
+            spp,
+            seed,
+            adaptive,
+            ..Default::default()
+        };
+        let out = render_image(&scene, &lighting, &cam, &opts, &|_| {}).unwrap();
+        assert_eq!(out.bad_samples, 0);
+        out
+    };
+    let (a1, a2) = (render(64, 1, true), render(64, 2, true));
+    let (u1, u2) = (render(64, 3, false), render(64, 4, false));
+    let reference = render(4096, 5, false);
+    let g = |img: &HdrImage, i: usize| img.pixels[i][1] as f64;
+    let n = a1.mean.pixels.len();
+    // the same rays (pilot included) within 10 %
+    let ratio = (a1.rays + a2.rays) as f64 / (u1.rays + u2.rays) as f64;
+    assert!(
+        (0.9..1.1).contains(&ratio),
+        "rays adaptive / uniform {ratio}"
+    );
+    // the summed relative variance (half the squared seed-to-seed difference over the
+    // reference's square) falls
+    let rel_var = |a: &HdrImage, b: &HdrImage| {
+        (0..n)
+            .map(|i| 0.5 * (g(a, i) - g(b, i)).powi(2) / g(&reference.mean, i).powi(2))
+            .sum::<f64>()
+    };
+    let (va, vu) = (rel_var(&a1.mean, &a2.mean), rel_var(&u1.mean, &u2.mean));
+    eprintln!("rays ratio {ratio}, relative variance adaptive {va}, uniform {vu}");
+    assert!(
+        va < 0.7 * vu,
+        "relative variance adaptive {va}, uniform {vu}"
+    );
+    // unbiased, and each pixel's standard error (its own samples) is honest: z-scores against
+    // the reference with unit spread
+    let z2 = (0..n)
+        .map(|i| {
+            let d = g(&a1.mean, i) - g(&reference.mean, i);
+            d * d / (g(&a1.stderr, i).powi(2) + g(&reference.stderr, i).powi(2) + 1e-12)
+        })
+        .sum::<f64>()
+        / n as f64;
+    assert!(
+        (0.6..1.6).contains(&z2),
+        "mean squared z against the reference {z2}"
+    );
+    let bias = (0..n)
+        .map(|i| 0.5 * (g(&a1.mean, i) + g(&a2.mean, i)) - g(&reference.mean, i))
+        .sum::<f64>()
+        / (0..n).map(|i| g(&reference.mean, i)).sum::<f64>();
+    assert!(bias.abs() < 0.003, "relative bias {bias}");
+    // too few samples for a pilot is an error, not a uniform render
+    let few = RenderOptions {
+        spp: 8,
+        adaptive: true,
+        ..Default::default()
+    };
+    assert!(matches!(
+        render_image(&scene, &lighting, &cam, &few, &|_| {}),
+        Err(crate::RenderError::AdaptiveSpp(8, 16))
+    ));
 }

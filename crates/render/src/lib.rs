@@ -6,6 +6,7 @@
 //! - [`scene`]: meshes + Lafortune materials + Embree, built from a parsed scene file
 //!   (`igi_formats::scene`); surface points.
 //! - [`integrator`]: the path tracer (NEE + MIS), image rendering and the batched solver queries.
+//! - [`adaptive`]: adaptive sampling, the per-pixel sample counts of a render from a pilot.
 //! - [`refine`]: camera pose refinement by matching the model's edges and silhouette to a photograph's.
 //! - [`compare_images`], [`difference_image`]: re-exported from `igi_imaging::metrics`.
 //! - [`sampling`]: per-pixel PCG streams, piecewise-constant 1D/2D distributions, cone sampling, MIS.
@@ -20,6 +21,7 @@
     clippy::type_complexity
 )]
 
+pub mod adaptive;
 pub mod embree;
 pub mod integrator;
 pub mod lighting;
@@ -85,6 +87,9 @@ pub enum RenderError {
     /// A render or query asked for no samples.
     #[error("spp must be at least 1")]
     ZeroSpp,
+    /// An adaptive render with too few samples per pixel for its pilot (`spp`, the least).
+    #[error("adaptive sampling needs at least {1} samples per pixel, got {0}")]
+    AdaptiveSpp(u32, u32),
     /// A camera without pixels.
     #[error("camera image size {0} x {1} is empty")]
     EmptyImage(usize, usize),

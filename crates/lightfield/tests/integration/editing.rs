@@ -86,6 +86,7 @@ impl Setup {
             indirect: 1,
             russian_roulette: false,
             stratified: false,
+            adaptive: false,
         };
         let img = render_image(&scene, &self.lighting, &cam, &opts, &|_| {})
             .unwrap()

@@ -128,6 +128,7 @@ fn shoot(scene: &Scene, lighting: &Lighting, cam: &Camera, spp: u32, seed: u64) 
         indirect: 0,
         russian_roulette: false,
         stratified: false,
+        adaptive: false,
     };
     render_image(scene, lighting, cam, &opts, &|_| {})
         .unwrap()

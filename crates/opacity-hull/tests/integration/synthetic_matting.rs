@@ -163,6 +163,7 @@ fn capture(scene: &Scene, cam: &Camera, lighting: &Lighting) -> Capture {
         indirect: 1,
         russian_roulette: false,
         stratified: false,
+        adaptive: false,
     };
     let pt = PathTracer::new(scene, lighting, &opts);
     let (w, h) = (W as usize, H as usize);

@@ -163,6 +163,7 @@ fn photo_three_ways(
         indirect: 2,
         russian_roulette: false,
         stratified: false,
+        adaptive: false,
     };
     let image = render_image(scene, &lighting, &camera, &opts, &|_| {})
         .unwrap()

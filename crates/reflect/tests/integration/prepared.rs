@@ -9,6 +9,7 @@ use igi_reflect::solver::{truth_from_scene, NoProgress};
 use igi_reflect::synth::{look_at_camera, truth_atlas, write_survey, LightingSpec, ShotSpec};
 use igi_reflect::{ReflectError, SolveOptions, SolveResult, Survey};
 use igi_render::sky::{clear_sky, overcast_sky, sun_direction};
+use igi_render::RenderOptions;
 use std::path::Path;
 
 /// A smooth albedo field (detail far coarser than a texel, so the photos resolve it).
@@ -90,9 +91,11 @@ fn colonnade(dir: &Path) -> Colonnade {
         &lightings,
         &lightings,
         &shots,
-        128,
-        false,
-        5,
+        &RenderOptions {
+            spp: 128,
+            seed: 5,
+            ..RenderOptions::default()
+        },
         &|_, _| {},
     )
     .unwrap();

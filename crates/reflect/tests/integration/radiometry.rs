@@ -17,6 +17,7 @@ use igi_reflect::synth::{
 };
 use igi_reflect::{SolveOptions, SolveResult, Survey};
 use igi_render::sky::{clear_sky, overcast_sky, sun_direction};
+use igi_render::RenderOptions;
 use rand::{Rng, SeedableRng};
 use std::path::Path;
 
@@ -178,9 +179,11 @@ fn write_clean_survey(dir: &Path, res: u32, (w, h): (usize, usize)) -> Vec<ShotS
         &lightings,
         &lightings,
         &shots,
-        128,
-        false,
-        11,
+        &RenderOptions {
+            spp: 128,
+            seed: 11,
+            ..RenderOptions::default()
+        },
         &|_, _| {},
     )
     .unwrap();

@@ -9,6 +9,7 @@ use igi_reflect::synth::{
 };
 use igi_reflect::{SolveOptions, SolveResult, Survey};
 use igi_render::sky::{clear_sky, overcast_sky, sun_direction};
+use igi_render::RenderOptions;
 
 #[test]
 fn solve_recovers_known_albedo_from_synthetic_photos_and_resumes() {
@@ -95,9 +96,11 @@ fn write_synthetic_survey(dir: &std::path::Path) {
         &lightings,
         &lightings,
         &shots,
-        256,
-        false,
-        11,
+        &RenderOptions {
+            spp: 256,
+            seed: 11,
+            ..RenderOptions::default()
+        },
         &|_, _| {},
     )
     .unwrap();
@@ -435,6 +438,7 @@ fn glossy_photos(truth_scene: &igi_render::Scene) -> Vec<igi_reflect::survey::Ph
                 indirect: 2,
                 russian_roulette: false,
                 stratified: false,
+                adaptive: false,
             };
             let image = render_image(truth_scene, &lighting, &camera, &opts, &|_| {})
                 .unwrap()

@@ -117,6 +117,7 @@ pub fn make(n_views: usize, held_out_dirs: &[Vec3], size: u32, spp: u32, truth_s
                     indirect: 1,
                     russian_roulette: false,
                     stratified: false,
+                    adaptive: false,
                 };
                 let img = render_image(&scene, &lighting, &cam, &opts, &|_| {})
                     .expect("render")
