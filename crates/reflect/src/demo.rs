@@ -215,6 +215,14 @@ pub fn run_demo(
     stage: &dyn Fn(&str),
 ) -> Result<DemoReport, ReflectError> {
     let t0 = Instant::now();
+    if opts.photo_spp < igi_render::adaptive::MIN_SPP {
+        // the photographs are rendered with adaptive samples, whose pilot needs them
+        return Err(ReflectError::Options(format!(
+            "demo photographs need at least {} samples per pixel, got {}",
+            igi_render::adaptive::MIN_SPP,
+            opts.photo_spp
+        )));
+    }
     let pictures = out.join("pictures");
     make_folder(&pictures)?;
     stage("building the procedural site");
