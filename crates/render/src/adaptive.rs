@@ -1,9 +1,9 @@
 //! Adaptive sampling: where a render's samples go ([`crate::RenderOptions::adaptive`],
-//! docs/RENDER.md "Adaptive sampling").
+//! docs/RENDER.md, "Integrator": adaptive samples).
 //!
 //! A pilot of [`pilot_spp`] samples per pixel, on a random stream of its own and then
-//! discarded, measures each pixel's relative standard deviation per sample `r` (of the mean of
-//! the three channels; `r^2` averaged over the 5 x 5 pixels around it, so that one unlucky pilot
+//! discarded, measures each pixel's relative standard deviation per sample `r` (the channels' mean
+//! standard deviation over their mean radiance; `r^2` averaged over the 5 x 5 pixels around it, so that one unlucky pilot
 //! neither starves nor floods a pixel) and its cost per sample `c` (rays traced). The rest of
 //! the budget, `spp - pilot` samples a pixel at the pilot's cost, is dealt as `n = s r / sqrt(c)`:
 //! the counts that minimise the summed relative variance `sum r^2 / n` of the image at that
@@ -11,8 +11,8 @@
 //! The counts depend on the pilot alone, never on the samples they are spent on, so every
 //! pixel's mean stays an unbiased estimate.
 
-/// What the pilot measured at one pixel: the mean of its channels' means, their standard
-/// deviation per sample, and the rays one sample traced there on average.
+/// What the pilot measured at one pixel, each averaged over the three channels: the mean
+/// radiance and the standard deviation per sample; and the rays one sample traced there.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct PilotPixel {
     pub mean: f32,

@@ -550,8 +550,9 @@ fn adaptive_counts(
 const PILOT_STREAM: u64 = 0x0070_696c_6f74;
 
 /// Renders an image through `camera` (OpenCV model with distortion, via `Camera::pixel_ray`).
-/// Pixel (x, y) averages `spp` rays through points uniform in [x - 0.5, x + 0.5] x
-/// [y - 0.5, y + 0.5] (box filter). Returns the mean and the per-pixel standard error.
+/// Pixel (x, y) averages `spp` rays (with [`RenderOptions::adaptive`], its own number of them)
+/// through points uniform in [x - 0.5, x + 0.5] x [y - 0.5, y + 0.5] (box filter). Returns the
+/// mean and the per-pixel standard error.
 /// `progress(n)` is called with the number of pixel rows finished since the last call.
 pub fn render_image(
     scene: &Scene,
