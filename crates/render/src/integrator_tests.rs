@@ -810,3 +810,39 @@ fn adaptive_renders_are_unbiased_and_spend_their_rays_where_the_noise_is() {
         Err(crate::RenderError::AdaptiveSpp(8, 16))
     ));
 }
+
+#[test]
+fn renders_are_the_same_bytes_whatever_the_thread_count() {
+    let scene = ground_and_box(
+        20.0,
+        Vec3::splat(0.4),
+        Vec3::new(0.0, -1.0, 0.0),
+        Vec3::new(1.5, 1.0, 3.0),
+        Vec3::splat(0.6),
+    );
+    let lighting = Lighting {
+        environment: Some(Environment::constant(Vec3::splat(0.05))),
+        sun: Some(sun_from_zenith(60.0, 2.0e4)),
+    };
+    let cam = down_camera(Vec3::new(-1.5, 0.0, 8.0), 20, 16, 20.0);
+    for (stratified, adaptive) in [(false, false), (true, false), (true, true)] {
+        let opts = RenderOptions {
+            spp: 16,
+            seed: 3,
+            stratified,
+            adaptive,
+            ..Default::default()
+        };
+        let on = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| render_image(&scene, &lighting, &cam, &opts, &|_| {}).unwrap())
+        };
+        let (one, three) = (on(1), on(3));
+        assert_eq!(one.mean.pixels, three.mean.pixels, "{opts:?}");
+        assert_eq!(one.stderr.pixels, three.stderr.pixels, "{opts:?}");
+        assert_eq!(one.rays, three.rays, "{opts:?}");
+    }
+}
