@@ -161,8 +161,17 @@ pub fn run(a: RenderArgs, ctx: &Ctx) -> anyhow::Result<()> {
     if let Some(se) = &a.stderr {
         write_any(se, &out.stderr)?;
     }
+    let pixels = camera.width as f64 * camera.height as f64;
+    let adaptive = if a.adaptive {
+        format!(
+            " on average, adaptive: {:.1} a pixel traced with the pilot",
+            out.samples as f64 / pixels
+        )
+    } else {
+        String::new()
+    };
     println!(
-        "wrote {} ({} x {}, {} spp, K = {}) in {:.2} s: {:.2} M rays/s, {:.2} M samples/s",
+        "wrote {} ({} x {}, {} spp{adaptive}, K = {}) in {:.2} s: {:.2} M rays/s, {:.2} M samples/s",
         a.output.display(),
         camera.width,
         camera.height,
@@ -170,7 +179,7 @@ pub fn run(a: RenderArgs, ctx: &Ctx) -> anyhow::Result<()> {
         a.indirect,
         secs,
         out.rays as f64 / secs / 1e6,
-        (camera.width as f64 * camera.height as f64 * a.spp as f64) / secs / 1e6
+        out.samples as f64 / secs / 1e6
     );
     Ok(())
 }

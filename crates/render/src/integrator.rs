@@ -101,6 +101,8 @@ pub struct Stats {
     pub rays: AtomicU64,
     /// Samples that came out NaN or infinite and were dropped (should stay 0).
     pub bad_samples: AtomicU64,
+    /// Camera samples traced (an adaptive render's pilot included).
+    pub samples: AtomicU64,
 }
 
 /// Result of [`render_image`].
@@ -109,6 +111,9 @@ pub struct RenderOutput {
     pub stderr: HdrImage,
     pub rays: u64,
     pub bad_samples: u64,
+    /// Camera samples traced: `spp` a pixel, or for an adaptive render its pilot's and its
+    /// counts' sum.
+    pub samples: u64,
 }
 
 /// The random numbers one sample spends at the first path vertex: the sun, the environment,
@@ -515,6 +520,7 @@ fn render_pixel(
     }
     stats.rays.fetch_add(rays, Ordering::Relaxed);
     stats.bad_samples.fetch_add(bad, Ordering::Relaxed);
+    stats.samples.fetch_add(spp as u64, Ordering::Relaxed);
     (acc.estimate(), rays)
 }
 
@@ -602,6 +608,7 @@ pub fn render_image(
         stderr,
         rays: stats.rays.load(Ordering::Relaxed),
         bad_samples: stats.bad_samples.load(Ordering::Relaxed),
+        samples: stats.samples.load(Ordering::Relaxed),
     })
 }
 
