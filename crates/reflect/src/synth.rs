@@ -209,13 +209,13 @@ pub struct ShotSpec {
 }
 
 /// Writes a complete survey folder: `geometry/NAME.ply` per part (the atlas meshes; for the parts
-/// of a prepared site the survey names the site instead), `truth/`
-/// (true albedo atlases and `scene.toml`), `lighting/`, `cameras/`, `photos/` (path-traced with
-/// `render`, photograph `i` with its seed plus `7919 i`; stratified and adaptive sampling take
-/// noise out, docs/RENDER.md) and `survey.toml`. Photos are rendered under `lightings`; the survey's lighting files
-/// are `recorded` (for example what probe captures recovered of the same skies, as in a real
-/// survey; pass `lightings` again to record the truth). `progress(i, n)` is called before each
-/// photo.
+/// of a prepared site the survey names the site instead), `truth/` (true albedo atlases and
+/// `scene.toml`), `lighting/`, `cameras/`, `photos/` (path-traced with `render`, photograph `i`
+/// with its seed plus `7919 i`; stratified and adaptive sampling take noise out,
+/// docs/RENDER.md) and `survey.toml`. Photos are rendered under `lightings`; the survey's
+/// lighting files are `recorded` (for example what probe captures recovered of the same skies,
+/// as in a real survey; pass `lightings` again to record the truth). `progress(i, n)` is called
+/// before each photo.
 #[allow(clippy::too_many_arguments)]
 pub fn write_survey(
     dir: &Path,
