@@ -93,24 +93,7 @@ fn e_sun() -> f64 {
 fn render_matches_analytic_sunlit_plane_and_writes_stderr() {
     let dir = tempfile::tempdir().unwrap();
     write_scene(dir.path(), false);
-    let out = dir.path().join("out.exr");
-    let se = dir.path().join("out_se.exr");
-    let st = igi()
-        .args(["-q", "render"])
-        .arg(dir.path().join("scene.toml"))
-        .arg("--camera")
-        .arg(dir.path().join("camera.json"))
-        .args(["--spp", "16", "--seed", "3", "--indirect", "2", "--stderr"])
-        .arg(&se)
-        .arg("-o")
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(
-        st.status.success(),
-        "{}",
-        String::from_utf8_lossy(&st.stderr)
-    );
+    let (out, se) = render_cli(dir.path(), "16", "3", "out", &["--indirect", "2"]);
     let img = igi_imaging::read_image(&out).unwrap();
     let se_img = igi_imaging::read_image(&se).unwrap();
     assert_eq!((img.width, img.height), (16, 12));

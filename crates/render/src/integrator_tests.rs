@@ -729,11 +729,10 @@ fn stratified_renders_are_unbiased_less_noisy_and_their_stderr_bounds_the_noise(
     );
 }
 
-#[test]
-fn adaptive_renders_are_unbiased_and_spend_their_rays_where_the_noise_is() {
-    // A tower casting a long shadow on the ground under a low, strong sun: the shadow, lit by
-    // a dim sky and the bounce off the tower's sunlit side, is far noisier relative to its
-    // radiance than the sunlit ground.
+/// A tower casting a long shadow on the ground under a low, strong sun: the shadow, lit by a dim
+/// sky and the bounce off the tower's sunlit side, is far noisier relative to its radiance than
+/// the sunlit ground. Cameras above x = -1.5 see both.
+fn tower_in_low_sun() -> (Scene, Lighting) {
     let scene = ground_and_box(
         20.0,
         Vec3::splat(0.4),
@@ -745,6 +744,12 @@ fn adaptive_renders_are_unbiased_and_spend_their_rays_where_the_noise_is() {
         environment: Some(Environment::constant(Vec3::splat(0.05))),
         sun: Some(sun_from_zenith(60.0, 2.0e4)),
     };
+    (scene, lighting)
+}
+
+#[test]
+fn adaptive_renders_are_unbiased_and_spend_their_rays_where_the_noise_is() {
+    let (scene, lighting) = tower_in_low_sun();
     let cam = down_camera(Vec3::new(-1.5, 0.0, 8.0), 32, 32, 30.0);
     let render = |spp: u32, seed: u64, adaptive: bool| {
         let opts = RenderOptions {
@@ -813,17 +818,7 @@ fn adaptive_renders_are_unbiased_and_spend_their_rays_where_the_noise_is() {
 
 #[test]
 fn renders_are_the_same_bytes_whatever_the_thread_count() {
-    let scene = ground_and_box(
-        20.0,
-        Vec3::splat(0.4),
-        Vec3::new(0.0, -1.0, 0.0),
-        Vec3::new(1.5, 1.0, 3.0),
-        Vec3::splat(0.6),
-    );
-    let lighting = Lighting {
-        environment: Some(Environment::constant(Vec3::splat(0.05))),
-        sun: Some(sun_from_zenith(60.0, 2.0e4)),
-    };
+    let (scene, lighting) = tower_in_low_sun();
     let cam = down_camera(Vec3::new(-1.5, 0.0, 8.0), 20, 16, 20.0);
     for (stratified, adaptive) in [(false, false), (true, false), (true, true)] {
         let opts = RenderOptions {
