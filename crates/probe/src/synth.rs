@@ -128,7 +128,8 @@ const SUN_GRID: usize = 192;
 /// A board photograph as a camera with a Gaussian lens and square pixels takes it: each pixel
 /// is the integral over its area of the lens-blurred scene. The sky, the spheres' outlines and
 /// the diffuse sphere are rendered with `ss` x `ss` box samples (only inside the spheres' pixel
-/// boxes and not inside the diffuse sphere away from its rim; elsewhere one sample) and blurred by [`gaussian_blur`] (exact for the smooth parts).
+/// boxes and not inside the diffuse sphere away from its rim; elsewhere one sample) and blurred
+/// by [`gaussian_blur`] (exact for the smooth parts).
 /// The sun's tiny reflections in the mirror and black spheres are rendered separately and
 /// exactly: the spot is sampled densely (192 x 192 rays over its square, whatever the
 /// sphere's size) and each sample is spread over the pixels by the box-times-Gaussian pixel
@@ -314,12 +315,15 @@ impl<'a> Scene<'a> {
                 (view.kind == SphereKind::Diffuse && n.dot(-d) >= SMOOTH_DIFFUSE_COS).then_some(n)
             })
         });
-        let Some(normals) = corners.iter().copied().collect::<Option<Vec<DVec3>>>() else {
+        if !corners.iter().all(Option::is_some) {
             return false;
-        };
+        }
         self.sun.is_none_or(|s| {
-            let lit = normals.iter().filter(|n| n.dot(s.direction) > 0.0).count();
-            lit == 0 || lit == normals.len()
+            let lit = corners
+                .iter()
+                .flatten()
+                .filter(|n| n.dot(s.direction) > 0.0);
+            matches!(lit.count(), 0 | 4)
         })
     }
 
