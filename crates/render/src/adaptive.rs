@@ -9,7 +9,9 @@
 //! the counts that minimise the summed relative variance `sum r^2 / n` of the image at that
 //! cost (a Lagrange multiplier), clamped to `[spp / 4, 4 spp]`, with `s` found by bisection.
 //! The counts depend on the pilot alone, never on the samples they are spent on, so every
-//! pixel's mean stays an unbiased estimate.
+//! pixel's mean stays an unbiased estimate. Several images can share one budget
+//! ([`sample_counts_over`], [`crate::integrator::render_images`]): the same rule over all
+//! their pixels, so a noisier image takes more of it.
 
 /// What the pilot measured at one pixel, each averaged over the three channels: the mean
 /// radiance and the standard deviation per sample; and the rays one sample traced there.
@@ -32,16 +34,47 @@ pub fn pilot_spp(spp: u32) -> u32 {
     (spp / 8).max(2)
 }
 
+/// What the pilot of one image measured: one [`PilotPixel`] per pixel, row-major.
+#[derive(Clone, Debug, Default)]
+pub struct ImagePilot {
+    pub width: usize,
+    pub height: usize,
+    pub pixels: Vec<PilotPixel>,
+}
+
 /// Samples per pixel of a `w x h` render at a mean of `spp` whose pilot measured `pilot`
 /// (row-major, one per pixel).
 pub fn sample_counts(pilot: &[PilotPixel], w: usize, h: usize, spp: u32) -> Vec<u32> {
-    debug_assert_eq!(pilot.len(), w * h);
-    let r = smoothed_relative_sd(pilot, w, h);
-    let cost: Vec<f64> = pilot.iter().map(|p| f64::from(p.cost).max(1.0)).collect();
-    let weights: Vec<f64> = r.iter().zip(&cost).map(|(r, c)| r / c.sqrt()).collect();
+    let image = ImagePilot {
+        width: w,
+        height: h,
+        pixels: pilot.to_vec(),
+    };
+    sample_counts_over(std::slice::from_ref(&image), spp).remove(0)
+}
+
+/// Samples per pixel of several renders that share one budget, a mean of `spp` over all their
+/// pixels: the same rule as for one image, over the pixels of all of them (the relative noise
+/// still smoothed within each image), so a noisier image takes more of the budget.
+pub fn sample_counts_over(images: &[ImagePilot], spp: u32) -> Vec<Vec<u32>> {
+    let mut weights = Vec::new();
+    let mut cost = Vec::new();
+    for im in images {
+        debug_assert_eq!(im.pixels.len(), im.width * im.height);
+        let r = smoothed_relative_sd(&im.pixels, im.width, im.height);
+        for (r, p) in r.iter().zip(&im.pixels) {
+            let c = f64::from(p.cost).max(1.0);
+            weights.push(r / c.sqrt());
+            cost.push(c);
+        }
+    }
     let budget = f64::from(spp - pilot_spp(spp)) * cost.iter().sum::<f64>();
     let (lo, hi) = (f64::from((spp / 4).max(1)), f64::from(spp) * 4.0);
-    deal(&weights, &cost, budget, lo, hi)
+    let mut counts = deal(&weights, &cost, budget, lo, hi).into_iter();
+    images
+        .iter()
+        .map(|im| counts.by_ref().take(im.pixels.len()).collect())
+        .collect()
 }
 
 /// Per pixel, the square root of the mean over its window of `(sd / mean)^2` (0 where the
@@ -169,6 +202,27 @@ mod tests {
         odd[0] = px(f32::NAN, f32::NAN, 1.0);
         let n = sample_counts(&odd, w, h, spp);
         assert!(n.iter().all(|&k| (spp / 4..=4 * spp).contains(&k)));
+    }
+
+    #[test]
+    fn images_sharing_a_budget_take_it_by_their_noise() {
+        // two 12 x 8 images, the second twice as noisy (relative) everywhere, at equal cost
+        let (w, h, spp) = (12, 8, 48);
+        let image = |sd: f32| ImagePilot {
+            width: w,
+            height: h,
+            pixels: vec![px(1.0, sd, 2.0); w * h],
+        };
+        let (calm, noisy) = (image(0.1), image(0.2));
+        let n = sample_counts_over(&[calm.clone(), noisy.clone()], spp);
+        let mean = |c: &[u32]| c.iter().map(|&k| f64::from(k)).sum::<f64>() / c.len() as f64;
+        // the budget of both together, dealt 1 : 2
+        let pair = (spp - pilot_spp(spp)) as f64;
+        assert!((mean(&n[0]) + mean(&n[1]) - 2.0 * pair).abs() < 1.0);
+        assert!((mean(&n[1]) / mean(&n[0]) - 2.0).abs() < 0.05);
+        // one image alone keeps its own budget
+        let alone = sample_counts_over(std::slice::from_ref(&noisy), spp);
+        assert!((mean(&alone[0]) - pair).abs() < 1.0);
     }
 
     #[test]

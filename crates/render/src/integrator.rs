@@ -6,7 +6,7 @@
 //! of x1 .. x_{K+1} gets direct light (a sun sample, an environment sample, and the BSDF-sampled
 //! ray that escapes to the sky); the path continues by BSDF sampling from x1 .. x_K.
 
-use crate::adaptive::{self, PilotPixel};
+use crate::adaptive::{self, ImagePilot, PilotPixel};
 use crate::lighting::{Environment, LightSample, Lighting, Sun};
 use crate::sampling::{hash2, jittered, power_heuristic, shifted_hammersley, Rng};
 use crate::scene::{Scene, SurfacePoint};
@@ -524,21 +524,17 @@ fn render_pixel(
     (acc.estimate(), rays)
 }
 
-/// The per-pixel sample counts of an adaptive render ([`crate::adaptive`]): a pilot on the
-/// stream `hash2(opts.seed, PILOT_STREAM)`, its rays counted in `stats`, its samples discarded.
-fn adaptive_counts(
-    pt: &PathTracer,
-    camera: &Camera,
-    opts: &RenderOptions,
-    stats: &Stats,
-) -> Vec<u32> {
+/// What an adaptive render's pilot ([`crate::adaptive`]) measures, on the stream
+/// `hash2(opts.seed, PILOT_STREAM)`, its rays and samples counted in `stats`, its samples
+/// discarded.
+fn pilot(pt: &PathTracer, camera: &Camera, opts: &RenderOptions, stats: &Stats) -> ImagePilot {
     let (w, h) = (camera.width as usize, camera.height as usize);
     let pilot_spp = adaptive::pilot_spp(opts.spp);
     let pilot_opts = RenderOptions {
         seed: hash2(opts.seed, PILOT_STREAM),
         ..*opts
     };
-    let pilot: Vec<PilotPixel> = (0..w * h)
+    let pixels = (0..w * h)
         .into_par_iter()
         .map(|i| {
             let (e, rays) = render_pixel(pt, camera, &pilot_opts, pilot_spp, i % w, i / w, stats);
@@ -549,11 +545,24 @@ fn adaptive_counts(
             }
         })
         .collect();
-    adaptive::sample_counts(&pilot, w, h, opts.spp)
+    ImagePilot {
+        width: w,
+        height: h,
+        pixels,
+    }
 }
 
 /// The stream number (under the render's seed) of an adaptive render's pilot.
 const PILOT_STREAM: u64 = 0x0070_696c_6f74;
+
+/// One image of [`render_images`]: its camera, the lighting it is rendered under and its seed
+/// (in place of `RenderOptions::seed`).
+#[derive(Clone, Copy)]
+pub struct RenderJob<'a> {
+    pub camera: &'a Camera,
+    pub lighting: &'a Lighting,
+    pub seed: u64,
+}
 
 /// Renders an image through `camera` (OpenCV model with distortion, via `Camera::pixel_ray`).
 /// Pixel (x, y) averages `spp` rays (with [`RenderOptions::adaptive`], its own number of them)
@@ -567,29 +576,95 @@ pub fn render_image(
     opts: &RenderOptions,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<RenderOutput, RenderError> {
+    let job = RenderJob {
+        camera,
+        lighting,
+        seed: opts.seed,
+    };
+    let mut out = render_images(scene, &[job], opts, &|_, n| progress(n))?;
+    Ok(out.remove(0))
+}
+
+/// Renders several images of one scene as [`render_image`] renders one, each with its job's
+/// seed. With [`RenderOptions::adaptive`] they share one budget, `spp` a pixel on average over
+/// all of them: every image's pilot runs first, then the samples are dealt over all their
+/// pixels at once ([`adaptive::sample_counts_over`]), so a noisier image takes more of them
+/// (for a single image, exactly [`render_image`]'s counts). `progress(job, n)` is called with
+/// the number of that image's pixel rows finished since the last call.
+pub fn render_images(
+    scene: &Scene,
+    jobs: &[RenderJob],
+    opts: &RenderOptions,
+    progress: &(dyn Fn(usize, u64) + Sync),
+) -> Result<Vec<RenderOutput>, RenderError> {
     if opts.spp == 0 {
         return Err(RenderError::ZeroSpp);
     }
     if opts.adaptive && opts.spp < adaptive::MIN_SPP {
         return Err(RenderError::AdaptiveSpp(opts.spp, adaptive::MIN_SPP));
     }
-    let (w, h) = (camera.width as usize, camera.height as usize);
-    if w == 0 || h == 0 {
-        return Err(RenderError::EmptyImage(w, h));
+    if let Some(j) = jobs
+        .iter()
+        .find(|j| j.camera.width == 0 || j.camera.height == 0)
+    {
+        return Err(RenderError::EmptyImage(
+            j.camera.width as usize,
+            j.camera.height as usize,
+        ));
     }
-    let pt = PathTracer::new(scene, lighting, opts);
-    let stats = Stats::default();
-    let counts = opts
-        .adaptive
-        .then(|| adaptive_counts(&pt, camera, opts, &stats));
+    let job_opts: Vec<RenderOptions> = jobs
+        .iter()
+        .map(|j| RenderOptions {
+            seed: j.seed,
+            ..*opts
+        })
+        .collect();
+    let tracers: Vec<PathTracer> = jobs
+        .iter()
+        .zip(&job_opts)
+        .map(|(j, o)| PathTracer::new(scene, j.lighting, o))
+        .collect();
+    let stats: Vec<Stats> = jobs.iter().map(|_| Stats::default()).collect();
+    let counts: Option<Vec<Vec<u32>>> = opts.adaptive.then(|| {
+        let pilots: Vec<ImagePilot> = (0..jobs.len())
+            .map(|k| pilot(&tracers[k], jobs[k].camera, &job_opts[k], &stats[k]))
+            .collect();
+        adaptive::sample_counts_over(&pilots, opts.spp)
+    });
+    Ok((0..jobs.len())
+        .map(|k| {
+            let c = counts.as_ref().map(|c| c[k].as_slice());
+            let row_done = |n| progress(k, n);
+            trace_image(
+                &tracers[k],
+                jobs[k].camera,
+                &job_opts[k],
+                c,
+                &stats[k],
+                &row_done,
+            )
+        })
+        .collect())
+}
+
+/// Every pixel of one image (its own number of samples from `counts`, else `opts.spp`).
+fn trace_image(
+    pt: &PathTracer,
+    camera: &Camera,
+    opts: &RenderOptions,
+    counts: Option<&[u32]>,
+    stats: &Stats,
+    progress: &(dyn Fn(u64) + Sync),
+) -> RenderOutput {
+    let (w, h) = (camera.width as usize, camera.height as usize);
     let rows: Vec<(Vec<[f32; 3]>, Vec<[f32; 3]>)> = (0..h)
         .into_par_iter()
         .map(|y| {
             let mut mean_row = Vec::with_capacity(w);
             let mut se_row = Vec::with_capacity(w);
             for x in 0..w {
-                let spp = counts.as_ref().map_or(opts.spp, |c| c[y * w + x]);
-                let (e, _) = render_pixel(&pt, camera, opts, spp, x, y, &stats);
+                let spp = counts.map_or(opts.spp, |c| c[y * w + x]);
+                let (e, _) = render_pixel(pt, camera, opts, spp, x, y, stats);
                 mean_row.push(e.mean.to_array());
                 se_row.push(e.stderr.to_array());
             }
@@ -603,13 +678,13 @@ pub fn render_image(
         mean.pixels[y * w..(y + 1) * w].copy_from_slice(&m);
         stderr.pixels[y * w..(y + 1) * w].copy_from_slice(&s);
     }
-    Ok(RenderOutput {
+    RenderOutput {
         mean,
         stderr,
         rays: stats.rays.load(Ordering::Relaxed),
         bad_samples: stats.bad_samples.load(Ordering::Relaxed),
         samples: stats.samples.load(Ordering::Relaxed),
-    })
+    }
 }
 
 /// Radiance leaving each surface point toward a world position (`targets[i]`, e.g. a camera

@@ -840,4 +840,99 @@ fn renders_are_the_same_bytes_whatever_the_thread_count() {
         assert_eq!(one.stderr.pixels, three.stderr.pixels, "{opts:?}");
         assert_eq!(one.rays, three.rays, "{opts:?}");
     }
+    // two images sharing one adaptive budget
+    let other = down_camera(Vec3::new(6.0, 6.0, 6.0), 12, 10, 20.0);
+    let jobs = [(&cam, 5), (&other, 6)].map(|(camera, seed)| RenderJob {
+        camera,
+        lighting: &lighting,
+        seed,
+    });
+    let opts = RenderOptions {
+        spp: 16,
+        stratified: true,
+        adaptive: true,
+        ..Default::default()
+    };
+    let on = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| render_images(&scene, &jobs, &opts, &|_, _| {}).unwrap())
+    };
+    for (a, b) in on(1).iter().zip(&on(3)) {
+        assert_eq!(a.mean.pixels, b.mean.pixels);
+        assert_eq!((a.rays, a.samples), (b.rays, b.samples));
+    }
+}
+
+#[test]
+fn images_rendered_together_share_one_budget_by_their_noise() {
+    let (scene, lighting) = tower_in_low_sun();
+    // the tower's long shadow (lit by the dim sky alone: noisy) and open sunlit ground (calm)
+    let shade = down_camera(Vec3::new(-1.5, 0.0, 8.0), 32, 32, 30.0);
+    let open = down_camera(Vec3::new(6.0, 6.0, 6.0), 32, 32, 30.0);
+    let opts = RenderOptions {
+        spp: 64,
+        adaptive: true,
+        ..Default::default()
+    };
+    let jobs = [
+        RenderJob {
+            camera: &shade,
+            lighting: &lighting,
+            seed: 1,
+        },
+        RenderJob {
+            camera: &open,
+            lighting: &lighting,
+            seed: 2,
+        },
+    ];
+    let together = render_images(&scene, &jobs, &opts, &|_, _| {}).unwrap();
+    let alone: Vec<RenderOutput> = jobs
+        .iter()
+        .map(|j| {
+            let o = RenderOptions {
+                seed: j.seed,
+                ..opts
+            };
+            render_image(&scene, j.lighting, j.camera, &o, &|_| {}).unwrap()
+        })
+        .collect();
+    let uniform: Vec<RenderOutput> = jobs
+        .iter()
+        .map(|j| {
+            let o = RenderOptions {
+                spp: 1024,
+                seed: j.seed + 10,
+                adaptive: false,
+                ..opts
+            };
+            render_image(&scene, j.lighting, j.camera, &o, &|_| {}).unwrap()
+        })
+        .collect();
+    let rays = |v: &[RenderOutput]| v.iter().map(|o| o.rays).sum::<u64>() as f64;
+    let ratio = rays(&together) / rays(&alone);
+    assert!(
+        (0.95..1.05).contains(&ratio),
+        "rays together / alone {ratio}"
+    );
+    // the noisy view takes samples from the calm one
+    let (s_together, s_alone) = (
+        [together[0].samples, together[1].samples],
+        [alone[0].samples, alone[1].samples],
+    );
+    assert!(
+        s_together[0] as f64 > 1.2 * s_alone[0] as f64
+            && (s_together[1] as f64) < 0.8 * s_alone[1] as f64,
+        "samples together {s_together:?}, alone {s_alone:?}"
+    );
+    // each image is still an unbiased estimate: its mean within 1 % of a uniform render's
+    for (t, u) in together.iter().zip(&uniform) {
+        assert_eq!(t.bad_samples, 0);
+        let mean = |img: &HdrImage| img.pixels.iter().map(|p| p[1] as f64).sum::<f64>();
+        let rel = mean(&t.mean) / mean(&u.mean) - 1.0;
+        assert!(rel.abs() < 0.01, "image mean off by {rel:+.4}");
+    }
 }

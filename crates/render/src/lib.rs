@@ -33,7 +33,8 @@ pub mod sky;
 /// Image comparison lives in `igi_imaging::metrics`; re-exported for the renderer's users.
 pub use igi_imaging::metrics::{compare_images, difference_image, Comparison};
 pub use integrator::{
-    irradiance, radiance_toward, render_image, Estimate, PathTracer, RenderOptions, RenderOutput,
+    irradiance, radiance_toward, render_image, render_images, Estimate, PathTracer, RenderJob,
+    RenderOptions, RenderOutput,
 };
 pub use lighting::{Environment, Lighting, Sun};
 pub use scene::{Albedo, LobeMap, LobeMapError, Material, Object, Scene, SurfacePoint, Texture};
