@@ -15,9 +15,11 @@ use igi_geometry::TriMesh;
 use igi_imaging::color::SUN_ANGULAR_DIAMETER_DEG;
 use igi_imaging::{Camera, HdrImage, WorldToCamera};
 use igi_render::{
-    render_image, Albedo, Environment, Lighting, Material, RenderOptions, Scene, Sun, Texture,
+    render_images, Albedo, Environment, Lighting, Material, RenderJob, RenderOptions, Scene, Sun,
+    Texture,
 };
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// A smooth, colourful albedo pattern with per-texel detail, in [0.08, 0.85] per channel.
 pub fn albedo_pattern(p: Vec3) -> Vec3 {
@@ -212,10 +214,11 @@ pub struct ShotSpec {
 /// of a prepared site the survey names the site instead), `truth/` (true albedo atlases and
 /// `scene.toml`), `lighting/`, `cameras/`, `photos/` (path-traced with `render`, photograph `i`
 /// with its seed plus `7919 i`; stratified and adaptive sampling take noise out,
-/// docs/RENDER.md) and `survey.toml`. Photos are rendered under `lightings`; the survey's
-/// lighting files are `recorded` (for example what probe captures recovered of the same skies,
-/// as in a real survey; pass `lightings` again to record the truth). `progress(i, n)` is called
-/// before each photo.
+/// docs/RENDER.md; adaptive photographs share one budget, `render.spp` a pixel on average over
+/// all of them, so the noisier ones take more) and `survey.toml`. Photos are rendered under
+/// `lightings`; the survey's lighting files are `recorded` (for example what probe captures
+/// recovered of the same skies, as in a real survey; pass `lightings` again to record the
+/// truth). `progress(i, n)` is called as photo `i` of `n` is finished.
 #[allow(clippy::too_many_arguments)]
 pub fn write_survey(
     dir: &Path,
@@ -225,7 +228,7 @@ pub fn write_survey(
     recorded: &[LightingSpec],
     shots: &[ShotSpec],
     render: &RenderOptions,
-    progress: &dyn Fn(usize, usize),
+    progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<(), ReflectError> {
     for sub in ["geometry", "truth", "lighting", "cameras", "photos"] {
         let p = dir.join(sub);
@@ -259,9 +262,8 @@ pub fn write_survey(
         recorded,
         render,
     };
-    for (i, s) in shots.iter().enumerate() {
-        progress(i, shots.len());
-        survey.photo.push(shoot.photo(i, s)?);
+    for (s, image) in shots.iter().zip(shoot.render(shots, progress)?) {
+        survey.photo.push(shoot.photo(s, &image)?);
     }
     survey.write(&dir.join("survey.toml"), &[])?;
     Ok(())
@@ -339,22 +341,45 @@ struct Shoot<'a> {
 }
 
 impl Shoot<'_> {
-    /// Renders shot `i` into `photos/`, saves its camera into `cameras/`; returns its survey entry.
-    fn photo(&self, i: usize, s: &ShotSpec) -> Result<PhotoEntry, ReflectError> {
-        let l = self
-            .recorded
-            .get(s.lighting)
-            .ok_or_else(|| ReflectError::NoLighting {
+    /// Every shot's photograph (one budget of samples for all, [`render_images`]);
+    /// `progress(i, n)` as photo `i` of `n` is finished.
+    fn render(
+        &self,
+        shots: &[ShotSpec],
+        progress: &(dyn Fn(usize, usize) + Sync),
+    ) -> Result<Vec<HdrImage>, ReflectError> {
+        let mut jobs = Vec::with_capacity(shots.len());
+        for (i, s) in shots.iter().enumerate() {
+            let recorded = self.recorded.get(s.lighting).and(self.lit.get(s.lighting));
+            let lighting = recorded.ok_or_else(|| ReflectError::NoLighting {
                 shot: s.id.clone(),
                 lighting: s.lighting,
             })?;
-        let opts = RenderOptions {
-            seed: self.render.seed.wrapping_add(i as u64 * 7919),
-            ..*self.render
+            jobs.push(RenderJob {
+                camera: &s.camera,
+                lighting,
+                seed: self.render.seed.wrapping_add(i as u64 * 7919),
+            });
+        }
+        let rows_left: Vec<AtomicU64> = shots
+            .iter()
+            .map(|s| AtomicU64::new(u64::from(s.camera.height)))
+            .collect();
+        let row_done = |i: usize, n: u64| {
+            if rows_left[i].fetch_sub(n, Ordering::Relaxed) == n {
+                progress(i, shots.len());
+            }
         };
-        let out = render_image(self.scene, &self.lit[s.lighting], &s.camera, &opts, &|_| {})?;
+        let out = render_images(self.scene, &jobs, self.render, &row_done)?;
+        Ok(out.into_iter().map(|o| o.mean).collect())
+    }
+
+    /// Writes shot `s`'s photograph `image` into `photos/`, saves its camera into `cameras/`;
+    /// returns its survey entry.
+    fn photo(&self, s: &ShotSpec, image: &HdrImage) -> Result<PhotoEntry, ReflectError> {
+        let l = &self.recorded[s.lighting];
         let dir = self.dir;
-        igi_imaging::write_exr(&dir.join("photos").join(format!("{}.exr", s.id)), &out.mean)?;
+        igi_imaging::write_exr(&dir.join("photos").join(format!("{}.exr", s.id)), image)?;
         s.camera
             .save(&dir.join("cameras").join(format!("{}.json", s.id)))?;
         Ok(PhotoEntry {
