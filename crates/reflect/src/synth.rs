@@ -350,8 +350,9 @@ impl Shoot<'_> {
     ) -> Result<Vec<HdrImage>, ReflectError> {
         let mut jobs = Vec::with_capacity(shots.len());
         for (i, s) in shots.iter().enumerate() {
-            let recorded = self.recorded.get(s.lighting).and(self.lit.get(s.lighting));
-            let lighting = recorded.ok_or_else(|| ReflectError::NoLighting {
+            // rendered under the true lighting; the survey records `recorded[s.lighting]`
+            let known = self.recorded.get(s.lighting).and(self.lit.get(s.lighting));
+            let lighting = known.ok_or_else(|| ReflectError::NoLighting {
                 shot: s.id.clone(),
                 lighting: s.lighting,
             })?;
