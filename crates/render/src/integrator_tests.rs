@@ -169,8 +169,7 @@ fn white_furnace_sphere_under_uniform_sky() {
         stratified: false,
         adaptive: false,
     };
-    let out = render_image(&scene, &lighting, &cam, &opts, &|_| {}).unwrap();
-    assert_eq!(out.bad_samples, 0);
+    let out = render_ok(&scene, &lighting, &cam, opts);
     // Every pixel (sphere or sky) must be 1 within noise; the sphere is convex, so there are
     // no interreflections and light sampling of a uniform sky is exact up to MC noise.
     let mut max_dev = 0f32;
@@ -682,9 +681,7 @@ fn stratified_renders_are_unbiased_less_noisy_and_their_stderr_bounds_the_noise(
             stratified,
             ..Default::default()
         };
-        let out = render_image(&scene, &lighting, &cam, &opts, &|_| {}).unwrap();
-        assert_eq!(out.bad_samples, 0);
-        out
+        render_ok(&scene, &lighting, &cam, opts)
     };
     let (s1, s2) = (render(64, 1, true), render(64, 2, true));
     let (r1, r2) = (render(64, 3, false), render(64, 4, false));
@@ -729,6 +726,18 @@ fn stratified_renders_are_unbiased_less_noisy_and_their_stderr_bounds_the_noise(
     );
 }
 
+/// `render_image` that must neither fail nor drop a sample.
+fn render_ok(
+    scene: &Scene,
+    lighting: &Lighting,
+    cam: &Camera,
+    opts: RenderOptions,
+) -> RenderOutput {
+    let out = render_image(scene, lighting, cam, &opts, &|_| {}).unwrap();
+    assert_eq!(out.bad_samples, 0, "{opts:?}");
+    out
+}
+
 /// A tower casting a long shadow on the ground under a low, strong sun: the shadow, lit by a dim
 /// sky and the bounce off the tower's sunlit side, is far noisier relative to its radiance than
 /// the sunlit ground. Cameras above x = -1.5 see both.
@@ -758,9 +767,7 @@ fn adaptive_renders_are_unbiased_and_spend_their_rays_where_the_noise_is() {
             adaptive,
             ..Default::default()
         };
-        let out = render_image(&scene, &lighting, &cam, &opts, &|_| {}).unwrap();
-        assert_eq!(out.bad_samples, 0);
-        out
+        render_ok(&scene, &lighting, &cam, opts)
     };
     let (a1, a2) = (render(64, 1, true), render(64, 2, true));
     let (u1, u2) = (render(64, 3, false), render(64, 4, false));
@@ -897,7 +904,7 @@ fn images_rendered_together_share_one_budget_by_their_noise() {
                 seed: j.seed,
                 ..opts
             };
-            render_image(&scene, j.lighting, j.camera, &o, &|_| {}).unwrap()
+            render_ok(&scene, j.lighting, j.camera, o)
         })
         .collect();
     let uniform: Vec<RenderOutput> = jobs
@@ -909,7 +916,7 @@ fn images_rendered_together_share_one_budget_by_their_noise() {
                 adaptive: false,
                 ..opts
             };
-            render_image(&scene, j.lighting, j.camera, &o, &|_| {}).unwrap()
+            render_ok(&scene, j.lighting, j.camera, o)
         })
         .collect();
     let rays = |v: &[RenderOutput]| v.iter().map(|o| o.rays).sum::<u64>() as f64;
