@@ -238,6 +238,8 @@ struct Scene<'a> {
     views: Vec<SphereView<'a>>,
     sky: &'a HdrImage,
     integ: Option<Integrator>,
+    /// The diffuse sphere's pixel box `(x0, y0, x1, y1)`, if the board has one.
+    diffuse_box: Option<(usize, usize, usize, usize)>,
     sun: Option<SynthSun>,
     panel: Option<&'a SynthPanel>,
     /// Whether the sun disk is seen in the mirror and black spheres' reflections (else only
@@ -270,12 +272,17 @@ impl<'a> Scene<'a> {
                 )
                 .collect();
         let integ = board.diffuse.as_ref().map(|_| Integrator::new(sky));
+        let diffuse_box = views
+            .iter()
+            .find(|v| v.kind == SphereKind::Diffuse)
+            .map(|v| v.pixel_bbox());
         Scene {
             camera,
             board,
             views,
             sky,
             integ,
+            diffuse_box,
             sun,
             panel,
             sun_in_reflections,
@@ -307,6 +314,10 @@ impl<'a> Scene<'a> {
     /// `one_sample_inside_the_diffuse_sphere_is_its_pixels_mean`) and sub-samples, each a sum
     /// over every sky texel, would cost without changing it.
     fn smooth_diffuse_pixel(&self, x: usize, y: usize) -> bool {
+        let inside = |(x0, y0, x1, y1)| (x0..=x1).contains(&x) && (y0..=y1).contains(&y);
+        if !self.diffuse_box.is_some_and(inside) {
+            return false;
+        }
         let corners = [(-0.5, -0.5), (0.5, -0.5), (-0.5, 0.5), (0.5, 0.5)].map(|(dx, dy)| {
             let (o, d) = self.camera.pixel_ray(x as f64 + dx, y as f64 + dy);
             self.nearest_sphere(o, d).and_then(|(i, p)| {
