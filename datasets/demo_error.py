@@ -6,7 +6,8 @@ OUT is the output folder of `igi demo -o OUT` (or of the `demo_photos` example).
 over the texels seen by two or more photographs: the rho_d MAE, and the error regressed on the
 truth's high-frequency part (the true atlas minus its 3 x 3 texel mean): `k` is the share of
 that detail the solve lost (error ~ -k * detail), `corr` the correlation, and the MAE left once
-that share is given back. A last line sums over all parts. Reads EXR through Mitsuba's Bitmap
+that share is given back. A last line sums over all parts; then the R error by how many
+photographs see a texel, each count's share of the texels and of the summed error. Reads EXR through Mitsuba's Bitmap
 (`bash scripts/deps.sh mitsuba`) and numpy.
 """
 import sys
@@ -42,18 +43,30 @@ def row(name, e, hf):
           f"MAE if all detail were lost {np.abs(hf).mean():.4f}")
 
 
+def by_views(e, views):
+    """The R error by the number of photographs that see a texel."""
+    total = np.abs(e[:, 0]).sum()
+    for k in np.unique(views):
+        m = views == k
+        print(f"  seen by {int(k)}: {m.mean():5.1%} of the texels, MAE R {np.abs(e[m, 0]).mean():.4f}, "
+              f"{np.abs(e[m, 0]).sum() / total:5.1%} of the summed error")
+
+
 def main(out):
     print(out)
-    errs, details = [], []
+    errs, details, views = [], [], []
     for name in PARTS:
         t = read(f"{out}/survey/truth/{name}_albedo.exr")[..., :3]
         r = read(f"{out}/result/parts/{name}_rho_d.exr")[..., :3]
-        seen = read(f"{out}/result/parts/{name}_observations.exr")[..., 0] >= 2
+        count = read(f"{out}/result/parts/{name}_observations.exr")[..., 0]
+        seen = count >= 2
         e, hf = (r - t)[seen], detail(t)[seen]
         row(name, e, hf)
         errs.append(e)
         details.append(hf)
+        views.append(count[seen])
     row("all", np.concatenate(errs), np.concatenate(details))
+    by_views(np.concatenate(errs), np.concatenate(views))
 
 
 if __name__ == "__main__":
