@@ -180,6 +180,11 @@ fn render_photos(truth_scene: &igi_render::Scene) -> Vec<Photo> {
 
 /// The true albedo of the solved voxel's texels (the other parts have none).
 fn voxel_truth(parts: &[igi_reflect::Part]) -> Truth {
+    Truth::from_texels(texel_truth(parts))
+}
+
+/// Per part and texel, the true albedo of the solved voxel (the other parts have none).
+fn texel_truth(parts: &[igi_reflect::Part]) -> Vec<Vec<Option<Vec3>>> {
     parts
         .iter()
         .enumerate()

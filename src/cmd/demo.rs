@@ -72,6 +72,9 @@ pub fn run(a: DemoArgs, ctx: &Ctx) -> anyhow::Result<()> {
         if let Some(m) = report.albedo_mae {
             println!("solve: {} iterations in {:.1} s; albedo MAE vs truth {:.4} {:.4} {:.4} (texels seen twice)", report.iterations, report.solve_seconds, m[0], m[1], m[2]);
         }
+        if let Some(m) = report.albedo_surface_mae {
+            println!("       albedo MAE over the surface {:.4} {:.4} {:.4} (area-uniform points whose texel was seen twice)", m[0], m[1], m[2]);
+        }
         let c = &report.relight;
         println!(
             "re-lit held-out view: relative mean {:+.2}%, RMSE {:.4} vs {:.4} explained by noise",

@@ -93,7 +93,8 @@ pub struct SolveArgs {
     )]
     pub parts: Option<Vec<String>>,
     /// A scene file with the true albedo over the same geometry: the report then records the
-    /// rho_d error per iteration.
+    /// rho_d error per iteration, over the texels seen twice and over the surface (as rendered,
+    /// at area-uniform points whose texel was seen twice: comparable between atlas resolutions).
     #[arg(long)]
     pub truth: Option<PathBuf>,
     /// Start afresh: remove what an earlier solve wrote into the output folder. Without it, a
@@ -227,15 +228,20 @@ fn print_report(
             .truth_mae
             .map(|m| format!(", rho_d MAE {:.4} {:.4} {:.4}", m[0], m[1], m[2]))
             .unwrap_or_default();
+        let surface = r
+            .truth_surface_mae
+            .map(|m| format!(" (over the surface {:.4} {:.4} {:.4})", m[0], m[1], m[2]))
+            .unwrap_or_default();
         println!(
-            "iteration {}: {} spp, {:.1} s, {} observations, residual {:.2}% (relative RMS), change {:.4}{}",
+            "iteration {}: {} spp, {:.1} s, {} observations, residual {:.2}% (relative RMS), change {:.4}{}{}",
             r.iteration,
             r.spp,
             r.wall_s,
             r.observations,
             100.0 * r.residual_rel_rms,
             r.delta_rho,
-            truth
+            truth,
+            surface
         );
     }
     for p in &report.parts {

@@ -46,6 +46,13 @@ fn run_demo(demo: &Path) {
         mae.iter().all(|m| m.as_f64().unwrap() < 0.15),
         "quick demo albedo MAE {mae:?}"
     );
+    let surface = d["albedo_surface_mae"]
+        .as_array()
+        .expect("demo reports the albedo error over the surface");
+    assert!(
+        surface.iter().all(|m| m.as_f64().unwrap() < 0.15),
+        "quick demo albedo MAE over the surface {surface:?}"
+    );
     for f in [
         "demo.json",
         "pictures/relit.png",

@@ -1,7 +1,7 @@
 //! `igi demo` with other survey photographs: `cargo run --release -p igi-reflect --example
 //! demo_photos -- OUT WIDTH HEIGHT SPP` runs the embedded default with photographs of
 //! WIDTH x HEIGHT at SPP samples per pixel (the defaults are 480 320 72) and prints the rho_d
-//! MAE per channel, the photograph, solve and total seconds and the re-lighting RMSE as JSON.
+//! MAE per channel (per texel and over the surface), the photograph, solve and total seconds and the re-lighting RMSE as JSON.
 //! From the environment, `DEBLUR=N` sets the rounds of footprint deblurring (the demo's default: 4) and
 //! `SOLVE_SPP=a,b,c` the solve's samples per iteration (one iteration per entry).
 //! docs/SOLVER.md ("Error against run time") reports the runs.
@@ -36,6 +36,7 @@ fn main() {
         run_demo(&out, &opts, &NoProgress, &|s| eprintln!("{s}")).unwrap_or_else(|e| panic!("{e}"));
     let summary = serde_json::json!({
         "albedo_mae": r.albedo_mae,
+        "albedo_surface_mae": r.albedo_surface_mae,
         "photo_seconds": r.photo_seconds,
         "solve_seconds": r.solve_seconds,
         "total_seconds": r.total_seconds,

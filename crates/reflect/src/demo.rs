@@ -85,6 +85,9 @@ pub struct DemoReport {
     pub iterations: usize,
     /// Mean absolute rho_d error per channel over texels seen in at least two photos.
     pub albedo_mae: Option<[f32; 3]>,
+    /// Mean absolute rho_d error per channel as rendered, at area-uniform points of the site's
+    /// surface whose texel two photos saw (`igi_reflect::truth`).
+    pub albedo_surface_mae: Option<[f32; 3]>,
     pub probes: Vec<ProbeSummary>,
     pub relight: Comparison,
     pub total_seconds: f64,
@@ -285,6 +288,12 @@ pub fn run_demo(
             .iterations
             .last()
             .and_then(|r| r.truth_mae),
+        albedo_surface_mae: solved
+            .result
+            .report
+            .iterations
+            .last()
+            .and_then(|r| r.truth_surface_mae),
         probes,
         relight,
         total_seconds: t0.elapsed().as_secs_f64(),
@@ -488,7 +497,7 @@ fn write_albedo_pictures(
     for (i, p) in result.parts.iter().enumerate() {
         let r = p.resolution();
         let mut side = HdrImage::new(2 * r + 4, r);
-        for (t, v) in p.cache.texels.iter().zip(&truth[i]) {
+        for (t, v) in p.cache.texels.iter().zip(&truth.texels[i]) {
             let k = t.index as usize;
             side.set(k % r, k / r, v.unwrap_or(Vec3::ZERO).to_array());
         }

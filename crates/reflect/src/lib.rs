@@ -22,7 +22,8 @@
 //! of the site), [`atlas_size`] (`--atlas auto`: atlas sizes, and cutting meshes into parts),
 //! [`solver`] (the iteration), [`session`] (the resume rule and run manifest), [`weights`] and
 //! [`fill`] (the documented rules),
-//! [`result`] (the result folder: atlases, `scene.toml`, `report.json`, export, sampling).
+//! [`result`] (the result folder: atlases, `scene.toml`, `report.json`, export, sampling),
+//! [`truth`] (ground truth, and the albedo error per texel and over the surface).
 
 pub mod atlas_size;
 mod deblur;
@@ -38,6 +39,7 @@ mod smooth;
 pub mod solver;
 pub mod survey;
 pub mod synth;
+pub mod truth;
 pub mod weights;
 
 use std::path::PathBuf;

@@ -232,6 +232,12 @@ pub struct IterationRecord {
     /// least two photos, and its RMS.
     pub truth_mae: Option<[f32; 3]>,
     pub truth_rms: Option<f32>,
+    /// With ground truth: mean absolute error of `rho_d` per channel as rendered (the atlases'
+    /// bilinear lookup) at area-uniform points of the true surface whose texel was seen in at
+    /// least two photos (`crate::truth`: the same whatever the atlas resolution). Reports
+    /// written before the field existed read `None`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub truth_surface_mae: Option<[f32; 3]>,
     pub seen_texels: u64,
     /// Groups (voxels) of a distributed iteration that kept their previous albedo because their
     /// task never finished (`igi cluster resume --skip-voxels`); an iteration with any is never

@@ -12,7 +12,7 @@ use crate::result::{SolveResult, UNKNOWN_STDERR};
 use crate::survey::Photo;
 use crate::weights::{combine, Combined, Proposal};
 use crate::ReflectError;
-use glam::{DVec2, DVec3, Vec2, Vec3};
+use glam::{DVec2, Vec2, Vec3};
 use igi_brdf::{luminance, Basis, LafortuneRef, Lobe};
 use igi_render::integrator::offset_origin;
 use igi_render::sampling::{hash2, Rng};
@@ -63,55 +63,7 @@ pub trait Progress: Sync {
 pub struct NoProgress;
 impl Progress for NoProgress {}
 
-/// Ground-truth albedo per part and covered texel (same order as `Part::cache.texels`).
-pub type Truth = Vec<Vec<Option<Vec3>>>;
-
-/// How well the standard errors explain the error against ground truth: the z-scores
-/// `(rho_d - truth) / stderr` of every channel of the texels seen at least twice.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ZScores {
-    /// Number of z-scores (texel channels with a positive standard error).
-    pub count: usize,
-    /// 1.4826 x the median |z| (1 for a standard normal; robust to heavy tails).
-    pub robust_spread: f64,
-    /// sqrt(mean z^2).
-    pub rms: f64,
-    /// 95th percentile of |z| (1.96 for a standard normal).
-    pub p95_abs: f64,
-}
-
-/// The [`ZScores`] of a result against ground truth, or `None` without any.
-pub fn z_scores(state: &SolveResult, truth: &Truth) -> Option<ZScores> {
-    let mut z = Vec::new();
-    for (pi, p) in state.parts.iter().enumerate() {
-        for (ti, t) in p.cache.texels.iter().enumerate() {
-            let i = t.index as usize;
-            let (Some(Some(gt)), true) = (
-                truth.get(pi).and_then(|v| v.get(ti)),
-                state.observations[pi][i] >= 2,
-            ) else {
-                continue;
-            };
-            let se = state.stderr[pi][i];
-            for ch in 0..3 {
-                if se[ch] > 0.0 {
-                    z.push(((state.rho[pi][i][ch] - gt[ch]) as f64 / se[ch] as f64).abs());
-                }
-            }
-        }
-    }
-    if z.is_empty() {
-        return None;
-    }
-    z.sort_by(f64::total_cmp);
-    let n = z.len();
-    Some(ZScores {
-        count: n,
-        robust_spread: 1.4826 * z[n / 2],
-        rms: (z.iter().map(|v| v * v).sum::<f64>() / n as f64).sqrt(),
-        p95_abs: z[(n * 95 / 100).min(n - 1)],
-    })
-}
+pub use crate::truth::{truth_from_scene, z_scores, Truth, TruthPoint, ZScores};
 
 /// Everything the per-photo pass needs about one texel.
 #[derive(Clone, Copy)]
@@ -615,9 +567,10 @@ pub(crate) fn finish_iteration(
 ) -> Result<bool, ReflectError> {
     start.report.pending = None;
     let (truth_mae, truth_rms) = match truth {
-        Some(t) => truth_error(start, t, solved),
+        Some(t) => crate::truth::texel_error(start, t, solved),
         None => (None, None),
     };
+    let truth_surface_mae = truth.and_then(|t| crate::truth::surface_error(start, t, solved).0);
     let k = acc.iteration - 1;
     let per_seen = |sum: f64| {
         if acc.seen_texels > 0 {
@@ -639,6 +592,7 @@ pub(crate) fn finish_iteration(
         systematic_change_rho: per_seen(acc.systematic2.max(0.0)).sqrt(),
         truth_mae,
         truth_rms,
+        truth_surface_mae,
         seen_texels: acc.seen_texels,
         stale: Vec::new(),
     };
@@ -1161,73 +1115,6 @@ impl PhotoPass<'_> {
             pixel,
         }
     }
-}
-
-/// Mean absolute error per channel and RMS error of `rho_d` against ground truth over covered
-/// texels seen at least twice.
-fn truth_error(
-    state: &SolveResult,
-    truth: &Truth,
-    solved: &[bool],
-) -> (Option<[f32; 3]>, Option<f32>) {
-    let (mut s, mut s2, mut n) = (DVec3::ZERO, 0.0f64, 0u64);
-    for (pi, p) in state.parts.iter().enumerate() {
-        if !solved[pi] {
-            continue;
-        }
-        for (ti, t) in p.cache.texels.iter().enumerate() {
-            let i = t.index as usize;
-            if state.observations[pi][i] < 2 {
-                continue;
-            }
-            if let Some(gt) = truth[pi][ti] {
-                let d = (state.rho[pi][i] - gt).as_dvec3();
-                s += d.abs();
-                s2 += d.length_squared() / 3.0;
-                n += 1;
-            }
-        }
-    }
-    if n == 0 {
-        return (None, None);
-    }
-    let m = s / n as f64;
-    (
-        Some([m.x as f32, m.y as f32, m.z as f32]),
-        Some((s2 / n as f64).sqrt() as f32),
-    )
-}
-
-/// Ground truth per texel from a scene with known albedo over the same geometry: the albedo
-/// where a short ray along the texel's normal (both ways) meets the truth scene's surface.
-pub fn truth_from_scene(parts: &[Part], truth: &Scene) -> Truth {
-    parts
-        .iter()
-        .map(|p| {
-            let eps = (p.texel_size as f32 * 0.5).max(1e-3);
-            p.cache
-                .texels
-                .par_iter()
-                .map(|t| {
-                    for n in [t.normal, -t.normal] {
-                        let o = t.position + n * eps;
-                        if let Some(h) = truth.intersect(o, -n) {
-                            if h.t <= 2.0 * eps {
-                                let sp = truth.surface_point(&h);
-                                return Some(
-                                    truth.objects[sp.object as usize]
-                                        .material
-                                        .brdf_at(sp.uv)
-                                        .rho_d,
-                                );
-                            }
-                        }
-                    }
-                    None
-                })
-                .collect()
-        })
-        .collect()
 }
 
 #[cfg(test)]
