@@ -1,6 +1,6 @@
 //! `igi demo` with other survey photographs: `cargo run --release -p igi-reflect --example
 //! demo_photos -- OUT WIDTH HEIGHT SPP` runs the embedded default with photographs of
-//! WIDTH x HEIGHT at SPP samples per pixel (the defaults are 480 320 72) and prints the rho_d
+//! WIDTH x HEIGHT at SPP samples per pixel (the defaults are 480 320 48) and prints the rho_d
 //! MAE per channel (per texel and over the surface), the photograph, solve and total seconds and the re-lighting RMSE as JSON.
 //! From the environment, `DEBLUR=N` sets the rounds of footprint deblurring (the demo's default: 4) and
 //! `SOLVE_SPP=a,b,c` the solve's samples per iteration (one iteration per entry).

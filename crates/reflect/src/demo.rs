@@ -64,7 +64,7 @@ impl Default for DemoOptions {
             atlas_auto_max: None,
             photo_width: 480,
             photo_height: 320,
-            photo_spp: 72,
+            photo_spp: 48,
             solve_spp: vec![16, 64, 128],
             iterations: 3,
             relight_spp: 32,
