@@ -200,6 +200,20 @@ fn solve_recovers_mitsuba_albedo_and_relights_the_heldout_view() {
             "rho_d MAE channel {ch}: {m:.4} > {MAE_LIMIT}"
         );
     }
+    // the same over the surface (area-uniform points of the true surface, as rendered)
+    let surface: Vec<f64> = last["truth_surface_mae"]
+        .as_array()
+        .expect("the report holds the error over the surface")
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    println!("rho_d MAE over the surface {surface:.4?}");
+    for (ch, m) in surface.iter().enumerate() {
+        assert!(
+            *m <= MAE_LIMIT,
+            "rho_d MAE over the surface, channel {ch}: {m:.4} > {MAE_LIMIT}"
+        );
+    }
     let first_rms = its[0]["truth_rms"].as_f64().unwrap();
     assert!(
         last["truth_rms"].as_f64().unwrap() < first_rms,
