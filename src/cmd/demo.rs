@@ -13,7 +13,8 @@ pub struct DemoArgs {
     pub quick: bool,
     /// Solve on atlases sized from the photographs (as `igi solve --atlas auto`, at most 512
     /// texels per part, large meshes cut into parts) instead of the true textures' 128-texel
-    /// atlases: more accurate and slower (docs/BENCHMARKS.md, "Demo").
+    /// atlases: ten times slower, and over the surface no more accurate than the truth's own
+    /// atlases (docs/SOLVER.md, "Two errors").
     #[arg(long)]
     pub atlas_auto: bool,
     /// Print demo.json on stdout.
