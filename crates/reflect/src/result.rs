@@ -758,17 +758,12 @@ pub fn sample_albedo(
         .enumerate()
         .map(|(k, &(p, n))| {
             let n = n.normalize_or(Vec3::Z);
-            for d in [n, -n] {
-                if let Some(h) = scene.intersect(p + d * reach, -d) {
-                    if h.t <= 2.0 * reach {
-                        let sp = scene.surface_point(&h);
-                        let o = sp.object as usize;
-                        return Ok(AlbedoSample {
-                            rho: scene.objects[o].material.brdf_at(sp.uv).rho_d,
-                            stderr: stderr_at(&res.stderr[o], res.parts[o].resolution(), sp.uv),
-                        });
-                    }
-                }
+            if let Some(sp) = scene.surface_near(p, n, reach) {
+                let o = sp.object as usize;
+                return Ok(AlbedoSample {
+                    rho: scene.objects[o].material.brdf_at(sp.uv).rho_d,
+                    stderr: stderr_at(&res.stderr[o], res.parts[o].resolution(), sp.uv),
+                });
             }
             // the nearest covered texel (the index is built at the first miss)
             let index = texels.get_or_init(|| TexelIndex::new(&res));

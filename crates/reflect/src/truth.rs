@@ -73,7 +73,7 @@ fn texel_truth(p: &Part, truth: &Scene) -> Vec<Option<Vec3>> {
         .texels
         .par_iter()
         .map(|t| {
-            let sp = meet(truth, t.position, t.normal, eps)?;
+            let sp = truth.surface_near(t.position, t.normal, eps)?;
             Some(
                 truth.objects[sp.object as usize]
                     .material
@@ -82,15 +82,6 @@ fn texel_truth(p: &Part, truth: &Scene) -> Vec<Option<Vec3>> {
             )
         })
         .collect()
-}
-
-/// The surface point a ray from `p + n eps` (or `p - n eps`) back along the normal meets
-/// within `2 eps`.
-fn meet(scene: &Scene, p: Vec3, n: Vec3, eps: f32) -> Option<igi_render::SurfacePoint> {
-    [n, -n].into_iter().find_map(|d| {
-        let h = scene.intersect(p + d * eps, -d)?;
-        (h.t <= 2.0 * eps).then(|| scene.surface_point(&h))
-    })
 }
 
 /// About `count` area-uniform points of `truth`'s surface located on `parts` (triangle by
@@ -167,7 +158,7 @@ fn locate(
     eps: f32,
     rho: Vec3,
 ) -> Option<TruthPoint> {
-    let sp = meet(site, x, normal, eps)?;
+    let sp = site.surface_near(x, normal, eps)?;
     let r = parts[sp.object as usize].resolution();
     let cell = |c: f32| ((c * r as f32).floor().max(0.0) as usize).min(r - 1);
     let texel = cell(1.0 - sp.uv.y) * r + cell(sp.uv.x);

@@ -430,6 +430,16 @@ impl Scene {
         self.rt.occluded(origin, dir, 0.0, tfar)
     }
 
+    /// The surface at a point `p` that should lie on it: what a ray from `p + n reach` back
+    /// along `-n` meets within `2 reach`, else the same from the other side (`n` a unit normal
+    /// there, either orientation).
+    pub fn surface_near(&self, p: Vec3, n: Vec3, reach: f32) -> Option<SurfacePoint> {
+        [n, -n].into_iter().find_map(|d| {
+            let h = self.intersect(p + d * reach, -d)?;
+            (h.t <= 2.0 * reach).then(|| self.surface_point(&h))
+        })
+    }
+
     /// The surface point of a hit.
     #[inline]
     pub fn surface_point(&self, hit: &Hit) -> SurfacePoint {
