@@ -56,6 +56,17 @@ pub fn pixel_solid_angle(i_row: usize, w: usize, h: usize) -> f32 {
     (2.0 * PI / w as f32) * (t0.cos() - t1.cos())
 }
 
+/// A `w x h` lat-long map whose every pixel is `f` of its centre direction (an analytic sky).
+pub fn map_from_fn(w: usize, h: usize, f: impl Fn(Vec3) -> [f32; 3]) -> crate::HdrImage {
+    let mut m = crate::HdrImage::new(w, h);
+    for i in 0..h {
+        for j in 0..w {
+            m.set(j, i, f(pixel_center_direction(i, j, w, h)));
+        }
+    }
+    m
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -336,13 +336,7 @@ mod tests {
     #[test]
     fn fill_is_smooth_and_keeps_mask() {
         let (w, h) = (64, 32);
-        let mut m = HdrImage::new(w, h);
-        for i in 0..h {
-            for j in 0..w {
-                let d = pixel_center_direction(i, j, w, h);
-                m.set(j, i, [1.0 + d.z, 2.0, 0.5 + 0.5 * d.x]);
-            }
-        }
+        let mut m = igi_imaging::latlong::map_from_fn(w, h, |d| [1.0 + d.z, 2.0, 0.5 + 0.5 * d.x]);
         let truth = m.clone();
         for i in 10..16 {
             for j in 20..30 {

@@ -513,19 +513,10 @@ mod tests {
     fn setting() -> (Camera, Board, HdrImage) {
         let d = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("../../datasets/fixtures/board/sunny");
-        let (w, h) = (128, 64);
-        let mut sky = HdrImage::new(w, h);
-        for i in 0..h {
-            for j in 0..w {
-                let d = igi_imaging::latlong::pixel_center_direction(i, j, w, h);
-                let up = d.z.max(0.0);
-                sky.set(
-                    j,
-                    i,
-                    [0.5 + 0.4 * up + 0.3 * d.x, 0.6 + 0.3 * up, 0.9 - 0.5 * up],
-                );
-            }
-        }
+        let sky = igi_imaging::latlong::map_from_fn(128, 64, |d| {
+            let up = d.z.max(0.0);
+            [0.5 + 0.4 * up + 0.3 * d.x, 0.6 + 0.3 * up, 0.9 - 0.5 * up]
+        });
         (
             Camera::load(&d.join("camera.json")).unwrap(),
             Board::load(&d.join("board.json")).unwrap(),

@@ -35,15 +35,9 @@ pub fn overcast_sky(width: usize, height: usize, zenith: f32, ground: Vec3) -> H
 /// A lat-long map of `sky(d)` for the pixel-centre directions `d` above the horizon (`d.z > 0`)
 /// and `ground` below it.
 fn sky_map(width: usize, height: usize, ground: Vec3, sky: impl Fn(Vec3) -> Vec3) -> HdrImage {
-    let mut img = HdrImage::new(width, height);
-    for i in 0..height {
-        for j in 0..width {
-            let d = latlong::pixel_center_direction(i, j, width, height);
-            let v = if d.z <= 0.0 { ground } else { sky(d) };
-            img.set(j, i, v.to_array());
-        }
-    }
-    img
+    latlong::map_from_fn(width, height, |d| {
+        if d.z <= 0.0 { ground } else { sky(d) }.to_array()
+    })
 }
 
 /// Unit direction toward the sun from its elevation and azimuth (degrees; azimuth from +X

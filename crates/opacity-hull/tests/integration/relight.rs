@@ -148,22 +148,13 @@ fn one_light(d: [f64; 3]) -> Lighting {
 
 /// The new lighting: a smooth sky, brighter and bluer above, warmer toward +X.
 fn write_lighting(dir: &Path) -> PathBuf {
-    let (w, h) = (64, 32);
-    let mut map = HdrImage::new(w, h);
-    for i in 0..h {
-        for j in 0..w {
-            let d = igi_imaging::latlong::pixel_center_direction(i, j, w, h);
-            map.set(
-                j,
-                i,
-                [
-                    0.55 + 0.3 * d.z + 0.15 * d.x,
-                    0.55 + 0.35 * d.z,
-                    0.55 + 0.4 * d.z - 0.1 * d.y,
-                ],
-            );
-        }
-    }
+    let map = igi_imaging::latlong::map_from_fn(64, 32, |d| {
+        [
+            0.55 + 0.3 * d.z + 0.15 * d.x,
+            0.55 + 0.35 * d.z,
+            0.55 + 0.4 * d.z - 0.1 * d.y,
+        ]
+    });
     igi_imaging::write_exr(&dir.join("sky.exr"), &map).unwrap();
     let path = dir.join("sky.toml");
     std::fs::write(&path, "[environment]\nmap = \"sky.exr\"\nscale = 2.0\n").unwrap();

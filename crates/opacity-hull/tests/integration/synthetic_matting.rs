@@ -119,28 +119,23 @@ fn object(angle: f32) -> Scene {
 
 /// The backdrop display for (lambda, n) behind the object, as a lat-long environment.
 fn backdrop_lighting(cam: &Camera, lambda: f64, n: i32) -> Lighting {
-    let (w, h) = (1024, 512);
-    let mut img = HdrImage::new(w, h);
-    for row in 0..h {
-        for col in 0..w {
-            let d = latlong::pixel_center_direction(row, col, w, h).as_dvec3();
-            let dc = cam.pose.r * d;
-            let display = if dc.z > 0.5 * dc.length() {
-                Some(
-                    cam.intrinsics
-                        .to_pixel(glam::DVec2::new(dc.x / dc.z, dc.y / dc.z)),
-                )
-            } else if d.z < -0.3 {
-                Some(glam::DVec2::new(d.x, d.y) / -d.z * 200.0)
-            } else {
-                None
-            };
-            let v = display.map_or([0.5; 3], |px| {
-                [0, 1, 2].map(|i| (pattern_value(px.x, px.y, i, lambda, n) / 255.0) as f32)
-            });
-            img.set(col, row, v);
-        }
-    }
+    let img = latlong::map_from_fn(1024, 512, |d| {
+        let d = d.as_dvec3();
+        let dc = cam.pose.r * d;
+        let display = if dc.z > 0.5 * dc.length() {
+            Some(
+                cam.intrinsics
+                    .to_pixel(glam::DVec2::new(dc.x / dc.z, dc.y / dc.z)),
+            )
+        } else if d.z < -0.3 {
+            Some(glam::DVec2::new(d.x, d.y) / -d.z * 200.0)
+        } else {
+            None
+        };
+        display.map_or([0.5; 3], |px| {
+            [0, 1, 2].map(|i| (pattern_value(px.x, px.y, i, lambda, n) / 255.0) as f32)
+        })
+    });
     Lighting {
         environment: Some(Environment::from_image(&img, 1.0).unwrap()),
         sun: None,

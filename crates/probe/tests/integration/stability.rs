@@ -26,24 +26,14 @@ fn cam_board() -> (Camera, Board) {
 
 /// A smooth analytic sky (lat-long 128x64).
 fn sky() -> HdrImage {
-    let (w, h) = (128, 64);
-    let mut m = HdrImage::new(w, h);
-    for i in 0..h {
-        for j in 0..w {
-            let d = igi_imaging::latlong::pixel_center_direction(i, j, w, h);
-            let up = d.z.max(0.0);
-            m.set(
-                j,
-                i,
-                [
-                    0.5 + 0.4 * up + 0.1 * d.x,
-                    0.6 + 0.3 * up,
-                    0.9 - 0.2 * up + 0.05 * d.y,
-                ],
-            );
-        }
-    }
-    m
+    igi_imaging::latlong::map_from_fn(128, 64, |d| {
+        let up = d.z.max(0.0);
+        [
+            0.5 + 0.4 * up + 0.1 * d.x,
+            0.6 + 0.3 * up,
+            0.9 - 0.2 * up + 0.05 * d.y,
+        ]
+    })
 }
 
 #[test]

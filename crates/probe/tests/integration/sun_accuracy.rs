@@ -110,23 +110,18 @@ fn mitsuba_boards_with_outline_refinement_stay_within_quarter_degree() {
 
 /// A smooth analytic sky (lat-long `w` x `w/2`) with a brighter horizon and circumsolar glow.
 fn sky(w: usize, sun: DVec3) -> igi_imaging::HdrImage {
-    let h = w / 2;
-    let mut m = igi_imaging::HdrImage::new(w, h);
-    for i in 0..h {
-        for j in 0..w {
-            let d = igi_imaging::latlong::pixel_center_direction(i, j, w, h).as_dvec3();
-            let up = d.z.max(0.0);
-            let glow = 0.8 * (-d.dot(sun).clamp(-1.0, 1.0).acos() / 0.35).exp();
-            let v = [
-                0.9 - 0.6 * up + glow,
-                0.95 - 0.5 * up + glow,
-                1.05 - 0.2 * up + 0.6 * glow,
-            ];
-            let below = if d.z < 0.0 { 0.25 } else { 1.0 };
-            m.set(j, i, v.map(|x| (x * below) as f32));
-        }
-    }
-    m
+    igi_imaging::latlong::map_from_fn(w, w / 2, |d| {
+        let d = d.as_dvec3();
+        let up = d.z.max(0.0);
+        let glow = 0.8 * (-d.dot(sun).clamp(-1.0, 1.0).acos() / 0.35).exp();
+        let v = [
+            0.9 - 0.6 * up + glow,
+            0.95 - 0.5 * up + glow,
+            1.05 - 0.2 * up + 0.6 * glow,
+        ];
+        let below = if d.z < 0.0 { 0.25 } else { 1.0 };
+        v.map(|x| (x * below) as f32)
+    })
 }
 
 /// How a synthetic board is rendered.
