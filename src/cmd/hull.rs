@@ -32,6 +32,12 @@ pub struct BuildArgs {
     /// Carving cells per axis of the bounding box (at least 256).
     #[arg(long, default_value_t = 256)]
     pub resolution: usize,
+    /// Depth in pixels of the band along the frame's edge that does not carve wherever a
+    /// view's silhouette runs into the edge: the object goes on outside the frame, and its
+    /// shadowed parts there read like the backdrop (docs/OPACITY_HULL.md). 0: every known
+    /// background pixel carves.
+    #[arg(long, default_value_t = 30)]
+    pub frame_band: usize,
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
@@ -124,10 +130,11 @@ pub fn run(c: HullCmd, ctx: &Ctx) -> anyhow::Result<()> {
 
 fn run_build(a: BuildArgs, ctx: &Ctx) -> anyhow::Result<()> {
     let rig = igi_imaging::Rig::load(&a.rig)?;
-    let opts = BuildOptions {
+    let mut opts = BuildOptions {
         resolution: a.resolution,
         ..Default::default()
     };
+    opts.matte.frame_band = a.frame_band;
     let lit = rig.views.iter().any(|v| !v.lights.is_empty());
     let pb = ctx.progress(6 + lit as u64, "hull");
     let mut progress = |s: Stage| {

@@ -541,9 +541,9 @@ fn low_mean(x: impl Iterator<Item = f64> + Clone) -> (f64, f64) {
     (x.clone().fold(f64::INFINITY, f64::min), x.sum::<f64>() / n)
 }
 
-/// Measured (docs/OPACITY_HULL.md): inside the silhouette min 27.45 dB (dinoSR0010), mean
-/// 33.02 dB; inside the covered part min 32.21 dB, mean 36.57 dB. The views below 30 dB lose
-/// it where the hull misses up to 0.6 % of their silhouette (carving, not blending).
+/// Measured (docs/OPACITY_HULL.md): inside the silhouette min 32.06 dB (dinoSR0008), mean
+/// 35.52 dB; inside the covered part min 32.25 dB, mean 36.55 dB (without the frame band:
+/// 27.45 dB at dinoSR0010, where the hull missed 0.6 % of the silhouette).
 #[test]
 fn dino_renders_from_input_cameras() {
     let res = dino_render_psnr();
@@ -552,22 +552,15 @@ fn dino_renders_from_input_cameras() {
     eprintln!("PSNR: silhouette min {sil_min:.2} mean {sil_mean:.2} dB; covered part min {cov_min:.2} mean {cov_mean:.2} dB");
     // the goal (30 dB) holds for the blending wherever the hull covers the silhouette
     assert!(cov_min >= 30.0, "covered-part PSNR {cov_min}");
-    // and on average over the whole silhouettes
-    assert!(sil_mean >= 30.0, "mean silhouette PSNR {sil_mean}");
-    // the rendered alpha leaves at most 1 % of any silhouette uncovered (measured: 0.63 %)
+    // the rendered alpha leaves at most 1 % of any silhouette uncovered (measured: 0.26 %)
     for p in &res {
         let f = p.uncovered_pixels as f64 / p.silhouette_pixels as f64;
         assert!(f <= 0.01, "{}: {f:.4} of the silhouette uncovered", p.view);
     }
-}
-
-/// The goal taken per photo: every input view reproduced at >= 30 dB inside its whole
-/// silhouette. Not met: dinoSR0009..0013 reach 27.45..29.61 dB because the hull misses up to
-/// 0.6 % of their silhouettes (run: `cargo test -p igi --test cli_hull -- --ignored`).
-#[test]
-#[ignore = "not met: 5 of 15 dino views at 27.5-29.6 dB inside the silhouette (hull misses <= 0.6 % of it)"]
-fn dino_every_input_view_at_30_db_inside_the_silhouette() {
-    let res = dino_render_psnr();
+    // the goal taken per photo: every input view at >= 30 dB inside its whole
+    // silhouette (measured 32.06-38.49 dB). Without the frame band (`igi hull build
+    // --frame-band 0`) dinoSR0009-0013 reached only 27.45-29.61 dB: dinoSR0002's mask calls
+    // the shadowed foot at its top edge background, and the hull lost it.
     for p in &res {
         assert!(
             p.silhouette_db >= 30.0,

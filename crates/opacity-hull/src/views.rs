@@ -3,7 +3,11 @@
 //! A view's matte comes from its matting captures when it has them (Eq. 2, maximum over
 //! lambda), otherwise from its mask (opacity 0 or 1). The silhouette for carving is
 //! `alpha > threshold` (0.05 in the paper); pixels whose matte is invalid are **unknown**, as
-//! are all pixels outside the frame: neither carves.
+//! are all pixels outside the frame: neither carves. Where the silhouette runs into the frame's
+//! edge, the object goes on outside the frame, and its parts near the edge that lie in shadow
+//! read like the backdrop (the Middlebury README warns of dark shadows on the object): there a
+//! band along the edge ([`MatteOptions::frame_band`]) does not carve either. The band is left out
+//! of the carving only; every known pixel counts in the reprojection IoU.
 
 use crate::backdrop::{alpha_from_pair, Matte};
 use crate::HullError;
@@ -17,6 +21,9 @@ pub struct MatteOptions {
     pub alpha_threshold: f32,
     /// Smallest backdrop-pair difference that carries signal (see [`alpha_from_pair`]).
     pub min_signal: f32,
+    /// Depth in pixels of the band along the frame's edge that does not carve, wherever the
+    /// silhouette meets the edge (within this many pixels along it); 0: none.
+    pub frame_band: usize,
 }
 
 impl Default for MatteOptions {
@@ -24,6 +31,7 @@ impl Default for MatteOptions {
         MatteOptions {
             alpha_threshold: 0.05,
             min_signal: 0.02,
+            frame_band: 30,
         }
     }
 }
@@ -39,14 +47,17 @@ pub struct View {
     pub silhouette: Mask,
     /// Pixels whose matte is valid (inside the frame by construction).
     pub known: Mask,
+    /// Known pixels that may carve: `known` less the frame band
+    /// ([`MatteOptions::frame_band`]).
+    pub carves: Mask,
 }
 
 impl View {
-    /// True when pixel (x, y) is known background (carves).
+    /// True when pixel (x, y) is known background that carves.
     #[inline]
     pub fn is_background(&self, x: usize, y: usize) -> bool {
         let i = y * self.silhouette.width + x;
-        self.known.data[i] && !self.silhouette.data[i]
+        self.carves.data[i] && !self.silhouette.data[i]
     }
 }
 
@@ -124,6 +135,7 @@ pub fn load_view(rig: &Rig, v: &RigView, opts: MatteOptions) -> Result<View, Hul
             what: "full (every pixel is the object)",
         });
     }
+    let carves = without_frame_band(&silhouette, &known, opts.frame_band);
     Ok(View {
         id: v.id.clone(),
         camera,
@@ -131,7 +143,47 @@ pub fn load_view(rig: &Rig, v: &RigView, opts: MatteOptions) -> Result<View, Hul
         matte,
         silhouette,
         known,
+        carves,
     })
+}
+
+/// `known` less a band `band` pixels deep along each edge of the frame, over the stretch of the
+/// edge within `band` pixels of a silhouette pixel on it.
+pub fn without_frame_band(silhouette: &Mask, known: &Mask, band: usize) -> Mask {
+    let (w, h) = (silhouette.width, silhouette.height);
+    let mut out = known.clone();
+    if band == 0 || w == 0 || h == 0 {
+        return out;
+    }
+    let on = |x: usize, y: usize| silhouette.data[y * w + x];
+    // the four edges: length, the silhouette on it at position t, pixel at (t, depth d)
+    type Px = fn(usize, usize, usize, usize) -> (usize, usize);
+    let edges: [(usize, Px); 4] = [
+        (w, |t, d, _, _| (t, d)),
+        (w, |t, d, _, h| (t, h - 1 - d)),
+        (h, |t, d, _, _| (d, t)),
+        (h, |t, d, w, _| (w - 1 - d, t)),
+    ];
+    for (len, at) in edges {
+        let touching: Vec<bool> = (0..len)
+            .map(|t| {
+                let (x, y) = at(t, 0, w, h);
+                on(x, y)
+            })
+            .collect();
+        for t in 0..len {
+            let lo = t.saturating_sub(band);
+            let hi = (t + band).min(len - 1);
+            if !touching[lo..=hi].iter().any(|b| *b) {
+                continue;
+            }
+            for d in 0..band.min(if len == w { h } else { w }) {
+                let (x, y) = at(t, d, w, h);
+                out.data[y * w + x] = false;
+            }
+        }
+    }
+    out
 }
 
 /// Eq. 2 per lambda on the view's (n = +1, n = -1) pairs, maximum over lambda.
@@ -163,4 +215,39 @@ fn matte_from_backdrops(
         out.max_with(&matte);
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A silhouette that meets the top edge over columns 40-49 of a 100 x 80 frame: a band 10
+    /// deep over columns 30-59 stops carving; the rest of the frame, and a frame whose
+    /// silhouette stays inside, are unchanged.
+    #[test]
+    fn the_band_follows_where_the_silhouette_meets_the_edge() {
+        let (w, h) = (100, 80);
+        let mut sil = Mask::new(w, h);
+        for y in 0..30 {
+            for x in 40..50 {
+                sil.data[y * w + x] = true;
+            }
+        }
+        let known = Mask {
+            width: w,
+            height: h,
+            data: vec![true; w * h],
+        };
+        let carves = without_frame_band(&sil, &known, 10);
+        for y in 0..h {
+            for x in 0..w {
+                let banded = y < 10 && (30..60).contains(&x);
+                assert_eq!(carves.data[y * w + x], !banded, "({x}, {y})");
+            }
+        }
+        let mut inside = Mask::new(w, h);
+        inside.data[40 * w + 50] = true;
+        assert_eq!(without_frame_band(&inside, &known, 10), known);
+        assert_eq!(without_frame_band(&sil, &known, 0), known);
+    }
 }

@@ -144,6 +144,7 @@ mod tests {
             matte: Matte::invalid(64, 64),
             silhouette: Mask::new(64, 64),
             known: Mask::new(64, 64),
+            carves: Mask::new(64, 64),
         }
     }
 
