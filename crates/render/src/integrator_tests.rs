@@ -823,6 +823,15 @@ fn adaptive_renders_are_unbiased_and_spend_their_rays_where_the_noise_is() {
     ));
 }
 
+/// `f` run on a rayon pool of `threads` threads.
+fn on_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap()
+        .install(f)
+}
+
 #[test]
 fn renders_are_the_same_bytes_whatever_the_thread_count() {
     let (scene, lighting) = tower_in_low_sun();
@@ -836,11 +845,9 @@ fn renders_are_the_same_bytes_whatever_the_thread_count() {
             ..Default::default()
         };
         let on = |threads: usize| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            pool.install(|| render_image(&scene, &lighting, &cam, &opts, &|_| {}).unwrap())
+            on_threads(threads, || {
+                render_image(&scene, &lighting, &cam, &opts, &|_| {}).unwrap()
+            })
         };
         let (one, three) = (on(1), on(3));
         assert_eq!(one.mean.pixels, three.mean.pixels, "{opts:?}");
@@ -861,11 +868,9 @@ fn renders_are_the_same_bytes_whatever_the_thread_count() {
         ..Default::default()
     };
     let on = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        pool.install(|| render_images(&scene, &jobs, &opts, &|_, _| {}).unwrap())
+        on_threads(threads, || {
+            render_images(&scene, &jobs, &opts, &|_, _| {}).unwrap()
+        })
     };
     for (a, b) in on(1).iter().zip(&on(3)) {
         assert_eq!(a.mean.pixels, b.mean.pixels);
