@@ -201,6 +201,9 @@ pub fn surface_error(
     truth: &Truth,
     solved: &[bool],
 ) -> (Option<[f32; 3]>, Option<f32>) {
+    if truth.points.is_empty() {
+        return (None, None);
+    }
     let textures: Vec<Texture> = state
         .parts
         .iter()
