@@ -1,9 +1,11 @@
 //! The `SLF_DIR/` folder (FORMATS.md, "Surface light field folder"): `header.json`, the atlas
 //! mesh `mesh.ply`, per-grid-point arrays (`texels.bin` u32, `normals.bin` f32 x 3, `median.bin`
 //! RGB8 with a scale), the coding (`lumispheres.bin` RGB8 per vertex with an offset and scale,
-//! or `prototypes.bin` f32 + `coefficients.bin` u8 per prototype, or `codebook.bin` f32 +
-//! `indices.bin` u16/u32) and `report.json` with the byte counts. All little endian. The folder
-//! is written under a temporary name and renamed, so it is never half-written.
+//! or `prototypes.bin` + `coefficients.bin` u8 per prototype, or `codebook.bin` +
+//! `indices.bin` u16/u32; prototypes and codewords RGB8 per vertex like the faired lumispheres,
+//! or f32 in folders of earlier builds, [`Header::vectors`]) and `report.json` with the byte
+//! counts. All little endian. The folder is written under a temporary name and renamed, so it
+//! is never half-written.
 
 use crate::field::{Coding, SurfaceLightField};
 use crate::lumisphere::Octahedron;
@@ -32,8 +34,25 @@ pub struct Header {
     pub q: usize,
     pub codewords: usize,
     pub median_scale: f32,
+    /// Offset and scale of every RGB8 lumisphere value (faired lumispheres, prototypes,
+    /// codewords): `value = offset + byte / 255 * scale`.
     pub lumisphere_offset: f32,
     pub lumisphere_scale: f32,
+    /// How `prototypes.bin` and `codebook.bin` hold their lumisphere values (absent in the
+    /// headers of earlier builds, which stored them as f32).
+    #[serde(default)]
+    pub vectors: VectorEncoding,
+}
+
+/// The encoding of the lumispheres of `prototypes.bin` and `codebook.bin`.
+#[derive(Clone, Copy, Debug, Default, Serialize, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum VectorEncoding {
+    /// Three little-endian f32 per vertex (folders of earlier builds).
+    #[default]
+    F32,
+    /// Three bytes per vertex with the header's lumisphere offset and scale (written now).
+    Rgb8,
 }
 
 /// Byte counts of the stored folder (`report.json`).
@@ -204,6 +223,7 @@ fn encode(f: &SurfaceLightField) -> (Header, Vec<(String, Vec<u8>)>) {
         median_scale,
         lumisphere_offset: 0.0,
         lumisphere_scale: 0.0,
+        vectors: VectorEncoding::Rgb8,
     };
     encode_coding(&f.coding, &mut h, &mut files);
     (h, files)
@@ -213,33 +233,10 @@ fn encode(f: &SurfaceLightField) -> (Header, Vec<(String, Vec<u8>)>) {
 fn encode_coding(coding: &Coding, h: &mut Header, files: &mut Vec<(String, Vec<u8>)>) {
     match coding {
         Coding::MedianOnly => {}
-        Coding::Faired(l) => {
-            let lo = l
-                .iter()
-                .flatten()
-                .map(|v| v.min_element())
-                .fold(0.0f32, f32::min);
-            let hi = l
-                .iter()
-                .flatten()
-                .map(|v| v.max_element())
-                .fold(0.0f32, f32::max);
-            h.lumisphere_offset = lo;
-            h.lumisphere_scale = hi - lo;
-            files.push((
-                "lumispheres.bin".into(),
-                l.iter()
-                    .flatten()
-                    .flat_map(|v| v.to_array().map(|x| q8(x, lo, hi - lo)))
-                    .collect(),
-            ));
-        }
+        Coding::Faired(l) => files.push(("lumispheres.bin".into(), rgb8_lumispheres(l, h))),
         Coding::Pfa(p) => {
             h.q = p.prototypes.len() - 1;
-            files.push((
-                "prototypes.bin".into(),
-                f32_bytes(p.prototypes.iter().flatten().flat_map(|v| v.to_array())),
-            ));
+            files.push(("prototypes.bin".into(), rgb8_lumispheres(&p.prototypes, h)));
             files.push((
                 "coefficients.bin".into(),
                 p.coefficients
@@ -251,10 +248,7 @@ fn encode_coding(coding: &Coding, h: &mut Header, files: &mut Vec<(String, Vec<u
         }
         Coding::Quantized(c) => {
             h.codewords = c.codewords.len();
-            files.push((
-                "codebook.bin".into(),
-                f32_bytes(c.codewords.iter().flatten().flat_map(|v| v.to_array())),
-            ));
+            files.push(("codebook.bin".into(), rgb8_lumispheres(&c.codewords, h)));
             let idx: Vec<u8> = if c.codewords.len() <= 1 << 16 {
                 c.index
                     .iter()
@@ -266,6 +260,19 @@ fn encode_coding(coding: &Coding, h: &mut Header, files: &mut Vec<(String, Vec<u
             files.push(("indices.bin".into(), idx));
         }
     }
+}
+
+/// Lumispheres as RGB8 per vertex over their whole range (from at most 0 to at least 0), the
+/// offset and scale written into the header.
+fn rgb8_lumispheres(l: &[Vec<Vec3>], h: &mut Header) -> Vec<u8> {
+    let values = || l.iter().flatten();
+    let lo = values().map(|v| v.min_element()).fold(0.0f32, f32::min);
+    let hi = values().map(|v| v.max_element()).fold(0.0f32, f32::max);
+    h.lumisphere_offset = lo;
+    h.lumisphere_scale = hi - lo;
+    values()
+        .flat_map(|v| v.to_array().map(|x| q8(x, lo, hi - lo)))
+        .collect()
 }
 
 fn read(dir: &Path, name: &str, want: usize) -> Result<Vec<u8>, LightFieldError> {
@@ -352,23 +359,37 @@ fn read_header(hp: &Path) -> Result<Header, LightFieldError> {
 
 /// The faired lumispheres of `h.points` points with `n` directions each.
 fn read_faired(dir: &Path, h: &Header, n: usize) -> Result<Coding, LightFieldError> {
-    let b = read(dir, "lumispheres.bin", 3 * n * h.points)?;
-    let vals: Vec<Vec3> = b
-        .chunks(3)
-        .map(|c| {
-            Vec3::from_array([0, 1, 2].map(|k| dq8(c[k], h.lumisphere_offset, h.lumisphere_scale)))
-        })
-        .collect();
-    Ok(Coding::Faired(vals.chunks(n).map(|c| c.to_vec()).collect()))
+    let l = read_lumispheres(dir, "lumispheres.bin", h, VectorEncoding::Rgb8, n, h.points)?;
+    Ok(Coding::Faired(l))
+}
+
+/// `count` lumispheres of `n` vertices from file `name`, in `encoding`.
+fn read_lumispheres(
+    dir: &Path,
+    name: &str,
+    h: &Header,
+    encoding: VectorEncoding,
+    n: usize,
+    count: usize,
+) -> Result<Vec<Vec<Vec3>>, LightFieldError> {
+    let values: Vec<Vec3> = match encoding {
+        VectorEncoding::F32 => vec3s(&read(dir, name, 12 * n * count)?),
+        VectorEncoding::Rgb8 => read(dir, name, 3 * n * count)?
+            .chunks(3)
+            .map(|c| {
+                Vec3::from_array(
+                    [0, 1, 2].map(|k| dq8(c[k], h.lumisphere_offset, h.lumisphere_scale)),
+                )
+            })
+            .collect(),
+    };
+    Ok(values.chunks(n).map(|c| c.to_vec()).collect())
 }
 
 /// The principal-function prototypes and each point's coefficients (normalised to sum 1).
 fn read_pfa(dir: &Path, h: &Header, n: usize) -> Result<Coding, LightFieldError> {
     let k = h.q + 1;
-    let protos = vec3s(&read(dir, "prototypes.bin", 12 * n * k)?)
-        .chunks(n)
-        .map(|c| c.to_vec())
-        .collect();
+    let protos = read_lumispheres(dir, "prototypes.bin", h, h.vectors, n, k)?;
     let coefficients = read(dir, "coefficients.bin", k * h.points)?
         .chunks(k)
         .map(|c| {
@@ -386,10 +407,7 @@ fn read_pfa(dir: &Path, h: &Header, n: usize) -> Result<Coding, LightFieldError>
 /// The codebook and each point's codeword index (16-bit unless there are more than 2^16).
 fn read_quantized(dir: &Path, h: &Header, n: usize) -> Result<Coding, LightFieldError> {
     let k = h.codewords;
-    let codewords = vec3s(&read(dir, "codebook.bin", 12 * n * k)?)
-        .chunks(n)
-        .map(|c| c.to_vec())
-        .collect();
+    let codewords = read_lumispheres(dir, "codebook.bin", h, h.vectors, n, k)?;
     let wide = k > 1 << 16;
     let b = read(dir, "indices.bin", (if wide { 4 } else { 2 }) * h.points)?;
     let index: Vec<u32> = if wide {
@@ -408,4 +426,130 @@ fn read_quantized(dir: &Path, h: &Header, n: usize) -> Result<Coding, LightField
         });
     }
     Ok(Coding::Quantized(Codebook { codewords, index }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A field of three grid points on a 4 x 4 atlas, with lumisphere values in [-0.4, 2.6].
+    fn field(coding: Coding) -> SurfaceLightField {
+        let oct = Octahedron::new(1);
+        let median = vec![Vec3::new(0.2, 0.3, 0.4); 3];
+        let normal = vec![Vec3::Z; 3];
+        SurfaceLightField::new(oct, 4, vec![0, 5, 15], median, normal, coding)
+    }
+
+    fn lumispheres(count: usize, n: usize) -> Vec<Vec<Vec3>> {
+        (0..count)
+            .map(|k| {
+                (0..n)
+                    .map(|i| {
+                        let x = (k * n + i) as f32 / (count * n) as f32;
+                        Vec3::new(-0.4 + 3.0 * x, 1.0 - x, 0.5 * x)
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+
+    fn mesh() -> TriMesh {
+        TriMesh {
+            positions: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+            uvs: Some(vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]),
+            indices: vec![[0, 1, 2]],
+            ..TriMesh::default()
+        }
+    }
+
+    fn stored_vectors(f: &SurfaceLightField) -> Vec<Vec<Vec3>> {
+        match &f.coding {
+            Coding::Pfa(p) => p.prototypes.clone(),
+            Coding::Quantized(c) => c.codewords.clone(),
+            _ => unreachable!(),
+        }
+    }
+
+    fn max_difference(a: &[Vec<Vec3>], b: &[Vec<Vec3>]) -> f32 {
+        assert_eq!(a.len(), b.len());
+        a.iter()
+            .flatten()
+            .zip(b.iter().flatten())
+            .map(|(x, y)| (*x - *y).abs().max_element())
+            .fold(0.0, f32::max)
+    }
+
+    /// Prototypes and codewords are stored as RGB8 over their range (about 3): within half a
+    /// step of it / 255, at a quarter of the f32 bytes.
+    #[test]
+    fn prototypes_and_codewords_round_trip_as_rgb8() {
+        let n = Octahedron::new(1).len();
+        let codings = [
+            Coding::Pfa(Pfa {
+                prototypes: lumispheres(3, n),
+                coefficients: vec![vec![0.2, 0.3, 0.5]; 3],
+                energy_history: Vec::new(),
+            }),
+            Coding::Quantized(Codebook {
+                codewords: lumispheres(4, n),
+                index: vec![3, 0, 2],
+            }),
+        ];
+        for coding in codings {
+            let dir = tempfile::tempdir().unwrap();
+            let out = dir.path().join("slf");
+            let f = field(coding);
+            let report = save(&out, &f, &mesh(), serde_json::json!({})).unwrap();
+            let h = read_header(&out.join("header.json")).unwrap();
+            assert_eq!(h.vectors, VectorEncoding::Rgb8);
+            let (lo, scale) = (h.lumisphere_offset, h.lumisphere_scale);
+            assert!(
+                (lo + 0.4).abs() < 1e-6 && scale > 2.9 && scale < 3.0,
+                "{lo} {scale}"
+            );
+            let name = if h.q > 0 {
+                "prototypes.bin"
+            } else {
+                "codebook.bin"
+            };
+            let count = stored_vectors(&f).len();
+            assert_eq!(report.files[name], (3 * n * count) as u64);
+            let (loaded, _) = load(&out).unwrap();
+            let err = max_difference(&stored_vectors(&f), &stored_vectors(&loaded));
+            assert!(err <= 0.5 * scale / 255.0 + 1e-5, "{name}: {err}");
+            assert!(err > 0.0, "{name}: RGB8 cannot hold these values exactly");
+        }
+    }
+
+    /// A folder of an earlier build (f32 codebook, no `vectors` in the header) still loads,
+    /// exactly.
+    #[test]
+    fn an_f32_codebook_of_an_earlier_build_loads() {
+        let n = Octahedron::new(1).len();
+        let codewords = lumispheres(2, n);
+        let f = field(Coding::Quantized(Codebook {
+            codewords: codewords.clone(),
+            index: vec![1, 0, 1],
+        }));
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("slf");
+        save(&out, &f, &mesh(), serde_json::json!({})).unwrap();
+        let hp = out.join("header.json");
+        let mut header: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&hp).unwrap()).unwrap();
+        header.as_object_mut().unwrap().remove("vectors");
+        std::fs::write(&hp, header.to_string()).unwrap();
+        let bytes = f32_bytes(codewords.iter().flatten().flat_map(|v| v.to_array()));
+        std::fs::write(out.join("codebook.bin"), bytes).unwrap();
+        let (loaded, _) = load(&out).unwrap();
+        assert_eq!(stored_vectors(&loaded), codewords);
+        // The same f32 file under an RGB8 header is the wrong size, named.
+        header["vectors"] = "rgb8".into();
+        std::fs::write(&hp, header.to_string()).unwrap();
+        let err = load(&out).unwrap_err().to_string();
+        assert!(
+            err.contains("codebook.bin") && err.contains("expected"),
+            "{err}"
+        );
+    }
 }
