@@ -166,56 +166,40 @@ impl Footprint<'_> {
 
     /// Per part, photograph `j`'s radiance atlas (shading times albedo on the texels it
     /// observes, grown two rings) and the mask of where it is known and smooth enough to
-    /// interpolate (not on a shading edge, see [`shading_edges`]).
+    /// interpolate (not on a shading edge, see [`shading_edges`]); `None` for a part it does
+    /// not observe (only those parts take memory and time: a group's, not the site's).
     fn radiance_atlases(
         &self,
         j: usize,
         obs: &[Obs],
         rho: &[Vec<Vec3>],
     ) -> Vec<Option<(Texture, Texture)>> {
-        let mut values: Vec<Vec<Vec3>> = self
-            .parts
-            .iter()
-            .map(|p| vec![Vec3::ZERO; p.resolution().pow(2)])
-            .collect();
-        let mut shading: Vec<Vec<f32>> = values.iter().map(|v| vec![f32::NAN; v.len()]).collect();
-        let mut known: Vec<Vec<bool>> = values.iter().map(|v| vec![false; v.len()]).collect();
+        let mut atlases: Vec<Option<RadianceAtlas>> = self.parts.iter().map(|_| None).collect();
         for o in obs.iter().filter(|o| o.photo as usize == j) {
             let (pi, i) = (o.part as usize, o.atlas as usize);
-            values[pi][i] = o.shading * rho[pi][i];
-            shading[pi][i] = igi_brdf::luminance(o.shading);
-            known[pi][i] = true;
+            let a = atlases[pi].get_or_insert_with(|| RadianceAtlas::new(&self.parts[pi]));
+            a.values[i] = o.shading * rho[pi][i];
+            a.shading[i] = igi_brdf::luminance(o.shading);
+            a.known[i] = true;
         }
         self.parts
             .iter()
-            .zip(values.iter_mut().zip(known.iter_mut()))
-            .zip(&shading)
-            .map(|((p, (v, k)), s)| {
-                if !k.iter().any(|b| *b) {
-                    return None;
-                }
-                let r = p.resolution();
-                let gutter: Vec<bool> = p.coverage.pixels.iter().map(|c| c[0] > 0.0).collect();
-                igi_geometry::texels::dilate(v, k, &gutter, r, 2);
-                for i in shading_edges(s, r) {
-                    k[i] = false;
-                }
-                let mask = k.iter().map(|b| Vec3::splat(*b as u8 as f32)).collect();
-                Some((texture(r, std::mem::take(v)), texture(r, mask)))
-            })
+            .zip(atlases)
+            .map(|(p, a)| a.map(|a| a.grown(p)))
             .collect()
     }
 
     /// The weighted mean of `proposals` (one per observation) per texel, over the current
-    /// albedo atlases (texels without proposals keep theirs).
+    /// albedo atlases (texels without proposals keep theirs), for the parts the observations
+    /// fall on (empty for the others).
     fn mean_albedo(&self, obs: &[Obs], proposals: &[Vec3]) -> Vec<Vec<Vec3>> {
-        let mut sum: Vec<Vec<(Vec3, f32)>> = self
-            .rho
-            .iter()
-            .map(|r| vec![(Vec3::ZERO, 0.0); r.len()])
-            .collect();
+        let mut sum: Vec<Vec<(Vec3, f32)>> = self.rho.iter().map(|_| Vec::new()).collect();
         for (o, p) in obs.iter().zip(proposals) {
-            let s = &mut sum[o.part as usize][o.atlas as usize];
+            let part = &mut sum[o.part as usize];
+            if part.is_empty() {
+                *part = vec![(Vec3::ZERO, 0.0); self.rho[o.part as usize].len()];
+            }
+            let s = &mut part[o.atlas as usize];
             s.0 += *p * o.weight;
             s.1 += o.weight;
         }
@@ -223,12 +207,44 @@ impl Footprint<'_> {
             .iter()
             .zip(sum)
             .map(|(r, s)| {
-                r.iter()
-                    .zip(s)
-                    .map(|(old, (v, w))| if w > 0.0 { v / w } else { *old })
+                s.into_iter()
+                    .zip(r)
+                    .map(|((v, w), old)| if w > 0.0 { v / w } else { *old })
                     .collect()
             })
             .collect()
+    }
+}
+
+/// One part's radiance atlas in one photograph while it is filled: the values, the shading
+/// luminance (NaN: no reading) and where it is known.
+struct RadianceAtlas {
+    values: Vec<Vec3>,
+    shading: Vec<f32>,
+    known: Vec<bool>,
+}
+
+impl RadianceAtlas {
+    fn new(p: &Part) -> RadianceAtlas {
+        let n = p.resolution().pow(2);
+        RadianceAtlas {
+            values: vec![Vec3::ZERO; n],
+            shading: vec![f32::NAN; n],
+            known: vec![false; n],
+        }
+    }
+
+    /// The atlas grown two rings into the part's gutters, and its mask with the shading edges
+    /// taken out, as textures.
+    fn grown(mut self, p: &Part) -> (Texture, Texture) {
+        let r = p.resolution();
+        let gutter: Vec<bool> = p.coverage.pixels.iter().map(|c| c[0] > 0.0).collect();
+        igi_geometry::texels::dilate(&mut self.values, &mut self.known, &gutter, r, 2);
+        for i in shading_edges(&self.shading, r) {
+            self.known[i] = false;
+        }
+        let mask = self.known.iter().map(|b| Vec3::splat(*b as u8 as f32)).collect();
+        (texture(r, self.values), texture(r, mask))
     }
 }
 

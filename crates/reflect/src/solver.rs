@@ -790,20 +790,30 @@ struct PhotoPass<'a> {
 
 /// Texels whose sun visibility differs from an atlas neighbour's (the shadow-edge rule).
 struct ShadowEdges {
-    /// Sun visibility per part and texel.
+    /// Sun visibility per part and texel (empty for the parts outside the group).
     visible: Vec<Vec<bool>>,
-    /// Atlas index -> texel number per part, for neighbour lookups.
+    /// Atlas index -> texel number per part, for neighbour lookups (empty outside the group).
     texel_of: Vec<Vec<u32>>,
 }
 
 impl ShadowEdges {
-    /// Sun visibility of every part's texels in `scene` (`None` without a sun).
+    /// Sun visibility of the texels of the group's parts in `scene` (`None` without a sun).
+    /// Only those parts: a texel's neighbours are in its own part, and tracing the whole site
+    /// for every group made a prepared site's solve grow with the square of its voxels.
     fn new(pass: &PhotoPass) -> Option<ShadowEdges> {
         let s = pass.photo.lighting.sun.as_ref()?;
         let parts = &pass.state.parts;
+        let mut in_group = vec![false; parts.len()];
+        for t in pass.texels {
+            in_group[t.part as usize] = true;
+        }
         let visible = parts
             .iter()
-            .map(|p| {
+            .zip(&in_group)
+            .map(|(p, &g)| {
+                if !g {
+                    return Vec::new();
+                }
                 p.cache
                     .texels
                     .par_iter()
@@ -821,7 +831,11 @@ impl ShadowEdges {
             .collect();
         let texel_of = parts
             .iter()
-            .map(|p| {
+            .zip(&in_group)
+            .map(|(p, &g)| {
+                if !g {
+                    return Vec::new();
+                }
                 let r = p.resolution();
                 let mut m = vec![u32::MAX; r * r];
                 for (k, t) in p.cache.texels.iter().enumerate() {
