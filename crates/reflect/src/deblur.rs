@@ -243,7 +243,11 @@ impl RadianceAtlas {
         for i in shading_edges(&self.shading, r) {
             self.known[i] = false;
         }
-        let mask = self.known.iter().map(|b| Vec3::splat(*b as u8 as f32)).collect();
+        let mask = self
+            .known
+            .iter()
+            .map(|b| Vec3::splat(*b as u8 as f32))
+            .collect();
         (texture(r, self.values), texture(r, mask))
     }
 }

@@ -143,18 +143,10 @@ pub fn run_task(
         plan,
     } = Checkpoint::load(result, inputs, opts)?;
     let g = plan.group(group)?;
-    let snapshot = (state.rho.clone(), state.lobes.clone());
     let progress = crate::solver::NoProgress;
-    let sums = solve_group(
-        &mut state,
-        g,
-        &plan,
-        Some(&snapshot),
-        inputs,
-        &opts,
-        k,
-        &progress,
-    )?;
+    // no snapshot: the checkpoint just loaded is iteration k's albedo, and only this group's
+    // parts change, after its scene is built (a copy of every part's atlas would double them)
+    let sums = solve_group(&mut state, g, &plan, None, inputs, &opts, k, &progress)?;
     let dir = task_dir(work, k + 1, group);
     let done = TaskDone {
         group: group.to_string(),
