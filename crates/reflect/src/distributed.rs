@@ -25,7 +25,7 @@ use crate::solver::{
 use crate::ReflectError;
 use glam::Vec3;
 use igi_imaging::run::ProcessUsage;
-use igi_imaging::{read_image, write_exr, HdrImage};
+use igi_imaging::{write_exr, HdrImage};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -105,8 +105,35 @@ impl Checkpoint {
         inputs: &SolveInputs,
         opts: &SolveOptions,
     ) -> Result<Checkpoint, ReflectError> {
+        Self::load_solving(result, inputs, opts, &|_| true)
+    }
+
+    /// The checkpoint as the task of `group` needs it: the whole state of the group's parts
+    /// and, of the others, what its scene shows ([`SolveResult::load_solving`]), so a task
+    /// reads and holds the weights, counts and standard errors of its own parts only. (A
+    /// prepared site's group is the part of its name; any other group is loaded whole.)
+    fn for_group(
+        result: &Path,
+        inputs: &SolveInputs,
+        opts: &SolveOptions,
+        group: &str,
+    ) -> Result<Checkpoint, ReflectError> {
+        let c = Self::load_solving(result, inputs, opts, &|name| name == group)?;
+        let g = c.plan.group(group)?;
+        if g.parts.iter().all(|&i| !c.state.weight_sum[i].is_empty()) {
+            return Ok(c);
+        }
+        Self::load(result, inputs, opts)
+    }
+
+    fn load_solving(
+        result: &Path,
+        inputs: &SolveInputs,
+        opts: &SolveOptions,
+        solving: &dyn Fn(&str) -> bool,
+    ) -> Result<Checkpoint, ReflectError> {
         let opts = jacobi(opts)?;
-        let mut state = SolveResult::load(result)?;
+        let mut state = SolveResult::load_solving(result, solving)?;
         let k = state.report.iterations.len() as u32;
         let plan = plan(&mut state, inputs, &opts)?;
         Ok(Checkpoint {
@@ -141,7 +168,7 @@ pub fn run_task(
         mut state,
         k,
         plan,
-    } = Checkpoint::load(result, inputs, opts)?;
+    } = Checkpoint::for_group(result, inputs, opts, group)?;
     let g = plan.group(group)?;
     let progress = crate::solver::NoProgress;
     // no snapshot: the checkpoint just loaded is iteration k's albedo, and only this group's
@@ -173,7 +200,7 @@ pub fn write_stale(
     group: &str,
     meta: &TaskMeta,
 ) -> Result<PathBuf, ReflectError> {
-    let Checkpoint { state, k, plan, .. } = Checkpoint::load(result, inputs, opts)?;
+    let Checkpoint { state, k, plan, .. } = Checkpoint::for_group(result, inputs, opts, group)?;
     let g = plan.group(group)?;
     let dir = task_dir(work, k + 1, group);
     let done = TaskDone {
@@ -245,17 +272,7 @@ fn write_atlases(state: &SolveResult, i: usize, dir: &Path) -> Result<(), Reflec
 fn read_atlases(state: &mut SolveResult, i: usize, dir: &Path) -> Result<(), ReflectError> {
     let r = state.parts[i].resolution();
     let name = state.parts[i].name.clone();
-    let read = |what: &str| -> Result<HdrImage, ReflectError> {
-        let p = dir.join(format!("{name}_{what}.exr"));
-        let im = read_image(&p)?;
-        if im.width != r || im.height != r {
-            return Err(ReflectError::file(
-                &p,
-                format!("is {}x{}, expected {r}x{r}", im.width, im.height),
-            ));
-        }
-        Ok(im)
-    };
+    let read = |what: &str| crate::result::read_atlas(dir, &name, what, r);
     state.rho[i] = read("rho_d")?
         .pixels
         .iter()

@@ -280,6 +280,17 @@ impl SolveResult {
     /// Loads a result folder written by [`write_geometry`](Self::write_geometry) and
     /// [`write_state`](Self::write_state), for resuming or reading.
     pub fn load(dir: &Path) -> Result<SolveResult, ReflectError> {
+        Self::load_solving(dir, &|_| true)
+    }
+
+    /// [`load`](Self::load) for solving only the parts `solving` names: the other parts get
+    /// their geometry, albedo and lobes (what a scene shows) but no weight, observation or
+    /// standard-error atlases (empty, never read), so a cluster task reads and holds those for
+    /// its own group only. Such a state must not be written back whole.
+    pub(crate) fn load_solving(
+        dir: &Path,
+        solving: &dyn Fn(&str) -> bool,
+    ) -> Result<SolveResult, ReflectError> {
         if dir.join(STAGED).join("report.json").is_file() {
             return Err(ReflectError::file(
                 dir,
@@ -296,7 +307,7 @@ impl SolveResult {
         let (mut rho, mut weight_sum, mut observations, mut stderr, mut lobes) =
             (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
         for s in &report.parts {
-            let p = StoredPart::read(&pdir, s)?;
+            let p = StoredPart::read(&pdir, s, solving(&s.name))?;
             rho.push(p.rho);
             weight_sum.push(p.weight_sum);
             observations.push(p.observations);
@@ -330,63 +341,88 @@ struct StoredPart {
 }
 
 impl StoredPart {
-    /// Reads the part `s` of the report from the result's `parts/` folder `pdir`: its mesh
-    /// (unless it lives in a prepared site), texel cache, coverage, state atlases and lobes;
-    /// every atlas must have the coverage's size.
-    fn read(pdir: &Path, s: &crate::record::PartSummary) -> Result<StoredPart, ReflectError> {
+    /// Reads the part `s` of the report from the result's `parts/` folder `pdir`: its geometry
+    /// ([`read_part`]), albedo, lobes and, when `solving`, its weight, observation and
+    /// standard-error atlases (otherwise empty); every atlas must have the coverage's size.
+    fn read(
+        pdir: &Path,
+        s: &crate::record::PartSummary,
+        solving: bool,
+    ) -> Result<StoredPart, ReflectError> {
         let name = &s.name;
-        let mesh = match &s.stored {
-            None => read_mesh(&pdir.join(format!("{name}.ply")))?,
-            Some(_) => TriMesh::default(),
+        let part = read_part(pdir, s)?;
+        let r = part.resolution();
+        let atlas = |what: &str| read_atlas(pdir, name, what, r);
+        let first = |im: HdrImage| im.pixels.iter().map(|p| p[0]).collect::<Vec<f32>>();
+        let (weight_sum, observations, stderr) = if solving {
+            let counts = first(atlas("observations")?);
+            (
+                first(atlas("weight")?),
+                counts.iter().map(|c| c.max(0.0) as u32).collect(),
+                read_stderr(pdir, name, r)?,
+            )
+        } else {
+            (Vec::new(), Vec::new(), Vec::new())
         };
-        let coverage = read_image(&pdir.join(format!("{name}_coverage.exr")))?;
-        let pos = read_image(&pdir.join(format!("{name}_position.exr")))?;
-        let nrm = read_image(&pdir.join(format!("{name}_normal.exr")))?;
-        let r = coverage.width;
-        let rho_img = read_image(&pdir.join(format!("{name}_rho_d.exr")))?;
-        let w_img = read_image(&pdir.join(format!("{name}_weight.exr")))?;
-        let o_img = read_image(&pdir.join(format!("{name}_observations.exr")))?;
-        for (im, f) in [
-            (&pos, "position"),
-            (&nrm, "normal"),
-            (&rho_img, "rho_d"),
-            (&w_img, "weight"),
-            (&o_img, "observations"),
-        ] {
-            if im.width != r || im.height != r {
-                return Err(ReflectError::file(
-                    pdir.join(format!("{name}_{f}.exr")),
-                    format!("is {}x{}, expected {r}x{r}", im.width, im.height),
-                ));
-            }
-        }
-        let stderr = read_stderr(pdir, name, r)?;
-        let texels = TexelCache::covered_texels(&pos, &nrm, &coverage);
-        let lobes = read_lobes(&pdir.join(format!("{name}_lobes.json")))?;
         Ok(StoredPart {
-            part: Part {
-                name: name.clone(),
-                mesh,
-                stored: s.stored.clone(),
-                texel_size: s.texel_size_m,
-                footprint_m: s.footprint_m,
-                cache: TexelCache {
-                    resolution: r,
-                    texels,
-                },
-                coverage,
-            },
-            rho: rho_img
+            rho: atlas("rho_d")?
                 .pixels
                 .iter()
                 .map(|p| Vec3::from_array(*p))
                 .collect(),
-            weight_sum: w_img.pixels.iter().map(|p| p[0]).collect(),
-            observations: o_img.pixels.iter().map(|p| p[0].max(0.0) as u32).collect(),
+            weight_sum,
+            observations,
             stderr,
-            lobes,
+            lobes: read_lobes(&pdir.join(format!("{name}_lobes.json")))?,
+            part,
         })
     }
+}
+
+/// The geometry of part `s` in a result's `parts/` folder `pdir`: its mesh (unless it lives in
+/// a prepared site), coverage and texel cache (from the position and normal atlases, which must
+/// have the coverage's size).
+fn read_part(pdir: &Path, s: &crate::record::PartSummary) -> Result<Part, ReflectError> {
+    let name = &s.name;
+    let mesh = match &s.stored {
+        None => read_mesh(&pdir.join(format!("{name}.ply")))?,
+        Some(_) => TriMesh::default(),
+    };
+    let coverage = read_image(&pdir.join(format!("{name}_coverage.exr")))?;
+    let r = coverage.width;
+    let pos = read_atlas(pdir, name, "position", r)?;
+    let nrm = read_atlas(pdir, name, "normal", r)?;
+    let texels = TexelCache::covered_texels(&pos, &nrm, &coverage);
+    Ok(Part {
+        name: name.clone(),
+        mesh,
+        stored: s.stored.clone(),
+        texel_size: s.texel_size_m,
+        footprint_m: s.footprint_m,
+        cache: TexelCache {
+            resolution: r,
+            texels,
+        },
+        coverage,
+    })
+}
+
+/// `NAME_WHAT.exr` of an `r` x `r` atlas in `pdir`.
+pub(crate) fn read_atlas(
+    pdir: &Path,
+    name: &str,
+    what: &str,
+    r: usize,
+) -> Result<HdrImage, ReflectError> {
+    let path = pdir.join(format!("{name}_{what}.exr"));
+    let im = read_image(&path)?;
+    if im.width != r || im.height != r {
+        return Err(ReflectError::file(
+            &path,
+            format!("is {}x{}, expected {r}x{r}", im.width, im.height),
+        ));
+    }
+    Ok(im)
 }
 
 /// A part's `NAME_lobes.json`; no lobes when the file does not exist.
@@ -406,14 +442,7 @@ pub(crate) fn read_stderr(pdir: &Path, name: &str, r: usize) -> Result<Vec<Vec3>
     if !path.exists() {
         return Ok(vec![UNKNOWN_STDERR; r * r]);
     }
-    let im = read_image(&path)?;
-    if im.width != r || im.height != r {
-        return Err(ReflectError::file(
-            &path,
-            format!("is {}x{}, expected {r}x{r}", im.width, im.height),
-        ));
-    }
-    Ok(im
+    Ok(read_atlas(pdir, name, "stderr", r)?
         .pixels
         .iter()
         .map(|p| {
@@ -833,4 +862,68 @@ pub fn read_points(path: &Path) -> Result<Vec<(Vec3, Vec3)>, ReflectError> {
         .iter()
         .map(|r| (Vec3::new(r[0], r[1], r[2]), Vec3::new(r[3], r[4], r[5])))
         .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::parts::build_parts;
+
+    fn square(x0: f32) -> TriMesh {
+        let mut m = TriMesh::default();
+        for [x, y] in [[x0, 0.0], [x0 + 2.0, 0.0], [x0 + 2.0, 2.0], [x0, 2.0]] {
+            m.positions.push([x, y, 0.0]);
+        }
+        m.indices = vec![[0, 1, 2], [0, 2, 3]];
+        m.compute_vertex_normals();
+        m
+    }
+
+    /// A state loaded for solving one part holds the weights, counts and standard errors of
+    /// that part only, and every part's geometry and albedo as a full load does.
+    #[test]
+    fn a_state_loaded_for_one_part_holds_its_statistics_only() {
+        let dir = tempfile::tempdir().unwrap();
+        let meshes = vec![("a".into(), square(0.0)), ("b".into(), square(3.0))];
+        let parts = build_parts(meshes, 16).unwrap();
+        let mut state = SolveResult::fresh(parts, vec!["p".into()], &SolveOptions::default());
+        for (i, rho) in state.rho.iter_mut().enumerate() {
+            rho.iter_mut()
+                .enumerate()
+                .for_each(|(k, v)| *v = Vec3::splat((i * 256 + k) as f32 / 600.0));
+        }
+        state.weight_sum[0] = vec![1.5; 256];
+        state.observations[0] = vec![3; 256];
+        state.report.parts = state
+            .parts
+            .iter()
+            .map(|p| crate::record::PartSummary {
+                name: p.name.clone(),
+                resolution: p.resolution(),
+                texel_size_m: p.texel_size,
+                covered_texels: p.cache.texels.len(),
+                seen_texels: 0,
+                seen_twice_texels: 0,
+                filled_texels: 0,
+                stored: None,
+                scene_triangles: 0,
+                footprint_m: None,
+            })
+            .collect();
+        state.write_geometry(dir.path()).unwrap();
+        state.write_state(dir.path()).unwrap();
+        let full = SolveResult::load(dir.path()).unwrap();
+        let light = SolveResult::load_solving(dir.path(), &|name| name == "a").unwrap();
+        assert_eq!(light.rho, full.rho);
+        assert_eq!(light.lobes, full.lobes);
+        assert_eq!(light.weight_sum[0], full.weight_sum[0]);
+        assert_eq!(light.observations[0], vec![3; 256]);
+        assert_eq!(light.stderr[0], full.stderr[0]);
+        assert!(light.weight_sum[1].is_empty() && light.observations[1].is_empty());
+        assert!(light.stderr[1].is_empty() && full.stderr[1].len() == 256);
+        for (l, f) in light.parts.iter().zip(&full.parts) {
+            assert_eq!(l.cache.texels.len(), f.cache.texels.len());
+            assert_eq!(l.coverage.pixels, f.coverage.pixels);
+        }
+    }
 }
