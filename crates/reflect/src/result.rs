@@ -174,6 +174,12 @@ impl SolveResult {
                 im
             };
             if self.changed.get(i).copied().unwrap_or(true) {
+                assert_eq!(
+                    self.weight_sum[i].len(),
+                    r * r,
+                    "part {}: loaded without its statistics (load_solving), it cannot be written",
+                    p.name
+                );
                 write_exr(
                     &pdir.join(format!("{}_rho_d.exr", p.name)),
                     &img(&|k| self.rho[i][k].to_array()),
