@@ -6,7 +6,7 @@
 //! (`crate::deblur`) corrects. Below the solver, the smoothing, the deblurring, the result
 //! folder and the plots, which all read these types.
 
-use crate::parts::StoredPart;
+use crate::parts::{Part, StoredPart};
 use crate::weights::WeightRules;
 use crate::ReflectError;
 use glam::{Vec2, Vec3};
@@ -267,6 +267,24 @@ pub struct PartSummary {
     /// chose its resolution (`atlas_size::auto_resolution`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub footprint_m: Option<f64>,
+}
+
+impl PartSummary {
+    /// The summary of part `p` before any solve has seen it.
+    pub(crate) fn unsolved(p: &Part) -> PartSummary {
+        PartSummary {
+            name: p.name.clone(),
+            resolution: p.resolution(),
+            texel_size_m: p.texel_size,
+            covered_texels: p.cache.texels.len(),
+            seen_texels: 0,
+            seen_twice_texels: 0,
+            filled_texels: 0,
+            stored: p.stored.clone(),
+            scene_triangles: 0,
+            footprint_m: p.footprint_m,
+        }
+    }
 }
 
 /// The report of a solve (`report.json`).

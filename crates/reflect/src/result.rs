@@ -903,18 +903,7 @@ mod tests {
         state.report.parts = state
             .parts
             .iter()
-            .map(|p| crate::record::PartSummary {
-                name: p.name.clone(),
-                resolution: p.resolution(),
-                texel_size_m: p.texel_size,
-                covered_texels: p.cache.texels.len(),
-                seen_texels: 0,
-                seen_twice_texels: 0,
-                filled_texels: 0,
-                stored: None,
-                scene_triangles: 0,
-                footprint_m: None,
-            })
+            .map(crate::record::PartSummary::unsolved)
             .collect();
         state.write_geometry(dir.path()).unwrap();
         state.write_state(dir.path()).unwrap();

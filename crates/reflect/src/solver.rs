@@ -305,18 +305,7 @@ pub(crate) fn plan(
                 .iter()
                 .find(|s| s.name == p.name)
                 .cloned()
-                .unwrap_or_else(|| PartSummary {
-                    name: p.name.clone(),
-                    resolution: p.resolution(),
-                    texel_size_m: p.texel_size,
-                    covered_texels: p.cache.texels.len(),
-                    seen_texels: 0,
-                    seen_twice_texels: 0,
-                    filled_texels: 0,
-                    stored: p.stored.clone(),
-                    scene_triangles: 0,
-                    footprint_m: p.footprint_m,
-                })
+                .unwrap_or_else(|| PartSummary::unsolved(p))
         })
         .collect();
     start.report.parts = summaries;
