@@ -56,6 +56,30 @@ impl TexelCache {
     }
 }
 
+/// Index (`row * width + column`) of the texel of a `width` x `height` texture whose square
+/// holds `uv` (FORMATS.md: row 0 at the top, v up): the nearest texel, clamped to the edge; a
+/// non-finite coordinate reads the centre.
+#[inline]
+pub fn texel_at(uv: Vec2, width: usize, height: usize) -> usize {
+    let (u, v) = clamp_uv(uv);
+    let x = ((u * width as f32) as usize).min(width - 1);
+    let y = (((1.0 - v) * height as f32) as usize).min(height - 1);
+    y * width + x
+}
+
+/// A UV clamped to [0, 1] (a non-finite coordinate reads the centre, 0.5).
+#[inline]
+pub fn clamp_uv(uv: Vec2) -> (f32, f32) {
+    let c = |x: f32| {
+        if x.is_finite() {
+            x.clamp(0.0, 1.0)
+        } else {
+            0.5
+        }
+    };
+    (c(uv.x), c(uv.y))
+}
+
 /// Grows `known` values into `target` texels that are not yet known, ring by ring (8-neighbour
 /// mean of known texels). Returns how many texels were filled.
 pub fn dilate(
@@ -125,6 +149,25 @@ pub(crate) fn window3x3(x: usize, y: usize, res: usize) -> impl Iterator<Item = 
 
 #[cfg(test)]
 mod tests {
+    use super::*;
+
+    /// `texel_at` inverts `TexelCache::uv` at every texel centre of a 4 x 3 texture's rows and
+    /// columns, clamps outside [0, 1] and reads the centre for a non-finite coordinate.
+    #[test]
+    fn texel_at_finds_the_texel_of_its_centre_and_clamps() {
+        let cache = TexelCache {
+            resolution: 4,
+            texels: Vec::new(),
+        };
+        for i in 0..16 {
+            assert_eq!(texel_at(cache.uv(i), 4, 4), i as usize);
+        }
+        // 4 wide, 3 high: v = 1 is row 0 (the top), u = 1 the last column
+        assert_eq!(texel_at(Vec2::new(0.0, 1.0), 4, 3), 0);
+        assert_eq!(texel_at(Vec2::new(1.0, 0.0), 4, 3), 2 * 4 + 3);
+        assert_eq!(texel_at(Vec2::new(-3.0, 7.0), 4, 3), 0);
+        assert_eq!(texel_at(Vec2::new(f32::NAN, f32::INFINITY), 4, 3), 4 + 2);
+    }
 
     #[test]
     fn normals_read_back_are_bit_identical_and_others_are_normalised() {
@@ -144,8 +187,6 @@ mod tests {
             "the normal found changing by an ulp on a round trip"
         );
     }
-
-    use super::*;
 
     #[test]
     fn dilation_grows_one_ring_per_step_with_the_neighbour_mean() {

@@ -126,9 +126,7 @@ impl SurfaceLightField {
     /// The grid point at a texture coordinate (nearest texel), if any.
     pub fn point_at(&self, uv: Vec2) -> Option<usize> {
         let r = self.resolution;
-        let x = ((uv.x * r as f32).floor() as i64).clamp(0, r as i64 - 1) as usize;
-        let y = (((1.0 - uv.y) * r as f32).floor() as i64).clamp(0, r as i64 - 1) as usize;
-        let p = self.point_of_texel[y * r + x];
+        let p = self.point_of_texel[igi_geometry::texels::texel_at(uv, r, r)];
         (p != u32::MAX).then_some(p as usize)
     }
 

@@ -725,16 +725,7 @@ pub struct AlbedoSample {
 /// The standard error at `uv` of an `r` x `r` atlas: the nearest texel's (not interpolated:
 /// an unknown texel must not blend into a known one).
 fn stderr_at(stderr: &[Vec3], r: usize, uv: glam::Vec2) -> Vec3 {
-    let f = |t: f32| {
-        if t.is_finite() {
-            t.clamp(0.0, 1.0)
-        } else {
-            0.5
-        }
-    };
-    let x = ((f(uv.x) * r as f32) as usize).min(r - 1);
-    let y = (((1.0 - f(uv.y)) * r as f32) as usize).min(r - 1);
-    stderr[y * r + x]
+    stderr[igi_geometry::texels::texel_at(uv, r, r)]
 }
 
 /// The result's parts as a render scene textured with their recovered albedo (no lobes).

@@ -160,8 +160,7 @@ fn locate(
 ) -> Option<TruthPoint> {
     let sp = site.surface_near(x, normal, eps)?;
     let r = parts[sp.object as usize].resolution();
-    let cell = |c: f32| ((c * r as f32).floor().max(0.0) as usize).min(r - 1);
-    let texel = cell(1.0 - sp.uv.y) * r + cell(sp.uv.x);
+    let texel = igi_geometry::texels::texel_at(sp.uv, r, r);
     Some(TruthPoint {
         part: sp.object,
         uv: sp.uv,

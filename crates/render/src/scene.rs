@@ -43,7 +43,7 @@ impl Texture {
     #[inline]
     pub fn lookup(&self, uv: Vec2) -> Vec3 {
         let (w, h) = (self.width, self.height);
-        let (u, v) = clamp_uv(uv);
+        let (u, v) = igi_geometry::texels::clamp_uv(uv);
         let x = (u * w as f32 - 0.5).clamp(0.0, (w - 1) as f32);
         let y = ((1.0 - v) * h as f32 - 0.5).clamp(0.0, (h - 1) as f32);
         let (x0, y0) = (x.floor() as usize, y.floor() as usize);
@@ -54,19 +54,6 @@ impl Texture {
         let bot = t(y1, x0) * (1.0 - fx) + t(y1, x1) * fx;
         top * (1.0 - fy) + bot * fy
     }
-}
-
-/// A UV clamped to [0, 1] (a non-finite coordinate reads the centre, 0.5).
-#[inline]
-fn clamp_uv(uv: Vec2) -> (f32, f32) {
-    let c = |x: f32| {
-        if x.is_finite() {
-            x.clamp(0.0, 1.0)
-        } else {
-            0.5
-        }
-    };
-    (c(uv.x), c(uv.y))
 }
 
 /// Diffuse albedo of an object.
@@ -93,11 +80,7 @@ impl LobeMap {
     /// The lobes of the texel nearest `uv`.
     #[inline]
     pub fn at(&self, uv: Vec2) -> &[Lobe] {
-        let (w, h) = (self.width, self.height);
-        let (u, v) = clamp_uv(uv);
-        let x = ((u * w as f32) as usize).min(w - 1);
-        let y = (((1.0 - v) * h as f32) as usize).min(h - 1);
-        let i = (y * w + x) * self.per_texel;
+        let i = igi_geometry::texels::texel_at(uv, self.width, self.height) * self.per_texel;
         &self.lobes[i..i + self.per_texel]
     }
 
