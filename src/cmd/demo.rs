@@ -1,6 +1,6 @@
 //! `igi demo`: the embedded default, end to end on a procedural site (no downloaded data).
 use crate::report::{Bar, Ctx};
-use igi_reflect::demo::{run_demo, DemoOptions};
+use igi_workflow::demo::{run_demo, DemoOptions};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]

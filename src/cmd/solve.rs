@@ -1,10 +1,8 @@
 //! `igi solve`, `igi sample` and `igi export`: the inverse solver and what reads its result.
 use crate::report::{Bar, Ctx};
-use anyhow::{bail, Context};
-use igi_reflect::atlas_size::AutoAtlas;
-use igi_reflect::parts::survey_parts;
-use igi_reflect::solver::truth_from_scene;
-use igi_reflect::{ExportFormat, Schedule, SolveOptions, SolveSession, Survey};
+use anyhow::bail;
+use igi_reflect::{ExportFormat, Schedule, SolveOptions};
+use igi_workflow::{AtlasRequest, SolveRequest};
 use std::path::PathBuf;
 
 /// The options of the iteration, shared by `igi solve` and `igi cluster submit`.
@@ -127,89 +125,38 @@ fn parse_atlas(s: &str) -> Result<AtlasArg, String> {
     })
 }
 
-/// The solve's options: the iteration schedule, the atlas (a prepared site's own resolution,
-/// else `--atlas`), the parts and the schedule.
-fn solve_options(
-    a: &SolveArgs,
-    store: Option<&igi_geometry::SiteStore>,
-    iteration: SolveOptions,
-) -> SolveOptions {
-    let (fixed, auto) = match a.atlas {
-        AtlasArg::Fixed(n) => (n, None),
-        AtlasArg::Auto => (512, Some(AutoAtlas { max: a.atlas_max })),
-    };
-    let (atlas, atlas_auto) = match store {
-        Some(s) => (s.manifest().atlas_resolution, None),
-        None => (fixed, auto),
-    };
-    SolveOptions {
-        atlas_resolution: atlas,
-        atlas_auto,
-        parts: a.parts.clone(),
-        schedule: if a.schedule == "jacobi" {
-            Schedule::Jacobi
-        } else {
-            Schedule::GaussSeidel
-        },
-        ..iteration
+impl SolveArgs {
+    /// The job `igi solve` asks for.
+    fn request(&self) -> anyhow::Result<SolveRequest> {
+        let options = SolveOptions {
+            parts: self.parts.clone(),
+            schedule: if self.schedule == "jacobi" {
+                Schedule::Jacobi
+            } else {
+                Schedule::GaussSeidel
+            },
+            ..self.iteration.options()?
+        };
+        Ok(SolveRequest {
+            survey: self.survey.clone(),
+            output: self.output.clone(),
+            atlas: match self.atlas {
+                AtlasArg::Fixed(n) => AtlasRequest::Fixed(n),
+                AtlasArg::Auto => AtlasRequest::Auto {
+                    max: self.atlas_max,
+                },
+            },
+            options,
+            truth: self.truth.clone(),
+            restart: self.restart,
+        })
     }
 }
 
 pub fn run_solve(a: SolveArgs, ctx: &Ctx) -> anyhow::Result<()> {
-    let iteration = a.iteration.options()?;
-    let survey = Survey::load(&a.survey)?;
-    let store = match &survey.prepared {
-        Some(p) => Some(igi_geometry::SiteStore::open(p)?),
-        None => None,
-    };
-    let opts = solve_options(&a, store.as_ref(), iteration);
-    // everything is checked before the first byte of work or output
-    let session = SolveSession::check(&a.output, &survey, &opts, a.restart)?;
-    let basis = survey.basis()?;
-    let truth_scene = match &a.truth {
-        None => None,
-        Some(t) => Some(igi_render::Scene::load(t)?.0),
-    };
-    let photo_ids: Vec<String> = survey.photos.iter().map(|p| p.id.clone()).collect();
-    let pb = ctx.progress(survey.photos.len() as u64, "photos");
-    let photos = survey
-        .photos
-        .iter()
-        .map(|p| {
-            pb.inc(1);
-            p.load()
-        })
-        .collect::<Result<Vec<_>, _>>()?;
-    pb.finish_and_clear();
-    let state = if session.resumes() {
-        let r = session
-            .load()
-            .with_context(|| format!("resuming {}", a.output.display()))?;
-        tracing::info!("resuming after iteration {}", r.report.iterations.len());
-        r
-    } else {
-        let cameras: Vec<_> = photos.iter().map(|p| p.camera.clone()).collect();
-        let parts = survey_parts(
-            &survey,
-            store.as_ref(),
-            opts.atlas_resolution,
-            opts.atlas_auto,
-            &cameras,
-        )?;
-        session.start(parts, photo_ids, &opts)?
-    };
-    let truth = truth_scene.map(|scene| truth_from_scene(&state.parts, &scene));
+    let request = a.request()?;
     let bar = Bar(ctx.progress(1, "solve"));
-    let out = a.output.clone();
-    let result = igi_reflect::solve(
-        state,
-        &photos,
-        basis.as_ref(),
-        truth.as_ref(),
-        &opts,
-        &bar,
-        &mut |r| r.write_state(&out),
-    )?;
+    let result = igi_workflow::solve(&request, &bar)?;
     bar.0.finish_and_clear();
     print_report(&result.report, &a.output, a.json)
 }

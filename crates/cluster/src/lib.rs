@@ -74,6 +74,8 @@ pub enum ClusterError {
     #[error(transparent)]
     Reflect(#[from] igi_reflect::ReflectError),
     #[error(transparent)]
+    Workflow(#[from] igi_workflow::WorkflowError),
+    #[error(transparent)]
     Imaging(#[from] igi_imaging::ImagingError),
     #[error(transparent)]
     Geometry(#[from] igi_geometry::GeometryError),

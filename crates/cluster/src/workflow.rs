@@ -5,8 +5,9 @@ use crate::slurm::{self, QueueState};
 use crate::ClusterError;
 use igi_imaging::run::Fingerprint;
 use igi_reflect::distributed::{self, TaskDone, TaskMeta};
-use igi_reflect::solver::SolveInputs;
-use igi_reflect::{Schedule, SolveOptions, SolveSession, Survey};
+use igi_reflect::solver::{NoProgress, SolveInputs};
+use igi_reflect::{Schedule, SolveOptions};
+use igi_workflow::{AtlasRequest, SolveJob, SolveRequest, Survey};
 use serde::Serialize;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -29,19 +30,12 @@ pub struct SubmitRequest {
 /// prepared site, `sbatch` runs, the result folder is new.
 pub fn submit(req: SubmitRequest) -> Result<(ClusterConfig, Vec<PathBuf>), ClusterError> {
     let survey = Survey::load(&req.survey)?;
-    let Some(site) = survey.prepared.clone() else {
+    if survey.prepared.is_none() {
         return Err(ClusterError::file(
             &req.survey,
             "names no prepared site ([site] prepared = \"SITE\"): a cluster solve runs voxel by voxel; run `igi prepare` first",
         ));
-    };
-    let store = igi_geometry::SiteStore::open(&site)?;
-    let opts = SolveOptions {
-        schedule: Schedule::Jacobi,
-        // a prepared site keeps its own atlases (as `igi solve` does)
-        atlas_resolution: store.manifest().atlas_resolution,
-        ..req.options.clone()
-    };
+    }
     if req.max_attempts == 0 {
         return Err(ClusterError::NoAttempts);
     }
@@ -54,17 +48,26 @@ pub fn submit(req: SubmitRequest) -> Result<(ClusterConfig, Vec<PathBuf>), Clust
     if !req.dry_run {
         slurm::check_available()?;
     }
-    let session = SolveSession::check(&req.result, &survey, &opts, false)?;
-    let photos = survey.load_photos()?;
-    let basis = survey.basis()?;
+    // the job `igi solve` runs, started but not iterated (a prepared site keeps its atlases)
+    let request = SolveRequest {
+        survey: req.survey.clone(),
+        output: req.result.clone(),
+        atlas: AtlasRequest::Fixed(req.options.atlas_resolution),
+        options: SolveOptions {
+            schedule: Schedule::Jacobi,
+            ..req.options.clone()
+        },
+        truth: None,
+        restart: false,
+    };
+    let started = SolveJob::check_survey(survey, &request)?.start(&NoProgress)?;
+    let opts = started.options.clone();
     let inputs = SolveInputs {
-        photos: &photos,
-        basis: basis.as_ref(),
+        photos: &started.photos,
+        basis: started.basis.as_ref(),
         truth: None,
     };
-    let ids = photos.iter().map(|p| p.id.clone()).collect();
-    let state = session.start(igi_reflect::parts::prepared_parts(&store)?, ids, &opts)?;
-    distributed::initialise(&req.result, state, &inputs, &opts)?;
+    distributed::initialise(&req.result, started.state, &inputs, &opts)?;
     let groups = distributed::groups(&req.result, &inputs, &opts)?;
     let config = freeze(&req, opts, groups)?;
     config.write()?;
@@ -257,16 +260,17 @@ fn submit_iteration(
     Ok(scripts.all())
 }
 
-/// The survey, photographs and basis of a frozen run, after checking that the binary and the
-/// inputs are those submitted.
+/// The photographs and basis of a frozen run, after checking that the binary and the inputs
+/// are those submitted (the run manifest names a difference).
 fn reopen(
     config: &ClusterConfig,
-) -> Result<(Vec<igi_reflect::survey::Photo>, Option<igi_brdf::Basis>), ClusterError> {
+) -> Result<(Vec<igi_reflect::Photo>, Option<igi_brdf::Basis>), ClusterError> {
     config.check_binary()?;
-    let survey = Survey::load(&config.survey)?;
-    // refuses inputs that changed since submission (the run manifest names the difference)
-    SolveSession::check(&config.result, &survey, &config.options, false)?;
-    Ok((survey.load_photos()?, survey.basis()?))
+    Ok(igi_workflow::reopen(
+        &config.survey,
+        &config.result,
+        &config.options,
+    )?)
 }
 
 /// Runs array index `index` of the current iteration (`igi cluster task`). A task whose

@@ -148,7 +148,7 @@ pub fn targets() -> Vec<Target> {
         t("lighting", "light/in.toml", setup_lighting, run_lighting),
         t("scene", "scene/in.toml", setup_scene, run_scene),
         t("survey", "survey/survey.toml", setup_survey, |p| {
-            checked(igi_reflect::Survey::load(p))
+            checked(igi_workflow::Survey::load(p))
         }),
         t("board", "in.json", setup_board, run_board),
         t("brdf", "in.csv", setup_brdf, |p| {

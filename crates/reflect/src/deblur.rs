@@ -27,7 +27,7 @@
 
 use crate::parts::Part;
 use crate::record::Obs;
-use crate::survey::Photo;
+use crate::solver::Photo;
 use glam::{Vec2, Vec3};
 use igi_imaging::HdrImage;
 use igi_render::{Scene, Texture};

@@ -18,26 +18,25 @@
 //! written per part (an input mesh, or a voxel of a prepared site) atomically, with a report of
 //! every iteration, and a killed run resumes after its last finished iteration.
 //!
-//! Modules: [`survey`] (the survey folder of FORMATS.md), [`parts`] (atlases and texel caches
-//! of the site), [`atlas_size`] (`--atlas auto`: atlas sizes, and cutting meshes into parts),
-//! [`solver`] (the iteration), [`session`] (the resume rule and run manifest), [`weights`] and
-//! [`fill`] (the documented rules),
+//! Modules: [`parts`] (atlases and texel caches of the site), [`atlas_size`] (`--atlas auto`:
+//! atlas sizes, and cutting meshes into parts), [`solver`] (the iteration, over photographs
+//! already loaded: [`Photo`]), [`weights`] and [`fill`] (the documented rules),
 //! [`result`] (the result folder: atlases, `scene.toml`, `report.json`, export, sampling),
 //! [`truth`] (ground truth, and the albedo error per texel and over the surface).
+//!
+//! The survey folder, where each photo's light comes from, the run manifest, the folder lock
+//! and the demo are `igi-workflow`'s: this crate solves what it is given.
 
 pub mod atlas_size;
 mod deblur;
-pub mod demo;
 pub mod distributed;
 pub mod fill;
 pub mod parts;
 pub mod plot;
 pub mod record;
 pub mod result;
-pub mod session;
 mod smooth;
 pub mod solver;
-pub mod survey;
 pub mod synth;
 pub mod truth;
 pub mod weights;
@@ -49,11 +48,9 @@ pub use result::{
     export, load_result_scene, sample_albedo, AlbedoSample, ExportFormat, SolveResult,
     UNKNOWN_STDERR,
 };
-pub use session::SolveSession;
 pub use solver::{
-    solve, solve_in_memory, IterationRecord, Progress, Schedule, SolveOptions, SolveReport,
+    solve, solve_in_memory, IterationRecord, Photo, Progress, Schedule, SolveOptions, SolveReport,
 };
-pub use survey::{lighting_from_probe, LightingSource, PhotoSpec, Survey};
 
 /// Errors of the inverse solver.
 #[derive(Debug, thiserror::Error)]
@@ -154,8 +151,6 @@ pub enum ReflectError {
         #[source]
         source: igi_brdf::BrdfError,
     },
-    #[error(transparent)]
-    Probe(#[from] igi_probe::ProbeError),
     /// A numeric CSV table (`igi sample`'s points): the file, the line and the problem.
     #[error(transparent)]
     Csv(#[from] igi_imaging::csv::CsvError),

@@ -138,12 +138,11 @@ pub fn prepared_parts(store: &SiteStore) -> Result<Vec<Part>, ReflectError> {
         .collect()
 }
 
-/// The parts a fresh solve of `survey` starts from: the prepared site's (`store`, opened from
-/// the survey's `prepared` key) when there is one, else the survey's meshes, each named by its
-/// file stem, packed at `atlas_resolution` or, with `atlas_auto` (both from `SolveOptions`),
+/// The parts a fresh solve starts from: the prepared site's (`store`) when there is one, else
+/// the site's `meshes` (files), each named by its file stem, packed at `atlas_resolution` or, with `atlas_auto` (both from `SolveOptions`),
 /// cut and sized from the photographs' `cameras` ([`build_parts_auto`]).
-pub fn survey_parts(
-    survey: &crate::Survey,
+pub fn site_parts(
+    meshes: &[std::path::PathBuf],
     store: Option<&SiteStore>,
     atlas_resolution: u32,
     atlas_auto: Option<crate::atlas_size::AutoAtlas>,
@@ -152,8 +151,7 @@ pub fn survey_parts(
     if let Some(store) = store {
         return prepared_parts(store);
     }
-    let meshes = survey
-        .meshes
+    let meshes = meshes
         .iter()
         .map(|m| {
             let name = m

@@ -9,7 +9,6 @@ pub use crate::record::{
     IterationRecord, PartSummary, Pending, Schedule, SolveOptions, SolveReport,
 };
 use crate::result::{SolveResult, UNKNOWN_STDERR};
-use crate::survey::Photo;
 use crate::weights::{combine, Combined, Proposal};
 use crate::ReflectError;
 use glam::{DVec2, Vec2, Vec3};
@@ -50,6 +49,15 @@ pub fn check_selection(parts: &[Part], opts: &SolveOptions) -> Result<(), Reflec
         }
     }
     Ok(())
+}
+
+/// A photograph loaded into memory: what the solver reads of it (the survey folder that names
+/// it is resolved and loaded by `igi-workflow`).
+pub struct Photo {
+    pub id: String,
+    pub image: igi_imaging::HdrImage,
+    pub camera: igi_imaging::Camera,
+    pub lighting: igi_render::Lighting,
 }
 
 /// Progress reporting (the CLI maps it to progress bars).

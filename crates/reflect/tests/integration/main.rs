@@ -4,6 +4,4 @@
 
 mod pose_refine;
 mod prepared;
-mod probe_survey;
-mod radiometry;
 mod synthetic;

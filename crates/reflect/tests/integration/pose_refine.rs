@@ -9,10 +9,10 @@ use igi_imaging::camera::{points_in_frame, reprojection_rms};
 use igi_imaging::{Camera, WorldToCamera};
 use igi_reflect::parts::build_parts;
 use igi_reflect::solver::truth_from_scene;
-use igi_reflect::survey::Photo;
 use igi_reflect::synth::{
     ground_and_block, look_at_camera, scene_with_albedo, truth_atlas, LightingSpec,
 };
+use igi_reflect::Photo;
 use igi_reflect::{SolveOptions, SolveResult};
 use igi_render::refine::{refine_pose, rt_scene_of, RefineOptions};
 use igi_render::sky::{clear_sky, overcast_sky, sun_direction};

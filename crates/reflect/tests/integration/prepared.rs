@@ -7,9 +7,10 @@ use igi_geometry::{PrepareOptions, SiteStore, TriMesh};
 use igi_reflect::parts::prepared_parts;
 use igi_reflect::solver::{truth_from_scene, NoProgress};
 use igi_reflect::synth::{look_at_camera, truth_atlas, write_survey, LightingSpec, ShotSpec};
-use igi_reflect::{ReflectError, SolveOptions, SolveResult, Survey};
+use igi_reflect::{ReflectError, SolveOptions, SolveResult};
 use igi_render::sky::{clear_sky, overcast_sky, sun_direction};
 use igi_render::RenderOptions;
+use igi_workflow::Survey;
 use std::path::Path;
 
 /// A smooth albedo field (detail far coarser than a texel, so the photos resolve it).
@@ -41,7 +42,7 @@ fn prepare_site(out: &Path) -> SiteStore {
 struct Colonnade {
     store: SiteStore,
     voxels: usize,
-    photos: Vec<igi_reflect::survey::Photo>,
+    photos: Vec<igi_reflect::Photo>,
     truth: igi_reflect::solver::Truth,
 }
 
@@ -240,7 +241,7 @@ fn check_uninterrupted(a: &SolveResult, store: &SiteStore, voxels: usize) {
 fn killed_and_resumed(
     start: SolveResult,
     out: &Path,
-    photos: &[igi_reflect::survey::Photo],
+    photos: &[igi_reflect::Photo],
     truth: &igi_reflect::solver::Truth,
     opts: &SolveOptions,
     voxels: usize,
@@ -350,7 +351,7 @@ fn jacobi_tasks_and_merge_equal_a_local_jacobi_solve() {
 fn print_gauss_seidel_against(
     local: &SolveResult,
     start: SolveResult,
-    photos: &[igi_reflect::survey::Photo],
+    photos: &[igi_reflect::Photo],
     truth: &igi_reflect::solver::Truth,
     opts: &SolveOptions,
 ) {

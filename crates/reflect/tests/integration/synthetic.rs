@@ -7,9 +7,10 @@ use igi_reflect::solver::{truth_from_scene, NoProgress};
 use igi_reflect::synth::{
     ground_and_block, look_at_camera, truth_atlas, write_survey, LightingSpec, ShotSpec,
 };
-use igi_reflect::{SolveOptions, SolveResult, Survey};
+use igi_reflect::{SolveOptions, SolveResult};
 use igi_render::sky::{clear_sky, overcast_sky, sun_direction};
 use igi_render::RenderOptions;
+use igi_workflow::Survey;
 
 #[test]
 fn solve_recovers_known_albedo_from_synthetic_photos_and_resumes() {
@@ -110,7 +111,7 @@ fn write_synthetic_survey(dir: &std::path::Path) {
 fn load_survey(
     dir: &std::path::Path,
 ) -> (
-    Vec<igi_reflect::survey::Photo>,
+    Vec<igi_reflect::Photo>,
     Vec<igi_reflect::Part>,
     igi_reflect::solver::Truth,
 ) {
@@ -150,7 +151,7 @@ fn load_survey(
 fn resume_for_two_more(
     out: &std::path::Path,
     first: &SolveResult,
-    photos: &[igi_reflect::survey::Photo],
+    photos: &[igi_reflect::Photo],
     truth: &igi_reflect::solver::Truth,
     opts: SolveOptions,
 ) -> SolveResult {
@@ -414,8 +415,8 @@ fn glossy_scene(
 }
 
 /// Six photos of the truth scene: three views under a sunny and an overcast sky.
-fn glossy_photos(truth_scene: &igi_render::Scene) -> Vec<igi_reflect::survey::Photo> {
-    use igi_reflect::survey::Photo;
+fn glossy_photos(truth_scene: &igi_render::Scene) -> Vec<igi_reflect::Photo> {
+    use igi_reflect::Photo;
     use igi_render::{render_image, RenderOptions};
     let sun = sun_direction(40.0, 30.0);
     let lightings = [

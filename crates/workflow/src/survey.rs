@@ -2,9 +2,10 @@
 //! their cameras and lighting files, and optional hand-held BRDF samples. The file is parsed by
 //! `igi_formats::survey`; this module resolves and checks what it names.
 
-use crate::ReflectError;
+use crate::WorkflowError;
 use igi_formats::{SurveyFile, TomlFile};
 use igi_imaging::{Camera, HdrImage};
+use igi_reflect::{Photo, Progress};
 use igi_render::Lighting;
 use std::path::{Path, PathBuf};
 
@@ -52,13 +53,13 @@ pub struct Survey {
 impl Survey {
     /// The BRDF basis fitted to the survey's samples (one Lafortune fit per material), or
     /// `None` without samples.
-    pub fn basis(&self) -> Result<Option<igi_brdf::Basis>, ReflectError> {
+    pub fn basis(&self) -> Result<Option<igi_brdf::Basis>, WorkflowError> {
         let Some(p) = &self.brdf_samples else {
             return Ok(None);
         };
         let samples = igi_brdf::read_samples(p)?;
         let fits = igi_brdf::fit_materials(&samples, &igi_brdf::FitOptions::default(), &|| {})
-            .map_err(|source| ReflectError::BrdfFile {
+            .map_err(|source| WorkflowError::BrdfFile {
                 path: p.clone(),
                 source,
             })?;
@@ -69,14 +70,26 @@ impl Survey {
         Ok(Some(igi_brdf::Basis::new(mats)?))
     }
 
-    /// Every photograph loaded (image, camera with radiometry applied, lighting).
-    pub fn load_photos(&self) -> Result<Vec<Photo>, ReflectError> {
-        self.photos.iter().map(|p| p.load()).collect()
+    /// Every photograph loaded (image, camera with radiometry applied, lighting), in the
+    /// survey's order; `progress` advances by one per photograph.
+    pub fn load_photos(&self, progress: &dyn Progress) -> Result<Vec<Photo>, WorkflowError> {
+        progress.begin("photos", self.photos.len() as u64);
+        let photos = self
+            .photos
+            .iter()
+            .map(|p| {
+                let photo = p.load();
+                progress.advance(1);
+                photo
+            })
+            .collect();
+        progress.finish();
+        photos
     }
 
     /// Reads `survey.toml` from a survey folder (or the file itself). Every path it names must
     /// exist; photo ids must be unique.
-    pub fn load(path: &Path) -> Result<Survey, ReflectError> {
+    pub fn load(path: &Path) -> Result<Survey, WorkflowError> {
         let file = if path.is_dir() {
             path.join("survey.toml")
         } else {
@@ -90,7 +103,7 @@ impl Survey {
         };
         let (meshes, prepared) = paths.site(&f.site)?;
         if f.photo.is_empty() {
-            return Err(ReflectError::file(&file, "no [[photo]] entries"));
+            return Err(WorkflowError::file(&file, "no [[photo]] entries"));
         }
         let default_radiometry = match &f.radiometry {
             Some(r) => Some(radiometry_file(
@@ -101,7 +114,7 @@ impl Survey {
         let mut photos = Vec::new();
         for p in &f.photo {
             if photos.iter().any(|q: &PhotoSpec| q.id == p.id) {
-                return Err(ReflectError::file(
+                return Err(WorkflowError::file(
                     &file,
                     format!("photo id `{}` appears twice", p.id),
                 ));
@@ -134,12 +147,12 @@ struct SurveyPaths<'a> {
 
 impl SurveyPaths<'_> {
     /// `p` resolved against the survey folder; an error naming `what` when it does not exist.
-    fn existing(&self, p: &Path, what: &str) -> Result<PathBuf, ReflectError> {
+    fn existing(&self, p: &Path, what: &str) -> Result<PathBuf, WorkflowError> {
         let full = self.root.join(p);
         if full.exists() {
             Ok(full)
         } else {
-            Err(ReflectError::file(
+            Err(WorkflowError::file(
                 self.file,
                 format!("{what} {} does not exist", full.display()),
             ))
@@ -151,7 +164,7 @@ impl SurveyPaths<'_> {
     fn site(
         &self,
         site: &igi_formats::survey::SiteSection,
-    ) -> Result<(Vec<PathBuf>, Option<PathBuf>), ReflectError> {
+    ) -> Result<(Vec<PathBuf>, Option<PathBuf>), WorkflowError> {
         let mut meshes = Vec::new();
         let mut prepared = match &site.prepared {
             Some(p) => Some(self.existing(p, "prepared site")?),
@@ -167,13 +180,13 @@ impl SurveyPaths<'_> {
         }
         if let Some(p) = &prepared {
             if !meshes.is_empty() {
-                return Err(ReflectError::file(
+                return Err(WorkflowError::file(
                     self.file,
                     "[site] names both a prepared site and meshes; give one or the other",
                 ));
             }
             if !p.join("manifest.json").is_file() {
-                return Err(ReflectError::file(
+                return Err(WorkflowError::file(
                     self.file,
                     format!(
                         "{} is not a prepared site (no manifest.json; run `igi prepare`)",
@@ -182,7 +195,7 @@ impl SurveyPaths<'_> {
                 ));
             }
         } else if meshes.is_empty() {
-            return Err(ReflectError::file(
+            return Err(WorkflowError::file(
                 self.file,
                 "[site] names no mesh (use `mesh = ...`, `meshes = [...]` or `prepared = ...`)",
             ));
@@ -196,7 +209,7 @@ impl SurveyPaths<'_> {
         &self,
         p: &igi_formats::survey::PhotoEntry,
         default_radiometry: &Option<PathBuf>,
-    ) -> Result<PhotoSpec, ReflectError> {
+    ) -> Result<PhotoSpec, WorkflowError> {
         Ok(PhotoSpec {
             id: p.id.clone(),
             image: self.existing(&p.image, &format!("photo `{}` image", p.id))?,
@@ -215,7 +228,7 @@ impl SurveyPaths<'_> {
     fn lighting(
         &self,
         p: &igi_formats::survey::PhotoEntry,
-    ) -> Result<LightingSource, ReflectError> {
+    ) -> Result<LightingSource, WorkflowError> {
         let id = &p.id;
         match (&p.lighting, &p.probe) {
             (Some(l), None) => Ok(LightingSource::File(
@@ -226,7 +239,7 @@ impl SurveyPaths<'_> {
                 camera: self.existing(&b.camera, &format!("photo `{id}` probe camera"))?,
                 board: self.existing(&b.board, &format!("photo `{id}` probe board"))?,
             }),
-            _ => Err(ReflectError::file(
+            _ => Err(WorkflowError::file(
                 self.file,
                 format!(
                     "photo `{id}` needs exactly one of `lighting = ...` and a [photo.probe] capture"
@@ -237,14 +250,14 @@ impl SurveyPaths<'_> {
 }
 
 /// Checks that a camera radiometry file reads (so that a bad one fails before any work).
-fn radiometry_file(path: PathBuf) -> Result<PathBuf, ReflectError> {
+fn radiometry_file(path: PathBuf) -> Result<PathBuf, WorkflowError> {
     igi_imaging::radiometry::CameraRadiometry::load(&path)?;
     Ok(path)
 }
 
 /// Checks that a photo's camera has the aspect ratio its radiometry was fitted at (the camera
 /// file is small; the image must match the camera, which loading checks).
-fn check_radiometry_size(spec: &PhotoSpec) -> Result<(), ReflectError> {
+fn check_radiometry_size(spec: &PhotoSpec) -> Result<(), WorkflowError> {
     let Some(path) = &spec.radiometry else {
         return Ok(());
     };
@@ -253,7 +266,7 @@ fn check_radiometry_size(spec: &PhotoSpec) -> Result<(), ReflectError> {
     if cal.fits_size(cam.width as usize, cam.height as usize) {
         return Ok(());
     }
-    Err(ReflectError::file(
+    Err(WorkflowError::file(
         path,
         format!(
             "fitted at {}x{} but photo `{}`'s camera {} is {}x{} (another aspect ratio)",
@@ -267,18 +280,10 @@ fn check_radiometry_size(spec: &PhotoSpec) -> Result<(), ReflectError> {
     ))
 }
 
-/// A photograph loaded into memory.
-pub struct Photo {
-    pub id: String,
-    pub image: HdrImage,
-    pub camera: Camera,
-    pub lighting: Lighting,
-}
-
 impl PhotoSpec {
     /// Loads the image, camera and lighting; the image must match the camera's size and hold
     /// only finite, non-negative radiance (saturated pixels stay marked invalid).
-    pub fn load(&self) -> Result<Photo, ReflectError> {
+    pub fn load(&self) -> Result<Photo, WorkflowError> {
         let mut image = igi_imaging::read_image(&self.image)?;
         let camera = Camera::load(&self.camera)?;
         self.check_image(&image, &camera)?;
@@ -302,9 +307,9 @@ impl PhotoSpec {
     }
 
     /// The image has the camera's size and only finite, non-negative pixels.
-    fn check_image(&self, image: &HdrImage, camera: &Camera) -> Result<(), ReflectError> {
+    fn check_image(&self, image: &HdrImage, camera: &Camera) -> Result<(), WorkflowError> {
         if image.width != camera.width as usize || image.height != camera.height as usize {
-            return Err(ReflectError::file(
+            return Err(WorkflowError::file(
                 &self.image,
                 format!(
                     "image is {}x{} but its camera {} says {}x{}",
@@ -321,7 +326,7 @@ impl PhotoSpec {
             .iter()
             .position(|p| p.iter().any(|c| !c.is_finite() || *c < 0.0))
         {
-            return Err(ReflectError::file(
+            return Err(WorkflowError::file(
                 &self.image,
                 format!(
                     "pixel ({}, {}) is negative or not finite",
@@ -335,10 +340,10 @@ impl PhotoSpec {
 
     /// Applies the camera radiometry file `path` to `image`, which must have the aspect ratio
     /// the radiometry was fitted at.
-    fn apply_radiometry(&self, path: &Path, image: &mut HdrImage) -> Result<(), ReflectError> {
+    fn apply_radiometry(&self, path: &Path, image: &mut HdrImage) -> Result<(), WorkflowError> {
         let cal = igi_imaging::radiometry::CameraRadiometry::load(path)?;
         if !cal.fits_size(image.width, image.height) {
-            return Err(ReflectError::file(
+            return Err(WorkflowError::file(
                 &self.image,
                 format!(
                     "image is {}x{} but the radiometry {} was fitted at {}x{} (another aspect ratio)",
@@ -360,7 +365,7 @@ impl PhotoSpec {
         image: &Path,
         camera: &Path,
         board: &Path,
-    ) -> Result<Lighting, ReflectError> {
+    ) -> Result<Lighting, WorkflowError> {
         let img = igi_imaging::read_image(image)?;
         let cam = Camera::load(camera)?;
         let spec = igi_probe::BoardSpec::load(board)?;
@@ -369,11 +374,12 @@ impl PhotoSpec {
             refine_centers: placement.refine_by_default(),
             ..igi_probe::ProbeOptions::default()
         };
-        let r = igi_probe::process(&img, &cam, &placement.board, &opt).map_err(|e| {
-            ReflectError::file(
-                image,
-                format!("processing the probe capture of photo `{}`: {e}", self.id),
-            )
+        let r = igi_probe::process(&img, &cam, &placement.board, &opt).map_err(|source| {
+            WorkflowError::ProbeCapture {
+                path: image.to_path_buf(),
+                photo: self.id.clone(),
+                source: Box::new(source),
+            }
         })?;
         tracing::info!(
             "photo {}: lighting from its probe capture: {}",
@@ -386,7 +392,7 @@ impl PhotoSpec {
 
 /// The lighting a probe capture recovered: its sky map and, when the sun was found and its
 /// radiance solved, the sun disk.
-pub fn lighting_from_probe(r: &igi_probe::ProbeResult) -> Result<Lighting, ReflectError> {
+pub fn lighting_from_probe(r: &igi_probe::ProbeResult) -> Result<Lighting, WorkflowError> {
     let sun = match r
         .diagnostics
         .sun
@@ -419,7 +425,7 @@ mod tests {
         for f in ["site.ply", "photo.exr", "sky.toml"] {
             std::fs::write(dir.path().join(f), "").unwrap();
         }
-        crate::synth::look_at_camera(Vec3::new(5.0, 0.0, 2.0), Vec3::ZERO, 64, 48, 60.0)
+        igi_reflect::synth::look_at_camera(Vec3::new(5.0, 0.0, 2.0), Vec3::ZERO, 64, 48, 60.0)
             .unwrap()
             .save(&dir.path().join("cam.json"))
             .unwrap();

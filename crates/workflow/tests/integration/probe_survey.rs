@@ -5,8 +5,8 @@ use glam::Vec3;
 use igi_imaging::{write_exr, HdrImage};
 use igi_probe::synth::{render_board, SynthSun};
 use igi_reflect::synth::look_at_camera;
-use igi_reflect::{LightingSource, Survey};
 use igi_render::sky::{clear_sky, sun_direction};
+use igi_workflow::{LightingSource, Survey};
 
 const BOARD: &str = r#"{ "spheres": [
   { "kind": "mirror",  "center": [-0.15, 0.0, 0.6], "radius": 0.06 },

@@ -1,4 +1,4 @@
-//! `igi demo` with other survey photographs: `cargo run --release -p igi-reflect --example
+//! `igi demo` with other survey photographs: `cargo run --release -p igi-workflow --example
 //! demo_photos -- OUT WIDTH HEIGHT SPP` runs the embedded default with photographs of
 //! WIDTH x HEIGHT at SPP samples per pixel (the defaults are 480 320 48) and prints the rho_d
 //! MAE per channel (per texel and over the surface), the photograph, solve and total seconds and the re-lighting RMSE as JSON.
@@ -6,8 +6,8 @@
 //! `SOLVE_SPP=a,b,c` the solve's samples per iteration (one iteration per entry).
 //! docs/SOLVER.md ("Error against run time") reports the runs.
 
-use igi_reflect::demo::{run_demo, DemoOptions};
 use igi_reflect::solver::NoProgress;
+use igi_workflow::demo::{run_demo, DemoOptions};
 use std::path::PathBuf;
 
 fn main() {

@@ -2,32 +2,32 @@
 //! no downloaded data.
 //!
 //! 1. Build the procedural colonnade site (`igi_geometry::procedural`) and give every part a
-//!    known per-texel albedo ([`crate::synth::albedo_pattern`]).
+//!    known per-texel albedo (`igi_reflect::synth::albedo_pattern`).
 //! 2. Make three lighting conditions (sunny, low sun, overcast skies from `igi_render::sky`),
 //!    photograph the three-sphere board under each (`igi_probe::synth`) and recover the
 //!    lighting files from those captures with `igi_probe::process`, as `igi probe` does.
 //! 3. Path-trace the survey photographs under the true skies at a high sample count and write
 //!    the survey folder with the probe-recovered lighting files.
-//! 4. Solve (`crate::solve`) with the ground truth attached, so the report records the albedo
+//! 4. Solve with the job `igi solve` runs ([`crate::solve`]), with the ground truth attached, so the report records the albedo
 //!    error per iteration, on the true textures' 128-texel atlases, or (`igi demo --atlas-auto`)
-//!    on atlases sized from the photographs ([`crate::atlas_size`]); the error is measured at
+//!    on atlases sized from the photographs (`igi_reflect::atlas_size`); the error is measured at
 //!    the solve's texel centres against the true scene.
 //! 5. Re-render the recovered site from a held-out viewpoint under a held-out lighting and
 //!    compare with a rendering of the true site (relative mean, RMSE against the two images'
 //!    Monte-Carlo noise).
 //! 6. Write pictures a person can look at and `demo.json`.
 
-use crate::atlas_size::AutoAtlas;
-use crate::parts::{build_parts, build_parts_auto};
-use crate::result::{write_text, SolveResult};
-use crate::solver::{truth_from_scene, Progress, SolveOptions};
-use crate::synth::{
+use crate::solve::{AtlasRequest, SolveJob, SolveRequest};
+use crate::WorkflowError;
+use glam::Vec3;
+use igi_imaging::{write_exr, write_png_tonemapped, HdrImage};
+use igi_reflect::parts::build_parts;
+use igi_reflect::result::SolveResult;
+use igi_reflect::solver::{Progress, SolveOptions, Truth};
+use igi_reflect::synth::{
     albedo_pattern, look_at_camera, scene_with_albedo, truth_atlas, write_survey, LightingSpec,
     ShotSpec,
 };
-use crate::{ReflectError, Survey};
-use glam::Vec3;
-use igi_imaging::{write_exr, write_png_tonemapped, HdrImage};
 use igi_render::sky::{clear_sky, overcast_sky, sun_direction};
 use igi_render::{compare_images, difference_image, render_image, Comparison, RenderOptions};
 use serde::Serialize;
@@ -118,7 +118,7 @@ const BOARD: &str = r#"{ "spheres": [
 fn probe_capture(
     truth: &LightingSpec,
     pictures: &Path,
-) -> Result<(LightingSpec, ProbeSummary), ReflectError> {
+) -> Result<(LightingSpec, ProbeSummary), WorkflowError> {
     use igi_probe::synth::{render_board, SynthSun};
     let board = igi_probe::Board::from_json_str(BOARD, Path::new("demo board"))?;
     let cam = look_at_camera(
@@ -205,9 +205,9 @@ fn lightings() -> Vec<LightingSpec> {
 const TARGET: Vec3 = Vec3::new(0.0, 0.0, 1.8);
 
 /// Creates folder `p` (and its parents).
-fn make_folder(p: &Path) -> Result<(), ReflectError> {
+fn make_folder(p: &Path) -> Result<(), WorkflowError> {
     std::fs::create_dir_all(p)
-        .map_err(|e| ReflectError::file(p, format!("cannot create folder: {e}")))
+        .map_err(|e| WorkflowError::file(p, format!("cannot create folder: {e}")))
 }
 
 /// Runs the demo into `out` (created). `progress(stage)` reports the stage names.
@@ -216,11 +216,11 @@ pub fn run_demo(
     opts: &DemoOptions,
     progress: &dyn Progress,
     stage: &dyn Fn(&str),
-) -> Result<DemoReport, ReflectError> {
+) -> Result<DemoReport, WorkflowError> {
     let t0 = Instant::now();
     if opts.photo_spp < igi_render::adaptive::MIN_SPP {
         // the photographs are rendered with adaptive samples, whose pilot needs them
-        return Err(ReflectError::Options(format!(
+        return Err(WorkflowError::Options(format!(
             "demo photographs need at least {} samples per pixel, got {}",
             igi_render::adaptive::MIN_SPP,
             opts.photo_spp
@@ -231,7 +231,7 @@ pub fn run_demo(
     stage("building the procedural site");
     let site = igi_geometry::procedural::colonnade_site(opts.seed, 1);
     let triangles = site.iter().map(|(_, m)| m.indices.len()).sum();
-    let parts = build_parts(site.clone(), opts.atlas)?;
+    let parts = build_parts(site, opts.atlas)?;
     let truth: Vec<Vec<Vec3>> = parts
         .iter()
         .map(|p| truth_atlas(p, albedo_pattern))
@@ -266,7 +266,7 @@ pub fn run_demo(
     let photo_seconds = tp.elapsed().as_secs_f64();
     write_photo_pictures(&survey_dir, &shots, &pictures)?;
     stage("solving for the albedo");
-    let solved = solve_demo(out, parts, site, opts, progress)?;
+    let solved = solve_demo(out, opts, progress)?;
     stage("re-lighting from a held-out view");
     let relight = relight_held_out(out, &solved, opts)?;
     write_albedo_pictures(&pictures, &solved.result, &solved.truth)?;
@@ -298,7 +298,7 @@ pub fn run_demo(
         relight,
         total_seconds: t0.elapsed().as_secs_f64(),
     };
-    write_text(
+    igi_imaging::io::write_text_atomic(
         &out.join("demo.json"),
         &serde_json::to_string_pretty(&report).expect("report serialises"),
     )?;
@@ -307,7 +307,7 @@ pub fn run_demo(
 
 /// The demo's eight survey photographs: (azimuth, distance, height, lighting) around the
 /// colonnade.
-fn demo_shots(lights: &[LightingSpec], opts: &DemoOptions) -> Result<Vec<ShotSpec>, ReflectError> {
+fn demo_shots(lights: &[LightingSpec], opts: &DemoOptions) -> Result<Vec<ShotSpec>, WorkflowError> {
     let views: [(f32, f32, f32, usize); 8] = [
         (-30.0, 16.0, 4.0, 0),
         (20.0, 15.0, 5.0, 0),
@@ -338,7 +338,7 @@ fn demo_shots(lights: &[LightingSpec], opts: &DemoOptions) -> Result<Vec<ShotSpe
 fn capture_lightings(
     lights: &[LightingSpec],
     pictures: &Path,
-) -> Result<(Vec<LightingSpec>, Vec<ProbeSummary>), ReflectError> {
+) -> Result<(Vec<LightingSpec>, Vec<ProbeSummary>), WorkflowError> {
     let mut recorded = Vec::new();
     let mut probes = Vec::new();
     for l in lights {
@@ -354,7 +354,7 @@ fn write_photo_pictures(
     survey_dir: &Path,
     shots: &[ShotSpec],
     pictures: &Path,
-) -> Result<(), ReflectError> {
+) -> Result<(), WorkflowError> {
     for s in shots {
         let img =
             igi_imaging::read_image(&survey_dir.join("photos").join(format!("{}.exr", s.id)))?;
@@ -367,66 +367,50 @@ fn write_photo_pictures(
 /// photographs and the solve's wall time.
 struct DemoSolve {
     result: SolveResult,
-    truth: crate::solver::Truth,
+    truth: Truth,
     truth_scene: igi_render::Scene,
     photos: usize,
     seconds: f64,
 }
 
-/// Solves the survey in `out/survey` into `out/result`, on the truth's `parts` or (with
-/// `atlas_auto_max`) on parts cut and sized from the photographs.
+/// Solves the survey in `out/survey` into `out/result` with the job `igi solve` runs (the
+/// truth scene attached, the folder started afresh), on the truth's atlases or (with
+/// `atlas_auto_max`) on atlases sized from the photographs.
 fn solve_demo(
     out: &Path,
-    parts: Vec<crate::Part>,
-    site: Vec<(String, igi_geometry::TriMesh)>,
     opts: &DemoOptions,
     progress: &dyn Progress,
-) -> Result<DemoSolve, ReflectError> {
+) -> Result<DemoSolve, WorkflowError> {
     let survey_dir = out.join("survey");
-    let survey = Survey::load(&survey_dir)?;
-    let photos = survey
-        .photos
-        .iter()
-        .map(|p| p.load())
-        .collect::<Result<Vec<_>, _>>()?;
-    let parts = match opts.atlas_auto_max {
-        None => parts,
-        Some(max) => {
-            let cameras: Vec<_> = photos.iter().map(|p| p.camera.clone()).collect();
-            build_parts_auto(site, &cameras, max)?
-        }
+    let truth_file = survey_dir.join("truth").join("scene.toml");
+    let request = SolveRequest {
+        survey: survey_dir,
+        output: out.join("result"),
+        atlas: match opts.atlas_auto_max {
+            None => AtlasRequest::Fixed(opts.atlas),
+            Some(max) => AtlasRequest::Auto { max },
+        },
+        options: SolveOptions {
+            max_iterations: opts.iterations,
+            spp: opts.solve_spp.clone(),
+            seed: opts.seed,
+            deblur: opts.deblur,
+            ..SolveOptions::default()
+        },
+        truth: Some(truth_file.clone()),
+        restart: true,
     };
-    let solve_opts = SolveOptions {
-        atlas_resolution: opts.atlas,
-        atlas_auto: opts.atlas_auto_max.map(|max| AutoAtlas { max }),
-        max_iterations: opts.iterations,
-        spp: opts.solve_spp.clone(),
-        seed: opts.seed,
-        deblur: opts.deblur,
-        ..SolveOptions::default()
-    };
-    let result_dir = out.join("result");
-    make_folder(&result_dir)?;
-    let (truth_scene, _) = igi_render::Scene::load(&survey_dir.join("truth").join("scene.toml"))?;
-    let truth = truth_from_scene(&parts, &truth_scene);
-    let ids = photos.iter().map(|p| p.id.clone()).collect();
-    let start = SolveResult::fresh(parts, ids, &solve_opts);
-    start.write_geometry(&result_dir)?;
+    let started = SolveJob::check(&request)?.start(progress)?;
+    let photos = started.photos.len();
+    let truth = started.truth.clone().expect("the request names the truth");
     let ts = Instant::now();
-    let result = crate::solve(
-        start,
-        &photos,
-        None,
-        Some(&truth),
-        &solve_opts,
-        progress,
-        &mut |r| r.write_state(&result_dir),
-    )?;
+    let result = started.iterate(progress)?;
+    let (truth_scene, _) = igi_render::Scene::load(&truth_file)?;
     Ok(DemoSolve {
         result,
         truth,
         truth_scene,
-        photos: photos.len(),
+        photos,
         seconds: ts.elapsed().as_secs_f64(),
     })
 }
@@ -438,7 +422,7 @@ fn relight_held_out(
     out: &Path,
     solved: &DemoSolve,
     opts: &DemoOptions,
-) -> Result<Comparison, ReflectError> {
+) -> Result<Comparison, WorkflowError> {
     let pictures = out.join("pictures");
     let new_sun = sun_direction(30.0, 160.0);
     let held_out = LightingSpec {
@@ -492,8 +476,8 @@ fn relight_held_out(
 fn write_albedo_pictures(
     pictures: &Path,
     result: &SolveResult,
-    truth: &crate::solver::Truth,
-) -> Result<(), ReflectError> {
+    truth: &Truth,
+) -> Result<(), WorkflowError> {
     for (i, p) in result.parts.iter().enumerate() {
         let r = p.resolution();
         let mut side = HdrImage::new(2 * r + 4, r);
@@ -516,8 +500,8 @@ fn write_albedo_pictures(
 }
 
 /// Copies `from` to `to`.
-fn copy_file(from: &Path, to: &Path) -> Result<(), ReflectError> {
+fn copy_file(from: &Path, to: &Path) -> Result<(), WorkflowError> {
     std::fs::copy(from, to)
         .map(|_| ())
-        .map_err(|e| ReflectError::file(from, format!("cannot copy: {e}")))
+        .map_err(|e| WorkflowError::file(from, format!("cannot copy: {e}")))
 }

@@ -15,9 +15,10 @@ use igi_reflect::solver::truth_from_scene;
 use igi_reflect::synth::{
     ground_and_block, look_at_camera, truth_atlas, write_survey, LightingSpec, ShotSpec,
 };
-use igi_reflect::{SolveOptions, SolveResult, Survey};
+use igi_reflect::{SolveOptions, SolveResult};
 use igi_render::sky::{clear_sky, overcast_sky, sun_direction};
 use igi_render::RenderOptions;
+use igi_workflow::Survey;
 use rand::{Rng, SeedableRng};
 use std::path::Path;
 

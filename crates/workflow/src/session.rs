@@ -21,20 +21,19 @@
 //! this process. `start` checks the folder again under the lock, so two fresh runs racing
 //! past [`SolveSession::check`] cannot both write.
 
-use crate::parts::Part;
-use crate::result::SolveResult;
-use crate::solver::SolveOptions;
 use crate::survey::{LightingSource, Survey};
-use crate::ReflectError;
+use crate::WorkflowError;
 use igi_imaging::run::{FolderState, RUN_FILE};
 use igi_imaging::{FolderLock, RunManifest};
+use igi_reflect::result::{SolveResult, STAGED};
+use igi_reflect::{Part, Schedule, SolveOptions};
 use std::cell::OnceCell;
 use std::path::{Path, PathBuf};
 
 /// The names a solve writes into its result folder (what `--restart` removes).
 const RESULT_ENTRIES: [&str; 6] = [
     "parts",
-    crate::result::STAGED,
+    STAGED,
     "report.json",
     "scene.toml",
     "convergence.png",
@@ -57,7 +56,7 @@ impl SolveSession {
         survey: &Survey,
         opts: &SolveOptions,
         restart: bool,
-    ) -> Result<SolveSession, ReflectError> {
+    ) -> Result<SolveSession, WorkflowError> {
         opts.validate()?;
         igi_imaging::io::check_output_folder(dir)?;
         let manifest = run_manifest(survey, opts)?;
@@ -78,11 +77,11 @@ impl SolveSession {
     }
 
     /// Loads the checkpoint to continue from (after removing dead runs' temporary files).
-    pub fn load(&self) -> Result<SolveResult, ReflectError> {
+    pub fn load(&self) -> Result<SolveResult, WorkflowError> {
         self.claim()?;
         igi_imaging::io::remove_dead_temps(&self.dir, true)?;
         SolveResult::recover(&self.dir)?;
-        SolveResult::load(&self.dir)
+        Ok(SolveResult::load(&self.dir)?)
     }
 
     /// Starts a fresh result: checks the part selection against `parts`, removes an earlier
@@ -93,10 +92,10 @@ impl SolveSession {
         parts: Vec<Part>,
         photo_ids: Vec<String>,
         opts: &SolveOptions,
-    ) -> Result<SolveResult, ReflectError> {
-        crate::solver::check_selection(&parts, opts)?;
+    ) -> Result<SolveResult, WorkflowError> {
+        igi_reflect::solver::check_selection(&parts, opts)?;
         std::fs::create_dir_all(&self.dir)
-            .map_err(|e| ReflectError::file(&self.dir, format!("cannot create folder: {e}")))?;
+            .map_err(|e| WorkflowError::file(&self.dir, format!("cannot create folder: {e}")))?;
         self.claim()?;
         if self.restart {
             igi_imaging::run::remove_entries(&self.dir, &RESULT_ENTRIES)?;
@@ -106,7 +105,7 @@ impl SolveSession {
             .manifest
             .check_folder(&self.dir, self.restart, "report.json", "result")?;
         if state == FolderState::Resume && has_checkpoint(&self.dir) {
-            return Err(ReflectError::file(
+            return Err(WorkflowError::file(
                 &self.dir,
                 "another solve wrote this folder while this one was starting; run again to resume it",
             ));
@@ -122,16 +121,12 @@ impl SolveSession {
 /// Whether `dir` holds a checkpoint: committed, or staged past its commit point (rolled
 /// forward on load).
 fn has_checkpoint(dir: &Path) -> bool {
-    dir.join("report.json").is_file()
-        || dir
-            .join(crate::result::STAGED)
-            .join("report.json")
-            .is_file()
+    dir.join("report.json").is_file() || dir.join(STAGED).join("report.json").is_file()
 }
 
 impl SolveSession {
     /// Takes the folder's lock (once; held until the session is dropped).
-    fn claim(&self) -> Result<(), ReflectError> {
+    fn claim(&self) -> Result<(), WorkflowError> {
         if self.lock.get().is_none() {
             let lock = FolderLock::acquire(&self.dir)?;
             let _ = self.lock.set(lock);
@@ -141,7 +136,7 @@ impl SolveSession {
 }
 
 /// The run manifest of a solve of `survey` with `opts`.
-fn run_manifest(survey: &Survey, opts: &SolveOptions) -> Result<RunManifest, ReflectError> {
+fn run_manifest(survey: &Survey, opts: &SolveOptions) -> Result<RunManifest, WorkflowError> {
     let mut m = RunManifest::new("solve");
     let a = opts.initial_albedo;
     match opts.atlas_auto {
@@ -162,7 +157,7 @@ fn run_manifest(survey: &Survey, opts: &SolveOptions) -> Result<RunManifest, Ref
             serde_json::to_string(&opts.rules).expect("rules serialise"),
         );
     // recorded only when not the default, so folders of earlier igi versions still resume
-    if opts.schedule != crate::Schedule::GaussSeidel {
+    if opts.schedule != Schedule::GaussSeidel {
         m.option("--schedule", opts.schedule.name());
     }
     if opts.deblur != 0 {

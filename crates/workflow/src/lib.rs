@@ -1,0 +1,31 @@
+//! igi's jobs: what turns a survey into a checked solve and runs it, the same way for the
+//! binary (`igi solve`, `igi demo`) and the cluster tasks (`igi-cluster`).
+//!
+//! A job is checked before the first byte of work or output (the survey and every file it
+//! names, the options, the output folder and its run manifest), then run: photographs loaded
+//! once, the checkpoint resumed or a fresh result started under the folder lock, the solver's
+//! iterations with a checkpoint after each, progress reported through
+//! [`igi_reflect::Progress`].
+//!
+//! Modules:
+//! - [`survey`]: the survey folder of FORMATS.md resolved and checked, and where each photo's
+//!   light comes from ([`LightingSource`]: a lighting file, or a probe capture processed as
+//!   `igi probe` does), decided once, here; photographs loaded into the solver's
+//!   [`igi_reflect::Photo`]; the BRDF basis fitted from the survey's samples.
+//! - [`session`]: the resume rule of a result folder: the run manifest (`run.json`), the
+//!   folder lock, `--restart`.
+//! - [`solve`]: `igi solve` as one job ([`SolveRequest`] -> [`SolveJob`] -> result), and the
+//!   inputs a cluster task reloads ([`reopen`]).
+//! - [`demo`]: the embedded default (`igi demo`): a synthetic survey made, then solved by the
+//!   same job, then re-lit from a held-out view.
+
+pub mod demo;
+mod error;
+pub mod session;
+pub mod solve;
+pub mod survey;
+
+pub use error::WorkflowError;
+pub use session::SolveSession;
+pub use solve::{reopen, solve, AtlasRequest, SolveJob, SolveRequest, StartedSolve};
+pub use survey::{lighting_from_probe, LightingSource, PhotoSpec, Survey};
