@@ -10,8 +10,13 @@
 //!   disk).
 //! - [`scene`]: the scene file ([`SceneFile`]: `lighting`, `[[object]]` meshes with albedo and
 //!   lobes).
-//! - [`survey`]: `survey.toml` ([`SurveyFile`]: `[site]`, `[[photo]]`, `[brdf]`,
-//!   `[radiometry]`).
+//! - [`survey`]: `survey.toml` ([`SurveyFile`]: `[site]` with the site's location and true
+//!   north, `[[photo]]` with its time, `[[reference]]` targets of known albedo, `[brdf]`,
+//!   `[radiometry]`); [`SurveyFile::check_site_and_references`] checks those values.
+//! - [`time`]: when a photo was taken ([`PhotoTime`]): RFC 3339 with its UTC offset
+//!   ([`PhotoTime::parse_rfc3339`]) or EXIF's date and offset ([`PhotoTime::from_exif`]), as a
+//!   UTC instant and its UTC calendar fields ([`PhotoTime::utc`]) for a solar-position
+//!   algorithm.
 //! - [`board`]: the lighting-capture board (JSON, [`BoardFile`]: spheres and fiducials), read
 //!   with [`BoardFile::read`] and written with [`BoardFile::write`].
 //!
@@ -30,19 +35,27 @@
 //! - [`brdf_samples`]: the BRDF-sample CSV and the direction-pair table ([`BrdfSample`],
 //!   [`PairTable`]; [`brdf_samples::read_samples`], [`brdf_samples::write_samples`]), read
 //!   through `igi_imaging::csv`.
+//! - [`control`]: the ground-control-point CSV `name,x,y,z,image,u,v`
+//!   ([`ControlObservation`]; [`control::read_control_points`],
+//!   [`control::write_control_points`]), read through `igi_imaging::csv`: one row per
+//!   observation of a surveyed point in a photo.
 
 pub mod board;
 pub mod brdf_samples;
+pub mod control;
 pub mod lighting;
 pub mod scene;
 pub mod survey;
+pub mod time;
 
 pub use board::BoardFile;
 pub use brdf_samples::{BrdfSample, PairRow, PairTable};
+pub use control::ControlObservation;
 pub use igi_imaging::{Camera, CameraFile};
 pub use lighting::LightingFile;
 pub use scene::SceneFile;
-pub use survey::SurveyFile;
+pub use survey::{ReferenceTarget, SurveyFile};
+pub use time::{PhotoTime, TimeProblem};
 
 use serde::de::DeserializeOwned;
 use serde::Serialize;
@@ -58,6 +71,7 @@ pub enum FileKind {
     Board,
     BrdfSamples,
     BrdfPairs,
+    ControlPoints,
 }
 
 impl fmt::Display for FileKind {
@@ -69,6 +83,7 @@ impl fmt::Display for FileKind {
             FileKind::Board => "board file",
             FileKind::BrdfSamples => "BRDF-sample file",
             FileKind::BrdfPairs => "direction-pair file",
+            FileKind::ControlPoints => "control-point file",
         })
     }
 }
@@ -83,6 +98,7 @@ impl FileKind {
             FileKind::Board => "board file",
             FileKind::BrdfSamples => "BRDF samples",
             FileKind::BrdfPairs => "direction pairs",
+            FileKind::ControlPoints => "control points",
         }
     }
 }
@@ -132,6 +148,22 @@ pub enum FormatsError {
         path: PathBuf,
         line: usize,
         problem: brdf_samples::SampleProblem,
+    },
+    /// A value of a survey file that cannot mean what its key says (the site location, a
+    /// photo's time, a reference target): from [`SurveyFile::check_site_and_references`].
+    #[error("{path}: {problem}")]
+    SurveyValue {
+        path: PathBuf,
+        #[source]
+        problem: Box<survey::SurveyProblem>,
+    },
+    /// A row of a ground-control-point table that cannot mean an observation, or a value that
+    /// cannot be written as one.
+    #[error("{path}:{line}: {problem}")]
+    Control {
+        path: PathBuf,
+        line: usize,
+        problem: Box<control::ControlProblem>,
     },
     /// Writing the file failed (the atomic writer names the file).
     #[error(transparent)]

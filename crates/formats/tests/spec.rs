@@ -56,3 +56,46 @@ fn the_extension_examples_of_docs_formats_parse() {
     );
     assert!(p.lighting.is_none());
 }
+
+/// The contract's "Site location and photo time" example: the `toml` block holding
+/// `latitude_deg = 37.9715`.
+fn site_location_example(doc: &str) -> &str {
+    let at = doc
+        .find("\nlatitude_deg = 37.9715")
+        .expect("the site location example");
+    let start = doc[..at].rfind("```toml\n").expect("its opening fence") + "```toml\n".len();
+    let end = at + doc[at..].find("```").expect("its closing fence");
+    &doc[start..end]
+}
+
+#[test]
+fn the_site_location_and_photo_time_example_parses_and_checks() {
+    let ours = std::fs::read_to_string(repo().join("docs/FORMATS.md")).unwrap();
+    let block = site_location_example(&ours);
+    assert!(block.starts_with("[site]\n"), "{block}");
+    let f: igi_formats::SurveyFile = toml::from_str(block).unwrap();
+    assert_eq!(f.site.mesh.as_deref(), Some("geometry/site.ply".as_ref()));
+    assert_eq!(f.site.latitude_deg, Some(37.9715));
+    assert_eq!(f.site.longitude_deg, Some(23.7267));
+    assert_eq!(f.site.north, Some([0.0, 1.0, 0.0]));
+    assert_eq!(f.photo.len(), 1);
+    let p = &f.photo[0];
+    assert_eq!(p.id, "east-0930");
+    assert!(p.lighting.is_none() && p.probe.is_none());
+    assert_eq!(p.time.as_deref(), Some("2026-06-21T09:30:00+03:00"));
+    let t = p.photo_time().unwrap().unwrap();
+    // `date -u -d 2026-06-21T06:30:00Z +%s`
+    assert_eq!(t.unix_seconds(), 1_782_023_400);
+    assert_eq!(t.nanos(), 0);
+    assert_eq!(t.offset_seconds(), 3 * 3600);
+    assert_eq!(t.to_rfc3339_utc(), "2026-06-21T06:30:00Z");
+    let u = t.utc();
+    assert_eq!(
+        (u.year, u.month, u.day, u.hour, u.minute),
+        (2026, 6, 21, 6, 30)
+    );
+    assert_eq!(u.second, 0.0);
+    assert!(f.reference.is_empty());
+    f.check_site_and_references(std::path::Path::new("survey.toml"))
+        .unwrap();
+}
