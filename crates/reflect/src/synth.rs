@@ -249,6 +249,7 @@ pub fn write_survey(
         brdf: None,
         radiometry: None,
         photo: Vec::new(),
+        reference: Vec::new(),
     };
     let meshes = write_truth(dir, parts, truth)?;
     if prepared.is_none() {
@@ -390,6 +391,7 @@ impl Shoot<'_> {
             lighting: Some(format!("lighting/{}.toml", l.name).into()),
             radiometry: None,
             probe: None,
+            time: None,
         })
     }
 }

@@ -33,6 +33,8 @@ pub struct PhotoSpec {
     /// The camera radiometry file (`igi camera radiometry`) applied to the image on load: the
     /// photo's own `radiometry = ...`, else the survey's `[radiometry] camera = ...`, else none.
     pub radiometry: Option<PathBuf>,
+    /// When the photo was taken (`time = ...`, checked to carry its UTC offset).
+    pub time: Option<igi_formats::PhotoTime>,
 }
 
 /// A parsed survey: everything is checked to exist, nothing heavy is loaded yet.
@@ -48,6 +50,11 @@ pub struct Survey {
     pub prepared: Option<PathBuf>,
     pub photos: Vec<PhotoSpec>,
     pub brdf_samples: Option<PathBuf>,
+    /// The site's `[site]` location and north (FORMATS.md, "Site location and photo time"),
+    /// checked: latitude and longitude in range, north horizontal.
+    pub site: igi_formats::survey::SiteSection,
+    /// Surfaces of known diffuse albedo (`[[reference]]`), checked.
+    pub references: Vec<igi_formats::survey::ReferenceTarget>,
 }
 
 impl Survey {
@@ -96,6 +103,7 @@ impl Survey {
             path.to_path_buf()
         };
         let f = SurveyFile::read(&file)?;
+        f.check_site_and_references(&file)?;
         let root = file.parent().unwrap_or(Path::new(".")).to_path_buf();
         let paths = SurveyPaths {
             root: &root,
@@ -133,6 +141,8 @@ impl Survey {
             prepared,
             photos,
             brdf_samples,
+            site: f.site.clone(),
+            references: f.reference.clone(),
         })
     }
 }
@@ -221,6 +231,8 @@ impl SurveyPaths<'_> {
                 )?),
                 None => default_radiometry.clone(),
             },
+            // checked with the survey file
+            time: p.photo_time().and_then(Result::ok),
         })
     }
 
@@ -239,6 +251,12 @@ impl SurveyPaths<'_> {
                 camera: self.existing(&b.camera, &format!("photo `{id}` probe camera"))?,
                 board: self.existing(&b.board, &format!("photo `{id}` probe board"))?,
             }),
+            (None, None) if p.time.is_some() => Err(WorkflowError::file(
+                self.file,
+                format!(
+                    "photo `{id}` has a `time` but no `lighting`: estimating a photo's light from its time and the site's location is not implemented yet; give it `lighting = ...` or a [photo.probe] capture"
+                ),
+            )),
             _ => Err(WorkflowError::file(
                 self.file,
                 format!(
@@ -492,5 +510,41 @@ mod tests {
         assert!(e.contains("broken.json"), "{e}");
         let e = error_of("[radiometry]\nfile = \"rad.json\"", "");
         assert!(e.contains("survey.toml") && e.contains("file"), "{e}");
+    }
+
+    #[test]
+    fn the_contract_site_keys_are_read_and_checked() {
+        let dir = survey_dir(
+            "latitude_deg = 37.9715\nlongitude_deg = 23.7267\nnorth = [1.0, 0.0, 0.0]",
+            "time = \"2026-06-21T09:30:00+03:00\"",
+        );
+        let s = Survey::load(dir.path()).unwrap();
+        assert_eq!(s.site.location(), Some((37.9715, 23.7267)));
+        assert_eq!(s.site.north_or_default(), [1.0, 0.0, 0.0]);
+        let t = s.photos[0].time.expect("the photo's time");
+        assert_eq!(t.unix_seconds(), 1_782_023_400);
+        let e = error_of("latitude_deg = 95.0\nlongitude_deg = 0.0", "");
+        assert!(
+            e.contains("survey.toml") && e.contains("latitude_deg"),
+            "{e}"
+        );
+        let e = error_of("", "time = \"2026-06-21T09:30:00\"");
+        assert!(e.contains("survey.toml") && e.contains("offset"), "{e}");
+    }
+
+    #[test]
+    fn a_photo_with_a_time_but_no_lighting_is_refused_with_the_reason() {
+        let dir = survey_dir("latitude_deg = 37.9\nlongitude_deg = 23.7", "");
+        let text = std::fs::read_to_string(dir.path().join("survey.toml")).unwrap();
+        let text = text.replace(
+            "lighting = \"sky.toml\"",
+            "time = \"2026-06-21T09:30:00+03:00\"",
+        );
+        std::fs::write(dir.path().join("survey.toml"), text).unwrap();
+        let e = Survey::load(dir.path()).unwrap_err().to_string();
+        assert!(
+            e.contains("survey.toml") && e.contains("`p`") && e.contains("not implemented"),
+            "{e}"
+        );
     }
 }

@@ -4,7 +4,7 @@
 //! The rest of the crate sees only [`RtScene`], [`Hit`] and [`RaySegment`], all in f32 with glam
 //! vectors, so the ray-tracing back end can be swapped without touching the integrator.
 
-use crate::RenderError;
+use crate::RaycastError;
 use embree3::{
     BufferUsage, Device, Format, GeometryKind, IntersectContext, Ray, RayHit, Scene, SceneFlags,
 };
@@ -47,8 +47,8 @@ pub struct RtScene {
 #[error("{0}")]
 pub struct EmbreeCode(pub embree3::Error);
 
-fn embree_err(what: &'static str, e: embree3::Error) -> RenderError {
-    RenderError::Embree {
+fn embree_err(what: &'static str, e: embree3::Error) -> RaycastError {
+    RaycastError::Embree {
         what,
         source: EmbreeCode(e),
     }
@@ -59,7 +59,7 @@ impl RtScene {
     /// `geom = k`. Meshes with no triangles are allowed (they are simply never hit).
     /// The caller removes degenerate triangles beforehand (see `scene.rs`); Embree itself
     /// ignores them too, so they never produce hits.
-    pub fn new(meshes: &[(&[[f32; 3]], &[[u32; 3]])]) -> Result<Self, RenderError> {
+    pub fn new(meshes: &[(&[[f32; 3]], &[[u32; 3]])]) -> Result<Self, RaycastError> {
         let device = Device::new().map_err(|e| embree_err("creating the Embree device", e))?;
         let mut scene = device
             .create_scene()
@@ -103,7 +103,7 @@ impl RtScene {
             let g = g.commit();
             let id = scene.attach_geometry(&g);
             if id != k as u32 {
-                return Err(RenderError::EmbreeGeometryId { id, mesh: k });
+                return Err(RaycastError::EmbreeGeometryId { id, mesh: k });
             }
         }
         scene.commit();
