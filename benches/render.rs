@@ -6,7 +6,7 @@
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use glam::Vec3;
-use igi_render::embree::RaySegment;
+use igi_raycast::RaySegment;
 use igi_render::sampling::Rng;
 use igi_render::{render_image, Lighting, Material, RenderOptions, Scene, Sun};
 use rayon::prelude::*;

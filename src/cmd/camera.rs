@@ -331,7 +331,8 @@ fn detect_checker(path: &Path, img: &igi_imaging::HdrImage) -> anyhow::Result<[D
 }
 
 fn refine(a: RefineArgs) -> anyhow::Result<()> {
-    use igi_render::refine::{refine_pose, rt_scene_of, RefineOptions};
+    use igi_capture::refine::{refine_pose, RefineOptions};
+    use igi_raycast::rt_scene_of;
     super::require_extension(&a.output, "json")?;
     if !(a.search > 0.0 && a.search.is_finite()) {
         bail!("--search {}: must be a positive number of pixels", a.search);

@@ -42,4 +42,20 @@ pub enum CaptureError {
     Imaging(#[from] ImagingError),
     #[error(transparent)]
     Sphere(#[from] SphereError),
+    /// The model's ray queries could not be built (pose refinement).
+    #[error(transparent)]
+    Raycast(#[from] igi_raycast::RaycastError),
+    /// A photograph whose size is not its camera's (pose refinement).
+    #[error("photo is {}x{} but its camera is {}x{}", photo.0, photo.1, camera.0, camera.1)]
+    PhotoSize {
+        photo: (usize, usize),
+        camera: (u32, u32),
+    },
+    /// Too few of the model's edge points found an edge in the photograph.
+    #[error("pose refinement: only {matched} model edge points match an edge of the photo ({found} found); is the model in view and the pose within {search_px} px?")]
+    TooFewEdgeMatches {
+        matched: usize,
+        found: usize,
+        search_px: f64,
+    },
 }

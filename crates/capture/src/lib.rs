@@ -26,6 +26,7 @@
 mod error;
 pub mod fiducial;
 pub mod highlight;
+pub mod refine;
 pub mod sample_frame;
 pub mod sphere;
 pub mod spot;

@@ -12,10 +12,10 @@
 //! Gauss-Newton on the point-to-edge distances with Huber weights. The edge points are re-cast
 //! every few iterations. See docs/IMAGING.md ("Pose refinement").
 
-use crate::embree::RtScene;
-use crate::RenderError;
+use crate::CaptureError;
 use glam::{DMat3, DVec2, DVec3};
 use igi_imaging::{Camera, HdrImage, WorldToCamera};
+use igi_raycast::RtScene;
 use nalgebra::{Matrix6, Vector6};
 use rayon::prelude::*;
 
@@ -399,9 +399,9 @@ pub fn refine_pose(
     camera: &Camera,
     rt: &RtScene,
     opts: &RefineOptions,
-) -> Result<(Camera, RefineReport), RenderError> {
+) -> Result<(Camera, RefineReport), CaptureError> {
     if photo.width != camera.width as usize || photo.height != camera.height as usize {
-        return Err(RenderError::PhotoSize {
+        return Err(CaptureError::PhotoSize {
             photo: (photo.width, photo.height),
             camera: (camera.width, camera.height),
         });
@@ -429,7 +429,7 @@ pub fn refine_pose(
             })
             .collect();
         if matches.len() < 12 {
-            return Err(RenderError::TooFewEdgeMatches {
+            return Err(CaptureError::TooFewEdgeMatches {
                 matched: matches.len(),
                 found: edges.len(),
                 search_px: opts.search_px,
@@ -460,15 +460,6 @@ pub fn refine_pose(
         moved_px,
     };
     Ok((cam, report))
-}
-
-/// The Embree scene of some meshes (positions and triangles only), for [`refine_pose`].
-pub fn rt_scene_of(meshes: &[igi_geometry::TriMesh]) -> Result<RtScene, RenderError> {
-    let parts: Vec<(&[[f32; 3]], &[[u32; 3]])> = meshes
-        .iter()
-        .map(|m| (&m.positions[..], &m.indices[..]))
-        .collect();
-    RtScene::new(&parts)
 }
 
 #[cfg(test)]

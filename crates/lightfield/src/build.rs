@@ -11,7 +11,7 @@ use crate::LightFieldError;
 use glam::Vec3;
 use igi_geometry::atlas::Atlas;
 use igi_geometry::texels::TexelCache;
-use igi_render::embree::RtScene;
+use igi_raycast::RtScene;
 use rayon::prelude::*;
 
 /// How the lumispheres are estimated.

@@ -17,7 +17,7 @@ use igi_geometry::atlas::{build_atlas, Atlas, AtlasOptions};
 use igi_geometry::TriMesh;
 use igi_imaging::rig::RigView;
 use igi_imaging::{read_image, Camera, HdrImage, Mask, Rig};
-use igi_render::embree::RtScene;
+use igi_raycast::RtScene;
 use rayon::prelude::*;
 use std::path::Path;
 
@@ -197,7 +197,7 @@ pub fn build_from_rig(
         atlas.mesh.positions.as_slice(),
         atlas.mesh.indices.as_slice(),
     )])
-    .map_err(LightFieldError::Render)?;
+    .map_err(LightFieldError::Raycast)?;
     stage(2);
     let refs: Vec<View> = views
         .iter()

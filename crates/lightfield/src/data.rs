@@ -11,8 +11,8 @@ use crate::fit::{DataLumisphere, Sample};
 use crate::lumisphere::{median_rgb, reflect_about_normal, Octahedron};
 use glam::Vec3;
 use igi_imaging::{Camera, HdrImage};
-use igi_render::embree::RtScene;
-use igi_render::integrator::offset_origin;
+use igi_raycast::offset_origin;
+use igi_raycast::RtScene;
 use rayon::prelude::*;
 
 /// One photograph and its camera (image size equal to the camera's; checked by the caller).

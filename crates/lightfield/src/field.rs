@@ -11,7 +11,7 @@ use crate::LightFieldError;
 use glam::{Mat3, Vec2, Vec3};
 use igi_geometry::TriMesh;
 use igi_imaging::{Camera, HdrImage};
-use igi_render::embree::RtScene;
+use igi_raycast::RtScene;
 use rayon::prelude::*;
 
 /// How the lumispheres are coded.
@@ -146,7 +146,7 @@ impl SurfaceLightField {
     pub fn renderer<'a>(&'a self, mesh: &'a TriMesh) -> Result<FieldRenderer<'a>, LightFieldError> {
         let (uvs, normals) = render_attributes(mesh)?;
         let scene = RtScene::new(&[(mesh.positions.as_slice(), mesh.indices.as_slice())])
-            .map_err(LightFieldError::Render)?;
+            .map_err(LightFieldError::Raycast)?;
         Ok(FieldRenderer {
             field: self,
             mesh,

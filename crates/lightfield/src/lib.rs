@@ -46,8 +46,8 @@ use std::path::PathBuf;
 /// Errors of the surface light field.
 #[derive(Debug, thiserror::Error)]
 pub enum LightFieldError {
-    #[error("rendering the mesh: {0}")]
-    Render(#[source] igi_render::RenderError),
+    #[error("ray casting the mesh: {0}")]
+    Raycast(#[source] igi_raycast::RaycastError),
     #[error(
         "the mesh has no texture coordinates (render the atlas mesh or a deformed copy of it)"
     )]

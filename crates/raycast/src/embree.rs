@@ -10,6 +10,9 @@ use embree3::{
 };
 use glam::{Vec2, Vec3};
 
+/// A mesh as the scene reads it: vertex positions and triangles (indices into them).
+pub type MeshRef<'a> = (&'a [[f32; 3]], &'a [[u32; 3]]);
+
 /// Closest hit of a ray.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hit {
@@ -59,7 +62,7 @@ impl RtScene {
     /// `geom = k`. Meshes with no triangles are allowed (they are simply never hit).
     /// The caller removes degenerate triangles beforehand (see `scene.rs`); Embree itself
     /// ignores them too, so they never produce hits.
-    pub fn new(meshes: &[(&[[f32; 3]], &[[u32; 3]])]) -> Result<Self, RaycastError> {
+    pub fn new(meshes: &[MeshRef]) -> Result<Self, RaycastError> {
         let device = Device::new().map_err(|e| embree_err("creating the Embree device", e))?;
         let mut scene = device
             .create_scene()

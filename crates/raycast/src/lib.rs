@@ -9,7 +9,7 @@
 
 pub mod embree;
 
-pub use embree::{Hit, RaySegment, RtScene};
+pub use embree::{Hit, MeshRef, RaySegment, RtScene};
 
 use glam::Vec3;
 
@@ -37,7 +37,7 @@ pub fn offset_origin(p: Vec3, n: Vec3) -> Vec3 {
 
 /// The scene of `meshes` (mesh `k` reports `geom = k`).
 pub fn rt_scene_of(meshes: &[igi_geometry::TriMesh]) -> Result<RtScene, RaycastError> {
-    let parts: Vec<(&[[f32; 3]], &[[u32; 3]])> = meshes
+    let parts: Vec<MeshRef> = meshes
         .iter()
         .map(|m| (&m.positions[..], &m.indices[..]))
         .collect();

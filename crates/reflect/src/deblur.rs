@@ -26,8 +26,8 @@
 //! photograph) keeps its uncorrected proposal.
 
 use crate::parts::Part;
+use crate::photo::Photo;
 use crate::record::Obs;
-use crate::solver::Photo;
 use glam::{Vec2, Vec3};
 use igi_imaging::HdrImage;
 use igi_render::{Scene, Texture};

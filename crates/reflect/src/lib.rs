@@ -32,6 +32,7 @@ mod deblur;
 pub mod distributed;
 pub mod fill;
 pub mod parts;
+pub mod photo;
 pub mod plot;
 pub mod record;
 pub mod result;
@@ -44,12 +45,13 @@ pub mod weights;
 use std::path::PathBuf;
 
 pub use parts::{Part, TexelCache};
+pub use photo::Photo;
 pub use result::{
     export, load_result_scene, sample_albedo, AlbedoSample, ExportFormat, SolveResult,
     UNKNOWN_STDERR,
 };
 pub use solver::{
-    solve, solve_in_memory, IterationRecord, Photo, Progress, Schedule, SolveOptions, SolveReport,
+    solve, solve_in_memory, IterationRecord, Progress, Schedule, SolveOptions, SolveReport,
 };
 
 /// Errors of the inverse solver.

@@ -4,6 +4,7 @@ use crate::atlas_size::point_footprint;
 use crate::deblur::Footprint;
 use crate::fill::fill_unseen;
 use crate::parts::{stored_part_name, Part};
+use crate::photo::Photo;
 use crate::record::Obs;
 pub use crate::record::{
     IterationRecord, PartSummary, Pending, Schedule, SolveOptions, SolveReport,
@@ -13,7 +14,7 @@ use crate::weights::{combine, Combined, Proposal};
 use crate::ReflectError;
 use glam::{DVec2, Vec2, Vec3};
 use igi_brdf::{luminance, Basis, LafortuneRef, Lobe};
-use igi_render::integrator::offset_origin;
+use igi_raycast::offset_origin;
 use igi_render::sampling::{hash2, Rng};
 use igi_render::{Albedo, Material, PathTracer, RenderOptions, Scene, SurfacePoint, Texture};
 use rayon::prelude::*;
@@ -49,15 +50,6 @@ pub fn check_selection(parts: &[Part], opts: &SolveOptions) -> Result<(), Reflec
         }
     }
     Ok(())
-}
-
-/// A photograph loaded into memory: what the solver reads of it (the survey folder that names
-/// it is resolved and loaded by `igi-workflow`).
-pub struct Photo {
-    pub id: String,
-    pub image: igi_imaging::HdrImage,
-    pub camera: igi_imaging::Camera,
-    pub lighting: igi_render::Lighting,
 }
 
 /// Progress reporting (the CLI maps it to progress bars).

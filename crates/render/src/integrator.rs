@@ -14,6 +14,7 @@ use crate::RenderError;
 use glam::{DVec3, Vec2, Vec3};
 use igi_brdf::{BsdfSample, Frame, LafortuneRef};
 use igi_imaging::{Camera, HdrImage};
+use igi_raycast::offset_origin;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -156,13 +157,6 @@ impl FirstVertexSamples {
             bsdf: self.bsdf[j],
         }
     }
-}
-
-/// Offsets a ray origin off a surface along `n`, by an amount that scales with the coordinates.
-#[inline]
-pub fn offset_origin(p: Vec3, n: Vec3) -> Vec3 {
-    let scale = 1.0 + p.abs().max_element();
-    p + n * (3e-5 * scale)
 }
 
 /// The BRDF at a vertex, with a fast path for purely Lambertian materials (no lobes): the

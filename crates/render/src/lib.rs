@@ -1,13 +1,12 @@
 //! `igi-render`: the Monte-Carlo path tracer behind `igi render` and the inverse solver.
 //!
-//! - [`embree`]: every Embree call (triangle scene, closest hit, occlusion, ray streams).
+//! - Ray queries (the Embree scene, closest hit, occlusion, ray streams) are `igi-raycast`'s.
 //! - [`lighting`]: lat-long environment (importance-sampled) and the sun disk, built from a
 //!   parsed lighting file (`igi_formats::lighting`).
 //! - [`scene`]: meshes + Lafortune materials + Embree, built from a parsed scene file
 //!   (`igi_formats::scene`); surface points.
 //! - [`integrator`]: the path tracer (NEE + MIS), image rendering and the batched solver queries.
 //! - [`adaptive`]: adaptive sampling, the per-pixel sample counts of a render from a pilot.
-//! - [`refine`]: camera pose refinement by matching the model's edges and silhouette to a photograph's.
 //! - [`compare_images`], [`difference_image`]: re-exported from `igi_imaging::metrics`.
 //! - [`sampling`]: per-pixel PCG streams, piecewise-constant 1D/2D distributions, cone sampling, MIS.
 //!
@@ -22,10 +21,8 @@
 )]
 
 pub mod adaptive;
-pub mod embree;
 pub mod integrator;
 pub mod lighting;
-pub mod refine;
 pub mod sampling;
 pub mod scene;
 pub mod sky;
@@ -44,16 +41,9 @@ use std::path::PathBuf;
 /// Errors of the renderer. Every file error names the file.
 #[derive(Debug, thiserror::Error)]
 pub enum RenderError {
-    /// An Embree call failed (`what`: the call, e.g. "creating the Embree scene").
-    #[error("Embree: {what}: {source}")]
-    Embree {
-        what: &'static str,
-        #[source]
-        source: embree::EmbreeCode,
-    },
-    /// Embree numbered the meshes of a scene out of order.
-    #[error("Embree: Embree gave geometry id {id} to mesh {mesh}; expected sequential ids")]
-    EmbreeGeometryId { id: u32, mesh: usize },
+    /// The scene's ray queries could not be built.
+    #[error(transparent)]
+    Raycast(#[from] igi_raycast::RaycastError),
     /// A scene or lighting file that parses but describes nothing usable.
     #[error("{path}: {msg}")]
     File { path: PathBuf, msg: String },
@@ -107,17 +97,6 @@ pub enum RenderError {
     Mesh {
         object: String,
         problem: MeshProblem,
-    },
-    #[error("photo is {}x{} but its camera is {}x{}", photo.0, photo.1, camera.0, camera.1)]
-    PhotoSize {
-        photo: (usize, usize),
-        camera: (u32, u32),
-    },
-    #[error("pose refinement: only {matched} model edge points match an edge of the photo ({found} found); is the model in view and the pose within {search_px} px?")]
-    TooFewEdgeMatches {
-        matched: usize,
-        found: usize,
-        search_px: f64,
     },
 }
 

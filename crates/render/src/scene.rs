@@ -10,7 +10,6 @@
 //! the geometric normal), else the geometric normal. The geometric normal offsets ray origins.
 //! Zero-area (or non-finite) triangles are dropped at load and counted.
 
-use crate::embree::{Hit, RtScene};
 use crate::lighting::Lighting;
 use crate::{MeshProblem, RenderError};
 use glam::{DVec3, Vec2, Vec3};
@@ -19,6 +18,7 @@ use igi_formats::scene::{AlbedoEntry, LobeMapEntry, ObjectEntry, SceneFile};
 use igi_formats::TomlFile;
 use igi_geometry::TriMesh;
 use igi_imaging::HdrImage;
+use igi_raycast::{Hit, RtScene};
 use std::path::{Path, PathBuf};
 
 /// An RGB texture for per-texel parameters (linear values).

@@ -12,7 +12,7 @@ use igi_geometry::procedural::uv_sphere;
 use igi_geometry::TriMesh;
 use igi_imaging::{Camera, HdrImage};
 use igi_lightfield::{BuildOptions, Method, Prepared, RenderSlfOptions, SurfaceLightField, View};
-use igi_render::embree::RtScene;
+use igi_raycast::RtScene;
 use igi_render::{
     render_image, Albedo, Environment, Lighting, Material, RenderOptions, Scene, Texture,
 };

@@ -6,7 +6,7 @@ use common::{make, psnr, Synth};
 use glam::Vec3;
 use igi_lightfield::plot::{plot_error_against_size, SizePoint};
 use igi_lightfield::{BuildOptions, Method, Prepared, RenderSlfOptions, SurfaceLightField, View};
-use igi_render::embree::RtScene;
+use igi_raycast::RtScene;
 use std::sync::OnceLock;
 
 const SIZE: u32 = 48;

@@ -5,8 +5,10 @@
 //! and the refined cameras.
 
 use glam::{DMat3, DVec3, Vec3};
+use igi_capture::refine::{refine_pose, RefineOptions};
 use igi_imaging::camera::{points_in_frame, reprojection_rms};
 use igi_imaging::{Camera, WorldToCamera};
+use igi_raycast::rt_scene_of;
 use igi_reflect::parts::build_parts;
 use igi_reflect::solver::truth_from_scene;
 use igi_reflect::synth::{
@@ -14,7 +16,6 @@ use igi_reflect::synth::{
 };
 use igi_reflect::Photo;
 use igi_reflect::{SolveOptions, SolveResult};
-use igi_render::refine::{refine_pose, rt_scene_of, RefineOptions};
 use igi_render::sky::{clear_sky, overcast_sky, sun_direction};
 use igi_render::{render_image, RenderOptions};
 use rand::{Rng, SeedableRng};
@@ -154,7 +155,7 @@ fn photo_three_ways(
     l: &LightingSpec,
     scene: &igi_render::Scene,
     surface: &[DVec3],
-    rt: &igi_render::embree::RtScene,
+    rt: &igi_raycast::RtScene,
 ) -> ([Photo; 3], f64) {
     let lighting = l.lighting().unwrap();
     let opts = RenderOptions {
