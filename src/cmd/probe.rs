@@ -1,8 +1,8 @@
 //! `igi probe`: lighting (sky map + sun) from a photograph of the three-sphere board.
 use crate::report::Ctx;
 use anyhow::{bail, Context};
+use igi_files::write_text_atomic;
 use igi_imaging::hdr::parse_time;
-use igi_imaging::io::write_text_atomic;
 use igi_imaging::{Camera, HdrImage};
 use igi_probe::fiducial::place_board;
 use igi_probe::fresnel::{fit_mirror_ior, ReflectanceSamples};
@@ -201,7 +201,7 @@ fn check_arguments(a: &ProbeArgs, output: &std::path::Path) -> anyhow::Result<()
             output.display()
         );
     }
-    igi_imaging::io::check_output_file(output)?;
+    igi_files::check_output_file(output)?;
     if !(a.sun_mask_px >= 0.0 && a.sun_mask_px.is_finite()) {
         bail!(
             "--sun-mask-px {} must be a finite radius in pixels, 0 or more",

@@ -103,7 +103,7 @@ fn checked_scene_file(a: &RenderArgs) -> anyhow::Result<PathBuf> {
     }
     for out in std::iter::once(&a.output).chain(a.stderr.as_ref()) {
         check_image_name(out)?;
-        igi_imaging::io::check_output_file(out)?;
+        igi_files::check_output_file(out)?;
     }
     Ok(scene_file)
 }

@@ -242,7 +242,7 @@ pub fn run_sample(a: SampleArgs, _ctx: &Ctx) -> anyhow::Result<()> {
             p.x, p.y, p.z, n.x, n.y, n.z, v.x, v.y, v.z
         ));
     }
-    igi_imaging::io::write_text_atomic(&a.output, &csv)?;
+    igi_files::write_text_atomic(&a.output, &csv)?;
     println!("{} points -> {}", values.len(), a.output.display());
     Ok(())
 }

@@ -142,7 +142,7 @@ fn a_folder_being_written_is_refused_to_a_second_run_fresh_or_resuming() {
     };
     // this test process stands for a run in progress: it holds the folder's lock
     std::fs::create_dir_all(&out).unwrap();
-    let lock = igi_imaging::FolderLock::acquire(&out).unwrap();
+    let lock = igi_files::FolderLock::acquire(&out).unwrap();
     let o = igi().run(&solve_args(s(&survey), s(&out), &[]));
     refused(&o, "fresh solve");
     assert!(
@@ -152,7 +152,7 @@ fn a_folder_being_written_is_refused_to_a_second_run_fresh_or_resuming() {
     drop(lock);
     igi().ok(&solve_args(s(&survey), s(&out), &[]));
     let report = std::fs::read(out.join("report.json")).unwrap();
-    let lock = igi_imaging::FolderLock::acquire(&out).unwrap();
+    let lock = igi_files::FolderLock::acquire(&out).unwrap();
     let o = igi().run(&solve_args(s(&survey), s(&out), &["--iterations", "2"]));
     refused(&o, "resumed solve");
     assert_eq!(std::fs::read(out.join("report.json")).unwrap(), report);
@@ -161,7 +161,7 @@ fn a_folder_being_written_is_refused_to_a_second_run_fresh_or_resuming() {
     // the same for a prepare
     let site = d.path().join("site.igi");
     std::fs::create_dir_all(&site).unwrap();
-    let _lock = igi_imaging::FolderLock::acquire(&site).unwrap();
+    let _lock = igi_files::FolderLock::acquire(&site).unwrap();
     let ground = fixture("outdoor/ground.ply");
     let o = igi().run(&["prepare", s(&ground), "-o", s(&site), "--voxel", "20"]);
     refused(&o, "prepare");

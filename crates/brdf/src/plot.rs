@@ -141,7 +141,7 @@ fn fitted_curve(
 
 /// Write text to `path` atomically (temp file in the same folder, then rename).
 pub fn write_text_atomic(path: &Path, text: &str) -> Result<(), BrdfError> {
-    igi_imaging::io::write_text_atomic(path, text).map_err(|e| BrdfError::File {
+    igi_files::write_text_atomic(path, text).map_err(|e| BrdfError::File {
         path: path.into(),
         msg: format!("cannot write: {e}"),
     })

@@ -1,7 +1,7 @@
 //! `cluster/cluster.json`: what a cluster run froze at submission.
 
 use crate::ClusterError;
-use igi_imaging::run::Fingerprint;
+use igi_files::run::Fingerprint;
 use igi_reflect::SolveOptions;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -91,7 +91,7 @@ impl ClusterConfig {
         std::fs::create_dir_all(&dir)
             .map_err(|e| ClusterError::file(&dir, format!("cannot create folder: {e}")))?;
         let text = serde_json::to_string_pretty(self).expect("cluster file serialises") + "\n";
-        Ok(igi_imaging::io::write_text_atomic(
+        Ok(igi_files::write_text_atomic(
             &Self::path(&self.result),
             &text,
         )?)

@@ -77,6 +77,9 @@ pub enum ClusterError {
     Workflow(#[from] igi_workflow::WorkflowError),
     #[error(transparent)]
     Imaging(#[from] igi_imaging::ImagingError),
+    /// An output file or folder, a run manifest or the folder lock.
+    #[error(transparent)]
+    Files(#[from] igi_files::FilesError),
     #[error(transparent)]
     Geometry(#[from] igi_geometry::GeometryError),
 }

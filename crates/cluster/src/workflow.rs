@@ -3,7 +3,7 @@
 use crate::config::{ClusterConfig, IterationJobs, SlurmOptions, FORMAT};
 use crate::slurm::{self, QueueState};
 use crate::ClusterError;
-use igi_imaging::run::Fingerprint;
+use igi_files::run::Fingerprint;
 use igi_reflect::distributed::{self, TaskDone, TaskMeta};
 use igi_reflect::solver::{NoProgress, SolveInputs};
 use igi_reflect::{Schedule, SolveOptions};
@@ -94,7 +94,7 @@ fn freeze(
     let abs = |p: &Path| std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf());
     let binary = abs(&req.binary);
     let binary_fingerprint = Fingerprint::of("igi binary", &binary)?;
-    let run = std::fs::read(req.result.join(igi_imaging::run::RUN_FILE))
+    let run = std::fs::read(req.result.join(igi_files::run::RUN_FILE))
         .map_err(|e| ClusterError::file(&req.result, format!("cannot read run.json: {e}")))?;
     let mut ident = run;
     ident.extend(serde_json::to_vec(&binary_fingerprint).expect("serialisable"));
@@ -107,7 +107,7 @@ fn freeze(
         binary_fingerprint,
         version: env!("CARGO_PKG_VERSION").into(),
         options,
-        fingerprint: format!("{:016x}", igi_imaging::run::fnv1a64(&ident)),
+        fingerprint: format!("{:016x}", igi_files::run::fnv1a64(&ident)),
         groups,
         slurm: req.slurm.clone(),
         max_attempts: req.max_attempts,
@@ -181,7 +181,7 @@ fn write_scripts(
             c * m
         );
         let p = dir.join(format!("tasks-{c}.sh"));
-        igi_imaging::io::write_text_atomic(&p, &s)?;
+        igi_files::write_text_atomic(&p, &s)?;
         tasks.push((p, c * m));
     }
     let mut s = header(config, &format!("igi-{k}-merge"));
@@ -197,7 +197,7 @@ fn write_scripts(
         sh(&config.result)
     );
     let merge = dir.join("merge.sh");
-    igi_imaging::io::write_text_atomic(&merge, &s)?;
+    igi_files::write_text_atomic(&merge, &s)?;
     Ok(Scripts { tasks, merge })
 }
 
@@ -401,7 +401,7 @@ fn write_missing(
             last_line(&log).unwrap_or_else(|| "(no log: the task never ran)".into())
         );
     }
-    Ok(igi_imaging::io::write_text_atomic(list, &s)?)
+    Ok(igi_files::write_text_atomic(list, &s)?)
 }
 
 fn last_line(log: &Path) -> Option<String> {

@@ -114,7 +114,7 @@ impl BoardFile {
 
     /// Writes the file atomically.
     pub fn write(&self, path: &Path) -> Result<(), FormatsError> {
-        igi_imaging::io::write_text_atomic(path, &self.to_json())
+        igi_files::write_text_atomic(path, &self.to_json())
             .map_err(|e| FormatsError::Write(Box::new(e)))
     }
 }

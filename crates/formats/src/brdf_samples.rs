@@ -246,7 +246,7 @@ pub fn write_pairs(path: &Path, table: &PairTable, values: &[Vec3]) -> Result<()
 }
 
 fn write_csv(path: &Path, text: &str) -> Result<(), FormatsError> {
-    igi_imaging::io::write_text_atomic(path, text).map_err(|e| FormatsError::Write(Box::new(e)))
+    igi_files::write_text_atomic(path, text).map_err(|e| FormatsError::Write(Box::new(e)))
 }
 
 #[cfg(test)]

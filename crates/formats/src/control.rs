@@ -215,7 +215,7 @@ pub fn write_control_points(
     points: &[ControlObservation],
 ) -> Result<(), FormatsError> {
     let text = control_points_to_csv(points, path)?;
-    igi_imaging::io::write_text_atomic(path, &text).map_err(|e| FormatsError::Write(Box::new(e)))
+    igi_files::write_text_atomic(path, &text).map_err(|e| FormatsError::Write(Box::new(e)))
 }
 
 impl fmt::Display for ControlObservation {

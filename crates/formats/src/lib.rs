@@ -167,7 +167,7 @@ pub enum FormatsError {
     },
     /// Writing the file failed (the atomic writer names the file).
     #[error(transparent)]
-    Write(Box<igi_imaging::ImagingError>),
+    Write(Box<igi_files::FilesError>),
 }
 
 impl From<igi_imaging::csv::CsvError> for FormatsError {
@@ -221,8 +221,7 @@ pub trait TomlFile: Serialize + DeserializeOwned {
                 kind: Self::KIND,
                 source: Box::new(source),
             })?;
-        igi_imaging::io::write_text_atomic(path, &text)
-            .map_err(|e| FormatsError::Write(Box::new(e)))
+        igi_files::write_text_atomic(path, &text).map_err(|e| FormatsError::Write(Box::new(e)))
     }
 }
 

@@ -1,7 +1,7 @@
-//! Atomic file writing through `igi_imaging::io::write_atomic` with a buffered writer.
+//! Atomic file writing through `igi_files::write_atomic` with a buffered writer.
 
 use crate::error::GeometryError;
-use igi_imaging::ImagingError;
+use igi_files::FilesError;
 use std::io::{BufWriter, Write};
 use std::path::Path;
 
@@ -11,18 +11,15 @@ pub(crate) fn write_atomic_with(
     path: &Path,
     write: impl FnOnce(&mut BufWriter<std::fs::File>) -> std::io::Result<()>,
 ) -> Result<(), GeometryError> {
-    igi_imaging::io::write_atomic(path, |tmp| {
-        let io = |source| ImagingError::Io {
-            path: path.to_path_buf(),
-            source,
-        };
+    igi_files::write_atomic(path, |tmp| {
+        let io = |source| FilesError::io(path, source);
         let f = std::fs::File::create(tmp).map_err(io)?;
         let mut w = BufWriter::with_capacity(1 << 20, f);
         write(&mut w).map_err(io)?;
         w.flush().map_err(io)?;
         let f = w.into_inner().map_err(|e| io(e.into_error()))?;
         f.sync_all().map_err(io)?;
-        Ok(())
+        Ok::<(), FilesError>(())
     })?;
     Ok(())
 }

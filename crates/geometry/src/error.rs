@@ -55,6 +55,9 @@ pub enum GeometryError {
     /// An error from the imaging layer (EXR caches, atomic writes).
     #[error(transparent)]
     Imaging(#[from] igi_imaging::ImagingError),
+    /// An output file or folder, a run manifest or the folder lock.
+    #[error(transparent)]
+    Files(#[from] igi_files::FilesError),
 }
 
 impl GeometryError {

@@ -11,10 +11,10 @@
 //! ```
 //! Every file is written atomically; a voxel whose `done.json` and level files exist is skipped
 //! when `prepare` runs again on the same folder with the same run manifest (the same source
-//! files, by content hash, and the same options; see `igi_imaging::run`). A different one is
+//! files, by content hash, and the same options; see `igi_files::run`). A different one is
 //! refused with the differing option named, unless the run asks to restart. Temporary files of
 //! killed runs are removed on resume. A running prepare holds the folder's lock
-//! (`site.igi/.igi-lock`, `igi_imaging::FolderLock`): a second prepare on the same folder
+//! (`site.igi/.igi-lock`, `igi_files::FolderLock`): a second prepare on the same folder
 //! meanwhile is refused.
 
 use crate::atlas::{build_atlas, AtlasOptions};
@@ -23,8 +23,8 @@ use crate::levels::simplify;
 use crate::mesh::TriMesh;
 use crate::repair::RepairReport;
 use crate::voxel::{partition, VoxelGrid, VoxelId};
-use igi_imaging::run::RUN_FILE;
-use igi_imaging::RunManifest;
+use igi_files::run::RUN_FILE;
+use igi_files::RunManifest;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -175,7 +175,7 @@ pub fn check_prepare_output(
     has_terrain: bool,
 ) -> Result<RunManifest, GeometryError> {
     opts.check()?;
-    igi_imaging::io::check_output_folder(out)?;
+    igi_files::check_output_folder(out)?;
     let manifest = run.manifest(opts, has_terrain)?;
     manifest.check_folder(out, run.restart, "settings.json", "site")?;
     Ok(manifest)
@@ -183,7 +183,7 @@ pub fn check_prepare_output(
 
 /// Removes what an earlier prepare wrote into `out` (only the names a prepare writes).
 fn remove_site_entries(out: &Path) -> Result<(), GeometryError> {
-    Ok(igi_imaging::run::remove_entries(out, &SITE_ENTRIES)?)
+    Ok(igi_files::run::remove_entries(out, &SITE_ENTRIES)?)
 }
 
 const FORMAT: &str = "igi-site-1";
@@ -354,13 +354,13 @@ pub fn prepare_run(
     check_resources(&site, terrain.as_ref(), opts)?;
     mkdir(out)?;
     // one writer at a time; the folder is checked again under the lock
-    let _lock = igi_imaging::FolderLock::acquire(out)?;
+    let _lock = igi_files::FolderLock::acquire(out)?;
     manifest.check_folder(out, run.restart, "settings.json", "site")?;
     if run.restart {
         remove_site_entries(out)?;
     }
     mkdir(&out.join("voxels"))?;
-    igi_imaging::io::remove_dead_temps(out, true)?;
+    igi_files::remove_dead_temps(out, true)?;
     manifest.write(out)?;
     let bounds = combined_bounds(&site, terrain.as_ref());
     let parts: Vec<(VoxelId, TriMesh)> = partition(&site, &opts.grid).into_iter().collect();

@@ -449,7 +449,7 @@ impl Camera {
     /// Save as JSON, atomically.
     pub fn save(&self, path: &Path) -> Result<(), ImagingError> {
         let text = self.to_json_string();
-        crate::io::write_text_atomic(path, &text)
+        Ok(igi_files::write_text_atomic(path, &text)?)
     }
 
     /// Pixel coordinates of a world point (distortion applied); `None` behind the camera.

@@ -88,33 +88,9 @@ pub enum ImagingError {
         #[source]
         source: Box<ImagingError>,
     },
-    #[error("{}: is a file, not a folder (cannot write into {})", path.display(), wanted.display())]
-    NotAFolder { path: PathBuf, wanted: PathBuf },
-    #[error("{}: output folder does not exist", path.display())]
-    NoFolder { path: PathBuf },
-    #[error("{}: cannot write into this folder", path.display())]
-    NotWritable {
-        path: PathBuf,
-        #[source]
-        source: std::io::Error,
-    },
-    #[error("{}: holds a run with a different {what} (there: {was}; now: {now}); use --restart to start afresh, or another output folder", path.display())]
-    RunMismatch {
-        path: PathBuf,
-        what: String,
-        was: String,
-        now: String,
-    },
-    #[error("{}: {msg}", path.display())]
-    NotARunFolder { path: PathBuf, msg: String },
-    #[error("{}: another igi run ({holder}) is writing this folder; wait for it to finish, or choose another output", path.display())]
-    FolderBusy { path: PathBuf, holder: String },
-    #[error("{}: unreadable run manifest: {source}; use --restart to start afresh", path.display())]
-    BadManifest {
-        path: PathBuf,
-        #[source]
-        source: serde_json::Error,
-    },
+    /// An output file or folder, a run manifest or the folder lock (`igi-files`).
+    #[error(transparent)]
+    Files(#[from] igi_files::FilesError),
     #[error("built without opencv: rebuild with --features opencv")]
     NoOpenCv,
     /// OpenCV gave a result that cannot be used (`cv`, feature `opencv`).

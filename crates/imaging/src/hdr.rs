@@ -406,7 +406,7 @@ impl Response {
                 self.g[0][z], self.g[1][z], self.g[2][z]
             ));
         }
-        crate::io::write_text_atomic(path, &s)
+        Ok(igi_files::write_text_atomic(path, &s)?)
     }
 }
 

@@ -1,9 +1,10 @@
 //! # igi-imaging
 //!
-//! Shared camera and HDR code at the bottom of the igi dependency graph:
+//! Shared camera and HDR code near the bottom of the igi dependency graph (above `igi-files`,
+//! which writes its files atomically):
 //!
 //! * [`HdrImage`]: linear `f32` RGB image with a validity mask (row 0 at the top).
-//! * [`io`]: atomic file writing, [`read_image`] (EXR, Radiance HDR, PNG/JPEG/TIFF),
+//! * [`io`]: [`read_image`] (EXR, Radiance HDR, PNG/JPEG/TIFF),
 //!   [`write_exr`], [`write_hdr`], [`write_png_tonemapped`].
 //! * [`latlong`]: the lat-long (equirectangular) mapping of FORMATS.md (world Z up).
 //! * [`camera`]: OpenCV pinhole camera with (k1, k2, p1, p2, k3) distortion, typed poses
@@ -20,8 +21,6 @@
 //!   RMSE) and false-colour difference pictures.
 //! * [`mask`]: binary masks (threshold, disk dilation and erosion, hole filling up to an area,
 //!   frame contact, IoU).
-//! * [`run`]: run manifests (`run.json`): input fingerprints and result-changing options, so
-//!   a resumed command never mixes two runs' work.
 //! * [`csv`]: the one reader of igi's numeric CSV tables (header by name, comments, errors
 //!   naming file and line).
 //! * [`plot`]: font registration for plotters (diagnostic plots).
@@ -49,7 +48,6 @@ pub mod planar;
 pub mod plot;
 pub mod radiometry;
 pub mod rig;
-pub mod run;
 
 pub use camera::{Camera, CameraFile, CameraToWorld, Distortion, Intrinsics, WorldToCamera};
 pub use error::{CompareError, HdrError, ImagingError, PlanarError, PnpError, RadiometryError};
@@ -59,4 +57,3 @@ pub use io::{
 };
 pub use mask::Mask;
 pub use rig::Rig;
-pub use run::{Fingerprint, FolderLock, RunManifest};

@@ -81,7 +81,7 @@ impl Mask {
                 path: path.to_path_buf(),
                 msg: "mask size does not match its data".into(),
             })?;
-        crate::io::write_atomic(path, |tmp| {
+        igi_files::write_atomic(path, |tmp| {
             img.save_with_format(tmp, ::image::ImageFormat::Png)
                 .map_err(|e| ImagingError::encode_failed(path, e))
         })

@@ -191,7 +191,7 @@ fn write_png(
     draw: impl FnOnce(&DrawingArea<BitMapBackend<'_>, Shift>) -> DrawResult,
 ) -> Result<(), ImagingError> {
     register_fonts();
-    crate::io::write_atomic(path, |tmp| {
+    igi_files::write_atomic(path, |tmp| {
         let run = || -> DrawResult {
             let root = BitMapBackend::new(tmp, size).into_drawing_area();
             root.fill(&WHITE)?;

@@ -688,7 +688,7 @@ impl CameraRadiometry {
             msg,
         })?;
         let text = serde_json::to_string_pretty(self).expect("radiometry serialises");
-        crate::io::write_text_atomic(path, &(text + "\n"))
+        Ok(igi_files::write_text_atomic(path, &(text + "\n"))?)
     }
 
     /// Whether an image of `w` x `h` has the calibration's aspect ratio (within 1 %).

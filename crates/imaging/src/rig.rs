@@ -195,7 +195,10 @@ impl Rig {
     /// Write the rig to `path` atomically (paths relative to its folder where possible).
     pub fn save(&self, path: &Path) -> Result<(), ImagingError> {
         let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-        crate::io::write_text_atomic(path, &self.to_toml_string(&dir))
+        Ok(igi_files::write_text_atomic(
+            path,
+            &self.to_toml_string(&dir),
+        )?)
     }
 }
 

@@ -64,7 +64,7 @@ pub fn write_patterns(dir: &Path, width: usize, height: usize) -> Result<Vec<Pat
             }
             let img = image::RgbImage::from_raw(width as u32, height as u32, bytes)
                 .expect("size matches");
-            igi_imaging::io::write_atomic(&path, |tmp| {
+            igi_files::write_atomic(&path, |tmp| {
                 img.save_with_format(tmp, image::ImageFormat::Png)
                     .map_err(|e| ImagingError::Encode {
                         path: path.clone(),

@@ -166,7 +166,7 @@ pub fn build(
             crate::reflectance::write_fields(dir, fields, r)?;
         }
         report.timings.write_s = write_start.elapsed().as_secs_f64();
-        igi_imaging::io::write_text_atomic(
+        igi_files::write_text_atomic(
             &dir.join("report.json"),
             &serde_json::to_string_pretty(&report).expect("report"),
         )?;
@@ -223,7 +223,7 @@ fn write_products(
     views: &[View],
     curves: &[Vec<f64>],
 ) -> Result<(), HullError> {
-    igi_imaging::io::write_text_atomic(
+    igi_files::write_text_atomic(
         &dir.join("hull.json"),
         &serde_json::to_string_pretty(manifest).expect("manifest"),
     )?;

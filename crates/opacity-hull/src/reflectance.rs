@@ -570,7 +570,7 @@ pub fn write_fields(
         summary: report.clone(),
         views,
     };
-    igi_imaging::io::write_text_atomic(
+    igi_files::write_text_atomic(
         &dir.join(HEADER),
         &serde_json::to_string_pretty(&header).expect("header"),
     )?;

@@ -7,6 +7,9 @@ use std::path::PathBuf;
 pub enum ProbeError {
     #[error(transparent)]
     Imaging(#[from] ImagingError),
+    /// An output file or folder, a run manifest or the folder lock.
+    #[error(transparent)]
+    Files(#[from] igi_files::FilesError),
     #[error("{}: {source}", path.display())]
     Io {
         path: PathBuf,

@@ -5,9 +5,9 @@
 use crate::envmap::hemisphere_pixel;
 use crate::pipeline::luminance;
 use crate::{ProbeError, ProbeResult};
+use igi_files::write_text_atomic;
 use igi_formats::lighting::{EnvironmentSection, LightingFile, SunSection};
 use igi_formats::TomlFile;
-use igi_imaging::io::write_text_atomic;
 use igi_imaging::{write_exr, write_png_tonemapped, HdrImage, ImagingError};
 use std::path::{Path, PathBuf};
 

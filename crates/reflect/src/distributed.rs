@@ -24,7 +24,7 @@ use crate::solver::{
 };
 use crate::ReflectError;
 use glam::Vec3;
-use igi_imaging::run::ProcessUsage;
+use igi_files::run::ProcessUsage;
 use igi_imaging::{write_exr, HdrImage};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -232,10 +232,7 @@ fn write_task(
         done.parts.push(state.report.parts[i].clone());
     }
     let json = serde_json::to_string_pretty(&done).expect("task report serialises");
-    Ok(igi_imaging::io::write_text_atomic(
-        &dir.join("done.json"),
-        &json,
-    )?)
+    Ok(igi_files::write_text_atomic(&dir.join("done.json"), &json)?)
 }
 
 /// Writes part `i`'s albedo, weight, observation and standard-error atlases into `dir`.

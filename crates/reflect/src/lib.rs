@@ -140,6 +140,9 @@ pub enum ReflectError {
     Format(#[from] igi_formats::FormatsError),
     #[error(transparent)]
     Imaging(#[from] igi_imaging::ImagingError),
+    /// An output file or folder, a run manifest or the folder lock.
+    #[error(transparent)]
+    Files(#[from] igi_files::FilesError),
     #[error(transparent)]
     Geometry(#[from] igi_geometry::GeometryError),
     #[error(transparent)]

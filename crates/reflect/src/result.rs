@@ -535,7 +535,7 @@ impl SolveResult {
 }
 
 pub(crate) fn write_text(path: &Path, text: &str) -> Result<(), ReflectError> {
-    Ok(igi_imaging::io::write_text_atomic(path, text)?)
+    Ok(igi_files::write_text_atomic(path, text)?)
 }
 
 /// The scene file of a result folder (for `igi render RESULT_DIR --lighting ...`).

@@ -298,7 +298,7 @@ pub fn run_demo(
         relight,
         total_seconds: t0.elapsed().as_secs_f64(),
     };
-    igi_imaging::io::write_text_atomic(
+    igi_files::write_text_atomic(
         &out.join("demo.json"),
         &serde_json::to_string_pretty(&report).expect("report serialises"),
     )?;

@@ -32,6 +32,9 @@ pub enum WorkflowError {
     Format(#[from] igi_formats::FormatsError),
     #[error(transparent)]
     Imaging(#[from] igi_imaging::ImagingError),
+    /// An output file or folder, a run manifest or the folder lock.
+    #[error(transparent)]
+    Files(#[from] igi_files::FilesError),
     #[error(transparent)]
     Geometry(#[from] igi_geometry::GeometryError),
     #[error(transparent)]

@@ -2,7 +2,7 @@
 //!
 //! [`SolveSession::check`] runs before any work or output: it validates the options, checks
 //! that the output folder is (or can become) a writable folder, and builds the run manifest
-//! (`run.json`, see `igi_imaging::run`): fingerprints of the survey file, meshes or prepared
+//! (`run.json`, see `igi_files::run`): fingerprints of the survey file, meshes or prepared
 //! site, photographs, cameras, lighting and BRDF samples, and every result-changing option
 //! (`--atlas`, `--spp`, `--indirect`, `--seed`, `--initial`, the weighting rules, `--schedule`
 //! and `--deblur` when not their defaults, `--shading-smoothing` when on) with the part
@@ -23,8 +23,8 @@
 
 use crate::survey::{LightingSource, Survey};
 use crate::WorkflowError;
-use igi_imaging::run::{FolderState, RUN_FILE};
-use igi_imaging::{FolderLock, RunManifest};
+use igi_files::run::{FolderState, RUN_FILE};
+use igi_files::{FolderLock, RunManifest};
 use igi_reflect::result::{SolveResult, STAGED};
 use igi_reflect::{Part, Schedule, SolveOptions};
 use std::cell::OnceCell;
@@ -58,7 +58,7 @@ impl SolveSession {
         restart: bool,
     ) -> Result<SolveSession, WorkflowError> {
         opts.validate()?;
-        igi_imaging::io::check_output_folder(dir)?;
+        igi_files::check_output_folder(dir)?;
         let manifest = run_manifest(survey, opts)?;
         let state = manifest.check_folder(dir, restart, "report.json", "result")?;
         let resume = state == FolderState::Resume && has_checkpoint(dir);
@@ -79,7 +79,7 @@ impl SolveSession {
     /// Loads the checkpoint to continue from (after removing dead runs' temporary files).
     pub fn load(&self) -> Result<SolveResult, WorkflowError> {
         self.claim()?;
-        igi_imaging::io::remove_dead_temps(&self.dir, true)?;
+        igi_files::remove_dead_temps(&self.dir, true)?;
         SolveResult::recover(&self.dir)?;
         Ok(SolveResult::load(&self.dir)?)
     }
@@ -98,7 +98,7 @@ impl SolveSession {
             .map_err(|e| WorkflowError::file(&self.dir, format!("cannot create folder: {e}")))?;
         self.claim()?;
         if self.restart {
-            igi_imaging::run::remove_entries(&self.dir, &RESULT_ENTRIES)?;
+            igi_files::run::remove_entries(&self.dir, &RESULT_ENTRIES)?;
         }
         // another run may have written here since `check`
         let state = self
@@ -110,7 +110,7 @@ impl SolveSession {
                 "another solve wrote this folder while this one was starting; run again to resume it",
             ));
         }
-        igi_imaging::io::remove_dead_temps(&self.dir, true)?;
+        igi_files::remove_dead_temps(&self.dir, true)?;
         self.manifest.write(&self.dir)?;
         let r = SolveResult::fresh(parts, photo_ids, opts);
         r.write_geometry(&self.dir)?;

@@ -5,7 +5,7 @@
 //! input file, every option that changes the result (as text, formatted deterministically:
 //! Rust's shortest round-trip float formatting), and, for a shard, the parts it owns. A later
 //! run on the same folder resumes only when its own manifest is equal; otherwise
-//! [`RunManifest::check_resume`] fails with [`ImagingError::RunMismatch`] naming the first
+//! [`RunManifest::check_resume`] fails with [`FilesError::RunMismatch`] naming the first
 //! differing option or input and suggesting `--restart`.
 //!
 //! Shards: a run that solves only some parts records them in `owns`. Two shards never share a
@@ -23,7 +23,7 @@
 //! larger files are recorded by size and modification time. Paths are recorded as given
 //! (for messages) but compared only when no content hash is available.
 
-use crate::ImagingError;
+use crate::FilesError;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -45,9 +45,9 @@ pub struct FolderLock {
 }
 
 impl FolderLock {
-    /// Claims the existing folder `dir`, or fails with [`ImagingError::FolderBusy`] naming the
+    /// Claims the existing folder `dir`, or fails with [`FilesError::FolderBusy`] naming the
     /// process and host that hold it. Never waits.
-    pub fn acquire(dir: &Path) -> Result<FolderLock, ImagingError> {
+    pub fn acquire(dir: &Path) -> Result<FolderLock, FilesError> {
         use std::io::Write;
         let path = dir.join(LOCK_FILE);
         let mut file = std::fs::OpenOptions::new()
@@ -56,7 +56,7 @@ impl FolderLock {
             .read(true)
             .write(true)
             .open(&path)
-            .map_err(|e| ImagingError::io(&path, e))?;
+            .map_err(|e| FilesError::io(&path, e))?;
         match file.try_lock() {
             Ok(()) => {}
             Err(std::fs::TryLockError::WouldBlock) => {
@@ -65,21 +65,21 @@ impl FolderLock {
                     "" => "holder unknown".to_string(),
                     h => h.to_string(),
                 };
-                return Err(ImagingError::FolderBusy {
+                return Err(FilesError::FolderBusy {
                     path: dir.to_path_buf(),
                     holder,
                 });
             }
-            Err(std::fs::TryLockError::Error(e)) => return Err(ImagingError::io(&path, e)),
+            Err(std::fs::TryLockError::Error(e)) => return Err(FilesError::io(&path, e)),
         }
         let holder = format!(
             "process {} on host {}",
             std::process::id(),
-            crate::io::this_host()
+            crate::atomic::this_host()
         );
         file.set_len(0)
             .and_then(|()| file.write_all(holder.as_bytes()))
-            .map_err(|e| ImagingError::io(&path, e))?;
+            .map_err(|e| FilesError::io(&path, e))?;
         Ok(FolderLock { _file: file })
     }
 }
@@ -101,11 +101,11 @@ pub struct Fingerprint {
 
 impl Fingerprint {
     /// Fingerprints the file at `path` (an error names the file when it cannot be read).
-    pub fn of(role: &str, path: &Path) -> Result<Fingerprint, ImagingError> {
-        let meta = std::fs::metadata(path).map_err(|e| ImagingError::io(path, e))?;
+    pub fn of(role: &str, path: &Path) -> Result<Fingerprint, FilesError> {
+        let meta = std::fs::metadata(path).map_err(|e| FilesError::io(path, e))?;
         let size = meta.len();
         let (hash, mtime_s) = if size <= HASH_LIMIT {
-            let bytes = std::fs::read(path).map_err(|e| ImagingError::io(path, e))?;
+            let bytes = std::fs::read(path).map_err(|e| FilesError::io(path, e))?;
             (Some(format!("fnv1a64:{:016x}", fnv1a64(&bytes))), None)
         } else {
             let t = meta
@@ -161,7 +161,7 @@ pub enum FolderState {
 
 /// Removes the entries `names` of `dir` that a command writes (files or folders), as a
 /// `--restart` does; other entries are left alone.
-pub fn remove_entries(dir: &Path, names: &[&str]) -> Result<(), ImagingError> {
+pub fn remove_entries(dir: &Path, names: &[&str]) -> Result<(), FilesError> {
     for name in names {
         let p = dir.join(name);
         let r = if p.is_dir() {
@@ -171,7 +171,7 @@ pub fn remove_entries(dir: &Path, names: &[&str]) -> Result<(), ImagingError> {
         } else {
             Ok(())
         };
-        r.map_err(|e| ImagingError::io(&p, e))?;
+        r.map_err(|e| FilesError::io(&p, e))?;
     }
     Ok(())
 }
@@ -206,19 +206,19 @@ impl RunManifest {
     }
 
     /// Fingerprints an input file and records it under `role`.
-    pub fn input(&mut self, role: &str, path: &Path) -> Result<&mut Self, ImagingError> {
+    pub fn input(&mut self, role: &str, path: &Path) -> Result<&mut Self, FilesError> {
         self.inputs.push(Fingerprint::of(role, path)?);
         Ok(self)
     }
 
     /// Reads `dir/run.json`, or `None` when there is none.
-    pub fn read(dir: &Path) -> Result<Option<RunManifest>, ImagingError> {
+    pub fn read(dir: &Path) -> Result<Option<RunManifest>, FilesError> {
         let path = dir.join(RUN_FILE);
         if !path.exists() {
             return Ok(None);
         }
-        let text = std::fs::read_to_string(&path).map_err(|e| ImagingError::io(&path, e))?;
-        let m = serde_json::from_str(&text).map_err(|e| ImagingError::BadManifest {
+        let text = std::fs::read_to_string(&path).map_err(|e| FilesError::io(&path, e))?;
+        let m = serde_json::from_str(&text).map_err(|e| FilesError::BadManifest {
             path: path.clone(),
             source: e,
         })?;
@@ -226,13 +226,13 @@ impl RunManifest {
     }
 
     /// Writes `dir/run.json` atomically.
-    pub fn write(&self, dir: &Path) -> Result<(), ImagingError> {
+    pub fn write(&self, dir: &Path) -> Result<(), FilesError> {
         let text = serde_json::to_string_pretty(self).expect("serialisable") + "\n";
-        crate::io::write_text_atomic(&dir.join(RUN_FILE), &text)
+        crate::atomic::write_text_atomic(&dir.join(RUN_FILE), &text)
     }
 
     /// Checks an existing output folder `dir` for this run (call after
-    /// [`crate::io::check_output_folder`]): a folder holding an identical manifest resumes
+    /// [`crate::folder::check_output_folder`]): a folder holding an identical manifest resumes
     /// ([`FolderState::Resume`]), a different manifest is an error naming the difference; a
     /// folder without a manifest must be empty, and one holding `legacy` (the result of an
     /// older igi, which wrote no manifest) is refused with a `--restart` hint. A missing folder,
@@ -243,7 +243,7 @@ impl RunManifest {
         restart: bool,
         legacy: &str,
         kind: &str,
-    ) -> Result<FolderState, ImagingError> {
+    ) -> Result<FolderState, FilesError> {
         if !dir.exists() || restart {
             return Ok(FolderState::Fresh);
         }
@@ -251,7 +251,7 @@ impl RunManifest {
             self.check_resume(&old, dir)?;
             return Ok(FolderState::Resume);
         }
-        let refuse = |msg: String| ImagingError::NotARunFolder {
+        let refuse = |msg: String| FilesError::NotARunFolder {
             path: dir.to_path_buf(),
             msg,
         };
@@ -262,7 +262,7 @@ impl RunManifest {
         }
         let empty = dir
             .read_dir()
-            .map_err(|e| ImagingError::io(dir, e))?
+            .map_err(|e| FilesError::io(dir, e))?
             .all(|e| e.is_ok_and(|e| e.file_name() == LOCK_FILE));
         if !empty {
             return Err(refuse(format!(
@@ -274,8 +274,8 @@ impl RunManifest {
 
     /// `Ok` when `old` (the manifest found in `dir`) was made by an identical run; otherwise
     /// the first difference, in the order command, owned parts, options, inputs.
-    pub fn check_resume(&self, old: &RunManifest, dir: &Path) -> Result<(), ImagingError> {
-        let mismatch = |what: String, was: String, now: String| ImagingError::RunMismatch {
+    pub fn check_resume(&self, old: &RunManifest, dir: &Path) -> Result<(), FilesError> {
+        let mismatch = |what: String, was: String, now: String| FilesError::RunMismatch {
             path: dir.to_path_buf(),
             what,
             was,
@@ -347,7 +347,7 @@ mod tests {
         // flock locks belong to open files: a second open, even in this process, is refused
         let e = FolderLock::acquire(dir.path()).unwrap_err();
         let msg = e.to_string();
-        assert!(matches!(e, ImagingError::FolderBusy { .. }), "{msg}");
+        assert!(matches!(e, FilesError::FolderBusy { .. }), "{msg}");
         let me = format!("process {} on host", std::process::id());
         assert!(
             msg.contains(&me) && msg.contains("another igi run"),

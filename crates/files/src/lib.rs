@@ -1,0 +1,77 @@
+//! # igi-files
+//!
+//! The files and folders a run writes, at the bottom of the igi dependency graph (no other igi
+//! crate):
+//!
+//! * [`atomic`]: atomic writes ([`write_atomic`], [`write_text_atomic`]: a temporary file in
+//!   the same folder, renamed into place, flushed first on shared file systems) and the
+//!   cleanup of killed writers' temporary files ([`remove_dead_temps`]).
+//! * [`folder`]: output files and folders checked before the first byte of work
+//!   ([`check_output_folder`], [`check_output_file`]).
+//! * [`run`]: run manifests (`run.json`: input fingerprints and result-changing options, so a
+//!   resumed command never mixes two runs' work) and the one-writer folder lock
+//!   ([`FolderLock`]).
+
+pub mod atomic;
+pub mod folder;
+pub mod run;
+
+pub use atomic::{remove_dead_temps, write_atomic, write_text_atomic};
+pub use folder::{check_output_file, check_output_folder};
+pub use run::{Fingerprint, FolderLock, FolderState, RunManifest, RUN_FILE};
+
+use std::path::PathBuf;
+
+/// Errors of output files and folders, run manifests and the folder lock; each names its path.
+#[derive(Debug, thiserror::Error)]
+pub enum FilesError {
+    #[error("{}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// A path that names no file (it ends in `..` or is empty).
+    #[error("invalid input: {}: not a file path", .0.display())]
+    NotAFilePath(PathBuf),
+    /// An output file name that is a folder.
+    #[error("invalid input: {}: is a folder, not a file name", .0.display())]
+    IsAFolder(PathBuf),
+    #[error("{}: is a file, not a folder (cannot write into {})", path.display(), wanted.display())]
+    NotAFolder { path: PathBuf, wanted: PathBuf },
+    #[error("{}: output folder does not exist", path.display())]
+    NoFolder { path: PathBuf },
+    #[error("{}: cannot write into this folder", path.display())]
+    NotWritable {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{}: holds a run with a different {what} (there: {was}; now: {now}); use --restart to start afresh, or another output folder", path.display())]
+    RunMismatch {
+        path: PathBuf,
+        what: String,
+        was: String,
+        now: String,
+    },
+    #[error("{}: {msg}", path.display())]
+    NotARunFolder { path: PathBuf, msg: String },
+    #[error("{}: another igi run ({holder}) is writing this folder; wait for it to finish, or choose another output", path.display())]
+    FolderBusy { path: PathBuf, holder: String },
+    #[error("{}: unreadable run manifest: {source}; use --restart to start afresh", path.display())]
+    BadManifest {
+        path: PathBuf,
+        #[source]
+        source: serde_json::Error,
+    },
+}
+
+impl FilesError {
+    /// [`FilesError::Io`] for `path`.
+    pub fn io(path: &std::path::Path, source: std::io::Error) -> Self {
+        FilesError::Io {
+            path: path.to_path_buf(),
+            source,
+        }
+    }
+}
