@@ -6,7 +6,7 @@
 use std::path::Path;
 
 use glam::Vec3;
-use igi_imaging::plot::{write_chart_grid, Axis, Chart, Series, PALETTE};
+use igi_plot::{write_chart_grid, Axis, Chart, Series, PALETTE};
 
 use crate::{BrdfError, BrdfSample, Lafortune};
 

@@ -23,7 +23,6 @@
 //!   frame contact, IoU).
 //! * [`csv`]: the one reader of igi's numeric CSV tables (header by name, comments, errors
 //!   naming file and line).
-//! * [`plot`]: font registration for plotters (diagnostic plots).
 //! * [`cv`]: OpenCV-backed calibration, PnP, homography and ArUco detection (cargo feature
 //!   `opencv`; without it the same functions return [`ImagingError::NoOpenCv`]).
 //!
@@ -45,7 +44,6 @@ pub mod latlong;
 pub mod mask;
 pub mod metrics;
 pub mod planar;
-pub mod plot;
 pub mod radiometry;
 pub mod rig;
 

@@ -54,6 +54,9 @@ pub enum LightFieldError {
     MeshWithoutUvs,
     #[error(transparent)]
     Imaging(#[from] igi_imaging::ImagingError),
+    /// A plot that could not be drawn or written.
+    #[error(transparent)]
+    Plot(#[from] igi_plot::PlotError),
     #[error(transparent)]
     Geometry(#[from] igi_geometry::GeometryError),
     #[error("the subspace dimension q must be at least 1 (got {0})")]

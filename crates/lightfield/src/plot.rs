@@ -2,7 +2,7 @@
 //! colour bytes of each stored field, colour bytes on a logarithmic axis.
 
 use crate::LightFieldError;
-use igi_imaging::plot::{write_chart, Axis, Chart, Series, BLUE_RGB};
+use igi_plot::{write_chart, Axis, Chart, Series, BLUE_RGB};
 use std::path::Path;
 
 /// One stored field: its label (the method), colour bytes and held-out PSNR (dB).

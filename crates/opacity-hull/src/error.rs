@@ -8,6 +8,9 @@ pub enum HullError {
     /// Camera, image, rig or mask trouble (these name their file, and the view where known).
     #[error(transparent)]
     Imaging(#[from] igi_imaging::ImagingError),
+    /// A plot that could not be drawn or written.
+    #[error(transparent)]
+    Plot(#[from] igi_plot::PlotError),
     /// An output file or folder, a run manifest or the folder lock.
     #[error(transparent)]
     Files(#[from] igi_files::FilesError),

@@ -161,7 +161,7 @@ pub fn volume_curves(
 
 /// Plot volume curves (relative volume against the number of views) to a PNG, atomically.
 pub fn plot_volume_curves(path: &Path, curves: &[Vec<f64>]) -> Result<(), HullError> {
-    use igi_imaging::plot::{write_chart, Axis, Chart, Series, BLUE_RGB};
+    use igi_plot::{write_chart, Axis, Chart, Series, BLUE_RGB};
     let n = curves.first().map_or(1, Vec::len);
     let ymax = curves
         .iter()

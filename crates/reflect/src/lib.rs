@@ -140,6 +140,9 @@ pub enum ReflectError {
     Format(#[from] igi_formats::FormatsError),
     #[error(transparent)]
     Imaging(#[from] igi_imaging::ImagingError),
+    /// A plot that could not be drawn or written.
+    #[error(transparent)]
+    Plot(#[from] igi_plot::PlotError),
     /// An output file or folder, a run manifest or the folder lock.
     #[error(transparent)]
     Files(#[from] igi_files::FilesError),

@@ -2,7 +2,7 @@
 
 use crate::record::SolveReport;
 use crate::ReflectError;
-use igi_imaging::plot::{write_chart, Axis, Chart, Series, BLUE_RGB, RED_RGB};
+use igi_plot::{write_chart, Axis, Chart, Series, BLUE_RGB, RED_RGB};
 use std::path::Path;
 
 /// Plots, against cumulative wall time, the relative photo residual RMS and (with ground

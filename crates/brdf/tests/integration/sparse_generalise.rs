@@ -300,7 +300,7 @@ fn error_against_number_of_lights() {
 
 /// Two panels (mean |log ratio|, relative RMS; each over the dense fit's) against light positions.
 fn plot_curves(path: &Path, names: &[&str], curves: &[(&str, Vec<Curve>)]) {
-    use igi_imaging::plot::{write_chart_grid, Axis, Chart, Series, PALETTE};
+    use igi_plot::{write_chart_grid, Axis, Chart, Series, PALETTE};
     let ymax = 3.0;
     let panels: Vec<Chart> = ["mean |log ratio|", "relative RMS"]
         .iter()

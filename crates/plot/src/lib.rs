@@ -1,3 +1,5 @@
+//! # igi-plot
+//!
 //! The plots people look at (plotters with its `ab_glyph` text backend): one home for the
 //! chart boilerplate of every crate (bitmap backend, chart builder, mesh, series, legend, atomic
 //! write of the PNG).
@@ -11,12 +13,12 @@
 //! DejaVu Sans (Debian's `fonts-dejavu-core`, installed by `scripts/deps.sh`) as "sans-serif",
 //! once per process. Without the font, plots are still drawn, only without text.
 
-use crate::ImagingError;
 use plotters::coord::ranged1d::{AsRangedCoord, ValueFormatter};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::ops::Range;
 use std::path::Path;
+use std::path::PathBuf;
 use std::sync::OnceLock;
 
 /// Where DejaVu Sans is looked for, in order.
@@ -162,8 +164,19 @@ const PANEL: Layout = Layout {
 
 type DrawResult = Result<(), Box<dyn std::error::Error>>;
 
+/// A plot that could not be drawn or written; it names the file.
+#[derive(Debug, thiserror::Error)]
+pub enum PlotError {
+    /// plotters failed to draw or encode the chart.
+    #[error("{}: cannot encode image: cannot draw the plot: {msg}", path.display())]
+    Draw { path: PathBuf, msg: String },
+    /// The PNG could not be written.
+    #[error(transparent)]
+    Files(#[from] igi_files::FilesError),
+}
+
 /// Draws `chart` into a `width` x `height` PNG at `path`, atomically.
-pub fn write_chart(path: &Path, size: (u32, u32), chart: &Chart) -> Result<(), ImagingError> {
+pub fn write_chart(path: &Path, size: (u32, u32), chart: &Chart) -> Result<(), PlotError> {
     write_png(path, size, |root| draw_chart(root, chart, FULL))
 }
 
@@ -174,7 +187,7 @@ pub fn write_chart_grid(
     size: (u32, u32),
     (rows, cols): (usize, usize),
     charts: &[Chart],
-) -> Result<(), ImagingError> {
+) -> Result<(), PlotError> {
     write_png(path, size, |root| {
         let panels = root.split_evenly((rows, cols));
         for (panel, chart) in panels.iter().zip(charts) {
@@ -189,7 +202,7 @@ fn write_png(
     path: &Path,
     size: (u32, u32),
     draw: impl FnOnce(&DrawingArea<BitMapBackend<'_>, Shift>) -> DrawResult,
-) -> Result<(), ImagingError> {
+) -> Result<(), PlotError> {
     register_fonts();
     igi_files::write_atomic(path, |tmp| {
         let run = || -> DrawResult {
@@ -199,9 +212,9 @@ fn write_png(
             root.present()?;
             Ok(())
         };
-        run().map_err(|e| ImagingError::Encode {
+        run().map_err(|e| PlotError::Draw {
             path: path.to_path_buf(),
-            msg: format!("cannot draw the plot: {e}"),
+            msg: e.to_string(),
         })
     })
 }
