@@ -4,8 +4,9 @@
 //! Run: `cargo bench --bench probe`
 
 use criterion::{criterion_group, criterion_main, Criterion};
+use igi_camera::Camera;
 use igi_imaging::hdr::{merge_linear, LinearParams};
-use igi_imaging::{read_image, Camera};
+use igi_imaging::read_image;
 use igi_probe::{process, Board, ProbeOptions};
 use std::path::PathBuf;
 

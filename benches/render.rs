@@ -12,11 +12,11 @@ use igi_render::{render_image, Lighting, Material, RenderOptions, Scene, Sun};
 use rayon::prelude::*;
 use std::path::Path;
 
-fn load() -> (Scene, Lighting, igi_imaging::Camera) {
+fn load() -> (Scene, Lighting, igi_camera::Camera) {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("datasets/fixtures/outdoor");
     if dir.join("scene.toml").exists() {
         let (s, l) = Scene::load(&dir.join("scene.toml")).expect("fixture scene");
-        let c = igi_imaging::Camera::load(&dir.join("camera.json")).expect("fixture camera");
+        let c = igi_camera::Camera::load(&dir.join("camera.json")).expect("fixture camera");
         return (s, l, c);
     }
     let objects = igi_geometry::procedural::colonnade_site(1, 2)
@@ -28,10 +28,10 @@ fn load() -> (Scene, Lighting, igi_imaging::Camera) {
         environment: Some(igi_render::Environment::constant(Vec3::splat(1000.0))),
         sun: Some(Sun::new(Vec3::new(0.3, -0.5, 0.8), Vec3::splat(6e4), 0.53).unwrap()),
     };
-    let mut c = igi_imaging::Camera::pinhole(128, 128, 120.0, 120.0, 63.5, 63.5);
+    let mut c = igi_camera::Camera::pinhole(128, 128, 120.0, 120.0, 63.5, 63.5);
     let r = glam::DMat3::from_cols(glam::DVec3::X, -glam::DVec3::Z, glam::DVec3::Y).transpose();
     let r = glam::DMat3::from_cols(r.x_axis, r.y_axis, r.z_axis);
-    c.pose = igi_imaging::WorldToCamera {
+    c.pose = igi_camera::WorldToCamera {
         r,
         t: -(r * glam::DVec3::new(0.0, -20.0, 3.0)),
     };
@@ -40,7 +40,7 @@ fn load() -> (Scene, Lighting, igi_imaging::Camera) {
 
 /// Incoherent rays like the path tracer's: camera rays through random pixel positions and,
 /// for each, a uniformly random direction from its first hit (half closest-hit, half shadow).
-fn make_rays(scene: &Scene, cam: &igi_imaging::Camera, n: usize) -> Vec<RaySegment> {
+fn make_rays(scene: &Scene, cam: &igi_camera::Camera, n: usize) -> Vec<RaySegment> {
     let mut rng = Rng::new(7, 0);
     let mut rays = Vec::with_capacity(2 * n);
     for _ in 0..n {

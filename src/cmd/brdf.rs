@@ -309,7 +309,7 @@ fn measure(a: MeasureArgs) -> anyhow::Result<()> {
         measure_photo, orthographic_view, MeasureOptions, PoseInput, SampleFrame,
     };
     let frame = SampleFrame::load(&a.frame)?;
-    let camera = igi_imaging::Camera::load(&a.camera)?;
+    let camera = igi_camera::Camera::load(&a.camera)?;
     if !a.corners.is_empty() && a.corners.len() != a.photos.len() {
         bail!(
             "{} --photo but {} --corners: give one --corners per photo, or none (ArUco)",
@@ -333,7 +333,7 @@ fn measure(a: MeasureArgs) -> anyhow::Result<()> {
                 .file_stem()
                 .map(|s| s.to_string_lossy().into_owned())
                 .unwrap_or_else(|| format!("photo{k}"));
-            let cam = igi_imaging::Camera {
+            let cam = igi_camera::Camera {
                 pose: m.pose(),
                 ..camera.clone()
             };

@@ -2,7 +2,8 @@
 use crate::report::Ctx;
 use anyhow::{bail, Context};
 use glam::{DVec2, DVec3};
-use igi_imaging::{camera::undistort_image, cv, read_image, write_exr, Camera};
+use igi_camera::{camera::undistort_image, cv, Camera};
+use igi_imaging::{read_image, write_exr};
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Subcommand, Debug)]
@@ -228,7 +229,7 @@ fn parse_corners(text: &str) -> anyhow::Result<[DVec2; 4]> {
 }
 
 fn radiometry(a: RadiometryArgs, ctx: &Ctx) -> anyhow::Result<()> {
-    use igi_imaging::radiometry::{fit_radiometry, RadiometryInputs};
+    use igi_camera::radiometry::{fit_radiometry, RadiometryInputs};
     super::require_extension(&a.output, "json")?;
     if a.flat.is_empty() && a.checker.is_none() {
         bail!("give flat fields (--flat), a colour checker (--checker, optionally --corners), or both");
@@ -292,7 +293,7 @@ fn read_radiometry_images(
 /// The fit as JSON (`--json`), or the detected corners as a `--corners` argument.
 fn report_radiometry(
     a: &RadiometryArgs,
-    cal: &igi_imaging::radiometry::CameraRadiometry,
+    cal: &igi_camera::radiometry::CameraRadiometry,
     corners: Option<[DVec2; 4]>,
 ) -> anyhow::Result<()> {
     let corners_px = corners.map(|c| c.map(|p| p.to_array()));

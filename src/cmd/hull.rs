@@ -129,7 +129,7 @@ pub fn run(c: HullCmd, ctx: &Ctx) -> anyhow::Result<()> {
 }
 
 fn run_build(a: BuildArgs, ctx: &Ctx) -> anyhow::Result<()> {
-    let rig = igi_imaging::Rig::load(&a.rig)?;
+    let rig = igi_camera::Rig::load(&a.rig)?;
     let mut opts = BuildOptions {
         resolution: a.resolution,
         ..Default::default()
@@ -175,7 +175,7 @@ fn run_build(a: BuildArgs, ctx: &Ctx) -> anyhow::Result<()> {
 }
 
 fn run_render(a: RenderArgs) -> anyhow::Result<()> {
-    let camera = igi_imaging::Camera::load(&a.camera)?;
+    let camera = igi_camera::Camera::load(&a.camera)?;
     let model = match &a.lighting {
         Some(l) => load_relit_model(&a.hull, &LightingRadiance::load(l)?)?,
         None => load_model(&a.hull)?,

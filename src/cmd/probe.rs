@@ -1,9 +1,10 @@
 //! `igi probe`: lighting (sky map + sun) from a photograph of the three-sphere board.
 use crate::report::Ctx;
 use anyhow::{bail, Context};
+use igi_camera::Camera;
 use igi_files::write_text_atomic;
 use igi_imaging::hdr::parse_time;
-use igi_imaging::{Camera, HdrImage};
+use igi_imaging::HdrImage;
 use igi_probe::fiducial::place_board;
 use igi_probe::fresnel::{fit_mirror_ior, ReflectanceSamples};
 use igi_probe::input::{load_photograph, PhotoSource};

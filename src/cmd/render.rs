@@ -127,7 +127,7 @@ pub fn run(a: RenderArgs, ctx: &Ctx) -> anyhow::Result<()> {
     let scene_file = checked_scene_file(&a)?;
     let t0 = Instant::now();
     let (scene, lighting) = load_scene(&a, &scene_file)?;
-    let camera = igi_imaging::Camera::load(&a.camera)?;
+    let camera = igi_camera::Camera::load(&a.camera)?;
     let load_s = t0.elapsed().as_secs_f64();
     tracing::info!(
         "scene {}: {} objects, {} triangles ({} degenerate skipped), loaded in {:.2} s",

@@ -123,7 +123,7 @@ fn build(a: BuildArgs, ctx: &Ctx) -> anyhow::Result<()> {
     opts.validate(method)?;
     grid.validate()?;
     igi_lightfield::store::check_output(&a.output)?;
-    let rig = igi_imaging::Rig::load(&a.rig)?;
+    let rig = igi_camera::Rig::load(&a.rig)?;
     rig.require_views(1)?;
     let mesh = igi_geometry::read_mesh(&a.mesh)?;
     let bar = ctx.progress(capture::STAGES.len() as u64, "slf build");
@@ -170,7 +170,7 @@ fn render(a: RenderArgs, _ctx: &Ctx) -> anyhow::Result<()> {
             a.white
         );
     }
-    let camera = igi_imaging::Camera::load(&a.camera)?;
+    let camera = igi_camera::Camera::load(&a.camera)?;
     let (field, stored) = igi_lightfield::store::load(&a.slf_dir)
         .with_context(|| format!("reading {}", a.slf_dir.display()))?;
     let mesh = match &a.mesh {

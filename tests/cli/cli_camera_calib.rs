@@ -2,9 +2,10 @@
 //! radiometry file) and `igi camera refine` (pose refinement against a photo of the model).
 
 use glam::{DMat3, DVec2, DVec3, Vec3};
-use igi_imaging::camera::reprojection_rms;
-use igi_imaging::radiometry::{apply_color_matrix, render_checker, CameraRadiometry, Falloff};
-use igi_imaging::{write_exr, Camera, HdrImage, WorldToCamera};
+use igi_camera::camera::reprojection_rms;
+use igi_camera::radiometry::{apply_color_matrix, render_checker, CameraRadiometry, Falloff};
+use igi_camera::{Camera, WorldToCamera};
+use igi_imaging::{write_exr, HdrImage};
 use igi_testkit::{assert_failed, s, Cli};
 use std::path::{Path, PathBuf};
 
@@ -197,7 +198,7 @@ fn refine_recovers_a_perturbed_pose_from_a_photo_of_the_model() {
     let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let refined = Camera::load(&out).unwrap();
     let after = reprojection_rms(&truth, &refined, &points).unwrap();
-    let seen = igi_imaging::camera::points_in_frame(&truth, &points);
+    let seen = igi_camera::camera::points_in_frame(&truth, &points);
     let (before_seen, after_seen) = (
         reprojection_rms(&truth, &rough, &seen).unwrap(),
         reprojection_rms(&truth, &refined, &seen).unwrap(),

@@ -1,7 +1,8 @@
 //! `igi hull`: bad input is refused with an error naming the file or view, nothing half-written.
 
 use glam::DVec3;
-use igi_imaging::{Camera, HdrImage, Mask, WorldToCamera};
+use igi_camera::{Camera, WorldToCamera};
+use igi_imaging::{HdrImage, Mask};
 use igi_testkit::{assert_failed, s, Cli};
 use std::path::{Path, PathBuf};
 

@@ -2,7 +2,8 @@
 //! brackets, and clear errors (non-zero exit, stderr naming the file and the problem, no
 //! output file left behind) on bad input.
 
-use igi_imaging::{read_image, write_exr, write_png_tonemapped, Camera, Distortion, HdrImage};
+use igi_camera::{Camera, Distortion};
+use igi_imaging::{read_image, write_exr, write_png_tonemapped, HdrImage};
 use igi_testkit::{assert_failed, s, Cli};
 use std::path::Path;
 use std::process::Output;

@@ -4,7 +4,7 @@
 #![cfg(feature = "opencv")]
 
 use glam::{DMat3, DVec2};
-use igi_imaging::radiometry::{apply_color_matrix, render_checker, CameraRadiometry};
+use igi_camera::radiometry::{apply_color_matrix, render_checker, CameraRadiometry};
 use igi_imaging::{write_exr, HdrImage};
 use igi_testkit::{assert_failed, s, Cli};
 

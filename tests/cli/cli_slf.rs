@@ -4,10 +4,11 @@
 //! the built field rendered at held-out views against path-traced truth. And its bad input.
 
 use glam::{DVec3, Vec3};
+use igi_camera::rig::{RigObject, RigView};
+use igi_camera::{Camera, Rig, WorldToCamera};
 use igi_geometry::atlas::{build_atlas, AtlasOptions};
 use igi_geometry::procedural::{fibonacci_directions as sphere_dirs, uv_sphere};
-use igi_imaging::rig::{RigObject, RigView};
-use igi_imaging::{Camera, HdrImage, Rig, WorldToCamera};
+use igi_imaging::HdrImage;
 use igi_render::{
     render_image, Albedo, Environment, Lighting, Material, RenderOptions, Scene, Texture,
 };

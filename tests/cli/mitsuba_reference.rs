@@ -19,7 +19,7 @@ fn igi_matches_mitsuba_on_the_outdoor_reference() {
         reference.display()
     );
     let (scene, lighting) = Scene::load(&dir.join("scene.toml")).unwrap();
-    let camera = igi_imaging::Camera::load(&dir.join("camera.json")).unwrap();
+    let camera = igi_camera::Camera::load(&dir.join("camera.json")).unwrap();
     let ref_img = igi_imaging::read_image(&reference).unwrap();
     let ref_se = igi_imaging::read_image(&dir.join("reference_stderr.exr")).unwrap();
     let opts = RenderOptions {

@@ -40,6 +40,9 @@ pub enum CaptureError {
     File { path: PathBuf, msg: String },
     #[error(transparent)]
     Imaging(#[from] ImagingError),
+    /// A camera, its file, radiometry or rig, or an OpenCV call (`igi-camera`).
+    #[error(transparent)]
+    Camera(#[from] igi_camera::CameraError),
     #[error(transparent)]
     Sphere(#[from] SphereError),
     /// The model's ray queries could not be built (pose refinement).

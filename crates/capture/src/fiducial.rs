@@ -4,19 +4,19 @@
 //!
 //! - marked points ([`pose_from_marked_points`]): the pixels of known points of the target's
 //!   plane, given by the user, through the pure-Rust homography pose
-//!   [`igi_imaging::planar::pose_from_plane`] (no OpenCV);
-//! - ArUco markers ([`match_markers`], then [`igi_imaging::cv::solve_pnp_matched`]): the
+//!   [`igi_camera::planar::pose_from_plane`] (no OpenCV);
+//! - ArUco markers ([`match_markers`], then [`igi_camera::cv::solve_pnp_matched`]): the
 //!   detected markers' corners matched by id to their target-frame corners, solved by SQPnP and
 //!   Levenberg-Marquardt refinement with outlier rejection. The detection and the solve are
-//!   OpenCV calls (feature `opencv`, all in `igi_imaging::cv`); without the feature they return
+//!   OpenCV calls (feature `opencv`, all in `igi_camera::cv`); without the feature they return
 //!   [`igi_imaging::ImagingError::NoOpenCv`].
 //!
 //! The lighting board (igi-probe) and the sample frame ([`crate::sample_frame`]) are both such
 //! targets.
 
 use glam::{DVec2, DVec3};
-use igi_imaging::cv::ArucoMarker;
-use igi_imaging::{planar, Intrinsics};
+use igi_camera::cv::ArucoMarker;
+use igi_camera::{planar, Intrinsics};
 
 /// One fiducial of a target: its ArUco id and its corners in the target frame, in OpenCV's
 /// order (the printed marker's top-left, top-right, bottom-right, bottom-left corner).
@@ -128,7 +128,7 @@ mod tests {
 
     #[test]
     fn marked_points_outside_the_photo_or_miscounted_are_refused() {
-        let intr = igi_imaging::Camera::pinhole(100, 80, 90.0, 90.0, 49.5, 39.5).intrinsics;
+        let intr = igi_camera::Camera::pinhole(100, 80, 90.0, 90.0, 49.5, 39.5).intrinsics;
         let plane = [DVec2::ZERO, DVec2::X, DVec2::ONE, DVec2::Y];
         let px = [DVec2::new(10.0, 10.0); 3];
         let e = pose_from_marked_points(&intr, &plane, &px, (100, 80)).unwrap_err();

@@ -6,8 +6,8 @@
 //! et al. 2004, section 3.3) and the hand-held BRDF sample frame ([`sample_frame`], section 3.2.1).
 //!
 //! * [`fiducial`]: planar fiducial targets: the pose from user-marked points (pure Rust,
-//!   [`igi_imaging::planar`]) or from ArUco markers matched by id (OpenCV through
-//!   [`igi_imaging::cv`], feature `opencv`).
+//!   [`igi_camera::planar`]) or from ArUco markers matched by id (OpenCV through
+//!   [`igi_camera::cv`], feature `opencv`).
 //! * [`sphere`]: a sphere seen by a calibrated camera: ray-sphere intersection, the mirror
 //!   reflection, the surface point that reflects a given direction (Newton's method, exact for a
 //!   camera at finite distance), the outline and the pixels the sphere covers.
@@ -20,7 +20,7 @@
 //! * [`synth`]: a synthetic sample-frame photograph with known pose, light and BRDFs (the ground
 //!   truth of the sample-frame tests and of `igi brdf measure`'s).
 //!
-//! Conventions: OpenCV cameras (`igi_imaging::Camera`), world frame of the rig's own target
+//! Conventions: OpenCV cameras (`igi_camera::Camera`), world frame of the rig's own target
 //! (the sample frame: z up out of its plane), double precision geometry, linear radiance.
 
 mod error;

@@ -14,7 +14,8 @@
 
 use crate::CaptureError;
 use glam::{DMat3, DVec2, DVec3};
-use igi_imaging::{Camera, HdrImage, WorldToCamera};
+use igi_camera::{Camera, WorldToCamera};
+use igi_imaging::HdrImage;
 use igi_raycast::RtScene;
 use nalgebra::{Matrix6, Vector6};
 use rayon::prelude::*;
@@ -450,7 +451,7 @@ pub fn refine_pose(
             break;
         }
     }
-    let moved_px = igi_imaging::camera::reprojection_rms(camera, &cam, &initial).unwrap_or(0.0);
+    let moved_px = igi_camera::camera::reprojection_rms(camera, &cam, &initial).unwrap_or(0.0);
     let report = RefineReport {
         iterations,
         edge_points: edges.len(),

@@ -2,8 +2,8 @@
 //! photograph of the frame, recover
 //!
 //! - the camera pose from the four fiducials ([`crate::fiducial`]: user-supplied fiducial pixels
-//!   and the pure-Rust [`igi_imaging::planar::pose_from_plane`], or ArUco detection and PnP from
-//!   [`igi_imaging::cv`] with the `opencv` feature),
+//!   and the pure-Rust [`igi_camera::planar::pose_from_plane`], or ArUco detection and PnP from
+//!   [`igi_camera::cv`] with the `opencv` feature),
 //! - the light position from the highlights in the two glossy black spheres
 //!   ([`crate::highlight::find_highlight`]: the camera rays through the highlights' sub-pixel
 //!   centres, reflected off the spheres; the light is the midpoint of the two reflected rays'
@@ -36,7 +36,8 @@
 use std::path::{Path, PathBuf};
 
 use glam::{DMat3, DVec2, DVec3, Vec3};
-use igi_imaging::{cv, Camera, HdrImage, WorldToCamera};
+use igi_camera::{cv, Camera, WorldToCamera};
+use igi_imaging::HdrImage;
 use serde::{Deserialize, Serialize};
 
 use igi_brdf::BrdfSample;

@@ -5,7 +5,7 @@
 
 use crate::SphereError;
 use glam::{DVec2, DVec3};
-use igi_imaging::Camera;
+use igi_camera::Camera;
 
 /// What a sphere is made of (the board file's vocabulary, `igi_formats::board`).
 pub use igi_formats::board::SphereKind;
@@ -268,7 +268,7 @@ impl<'a> SphereView<'a> {
 mod tests {
     use super::*;
     use glam::DMat3;
-    use igi_imaging::WorldToCamera;
+    use igi_camera::WorldToCamera;
 
     fn camera() -> Camera {
         let mut c = Camera::pinhole(256, 256, 400.0, 400.0, 127.5, 127.5);

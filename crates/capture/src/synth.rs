@@ -15,7 +15,8 @@ use crate::sample_frame::SampleFrame;
 use crate::sphere::ray_sphere;
 use glam::{DVec2, DVec3, Vec3};
 use igi_brdf::{Lafortune, Lobe};
-use igi_imaging::{Camera, Distortion, HdrImage, WorldToCamera};
+use igi_camera::{Camera, Distortion, WorldToCamera};
+use igi_imaging::HdrImage;
 use std::path::Path;
 
 pub const FRAME_JSON: &str = r#"{

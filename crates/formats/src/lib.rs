@@ -22,11 +22,10 @@
 //!
 //! Each reads with [`TomlFile::read`] and writes with [`TomlFile::write`] (atomically, after an
 //! optional comment header); the trait is the one reader and one writer of every TOML kind.
-//! - camera files (JSON) stay with the camera model in `igi-imaging` (the bottom crate, which
-//!   every pipeline reads cameras through), re-exported here: the file model [`CameraFile`]
-//!   (values kept as JSON so each problem gets its own message), [`Camera::from_file`] and
-//!   [`Camera::to_file`] between it and the [`Camera`], [`Camera::load`] reads and
-//!   [`Camera::save`] writes.
+//! - camera files (JSON) stay with the camera model in `igi-camera` for now: the file model
+//!   `CameraFile` (values kept as JSON so each problem gets its own message),
+//!   `Camera::from_file` and `Camera::to_file` between it and the `Camera`, `Camera::load`
+//!   reads and `Camera::save` writes.
 //!
 //! Numbers are `f64` as TOML holds them; a reader that wants `f32` casts, which is what serde
 //! does when it reads a TOML float into an `f32`. Writers of `f32` data pass it through
@@ -51,7 +50,6 @@ pub mod time;
 pub use board::BoardFile;
 pub use brdf_samples::{BrdfSample, PairRow, PairTable};
 pub use control::ControlObservation;
-pub use igi_imaging::{Camera, CameraFile};
 pub use lighting::LightingFile;
 pub use scene::SceneFile;
 pub use survey::{ReferenceTarget, SurveyFile};

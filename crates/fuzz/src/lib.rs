@@ -143,7 +143,7 @@ pub fn targets() -> Vec<Target> {
         t("exr", "in.exr", setup_exr, run_image),
         t("hdr", "in.hdr", setup_hdr, run_image),
         t("camera", "in.json", setup_camera, |p| {
-            checked(igi_imaging::Camera::load(p))
+            checked(igi_camera::Camera::load(p))
         }),
         t("lighting", "light/in.toml", setup_lighting, run_lighting),
         t("scene", "scene/in.toml", setup_scene, run_scene),

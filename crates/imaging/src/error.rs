@@ -30,14 +30,6 @@ pub enum ImagingError {
     },
     #[error("{}: bad image data: {msg}", path.display())]
     BadPixels { path: PathBuf, msg: String },
-    #[error("{}: invalid camera file: {problem}", path.display())]
-    Camera {
-        path: PathBuf,
-        #[source]
-        problem: CameraFileError,
-    },
-    #[error("{}: invalid camera radiometry file: {msg}", path.display())]
-    Radiometry { path: PathBuf, msg: String },
     #[error("{}: exif: {msg}", path.display())]
     Exif { path: PathBuf, msg: String },
     /// A photograph without readable EXIF data.
@@ -47,37 +39,12 @@ pub enum ImagingError {
         #[source]
         source: exif::Error,
     },
-    #[error("{}: {msg}", path.display())]
-    Rig { path: PathBuf, msg: String },
-    /// A rig file that is not TOML of a rig.
-    #[error("{}: {source}", path.display())]
-    RigSyntax {
-        path: PathBuf,
-        /// Boxed so that the error stays small inside other crates' errors.
-        #[source]
-        source: Box<toml::de::Error>,
-    },
-    #[error("{}: view {view:?}: {msg}", path.display())]
-    RigView {
-        path: PathBuf,
-        view: String,
-        msg: String,
-    },
-    #[error("{}: view {view:?}: {source}", path.display())]
-    RigViewFile {
-        path: PathBuf,
-        view: String,
-        #[source]
-        source: Box<ImagingError>,
-    },
     #[error("invalid input: {0}")]
     InvalidInput(String),
     /// Exposure times and brackets that cannot be merged.
     #[error(transparent)]
     Hdr(#[from] HdrError),
     /// Flat fields or a colour checker that cannot be fitted.
-    #[error(transparent)]
-    RadiometryFit(#[from] RadiometryError),
     /// Images that cannot be compared (`metrics`).
     #[error(transparent)]
     Compare(#[from] CompareError),
@@ -91,20 +58,6 @@ pub enum ImagingError {
     /// An output file or folder, a run manifest or the folder lock (`igi-files`).
     #[error(transparent)]
     Files(#[from] igi_files::FilesError),
-    #[error("built without opencv: rebuild with --features opencv")]
-    NoOpenCv,
-    /// OpenCV gave a result that cannot be used (`cv`, feature `opencv`).
-    #[error("opencv: {0}")]
-    OpenCv(String),
-    /// An OpenCV call failed (`cv`, feature `opencv`; `opencv::Error` as the source).
-    #[error("opencv: {0}")]
-    OpenCvCall(#[source] Box<dyn std::error::Error + Send + Sync>),
-    /// Correspondences from which no camera pose can be solved (`cv`).
-    #[error("invalid input: {0}")]
-    Pnp(#[from] PnpError),
-    /// Points from which no homography or plane pose can be solved (`planar`, `cv`).
-    #[error("invalid input: {0}")]
-    Planar(#[from] PlanarError),
 }
 
 impl ImagingError {
@@ -127,14 +80,6 @@ impl ImagingError {
         ImagingError::EncodeFailed {
             path: path.to_path_buf(),
             source: Box::new(source),
-        }
-    }
-
-    /// [`ImagingError::Camera`] for `path`.
-    pub(crate) fn camera(path: &std::path::Path, problem: CameraFileError) -> Self {
-        ImagingError::Camera {
-            path: path.to_path_buf(),
-            problem,
         }
     }
 
@@ -183,40 +128,6 @@ pub enum HdrError {
     Solve(&'static str),
 }
 
-/// Flat fields and colour-checker patches that cannot be fitted (`radiometry`).
-#[derive(Debug, thiserror::Error)]
-pub enum RadiometryError {
-    #[error("falloff fit needs at least 4 samples, got {0}")]
-    FewSamples(usize),
-    #[error("{what} least squares failed: {msg}")]
-    Solve { what: &'static str, msg: String },
-    #[error("colour matrix: {patches} source patches but {targets} targets")]
-    PatchCount { patches: usize, targets: usize },
-    #[error("falloff fit needs at least one flat field")]
-    NoFlats,
-    #[error("flat field {index} is {}x{} but the first is {}x{}", size.0, size.1, first.0, first.1)]
-    FlatSize {
-        index: usize,
-        size: (usize, usize),
-        first: (usize, usize),
-    },
-    #[error("colour checker patch {index} ({usable} of 81 samples usable): is it inside the image and unsaturated?")]
-    Patch { index: usize, usable: usize },
-    #[error("colour checker: {0} patches, expected 24")]
-    CheckerPatches(usize),
-    #[error("colour checker white radiance {0} must be positive")]
-    White(f64),
-    #[error("radiometry needs flat fields, a colour checker, or both")]
-    NothingToFit,
-    #[error("the colour checker photograph is {}x{} but the flat fields are {}x{}", size.0, size.1, flats.0, flats.1)]
-    CheckerSize {
-        size: (usize, usize),
-        flats: (usize, usize),
-    },
-    #[error("no ColorChecker Classic (6 x 4 patches) found in the image")]
-    CheckerNotFound,
-}
-
 /// Images that cannot be compared (`metrics`).
 #[derive(Debug, thiserror::Error)]
 pub enum CompareError {
@@ -229,108 +140,4 @@ pub enum CompareError {
     },
     #[error("no pixel is valid in both images")]
     NoCommonPixels,
-}
-
-/// Correspondences from which no camera pose can be solved (`cv::solve_pnp*`).
-#[derive(Debug, thiserror::Error)]
-pub enum PnpError {
-    #[error("PnP: {world} world points but {pixels} pixels")]
-    Unpaired { world: usize, pixels: usize },
-    #[error("PnP needs at least {need} correspondences, got {got}")]
-    TooFew { need: usize, got: usize },
-    #[error("PnP RANSAC found no consistent pose")]
-    RansacFailed,
-    #[error("PnP (SQPnP) found no pose")]
-    SqpnpFailed,
-    #[error("PnP: only {inliers} of {points} points reproject within {threshold_px} px")]
-    FewInliers {
-        inliers: usize,
-        points: usize,
-        threshold_px: f64,
-    },
-}
-
-/// Points from which no homography or plane pose can be solved (`planar`, `cv`).
-#[derive(Debug, thiserror::Error)]
-pub enum PlanarError {
-    #[error("homography: the points coincide or are not finite")]
-    Coincident,
-    #[error("homography needs at least 4 matching points ({src} and {dst})")]
-    HomographyPoints { src: usize, dst: usize },
-    #[error("homography: a point is not finite")]
-    NonFinitePoint,
-    #[error("homography: three of the four points are (nearly) collinear (normalised triangle area {area:.2e})")]
-    Collinear { area: f64 },
-    #[error("homography: SVD failed")]
-    Svd,
-    #[error("homography: degenerate point configuration (rank-deficient system)")]
-    RankDeficient,
-    #[error("homography: non-finite result")]
-    NonFiniteHomography,
-    #[error(
-        "planar pose needs at least 4 matching points ({plane} plane points, {pixels} pixels)"
-    )]
-    PosePoints { plane: usize, pixels: usize },
-    #[error("planar pose: a point lies behind the camera")]
-    Behind,
-    #[error("planar pose: no finite solution")]
-    NonFinitePose,
-    #[error("pixel ({x:.2}, {y:.2}) cannot be undistorted (outside the lens model)")]
-    Undistort { x: f64, y: f64 },
-}
-
-/// Why a camera file (FORMATS.md JSON) cannot be used; the message is the problem alone, the
-/// file is named by [`ImagingError::Camera`].
-#[derive(Debug, thiserror::Error)]
-pub enum CameraFileError {
-    /// The text is not the JSON of a camera file.
-    #[error("{0}")]
-    Json(#[source] serde_json::Error),
-    #[error("{what} must be a positive integer, found {found}")]
-    Dimension {
-        what: &'static str,
-        found: serde_json::Value,
-    },
-    #[error("{width}x{height} is {} Mpixel, beyond the limit of {} Mpixel (an image that size needs more than {} GiB)", *width as u64 * *height as u64 / 1_000_000, limit / 1_000_000, (limit * 13) >> 30)]
-    TooLarge { width: u32, height: u32, limit: u64 },
-    #[error("{what} must be an array of numbers")]
-    NotNumbers { what: &'static str },
-    #[error("{what} contains a non-number: {value}")]
-    NonNumber {
-        what: &'static str,
-        value: serde_json::Value,
-    },
-    #[error("{what} must be a 3x3 array of rows")]
-    NotMatrix { what: &'static str },
-    #[error("{what} must have 3 rows, found {rows}")]
-    Rows { what: &'static str, rows: usize },
-    #[error("{what} row {row} must have 3 entries, found {entries}")]
-    RowLength {
-        what: &'static str,
-        row: usize,
-        entries: usize,
-    },
-    #[error("{what} has a non-finite entry")]
-    NonFinite { what: &'static str },
-    #[error("K must be [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] (no skew), found {0:?}")]
-    Skew([[f64; 3]; 3]),
-    #[error("focal lengths must be positive, found fx={fx}, fy={fy}")]
-    Focal { fx: f64, fy: f64 },
-    #[error("dist must have 5 entries [k1, k2, p1, p2, k3] (or 4), found {0}")]
-    DistLength(usize),
-    #[error("t must have 3 entries, found {0}")]
-    TranslationLength(usize),
-    #[error(transparent)]
-    Rotation(#[from] RotationError),
-}
-
-/// Why a matrix is not a rotation ([`crate::camera::check_rotation`]).
-#[derive(Debug, thiserror::Error)]
-pub enum RotationError {
-    #[error("R has a NaN or infinite entry")]
-    NonFinite,
-    #[error("R is not orthonormal: max |R^T R - I| = {max:.3e} > 1e-6")]
-    NotOrthonormal { max: f64 },
-    #[error("R is not a rotation: det(R) = {det:.6} (must be +1)")]
-    NotRotation { det: f64 },
 }

@@ -7,8 +7,8 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use glam::{DVec3, Vec3};
+use igi_camera::{Camera, WorldToCamera};
 use igi_geometry::atlas::{build_atlas, AtlasOptions};
-use igi_imaging::{Camera, WorldToCamera};
 use igi_lightfield::field::{Coding, RenderSlfOptions, SurfaceLightField};
 use igi_lightfield::{grid_points, Octahedron, Pfa};
 use rand::{Rng, SeedableRng};

@@ -10,7 +10,8 @@
 use crate::fit::{DataLumisphere, Sample};
 use crate::lumisphere::{median_rgb, reflect_about_normal, Octahedron};
 use glam::Vec3;
-use igi_imaging::{Camera, HdrImage};
+use igi_camera::Camera;
+use igi_imaging::HdrImage;
 use igi_raycast::offset_origin;
 use igi_raycast::RtScene;
 use rayon::prelude::*;

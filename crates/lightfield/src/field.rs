@@ -9,8 +9,9 @@ use crate::pfa::Pfa;
 use crate::quantize::Codebook;
 use crate::LightFieldError;
 use glam::{Mat3, Vec2, Vec3};
+use igi_camera::Camera;
 use igi_geometry::TriMesh;
-use igi_imaging::{Camera, HdrImage};
+use igi_imaging::HdrImage;
 use igi_raycast::RtScene;
 use rayon::prelude::*;
 

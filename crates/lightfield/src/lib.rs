@@ -54,6 +54,9 @@ pub enum LightFieldError {
     MeshWithoutUvs,
     #[error(transparent)]
     Imaging(#[from] igi_imaging::ImagingError),
+    /// A camera, its file, radiometry or rig, or an OpenCV call (`igi-camera`).
+    #[error(transparent)]
+    Camera(#[from] igi_camera::CameraError),
     /// A plot that could not be drawn or written.
     #[error(transparent)]
     Plot(#[from] igi_plot::PlotError),

@@ -10,7 +10,7 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use glam::DVec3;
-use igi_imaging::Rig;
+use igi_camera::Rig;
 use igi_opacity_hull::build::{build, load_model, BuildOptions};
 use igi_opacity_hull::hull::{carve_hull, reproject};
 use igi_opacity_hull::render::{render, RenderOptions};

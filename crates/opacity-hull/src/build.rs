@@ -18,10 +18,11 @@ use crate::surfel::{make_surfels, Surfels};
 use crate::views::{load_views, MatteOptions, View};
 use crate::HullError;
 use glam::DVec3;
+use igi_camera::rig::Rig;
+use igi_camera::Camera;
 use igi_formats::lighting::LightingRadiance;
 use igi_geometry::TriMesh;
-use igi_imaging::rig::Rig;
-use igi_imaging::{read_image, Camera, HdrImage};
+use igi_imaging::{read_image, HdrImage};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -321,7 +322,7 @@ fn open_hull(dir: &Path) -> Result<OpenHull, HullError> {
 
 impl OpenHull {
     /// The rig's view `id` and its camera.
-    fn view(&self, id: &str) -> Result<(&igi_imaging::rig::RigView, Camera), HullError> {
+    fn view(&self, id: &str) -> Result<(&igi_camera::rig::RigView, Camera), HullError> {
         let rv = self.rig.view(id).ok_or_else(|| HullError::HullFolder {
             path: self.manifest_path.clone(),
             msg: format!("view {id:?} is not in {}", self.rig.path.display()),

@@ -8,6 +8,9 @@ pub enum HullError {
     /// Camera, image, rig or mask trouble (these name their file, and the view where known).
     #[error(transparent)]
     Imaging(#[from] igi_imaging::ImagingError),
+    /// A camera, its file, radiometry or rig, or an OpenCV call (`igi-camera`).
+    #[error(transparent)]
+    Camera(#[from] igi_camera::CameraError),
     /// A plot that could not be drawn or written.
     #[error(transparent)]
     Plot(#[from] igi_plot::PlotError),

@@ -18,8 +18,9 @@
 
 use crate::HullError;
 use glam::{DMat3, DVec3};
-use igi_imaging::rig::{Rig, RigObject, RigView};
-use igi_imaging::{read_image, Camera, Intrinsics, Mask, WorldToCamera};
+use igi_camera::rig::{Rig, RigObject, RigView};
+use igi_camera::{Camera, Intrinsics, WorldToCamera};
+use igi_imaging::{read_image, Mask};
 use std::path::{Path, PathBuf};
 
 /// The largest distance (max entry of `R - nearest rotation`) the importer corrects.
@@ -51,10 +52,10 @@ pub struct ImportReport {
     pub masks_touching_frame: Vec<String>,
 }
 
-/// Nearest rotation to `m` (`igi_imaging::planar::nearest_rotation`) and the largest entry of
+/// Nearest rotation to `m` (`igi_camera::planar::nearest_rotation`) and the largest entry of
 /// their difference.
 pub fn nearest_rotation(m: &DMat3) -> (DMat3, f64) {
-    let out = igi_imaging::planar::nearest_rotation(m);
+    let out = igi_camera::planar::nearest_rotation(m);
     let dist = (out - *m)
         .to_cols_array()
         .iter()
@@ -367,7 +368,7 @@ mod tests {
             r + DMat3::from_cols_array(&[1e-6, -2e-6, 0.0, 0.0, 1e-6, 0.0, 3e-7, 0.0, -1e-6]);
         let (p, d) = nearest_rotation(&noisy);
         assert!(d < 3e-6 && d > 1e-7, "{d}");
-        igi_imaging::camera::check_rotation(&p).unwrap();
+        igi_camera::camera::check_rotation(&p).unwrap();
         assert!((p - r).to_cols_array().iter().all(|x| x.abs() < 3e-6));
         let (_, d) = nearest_rotation(&(r * 1.01));
         assert!(d > 1e-3);

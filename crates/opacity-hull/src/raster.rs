@@ -3,8 +3,9 @@
 //! centre lies inside a projected triangle (either winding). Vertices are projected with the
 //! camera's distortion; edges are straight in the image (exact without distortion).
 
+use igi_camera::Camera;
 use igi_geometry::TriMesh;
-use igi_imaging::{Camera, Mask};
+use igi_imaging::Mask;
 
 /// Camera-space depth (z) of the nearest surface per pixel, `f32::INFINITY` where none.
 #[derive(Clone, Debug)]

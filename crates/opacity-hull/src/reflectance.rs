@@ -32,7 +32,7 @@ use crate::surfel::Surfels;
 use crate::views::View;
 use crate::HullError;
 use glam::DVec3;
-use igi_imaging::rig::{Rig, RigView};
+use igi_camera::rig::{Rig, RigView};
 use igi_imaging::{read_image, HdrImage};
 use nalgebra::DMatrix;
 use rayon::prelude::*;

@@ -15,7 +15,8 @@
 
 use crate::surfel::Surfels;
 use glam::{DVec3, Vec3};
-use igi_imaging::{Camera, HdrImage};
+use igi_camera::Camera;
+use igi_imaging::HdrImage;
 use rayon::prelude::*;
 
 /// What the splatter needs per surfel and view: the input cameras' centres and the colour and

@@ -11,8 +11,9 @@
 
 use crate::backdrop::{alpha_from_pair, Matte};
 use crate::HullError;
-use igi_imaging::rig::{Rig, RigView};
-use igi_imaging::{read_image, Camera, HdrImage, Mask};
+use igi_camera::rig::{Rig, RigView};
+use igi_camera::Camera;
+use igi_imaging::{read_image, HdrImage, Mask};
 
 /// Matting options.
 #[derive(Clone, Copy, Debug)]

@@ -10,8 +10,9 @@
 use crate::raster::{rasterize_depth, DepthBuffer};
 use crate::views::View;
 use glam::{DVec2, DVec3};
+use igi_camera::Camera;
 use igi_geometry::TriMesh;
-use igi_imaging::{Camera, HdrImage, Mask};
+use igi_imaging::{HdrImage, Mask};
 
 /// A warped photo: colour where `valid`, black elsewhere, and which view it came from.
 #[derive(Clone, Debug)]
@@ -100,7 +101,7 @@ fn look_up(view: &View, depth: &DepthBuffer, p: DVec3, tolerance: f64) -> Option
 mod tests {
     use super::*;
     use crate::backdrop::Matte;
-    use igi_imaging::camera::WorldToCamera;
+    use igi_camera::camera::WorldToCamera;
 
     fn cam(eye: DVec3) -> Camera {
         let mut c = Camera::pinhole(64, 64, 60.0, 60.0, 31.5, 31.5);

@@ -2,11 +2,11 @@
 
 use crate::ProbeError;
 use glam::DVec3;
+use igi_camera::cv::ArucoDict;
+use igi_camera::WorldToCamera;
 pub use igi_capture::fiducial::FiducialMarker;
 pub use igi_capture::sphere::{BoardSphere, SphereKind};
 use igi_formats::board::{BoardFile, FiducialsSection, SphereEntry};
-use igi_imaging::cv::ArucoDict;
-use igi_imaging::WorldToCamera;
 use std::path::{Path, PathBuf};
 
 /// Default reflectance of the diffuse sphere's paint.

@@ -7,6 +7,9 @@ use std::path::PathBuf;
 pub enum ProbeError {
     #[error(transparent)]
     Imaging(#[from] ImagingError),
+    /// A camera, its file, radiometry or rig, or an OpenCV call (`igi-camera`).
+    #[error(transparent)]
+    Camera(#[from] igi_camera::CameraError),
     /// An output file or folder, a run manifest or the folder lock.
     #[error(transparent)]
     Files(#[from] igi_files::FilesError),

@@ -1,4 +1,4 @@
-//! The board's pose from its fiducials (ArUco markers, OpenCV via `igi_imaging::cv`): the
+//! The board's pose from its fiducials (ArUco markers, OpenCV via `igi_camera::cv`): the
 //! markers' corners, detected to sub-pixel and matched by id to their board-frame positions
 //! ([`igi_capture::fiducial::match_markers`]),
 //! give the board-to-camera transform by SQPnP and Levenberg-Marquardt refinement; the
@@ -9,8 +9,9 @@
 use crate::board::{Board, BoardSpec, Fiducials};
 use crate::ProbeError;
 use glam::DVec3;
+use igi_camera::{cv, Camera, WorldToCamera};
 use igi_capture::fiducial::match_markers;
-use igi_imaging::{cv, Camera, HdrImage, ImagingError, WorldToCamera};
+use igi_imaging::HdrImage;
 
 /// Corners reprojecting farther than this (pixels) are dropped from the PnP solve.
 pub const PNP_THRESHOLD_PX: f64 = 2.0;
@@ -122,7 +123,7 @@ pub fn place_board(
         }
         // without OpenCV: the camera-frame centres if every sphere has one, else
         // `in_camera_frame`'s error, which says the opencv feature is needed
-        Err(ProbeError::Imaging(ImagingError::NoOpenCv)) => Ok(Placement {
+        Err(ProbeError::Camera(igi_camera::CameraError::NoOpenCv)) => Ok(Placement {
             board: spec.in_camera_frame()?,
             pose: None,
             warnings: vec![

@@ -31,8 +31,9 @@
 
 use crate::board::{BoardSphere, SphereKind};
 use glam::{DVec2, DVec3};
+use igi_camera::Camera;
 use igi_capture::sphere::SphereView;
-use igi_imaging::{Camera, HdrImage};
+use igi_imaging::HdrImage;
 use nalgebra::{Matrix3, Vector3};
 
 /// Half-length (pixels) of the profile sampled across the predicted edge, beyond the lens blur.

@@ -5,9 +5,10 @@ use crate::envmap::{self, Integrator};
 use crate::resample::{self, Reflector};
 use crate::ProbeError;
 use glam::{DVec2, DVec3, Vec3};
+use igi_camera::Camera;
 use igi_capture::highlight::{locate_spot, LocatedSpot, SpotPixels};
 use igi_capture::sphere::{SpherePixel, SphereView};
-use igi_imaging::{Camera, HdrImage};
+use igi_imaging::HdrImage;
 use rayon::prelude::*;
 
 /// Tunable parameters of [`process`].

@@ -193,7 +193,8 @@ mod tests {
     use super::*;
     use crate::board::{BoardSphere, SphereKind};
     use glam::DMat3;
-    use igi_imaging::{latlong, Camera, WorldToCamera};
+    use igi_camera::{Camera, WorldToCamera};
+    use igi_imaging::latlong;
 
     /// Solid angle of the spherical triangle (a, b, c) (Van Oosterom and Strackee).
     fn triangle(a: DVec3, b: DVec3, c: DVec3) -> f64 {

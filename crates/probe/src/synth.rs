@@ -6,9 +6,10 @@ use crate::board::Board;
 use crate::board::SphereKind;
 use crate::envmap::{latlong_lookup, Integrator};
 use glam::DVec3;
+use igi_camera::{Camera, WorldToCamera};
 use igi_capture::sphere::SphereView;
 use igi_capture::spot::pixel_response;
-use igi_imaging::{Camera, HdrImage, WorldToCamera};
+use igi_imaging::HdrImage;
 use rayon::prelude::*;
 
 /// A sun for [`render_board`]: direction (unit, toward the sun), radiance, angular diameter.

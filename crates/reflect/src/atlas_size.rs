@@ -19,10 +19,10 @@
 
 use crate::ReflectError;
 use glam::DVec3;
+use igi_camera::Camera;
 use igi_geometry::atlas::{build_atlas, AtlasOptions};
 use igi_geometry::voxel::{partition, VoxelGrid};
 use igi_geometry::TriMesh;
-use igi_imaging::Camera;
 use serde::{Deserialize, Serialize};
 
 /// `igi solve --atlas auto`: each part's atlas resolution follows from the photographs (see
@@ -340,7 +340,7 @@ pub(crate) fn check_names<'a>(names: impl Iterator<Item = &'a str>) -> Result<()
 #[cfg(test)]
 mod tests {
     use super::*;
-    use igi_imaging::WorldToCamera;
+    use igi_camera::WorldToCamera;
 
     /// Texels `mesh` needs at its finest footprint in `cameras`.
     fn need_in(mesh: &TriMesh, cameras: &[Camera]) -> f64 {

@@ -11,9 +11,10 @@
 
 use crate::atlas_size::{plan_parts, AtlasChoice};
 use crate::ReflectError;
+use igi_camera::Camera;
 use igi_geometry::atlas::{build_atlas, Atlas, AtlasOptions};
 use igi_geometry::{SiteStore, TriMesh, VoxelId};
-use igi_imaging::{Camera, HdrImage};
+use igi_imaging::HdrImage;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;

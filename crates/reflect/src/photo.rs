@@ -5,6 +5,6 @@
 pub struct Photo {
     pub id: String,
     pub image: igi_imaging::HdrImage,
-    pub camera: igi_imaging::Camera,
+    pub camera: igi_camera::Camera,
     pub lighting: igi_render::Lighting,
 }

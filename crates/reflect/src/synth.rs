@@ -7,13 +7,14 @@ use crate::fill::dilate;
 use crate::parts::Part;
 use crate::ReflectError;
 use glam::{DVec3, Vec3};
+use igi_camera::{Camera, WorldToCamera};
 use igi_formats::lighting::{EnvironmentSection, LightingFile, SunSection};
 use igi_formats::scene::{AlbedoEntry, ObjectEntry, SceneFile};
 use igi_formats::survey::{PhotoEntry, SiteSection, SurveyFile};
 use igi_formats::{f32_decimals, TomlFile};
 use igi_geometry::TriMesh;
 use igi_imaging::color::SUN_ANGULAR_DIAMETER_DEG;
-use igi_imaging::{Camera, HdrImage, WorldToCamera};
+use igi_imaging::HdrImage;
 use igi_render::{
     render_images, Albedo, Environment, Lighting, Material, RenderJob, RenderOptions, Scene, Sun,
     Texture,

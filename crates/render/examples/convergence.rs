@@ -22,7 +22,7 @@ fn main() {
         .unwrap_or_else(|| dir.join("reference.exr"));
     let (scene, lighting) = Scene::load(&dir.join("scene.toml")).unwrap_or_else(|e| panic!("{e}"));
     let camera =
-        igi_imaging::Camera::load(&dir.join("camera.json")).unwrap_or_else(|e| panic!("{e}"));
+        igi_camera::Camera::load(&dir.join("camera.json")).unwrap_or_else(|e| panic!("{e}"));
     let ref_img = igi_imaging::read_image(&reference).unwrap_or_else(|e| panic!("{e}"));
     let ref_se = igi_imaging::read_image(&reference.with_file_name("reference_stderr.exr")).ok();
     println!("threads: {}", rayon::current_num_threads());

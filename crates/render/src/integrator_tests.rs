@@ -6,8 +6,9 @@ use crate::lighting::{Environment, Lighting, Sun};
 use crate::scene::{Material, Scene, SurfacePoint};
 use glam::{DMat3, DVec3, Vec2, Vec3};
 use igi_brdf::{LafortuneRef, Lobe};
+use igi_camera::{Camera, WorldToCamera};
 use igi_geometry::TriMesh;
-use igi_imaging::{Camera, HdrImage, WorldToCamera};
+use igi_imaging::HdrImage;
 use std::f32::consts::PI;
 
 pub(crate) fn quad(z: f32, half: f32) -> TriMesh {

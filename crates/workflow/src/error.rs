@@ -32,6 +32,9 @@ pub enum WorkflowError {
     Format(#[from] igi_formats::FormatsError),
     #[error(transparent)]
     Imaging(#[from] igi_imaging::ImagingError),
+    /// A camera, its file, radiometry or rig, or an OpenCV call (`igi-camera`).
+    #[error(transparent)]
+    Camera(#[from] igi_camera::CameraError),
     /// An output file or folder, a run manifest or the folder lock.
     #[error(transparent)]
     Files(#[from] igi_files::FilesError),

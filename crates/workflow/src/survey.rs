@@ -3,8 +3,9 @@
 //! `igi_formats::survey`; this module resolves and checks what it names.
 
 use crate::WorkflowError;
+use igi_camera::Camera;
 use igi_formats::{SurveyFile, TomlFile};
-use igi_imaging::{Camera, HdrImage};
+use igi_imaging::HdrImage;
 use igi_reflect::{Photo, Progress};
 use igi_render::Lighting;
 use std::path::{Path, PathBuf};
@@ -269,7 +270,7 @@ impl SurveyPaths<'_> {
 
 /// Checks that a camera radiometry file reads (so that a bad one fails before any work).
 fn radiometry_file(path: PathBuf) -> Result<PathBuf, WorkflowError> {
-    igi_imaging::radiometry::CameraRadiometry::load(&path)?;
+    igi_camera::radiometry::CameraRadiometry::load(&path)?;
     Ok(path)
 }
 
@@ -279,7 +280,7 @@ fn check_radiometry_size(spec: &PhotoSpec) -> Result<(), WorkflowError> {
     let Some(path) = &spec.radiometry else {
         return Ok(());
     };
-    let cal = igi_imaging::radiometry::CameraRadiometry::load(path)?;
+    let cal = igi_camera::radiometry::CameraRadiometry::load(path)?;
     let cam = Camera::load(&spec.camera)?;
     if cal.fits_size(cam.width as usize, cam.height as usize) {
         return Ok(());
@@ -359,7 +360,7 @@ impl PhotoSpec {
     /// Applies the camera radiometry file `path` to `image`, which must have the aspect ratio
     /// the radiometry was fitted at.
     fn apply_radiometry(&self, path: &Path, image: &mut HdrImage) -> Result<(), WorkflowError> {
-        let cal = igi_imaging::radiometry::CameraRadiometry::load(path)?;
+        let cal = igi_camera::radiometry::CameraRadiometry::load(path)?;
         if !cal.fits_size(image.width, image.height) {
             return Err(WorkflowError::file(
                 &self.image,
@@ -434,7 +435,7 @@ pub fn lighting_from_probe(r: &igi_probe::ProbeResult) -> Result<Lighting, Workf
 mod tests {
     use super::*;
     use glam::Vec3;
-    use igi_imaging::radiometry::{CameraRadiometry, Falloff, RadiometryFit};
+    use igi_camera::radiometry::{CameraRadiometry, Falloff, RadiometryFit};
 
     /// A survey folder whose files exist (only the camera and radiometry files are read when
     /// the survey is), with `extra` appended to survey.toml and `photo_extra` to the photo.

@@ -8,10 +8,10 @@ use std::path::Path;
 use glam::{DVec2, DVec3, Vec3};
 use igi_brdf::samples::{group_by_material, parse_samples, samples_to_csv};
 use igi_brdf::{fit_material, FitOptions};
+use igi_camera::cv::rotation_angle_between;
+use igi_camera::Camera;
 use igi_capture::sample_frame::closest_approach;
 use igi_capture::{measure_photo, MeasureOptions, PhotoMeasurement, PoseInput, SampleFrame};
-use igi_imaging::cv::rotation_angle_between;
-use igi_imaging::Camera;
 use synth::{camera, dir, true_corners, Synth};
 
 const TARGET: DVec3 = DVec3::new(-0.02, 0.02, 0.0);

@@ -9,8 +9,8 @@ use igi_capture::synth;
 use std::path::Path;
 
 use glam::{DVec2, DVec3, Vec3};
+use igi_camera::cv::{aruco_marker_image, rotation_angle_between, ArucoDict};
 use igi_capture::{measure_photo, MeasureOptions, PoseInput};
-use igi_imaging::cv::{aruco_marker_image, rotation_angle_between, ArucoDict};
 use synth::{camera, dir, Synth};
 
 const TARGET: DVec3 = DVec3::new(-0.02, 0.02, 0.0);
@@ -120,7 +120,7 @@ fn aruco_pose_recovers_pose_light_and_brdf() {
 /// true corners, and `solve_pnp_matched` recovers the pose from them.
 #[test]
 fn aruco_markers_give_the_pose_to_a_quarter_degree() {
-    use igi_imaging::cv::{detect_aruco_subpix, solve_pnp_matched};
+    use igi_camera::cv::{detect_aruco_subpix, solve_pnp_matched};
     let s = aruco_synth(DVec3::new(-0.04, 0.0, 0.0) + dir(30.0, 180.0) * 0.6);
     let cam = camera(TARGET + dir(40.0, 0.0) * 0.5);
     let img = s.render(&cam);

@@ -7,10 +7,11 @@ use crate::common;
 use common::{camera_toward, psnr, sphere_dirs};
 use glam::{Mat3, Vec3};
 use igi_brdf::Lobe;
+use igi_camera::Camera;
 use igi_geometry::atlas::{build_atlas, Atlas, AtlasOptions};
 use igi_geometry::procedural::uv_sphere;
 use igi_geometry::TriMesh;
-use igi_imaging::{Camera, HdrImage};
+use igi_imaging::HdrImage;
 use igi_lightfield::{BuildOptions, Method, Prepared, RenderSlfOptions, SurfaceLightField, View};
 use igi_raycast::RtScene;
 use igi_render::{

@@ -2,7 +2,7 @@
 //! README's mask recipe and carved at 256 cells per axis.
 
 use glam::DVec3;
-use igi_imaging::Rig;
+use igi_camera::Rig;
 use igi_opacity_hull::carve::{carve, CellGrid, KEPT};
 use igi_opacity_hull::hull::{
     carve_hull, leave_one_out, plot_volume_curves, reproject, volume_curves,

@@ -9,9 +9,10 @@
 
 use glam::{DVec3, Vec3};
 use igi_brdf::Lobe;
+use igi_camera::{Camera, WorldToCamera};
 use igi_formats::lighting::LightingRadiance;
 use igi_geometry::TriMesh;
-use igi_imaging::{Camera, HdrImage, Mask, WorldToCamera};
+use igi_imaging::{HdrImage, Mask};
 use igi_opacity_hull::build::{build, load_relit_model, BuildOptions};
 use igi_opacity_hull::lightweights::light_weights;
 use igi_opacity_hull::reflectance::read_fields;
@@ -227,7 +228,7 @@ fn measure(
     truth: &HdrImage,
     ids: &[Option<u32>],
 ) -> Measured {
-    let rig = igi_imaging::Rig::load(rig).unwrap();
+    let rig = igi_camera::Rig::load(rig).unwrap();
     let opts = BuildOptions {
         volume_orders: 2,
         volume_resolution: 32,

@@ -15,9 +15,10 @@
 
 use glam::{DVec3, Vec3};
 use igi_brdf::Lobe;
+use igi_camera::rig::{BackdropPair, RigObject, RigView};
+use igi_camera::{Camera, Rig, WorldToCamera};
 use igi_geometry::TriMesh;
-use igi_imaging::rig::{BackdropPair, RigObject, RigView};
-use igi_imaging::{latlong, Camera, HdrImage, Rig, WorldToCamera};
+use igi_imaging::{latlong, HdrImage};
 use igi_opacity_hull::backdrop::{pattern_value, LAMBDAS};
 use igi_opacity_hull::views::{load_views, MatteOptions, View};
 use igi_render::sampling::Rng;

@@ -6,7 +6,8 @@
 #![cfg_attr(not(feature = "opencv"), allow(unused_imports, dead_code))]
 
 use glam::{DMat3, DVec3};
-use igi_imaging::{read_image, Camera, WorldToCamera};
+use igi_camera::{Camera, WorldToCamera};
+use igi_imaging::read_image;
 use igi_probe::fiducial::place_board;
 use igi_probe::BoardSpec;
 use std::path::{Path, PathBuf};
@@ -154,7 +155,7 @@ fn photograph(
             (
                 marker_corners(i),
                 120,
-                igi_imaging::cv::aruco_marker_image(
+                igi_camera::cv::aruco_marker_image(
                     spec.fiducials.as_ref().unwrap().dictionary,
                     i as i32,
                     120,
@@ -185,7 +186,7 @@ fn check_pose(
     let est = placed.pose.as_ref().expect("pose from the fiducials");
     assert_eq!(est.markers_found, vec![0, 1, 2, 3]);
     let p = est.board_to_camera();
-    let rot_err = igi_imaging::cv::rotation_angle_between(&p.r, &pose.r).to_degrees();
+    let rot_err = igi_camera::cv::rotation_angle_between(&p.r, &pose.r).to_degrees();
     let t_err = (p.t - pose.t).length();
     let centre_err = [
         placed

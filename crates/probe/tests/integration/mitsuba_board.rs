@@ -3,8 +3,9 @@
 //! 16-bit linear brackets.
 
 use glam::{DVec3, Vec3};
+use igi_camera::Camera;
 use igi_imaging::hdr::{merge_linear, LinearParams};
-use igi_imaging::{latlong, read_image, Camera, HdrImage};
+use igi_imaging::{latlong, read_image, HdrImage};
 use igi_probe::envmap::latlong_lookup;
 use igi_probe::{process, Board, ProbeOptions, ProbeResult};
 use std::path::PathBuf;

@@ -2,9 +2,10 @@
 //! chrome ball photographed in three brackets.
 
 use glam::{DMat3, DVec3};
+use igi_camera::{Camera, WorldToCamera};
 use igi_imaging::hdr::{merge_linear, LinearParams};
 use igi_imaging::io::srgb_to_linear;
-use igi_imaging::{latlong, read_image, Camera, HdrImage, WorldToCamera};
+use igi_imaging::{latlong, read_image, HdrImage};
 use igi_probe::synth::render_board;
 use igi_probe::{process, Board, ProbeOptions};
 use std::path::PathBuf;

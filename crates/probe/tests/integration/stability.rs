@@ -2,8 +2,9 @@
 //! cut-off spheres, NaN pixels.
 
 use glam::DVec3;
+use igi_camera::Camera;
 use igi_capture::SphereError;
-use igi_imaging::{read_image, Camera, HdrImage};
+use igi_imaging::{read_image, HdrImage};
 use igi_probe::synth::{direction_from_angles, render_board, SynthSun};
 use igi_probe::{process, Board, ProbeError, ProbeOptions};
 use std::path::PathBuf;

@@ -12,7 +12,8 @@
 //! `-- --ignored --nocapture` runs the sweeps of docs/PROBE.md.
 
 use glam::DVec3;
-use igi_imaging::{read_image, Camera};
+use igi_camera::Camera;
+use igi_imaging::read_image;
 use igi_probe::{process, Board, ProbeOptions, ProbeResult};
 use std::path::PathBuf;
 
@@ -156,7 +157,7 @@ fn synth_setup(r: f64) -> (Camera, Board) {
     let rot =
         glam::DMat3::from_cols_array_2d(&[[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
             .transpose();
-    cam.pose = igi_imaging::WorldToCamera {
+    cam.pose = igi_camera::WorldToCamera {
         r: rot,
         t: DVec3::ZERO,
     };

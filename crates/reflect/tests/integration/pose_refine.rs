@@ -5,9 +5,9 @@
 //! and the refined cameras.
 
 use glam::{DMat3, DVec3, Vec3};
+use igi_camera::camera::{points_in_frame, reprojection_rms};
+use igi_camera::{Camera, WorldToCamera};
 use igi_capture::refine::{refine_pose, RefineOptions};
-use igi_imaging::camera::{points_in_frame, reprojection_rms};
-use igi_imaging::{Camera, WorldToCamera};
 use igi_raycast::rt_scene_of;
 use igi_reflect::parts::build_parts;
 use igi_reflect::solver::truth_from_scene;

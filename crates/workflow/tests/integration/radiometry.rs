@@ -6,7 +6,7 @@
 //! it the error is several times larger.
 
 use glam::{DVec2, Vec3};
-use igi_imaging::radiometry::{
+use igi_camera::radiometry::{
     apply_color_matrix, fit_radiometry, render_checker, CameraRadiometry, Falloff, RadiometryInputs,
 };
 use igi_imaging::HdrImage;

@@ -6,9 +6,10 @@
 
 use glam::{DVec3, Vec3};
 use igi_brdf::Lobe;
+use igi_camera::{Camera, WorldToCamera};
 use igi_geometry::atlas::{build_atlas, Atlas, AtlasOptions};
 use igi_geometry::TriMesh;
-use igi_imaging::{Camera, HdrImage, WorldToCamera};
+use igi_imaging::HdrImage;
 use igi_render::{
     render_image, Albedo, Environment, Lighting, Material, RenderOptions, Scene, Texture,
 };

@@ -4,7 +4,7 @@
 //!
 //! The plane is the world plane z = 0; points on it are given as (x, y).
 
-use crate::{ImagingError, Intrinsics, PlanarError, WorldToCamera};
+use crate::{CameraError, Intrinsics, PlanarError, WorldToCamera};
 use glam::{DMat3, DVec2, DVec3};
 use nalgebra::{DMatrix, Matrix3, SVD};
 
@@ -17,7 +17,7 @@ pub fn apply_homography(h: &DMat3, p: DVec2) -> Option<DVec2> {
 }
 
 /// Hartley normalisation: a similarity taking the points to centroid 0, mean distance sqrt(2).
-fn normaliser(p: &[DVec2]) -> Result<DMat3, ImagingError> {
+fn normaliser(p: &[DVec2]) -> Result<DMat3, CameraError> {
     let n = p.len() as f64;
     let c = p.iter().fold(DVec2::ZERO, |a, x| a + *x) / n;
     let d = p.iter().map(|x| (*x - c).length()).sum::<f64>() / n;
@@ -49,7 +49,7 @@ fn min_triangle_area(p: &[DVec2]) -> f64 {
 /// Homography `dst ~ H src` from n >= 4 correspondences (normalised DLT, least squares for
 /// n > 4). Errors when the points are degenerate: with four points, three of them (nearly)
 /// collinear in either set; in general a rank-deficient system.
-pub fn homography_dlt(src: &[DVec2], dst: &[DVec2]) -> Result<DMat3, ImagingError> {
+pub fn homography_dlt(src: &[DVec2], dst: &[DVec2]) -> Result<DMat3, CameraError> {
     if src.len() != dst.len() || src.len() < 4 {
         return Err(PlanarError::HomographyPoints {
             src: src.len(),
@@ -82,9 +82,7 @@ pub fn homography_dlt(src: &[DVec2], dst: &[DVec2]) -> Result<DMat3, ImagingErro
         }
     }
     let svd = SVD::new(a, false, true);
-    let vt = svd
-        .v_t
-        .ok_or_else(|| ImagingError::from(PlanarError::Svd))?;
+    let vt = svd.v_t.ok_or_else(|| CameraError::from(PlanarError::Svd))?;
     let sv = &svd.singular_values;
     let (imin, _) =
         sv.iter().enumerate().fold(
@@ -180,7 +178,7 @@ pub fn pose_from_plane(
     intr: &Intrinsics,
     plane_xy: &[DVec2],
     pixels: &[DVec2],
-) -> Result<PlanarPose, ImagingError> {
+) -> Result<PlanarPose, CameraError> {
     if plane_xy.len() != pixels.len() || plane_xy.len() < 4 {
         return Err(PlanarError::PosePoints {
             plane: plane_xy.len(),
@@ -192,7 +190,7 @@ pub fn pose_from_plane(
     let pose = pose_from_homography(plane_xy, &norm)?;
     let world: Vec<DVec3> = plane_xy.iter().map(|p| DVec3::new(p.x, p.y, 0.0)).collect();
     let res = residuals(intr, &pose, &world, pixels)
-        .ok_or_else(|| ImagingError::from(PlanarError::Behind))?;
+        .ok_or_else(|| CameraError::from(PlanarError::Behind))?;
     let (mut pose, res) = refine_pose(intr, pose, res, &world, pixels);
     pose.r = nearest_rotation(&pose.r);
     let rms_px = (sum_of_squares(&res) / world.len() as f64).sqrt();
@@ -203,12 +201,12 @@ pub fn pose_from_plane(
 }
 
 /// Normalised image coordinates of distorted pixels.
-fn undistort_all(intr: &Intrinsics, pixels: &[DVec2]) -> Result<Vec<DVec2>, ImagingError> {
+fn undistort_all(intr: &Intrinsics, pixels: &[DVec2]) -> Result<Vec<DVec2>, CameraError> {
     let mut norm = Vec::with_capacity(pixels.len());
     for p in pixels {
         norm.push(
             intr.to_normalized(*p)
-                .ok_or_else(|| ImagingError::from(PlanarError::Undistort { x: p.x, y: p.y }))?,
+                .ok_or_else(|| CameraError::from(PlanarError::Undistort { x: p.x, y: p.y }))?,
         );
     }
     Ok(norm)
@@ -216,7 +214,7 @@ fn undistort_all(intr: &Intrinsics, pixels: &[DVec2]) -> Result<Vec<DVec2>, Imag
 
 /// The plane-to-normalised-image homography decomposed into `[r1 r2 t]`, the rotation made
 /// orthonormal and the sign chosen so the first point lies in front of the camera.
-fn pose_from_homography(plane_xy: &[DVec2], norm: &[DVec2]) -> Result<WorldToCamera, ImagingError> {
+fn pose_from_homography(plane_xy: &[DVec2], norm: &[DVec2]) -> Result<WorldToCamera, CameraError> {
     let h = homography_dlt(plane_xy, norm)?;
     let (h1, h2, h3) = (h.x_axis, h.y_axis, h.z_axis);
     let mut lambda = 2.0 / (h1.length() + h2.length());

@@ -2,8 +2,9 @@
 //! (reference values and patch sampling from its four corners), and the camera radiometry file
 //! that `igi camera radiometry` writes and surveys apply to every photograph on load.
 
-use crate::{HdrImage, ImagingError, RadiometryError};
+use crate::{CameraError, RadiometryError};
 use glam::DVec2;
+use igi_imaging::HdrImage;
 use nalgebra::{DMatrix, DVector, Matrix3};
 use std::path::Path;
 
@@ -32,7 +33,7 @@ impl Falloff {
 
     /// Least-squares fit of `value = s f(r)` (centre value `s` free) to `(r, value)` samples.
     /// Returns the falloff and `s`.
-    pub fn fit(samples: &[(f64, f64)]) -> Result<(Falloff, f64), ImagingError> {
+    pub fn fit(samples: &[(f64, f64)]) -> Result<(Falloff, f64), CameraError> {
         if samples.len() < 4 {
             return Err(RadiometryError::FewSamples(samples.len()).into());
         }
@@ -40,7 +41,7 @@ impl Falloff {
             .iter()
             .any(|(r, v)| !r.is_finite() || !v.is_finite())
         {
-            return Err(ImagingError::InvalidInput(
+            return Err(CameraError::InvalidInput(
                 "falloff samples contain NaN or infinite values".into(),
             ));
         }
@@ -55,14 +56,14 @@ impl Falloff {
             b[i] = v;
         }
         let x = a.svd(true, true).solve(&b, 1e-12).map_err(|e| {
-            ImagingError::from(RadiometryError::Solve {
+            CameraError::from(RadiometryError::Solve {
                 what: "falloff",
                 msg: e.to_string(),
             })
         })?;
         let s = x[0];
         if !(s.abs() > 0.0) || !s.is_finite() {
-            return Err(ImagingError::InvalidInput(
+            return Err(CameraError::InvalidInput(
                 "falloff fit: centre value is zero (flat field too dark?)".into(),
             ));
         }
@@ -77,7 +78,7 @@ impl Falloff {
     }
 
     /// Fit to a flat-field image (mean of the three channels of every valid pixel).
-    pub fn fit_image(flat: &HdrImage) -> Result<(Falloff, f64), ImagingError> {
+    pub fn fit_image(flat: &HdrImage) -> Result<(Falloff, f64), CameraError> {
         let mut samples = Vec::with_capacity(flat.pixels.len());
         for y in 0..flat.height {
             for x in 0..flat.width {
@@ -132,7 +133,7 @@ impl Falloff {
 pub fn fit_color_matrix(
     source: &[[f64; 3]],
     target: &[[f64; 3]],
-) -> Result<[[f64; 3]; 3], ImagingError> {
+) -> Result<[[f64; 3]; 3], CameraError> {
     if source.len() != target.len() {
         return Err(RadiometryError::PatchCount {
             patches: source.len(),
@@ -141,7 +142,7 @@ pub fn fit_color_matrix(
         .into());
     }
     if source.len() < 3 {
-        return Err(ImagingError::InvalidInput(
+        return Err(CameraError::InvalidInput(
             "colour matrix needs at least 3 patches".into(),
         ));
     }
@@ -151,7 +152,7 @@ pub fn fit_color_matrix(
         .flatten()
         .any(|v| !v.is_finite())
     {
-        return Err(ImagingError::InvalidInput(
+        return Err(CameraError::InvalidInput(
             "colour patches contain NaN or infinite values".into(),
         ));
     }
@@ -161,7 +162,7 @@ pub fn fit_color_matrix(
     let sv = &svd.singular_values;
     let (smax, smin) = (sv.max(), sv.min());
     if !(smin > smax * 1e-9) {
-        return Err(ImagingError::InvalidInput(
+        return Err(CameraError::InvalidInput(
             "colour patches are degenerate (do not span RGB)".into(),
         ));
     }
@@ -169,7 +170,7 @@ pub fn fit_color_matrix(
     for r in 0..3 {
         let b = DVector::<f64>::from_fn(n, |i, _| target[i][r]);
         let x = svd.solve(&b, 1e-12).map_err(|e| {
-            ImagingError::from(RadiometryError::Solve {
+            CameraError::from(RadiometryError::Solve {
                 what: "colour matrix",
                 msg: e.to_string(),
             })
@@ -192,10 +193,10 @@ pub fn apply_color_matrix(img: &mut HdrImage, m: &[[f64; 3]; 3]) {
 /// normalised by its own fitted centre value, then all samples are fitted together (every
 /// `stride`-th pixel so that at most about 200 000 samples are used). Returns the falloff and
 /// the RMS of the relative residual `v / (s f(r)) - 1`.
-pub fn fit_falloff_flats(flats: &[HdrImage]) -> Result<(Falloff, f64), ImagingError> {
+pub fn fit_falloff_flats(flats: &[HdrImage]) -> Result<(Falloff, f64), CameraError> {
     let first = flats
         .first()
-        .ok_or_else(|| ImagingError::from(RadiometryError::NoFlats))?;
+        .ok_or_else(|| CameraError::from(RadiometryError::NoFlats))?;
     if let Some(k) = flats
         .iter()
         .position(|f| f.width != first.width || f.height != first.height)
@@ -265,7 +266,7 @@ pub const CHECKER_ROWS: usize = 4;
 
 /// Linear-RGB reflectance of the 24 ColorChecker Classic patches in reading order.
 pub fn checker_reference() -> [[f64; 3]; 24] {
-    CHECKER_SRGB8.map(|p| p.map(|c| crate::io::srgb_to_linear(c as f32 / 255.0) as f64))
+    CHECKER_SRGB8.map(|p| p.map(|c| igi_imaging::io::srgb_to_linear(c as f32 / 255.0) as f64))
 }
 
 /// Chart coordinates (patch pitches, x along a row, y down the columns) of the patch grid's
@@ -285,7 +286,7 @@ fn checker_grid_corners() -> [DVec2; 4] {
 /// four outer corners (top-left at dark skin, top-right, bottom-right at black, bottom-left at
 /// white). Each patch is sampled on a 9 x 9 grid over its central 60 % (away from the black
 /// gaps); a patch with fewer than half of its samples valid and inside the image is an error.
-pub fn sample_checker(img: &HdrImage, corners: &[DVec2; 4]) -> Result<Vec<[f64; 3]>, ImagingError> {
+pub fn sample_checker(img: &HdrImage, corners: &[DVec2; 4]) -> Result<Vec<[f64; 3]>, CameraError> {
     let h = crate::planar::homography_dlt(&checker_grid_corners(), corners)?;
     let mut out = Vec::with_capacity(24);
     for k in 0..CHECKER_COLS * CHECKER_ROWS {
@@ -329,7 +330,7 @@ pub fn render_checker(
     corners: &[DVec2; 4],
     white: f64,
     background: f64,
-) -> Result<HdrImage, ImagingError> {
+) -> Result<HdrImage, CameraError> {
     let to_chart = crate::planar::homography_dlt(corners, &checker_grid_corners())?;
     let reference = checker_reference();
     let mut img = HdrImage::new(w, h);
@@ -384,7 +385,7 @@ pub const MCC_BOX_MARGIN: f64 = 0.125 / 2.75;
 pub fn checker_corners_from_box(
     img: &HdrImage,
     chart_box: &[DVec2; 4],
-) -> Result<([DVec2; 4], f64), ImagingError> {
+) -> Result<([DVec2; 4], f64), CameraError> {
     let mut b = *chart_box;
     if signed_area(&b) < 0.0 {
         b.reverse(); // clockwise on the image (y down), as the grid corners are
@@ -454,7 +455,7 @@ fn refine_checker_once(img: &HdrImage, corners: &[DVec2; 4]) -> Option<[DVec2; 4
     }
     let gap = [0, 1, 2].map(|ch| {
         let mut v: Vec<f64> = crossings.iter().map(|p| p[ch]).collect();
-        crate::color::median_in_place(&mut v)
+        igi_imaging::color::median_in_place(&mut v)
     });
     let (mut centres, mut found) = (Vec::new(), Vec::new());
     for k in 0..CHECKER_COLS * CHECKER_ROWS {
@@ -558,7 +559,7 @@ const CHECKER_NEUTRALS: std::ops::Range<usize> = 18..24;
 pub fn fit_checker_matrix(
     camera_rgb: &[[f64; 3]],
     white: Option<f64>,
-) -> Result<([[f64; 3]; 3], f64), ImagingError> {
+) -> Result<([[f64; 3]; 3], f64), CameraError> {
     if camera_rgb.len() != CHECKER_COLS * CHECKER_ROWS {
         return Err(RadiometryError::CheckerPatches(camera_rgb.len()).into());
     }
@@ -576,18 +577,18 @@ pub fn fit_checker_matrix(
     if white.is_none() {
         let (mut before, mut after) = (0.0, 0.0);
         for k in CHECKER_NEUTRALS {
-            before += crate::color::luminance_f64(camera_rgb[k]);
-            after += crate::color::luminance_f64(mat_vec(&m, &camera_rgb[k]));
+            before += igi_imaging::color::luminance_f64(camera_rgb[k]);
+            after += igi_imaging::color::luminance_f64(mat_vec(&m, &camera_rgb[k]));
         }
         if !(after > 0.0) || !(before > 0.0) {
-            return Err(ImagingError::InvalidInput(
+            return Err(CameraError::InvalidInput(
                 "colour checker: the neutral patches are black".into(),
             ));
         }
         m = m.map(|row| row.map(|v| v * before / after));
     }
-    let scale = crate::color::luminance_f64(mat_vec(&m, &camera_rgb[18]))
-        / crate::color::luminance_f64(reference[18]);
+    let scale = igi_imaging::color::luminance_f64(mat_vec(&m, &camera_rgb[18]))
+        / igi_imaging::color::luminance_f64(reference[18]);
     let ss: f64 = camera_rgb
         .iter()
         .zip(&reference)
@@ -634,12 +635,12 @@ pub struct RadiometryFit {
 
 impl CameraRadiometry {
     /// Reads and validates a camera radiometry file (naming it in every error).
-    pub fn load(path: &Path) -> Result<CameraRadiometry, ImagingError> {
-        let bad = |msg: String| ImagingError::Radiometry {
+    pub fn load(path: &Path) -> Result<CameraRadiometry, CameraError> {
+        let bad = |msg: String| CameraError::Radiometry {
             path: path.to_path_buf(),
             msg,
         };
-        let text = std::fs::read_to_string(path).map_err(|e| ImagingError::io(path, e))?;
+        let text = std::fs::read_to_string(path).map_err(|e| CameraError::io(path, e))?;
         let r: CameraRadiometry = serde_json::from_str(&text)
             .map_err(|e| bad(format!("not a camera radiometry file: {e}")))?;
         r.validate().map_err(bad)?;
@@ -682,8 +683,8 @@ impl CameraRadiometry {
     }
 
     /// Writes the file atomically (pretty JSON).
-    pub fn save(&self, path: &Path) -> Result<(), ImagingError> {
-        self.validate().map_err(|msg| ImagingError::Radiometry {
+    pub fn save(&self, path: &Path) -> Result<(), CameraError> {
+        self.validate().map_err(|msg| CameraError::Radiometry {
             path: path.to_path_buf(),
             msg,
         })?;
@@ -724,7 +725,7 @@ pub struct RadiometryInputs<'a> {
 /// Fits the falloff (from the flat fields) and the colour matrix (from the checker, after the
 /// falloff is divided out of it). At least one of the two must be given; all images must have
 /// the same size.
-pub fn fit_radiometry(inputs: &RadiometryInputs) -> Result<CameraRadiometry, ImagingError> {
+pub fn fit_radiometry(inputs: &RadiometryInputs) -> Result<CameraRadiometry, CameraError> {
     let size = match (inputs.flats.first(), &inputs.checker) {
         (Some(f), _) => (f.width, f.height),
         (None, Some((c, _))) => (c.width, c.height),
@@ -945,8 +946,8 @@ mod tests {
         let g = [0.3, 0.3, 0.3];
         let mixed = mat_vec(&CROSSTALK, &g);
         assert!(
-            (crate::color::luminance_f64(mat_vec(&cm, &mixed))
-                / crate::color::luminance_f64(mixed)
+            (igi_imaging::color::luminance_f64(mat_vec(&cm, &mixed))
+                / igi_imaging::color::luminance_f64(mixed)
                 - 1.0)
                 .abs()
                 < 0.03
@@ -1004,9 +1005,7 @@ mod tests {
         ];
         assert!(matches!(
             checker_corners_from_box(&blank, &far),
-            Err(ImagingError::RadiometryFit(
-                RadiometryError::CheckerNotFound
-            ))
+            Err(CameraError::RadiometryFit(RadiometryError::CheckerNotFound))
         ));
     }
 

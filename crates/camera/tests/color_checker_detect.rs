@@ -4,11 +4,12 @@
 #![cfg(feature = "opencv")]
 
 use glam::DVec2;
-use igi_imaging::cv::detect_color_checker;
-use igi_imaging::radiometry::{
+use igi_camera::cv::detect_color_checker;
+use igi_camera::radiometry::{
     apply_color_matrix, fit_checker_matrix, render_checker, sample_checker,
 };
-use igi_imaging::{HdrImage, ImagingError, RadiometryError};
+use igi_camera::{CameraError, RadiometryError};
+use igi_imaging::HdrImage;
 use rand::{Rng, SeedableRng};
 
 const MIX: [[f64; 3]; 3] = [[0.8, 0.15, 0.05], [0.1, 0.75, 0.15], [0.05, 0.2, 0.75]];
@@ -121,7 +122,7 @@ fn image_without_a_chart_gives_checker_not_found() {
     assert!(
         matches!(
             e,
-            ImagingError::RadiometryFit(RadiometryError::CheckerNotFound)
+            CameraError::RadiometryFit(RadiometryError::CheckerNotFound)
         ),
         "{e}"
     );

@@ -1,11 +1,12 @@
 //! OpenCV-backed geometry: checkerboard calibration (Zhang), PnP pose, homography, ArUco.
 //!
 //! All OpenCV calls of the workspace live in this module, behind the cargo feature `opencv`.
-//! Without the feature the same functions exist and return [`ImagingError::NoOpenCv`].
+//! Without the feature the same functions exist and return [`CameraError::NoOpenCv`].
 //! OpenCV's RANSAC uses a fixed internal seed, so results are deterministic.
 
-use crate::{Camera, HdrImage, ImagingError, Intrinsics, WorldToCamera};
+use crate::{Camera, CameraError, Intrinsics, WorldToCamera};
 use glam::{DMat3, DVec2, DVec3};
+use igi_imaging::HdrImage;
 
 /// Result of [`solve_pnp`].
 #[derive(Clone, Debug)]
@@ -106,46 +107,46 @@ mod imp {
         _: &[DVec3],
         _: &[DVec2],
         _: f64,
-    ) -> Result<PnpResult, ImagingError> {
-        Err(ImagingError::NoOpenCv)
+    ) -> Result<PnpResult, CameraError> {
+        Err(CameraError::NoOpenCv)
     }
     pub fn calibrate_from_points(
         _: &[Vec<DVec3>],
         _: &[Vec<DVec2>],
         _: u32,
         _: u32,
-    ) -> Result<Calibration, ImagingError> {
-        Err(ImagingError::NoOpenCv)
+    ) -> Result<Calibration, CameraError> {
+        Err(CameraError::NoOpenCv)
     }
     pub fn find_checkerboard_corners(
         _: &HdrImage,
         _: usize,
         _: usize,
-    ) -> Result<Option<Vec<DVec2>>, ImagingError> {
-        Err(ImagingError::NoOpenCv)
+    ) -> Result<Option<Vec<DVec2>>, CameraError> {
+        Err(CameraError::NoOpenCv)
     }
-    pub fn find_homography(_: &[DVec2], _: &[DVec2], _: f64) -> Result<DMat3, ImagingError> {
-        Err(ImagingError::NoOpenCv)
+    pub fn find_homography(_: &[DVec2], _: &[DVec2], _: f64) -> Result<DMat3, CameraError> {
+        Err(CameraError::NoOpenCv)
     }
-    pub fn detect_aruco(_: &HdrImage, _: ArucoDict) -> Result<Vec<ArucoMarker>, ImagingError> {
-        Err(ImagingError::NoOpenCv)
+    pub fn detect_aruco(_: &HdrImage, _: ArucoDict) -> Result<Vec<ArucoMarker>, CameraError> {
+        Err(CameraError::NoOpenCv)
     }
     pub fn detect_aruco_subpix(
         _: &HdrImage,
         _: ArucoDict,
-    ) -> Result<Vec<ArucoMarker>, ImagingError> {
-        Err(ImagingError::NoOpenCv)
+    ) -> Result<Vec<ArucoMarker>, CameraError> {
+        Err(CameraError::NoOpenCv)
     }
     pub fn solve_pnp_matched(
         _: &Intrinsics,
         _: &[DVec3],
         _: &[DVec2],
         _: f64,
-    ) -> Result<PnpResult, ImagingError> {
-        Err(ImagingError::NoOpenCv)
+    ) -> Result<PnpResult, CameraError> {
+        Err(CameraError::NoOpenCv)
     }
-    pub fn aruco_marker_image(_: ArucoDict, _: i32, _: usize) -> Result<Vec<u8>, ImagingError> {
-        Err(ImagingError::NoOpenCv)
+    pub fn aruco_marker_image(_: ArucoDict, _: i32, _: usize) -> Result<Vec<u8>, CameraError> {
+        Err(CameraError::NoOpenCv)
     }
 }
 
@@ -157,21 +158,21 @@ mod imp {
     use opencv::prelude::*;
     use opencv::{aruco, calib3d, imgproc};
 
-    fn cv_err(e: opencv::Error) -> ImagingError {
-        ImagingError::OpenCvCall(Box::new(e))
+    fn cv_err(e: opencv::Error) -> CameraError {
+        CameraError::OpenCvCall(Box::new(e))
     }
 
-    fn k_mat(i: &Intrinsics) -> Result<Mat, ImagingError> {
+    fn k_mat(i: &Intrinsics) -> Result<Mat, CameraError> {
         Mat::from_slice_2d(&i.k_matrix()).map_err(cv_err)
     }
 
-    fn dist_mat(i: &Intrinsics) -> Result<Mat, ImagingError> {
+    fn dist_mat(i: &Intrinsics) -> Result<Mat, CameraError> {
         Mat::from_slice(&i.dist.to_array())
             .map_err(cv_err)
             .and_then(|m| m.try_clone().map_err(cv_err))
     }
 
-    fn vec3(m: &Mat) -> Result<DVec3, ImagingError> {
+    fn vec3(m: &Mat) -> Result<DVec3, CameraError> {
         let mut v = [0.0; 3];
         for (k, x) in v.iter_mut().enumerate() {
             *x = *m.at::<f64>(k as i32).map_err(cv_err)?;
@@ -179,7 +180,7 @@ mod imp {
         Ok(DVec3::from_array(v))
     }
 
-    fn pose_of(rvec: &Mat, tvec: &Mat) -> Result<WorldToCamera, ImagingError> {
+    fn pose_of(rvec: &Mat, tvec: &Mat) -> Result<WorldToCamera, CameraError> {
         Ok(WorldToCamera {
             r: rotation_from_rodrigues(vec3(rvec)?),
             t: vec3(tvec)?,
@@ -198,7 +199,7 @@ mod imp {
             .collect()
     }
 
-    fn gray8(img: &HdrImage) -> Result<Mat, ImagingError> {
+    fn gray8(img: &HdrImage) -> Result<Mat, CameraError> {
         let g: Vec<f32> = img
             .pixels
             .iter()
@@ -227,7 +228,7 @@ mod imp {
         world: &[DVec3],
         pixels: &[DVec2],
         threshold_px: f64,
-    ) -> Result<PnpResult, ImagingError> {
+    ) -> Result<PnpResult, CameraError> {
         check_correspondences(world, pixels, 6)?;
         let (obj, imgp) = (p3(world), p2(pixels));
         let (k, d) = (k_mat(intr)?, dist_mat(intr)?);
@@ -253,7 +254,7 @@ mod imp {
         k: &Mat,
         d: &Mat,
         threshold_px: f64,
-    ) -> Result<(Mat, Mat, Vec<usize>), ImagingError> {
+    ) -> Result<(Mat, Mat, Vec<usize>), CameraError> {
         let mut rvec = Mat::default();
         let mut tvec = Mat::default();
         let mut inl = Mat::default();
@@ -283,7 +284,7 @@ mod imp {
     }
 
     /// Levenberg-Marquardt refinement's stopping rule: 50 iterations or a step below 1e-12.
-    fn lm_criteria() -> Result<core::TermCriteria, ImagingError> {
+    fn lm_criteria() -> Result<core::TermCriteria, CameraError> {
         core::TermCriteria::new(core::TermCriteria_COUNT + core::TermCriteria_EPS, 50, 1e-12)
             .map_err(cv_err)
     }
@@ -293,7 +294,7 @@ mod imp {
         world: &[DVec3],
         pixels: &[DVec2],
         min: usize,
-    ) -> Result<(), ImagingError> {
+    ) -> Result<(), CameraError> {
         if world.len() != pixels.len() {
             return Err(PnpError::Unpaired {
                 world: world.len(),
@@ -345,7 +346,7 @@ mod imp {
         world: &[DVec3],
         pixels: &[DVec2],
         idx: &[usize],
-    ) -> Result<WorldToCamera, ImagingError> {
+    ) -> Result<WorldToCamera, CameraError> {
         let w: Vec<DVec3> = idx.iter().map(|&i| world[i]).collect();
         let p: Vec<DVec2> = idx.iter().map(|&i| pixels[i]).collect();
         let (obj, imgp) = (p3(&w), p2(&p));
@@ -391,7 +392,7 @@ mod imp {
         world: &[DVec3],
         pixels: &[DVec2],
         threshold_px: f64,
-    ) -> Result<PnpResult, ImagingError> {
+    ) -> Result<PnpResult, CameraError> {
         check_correspondences(world, pixels, 4)?;
         let (k, d) = (k_mat(intr)?, dist_mat(intr)?);
         let crit = lm_criteria()?;
@@ -424,9 +425,9 @@ mod imp {
         image: &[Vec<DVec2>],
         width: u32,
         height: u32,
-    ) -> Result<Calibration, ImagingError> {
+    ) -> Result<Calibration, CameraError> {
         if object.len() != image.len() || object.len() < 3 {
-            return Err(ImagingError::InvalidInput(format!(
+            return Err(CameraError::InvalidInput(format!(
                 "calibration needs at least 3 views with matching point lists ({} object, {} image)",
                 object.len(),
                 image.len()
@@ -491,7 +492,7 @@ mod imp {
         img: &HdrImage,
         cols: usize,
         rows: usize,
-    ) -> Result<Option<Vec<DVec2>>, ImagingError> {
+    ) -> Result<Option<Vec<DVec2>>, CameraError> {
         let g = gray8(img)?;
         let mut corners: Vector<Point2f> = Vector::new();
         let found = calib3d::find_chessboard_corners(
@@ -527,9 +528,9 @@ mod imp {
         src: &[DVec2],
         dst: &[DVec2],
         threshold_px: f64,
-    ) -> Result<DMat3, ImagingError> {
+    ) -> Result<DMat3, CameraError> {
         if src.len() != dst.len() || src.len() < 4 {
-            return Err(ImagingError::InvalidInput(format!(
+            return Err(CameraError::InvalidInput(format!(
                 "homography needs at least 4 matching points ({} and {})",
                 src.len(),
                 dst.len()
@@ -540,7 +541,7 @@ mod imp {
             calib3d::find_homography(&p2(src), &p2(dst), &mut mask, calib3d::RANSAC, threshold_px)
                 .map_err(cv_err)?;
         if h.empty() {
-            return Err(ImagingError::InvalidInput("no homography found".into()));
+            return Err(CameraError::InvalidInput("no homography found".into()));
         }
         let mut rows = [[0.0; 3]; 3];
         for (r, row) in rows.iter_mut().enumerate() {
@@ -551,7 +552,7 @@ mod imp {
         Ok(DMat3::from_cols_array_2d(&rows).transpose())
     }
 
-    fn dictionary(dict: ArucoDict) -> Result<core::Ptr<aruco::Dictionary>, ImagingError> {
+    fn dictionary(dict: ArucoDict) -> Result<core::Ptr<aruco::Dictionary>, CameraError> {
         use aruco::PREDEFINED_DICTIONARY_NAME as N;
         let name = match dict {
             ArucoDict::Dict4x4_50 => N::DICT_4X4_50,
@@ -562,14 +563,14 @@ mod imp {
         aruco::get_predefined_dictionary(name).map_err(cv_err)
     }
 
-    pub fn detect_aruco(img: &HdrImage, dict: ArucoDict) -> Result<Vec<ArucoMarker>, ImagingError> {
+    pub fn detect_aruco(img: &HdrImage, dict: ArucoDict) -> Result<Vec<ArucoMarker>, CameraError> {
         detect_with(img, dict, false)
     }
 
     pub fn detect_aruco_subpix(
         img: &HdrImage,
         dict: ArucoDict,
-    ) -> Result<Vec<ArucoMarker>, ImagingError> {
+    ) -> Result<Vec<ArucoMarker>, CameraError> {
         detect_with(img, dict, true)
     }
 
@@ -577,13 +578,13 @@ mod imp {
         dict: ArucoDict,
         id: i32,
         side_px: usize,
-    ) -> Result<Vec<u8>, ImagingError> {
+    ) -> Result<Vec<u8>, CameraError> {
         let d = dictionary(dict)?;
         let mut m = Mat::default();
         aruco::draw_marker(&d, id, side_px as i32, &mut m, 1).map_err(cv_err)?;
         let bytes = m.data_bytes().map_err(cv_err)?.to_vec();
         if bytes.len() != side_px * side_px {
-            return Err(ImagingError::OpenCv(format!(
+            return Err(CameraError::OpenCv(format!(
                 "draw_marker gave {} bytes for a {side_px} px marker",
                 bytes.len()
             )));
@@ -595,7 +596,7 @@ mod imp {
         img: &HdrImage,
         dict: ArucoDict,
         subpix: bool,
-    ) -> Result<Vec<ArucoMarker>, ImagingError> {
+    ) -> Result<Vec<ArucoMarker>, CameraError> {
         let d = dictionary(dict)?;
         let g = gray8(img)?;
         let mut corners: Vector<Vector<Point2f>> = Vector::new();
@@ -632,7 +633,7 @@ pub fn solve_pnp(
     world: &[DVec3],
     pixels: &[DVec2],
     threshold_px: f64,
-) -> Result<PnpResult, ImagingError> {
+) -> Result<PnpResult, CameraError> {
     imp::solve_pnp(intr, world, pixels, threshold_px)
 }
 
@@ -642,7 +643,7 @@ pub fn calibrate_from_points(
     image: &[Vec<DVec2>],
     width: u32,
     height: u32,
-) -> Result<Calibration, ImagingError> {
+) -> Result<Calibration, CameraError> {
     imp::calibrate_from_points(object, image, width, height)
 }
 
@@ -651,7 +652,7 @@ pub fn find_checkerboard_corners(
     img: &HdrImage,
     cols: usize,
     rows: usize,
-) -> Result<Option<Vec<DVec2>>, ImagingError> {
+) -> Result<Option<Vec<DVec2>>, CameraError> {
     imp::find_checkerboard_corners(img, cols, rows)
 }
 
@@ -662,9 +663,9 @@ pub fn calibrate_checkerboard(
     cols: usize,
     rows: usize,
     square: f64,
-) -> Result<(Calibration, Vec<usize>), ImagingError> {
+) -> Result<(Calibration, Vec<usize>), CameraError> {
     if images.is_empty() {
-        return Err(ImagingError::InvalidInput("no calibration images".into()));
+        return Err(CameraError::InvalidInput("no calibration images".into()));
     }
     let (w, h) = (images[0].width, images[0].height);
     let obj = checkerboard_points(cols, rows, square);
@@ -673,7 +674,7 @@ pub fn calibrate_checkerboard(
     let mut used = Vec::new();
     for (i, im) in images.iter().enumerate() {
         if (im.width, im.height) != (w, h) {
-            return Err(ImagingError::InvalidInput(format!(
+            return Err(CameraError::InvalidInput(format!(
                 "calibration image {i} has a different size"
             )));
         }
@@ -684,7 +685,7 @@ pub fn calibrate_checkerboard(
         }
     }
     if used.len() < 3 {
-        return Err(ImagingError::InvalidInput(format!(
+        return Err(CameraError::InvalidInput(format!(
             "checkerboard {cols}x{rows} found in only {} of {} images (need 3)",
             used.len(),
             images.len()
@@ -701,12 +702,12 @@ pub fn find_homography(
     src: &[DVec2],
     dst: &[DVec2],
     threshold_px: f64,
-) -> Result<DMat3, ImagingError> {
+) -> Result<DMat3, CameraError> {
     imp::find_homography(src, dst, threshold_px)
 }
 
 /// Detect ArUco markers (OpenCV 4.6 contrib aruco).
-pub fn detect_aruco(img: &HdrImage, dict: ArucoDict) -> Result<Vec<ArucoMarker>, ImagingError> {
+pub fn detect_aruco(img: &HdrImage, dict: ArucoDict) -> Result<Vec<ArucoMarker>, CameraError> {
     imp::detect_aruco(img, dict)
 }
 
@@ -720,7 +721,7 @@ pub fn solve_pnp_matched(
     world: &[DVec3],
     pixels: &[DVec2],
     threshold_px: f64,
-) -> Result<PnpResult, ImagingError> {
+) -> Result<PnpResult, CameraError> {
     imp::solve_pnp_matched(intr, world, pixels, threshold_px)
 }
 
@@ -729,7 +730,7 @@ pub fn solve_pnp_matched(
 pub fn detect_aruco_subpix(
     img: &HdrImage,
     dict: ArucoDict,
-) -> Result<Vec<ArucoMarker>, ImagingError> {
+) -> Result<Vec<ArucoMarker>, CameraError> {
     imp::detect_aruco_subpix(img, dict)
 }
 
@@ -741,7 +742,7 @@ pub fn aruco_marker_image(
     dict: ArucoDict,
     id: i32,
     side_px: usize,
-) -> Result<Vec<u8>, ImagingError> {
+) -> Result<Vec<u8>, CameraError> {
     imp::aruco_marker_image(dict, id, side_px)
 }
 
@@ -754,9 +755,9 @@ pub fn aruco_marker_image(
 /// ([`crate::radiometry::checker_corners_from_box`]) and refined by the patches' centroids
 /// ([`crate::radiometry::refine_checker_corners`]).
 /// [`crate::RadiometryError::CheckerNotFound`] when no chart is found.
-pub fn detect_color_checker(img: &HdrImage) -> Result<[DVec2; 4], ImagingError> {
+pub fn detect_color_checker(img: &HdrImage) -> Result<[DVec2; 4], CameraError> {
     let chart_box = mcc_imp::chart_box(img)?
-        .ok_or_else(|| ImagingError::from(crate::RadiometryError::CheckerNotFound))?;
+        .ok_or_else(|| CameraError::from(crate::RadiometryError::CheckerNotFound))?;
     let (corners, _) = crate::radiometry::checker_corners_from_box(img, &chart_box)?;
     Ok(crate::radiometry::refine_checker_corners(img, &corners))
 }
@@ -787,7 +788,7 @@ fn bgr8_tonemapped(img: &HdrImage) -> Vec<u8> {
             } else {
                 0.0
             };
-            out.push((crate::io::linear_to_srgb(v) * 255.0 + 0.5) as u8);
+            out.push((igi_imaging::io::linear_to_srgb(v) * 255.0 + 0.5) as u8);
         }
     }
     out
@@ -796,8 +797,8 @@ fn bgr8_tonemapped(img: &HdrImage) -> Vec<u8> {
 #[cfg(not(feature = "opencv"))]
 mod mcc_imp {
     use super::*;
-    pub fn chart_box(_: &HdrImage) -> Result<Option<[DVec2; 4]>, ImagingError> {
-        Err(ImagingError::NoOpenCv)
+    pub fn chart_box(_: &HdrImage) -> Result<Option<[DVec2; 4]>, CameraError> {
+        Err(CameraError::NoOpenCv)
     }
 }
 
@@ -808,13 +809,13 @@ mod mcc_imp {
     use opencv::mcc::{MCC_CCheckerDetector, MCC_TYPECHART};
     use opencv::prelude::*;
 
-    fn cv_err(e: opencv::Error) -> ImagingError {
-        ImagingError::OpenCv(e.to_string())
+    fn cv_err(e: opencv::Error) -> CameraError {
+        CameraError::OpenCv(e.to_string())
     }
 
     /// The chart box of the best ColorChecker Classic `mcc` finds (corners in its own order),
     /// or `None`.
-    pub fn chart_box(img: &HdrImage) -> Result<Option<[DVec2; 4]>, ImagingError> {
+    pub fn chart_box(img: &HdrImage) -> Result<Option<[DVec2; 4]>, CameraError> {
         let bytes = bgr8_tonemapped(img);
         let flat = Mat::from_slice(&bytes).map_err(cv_err)?;
         let bgr = flat
@@ -855,23 +856,23 @@ mod tests {
         );
         assert!(matches!(
             find_homography(&[], &[], 1.0),
-            Err(ImagingError::NoOpenCv)
+            Err(CameraError::NoOpenCv)
         ));
         assert!(matches!(
             detect_aruco(&HdrImage::new(2, 2), ArucoDict::Dict4x4_50),
-            Err(ImagingError::NoOpenCv)
+            Err(CameraError::NoOpenCv)
         ));
         assert!(matches!(
             detect_aruco_subpix(&HdrImage::new(2, 2), ArucoDict::Dict4x4_50),
-            Err(ImagingError::NoOpenCv)
+            Err(CameraError::NoOpenCv)
         ));
         assert!(matches!(
             aruco_marker_image(ArucoDict::Dict4x4_50, 0, 60),
-            Err(ImagingError::NoOpenCv)
+            Err(CameraError::NoOpenCv)
         ));
         assert!(matches!(
             solve_pnp_matched(&i, &[], &[], 2.0),
-            Err(ImagingError::NoOpenCv)
+            Err(CameraError::NoOpenCv)
         ));
     }
 

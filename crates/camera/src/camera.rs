@@ -4,8 +4,9 @@
 //! pixel centres at integer coordinates, the top-left pixel centre at (0, 0).
 
 pub use crate::error::{CameraFileError, RotationError};
-use crate::{HdrImage, ImagingError};
+use crate::CameraError;
 use glam::{DMat3, DVec2, DVec3};
+use igi_imaging::HdrImage;
 use rayon::prelude::*;
 use std::path::Path;
 
@@ -379,10 +380,10 @@ fn camera_pose(j: &CameraFile) -> Result<WorldToCamera, CameraFileError> {
     })
 }
 
-/// The most pixels a camera file may have: the image limit, [`crate::io::MAX_IMAGE_PIXELS`]
+/// The most pixels a camera file may have: the image limit, [`igi_imaging::io::MAX_IMAGE_PIXELS`]
 /// (2^29, 536 Mpixel); an HDR image that size needs 6.5 GiB. Larger sizes are refused when the
 /// camera is read, before any allocation.
-pub const MAX_CAMERA_PIXELS: u64 = crate::io::MAX_IMAGE_PIXELS;
+pub const MAX_CAMERA_PIXELS: u64 = igi_imaging::io::MAX_IMAGE_PIXELS;
 
 impl Camera {
     /// Camera without distortion and identity pose.
@@ -402,15 +403,15 @@ impl Camera {
     }
 
     /// Parse and validate a camera from FORMATS.md JSON text; `path` is used in errors.
-    pub fn from_json_str(text: &str, path: &Path) -> Result<Camera, ImagingError> {
+    pub fn from_json_str(text: &str, path: &Path) -> Result<Camera, CameraError> {
         let j: CameraFile = serde_json::from_str(text)
-            .map_err(|e| ImagingError::camera(path, CameraFileError::Json(e)))?;
+            .map_err(|e| CameraError::camera(path, CameraFileError::Json(e)))?;
         Self::from_file(&j, path)
     }
 
     /// Checks a parsed camera file and builds the camera; `path` is used in errors.
-    pub fn from_file(j: &CameraFile, path: &Path) -> Result<Camera, ImagingError> {
-        let err = |problem| ImagingError::camera(path, problem);
+    pub fn from_file(j: &CameraFile, path: &Path) -> Result<Camera, CameraError> {
+        let err = |problem| CameraError::camera(path, problem);
         let (width, height) = camera_size(j).map_err(err)?;
         let intrinsics = camera_intrinsics(j).map_err(err)?;
         let pose = camera_pose(j).map_err(err)?;
@@ -423,8 +424,8 @@ impl Camera {
     }
 
     /// Load and validate a camera JSON file (FORMATS.md).
-    pub fn load(path: &Path) -> Result<Camera, ImagingError> {
-        let text = std::fs::read_to_string(path).map_err(|e| ImagingError::io(path, e))?;
+    pub fn load(path: &Path) -> Result<Camera, CameraError> {
+        let text = std::fs::read_to_string(path).map_err(|e| CameraError::io(path, e))?;
         Self::from_json_str(&text, path)
     }
 
@@ -447,7 +448,7 @@ impl Camera {
     }
 
     /// Save as JSON, atomically.
-    pub fn save(&self, path: &Path) -> Result<(), ImagingError> {
+    pub fn save(&self, path: &Path) -> Result<(), CameraError> {
         let text = self.to_json_string();
         Ok(igi_files::write_text_atomic(path, &text)?)
     }
@@ -500,9 +501,9 @@ impl Camera {
 /// K and no distortion. Each output pixel is the bilinear sample of the input at the
 /// distorted position; pixels that map outside the input (or onto invalid pixels) are
 /// black and marked invalid. Returns the image and the output camera.
-pub fn undistort_image(img: &HdrImage, cam: &Camera) -> Result<(HdrImage, Camera), ImagingError> {
+pub fn undistort_image(img: &HdrImage, cam: &Camera) -> Result<(HdrImage, Camera), CameraError> {
     if img.width != cam.width as usize || img.height != cam.height as usize {
-        return Err(ImagingError::InvalidInput(format!(
+        return Err(CameraError::InvalidInput(format!(
             "image is {}x{} but the camera is {}x{}",
             img.width, img.height, cam.width, cam.height
         )));

@@ -9,7 +9,7 @@
 //! each view's camera; [`Rig::save`] writes the file back with paths relative to its folder
 //! where they lie below it.
 
-use crate::{Camera, ImagingError};
+use crate::{Camera, CameraError};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -72,14 +72,14 @@ pub struct Rig {
 
 impl Rig {
     /// Read, resolve and validate a rig file.
-    pub fn load(path: &Path) -> Result<Rig, ImagingError> {
-        let text = std::fs::read_to_string(path).map_err(|e| ImagingError::io(path, e))?;
+    pub fn load(path: &Path) -> Result<Rig, CameraError> {
+        let text = std::fs::read_to_string(path).map_err(|e| CameraError::io(path, e))?;
         Self::from_toml_str(&text, path)
     }
 
     /// Parse rig TOML text as if read from `path` (relative paths resolve against its folder).
-    pub fn from_toml_str(text: &str, path: &Path) -> Result<Rig, ImagingError> {
-        let mut rig: Rig = toml::from_str(text).map_err(|source| ImagingError::RigSyntax {
+    pub fn from_toml_str(text: &str, path: &Path) -> Result<Rig, CameraError> {
+        let mut rig: Rig = toml::from_str(text).map_err(|source| CameraError::RigSyntax {
             path: path.to_path_buf(),
             source: Box::new(source),
         })?;
@@ -92,7 +92,7 @@ impl Rig {
         Ok(rig)
     }
 
-    fn validate(&mut self) -> Result<(), ImagingError> {
+    fn validate(&mut self) -> Result<(), CameraError> {
         let (lo, hi) = (self.object.bbox_min, self.object.bbox_max);
         if lo.iter().chain(&hi).any(|x| !x.is_finite()) || (0..3).any(|k| !(lo[k] < hi[k])) {
             return Err(rig_error(
@@ -102,7 +102,7 @@ impl Rig {
         }
         let mut seen = std::collections::HashSet::new();
         for v in &mut self.views {
-            let err = |msg: String| ImagingError::RigView {
+            let err = |msg: String| CameraError::RigView {
                 path: self.path.clone(),
                 view: v.id.clone(),
                 msg,
@@ -136,7 +136,7 @@ impl Rig {
     }
 
     /// Fail unless the rig has at least `n` views.
-    pub fn require_views(&self, n: usize) -> Result<(), ImagingError> {
+    pub fn require_views(&self, n: usize) -> Result<(), CameraError> {
         if self.views.len() < n {
             return Err(rig_error(
                 &self.path,
@@ -152,27 +152,27 @@ impl Rig {
     }
 
     /// Load and validate every view's camera (in view order). Errors name the rig and the view.
-    pub fn load_cameras(&self) -> Result<Vec<Camera>, ImagingError> {
+    pub fn load_cameras(&self) -> Result<Vec<Camera>, CameraError> {
         self.views.iter().map(|v| self.load_camera(v)).collect()
     }
 
     /// Load one view's camera; an error names the rig file and the view.
-    pub fn load_camera(&self, view: &RigView) -> Result<Camera, ImagingError> {
+    pub fn load_camera(&self, view: &RigView) -> Result<Camera, CameraError> {
         Camera::load(&view.camera).map_err(|e| self.view_error(view, e))
     }
 
     /// Wrap an error about one of `view`'s files so that it names the rig file and the view.
-    pub fn view_error(&self, view: &RigView, source: ImagingError) -> ImagingError {
-        ImagingError::RigViewFile {
+    pub fn view_error(&self, view: &RigView, source: impl Into<CameraError>) -> CameraError {
+        CameraError::RigViewFile {
             path: self.path.clone(),
             view: view.id.clone(),
-            source: Box::new(source),
+            source: Box::new(source.into()),
         }
     }
 
     /// An error about `view` that is not about one file (sizes that disagree, ...).
-    pub fn view_message(&self, view: &RigView, msg: impl Into<String>) -> ImagingError {
-        ImagingError::RigView {
+    pub fn view_message(&self, view: &RigView, msg: impl Into<String>) -> CameraError {
+        CameraError::RigView {
             path: self.path.clone(),
             view: view.id.clone(),
             msg: msg.into(),
@@ -193,7 +193,7 @@ impl Rig {
     }
 
     /// Write the rig to `path` atomically (paths relative to its folder where possible).
-    pub fn save(&self, path: &Path) -> Result<(), ImagingError> {
+    pub fn save(&self, path: &Path) -> Result<(), CameraError> {
         let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
         Ok(igi_files::write_text_atomic(
             path,
@@ -202,8 +202,8 @@ impl Rig {
     }
 }
 
-fn rig_error(path: &Path, msg: String) -> ImagingError {
-    ImagingError::Rig {
+fn rig_error(path: &Path, msg: String) -> CameraError {
+    CameraError::Rig {
         path: path.to_path_buf(),
         msg,
     }
