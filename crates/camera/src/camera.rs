@@ -6,6 +6,7 @@
 pub use crate::error::{CameraFileError, RotationError};
 use crate::CameraError;
 use glam::{DMat3, DVec2, DVec3};
+pub use igi_formats::CameraFile;
 use igi_imaging::HdrImage;
 use rayon::prelude::*;
 use std::path::Path;
@@ -216,26 +217,6 @@ pub struct Camera {
     pub pose: WorldToCamera,
 }
 
-/// A camera file (FORMATS.md, JSON) as written: the keys of the format, each value kept as
-/// JSON so that every problem gets its own message ("width must be a positive integer", "K row
-/// 1 must have 3 entries"). [`Camera::from_file`] checks and builds a [`Camera`];
-/// [`Camera::to_file`] is its inverse. [`Camera::load`] reads and [`Camera::save`] writes.
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-#[allow(non_snake_case)]
-pub struct CameraFile {
-    pub width: serde_json::Value,
-    pub height: serde_json::Value,
-    /// `[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`.
-    pub K: serde_json::Value,
-    /// `[k1, k2, p1, p2, k3]` (or 4 entries, or absent / null for none).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub dist: Option<serde_json::Value>,
-    /// World-to-camera rotation, rows.
-    pub R: serde_json::Value,
-    /// World-to-camera translation.
-    pub t: serde_json::Value,
-}
-
 fn json_numbers(v: &serde_json::Value, what: &'static str) -> Result<Vec<f64>, CameraFileError> {
     let arr = v.as_array().ok_or(CameraFileError::NotNumbers { what })?;
     arr.iter()
@@ -404,7 +385,7 @@ impl Camera {
 
     /// Parse and validate a camera from FORMATS.md JSON text; `path` is used in errors.
     pub fn from_json_str(text: &str, path: &Path) -> Result<Camera, CameraError> {
-        let j: CameraFile = serde_json::from_str(text)
+        let j = CameraFile::parse(text)
             .map_err(|e| CameraError::camera(path, CameraFileError::Json(e)))?;
         Self::from_file(&j, path)
     }
@@ -431,7 +412,7 @@ impl Camera {
 
     /// JSON text in the FORMATS.md layout (`dist` omitted when zero).
     pub fn to_json_string(&self) -> String {
-        serde_json::to_string_pretty(&self.to_file()).expect("camera serialises")
+        self.to_file().to_json()
     }
 
     /// The camera file of this camera (`dist` omitted when zero).
@@ -449,8 +430,7 @@ impl Camera {
 
     /// Save as JSON, atomically.
     pub fn save(&self, path: &Path) -> Result<(), CameraError> {
-        let text = self.to_json_string();
-        Ok(igi_files::write_text_atomic(path, &text)?)
+        Ok(self.to_file().write(path)?)
     }
 
     /// Pixel coordinates of a world point (distortion applied); `None` behind the camera.

@@ -43,6 +43,9 @@ pub enum CameraError {
     /// An image that could not be read or written (`igi-imaging`).
     #[error(transparent)]
     Imaging(#[from] igi_imaging::ImagingError),
+    /// A file igi-formats could not write.
+    #[error(transparent)]
+    Formats(#[from] igi_formats::FormatsError),
     /// An output file or folder (`igi-files`).
     #[error(transparent)]
     Files(#[from] igi_files::FilesError),

@@ -22,10 +22,9 @@
 //!
 //! Each reads with [`TomlFile::read`] and writes with [`TomlFile::write`] (atomically, after an
 //! optional comment header); the trait is the one reader and one writer of every TOML kind.
-//! - camera files (JSON) stay with the camera model in `igi-camera` for now: the file model
-//!   `CameraFile` (values kept as JSON so each problem gets its own message),
-//!   `Camera::from_file` and `Camera::to_file` between it and the `Camera`, `Camera::load`
-//!   reads and `Camera::save` writes.
+//! - [`camera`]: the camera file (JSON, [`CameraFile`]: values kept as JSON so that
+//!   `igi-camera`, which checks and builds the camera, gives each problem its own message),
+//!   parsed with [`CameraFile::parse`] and written with [`CameraFile::write`].
 //!
 //! Numbers are `f64` as TOML holds them; a reader that wants `f32` casts, which is what serde
 //! does when it reads a TOML float into an `f32`. Writers of `f32` data pass it through
@@ -41,6 +40,7 @@
 
 pub mod board;
 pub mod brdf_samples;
+pub mod camera;
 pub mod control;
 pub mod lighting;
 pub mod scene;
@@ -49,6 +49,7 @@ pub mod time;
 
 pub use board::BoardFile;
 pub use brdf_samples::{BrdfSample, PairRow, PairTable};
+pub use camera::CameraFile;
 pub use control::ControlObservation;
 pub use lighting::LightingFile;
 pub use scene::SceneFile;
