@@ -1,7 +1,8 @@
 //! `igi solve`, `igi sample` and `igi export`: the inverse solver and what reads its result.
 use crate::report::{Bar, Ctx};
 use anyhow::bail;
-use igi_reflect::{ExportFormat, Schedule, SolveOptions};
+use igi_export::ExportFormat;
+use igi_reflect::{Schedule, SolveOptions};
 use igi_workflow::{AtlasRequest, SolveRequest};
 use std::path::PathBuf;
 
@@ -227,23 +228,8 @@ pub struct SampleArgs {
 }
 
 pub fn run_sample(a: SampleArgs, _ctx: &Ctx) -> anyhow::Result<()> {
-    let pts = igi_reflect::result::read_points(&a.points)?;
-    let values = igi_reflect::sample_albedo(&a.result, &pts)?;
-    let mut csv = String::from("x,y,z,nx,ny,nz,r,g,b,sr,sg,sb\n");
-    for ((p, n), s) in pts.iter().zip(&values) {
-        let v = s.rho;
-        let se = if s.stderr.min_element() >= 0.0 {
-            format!("{},{},{}", s.stderr.x, s.stderr.y, s.stderr.z)
-        } else {
-            ",,".to_string()
-        };
-        csv.push_str(&format!(
-            "{},{},{},{},{},{},{},{},{},{se}\n",
-            p.x, p.y, p.z, n.x, n.y, n.z, v.x, v.y, v.z
-        ));
-    }
-    igi_files::write_text_atomic(&a.output, &csv)?;
-    println!("{} points -> {}", values.len(), a.output.display());
+    let n = igi_export::sample_file(&a.result, &a.points, &a.output)?;
+    println!("{n} points -> {}", a.output.display());
     Ok(())
 }
 
@@ -263,7 +249,7 @@ pub struct ExportArgs {
 }
 
 pub fn run_export(a: ExportArgs, _ctx: &Ctx) -> anyhow::Result<()> {
-    let files = igi_reflect::export(&a.result, a.format, &a.output)?;
+    let files = igi_export::export(&a.result, a.format, &a.output)?;
     println!("{} files written to {}", files.len(), a.output.display());
     Ok(())
 }

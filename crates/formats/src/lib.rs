@@ -43,6 +43,7 @@ pub mod brdf_samples;
 pub mod camera;
 pub mod control;
 pub mod lighting;
+pub mod points;
 pub mod scene;
 pub mod survey;
 pub mod time;
@@ -71,6 +72,7 @@ pub enum FileKind {
     BrdfSamples,
     BrdfPairs,
     ControlPoints,
+    Points,
 }
 
 impl fmt::Display for FileKind {
@@ -83,6 +85,7 @@ impl fmt::Display for FileKind {
             FileKind::BrdfSamples => "BRDF-sample file",
             FileKind::BrdfPairs => "direction-pair file",
             FileKind::ControlPoints => "control-point file",
+            FileKind::Points => "point table",
         })
     }
 }
@@ -98,6 +101,7 @@ impl FileKind {
             FileKind::BrdfSamples => "BRDF samples",
             FileKind::BrdfPairs => "direction pairs",
             FileKind::ControlPoints => "control points",
+            FileKind::Points => "points",
         }
     }
 }
@@ -164,6 +168,9 @@ pub enum FormatsError {
         line: usize,
         problem: Box<control::ControlProblem>,
     },
+    /// A table that holds no rows (`what`: of what).
+    #[error("{path}: no {what}")]
+    NoRows { path: PathBuf, what: &'static str },
     /// Writing the file failed (the atomic writer names the file).
     #[error(transparent)]
     Write(Box<igi_files::FilesError>),

@@ -46,10 +46,7 @@ use std::path::PathBuf;
 
 pub use parts::{Part, TexelCache};
 pub use photo::Photo;
-pub use result::{
-    export, load_result_scene, sample_albedo, AlbedoSample, ExportFormat, SolveResult,
-    UNKNOWN_STDERR,
-};
+pub use result::{load_result_scene, SolveResult, UNKNOWN_STDERR};
 pub use solver::{
     solve, solve_in_memory, IterationRecord, Progress, Schedule, SolveOptions, SolveReport,
 };
@@ -122,14 +119,6 @@ pub enum ReflectError {
     /// A synthetic shot naming a lighting that does not exist.
     #[error("invalid input: shot {shot}: no lighting {lighting}")]
     NoLighting { shot: String, lighting: usize },
-    /// A query point of `igi sample` too far from every surface of the result (1-based index).
-    #[error("invalid input: point {index} ({}, {}, {}) is {distance:.3e} m from the nearest surface of the result (at most {far:.2} m)", point.x, point.y, point.z)]
-    FarPoint {
-        index: usize,
-        point: glam::Vec3,
-        distance: f32,
-        far: f32,
-    },
     /// No photograph saw any texel of the parts being solved.
     #[error("no photograph sees any solved part (0 observations in iteration {0}): check the cameras' poses and sizes against the site, and the part selection")]
     NoObservations(u32),

@@ -490,7 +490,7 @@ fn check_export_keeps_lobes(
 ) {
     use igi_render::Scene;
     let exported = dir.join("export");
-    igi_reflect::export(out, igi_reflect::ExportFormat::Mitsuba, &exported).unwrap();
+    igi_export::export(out, igi_export::ExportFormat::Mitsuba, &exported).unwrap();
     let (again, _) = Scene::load(&exported.join("scene.toml")).unwrap();
     assert_eq!(again.objects.len(), scene.objects.len());
     for (a, b) in scene.objects.iter().zip(&again.objects) {
