@@ -7,8 +7,8 @@
 //!   [`write_exr`], [`write_hdr`], [`write_png_tonemapped`].
 //! * [`latlong`]: the lat-long (equirectangular) mapping of FORMATS.md (world Z up).
 //! * [`camera`]: OpenCV pinhole camera with (k1, k2, p1, p2, k3) distortion, typed poses
-//!   ([`WorldToCamera`], [`CameraToWorld`]), JSON load/save, projection, pixel rays and
-//!   image undistortion.
+//!   ([`WorldToCamera`], [`CameraToWorld`]), a camera at a point looking at another
+//!   ([`Camera::look_at`]), JSON load/save, projection, pixel rays and image undistortion.
 //! * [`hdr`]: merging exposure brackets (linear sensors, the least-squares slope of Matusik
 //!   et al. 2002, or LDR via Debevec & Malik 1997 response recovery), EXIF exposure times.
 //! * [`radiometry`]: lens falloff (vignetting) polynomial fit and 3x3 colour matrices.

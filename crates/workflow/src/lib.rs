@@ -16,8 +16,9 @@
 //!   folder lock, `--restart`.
 //! - [`solve`]: `igi solve` as one job ([`SolveRequest`] -> [`SolveJob`] -> result), and the
 //!   inputs a cluster task reloads ([`reopen`]).
-//! - [`demo`]: the embedded default (`igi demo`): a synthetic survey made, then solved by the
-//!   same job, then re-lit from a held-out view.
+//! - [`demo`]: the embedded default (`igi demo`): a synthetic survey made (by `igi-synth`,
+//!   the one crate of synthetic worlds), then solved by the same job, then re-lit from a
+//!   held-out view.
 
 pub mod demo;
 mod error;
