@@ -8,7 +8,7 @@ use igi_brdf::cluster::separated_materials;
 use igi_brdf::{
     cluster, fit_material, BrdfSample, ClusterOptions, FitOptions, Frame, Lafortune, Lumitexel,
 };
-use igi_capture::synth::{specular_lobe, stone};
+use igi_synth::sample_frame::{specular_lobe, stone};
 
 fn dir(theta_deg: f32, phi_deg: f32) -> Vec3 {
     let (t, p) = (theta_deg.to_radians(), phi_deg.to_radians());

@@ -12,10 +12,11 @@
 //! Run: `cargo bench --bench solve_voxel` (writes target/solve_voxel.json; set
 //! `IGI_BENCH_QUICK=1` for a 1/16-size scene that finishes in seconds).
 use glam::Vec3;
+use igi_camera::Camera;
 use igi_geometry::TriMesh;
 use igi_reflect::parts::build_parts;
 use igi_reflect::solver::Truth;
-use igi_reflect::synth::{look_at_camera, scene_with_albedo, truth_atlas};
+use igi_reflect::truth::{scene_with_albedo, truth_atlas};
 use igi_reflect::Photo;
 use igi_reflect::{SolveOptions, SolveResult};
 use igi_render::sky::{clear_sky, sun_direction};
@@ -143,7 +144,8 @@ fn render_photos(truth_scene: &igi_render::Scene) -> Vec<Photo> {
             let az = k as f32 * 360.0 / 11.0;
             let a = az.to_radians();
             let eye = Vec3::new(7.5 * a.cos(), 7.5 * a.sin(), 3.0 + 1.5 * (k % 3) as f32);
-            let camera = look_at_camera(eye, Vec3::new(0.0, 0.0, 0.4), 320, 240, 55.0).unwrap();
+            let target = Vec3::new(0.0, 0.0, 0.4).as_dvec3();
+            let camera = Camera::look_at(eye.as_dvec3(), target, 320, 240, 55.0).unwrap();
             let sun = sun_direction(25.0 + 4.0 * k as f32, 15.0 + 30.0 * k as f32);
             let lighting = Lighting {
                 environment: Some(

@@ -6,7 +6,7 @@ use std::process::Command;
 
 use glam::Vec3;
 use igi_brdf::{Lafortune, Lobe};
-use igi_capture::synth::{specular_lobe, stone};
+use igi_synth::sample_frame::{specular_lobe, stone};
 
 fn igi(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_igi"))
@@ -388,7 +388,7 @@ fn cluster_two_materials_from_csv() {
     }
 }
 
-use igi_capture::synth as measure_synth;
+use igi_synth::sample_frame as measure_synth;
 
 /// `igi brdf measure` on synthetic photographs of the sample frame (known pose, light and
 /// BRDFs), then `igi brdf fit` on its CSV; and a corner outside the photo is a clear error.

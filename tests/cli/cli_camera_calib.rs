@@ -159,7 +159,7 @@ fn nalgebra_free_inverse(m: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
 #[test]
 fn refine_recovers_a_perturbed_pose_from_a_photo_of_the_model() {
     use igi_reflect::parts::build_parts;
-    use igi_reflect::synth::ground_and_block;
+    use igi_synth::survey::ground_and_block;
     let cli = Cli::new(env!("CARGO_BIN_EXE_igi"));
     let tmp = tempfile::tempdir().unwrap();
     let parts = build_parts(ground_and_block(), 32).unwrap();
@@ -220,7 +220,7 @@ fn refine_recovers_a_perturbed_pose_from_a_photo_of_the_model() {
 
 /// The true camera and its photograph of the ground and block (`parts`) under an overcast sky.
 fn photograph_of_the_model(parts: &[igi_reflect::Part]) -> (Camera, igi_imaging::HdrImage) {
-    use igi_reflect::synth::{look_at_camera, scene_with_albedo, truth_atlas};
+    use igi_reflect::truth::{scene_with_albedo, truth_atlas};
     let atlases: Vec<Vec<Vec3>> = parts
         .iter()
         .map(|p| truth_atlas(p, |x| Vec3::new(0.5, 0.45, 0.3 + 0.05 * x.z)))
@@ -231,9 +231,9 @@ fn photograph_of_the_model(parts: &[igi_reflect::Part]) -> (Camera, igi_imaging:
         environment: Some(igi_render::Environment::from_image(&sky, 1.0).unwrap()),
         sun: None,
     };
-    let truth = look_at_camera(
-        Vec3::new(5.5, 3.0, 3.0),
-        Vec3::new(0.0, 0.0, 0.5),
+    let truth = Camera::look_at(
+        DVec3::new(5.5, 3.0, 3.0),
+        DVec3::new(0.0, 0.0, 0.5),
         128,
         96,
         70.0,

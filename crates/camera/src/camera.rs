@@ -383,6 +383,33 @@ impl Camera {
         }
     }
 
+    /// A pinhole camera (no distortion, principal point at the image centre) at `eye` looking at
+    /// `target`, world Z up in the image ([`WorldToCamera::look_at`]), with a horizontal field
+    /// of view of `hfov_deg` degrees. An error when the view direction is degenerate (`eye` at
+    /// `target`) or vertical.
+    pub fn look_at(
+        eye: DVec3,
+        target: DVec3,
+        width: u32,
+        height: u32,
+        hfov_deg: f64,
+    ) -> Result<Camera, CameraError> {
+        let pose = WorldToCamera::look_at(eye, target, DVec3::Z).ok_or_else(|| {
+            CameraError::InvalidInput(format!("camera at {eye} looking at {target} is degenerate"))
+        })?;
+        let f = 0.5 * width as f64 / (0.5 * hfov_deg.to_radians()).tan();
+        let mut cam = Camera::pinhole(
+            width,
+            height,
+            f,
+            f,
+            width as f64 / 2.0 - 0.5,
+            height as f64 / 2.0 - 0.5,
+        );
+        cam.pose = pose;
+        Ok(cam)
+    }
+
     /// Parse and validate a camera from FORMATS.md JSON text; `path` is used in errors.
     pub fn from_json_str(text: &str, path: &Path) -> Result<Camera, CameraError> {
         let j = CameraFile::parse(text)
@@ -828,5 +855,21 @@ mod look_at_tests {
         );
         assert!(check_rotation(&cam.pose.r).is_ok());
         assert!((cam.center_world() - DVec3::new(1.0, -5.0, 2.0)).length() < 1e-12);
+    }
+
+    #[test]
+    fn camera_look_at_spans_its_field_of_view_and_refuses_a_vertical_view() {
+        let (eye, target) = (DVec3::new(4.0, 0.0, 1.0), DVec3::new(0.0, 0.0, 1.0));
+        let cam = Camera::look_at(eye, target, 64, 48, 90.0).unwrap();
+        let c = cam.project(target).unwrap();
+        assert!(
+            (c.x - 31.5).abs() < 1e-9 && (c.y - 23.5).abs() < 1e-9,
+            "{c}"
+        );
+        // 45 degrees off the axis lands on the frame's edge (x = -0.5 or width - 0.5)
+        let edge = cam.project(DVec3::new(0.0, 4.0, 1.0)).unwrap();
+        assert!((edge.x - 63.5).abs() < 1e-9, "{edge}");
+        assert!(Camera::look_at(eye, eye + DVec3::Z, 64, 48, 90.0).is_err());
+        assert!(Camera::look_at(eye, eye, 64, 48, 90.0).is_err());
     }
 }

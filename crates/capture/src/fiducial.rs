@@ -9,7 +9,7 @@
 //!   detected markers' corners matched by id to their target-frame corners, solved by SQPnP and
 //!   Levenberg-Marquardt refinement with outlier rejection. The detection and the solve are
 //!   OpenCV calls (feature `opencv`, all in `igi_camera::cv`); without the feature they return
-//!   [`igi_imaging::ImagingError::NoOpenCv`].
+//!   [`igi_camera::CameraError::NoOpenCv`].
 //!
 //! The lighting board (igi-probe) and the sample frame ([`crate::sample_frame`]) are both such
 //! targets.

@@ -17,8 +17,6 @@
 //!   fitted by least squares.
 //! * [`sample_frame`]: the sample-frame recipe: from one photograph, the camera pose, the light
 //!   position and intensity, an orthographic view of the sample and [`igi_brdf::BrdfSample`]s.
-//! * [`synth`]: a synthetic sample-frame photograph with known pose, light and BRDFs (the ground
-//!   truth of the sample-frame tests and of `igi brdf measure`'s).
 //!
 //! Conventions: OpenCV cameras (`igi_camera::Camera`), world frame of the rig's own target
 //! (the sample frame: z up out of its plane), double precision geometry, linear radiance.
@@ -30,7 +28,6 @@ pub mod refine;
 pub mod sample_frame;
 pub mod sphere;
 pub mod spot;
-pub mod synth;
 
 pub use error::{CaptureError, SphereError};
 pub use sample_frame::{measure_photo, MeasureOptions, PhotoMeasurement, PoseInput, SampleFrame};

@@ -2,7 +2,7 @@
 //!
 //! Results out: what reads a solve result folder (`igi_reflect::SolveResult`) for other tools.
 //!
-//! * [`export`]: `igi export --format ply|obj|mitsuba`: per part the mesh with atlas UVs, the
+//! * [`mod@export`]: `igi export --format ply|obj|mitsuba`: per part the mesh with atlas UVs, the
 //!   albedo texture with an sRGB preview, a picture of its standard error, the per-texel lobe
 //!   maps, an igi `scene.toml` that renders like the result, and for Mitsuba 3 a `scene.xml`
 //!   (diffuse term only: Mitsuba has no Lafortune BSDF, and the file says so).

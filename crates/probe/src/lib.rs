@@ -31,7 +31,6 @@
 //! * [`resample`]: area-preserving resampling of a sphere's photograph into direction maps
 //!   (box reconstruction of the pixels, solid-angle weighted, sub-directions at the pixel
 //!   grid's Nyquist rate).
-//! * [`synth`]: a forward renderer of board photographs from a known sky, for tests and benches.
 //!
 //! All radiance is linear `f32`; directions are in igi's world frame (Z up), obtained from the
 //! camera pose (board centres are given in the camera frame).
@@ -46,7 +45,6 @@ pub mod outline;
 pub mod outputs;
 pub mod pipeline;
 pub mod resample;
-pub mod synth;
 
 pub use board::{Board, BoardSpec, BoardSphere, SphereKind};
 pub use error::{IorFitProblem, ProbeError};

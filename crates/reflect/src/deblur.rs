@@ -308,7 +308,9 @@ fn texture(r: usize, texels: Vec<Vec3>) -> Texture {
 mod tests {
     use super::*;
     use crate::parts::build_parts;
-    use crate::synth::{look_at_camera, scene_with_albedo, truth_atlas};
+    use crate::truth::{scene_with_albedo, truth_atlas};
+    use glam::DVec3;
+    use igi_camera::Camera;
     use igi_geometry::TriMesh;
     use igi_render::{render_image, Lighting, RenderOptions};
 
@@ -376,7 +378,8 @@ mod tests {
         let (parts, truth) = checker_ground(64);
         let scene = scene_with_albedo(&parts, &truth).unwrap();
         let lighting = Lighting::uniform(Vec3::ONE);
-        let camera = look_at_camera(Vec3::new(0.0, -3.0, 4.0), Vec3::ZERO, 128, 128, 60.0).unwrap();
+        let camera =
+            Camera::look_at(DVec3::new(0.0, -3.0, 4.0), DVec3::ZERO, 128, 128, 60.0).unwrap();
         let opts = RenderOptions {
             spp: 1024,
             seed: 3,

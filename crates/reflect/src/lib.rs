@@ -22,10 +22,12 @@
 //! atlas sizes, and cutting meshes into parts), [`solver`] (the iteration, over photographs
 //! already loaded: [`Photo`]), [`weights`] and [`fill`] (the documented rules),
 //! [`result`] (the result folder: atlases, `scene.toml`, `report.json`, export, sampling),
-//! [`truth`] (ground truth, and the albedo error per texel and over the surface).
+//! [`truth`] (ground truth: the true atlases and scene, and the albedo error per texel and over
+//! the surface).
 //!
 //! The survey folder, where each photo's light comes from, the run manifest, the folder lock
-//! and the demo are `igi-workflow`'s: this crate solves what it is given.
+//! and the demo are `igi-workflow`'s: this crate solves what it is given. The synthetic surveys
+//! the tests and the demo solve are made by `igi-synth`.
 
 pub mod atlas_size;
 mod deblur;
@@ -38,7 +40,6 @@ pub mod record;
 pub mod result;
 mod smooth;
 pub mod solver;
-pub mod synth;
 pub mod truth;
 pub mod weights;
 
@@ -110,15 +111,6 @@ pub enum ReflectError {
     /// Distributed iterations under another schedule than Jacobi.
     #[error("invalid input: distributed iterations need the Jacobi schedule")]
     NotJacobi,
-    /// A synthetic camera whose eye and target do not give a pose.
-    #[error("invalid input: camera at {eye} looking at {target} is degenerate")]
-    DegenerateCamera { eye: glam::Vec3, target: glam::Vec3 },
-    /// A synthetic survey whose true and recorded lightings differ in number.
-    #[error("invalid input: {lightings} lightings but {recorded} recorded lightings")]
-    LightingCount { lightings: usize, recorded: usize },
-    /// A synthetic shot naming a lighting that does not exist.
-    #[error("invalid input: shot {shot}: no lighting {lighting}")]
-    NoLighting { shot: String, lighting: usize },
     /// No photograph saw any texel of the parts being solved.
     #[error("no photograph sees any solved part (0 observations in iteration {0}): check the cameras' poses and sizes against the site, and the part selection")]
     NoObservations(u32),

@@ -1,4 +1,5 @@
-//! The result folder of a solve, and what reads it: resuming, re-lighting, export, sampling.
+//! The result folder of a solve: writing it, resuming from it, re-lighting it (export and
+//! sampling read it in `igi-export`).
 //!
 //! ```text
 //! RESULT_DIR/
@@ -19,8 +20,8 @@
 //! ```
 //! `NAME_stderr.exr` is derived in docs/SOLVER.md ("Per-texel uncertainty"): the spread of the
 //! weighted proposals of the last ratio update beyond their Monte-Carlo noise, plus that noise.
-//! [`sample_albedo`] returns it with the albedo (`igi sample`'s `sr,sg,sb`), and [`export`]
-//! pictures it as `NAME_stderr.png`.
+//! `igi_export::sample_albedo` returns it with the albedo (`igi sample`'s `sr,sg,sb`), and
+//! `igi_export::export` pictures it as `NAME_stderr.png`.
 //!
 //! Every file is written atomically, and a checkpoint is one transaction: its changed files,
 //! `scene.toml`, `convergence.png` and last `report.json` are first written into `staged/`;

@@ -1,5 +1,9 @@
 //! Ground truth for synthetic surveys, and the two errors a solve reports against it.
 //!
+//! - **The truth itself**: a part's atlas filled from a function of position ([`truth_atlas`])
+//!   and the scene of parts with given albedo atlases ([`scene_with_albedo`]), from which
+//!   [`truth_from_scene`] reads the truth of a solve (the synthetic surveys of `igi-synth` are
+//!   rendered from the same scene).
 //! - **Per texel** ([`Truth::texels`]): the true albedo at every covered texel centre of the
 //!   solved parts; the *texel MAE* is the mean absolute error over the texels seen by two or
 //!   more photographs. It weighs every texel alike, so a small part with a full atlas counts as
@@ -11,16 +15,58 @@
 //!   *surface MAE*. It is the mean error over the site's area, the same whatever the atlases'
 //!   resolution, and what `igi sample` at random survey points measures.
 
+use crate::fill::dilate;
 use crate::parts::Part;
 use crate::result::SolveResult;
+use crate::ReflectError;
 use glam::{DVec3, Vec2, Vec3};
 use igi_render::sampling::Rng;
-use igi_render::{Scene, Texture};
+use igi_render::{Albedo, Material, Scene, Texture};
 use rayon::prelude::*;
 
 /// Random points of the true surface [`truth_from_scene`] draws (fewer on a smaller surface: at
 /// most one per square millimetre).
 pub const SURFACE_POINTS: usize = 200_000;
+
+/// The true albedo atlas of a part: `f(position)` on covered texels, dilated into the gutters.
+pub fn truth_atlas(part: &Part, f: impl Fn(Vec3) -> Vec3) -> Vec<Vec3> {
+    let r = part.resolution();
+    let mut v = vec![Vec3::ZERO; r * r];
+    let mut known = vec![false; r * r];
+    for t in &part.cache.texels {
+        v[t.index as usize] = f(t.position);
+        known[t.index as usize] = true;
+    }
+    let gutter: Vec<bool> = part.coverage.pixels.iter().map(|c| c[0] > 0.0).collect();
+    dilate(&mut v, &mut known, &gutter, r, 4);
+    v
+}
+
+/// The scene of the parts with the given albedo atlases (and no lobes).
+pub fn scene_with_albedo(parts: &[Part], albedo: &[Vec<Vec3>]) -> Result<Scene, ReflectError> {
+    let objects = parts
+        .iter()
+        .zip(albedo)
+        .map(|(p, a)| {
+            let r = p.resolution();
+            let tex = Texture {
+                width: r,
+                height: r,
+                texels: a.clone(),
+            };
+            Ok((
+                p.name.clone(),
+                p.full_mesh()?.into_owned(),
+                Material {
+                    lobe_map: None,
+                    albedo: Albedo::Texture(tex),
+                    lobes: Vec::new(),
+                },
+            ))
+        })
+        .collect::<Result<_, ReflectError>>()?;
+    Ok(Scene::new(objects)?)
+}
 
 /// Ground truth for a solve over the same geometry.
 #[derive(Clone, Debug, Default)]
@@ -99,7 +145,7 @@ pub(crate) fn surface_points(
         .iter()
         .map(|p| vec![Vec3::ZERO; p.resolution().pow(2)])
         .collect();
-    let Ok(site) = crate::synth::scene_with_albedo(parts, &zeros) else {
+    let Ok(site) = scene_with_albedo(parts, &zeros) else {
         return Vec::new();
     };
     let finest = parts
@@ -294,7 +340,6 @@ mod tests {
     use super::*;
     use crate::parts::build_parts;
     use crate::solver::SolveOptions;
-    use crate::synth::scene_with_albedo;
     use igi_geometry::TriMesh;
 
     /// A `w x h` m rectangle in z = 0 with its corner at `x0` along x.

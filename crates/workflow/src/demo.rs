@@ -2,13 +2,13 @@
 //! no downloaded data.
 //!
 //! 1. Build the procedural colonnade site (`igi_geometry::procedural`) and give every part a
-//!    known per-texel albedo (`igi_reflect::synth::albedo_pattern`).
+//!    known per-texel albedo (`igi_synth::survey::albedo_pattern`).
 //! 2. Make three lighting conditions (sunny, low sun, overcast skies from `igi_render::sky`),
-//!    photograph the three-sphere board under each (`igi_probe::synth`) and recover the
+//!    photograph the three-sphere board under each (`igi_synth::board`) and recover the
 //!    lighting files from those captures with `igi_probe::process`, as `igi probe` does.
 //! 3. Path-trace the survey photographs under the true skies at a high sample count and write
 //!    the survey folder with the probe-recovered lighting files.
-//! 4. Solve with the job `igi solve` runs ([`crate::solve`]), with the ground truth attached, so the report records the albedo
+//! 4. Solve with the job `igi solve` runs ([`crate::solve::solve`]), with the ground truth attached, so the report records the albedo
 //!    error per iteration, on the true textures' 128-texel atlases, or (`igi demo --atlas-auto`)
 //!    on atlases sized from the photographs (`igi_reflect::atlas_size`); the error is measured at
 //!    the solve's texel centres against the true scene.
@@ -19,17 +19,16 @@
 
 use crate::solve::{AtlasRequest, SolveJob, SolveRequest};
 use crate::WorkflowError;
-use glam::Vec3;
+use glam::{DVec3, Vec3};
+use igi_camera::Camera;
 use igi_imaging::{write_exr, write_png_tonemapped, HdrImage};
 use igi_reflect::parts::build_parts;
 use igi_reflect::result::SolveResult;
 use igi_reflect::solver::{Progress, SolveOptions, Truth};
-use igi_reflect::synth::{
-    albedo_pattern, look_at_camera, scene_with_albedo, truth_atlas, write_survey, LightingSpec,
-    ShotSpec,
-};
+use igi_reflect::truth::{scene_with_albedo, truth_atlas};
 use igi_render::sky::{clear_sky, overcast_sky, sun_direction};
 use igi_render::{compare_images, difference_image, render_image, Comparison, RenderOptions};
+use igi_synth::survey::{albedo_pattern, write_survey, LightingSpec, ShotSpec};
 use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;
@@ -119,11 +118,11 @@ fn probe_capture(
     truth: &LightingSpec,
     pictures: &Path,
 ) -> Result<(LightingSpec, ProbeSummary), WorkflowError> {
-    use igi_probe::synth::{render_board, SynthSun};
+    use igi_synth::board::{render_board, SynthSun};
     let board = igi_probe::Board::from_json_str(BOARD, Path::new("demo board"))?;
-    let cam = look_at_camera(
-        Vec3::new(0.0, 0.0, 1.5),
-        Vec3::new(0.0, 1.0, 1.5),
+    let cam = Camera::look_at(
+        DVec3::new(0.0, 0.0, 1.5),
+        DVec3::new(0.0, 1.0, 1.5),
         640,
         480,
         40.0,
@@ -327,7 +326,7 @@ fn demo_shots(lights: &[LightingSpec], opts: &DemoOptions) -> Result<Vec<ShotSpe
             let eye = Vec3::new(dist * a.cos(), dist * a.sin(), z);
             Ok(ShotSpec {
                 id: format!("view{k}-{}", lights[l].name),
-                camera: look_at_camera(eye, TARGET, w, h, 65.0)?,
+                camera: Camera::look_at(eye.as_dvec3(), TARGET.as_dvec3(), w, h, 65.0)?,
                 lighting: l,
             })
         })
@@ -434,7 +433,8 @@ fn relight_held_out(
     let lighting = held_out.lighting()?;
     let a = 125.0f32.to_radians();
     let eye = Vec3::new(19.0 * a.cos(), 19.0 * a.sin(), 7.0);
-    let cam = look_at_camera(eye, TARGET, opts.photo_width, opts.photo_height, 65.0)?;
+    let (w, h) = (opts.photo_width, opts.photo_height);
+    let cam = Camera::look_at(eye.as_dvec3(), TARGET.as_dvec3(), w, h, 65.0)?;
     cam.save(&out.join("survey").join("cameras").join("held-out.json"))?;
     let ropts = RenderOptions {
         spp: opts.relight_spp,

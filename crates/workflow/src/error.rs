@@ -46,6 +46,9 @@ pub enum WorkflowError {
     Brdf(#[from] igi_brdf::BrdfError),
     #[error(transparent)]
     Probe(Box<igi_probe::ProbeError>),
+    /// The demo's synthetic survey could not be made.
+    #[error(transparent)]
+    Synth(#[from] igi_synth::SynthError),
 }
 
 impl WorkflowError {

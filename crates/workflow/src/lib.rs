@@ -14,10 +14,11 @@
 //!   [`igi_reflect::Photo`]; the BRDF basis fitted from the survey's samples.
 //! - [`session`]: the resume rule of a result folder: the run manifest (`run.json`), the
 //!   folder lock, `--restart`.
-//! - [`solve`]: `igi solve` as one job ([`SolveRequest`] -> [`SolveJob`] -> result), and the
+//! - [`mod@solve`]: `igi solve` as one job ([`SolveRequest`] -> [`SolveJob`] -> result), and the
 //!   inputs a cluster task reloads ([`reopen`]).
-//! - [`demo`]: the embedded default (`igi demo`): a synthetic survey made, then solved by the
-//!   same job, then re-lit from a held-out view.
+//! - [`demo`]: the embedded default (`igi demo`): a synthetic survey made (by `igi-synth`,
+//!   the one crate of synthetic worlds), then solved by the same job, then re-lit from a
+//!   held-out view.
 
 pub mod demo;
 mod error;

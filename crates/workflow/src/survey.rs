@@ -434,7 +434,7 @@ pub fn lighting_from_probe(r: &igi_probe::ProbeResult) -> Result<Lighting, Workf
 #[cfg(test)]
 mod tests {
     use super::*;
-    use glam::Vec3;
+    use glam::DVec3;
     use igi_camera::radiometry::{CameraRadiometry, Falloff, RadiometryFit};
 
     /// A survey folder whose files exist (only the camera and radiometry files are read when
@@ -444,7 +444,7 @@ mod tests {
         for f in ["site.ply", "photo.exr", "sky.toml"] {
             std::fs::write(dir.path().join(f), "").unwrap();
         }
-        igi_reflect::synth::look_at_camera(Vec3::new(5.0, 0.0, 2.0), Vec3::ZERO, 64, 48, 60.0)
+        Camera::look_at(DVec3::new(5.0, 0.0, 2.0), DVec3::ZERO, 64, 48, 60.0)
             .unwrap()
             .save(&dir.path().join("cam.json"))
             .unwrap();

@@ -1,7 +1,7 @@
 //! `igi_capture::sample_frame` against synthetic photographs of the sample frame with known pose,
-//! light and BRDFs (the renderer is `igi_capture::synth`).
+//! light and BRDFs (the renderer is `igi_synth::sample_frame`).
 
-use igi_capture::synth;
+use igi_synth::sample_frame as synth;
 
 use std::path::Path;
 

@@ -1,10 +1,10 @@
 //! `igi_capture::sample_frame` with the pose from ArUco markers (`PoseInput::Aruco`, feature `opencv`):
-//! the synthetic frame (`igi_capture::synth`) rendered with the real 4x4_50 marker patterns
+//! the synthetic frame (`igi_synth::sample_frame`) rendered with the real 4x4_50 marker patterns
 //! of OpenCV's `drawMarker` at its fiducials, measured end to end, checked against the known
 //! pose, light and BRDFs.
 #![cfg(feature = "opencv")]
 
-use igi_capture::synth;
+use igi_synth::sample_frame as synth;
 
 use std::path::Path;
 

@@ -79,8 +79,8 @@ fn board_json() -> String {
 #[cfg(feature = "opencv")]
 #[test]
 fn fiducials_give_the_board_pose_and_the_same_lighting() {
-    use igi_probe::synth::{direction_from_angles, SynthSun};
     use igi_probe::{process, ProbeOptions};
+    use igi_synth::board::{direction_from_angles, SynthSun};
     let spec = BoardSpec::from_json_str(&board_json(), Path::new("board.json")).unwrap();
     let cam = camera();
     let pose = true_pose();
@@ -147,9 +147,9 @@ fn photograph(
     cam: &Camera,
     pose: &WorldToCamera,
     board_true: &igi_probe::Board,
-    sun: igi_probe::synth::SynthSun,
+    sun: igi_synth::board::SynthSun,
 ) -> igi_imaging::HdrImage {
-    use igi_probe::synth::{render_board_with_panel, SynthPanel};
+    use igi_synth::board::{render_board_with_panel, SynthPanel};
     let markers = (0..4)
         .map(|i| {
             (

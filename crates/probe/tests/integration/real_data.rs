@@ -6,8 +6,8 @@ use igi_camera::{Camera, WorldToCamera};
 use igi_imaging::hdr::{merge_linear, LinearParams};
 use igi_imaging::io::srgb_to_linear;
 use igi_imaging::{latlong, read_image, HdrImage};
-use igi_probe::synth::render_board;
 use igi_probe::{process, Board, ProbeOptions};
+use igi_synth::board::render_board;
 use std::path::PathBuf;
 
 fn data(rel: &str) -> PathBuf {

@@ -5,8 +5,8 @@ use glam::DVec3;
 use igi_camera::Camera;
 use igi_capture::SphereError;
 use igi_imaging::{read_image, HdrImage};
-use igi_probe::synth::{direction_from_angles, render_board, SynthSun};
 use igi_probe::{process, Board, ProbeError, ProbeOptions};
+use igi_synth::board::{direction_from_angles, render_board, SynthSun};
 use std::path::PathBuf;
 
 fn fixture(case: &str) -> PathBuf {

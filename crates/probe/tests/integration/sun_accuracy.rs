@@ -4,7 +4,7 @@
 //! `datasets/mitsuba/board_fixtures.py --size 1024x768 --fx 766 --sun-el EL`, see
 //! datasets/README.md), including a low sun (14 degrees elevation).
 //!
-//! Also the error against sphere radius on synthetic boards (`synth::render_board_sensor`: lens
+//! Also the error against sphere radius on synthetic boards (`igi_synth::board::render_board_sensor`: lens
 //! blur before pixel integration, the sun's spot rendered exactly), the cause of the old
 //! synthetic boards' excess error, and the sphere centres refined from their outlines.
 //!
@@ -177,7 +177,7 @@ const SUN_RADIANCE: [f32; 3] = [8.0e4, 7.6e4, 6.8e4];
 /// A synthetic board of sphere radius `r` px (see [`synth_setup`]) rendered by `how`, the sun at
 /// `el` degrees elevation, azimuth `az`, processed with the default options.
 fn synth_errors(r: f64, el: f64, az: f64, how: Render) -> SynthRun {
-    use igi_probe::synth::{
+    use igi_synth::board::{
         direction_from_angles, gaussian_blur, render_board, render_board_sensor, Sensor, SynthSun,
     };
     let (cam, board) = synth_setup(r);
@@ -264,9 +264,9 @@ fn synthetic_40px_board_sharp_lens_spot_fit() {
 /// the rendered pixels against the true reflection point of the sun's centre, for sub-pixel
 /// positions across a pixel (the sun's azimuth stepped). Returns the worst offset in pixels.
 fn spot_centroid_worst_offset(
-    render: &dyn Fn(&Camera, &Board, igi_probe::synth::SynthSun) -> igi_imaging::HdrImage,
+    render: &dyn Fn(&Camera, &Board, igi_synth::board::SynthSun) -> igi_imaging::HdrImage,
 ) -> f64 {
-    use igi_probe::synth::{direction_from_angles, SynthSun};
+    use igi_synth::board::{direction_from_angles, SynthSun};
     let (cam, board) = synth_setup(40.0);
     let black = board.black.unwrap();
     let view = igi_capture::sphere::SphereView::new(&cam, igi_probe::SphereKind::Black, &black);
@@ -307,7 +307,7 @@ fn spot_centroid_worst_offset(
 /// 90 px sphere); `render_board_sensor` blurs before integrating, as a lens does, and keeps it.
 #[test]
 fn sensor_model_keeps_the_sun_spot_centroid_where_the_old_renderer_moved_it() {
-    use igi_probe::synth::{gaussian_blur, render_board, render_board_sensor, Sensor};
+    use igi_synth::board::{gaussian_blur, render_board, render_board_sensor, Sensor};
     let dark = igi_imaging::HdrImage::new(32, 16);
     let sensor = spot_centroid_worst_offset(&|cam, board, sun| {
         render_board_sensor(
@@ -374,7 +374,7 @@ fn centre_errors(b: &Board, truth: &Board) -> [f64; 2] {
 /// their silhouettes (`igi_probe::outline`) most of that error goes.
 #[test]
 fn outline_refinement_undoes_a_perturbed_sphere_placement() {
-    use igi_probe::synth::{direction_from_angles, render_board_sensor, Sensor, SynthSun};
+    use igi_synth::board::{direction_from_angles, render_board_sensor, Sensor, SynthSun};
     let (cam, board) = synth_setup(60.0);
     let s = direction_from_angles(14.0, 200.0);
     let sun = SynthSun {

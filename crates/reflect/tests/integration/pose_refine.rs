@@ -1,7 +1,7 @@
 //! Silhouette and edge pose refinement in the pipeline: the photographs of a synthetic site are
 //! path-traced from the true cameras; the survey's cameras are then perturbed by 2-5 px of
 //! reprojection error (as a PnP pose from a few clicked points would be), refined against the
-//! photographs with `igi_render::refine`, and the site is solved with the true, the perturbed
+//! photographs with `igi_capture::refine`, and the site is solved with the true, the perturbed
 //! and the refined cameras.
 
 use glam::{DMat3, DVec3, Vec3};
@@ -11,13 +11,12 @@ use igi_capture::refine::{refine_pose, RefineOptions};
 use igi_raycast::rt_scene_of;
 use igi_reflect::parts::build_parts;
 use igi_reflect::solver::truth_from_scene;
-use igi_reflect::synth::{
-    ground_and_block, look_at_camera, scene_with_albedo, truth_atlas, LightingSpec,
-};
+use igi_reflect::truth::{scene_with_albedo, truth_atlas};
 use igi_reflect::Photo;
 use igi_reflect::{SolveOptions, SolveResult};
 use igi_render::sky::{clear_sky, overcast_sky, sun_direction};
 use igi_render::{render_image, RenderOptions};
+use igi_synth::survey::{ground_and_block, LightingSpec};
 use rand::{Rng, SeedableRng};
 
 /// `cam` moved by a random rigid motion scaled so that `points` reproject `target_px` off (RMS).
@@ -115,7 +114,8 @@ fn refinement_from_2_to_5_px_reaches_half_a_pixel_and_the_albedo_of_true_poses()
         let eye = Vec3::new(6.5 * a.cos(), 6.5 * a.sin(), 3.5);
         for (li, l) in lightings.iter().enumerate() {
             let i = 2 * k + li;
-            let camera = look_at_camera(eye, Vec3::new(0.0, 0.0, 0.5), 128, 96, 70.0).unwrap();
+            let camera =
+                Camera::look_at(eye.as_dvec3(), DVec3::new(0.0, 0.0, 0.5), 128, 96, 70.0).unwrap();
             let ([t, r, f], after) = photo_three_ways((k, i), camera, l, &scene, &surface, &rt);
             worst = worst.max(after);
             truth_photos.push(t);

@@ -2,14 +2,16 @@
 //! against the multiresolution load of the site, checkpointed after each voxel, resumable
 //! mid-iteration with the same result as an uninterrupted run.
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
+use igi_camera::Camera;
 use igi_geometry::{PrepareOptions, SiteStore, TriMesh};
 use igi_reflect::parts::prepared_parts;
 use igi_reflect::solver::{truth_from_scene, NoProgress};
-use igi_reflect::synth::{look_at_camera, truth_atlas, write_survey, LightingSpec, ShotSpec};
+use igi_reflect::truth::truth_atlas;
 use igi_reflect::{ReflectError, SolveOptions, SolveResult};
 use igi_render::sky::{clear_sky, overcast_sky, sun_direction};
 use igi_render::RenderOptions;
+use igi_synth::survey::{write_survey, LightingSpec, ShotSpec};
 use igi_workflow::Survey;
 use std::path::Path;
 
@@ -79,7 +81,8 @@ fn colonnade(dir: &Path) -> Colonnade {
         for (li, l) in lightings.iter().enumerate() {
             shots.push(ShotSpec {
                 id: format!("cam{k}-{}", l.name),
-                camera: look_at_camera(eye, Vec3::new(0.0, 0.0, 2.5), 128, 96, 75.0).unwrap(),
+                camera: Camera::look_at(eye.as_dvec3(), DVec3::new(0.0, 0.0, 2.5), 128, 96, 75.0)
+                    .unwrap(),
                 lighting: li,
             });
         }

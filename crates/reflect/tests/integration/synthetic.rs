@@ -1,15 +1,15 @@
 //! End-to-end solve on a synthetic survey with known albedo: photos path-traced by igi-render
 //! from a true albedo atlas under a sunny and an overcast sky, then recovered by the solver.
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
+use igi_camera::Camera;
 use igi_reflect::parts::build_parts;
 use igi_reflect::solver::{truth_from_scene, NoProgress};
-use igi_reflect::synth::{
-    ground_and_block, look_at_camera, truth_atlas, write_survey, LightingSpec, ShotSpec,
-};
+use igi_reflect::truth::truth_atlas;
 use igi_reflect::{SolveOptions, SolveResult};
 use igi_render::sky::{clear_sky, overcast_sky, sun_direction};
 use igi_render::RenderOptions;
+use igi_synth::survey::{ground_and_block, write_survey, LightingSpec, ShotSpec};
 use igi_workflow::Survey;
 
 #[test]
@@ -85,7 +85,8 @@ fn write_synthetic_survey(dir: &std::path::Path) {
         for (li, l) in lightings.iter().enumerate() {
             shots.push(ShotSpec {
                 id: format!("cam{k}-{}", l.name),
-                camera: look_at_camera(eye, Vec3::new(0.0, 0.0, 0.5), 96, 96, 70.0).unwrap(),
+                camera: Camera::look_at(eye.as_dvec3(), DVec3::new(0.0, 0.0, 0.5), 96, 96, 70.0)
+                    .unwrap(),
                 lighting: li,
             });
         }
@@ -436,7 +437,8 @@ fn glossy_photos(truth_scene: &igi_render::Scene) -> Vec<igi_reflect::Photo> {
         let a = az.to_radians();
         let eye = Vec3::new(6.5 * a.cos(), 6.5 * a.sin(), 3.5);
         for (li, l) in lightings.iter().enumerate() {
-            let camera = look_at_camera(eye, Vec3::new(0.0, 0.0, 0.5), 96, 96, 70.0).unwrap();
+            let camera =
+                Camera::look_at(eye.as_dvec3(), DVec3::new(0.0, 0.0, 0.5), 96, 96, 70.0).unwrap();
             let lighting = l.lighting().unwrap();
             let opts = RenderOptions {
                 spp: 256,

@@ -1,11 +1,11 @@
 //! A survey photograph whose lighting is a lighting-board capture (`[photo.probe]`), processed
 //! with igi-probe when the photo is loaded, instead of a lighting file.
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
+use igi_camera::Camera;
 use igi_imaging::{write_exr, HdrImage};
-use igi_probe::synth::{render_board, SynthSun};
-use igi_reflect::synth::look_at_camera;
 use igi_render::sky::{clear_sky, sun_direction};
+use igi_synth::board::{render_board, SynthSun};
 use igi_workflow::{LightingSource, Survey};
 
 const BOARD: &str = r#"{ "spheres": [
@@ -80,7 +80,7 @@ fn write_site_and_photo(d: &std::path::Path) {
         indices: vec![[0, 1, 2], [0, 2, 3]],
     };
     igi_geometry::write_ply(&d.join("geometry/site.ply"), &quad).unwrap();
-    let cam = look_at_camera(Vec3::new(0.0, -3.0, 2.0), Vec3::ZERO, 16, 12, 50.0).unwrap();
+    let cam = Camera::look_at(DVec3::new(0.0, -3.0, 2.0), DVec3::ZERO, 16, 12, 50.0).unwrap();
     cam.save(&d.join("cameras/p.json")).unwrap();
     let mut img = HdrImage::new(16, 12);
     img.pixels.iter_mut().for_each(|p| *p = [0.2; 3]);
@@ -93,9 +93,9 @@ fn write_board_capture(d: &std::path::Path, sun: Vec3, radiance: Vec3) {
     let sky = clear_sky(128, 64, sun, 0.6, Vec3::splat(0.08));
     std::fs::write(d.join("probes/board.json"), BOARD).unwrap();
     let board = igi_probe::Board::load(&d.join("probes/board.json")).unwrap();
-    let board_cam = look_at_camera(
-        Vec3::new(0.0, 0.0, 1.5),
-        Vec3::new(0.0, 1.0, 1.5),
+    let board_cam = Camera::look_at(
+        DVec3::new(0.0, 0.0, 1.5),
+        DVec3::new(0.0, 1.0, 1.5),
         640,
         480,
         40.0,

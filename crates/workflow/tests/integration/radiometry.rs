@@ -5,19 +5,19 @@
 //! solver's albedo error with the calibration matches the error on the clean photographs; without
 //! it the error is several times larger.
 
-use glam::{DVec2, Vec3};
+use glam::{DVec2, DVec3, Vec3};
 use igi_camera::radiometry::{
     apply_color_matrix, fit_radiometry, render_checker, CameraRadiometry, Falloff, RadiometryInputs,
 };
+use igi_camera::Camera;
 use igi_imaging::HdrImage;
 use igi_reflect::parts::build_parts;
 use igi_reflect::solver::truth_from_scene;
-use igi_reflect::synth::{
-    ground_and_block, look_at_camera, truth_atlas, write_survey, LightingSpec, ShotSpec,
-};
+use igi_reflect::truth::truth_atlas;
 use igi_reflect::{SolveOptions, SolveResult};
 use igi_render::sky::{clear_sky, overcast_sky, sun_direction};
 use igi_render::RenderOptions;
+use igi_synth::survey::{ground_and_block, write_survey, LightingSpec, ShotSpec};
 use igi_workflow::Survey;
 use rand::{Rng, SeedableRng};
 use std::path::Path;
@@ -164,8 +164,8 @@ fn write_clean_survey(dir: &Path, res: u32, (w, h): (usize, usize)) -> Vec<ShotS
         let a = az.to_radians();
         let eye = Vec3::new(6.5 * a.cos(), 6.5 * a.sin(), 3.5);
         for (li, l) in lightings.iter().enumerate() {
-            let camera =
-                look_at_camera(eye, Vec3::new(0.0, 0.0, 0.5), w as u32, h as u32, 70.0).unwrap();
+            let target = DVec3::new(0.0, 0.0, 0.5);
+            let camera = Camera::look_at(eye.as_dvec3(), target, w as u32, h as u32, 70.0).unwrap();
             shots.push(ShotSpec {
                 id: format!("cam{k}-{}", l.name),
                 camera,

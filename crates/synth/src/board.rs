@@ -1,15 +1,15 @@
-//! A small reference renderer of board photographs from a known lat-long sky (and sun), for
-//! round-trip tests and benchmarks. Independent of the unwarping code: it traces camera rays
-//! forward (pixel -> sphere -> reflected direction), with `ss` x `ss` supersampling.
+//! A small reference renderer of lighting-board photographs (`igi_probe::Board`) from a known
+//! lat-long sky (and sun), for round-trip tests, benchmarks and the demo's probe captures.
+//! Independent of the unwarping code: it traces camera rays forward (pixel -> sphere ->
+//! reflected direction), with `ss` x `ss` supersampling.
 
-use crate::board::Board;
-use crate::board::SphereKind;
-use crate::envmap::{latlong_lookup, Integrator};
 use glam::DVec3;
 use igi_camera::{Camera, WorldToCamera};
 use igi_capture::sphere::SphereView;
 use igi_capture::spot::pixel_response;
 use igi_imaging::HdrImage;
+use igi_probe::envmap::{disk_cosine_solid_angle, latlong_lookup, Integrator};
+use igi_probe::{Board, SphereKind};
 use rayon::prelude::*;
 
 /// A sun for [`render_board`]: direction (unit, toward the sun), radiance, angular diameter.
@@ -401,8 +401,7 @@ impl<'a> Scene<'a> {
             .unwrap_or([0.0; 3])
             .map(|v| v as f64);
         if let Some(s) = self.sun {
-            let k = crate::envmap::disk_cosine_solid_angle(s.diameter_deg)
-                * n.dot(s.direction).max(0.0);
+            let k = disk_cosine_solid_angle(s.diameter_deg) * n.dot(s.direction).max(0.0);
             for c in 0..3 {
                 e[c] += k * s.radiance[c] as f64;
             }

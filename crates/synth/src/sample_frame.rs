@@ -1,5 +1,5 @@
 //! A synthetic photograph of the hand-held sample frame with known pose, light and BRDFs: the
-//! ground truth of the tests of [`crate::sample_frame`] and of `igi brdf measure`.
+//! ground truth of the tests of [`igi_capture::sample_frame`] and of `igi brdf measure`.
 //!
 //! Each pixel's camera ray (through the distorted lens) is cast against the frame plane z = 0
 //! and the two black spheres. A point light of intensity `intensity` at `light` lights the
@@ -11,11 +11,11 @@
 //! `light_radiance`. Sphere pixels are supersampled 8x8; pixels within 3 px of a highlight are
 //! integrated finely through a Gaussian point spread of 0.8 px (as a lens spreads a small
 //! highlight over a few pixels); then optional clipping (saturation).
-use crate::sample_frame::SampleFrame;
-use crate::sphere::ray_sphere;
 use glam::{DVec2, DVec3, Vec3};
 use igi_brdf::{Lafortune, Lobe};
 use igi_camera::{Camera, Distortion, WorldToCamera};
+use igi_capture::sample_frame::SampleFrame;
+use igi_capture::sphere::ray_sphere;
 use igi_imaging::HdrImage;
 use std::path::Path;
 

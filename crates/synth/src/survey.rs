@@ -1,13 +1,12 @@
 //! Synthetic surveys with known albedo: the embedded default (`igi demo`) and the solver's
-//! tests. A site's parts get a known per-texel albedo (a function of world position), photos
-//! are path-traced from it under given lightings, and everything is written as a FORMATS.md
-//! survey folder plus a `truth/scene.toml` holding the true albedo.
+//! tests. A site's parts get a known per-texel albedo (a function of world position, e.g.
+//! [`albedo_pattern`] through [`igi_reflect::truth::truth_atlas`]), photos are path-traced from
+//! it under given lightings, and everything is written as a FORMATS.md survey folder plus a
+//! `truth/scene.toml` holding the true albedo.
 
-use crate::fill::dilate;
-use crate::parts::Part;
-use crate::ReflectError;
-use glam::{DVec3, Vec3};
-use igi_camera::{Camera, WorldToCamera};
+use crate::SynthError;
+use glam::Vec3;
+use igi_camera::Camera;
 use igi_formats::lighting::{EnvironmentSection, LightingFile, SunSection};
 use igi_formats::scene::{AlbedoEntry, ObjectEntry, SceneFile};
 use igi_formats::survey::{PhotoEntry, SiteSection, SurveyFile};
@@ -15,10 +14,9 @@ use igi_formats::{f32_decimals, TomlFile};
 use igi_geometry::TriMesh;
 use igi_imaging::color::SUN_ANGULAR_DIAMETER_DEG;
 use igi_imaging::HdrImage;
-use igi_render::{
-    render_images, Albedo, Environment, Lighting, Material, RenderJob, RenderOptions, Scene, Sun,
-    Texture,
-};
+use igi_reflect::truth::scene_with_albedo;
+use igi_reflect::Part;
+use igi_render::{render_images, Environment, Lighting, RenderJob, RenderOptions, Scene, Sun};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -43,46 +41,6 @@ pub fn albedo_pattern(p: Vec3) -> Vec3 {
     (base * stripe).clamp(Vec3::splat(0.08), Vec3::splat(0.85))
 }
 
-/// The true albedo atlas of a part: `f(position)` on covered texels, dilated into the gutters.
-pub fn truth_atlas(part: &Part, f: impl Fn(Vec3) -> Vec3) -> Vec<Vec3> {
-    let r = part.resolution();
-    let mut v = vec![Vec3::ZERO; r * r];
-    let mut known = vec![false; r * r];
-    for t in &part.cache.texels {
-        v[t.index as usize] = f(t.position);
-        known[t.index as usize] = true;
-    }
-    let gutter: Vec<bool> = part.coverage.pixels.iter().map(|c| c[0] > 0.0).collect();
-    dilate(&mut v, &mut known, &gutter, r, 4);
-    v
-}
-
-/// The scene of the parts with the given albedo atlases (and no lobes).
-pub fn scene_with_albedo(parts: &[Part], albedo: &[Vec<Vec3>]) -> Result<Scene, ReflectError> {
-    let objects = parts
-        .iter()
-        .zip(albedo)
-        .map(|(p, a)| {
-            let r = p.resolution();
-            let tex = Texture {
-                width: r,
-                height: r,
-                texels: a.clone(),
-            };
-            Ok((
-                p.name.clone(),
-                p.full_mesh()?.into_owned(),
-                Material {
-                    lobe_map: None,
-                    albedo: Albedo::Texture(tex),
-                    lobes: Vec::new(),
-                },
-            ))
-        })
-        .collect::<Result<_, ReflectError>>()?;
-    Ok(Scene::new(objects)?)
-}
-
 /// A lighting condition: a lat-long sky and an optional sun (direction, radiance).
 pub struct LightingSpec {
     pub name: String,
@@ -92,7 +50,7 @@ pub struct LightingSpec {
 
 impl LightingSpec {
     /// The in-memory lighting.
-    pub fn lighting(&self) -> Result<Lighting, ReflectError> {
+    pub fn lighting(&self) -> Result<Lighting, SynthError> {
         let environment = Some(Environment::from_image(&self.sky, 1.0)?);
         let sun = match self.sun {
             Some((d, l)) => Some(Sun::new(d, l, SUN_ANGULAR_DIAMETER_DEG as f32)?),
@@ -102,7 +60,7 @@ impl LightingSpec {
     }
 
     /// Writes `NAME.toml` and `NAME_sky.exr` into `dir` (FORMATS.md lighting file).
-    pub fn write(&self, dir: &Path) -> Result<PathBuf, ReflectError> {
+    pub fn write(&self, dir: &Path) -> Result<PathBuf, SynthError> {
         igi_imaging::write_exr(&dir.join(format!("{}_sky.exr", self.name)), &self.sky)?;
         let file = LightingFile {
             environment: Some(EnvironmentSection {
@@ -180,29 +138,6 @@ pub fn ground_and_block() -> Vec<(String, TriMesh)> {
     vec![("ground".to_string(), ground), ("block".to_string(), block)]
 }
 
-/// A pinhole camera at `eye` looking at `target` with a horizontal field of view in degrees.
-pub fn look_at_camera(
-    eye: Vec3,
-    target: Vec3,
-    width: u32,
-    height: u32,
-    hfov_deg: f64,
-) -> Result<Camera, ReflectError> {
-    let pose = WorldToCamera::look_at(eye.as_dvec3(), target.as_dvec3(), DVec3::Z)
-        .ok_or(ReflectError::DegenerateCamera { eye, target })?;
-    let f = 0.5 * width as f64 / (0.5 * hfov_deg.to_radians()).tan();
-    let mut cam = Camera::pinhole(
-        width,
-        height,
-        f,
-        f,
-        width as f64 / 2.0 - 0.5,
-        height as f64 / 2.0 - 0.5,
-    );
-    cam.pose = pose;
-    Ok(cam)
-}
-
 /// One photograph of a synthetic survey.
 pub struct ShotSpec {
     pub id: String,
@@ -230,11 +165,13 @@ pub fn write_survey(
     shots: &[ShotSpec],
     render: &RenderOptions,
     progress: &(dyn Fn(usize, usize) + Sync),
-) -> Result<(), ReflectError> {
+) -> Result<(), SynthError> {
     for sub in ["geometry", "truth", "lighting", "cameras", "photos"] {
         let p = dir.join(sub);
-        std::fs::create_dir_all(&p)
-            .map_err(|e| ReflectError::file(&p, format!("cannot create folder: {e}")))?;
+        std::fs::create_dir_all(&p).map_err(|e| SynthError::File {
+            path: p.clone(),
+            msg: format!("cannot create folder: {e}"),
+        })?;
     }
     let prepared = parts
         .iter()
@@ -277,7 +214,7 @@ fn write_truth(
     dir: &Path,
     parts: &[Part],
     truth: &[Vec<Vec3>],
-) -> Result<Vec<PathBuf>, ReflectError> {
+) -> Result<Vec<PathBuf>, SynthError> {
     let mut truth_scene = SceneFile::default();
     let mut meshes = Vec::new();
     for (p, a) in parts.iter().zip(truth) {
@@ -315,9 +252,9 @@ fn write_lightings(
     dir: &Path,
     lightings: &[LightingSpec],
     recorded: &[LightingSpec],
-) -> Result<Vec<Lighting>, ReflectError> {
+) -> Result<Vec<Lighting>, SynthError> {
     if recorded.len() != lightings.len() {
-        return Err(ReflectError::LightingCount {
+        return Err(SynthError::LightingCount {
             lightings: lightings.len(),
             recorded: recorded.len(),
         });
@@ -349,12 +286,12 @@ impl Shoot<'_> {
         &self,
         shots: &[ShotSpec],
         progress: &(dyn Fn(usize, usize) + Sync),
-    ) -> Result<Vec<HdrImage>, ReflectError> {
+    ) -> Result<Vec<HdrImage>, SynthError> {
         let mut jobs = Vec::with_capacity(shots.len());
         for (i, s) in shots.iter().enumerate() {
             // rendered under the true lighting; the survey records `recorded[s.lighting]`
             let known = self.recorded.get(s.lighting).and(self.lit.get(s.lighting));
-            let lighting = known.ok_or_else(|| ReflectError::NoLighting {
+            let lighting = known.ok_or_else(|| SynthError::NoLighting {
                 shot: s.id.clone(),
                 lighting: s.lighting,
             })?;
@@ -379,7 +316,7 @@ impl Shoot<'_> {
 
     /// Writes shot `s`'s photograph `image` into `photos/`, saves its camera into `cameras/`;
     /// returns its survey entry.
-    fn photo(&self, s: &ShotSpec, image: &HdrImage) -> Result<PhotoEntry, ReflectError> {
+    fn photo(&self, s: &ShotSpec, image: &HdrImage) -> Result<PhotoEntry, SynthError> {
         let l = &self.recorded[s.lighting];
         let dir = self.dir;
         igi_imaging::write_exr(&dir.join("photos").join(format!("{}.exr", s.id)), image)?;
