@@ -114,7 +114,7 @@ fn image_header(path: &Path, n: usize, line: &str) -> Result<ColmapImage, Import
 /// Parses an image's second line: `X Y POINT3D_ID` triples.
 fn image_points(path: &Path, n: usize, line: &str) -> Result<Vec<([f64; 2], i64)>, ImportError> {
     let tok: Vec<&str> = line.split_whitespace().collect();
-    if tok.len() % 3 != 0 {
+    if !tok.len().is_multiple_of(3) {
         let problem = format!("{} fields: 2D points are X Y POINT3D_ID triples", tok.len());
         return Err(ImportError::text(path, n, problem));
     }
@@ -152,7 +152,7 @@ pub fn read_points(path: &Path) -> Result<Vec<ColmapPoint>, ImportError> {
         let tok: Vec<&str> = line.split_whitespace().collect();
         let f = |i: usize, what: &str| field::<f64>(path, n, &tok, i, what);
         let c = |i: usize, what: &str| field::<u8>(path, n, &tok, i, what);
-        if tok.len() < 8 || (tok.len() - 8) % 2 != 0 {
+        if tok.len() < 8 || !(tok.len() - 8).is_multiple_of(2) {
             let problem = format!(
                 "{} fields: a point is 8 fields and (IMAGE_ID POINT2D_IDX) pairs",
                 tok.len()
