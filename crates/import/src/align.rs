@@ -293,6 +293,12 @@ pub fn align(
     cameras: &HashMap<String, Camera>,
     opts: AlignOptions,
 ) -> Result<Alignment, ImportError> {
+    if let Some(m) = opts.max_residual.filter(|m| !(*m > 0.0 && m.is_finite())) {
+        return Err(ImportError::control(
+            path,
+            format!("--max-residual {m} m is not a positive distance"),
+        ));
+    }
     let groups = group(path, obs, cameras)?;
     let model = triangulate_all(path, &groups)?;
     let world: Vec<DVec3> = groups.iter().map(|g| g.world).collect();

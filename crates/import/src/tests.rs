@@ -613,7 +613,11 @@ fn a_failed_import_writes_nothing() {
         },
         ..job.clone()
     };
-    assert!(import_colmap(&bad).is_err());
+    let e = import_colmap(&bad).unwrap_err().to_string();
+    assert!(
+        e.ends_with("control.csv: --max-residual -1 m is not a positive distance"),
+        "{e}"
+    );
     assert!(!job.output.exists());
     let no_mesh = ColmapImport {
         mesh: dir.path().join("none.ply"),
