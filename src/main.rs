@@ -61,6 +61,9 @@ enum Command {
     /// Opacity hulls (Matusik et al. 2002): backdrops, Middlebury import, build, render.
     #[command(subcommand)]
     Hull(cmd::hull::HullCmd),
+    /// Photogrammetry models as survey folders (COLMAP), aligned to the scan by control points.
+    #[command(subcommand)]
+    Import(cmd::import::ImportCmd),
     /// The embedded default: a procedural site photographed under three skies, solved, re-lit.
     Demo(cmd::demo::DemoArgs),
 }
@@ -85,6 +88,7 @@ fn main() {
         Command::Slf(c) => cmd::slf::run(c, &ctx),
         Command::Hull(c) => cmd::hull::run(c, &ctx),
         Command::Cluster(c) => cmd::cluster::run(c, &ctx),
+        Command::Import(c) => cmd::import::run(c, &ctx),
     };
     if let Err(e) = result {
         eprintln!("error: {}", error_chain(&e));

@@ -7,6 +7,7 @@ pub mod compare;
 pub mod demo;
 pub mod hdr;
 pub mod hull;
+pub mod import;
 pub mod prepare;
 pub mod probe;
 pub mod render;

@@ -11,6 +11,7 @@ mod cli_geometry;
 mod cli_harden;
 mod cli_hull;
 mod cli_imaging;
+mod cli_import;
 mod cli_probe;
 mod cli_radiometry_detect;
 mod cli_render;

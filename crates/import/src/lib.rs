@@ -1,0 +1,41 @@
+//! # igi-import
+//!
+//! Photogrammetry models as survey folders: COLMAP sparse models (text and binary) converted
+//! to the contract's cameras and aligned to the scan by ground control points.
+//!
+//! * [`model`]: the model as read ([`ColmapModel`]: cameras, images, 3D points), COLMAP's
+//!   camera models, and the conversion of an image to the contract camera
+//!   ([`model::contract_camera`]): SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV and
+//!   FULL_OPENCV with k4 = k5 = k6 = 0 convert exactly to OpenCV's (k1, k2, p1, p2, k3); any
+//!   other model is refused by name. COLMAP puts the centre of the top-left pixel at
+//!   (0.5, 0.5), the contract at (0, 0): the principal point moves by -0.5 px. COLMAP's poses
+//!   are world to camera with Hamilton quaternions (w, x, y, z) and OpenCV's camera axes.
+//! * [`text`], [`binary`]: the readers (errors name the file and the line, or the byte offset;
+//!   counts are checked against the bytes left before anything is allocated) and writers of
+//!   `cameras`, `images`, `points3D`.
+//! * [`colmap`]: a sparse folder read whole, `.bin` preferred over `.txt`; `rigs` and `frames`
+//!   are ignored.
+//! * [`align`]: control points triangulated from their observations, the similarity
+//!   `x_scan = s R x_model + t` fitted by Umeyama's method in a deterministic RANSAC and
+//!   refitted on the inliers, per-point residuals in metres and pixels.
+//! * [`survey`]: `igi import colmap` itself ([`import_colmap`]): everything checked, then
+//!   `cameras/NAME.json`, `alignment.json` and `survey.toml` written atomically.
+
+pub mod align;
+pub mod binary;
+pub mod colmap;
+mod error;
+pub mod model;
+pub mod survey;
+pub mod text;
+
+pub use align::{AlignOptions, Alignment, Similarity};
+pub use binary::write_binary;
+pub use colmap::read_model;
+pub use error::ImportError;
+pub use model::ColmapModel;
+pub use survey::{import_colmap, ColmapImport, ImportReport};
+pub use text::write_text;
+
+#[cfg(test)]
+mod tests;
