@@ -129,8 +129,10 @@ impl Slurm {
 
 impl Slurm {
     /// Cancels a task of iteration `k` while it runs; one that finished before the cancel
-    /// reached it does not count, and another is tried.
-    fn cancel_a_running_task(&self, logs: &Path, k: u32, limit: Duration) {
+    /// reached it (its log holds no CANCELLED, or its done report was already written, so
+    /// that status counts it done) does not count, and another is tried.
+    fn cancel_a_running_task(&self, result: &Path, k: u32, limit: Duration) {
+        let logs = result.join(format!("cluster/iter_{k}/logs"));
         let t0 = Instant::now();
         let mut tried = Vec::new();
         loop {
@@ -165,7 +167,7 @@ impl Slurm {
             }
             let log = logs.join(format!("task-{chunk}-{a}.out"));
             let text = std::fs::read_to_string(&log).unwrap_or_default();
-            if text.contains("CANCELLED") {
+            if text.contains("CANCELLED") && !states(&self.status(result), "lost").is_empty() {
                 return;
             }
         }
@@ -341,7 +343,7 @@ fn first_iteration_fails(slurm: &Slurm, survey: &Path, result: &Path, b: &Broken
 /// that too, and the run finishes.
 fn resume_repairs_failed_and_lost_tasks(slurm: &Slurm, result: &Path, limit: Duration) {
     slurm.igi().ok(&["cluster", "resume", s(result)]);
-    slurm.cancel_a_running_task(&result.join("cluster/iter_2/logs"), 2, limit);
+    slurm.cancel_a_running_task(result, 2, limit);
     let st = slurm.settle(result, limit);
     assert_eq!(st["iteration"], 2, "{st}");
     let lost = states(&st, "lost");
