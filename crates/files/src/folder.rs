@@ -49,6 +49,20 @@ pub fn check_output_folder(dir: &Path) -> Result<(), FilesError> {
     }
 }
 
+/// Refuses an output file name whose extension (any case) is none of `exts` (without the dot):
+/// "PATH: output must be .exr or .hdr".
+pub fn check_output_extension(path: &Path, exts: &[&str]) -> Result<(), FilesError> {
+    let found = path.extension().map(|e| e.to_string_lossy().to_lowercase());
+    if found.is_some_and(|f| exts.contains(&f.as_str())) {
+        return Ok(());
+    }
+    let expected: Vec<String> = exts.iter().map(|e| format!(".{e}")).collect();
+    Err(FilesError::Extension {
+        path: path.to_path_buf(),
+        expected: expected.join(" or "),
+    })
+}
+
 /// Checks, before any work, that a file can be written at `path`: its folder exists, is a
 /// folder and is writable, and `path` is not itself a folder.
 pub fn check_output_file(path: &Path) -> Result<(), FilesError> {

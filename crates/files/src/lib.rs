@@ -7,7 +7,7 @@
 //!   the same folder, renamed into place, flushed first on shared file systems) and the
 //!   cleanup of killed writers' temporary files ([`remove_dead_temps`]).
 //! * [`folder`]: output files and folders checked before the first byte of work
-//!   ([`check_output_folder`], [`check_output_file`]).
+//!   ([`check_output_folder`], [`check_output_file`], [`check_output_extension`]).
 //! * [`run`]: run manifests (`run.json`: input fingerprints and result-changing options, so a
 //!   resumed command never mixes two runs' work) and the one-writer folder lock
 //!   ([`FolderLock`]).
@@ -17,7 +17,7 @@ pub mod folder;
 pub mod run;
 
 pub use atomic::{remove_dead_temps, write_atomic, write_text_atomic};
-pub use folder::{check_output_file, check_output_folder};
+pub use folder::{check_output_extension, check_output_file, check_output_folder};
 pub use run::{Fingerprint, FolderLock, FolderState, RunManifest, RUN_FILE};
 
 use std::path::PathBuf;
@@ -34,6 +34,10 @@ pub enum FilesError {
     /// A path that names no file (it ends in `..` or is empty).
     #[error("invalid input: {}: not a file path", .0.display())]
     NotAFilePath(PathBuf),
+    /// An output file name without the extension of the format written (`expected`: ".exr",
+    /// ".exr or .hdr").
+    #[error("{}: output must be {expected}", path.display())]
+    Extension { path: PathBuf, expected: String },
     /// An output file name that is a folder.
     #[error("invalid input: {}: is a folder, not a file name", .0.display())]
     IsAFolder(PathBuf),
