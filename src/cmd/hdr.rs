@@ -1,9 +1,8 @@
 //! `igi hdr merge`: merge exposure brackets into linear radiance (EXR or Radiance HDR).
 use crate::report::Ctx;
-use anyhow::{bail, Context};
-use igi_imaging::hdr::{self, LinearParams, ResponseParams};
-use igi_imaging::{read_image, write_exr, write_hdr, HdrImage};
-use std::path::{Path, PathBuf};
+use igi_imaging::hdr::{LinearParams, ResponseParams};
+use igi_imaging::merge::{merge_files, ExposureTimes, MergeMethod, MergeRequest, MergeStep};
+use std::path::PathBuf;
 
 #[derive(clap::Subcommand, Debug)]
 pub enum HdrCmd {
@@ -59,117 +58,67 @@ pub fn run(c: HdrCmd, ctx: &Ctx) -> anyhow::Result<()> {
     }
 }
 
-fn write_output(path: &Path, img: &HdrImage) -> anyhow::Result<()> {
-    match path
-        .extension()
-        .map(|e| e.to_string_lossy().to_lowercase())
-        .as_deref()
-    {
-        Some("exr") => write_exr(path, img)?,
-        Some("hdr") => write_hdr(path, img)?,
-        _ => unreachable!("checked before"),
+impl MergeArgs {
+    /// The merge `igi hdr merge` asks for.
+    fn request(&self) -> MergeRequest {
+        let times = if !self.times.is_empty() {
+            ExposureTimes::Given(self.times.clone())
+        } else if let Some(f) = &self.times_file {
+            ExposureTimes::File(f.clone())
+        } else {
+            ExposureTimes::Exif
+        };
+        let method = if self.linear {
+            MergeMethod::Linear(LinearParams {
+                noise_floor: self.noise_floor,
+                saturation: self.saturation,
+            })
+        } else {
+            MergeMethod::DebevecMalik(ResponseParams {
+                lambda: self.lambda,
+                samples: self.samples,
+                seed: self.seed,
+            })
+        };
+        MergeRequest {
+            images: self.images.clone(),
+            times,
+            method,
+            response_out: self.response_out.clone(),
+            output: self.output.clone(),
+        }
     }
-    Ok(())
 }
 
 fn merge(a: MergeArgs, ctx: &Ctx) -> anyhow::Result<()> {
-    let ext = a
-        .output
-        .extension()
-        .map(|e| e.to_string_lossy().to_lowercase());
-    if !matches!(ext.as_deref(), Some("exr") | Some("hdr")) {
-        bail!("{}: output must be .exr or .hdr", a.output.display());
-    }
-    if a.linear && a.response_out.is_some() {
-        bail!("--response-out needs a response: it is not recovered with --linear");
-    }
-    let times = exposure_times(&a)?;
     let pb = ctx.progress(a.images.len() as u64 + 2, "reading");
-    let mut images = Vec::with_capacity(a.images.len());
-    for p in &a.images {
-        images.push(read_image(p)?);
-        pb.inc(1);
-    }
-    hdr::validate_brackets(&images, &times, &a.images)?;
-    pb.set_message("merging");
-    let (merged, stats, resp) = merge_images(&a, &images, &times)?;
-    pb.inc(2);
-    if let (Some(path), Some(r)) = (&a.response_out, &resp) {
-        r.write_csv(path)?;
-    }
-    write_output(&a.output, &merged)?;
+    let r = merge_files(&a.request(), &|s| match s {
+        MergeStep::Read => pb.inc(1),
+        MergeStep::Merging => pb.set_message("merging"),
+        MergeStep::Merged => pb.inc(2),
+    })?;
     pb.finish_and_clear();
     if a.json {
         let mut j = serde_json::json!({
             "output": a.output,
             "method": if a.linear { "linear" } else { "debevec-malik" },
-            "exposures": stats.exposures,
-            "width": stats.width,
-            "height": stats.height,
-            "valid_fraction": stats.valid_fraction,
-            "times": times,
+            "exposures": r.stats.exposures,
+            "width": r.stats.width,
+            "height": r.stats.height,
+            "valid_fraction": r.stats.valid_fraction,
+            "times": r.times,
         });
-        if let Some(r) = &resp {
-            j["response_monotonic"] = serde_json::json!(r.is_monotonic());
-            j["lambda"] = serde_json::json!(r.lambda);
+        if let Some(resp) = &r.response {
+            j["response_monotonic"] = serde_json::json!(resp.monotonic);
+            j["lambda"] = serde_json::json!(resp.lambda);
         }
         crate::report::print_json(&j)?;
     } else {
         tracing::info!(
             "merged {} exposures, valid fraction {:.4}",
-            stats.exposures,
-            stats.valid_fraction
+            r.stats.exposures,
+            r.stats.valid_fraction
         );
     }
     Ok(())
-}
-
-/// One exposure time per image: `--times`, `--times-file`, or each image's EXIF.
-fn exposure_times(a: &MergeArgs) -> anyhow::Result<Vec<f64>> {
-    let times: Vec<f64> = if !a.times.is_empty() {
-        a.times
-            .iter()
-            .map(|t| hdr::parse_time(t))
-            .collect::<Result<_, _>>()?
-    } else if let Some(f) = &a.times_file {
-        hdr::read_times_file(f)?
-    } else {
-        a.images
-            .iter()
-            .map(|p| hdr::exif_exposure_time(p))
-            .collect::<Result<_, _>>()
-            .context("missing exposure times: pass --times or --times-file")?
-    };
-    if times.len() != a.images.len() {
-        bail!(
-            "missing exposure times: {} image(s) but {} time(s) (pass one time per image)",
-            a.images.len(),
-            times.len()
-        );
-    }
-    Ok(times)
-}
-
-/// Linear merge, or Debevec-Malik: the recovered response, then the merge through it.
-fn merge_images(
-    a: &MergeArgs,
-    images: &[HdrImage],
-    times: &[f64],
-) -> anyhow::Result<(HdrImage, hdr::MergeStats, Option<hdr::Response>)> {
-    if a.linear {
-        let p = LinearParams {
-            noise_floor: a.noise_floor,
-            saturation: a.saturation,
-        };
-        let (m, s) = hdr::merge_linear(images, times, p)?;
-        return Ok((m, s, None));
-    }
-    let p = ResponseParams {
-        lambda: a.lambda,
-        samples: a.samples,
-        seed: a.seed,
-    };
-    let r = hdr::recover_response(images, times, p)?;
-    let (m, s) = hdr::merge_ldr(images, times, &r)?;
-    Ok((m, s, Some(r)))
 }

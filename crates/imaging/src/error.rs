@@ -126,6 +126,20 @@ pub enum HdrError {
     /// The SVD solve failed (nalgebra's reason).
     #[error("response least squares failed: {0}")]
     Solve(&'static str),
+    /// A response file asked of a linear merge, which recovers none.
+    #[error("--response-out needs a response: it is not recovered with --linear")]
+    ResponseOutLinear,
+    /// Brackets whose EXIF gives no exposure time (`source`: why).
+    #[error("missing exposure times: pass --times or --times-file")]
+    MissingTimes {
+        #[source]
+        source: Box<ImagingError>,
+    },
+    /// A number of exposure times other than the number of brackets.
+    #[error(
+        "missing exposure times: {images} image(s) but {times} time(s) (pass one time per image)"
+    )]
+    TimesPerImage { images: usize, times: usize },
 }
 
 /// Images that cannot be compared (`metrics`).
@@ -140,4 +154,40 @@ pub enum CompareError {
     },
     #[error("no pixel is valid in both images")]
     NoCommonPixels,
+    /// An image of a comparison that cannot be read.
+    #[error("reading {}", path.display())]
+    Read {
+        path: PathBuf,
+        #[source]
+        source: Box<ImagingError>,
+    },
+    /// The `--within` mask of a comparison is not an RGBA EXR.
+    #[error("{}: --within needs an RGBA EXR (it has no alpha)", path.display())]
+    NoAlpha { path: PathBuf },
+    /// The `--within` mask is not the size of the compared image.
+    #[error("{}: --within is {within_pixels} pixels but {} is {image_pixels}", within.display(), image.display())]
+    WithinSize {
+        within: PathBuf,
+        within_pixels: usize,
+        image: PathBuf,
+        image_pixels: usize,
+    },
+    /// Two image files that cannot be compared (`source`: why).
+    #[error("comparing {} with {}", a.display(), b.display())]
+    Comparing {
+        a: PathBuf,
+        b: PathBuf,
+        #[source]
+        source: Box<ImagingError>,
+    },
+}
+
+impl CompareError {
+    /// [`CompareError::Read`] of `path`.
+    pub(crate) fn read(path: &std::path::Path, source: ImagingError) -> Self {
+        CompareError::Read {
+            path: path.to_path_buf(),
+            source: Box::new(source),
+        }
+    }
 }

@@ -8,10 +8,13 @@
 //!   sRGB transfer functions.
 //! * [`hdr`]: merging exposure brackets (linear sensors, the least-squares slope of Matusik
 //!   et al. 2002, or LDR via Debevec & Malik 1997 response recovery), EXIF exposure times.
+//! * [`merge`]: `igi hdr merge` as one job ([`merge::merge_files`]: brackets and times read,
+//!   checked, merged, written).
 //! * [`latlong`]: the lat-long (equirectangular) mapping of FORMATS.md (world Z up).
 //! * [`color`]: shared conventions (Rec. 709 luminance, the median, the default sun size).
 //! * [`metrics`]: image comparison (RMSE, relative mean difference, PSNR, noise-explained
-//!   RMSE) and false-colour difference pictures.
+//!   RMSE) and false-colour difference pictures; `igi compare` as one job
+//!   ([`metrics::compare_files`]: the image files read, uncovered pixels masked, compared).
 //! * [`mask`]: binary masks (threshold, disk dilation and erosion, hole filling up to an area,
 //!   frame contact, IoU).
 //! * [`csv`]: the one reader of igi's numeric CSV tables (header by name, comments, errors
@@ -32,6 +35,7 @@ mod image;
 pub mod io;
 pub mod latlong;
 pub mod mask;
+pub mod merge;
 pub mod metrics;
 
 pub use error::{CompareError, HdrError, ImagingError};

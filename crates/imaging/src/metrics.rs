@@ -245,3 +245,92 @@ mod tests {
         assert!(d.pixels[1].iter().all(|c| c.is_finite()));
     }
 }
+
+/// What `igi compare` compares: image `a` against the reference `b`, each an image file (an
+/// RGBA EXR's pixels of alpha 0 are not compared), with optional standard-error images, a mask
+/// from another render's coverage and a difference picture to write.
+#[derive(Clone, Debug, Default)]
+pub struct CompareRequest {
+    pub a: std::path::PathBuf,
+    pub b: std::path::PathBuf,
+    /// Compare only the pixels this RGBA EXR covers (alpha > 0).
+    pub within: Option<std::path::PathBuf>,
+    /// Per-pixel standard error of `a` (to report the RMSE that noise explains).
+    pub stderr_a: Option<std::path::PathBuf>,
+    /// Per-pixel standard error of `b`.
+    pub stderr_b: Option<std::path::PathBuf>,
+    /// A false-colour picture of |a - b| to write (PNG).
+    pub diff: Option<std::path::PathBuf>,
+}
+
+/// `igi compare`: reads the images of `req` (masking uncovered pixels), compares them and
+/// writes the difference picture when asked.
+pub fn compare_files(req: &CompareRequest) -> Result<Comparison, ImagingError> {
+    let mut a = read_covered(&req.a)?;
+    let b = read_covered(&req.b)?;
+    if let Some(w) = &req.within {
+        keep_within(&mut a, w, &req.a)?;
+    }
+    let sa = req.stderr_a.as_deref().map(read_named).transpose()?;
+    let sb = req.stderr_b.as_deref().map(read_named).transpose()?;
+    let c =
+        compare_images(&a, &b, sa.as_ref(), sb.as_ref()).map_err(|e| CompareError::Comparing {
+            a: req.a.clone(),
+            b: req.b.clone(),
+            source: Box::new(e),
+        })?;
+    if let Some(d) = &req.diff {
+        let img = difference_image(&a, &b, None)?;
+        crate::write_png_tonemapped(d, &img, 1.0)?;
+    }
+    Ok(c)
+}
+
+/// The image at `path`, a failure naming it as being read.
+fn read_named(path: &std::path::Path) -> Result<HdrImage, ImagingError> {
+    crate::read_image(path).map_err(|e| CompareError::read(path, e).into())
+}
+
+/// An image whose pixels of alpha 0 (an RGBA EXR's uncovered pixels, e.g. `igi slf render`'s
+/// background) are invalid, so that they are not compared.
+fn read_covered(path: &std::path::Path) -> Result<HdrImage, ImagingError> {
+    let mut img = read_named(path)?;
+    let is_exr = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+    if is_exr {
+        if let Some(alpha) = crate::read_exr_alpha(path)? {
+            for (v, a) in img.valid.iter_mut().zip(alpha) {
+                *v &= a > 0.0;
+            }
+        }
+    }
+    Ok(img)
+}
+
+/// Keeps valid only the pixels of `img` (read from `img_path`) that the RGBA EXR `within`
+/// covers.
+fn keep_within(
+    img: &mut HdrImage,
+    within: &std::path::Path,
+    img_path: &std::path::Path,
+) -> Result<(), ImagingError> {
+    let alpha = crate::read_exr_alpha(within)
+        .map_err(|e| CompareError::read(within, e))?
+        .ok_or_else(|| CompareError::NoAlpha {
+            path: within.to_path_buf(),
+        })?;
+    if alpha.len() != img.valid.len() {
+        return Err(CompareError::WithinSize {
+            within: within.to_path_buf(),
+            within_pixels: alpha.len(),
+            image: img_path.to_path_buf(),
+            image_pixels: img.valid.len(),
+        }
+        .into());
+    }
+    for (v, al) in img.valid.iter_mut().zip(alpha) {
+        *v &= al > 0.0;
+    }
+    Ok(())
+}
