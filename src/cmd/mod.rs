@@ -13,12 +13,3 @@ pub mod probe;
 pub mod render;
 pub mod slf;
 pub mod solve;
-
-/// Refuses an output path whose extension (any case) is not `ext`: "PATH: output must be .EXT".
-pub fn require_extension(path: &std::path::Path, ext: &str) -> anyhow::Result<()> {
-    let found = path.extension().map(|e| e.to_string_lossy().to_lowercase());
-    if found.as_deref() != Some(ext) {
-        anyhow::bail!("{}: output must be .{ext}", path.display());
-    }
-    Ok(())
-}

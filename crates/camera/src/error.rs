@@ -38,6 +38,39 @@ pub enum CameraError {
     },
     #[error("invalid input: {0}")]
     InvalidInput(String),
+    /// A request of a job (`job`) that cannot be run; the message names the option or file.
+    #[error("{0}")]
+    Arguments(String),
+    /// A failure about a file (`source`), the file named.
+    #[error("{}", path.display())]
+    At {
+        path: PathBuf,
+        #[source]
+        source: Box<CameraError>,
+    },
+    /// An image of a radiometry calibration whose size is not the first image's.
+    #[error("{}: image is {}x{} but the first is {}x{}; all must come from the same camera setting", path.display(), size.0, size.1, first.0, first.1)]
+    ImageSize {
+        path: PathBuf,
+        size: (usize, usize),
+        first: (usize, usize),
+    },
+    /// The colour checker could not be found in its photograph.
+    #[error("{}: automatic colour-checker detection (OpenCV mcc) failed; give the patch grid's corners with --corners", path.display())]
+    CheckerDetection {
+        path: PathBuf,
+        #[source]
+        source: Box<CameraError>,
+    },
+    /// Flat fields and a checker that could not be fitted.
+    #[error("fitting the camera radiometry")]
+    RadiometryFitting {
+        #[source]
+        source: Box<CameraError>,
+    },
+    /// A numeric CSV table (e.g. the correspondences of a pose) that cannot be read.
+    #[error(transparent)]
+    Csv(#[from] igi_imaging::csv::CsvError),
     #[error(transparent)]
     RadiometryFit(#[from] RadiometryError),
     /// An image that could not be read or written (`igi-imaging`).
@@ -71,6 +104,14 @@ impl CameraError {
         CameraError::Camera {
             path: path.to_path_buf(),
             problem,
+        }
+    }
+
+    /// [`CameraError::At`]: `source`, about the file `path`.
+    pub(crate) fn at(path: &std::path::Path, source: CameraError) -> Self {
+        CameraError::At {
+            path: path.to_path_buf(),
+            source: Box::new(source),
         }
     }
 

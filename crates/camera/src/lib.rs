@@ -15,6 +15,8 @@
 //! * [`cv`]: every OpenCV call of igi: calibration, PnP, homography, ArUco detection and
 //!   drawing, ColorChecker detection (cargo feature `opencv`; without it the same functions
 //!   return [`CameraError::NoOpenCv`]).
+//! * [`job`]: `igi camera`'s jobs, each one call from a request of paths and options
+//!   (undistort, pose, calibrate, radiometry).
 //!
 //! Conventions: pixel centres at integer coordinates (the centre of the top-left pixel is
 //! (0, 0)), camera x right, y down, z forward, `x_cam = R x_world + t`.
@@ -25,6 +27,7 @@
 pub mod camera;
 pub mod cv;
 mod error;
+pub mod job;
 pub mod planar;
 pub mod radiometry;
 pub mod rig;

@@ -35,6 +35,40 @@ pub enum CaptureError {
         path: PathBuf,
         source: std::io::Error,
     },
+    /// A folder that cannot be created.
+    #[error("creating {}", path.display())]
+    CreateDir {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// A request of a job (`job`) that cannot be run; the message names the option or file.
+    #[error("{0}")]
+    Arguments(String),
+    /// A photograph whose size is not the one its camera file gives.
+    #[error("{}: image is {}x{} but its camera {} says {}x{}", photo.display(), size.0, size.1, camera.display(), camera_size.0, camera_size.1)]
+    PhotoCameraSize {
+        photo: PathBuf,
+        size: (usize, usize),
+        camera: PathBuf,
+        camera_size: (u32, u32),
+    },
+    /// A pose that could not be refined against a photograph (`source`: why).
+    #[error("refining the pose of {}", photo.display())]
+    Refining {
+        photo: PathBuf,
+        #[source]
+        source: Box<CaptureError>,
+    },
+    /// A model mesh that cannot be read (`igi-geometry`).
+    #[error(transparent)]
+    Geometry(#[from] igi_geometry::GeometryError),
+    /// A file igi-formats could not write (the samples CSV).
+    #[error(transparent)]
+    Formats(#[from] igi_formats::FormatsError),
+    /// An output file's name or folder (`igi-files`).
+    #[error(transparent)]
+    Files(#[from] igi_files::FilesError),
     /// A description file or a photograph that cannot be used, and why.
     #[error("{path}: {msg}")]
     File { path: PathBuf, msg: String },

@@ -17,6 +17,9 @@
 //!   fitted by least squares.
 //! * [`sample_frame`]: the sample-frame recipe: from one photograph, the camera pose, the light
 //!   position and intensity, an orthographic view of the sample and [`igi_brdf::BrdfSample`]s.
+//! * [`refine`]: a camera's pose refined by matching the model's edges to a photograph's.
+//! * [`job`]: the jobs of `igi camera refine` ([`job::refine_file`]) and `igi brdf measure`
+//!   ([`job::measure_files`]), each one call from a request of paths and options.
 //!
 //! Conventions: OpenCV cameras (`igi_camera::Camera`), world frame of the rig's own target
 //! (the sample frame: z up out of its plane), double precision geometry, linear radiance.
@@ -24,6 +27,7 @@
 mod error;
 pub mod fiducial;
 pub mod highlight;
+pub mod job;
 pub mod refine;
 pub mod sample_frame;
 pub mod sphere;
