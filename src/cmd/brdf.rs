@@ -4,15 +4,13 @@
 
 use std::path::PathBuf;
 
-use anyhow::{bail, Context};
-use glam::Vec3;
-use igi_brdf::{
-    cluster, fit_materials, plot::plot_fits, plot::write_text_atomic, read_lumitexels, read_pairs,
-    read_samples, samples::group_by_material, samples::write_pairs, samples::write_samples, Basis,
-    ClusterOptions, FitOptions, MaterialsFile,
+use igi_brdf::job::{
+    cluster_file, eval_file, fit_file, infer_file, ClusterRequest, EvalRequest, FitRequest,
+    FitStep, InferRequest,
 };
+use igi_capture::job::{measure_files, MeasureRequest};
 
-use crate::report::Ctx;
+use crate::report::{print_json, Ctx};
 
 #[derive(clap::Subcommand, Debug)]
 pub enum BrdfCmd {
@@ -136,48 +134,35 @@ pub fn run(cmd: BrdfCmd, ctx: &Ctx) -> anyhow::Result<()> {
     }
 }
 
-/// The fit options of the command line (checked before any work).
-fn fit_options(a: &FitArgs) -> anyhow::Result<FitOptions> {
-    if !(a.coverage_cap >= 0.0 && a.coverage_cap.is_finite()) {
-        bail!(
-            "--coverage-cap must be a finite number >= 0 (got {})",
-            a.coverage_cap
-        );
-    }
-    if a.max_gain.is_nan() || a.max_gain < 1.0 {
-        bail!("--max-gain must be at least 1 (got {})", a.max_gain);
-    }
-    let base = if a.plain {
-        FitOptions::plain()
-    } else {
-        FitOptions {
-            coverage_cap: a.coverage_cap,
-            max_gain: a.max_gain,
-            ..FitOptions::default()
-        }
-    };
-    Ok(FitOptions {
+fn fit(a: FitArgs, ctx: &Ctx) -> anyhow::Result<()> {
+    let req = FitRequest {
+        samples: a.samples,
+        output: a.output,
+        plot: a.plot,
         max_n: a.max_n,
-        ..base
-    })
+        coverage_cap: a.coverage_cap,
+        max_gain: a.max_gain,
+        plain: a.plain,
+    };
+    let pb = ctx.progress(0, "fitting");
+    let step = |s: FitStep| match s {
+        FitStep::Materials(n) => pb.set_length(n as u64),
+        FitStep::Fitted => pb.inc(1),
+    };
+    fit_file(&req, &step, &|reports| {
+        pb.finish_and_clear();
+        print_fits(reports);
+    })?;
+    Ok(())
 }
 
-fn fit(a: FitArgs, ctx: &Ctx) -> anyhow::Result<()> {
-    let opts = fit_options(&a)?;
-    let samples = read_samples(&a.samples)?;
-    let n = group_by_material(&samples).len();
-    let pb = ctx.progress(n as u64, "fitting");
-    let fits = fit_materials(&samples, &opts, &|| pb.inc(1))
-        .with_context(|| format!("fitting {}", a.samples.display()))?;
-    pb.finish_and_clear();
-    let reports: Vec<_> = fits.iter().map(|(_, r)| r.clone()).collect();
-    let file = MaterialsFile::from_reports(&reports);
-    write_text_atomic(&a.output, &file.to_json())?;
+/// One line per material and one per lobe.
+fn print_fits(reports: &[igi_brdf::FitReport]) {
     println!(
         "{:<16} {:>7} {:>9} {:>10}  rho_d / lobes (rho, cxy, cz, n)",
         "material", "samples", "rel.rms", "abs.rms"
     );
-    for r in &reports {
+    for r in reports {
         let b = &r.brdf;
         println!(
             "{:<16} {:>7} {:>9.4} {:>10.3e}  [{:.4}, {:.4}, {:.4}]",
@@ -190,167 +175,61 @@ fn fit(a: FitArgs, ctx: &Ctx) -> anyhow::Result<()> {
             );
         }
     }
-    if let Some(p) = &a.plot {
-        let m: Vec<_> = fits
-            .iter()
-            .map(|(s, r)| (r.material.clone(), s.clone(), r.brdf.clone()))
-            .collect();
-        plot_fits(p, &m)?;
-    }
-    Ok(())
 }
 
 fn eval(a: EvalArgs) -> anyhow::Result<()> {
-    let file = MaterialsFile::read(&a.materials)?;
-    let m = file
-        .get(&a.material)
-        .with_context(|| format!("in {}", a.materials.display()))?;
-    let table = read_pairs(&a.pairs)?;
-    let values: Vec<Vec3> = table
-        .rows
-        .iter()
-        .map(|r| m.as_ref().eval(r.light, r.view) * std::f32::consts::PI)
-        .collect();
-    write_pairs(&a.output, &table, &values)?;
-    Ok(())
+    let req = EvalRequest {
+        materials: a.materials,
+        material: a.material,
+        pairs: a.pairs,
+        output: a.output,
+    };
+    Ok(eval_file(&req)?)
 }
 
 fn infer(a: InferArgs) -> anyhow::Result<()> {
-    if a.rho.len() != 3 || a.rho.iter().any(|x| !x.is_finite() || *x < 0.0) {
-        bail!(
-            "--rho needs three finite non-negative numbers r,g,b (got {:?})",
-            a.rho
-        );
-    }
-    let file = MaterialsFile::read(&a.materials)?;
-    let basis = Basis::new(file.brdfs())?;
-    let m = basis.infer(Vec3::new(a.rho[0], a.rho[1], a.rho[2]));
-    let mut out = MaterialsFile::default();
-    out.materials.insert(
-        "inferred".into(),
-        igi_brdf::MaterialEntry {
-            rho_d: m.rho_d,
-            lobes: m.lobes,
-            rms: None,
-            rms_abs: None,
-            samples: None,
-            stderr: None,
-        },
-    );
-    match &a.output {
-        Some(p) => write_text_atomic(p, &out.to_json())?,
-        None => print!("{}", out.to_json()),
+    let req = InferRequest {
+        materials: a.materials,
+        rho: a.rho,
+        output: a.output,
+    };
+    let text = infer_file(&req)?;
+    if req.output.is_none() {
+        print!("{text}");
     }
     Ok(())
-}
-
-#[derive(serde::Serialize)]
-struct ClusterOut {
-    brdfs: Vec<igi_brdf::Lafortune>,
-    lumitexels: Vec<LumitexelOut>,
-}
-
-#[derive(serde::Serialize)]
-struct LumitexelOut {
-    id: String,
-    cluster: Option<usize>,
-    weights: Vec<f32>,
-    rms: f64,
 }
 
 fn run_cluster(a: ClusterArgs) -> anyhow::Result<()> {
-    let (ids, lts) = read_lumitexels(&a.lumitexels)?;
-    let r = cluster(
-        &lts,
-        &ClusterOptions {
-            k: a.k,
-            seed: a.seed,
-            ..Default::default()
-        },
-    )
-    .with_context(|| format!("clustering {}", a.lumitexels.display()))?;
-    let out = ClusterOut {
-        brdfs: r.brdfs.clone(),
-        lumitexels: ids
-            .into_iter()
-            .enumerate()
-            .map(|(t, id)| LumitexelOut {
-                id,
-                cluster: (r.assignment[t] != usize::MAX).then_some(r.assignment[t]),
-                weights: r.weights[t].clone(),
-                rms: r.errors[t],
-            })
-            .collect(),
+    let req = ClusterRequest {
+        lumitexels: a.lumitexels,
+        k: a.k,
+        seed: a.seed,
+        output: a.output,
     };
-    write_text_atomic(&a.output, &(serde_json::to_string_pretty(&out)? + "\n"))?;
-    for (k, b) in r.brdfs.iter().enumerate() {
-        let n = r.assignment.iter().filter(|&&x| x == k).count();
+    for (k, c) in cluster_file(&req)?.iter().enumerate() {
         println!(
-            "cluster {k}: {n} lumitexels, rho_d [{:.4}, {:.4}, {:.4}]",
-            b.rho_d.x, b.rho_d.y, b.rho_d.z
+            "cluster {k}: {} lumitexels, rho_d [{:.4}, {:.4}, {:.4}]",
+            c.lumitexels, c.rho_d[0], c.rho_d[1], c.rho_d[2]
         );
     }
     Ok(())
 }
 
-fn parse_corners(s: &str) -> anyhow::Result<Vec<glam::DVec2>> {
-    let v: Vec<f64> = s
-        .split(',')
-        .map(|x| x.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .ok()
-        .filter(|v: &Vec<f64>| v.len() >= 8 && v.len().is_multiple_of(2) && v.iter().all(|x| x.is_finite()))
-        .with_context(|| format!("--corners {s:?}: expected u,v pairs for the four fiducials, e.g. 101.5,88,912,90.2,905,700,98,702"))?;
-    Ok(v.chunks(2).map(|c| glam::DVec2::new(c[0], c[1])).collect())
-}
-
 fn measure(a: MeasureArgs) -> anyhow::Result<()> {
-    use igi_capture::sample_frame::{
-        measure_photo, orthographic_view, MeasureOptions, PoseInput, SampleFrame,
+    let req = MeasureRequest {
+        frame: a.frame,
+        photos: a.photos,
+        camera: a.camera,
+        corners: a.corners,
+        output: a.output.clone(),
+        ortho_dir: a.ortho_dir,
     };
-    let frame = SampleFrame::load(&a.frame)?;
-    let camera = igi_camera::Camera::load(&a.camera)?;
-    if !a.corners.is_empty() && a.corners.len() != a.photos.len() {
-        bail!(
-            "{} --photo but {} --corners: give one --corners per photo, or none (ArUco)",
-            a.photos.len(),
-            a.corners.len()
-        );
-    }
-    let opts = MeasureOptions::default();
-    let mut reports = Vec::new();
-    let mut samples = Vec::new();
-    for (k, photo) in a.photos.iter().enumerate() {
-        let input = match a.corners.get(k) {
-            Some(c) => PoseInput::Corners(parse_corners(c)?),
-            None => PoseInput::Aruco,
-        };
-        let img = igi_imaging::read_image(photo)?;
-        let m = measure_photo(&frame, &camera, &img, photo, &input, &opts)?;
-        if let Some(dir) = &a.ortho_dir {
-            std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-            let stem = photo
-                .file_stem()
-                .map(|s| s.to_string_lossy().into_owned())
-                .unwrap_or_else(|| format!("photo{k}"));
-            let cam = igi_camera::Camera {
-                pose: m.pose(),
-                ..camera.clone()
-            };
-            igi_imaging::write_exr(
-                &dir.join(format!("{stem}_ortho.exr")),
-                &orthographic_view(&frame, &cam, &img),
-            )?;
-        }
-        samples.extend(m.samples());
-        reports.push(m);
-    }
-    write_samples(&a.output, &samples)?;
+    let r = measure_files(&req)?;
     if a.json {
-        crate::report::print_json(&reports)?;
-        return Ok(());
+        return print_json(&r.photos);
     }
-    for m in &reports {
+    for m in &r.photos {
         let c = m.camera_center;
         let l = m.light;
         println!(
@@ -368,8 +247,8 @@ fn measure(a: MeasureArgs) -> anyhow::Result<()> {
     }
     println!(
         "{} samples from {} photos -> {}",
-        samples.len(),
-        reports.len(),
+        r.samples,
+        r.photos.len(),
         a.output.display()
     );
     Ok(())

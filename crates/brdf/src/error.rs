@@ -18,6 +18,30 @@ pub enum BrdfError {
     },
     #[error("{path}: {msg}")]
     File { path: PathBuf, msg: String },
+    /// A request of a job (`job`) that cannot be run; the message names the option.
+    #[error("{0}")]
+    Arguments(String),
+    /// A failure inside a file (`source`), the file named.
+    #[error("in {}", path.display())]
+    InFile {
+        path: PathBuf,
+        #[source]
+        source: Box<BrdfError>,
+    },
+    /// The samples of a file that could not be fitted (`source`: why).
+    #[error("fitting {}", path.display())]
+    Fitting {
+        path: PathBuf,
+        #[source]
+        source: Box<BrdfError>,
+    },
+    /// The lumitexels of a file that could not be clustered (`source`: why).
+    #[error("clustering {}", path.display())]
+    Clustering {
+        path: PathBuf,
+        #[source]
+        source: Box<BrdfError>,
+    },
     #[error("fit of material `{material}` failed: {msg}")]
     Fit { material: String, msg: String },
     /// A lumitexel table's structure (read through `igi_imaging::csv`).
@@ -42,6 +66,9 @@ pub enum BrdfError {
     /// A material name not in the materials file; `have` lists its names.
     #[error("invalid input: no material `{name}` (have: {have})")]
     NoMaterial { name: String, have: String },
+    /// A samples or direction-pair file (`igi-formats`).
+    #[error(transparent)]
+    Formats(#[from] igi_formats::FormatsError),
     #[error("json: {0}")]
     Json(#[from] serde_json::Error),
 }

@@ -8,6 +8,8 @@
 //!   from sparse hand-held samples generalise.
 //! - The samples come from photographs of the hand-held sample frame, measured by
 //!   `igi_capture::sample_frame` (photogrammetry lives there, not here).
+//! - [`job`]: `igi brdf fit`, `eval`, `infer` and `cluster` as one call each, from a request
+//!   of paths and options.
 //! - Directions are unit vectors pointing away from the surface; values are linear RGB, f32.
 
 pub mod basis;
@@ -16,6 +18,7 @@ pub mod coverage;
 pub mod error;
 pub mod fit;
 pub mod frame;
+pub mod job;
 pub mod lafortune;
 pub mod materials;
 pub mod plot;
