@@ -1,15 +1,9 @@
 //! `igi probe`: lighting (sky map + sun) from a photograph of the three-sphere board.
 use crate::report::Ctx;
-use anyhow::{bail, Context};
-use igi_camera::Camera;
-use igi_files::write_text_atomic;
-use igi_imaging::hdr::parse_time;
-use igi_imaging::HdrImage;
-use igi_probe::fiducial::place_board;
-use igi_probe::fresnel::{fit_mirror_ior, ReflectanceSamples};
-use igi_probe::input::{load_photograph, PhotoSource};
-use igi_probe::outputs::write_outputs;
-use igi_probe::{process, BoardSpec, ProbeOptions};
+use anyhow::bail;
+use igi_probe::job::{
+    calibrate_mirror_file, probe_files, CalibrateMirrorRequest, ProbeRequest, ProbeStep,
+};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
@@ -93,151 +87,83 @@ pub struct CalibrateMirrorArgs {
 }
 
 fn calibrate_mirror(a: CalibrateMirrorArgs) -> anyhow::Result<()> {
-    let samples = ReflectanceSamples::load(&a.samples)?;
-    let fits = fit_mirror_ior(&samples)
-        .with_context(|| format!("fitting the complex index to {}", a.samples.display()))?;
-    let ior = fits.map(|f| [f.n, f.k]);
-    let json = serde_json::json!({
-        "ior": ior,
-        "rms": fits.map(|f| f.rms),
-        "normal_incidence_reflectance": fits.map(|f| igi_probe::fresnel::conductor(1.0, f.n, f.k)),
-        "samples": samples.angle_deg.len(),
-        "source": a.samples.display().to_string(),
-    });
-    println!(
-        "\"ior\": [{}]",
-        ior.iter()
-            .map(|[n, k]| format!("[{n:.4}, {k:.4}]"))
-            .collect::<Vec<_>>()
-            .join(", ")
-    );
-    eprintln!(
-        "calibrate-mirror: {} samples, RMS residual {:.2e} {:.2e} {:.2e} (R, G, B)",
-        samples.angle_deg.len(),
-        fits[0].rms,
-        fits[1].rms,
-        fits[2].rms
-    );
-    if let Some(out) = &a.output {
-        write_text_atomic(out, &serde_json::to_string_pretty(&json)?)?;
-    }
-    Ok(())
-}
-
-fn load_input(a: &ProbeArgs) -> anyhow::Result<(HdrImage, Option<f32>)> {
-    let source = if a.brackets.is_empty() {
-        PhotoSource::Image(a.image.clone().expect("clap requires IMAGE or --brackets"))
-    } else {
-        PhotoSource::Brackets {
-            images: a.brackets.clone(),
-            times: a
-                .times
+    let req = CalibrateMirrorRequest {
+        samples: a.samples,
+        output: a.output,
+    };
+    calibrate_mirror_file(&req, &|fit| {
+        println!(
+            "\"ior\": [{}]",
+            fit.ior
                 .iter()
-                .map(|t| parse_time(t))
-                .collect::<Result<_, _>>()?,
-        }
-    };
-    Ok(load_photograph(&source, a.srgb, a.saturation)?)
-}
-
-pub fn run(a: ProbeArgs, ctx: &Ctx) -> anyhow::Result<()> {
-    if let Some(ProbeAction::CalibrateMirror(c)) = a.action {
-        return calibrate_mirror(c);
-    }
-    let (Some(camera_path), Some(board_path), Some(output)) = (&a.camera, &a.board, &a.output)
-    else {
-        bail!("igi probe needs --camera, --board and -o (or a subcommand)");
-    };
-    check_arguments(&a, output)?;
-    let pb = ctx.progress(4, "probe");
-    let camera = Camera::load(camera_path)?;
-    let spec = BoardSpec::load(board_path)?;
-    let (image, saturation) = load_input(&a)?;
-    // spheres in the camera frame: from the fiducials' pose (opencv feature) or the file
-    let placement = place_board(&spec, &image, &camera).with_context(|| {
-        format!(
-            "placing the board {} in the camera frame",
-            board_path.display()
-        )
-    })?;
-    let refine_auto = placement.refine_by_default();
-    let board = placement.board;
-    pb.inc(1);
-    let opt = probe_options(&a, refine_auto, saturation);
-    let src = a
-        .image
-        .as_ref()
-        .or(a.brackets.first())
-        .map(|p| p.display().to_string())
-        .unwrap_or_default();
-    let mut r = process(&image, &camera, &board, &opt)
-        .with_context(|| format!("processing the board photograph {src}"))?;
-    r.diagnostics.warnings.extend(placement.warnings);
-    if let Some(p) = &placement.pose {
+                .map(|[n, k]| format!("[{n:.4}, {k:.4}]"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
         eprintln!(
-            "probe: board pose from fiducials {:?} ({} of {} corners, RMS {:.3} px)",
-            p.markers_found, p.corners_inliers, p.corners_matched, p.rms_px
+            "calibrate-mirror: {} samples, RMS residual {:.2e} {:.2e} {:.2e} (R, G, B)",
+            fit.samples, fit.rms[0], fit.rms[1], fit.rms[2]
         );
+    })?;
+    Ok(())
+}
+
+pub fn run(mut a: ProbeArgs, ctx: &Ctx) -> anyhow::Result<()> {
+    match a.action.take() {
+        Some(ProbeAction::CalibrateMirror(c)) => calibrate_mirror(c),
+        None => probe(a, ctx),
     }
-    r.diagnostics.board_pose = placement.pose;
-    pb.inc(1);
-    write_outputs(output, &r)?;
-    pb.inc(2);
+}
+
+impl ProbeArgs {
+    /// The job `igi probe` asks for.
+    fn request(self) -> anyhow::Result<ProbeRequest> {
+        let (Some(camera), Some(board), Some(output)) = (self.camera, self.board, self.output)
+        else {
+            bail!("igi probe needs --camera, --board and -o (or a subcommand)");
+        };
+        Ok(ProbeRequest {
+            image: self.image,
+            brackets: self.brackets,
+            times: self.times,
+            camera,
+            board,
+            output,
+            srgb: self.srgb,
+            saturation: self.saturation,
+            map_width: self.map_width,
+            hemi_size: self.hemi_size,
+            camera_mask_deg: self.camera_mask_deg,
+            max_incidence_deg: self.max_incidence_deg,
+            sun_mask_px: self.sun_mask_px,
+            refine_spheres: match self.refine_spheres {
+                RefineSpheres::Auto => igi_probe::job::RefineSpheres::Auto,
+                RefineSpheres::On => igi_probe::job::RefineSpheres::On,
+                RefineSpheres::Off => igi_probe::job::RefineSpheres::Off,
+            },
+        })
+    }
+}
+
+fn probe(a: ProbeArgs, ctx: &Ctx) -> anyhow::Result<()> {
+    let req = a.request()?;
+    let pb = ctx.progress(4, "probe");
+    let d = probe_files(&req, &|s| match s {
+        ProbeStep::Placed => pb.inc(1),
+        ProbeStep::Processed(pose) => {
+            if let Some(p) = pose {
+                eprintln!(
+                    "probe: board pose from fiducials {:?} ({} of {} corners, RMS {:.3} px)",
+                    p.markers_found, p.corners_inliers, p.corners_matched, p.rms_px
+                );
+            }
+            pb.inc(1);
+        }
+        ProbeStep::Written => pb.inc(2),
+    })?;
     pb.finish_and_clear();
-    print_summary(&r.diagnostics, output);
+    print_summary(&d, &req.output);
     Ok(())
-}
-
-/// The lighting file and its siblings, and the options: checked before any work.
-fn check_arguments(a: &ProbeArgs, output: &std::path::Path) -> anyhow::Result<()> {
-    if output
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase)
-        .as_deref()
-        != Some("toml")
-    {
-        bail!(
-            "{}: -o names the lighting file written (.toml); its maps are written beside it",
-            output.display()
-        );
-    }
-    igi_files::check_output_file(output)?;
-    if !(a.sun_mask_px >= 0.0 && a.sun_mask_px.is_finite()) {
-        bail!(
-            "--sun-mask-px {} must be a finite radius in pixels, 0 or more",
-            a.sun_mask_px
-        );
-    }
-    Ok(())
-}
-
-/// The options of [`process`] from the command line (`refine_auto`: the placement's default
-/// for `--refine-spheres auto`; `saturation`: the input's clip level when not given).
-fn probe_options(a: &ProbeArgs, refine_auto: bool, saturation: Option<f32>) -> ProbeOptions {
-    let opt = ProbeOptions {
-        map_width: a.map_width,
-        hemi_size: a.hemi_size,
-        conv_width: (a.map_width / 2).clamp(2, 128),
-        camera_mask_deg: a.camera_mask_deg,
-        max_incidence_deg: a.max_incidence_deg,
-        saturation: a.saturation.or(saturation),
-        refine_centers: match a.refine_spheres {
-            RefineSpheres::On => true,
-            RefineSpheres::Off => false,
-            RefineSpheres::Auto => refine_auto,
-        },
-        sun_mask_px: a.sun_mask_px,
-        ..ProbeOptions::default()
-    };
-    ProbeOptions {
-        conv_width: if a.map_width.is_multiple_of(opt.conv_width) {
-            opt.conv_width
-        } else {
-            a.map_width
-        },
-        ..opt
-    }
 }
 
 /// One line on the sun and the check, then the warnings.

@@ -18,6 +18,33 @@ pub enum ProbeError {
         path: PathBuf,
         source: std::io::Error,
     },
+    /// A request of a job (`job`) that cannot be run; the message names the option.
+    #[error("{0}")]
+    Arguments(String),
+    /// A lighting file to write whose name does not end in `.toml`.
+    #[error("{}: -o names the lighting file written (.toml); its maps are written beside it", path.display())]
+    LightingName { path: PathBuf },
+    /// A board that could not be placed in the camera frame (`source`: why).
+    #[error("placing the board {} in the camera frame", board.display())]
+    Placing {
+        board: PathBuf,
+        #[source]
+        source: Box<ProbeError>,
+    },
+    /// A board photograph that could not be processed (`source`: why).
+    #[error("processing the board photograph {photo}")]
+    Processing {
+        photo: String,
+        #[source]
+        source: Box<ProbeError>,
+    },
+    /// Reflectance samples the complex index could not be fitted to (`source`: why).
+    #[error("fitting the complex index to {}", path.display())]
+    FittingIor {
+        path: PathBuf,
+        #[source]
+        source: Box<ProbeError>,
+    },
     #[error("{}: invalid board file: {msg}", path.display())]
     Board { path: PathBuf, msg: String },
     /// A sphere not fully seen by the camera ([`igi_capture::SphereError`]).

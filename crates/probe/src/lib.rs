@@ -18,6 +18,8 @@
 //! * [`envmap`]: lat-long lookups, the 512x512 upper-hemisphere layout, hole filling, and the
 //!   diffuse convolution of a map by direct integration (no spherical-harmonic truncation).
 //! * [`input`]: the board photograph: one HDR or 8-bit image, or merged exposure brackets.
+//! * [`job`]: `igi probe` and `igi probe calibrate-mirror` as one call each, from a request
+//!   of paths and options.
 //! * [`outputs`]: the lighting file and what is written beside it (maps, pictures, diagnostics).
 //! * [`outline`]: sphere centres refined from their silhouettes in the photograph (sub-pixel
 //!   edges along the predicted outline's normals, the tangent cone fitted across the line of
@@ -41,6 +43,7 @@ mod error;
 pub mod fiducial;
 pub mod fresnel;
 pub mod input;
+pub mod job;
 pub mod outline;
 pub mod outputs;
 pub mod pipeline;
