@@ -23,6 +23,16 @@ pub enum WorkflowError {
         #[source]
         source: Box<igi_probe::ProbeError>,
     },
+    /// A request of a job that cannot be run (the message names the option).
+    #[error("{0}")]
+    Arguments(String),
+    /// A scene that could not be rendered (`source`: why; `path`: the scene as given).
+    #[error("rendering {}", path.display())]
+    Rendering {
+        path: PathBuf,
+        #[source]
+        source: Box<igi_render::RenderError>,
+    },
     /// Demo options that cannot make a demo (the message names the option).
     #[error("invalid input: {0}")]
     Options(String),

@@ -16,12 +16,15 @@
 //!   folder lock, `--restart`.
 //! - [`mod@solve`]: `igi solve` as one job ([`SolveRequest`] -> [`SolveJob`] -> result), and the
 //!   inputs a cluster task reloads ([`reopen`]).
+//! - [`mod@render`]: `igi render` as one job: a scene file, or a solve result re-lit, rendered
+//!   through a camera and written ([`render::render`]).
 //! - [`demo`]: the embedded default (`igi demo`): a synthetic survey made (by `igi-synth`,
 //!   the one crate of synthetic worlds), then solved by the same job, then re-lit from a
 //!   held-out view.
 
 pub mod demo;
 mod error;
+pub mod render;
 pub mod session;
 pub mod solve;
 pub mod survey;
