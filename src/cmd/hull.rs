@@ -1,8 +1,8 @@
 //! `igi hull`: opacity hulls from multi-view captures (Matusik et al. 2002).
 use crate::report::{print_json, Ctx};
-use igi_formats::lighting::LightingRadiance;
-use igi_opacity_hull::build::{build, load_model, load_relit_model, BuildOptions, Stage};
-use igi_opacity_hull::render::{render, RenderOptions};
+use igi_opacity_hull::job::{
+    build_file, render_file, BuildRequest, BuildStep, RenderRequest as HullRenderRequest,
+};
 use std::path::PathBuf;
 
 #[derive(clap::Subcommand, Debug)]
@@ -129,19 +129,20 @@ pub fn run(c: HullCmd, ctx: &Ctx) -> anyhow::Result<()> {
 }
 
 fn run_build(a: BuildArgs, ctx: &Ctx) -> anyhow::Result<()> {
-    let rig = igi_camera::Rig::load(&a.rig)?;
-    let mut opts = BuildOptions {
+    let req = BuildRequest {
+        rig: a.rig,
+        output: a.output,
         resolution: a.resolution,
-        ..Default::default()
+        frame_band: a.frame_band,
     };
-    opts.matte.frame_band = a.frame_band;
-    let lit = rig.views.iter().any(|v| !v.lights.is_empty());
-    let pb = ctx.progress(6 + lit as u64, "hull");
-    let mut progress = |s: Stage| {
-        pb.set_message(format!("{s:?}").to_lowercase());
-        pb.inc(1);
-    };
-    let r = build(&rig, &a.output, opts, &mut progress)?;
+    let pb = ctx.progress(0, "hull");
+    let r = build_file(&req, &mut |s| match s {
+        BuildStep::Stages(n) => pb.set_length(n),
+        BuildStep::Stage(s) => {
+            pb.set_message(format!("{s:?}").to_lowercase());
+            pb.inc(1);
+        }
+    })?;
     pb.finish_and_clear();
     if a.json {
         print_json(&r)?;
@@ -175,34 +176,29 @@ fn run_build(a: BuildArgs, ctx: &Ctx) -> anyhow::Result<()> {
 }
 
 fn run_render(a: RenderArgs) -> anyhow::Result<()> {
-    let camera = igi_camera::Camera::load(&a.camera)?;
-    let model = match &a.lighting {
-        Some(l) => load_relit_model(&a.hull, &LightingRadiance::load(l)?)?,
-        None => load_model(&a.hull)?,
-    };
-    let t = std::time::Instant::now();
-    let opts = RenderOptions {
+    let req = HullRenderRequest {
+        hull: a.hull,
+        camera: a.camera,
+        lighting: a.lighting,
+        output: a.output,
         k: a.k as usize,
-        ..Default::default()
     };
-    let (img, alpha) = render(&model, &camera, opts);
-    let seconds = t.elapsed().as_secs_f64();
-    igi_imaging::write_exr_rgba(&a.output, &img, &alpha)?;
+    let r = render_file(&req)?;
     if a.json {
         print_json(&serde_json::json!({
-            "seconds": seconds,
-            "width": img.width,
-            "height": img.height,
-            "surfels": model.surfels.len(),
+            "seconds": r.seconds,
+            "width": r.width,
+            "height": r.height,
+            "surfels": r.surfels,
         }))?;
     } else {
         println!(
             "rendered {} x {} from {} surfels in {:.3} s -> {}",
-            img.width,
-            img.height,
-            model.surfels.len(),
-            seconds,
-            a.output.display()
+            r.width,
+            r.height,
+            r.surfels,
+            r.seconds,
+            req.output.display()
         );
     }
     Ok(())

@@ -1,7 +1,8 @@
 //! `igi slf`: surface light fields (Wood et al. 2000; docs/LIGHTFIELD.md).
 use crate::report::{print_json, Ctx};
-use anyhow::Context;
-use igi_lightfield::field::RenderSlfOptions;
+use igi_lightfield::capture::{GridOptions, STAGES};
+use igi_lightfield::job::{build_file, render_file, BuildRequest, BuildStep, RenderRequest};
+use igi_lightfield::{BuildOptions, Method};
 use std::path::PathBuf;
 
 #[derive(clap::Subcommand, Debug)]
@@ -101,7 +102,6 @@ pub fn run(c: SlfCmd, ctx: &Ctx) -> anyhow::Result<()> {
 }
 
 fn build(a: BuildArgs, ctx: &Ctx) -> anyhow::Result<()> {
-    use igi_lightfield::{capture, BuildOptions, Method};
     let method = match a.method {
         MethodArg::Fair => Method::Fair,
         MethodArg::Fq => Method::Fq {
@@ -110,109 +110,74 @@ fn build(a: BuildArgs, ctx: &Ctx) -> anyhow::Result<()> {
         MethodArg::Pfa => Method::Pfa { q: a.q },
         MethodArg::Median => Method::MedianOnly,
     };
-    let opts = BuildOptions {
-        level: a.level,
-        lambda: a.lambda,
-        seed: a.seed,
-        ..BuildOptions::default()
+    let req = BuildRequest {
+        rig: a.rig,
+        mesh: a.mesh,
+        method,
+        options: BuildOptions {
+            level: a.level,
+            lambda: a.lambda,
+            seed: a.seed,
+            ..BuildOptions::default()
+        },
+        grid: GridOptions {
+            atlas: a.atlas,
+            simplify: a.simplify,
+        },
+        output: a.output,
     };
-    let grid = capture::GridOptions {
-        atlas: a.atlas,
-        simplify: a.simplify,
-    };
-    opts.validate(method)?;
-    grid.validate()?;
-    igi_lightfield::store::check_output(&a.output)?;
-    let rig = igi_camera::Rig::load(&a.rig)?;
-    rig.require_views(1)?;
-    let mesh = igi_geometry::read_mesh(&a.mesh)?;
-    let bar = ctx.progress(capture::STAGES.len() as u64, "slf build");
-    let t = std::time::Instant::now();
-    let built = capture::build_from_rig(&rig, &mesh, grid, method, &opts, &|k| {
-        bar.set_position(k as u64);
-        bar.set_message(capture::STAGES[k]);
+    let bar = ctx.progress(STAGES.len() as u64, "slf build");
+    let r = build_file(&req, &|s| match s {
+        BuildStep::Stage(k) => {
+            bar.set_position(k as u64);
+            bar.set_message(STAGES[k]);
+        }
+        BuildStep::Warning(w) => {
+            bar.finish_and_clear();
+            eprintln!("warning: {w}");
+        }
     })?;
     bar.finish_and_clear();
-    for w in &built.warnings {
-        eprintln!("warning: {w}");
-    }
-    let seconds = t.elapsed().as_secs_f64();
-    let extra = serde_json::json!({
-        "rig": a.rig, "mesh": a.mesh, "views": built.views, "invalid_pixels": built.invalid_pixels,
-        "gather": built.report, "atlas_texel_m": built.atlas.texel_size, "seconds": seconds,
-        "warnings": built.warnings,
-    });
-    let report = igi_lightfield::store::save(&a.output, &built.field, &built.atlas.mesh, extra)?;
     if a.json {
-        return print_json(&report);
+        return print_json(&r.report);
     }
     println!(
         "{} views, {} grid points ({} unseen), {} samples; atlas texel {:.4} m, median pixel footprint {:.4} m; colour {} bytes ({:.1}:1 against faired RGB8) in {:.1} s -> {}",
-        built.views,
-        built.report.points,
-        built.report.unseen_points,
-        built.report.samples,
-        built.atlas.texel_size,
-        built.report.median_pixel_footprint,
-        report.colour_bytes,
-        report.compression_ratio,
-        seconds,
-        a.output.display()
+        r.views,
+        r.points,
+        r.unseen_points,
+        r.samples,
+        r.texel_size,
+        r.median_pixel_footprint,
+        r.report.colour_bytes,
+        r.report.compression_ratio,
+        r.seconds,
+        req.output.display()
     );
     Ok(())
 }
 
 fn render(a: RenderArgs, _ctx: &Ctx) -> anyhow::Result<()> {
-    if !(a.bias > 0.0 && a.bias < 1.0) || !(a.white > 0.0 && a.white.is_finite()) {
-        anyhow::bail!(
-            "--bias must lie in (0, 1) and --white be positive (got {} and {})",
-            a.bias,
-            a.white
-        );
-    }
-    let camera = igi_camera::Camera::load(&a.camera)?;
-    let (field, stored) = igi_lightfield::store::load(&a.slf_dir)
-        .with_context(|| format!("reading {}", a.slf_dir.display()))?;
-    let mesh = match &a.mesh {
-        Some(p) => {
-            let mut m = igi_geometry::read_mesh(p)?;
-            if m.positions.len() != stored.positions.len() || m.indices != stored.indices {
-                anyhow::bail!(
-                    "{}: not a deformed copy of {} (vertex count or triangles differ)",
-                    p.display(),
-                    a.slf_dir.join("mesh.ply").display()
-                );
-            }
-            if m.uvs.is_none() {
-                m.uvs = stored.uvs.clone();
-            }
-            m.normals = None;
-            m
-        }
-        None => stored,
+    let req = RenderRequest {
+        slf_dir: a.slf_dir,
+        camera: a.camera,
+        mesh: a.mesh,
+        bias: a.bias,
+        white: a.white,
+        output: a.output,
     };
-    let t = std::time::Instant::now();
-    let (img, alpha) = field.render(
-        &mesh,
-        &camera,
-        &RenderSlfOptions {
-            bias: a.bias,
-            white: a.white,
-        },
-    )?;
-    let seconds = t.elapsed().as_secs_f64();
-    igi_imaging::write_exr_rgba(&a.output, &img, &alpha)?;
+    let r = render_file(&req)?;
     if a.json {
         print_json(
-            &serde_json::json!({ "seconds": seconds, "width": img.width, "height": img.height }),
+            &serde_json::json!({ "seconds": r.seconds, "width": r.width, "height": r.height }),
         )?;
     } else {
         println!(
             "rendered {} x {} in {:.3} s -> {}",
-            img.width,
-            img.height,
-            seconds,
-            a.output.display()
+            r.width,
+            r.height,
+            r.seconds,
+            req.output.display()
         );
     }
     Ok(())

@@ -49,6 +49,25 @@ pub enum GeometryError {
     /// A bad argument (voxel size, level list, voxel id...).
     #[error("invalid argument: {0}")]
     InvalidArgument(String),
+    /// A request of a job (`job`) that cannot be run; the message names the option.
+    #[error("{0}")]
+    Arguments(String),
+    /// A value of a list option that is not a number.
+    #[error("--{option}: `{text}` is not a number")]
+    NotANumber {
+        option: &'static str,
+        text: String,
+        #[source]
+        source: std::num::ParseFloatError,
+    },
+    /// A value of a list option that is not an integer.
+    #[error("--{option}: `{text}` is not an integer")]
+    NotAnInteger {
+        option: &'static str,
+        text: String,
+        #[source]
+        source: std::num::ParseIntError,
+    },
     /// A run whose estimated size is beyond the limits (checked before allocating).
     #[error("too large: {what}")]
     TooLarge { what: String },

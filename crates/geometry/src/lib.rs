@@ -18,6 +18,8 @@
 //! - [`levels`]: multiresolution levels by meshoptimizer edge collapse with the voxel faces locked.
 //! - [`store`]: `prepare` writes a site folder; [`store::SiteStore`] loads "this voxel high,
 //!   neighbours medium, the rest low".
+//! - [`job`]: `igi prepare` and `igi info` as one call each, from a request of paths and
+//!   options.
 //!
 //! Conventions: world Z up, metres; UVs as in OBJ ((0,0) bottom-left, v up); colours linear RGB
 //! in [0, 1].
@@ -25,6 +27,7 @@
 pub mod atlas;
 mod atomic;
 pub mod error;
+pub mod job;
 pub mod levels;
 pub mod marching;
 pub mod mesh;

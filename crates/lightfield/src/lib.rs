@@ -12,6 +12,8 @@
 //! - [`capture`]: the whole build from a multi-view capture (`rig.toml`) and a mesh
 //!   (`igi slf build`).
 //! - [`store`]: the `SLF_DIR/` folder.
+//! - [`job`]: `igi slf build` and `igi slf render` as one call each, from a request of paths
+//!   and options.
 //! - [`plot`]: the error-against-size plot of the codings.
 //!
 //! Grid points are the covered texels of an `igi-geometry` atlas of the mesh (standing in for
@@ -24,6 +26,7 @@ pub mod capture;
 pub mod data;
 pub mod field;
 pub mod fit;
+pub mod job;
 pub mod lumisphere;
 pub mod pfa;
 pub mod plot;
@@ -82,6 +85,16 @@ pub enum LightFieldError {
     },
     #[error("{}: {msg}", path.display())]
     Format { path: PathBuf, msg: String },
+    /// A request of a job (`job`) that cannot be run; the message names the options.
+    #[error("{0}")]
+    Arguments(String),
+    /// A stored field that cannot be read (`source`: why).
+    #[error("reading {}", path.display())]
+    Reading {
+        path: PathBuf,
+        #[source]
+        source: Box<LightFieldError>,
+    },
     #[error("{}: {source}", path.display())]
     Io {
         path: PathBuf,

@@ -22,6 +22,8 @@
 //!   over its Voronoi cell of directions plus the sun.
 //! * [`build`]: the `igi hull build` pipeline, the hull folder, loading it for rendering (with
 //!   the photos, or relit).
+//! * [`job`]: `igi hull build` and `igi hull render` as one call each, from a request of paths
+//!   and options.
 //! * [`warp`]: the nearest input photo warped to a new camera through the hull (the baseline a
 //!   new view must beat).
 //! * [`middlebury`]: importer for the Middlebury multi-view sets.
@@ -32,6 +34,7 @@ pub mod backdrop;
 pub mod build;
 pub mod carve;
 pub mod hull;
+pub mod job;
 pub mod lightweights;
 pub mod middlebury;
 pub mod raster;
