@@ -134,6 +134,9 @@ pub enum ReflectError {
     Geometry(#[from] igi_geometry::GeometryError),
     #[error(transparent)]
     Render(#[from] igi_render::RenderError),
+    /// The ray scene of the site (`--atlas auto`'s visibility tests).
+    #[error(transparent)]
+    Raycast(#[from] igi_raycast::RaycastError),
     #[error(transparent)]
     Brdf(#[from] igi_brdf::BrdfError),
     /// A BRDF file (samples, materials) that reads but cannot be used.

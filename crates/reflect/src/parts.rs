@@ -51,7 +51,7 @@ pub struct Part {
     pub mesh: TriMesh,
     pub stored: Option<StoredPart>,
     pub texel_size: f64,
-    /// The finest pixel footprint of the photographs on the part (metres) when `--atlas auto`
+    /// The resolving pixel footprint of the photographs on the part (metres) when `--atlas auto`
     /// chose its resolution.
     pub footprint_m: Option<f64>,
     pub cache: TexelCache,
@@ -214,7 +214,7 @@ pub fn build_parts_with(
             let atlas = atlas_for(&name, &mesh, &choice)?;
             if let Some(f) = choice.footprint_m {
                 tracing::info!(
-                    "part {name}: atlas {} texels per side, texel {:.4} m for a finest pixel footprint of {f:.4} m",
+                    "part {name}: atlas {} texels per side, texel {:.4} m for a resolving pixel footprint of {f:.4} m",
                     atlas.resolution,
                     atlas.texel_size
                 );

@@ -23,7 +23,7 @@ use std::path::{Path, PathBuf};
 pub enum AtlasRequest {
     /// Every part this many texels per side.
     Fixed(u32),
-    /// Each part's from the photographs' finest pixel footprint on it, at most `max`.
+    /// Each part's from the pixel footprints of the photographs that resolve it, at most `max`.
     Auto { max: u32 },
 }
 
