@@ -16,9 +16,12 @@ pub struct IterationArgs {
     /// photographs' own noise in rho_d (after 2 iterations).
     #[arg(long, default_value_t = 0.002)]
     pub tolerance: f32,
-    /// Samples per radiance estimate, per iteration (the last repeats).
-    #[arg(long, value_delimiter = ',', default_value = "16,64,256")]
-    pub spp: Vec<u32>,
+    /// Samples per radiance estimate, per iteration (the last repeats). Without it: 16, 64,
+    /// 256 as levels, the solve moving to the next level only after an iteration that changed
+    /// rho_d by no more than its Monte-Carlo noise (while the albedo still settles, more
+    /// samples would not make it settle faster; docs/SOLVER.md).
+    #[arg(long, value_delimiter = ',')]
+    pub spp: Option<Vec<u32>>,
     /// Indirect bounces after direct lighting.
     #[arg(long, default_value_t = 2)]
     pub indirect: u32,
@@ -50,7 +53,11 @@ impl IterationArgs {
         Ok(SolveOptions {
             max_iterations: self.iterations,
             tolerance: self.tolerance,
-            spp: self.spp.clone(),
+            spp: self
+                .spp
+                .clone()
+                .unwrap_or_else(|| SolveOptions::default().spp),
+            adaptive_spp: self.spp.is_none(),
             indirect: self.indirect,
             seed: self.seed,
             initial_albedo: [r, g, b],
@@ -68,11 +75,12 @@ pub struct SolveArgs {
     /// Result folder (created; an unfinished result there is resumed).
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Atlas resolution per part: `auto` (the default) chooses each part's from the finest
-    /// pixel footprint of the photographs that see it (one texel per pixel, at most
-    /// --atlas-max; a mesh that would exceed it, or whose far and near ends differ much, is cut
-    /// into parts NAME-K; docs/SOLVER.md "Atlas resolution"), or a number gives every part that
-    /// many texels per side (8 to 16384). A prepared site keeps its own atlases.
+    /// Atlas resolution per part: `auto` (the default) chooses each part's from the pixel
+    /// footprints of the photographs that resolve it (as many texels as the pixels of the
+    /// finest photograph that sees each point unhidden, at most --atlas-max; a mesh that would
+    /// exceed it, or whose far and near ends differ much, is cut into parts NAME-K;
+    /// docs/SOLVER.md "Atlas resolution"), or a number gives every part that many texels per
+    /// side (8 to 16384). A prepared site keeps its own atlases.
     #[arg(long, default_value = "auto", value_parser = parse_atlas)]
     pub atlas: AtlasArg,
     /// With `--atlas auto`: the most texels per side of any part (the memory budget; at least
@@ -195,7 +203,7 @@ fn print_report(
     for p in &report.parts {
         let footprint = p
             .footprint_m
-            .map(|f| format!(" (finest pixel footprint {f:.4} m)"))
+            .map(|f| format!(" (resolving pixel footprint {f:.4} m)"))
             .unwrap_or_default();
         println!(
             "part {}: {}x{} atlas, {} texels of {:.4} m{footprint}, {} seen ({} by 2+ photos), {} filled",

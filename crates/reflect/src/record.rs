@@ -58,8 +58,15 @@ pub struct SolveOptions {
     pub min_iterations: u32,
     pub tolerance: f32,
     /// Samples per radiance estimate in iteration k (the last entry repeats): later iterations
-    /// use more samples, as in the paper.
+    /// use more samples, as in the paper. With `adaptive_spp` the entries are levels instead.
     pub spp: Vec<u32>,
+    /// The solve stays at a level of `spp` while an iteration changed the albedo by more than
+    /// its Monte-Carlo noise (`IterationRecord::systematic_change_rho` above `mc_noise_rho`):
+    /// the albedo is still settling, and more samples would not make it settle faster (the
+    /// default of `igi solve`). Off: level k in iteration k (results written before the option
+    /// existed read off).
+    #[serde(default)]
+    pub adaptive_spp: bool,
     /// Indirect bounces after direct lighting (2 as at the site).
     pub indirect: u32,
     pub seed: u64,
@@ -132,6 +139,7 @@ impl Default for SolveOptions {
             min_iterations: 2,
             tolerance: 0.002,
             spp: vec![16, 64, 256],
+            adaptive_spp: false,
             indirect: 2,
             seed: 1,
             initial_albedo: [0.5; 3],
@@ -228,6 +236,10 @@ pub struct IterationRecord {
     /// Monte-Carlo noise.
     #[serde(default)]
     pub systematic_change_rho: f32,
+    /// RMS over seen texels and channels of the Monte-Carlo part of the standard error of
+    /// `rho_d` (what more samples reduce); `None` in reports written before it existed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mc_noise_rho: Option<f32>,
     /// With ground truth: mean absolute error of `rho_d` per channel over texels seen in at
     /// least two photos, and its RMS.
     pub truth_mae: Option<[f32; 3]>,
@@ -263,7 +275,7 @@ pub struct PartSummary {
     /// multiresolution load of its voxel).
     #[serde(default)]
     pub scene_triangles: u64,
-    /// The finest pixel footprint of the photographs on the part (metres) when `--atlas auto`
+    /// The resolving pixel footprint of the photographs on the part (metres) when `--atlas auto`
     /// chose its resolution (`atlas_size::auto_resolution`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub footprint_m: Option<f64>,
@@ -331,6 +343,9 @@ pub struct Pending {
     pub noise2: f64,
     #[serde(default)]
     pub systematic2: f64,
+    /// Sum over seen texels of the mean per-channel squared Monte-Carlo noise of `rho_d`.
+    #[serde(default)]
+    pub mc2: f64,
 }
 
 impl Pending {
@@ -345,5 +360,6 @@ impl Pending {
         self.seen_texels += g.seen_texels;
         self.noise2 += g.noise2;
         self.systematic2 += g.systematic2;
+        self.mc2 += g.mc2;
     }
 }

@@ -446,9 +446,35 @@ fn texels_of(start: &SolveResult, groups: &[&Group]) -> u64 {
         .sum::<u64>()
 }
 
-/// The samples per estimate of iteration `k` (counted from 0).
-fn spp_of(opts: &SolveOptions, k: u32) -> u32 {
-    opts.spp[(k as usize).min(opts.spp.len() - 1)]
+/// The samples per estimate of iteration `k` (counted from 0), after the iterations `done`
+/// (the report's records): level `k` of the schedule, or with `adaptive_spp` the level reached
+/// by [`rises`].
+fn spp_of(opts: &SolveOptions, done: &[IterationRecord], k: u32) -> u32 {
+    spp_at(opts, level(opts, done, k))
+}
+
+/// The samples of schedule level `level` (the last repeats).
+fn spp_at(opts: &SolveOptions, level: usize) -> u32 {
+    opts.spp[level.min(opts.spp.len() - 1)]
+}
+
+/// The schedule level of iteration `k`: `k`, or with `adaptive_spp` the number of earlier
+/// iterations after which the level rose (a missing record counts as a rise).
+fn level(opts: &SolveOptions, done: &[IterationRecord], k: u32) -> usize {
+    if !opts.adaptive_spp {
+        return k as usize;
+    }
+    (0..k as usize)
+        .filter(|&i| done.get(i).is_none_or(rises))
+        .count()
+}
+
+/// Whether the level rises after iteration `r`: its change beyond the Monte-Carlo noise was
+/// within that noise (the albedo has settled to what these samples tell apart), or it has no
+/// Monte-Carlo noise on record.
+fn rises(r: &IterationRecord) -> bool {
+    r.mc_noise_rho
+        .is_none_or(|mc| r.systematic_change_rho <= mc)
 }
 
 /// Solves one group in iteration `k` (counted from 0): traces its texels in every photograph
@@ -466,7 +492,7 @@ pub(crate) fn solve_group(
     k: u32,
     progress: &dyn Progress,
 ) -> Result<Pending, ReflectError> {
-    let spp = spp_of(opts, k);
+    let spp = spp_of(opts, &start.report.iterations, k);
     let albedo = match snapshot {
         Some((rho, lobes)) => Albedos { rho, lobes },
         None => Albedos {
@@ -568,9 +594,10 @@ pub(crate) fn finish_iteration(
             0.0
         }
     };
+    let level = level(opts, &start.report.iterations, k);
     let rec = IterationRecord {
         iteration: acc.iteration,
-        spp: spp_of(opts, k),
+        spp: spp_at(opts, level),
         wall_s,
         cumulative_s,
         observations: acc.observations,
@@ -579,6 +606,7 @@ pub(crate) fn finish_iteration(
         delta_rho: per_seen(acc.delta),
         noise_rho: per_seen(acc.noise2).sqrt(),
         systematic_change_rho: per_seen(acc.systematic2.max(0.0)).sqrt(),
+        mc_noise_rho: Some(per_seen(acc.mc2).sqrt()),
         truth_mae,
         truth_rms,
         truth_surface_mae,
@@ -600,9 +628,10 @@ pub(crate) fn finish_iteration(
     if rec.observations == 0 {
         return Err(ReflectError::NoObservations(rec.iteration));
     }
+    let next_level = level + usize::from(!opts.adaptive_spp || rises(&rec));
     let done = acc.iteration >= opts.min_iterations
         && (rec.delta_rho < opts.tolerance
-            || (rec.systematic_change_rho < rec.noise_rho && spp_of(opts, k + 1) <= rec.spp));
+            || (rec.systematic_change_rho < rec.noise_rho && spp_at(opts, next_level) <= rec.spp));
     start.report.iterations.push(rec);
     start.report.converged = done;
     Ok(done)
@@ -687,10 +716,11 @@ fn update_part(
             Some(c) => {
                 let v = c.value;
                 acc.delta += (v - start.rho[pi][i]).abs().max_element() as f64;
-                let (noise2, systematic2) =
+                let (noise2, systematic2, mc2) =
                     change_against_noise(start.rho[pi][i], start.stderr[pi][i], &c);
                 acc.noise2 += noise2;
                 acc.systematic2 += systematic2;
+                acc.mc2 += mc2;
                 acc.seen_texels += 1;
                 nseen_p += 1;
                 if start.observations[pi][i] >= 2 {
@@ -717,13 +747,14 @@ fn update_part(
     s.filled_texels = filled;
 }
 
-/// A seen texel's squared photograph noise and its squared change beyond the Monte-Carlo noise
-/// (unclamped), both averaged over the channels, for the stopping rule: `old` and `old_se` are
+/// A seen texel's squared photograph noise, its squared change beyond the Monte-Carlo noise
+/// (unclamped) and its squared Monte-Carlo noise, each averaged over the channels, for the
+/// stopping rule and the samples' schedule: `old` and `old_se` are
 /// the texel's albedo and standard error before this iteration (`old_se` negative when
 /// unknown: no Monte-Carlo noise is subtracted for it), `c` its new combination. The previous
 /// estimate's Monte-Carlo variance is its squared standard error less this iteration's squared
 /// photograph noise (the photographs are the same).
-fn change_against_noise(old: Vec3, old_se: Vec3, c: &Combined) -> (f64, f64) {
+fn change_against_noise(old: Vec3, old_se: Vec3, c: &Combined) -> (f64, f64, f64) {
     let photo2 = c.photo_noise * c.photo_noise;
     let mc_new2 = (c.stderr * c.stderr - photo2).max(Vec3::ZERO);
     let mc_old2 = if old_se.min_element() >= 0.0 {
@@ -736,6 +767,7 @@ fn change_against_noise(old: Vec3, old_se: Vec3, c: &Combined) -> (f64, f64) {
     (
         photo2.element_sum() as f64 / 3.0,
         excess.element_sum() as f64 / 3.0,
+        mc_new2.element_sum() as f64 / 3.0,
     )
 }
 
@@ -1185,6 +1217,70 @@ mod tests {
         assert!(!stops(3, 1e-4, 0.0, 0.0).0);
     }
 
+    /// Runs iterations on an empty result, each (change beyond the Monte-Carlo noise,
+    /// Monte-Carlo noise) with photograph noise 0.001: each iteration's samples and whether the
+    /// solve stopped after it.
+    fn schedule(adaptive: bool, iterations: &[(f64, f64)]) -> Vec<(u32, bool)> {
+        let opts = SolveOptions {
+            tolerance: 0.0,
+            adaptive_spp: adaptive,
+            ..SolveOptions::default()
+        };
+        let mut r = SolveResult::fresh(Vec::new(), vec!["p".into()], &opts);
+        let mut out = Vec::new();
+        for (k, &(systematic, mc)) in iterations.iter().enumerate() {
+            let acc = Pending {
+                iteration: k as u32 + 1,
+                observations: 10,
+                seen_texels: 10,
+                delta: 10.0 * systematic,
+                systematic2: 10.0 * systematic * systematic,
+                noise2: 10.0 * 1e-6,
+                mc2: 10.0 * mc * mc,
+                ..Pending::default()
+            };
+            let done = finish_iteration(&mut r, &acc, &[], None, &opts, 1.0, 1.0).unwrap();
+            let rec = r.report.iterations.last().unwrap();
+            assert!((rec.mc_noise_rho.unwrap() as f64 - mc).abs() < 1e-6);
+            out.push((rec.spp, done));
+        }
+        out
+    }
+
+    #[test]
+    fn the_adaptive_schedule_holds_the_samples_while_the_albedo_moves_more_than_their_noise() {
+        let run = [(0.1, 0.01), (0.005, 0.01), (0.0005, 0.005), (0.0005, 0.002)];
+        // iteration 1 moved the albedo 10 x its Monte-Carlo noise: iteration 2 keeps 16;
+        // iteration 2 moved it less than its noise: 64, then 256, and the solve stops once the
+        // change is below the photographs' noise at the last level
+        assert_eq!(
+            schedule(true, &run),
+            [(16, false), (16, false), (64, false), (256, true)]
+        );
+        // the fixed schedule follows the levels iteration by iteration
+        assert_eq!(
+            schedule(false, &run),
+            [(16, false), (64, false), (256, true), (256, true)]
+        );
+        // a record without Monte-Carlo noise (a report from before it was recorded) rises
+        let opts = SolveOptions {
+            adaptive_spp: true,
+            ..SolveOptions::default()
+        };
+        let mut r = SolveResult::fresh(Vec::new(), vec!["p".into()], &opts);
+        let acc = Pending {
+            iteration: 1,
+            observations: 10,
+            seen_texels: 10,
+            systematic2: 10.0,
+            ..Pending::default()
+        };
+        finish_iteration(&mut r, &acc, &[], None, &opts, 1.0, 1.0).unwrap();
+        assert_eq!(spp_of(&opts, &r.report.iterations, 1), 16);
+        r.report.iterations[0].mc_noise_rho = None;
+        assert_eq!(spp_of(&opts, &r.report.iterations, 1), 64);
+    }
+
     #[test]
     fn the_change_the_monte_carlo_noise_explains_is_not_counted_against_the_noise() {
         let c = |value: f32, stderr: f32, photo: f32| Combined {
@@ -1194,16 +1290,18 @@ mod tests {
             photo_noise: Vec3::splat(photo),
         };
         // stderr 0.05 of which photographs 0.03: Monte-Carlo 0.04 now and before
-        let (n2, s2) =
+        let (n2, s2, mc2) =
             change_against_noise(Vec3::splat(0.5), Vec3::splat(0.05), &c(0.6, 0.05, 0.03));
+        assert!((mc2 - 0.0016).abs() < 1e-9, "{mc2}");
         assert!((n2 - 0.0009).abs() < 1e-9, "{n2}");
         assert!((s2 - (0.01 - 0.0016 - 0.0016)).abs() < 1e-7, "{s2}");
         // a change smaller than the Monte-Carlo noise counts negative (summed, then clamped)
-        let (_, s2) =
+        let (_, s2, _) =
             change_against_noise(Vec3::splat(0.5), Vec3::splat(0.05), &c(0.51, 0.05, 0.03));
         assert!(s2 < 0.0, "{s2}");
         // unknown previous standard error: only this estimate's noise is subtracted
-        let (_, s2) = change_against_noise(Vec3::splat(0.5), UNKNOWN_STDERR, &c(0.6, 0.05, 0.03));
+        let (_, s2, _) =
+            change_against_noise(Vec3::splat(0.5), UNKNOWN_STDERR, &c(0.6, 0.05, 0.03));
         assert!((s2 - (0.01 - 0.0016)).abs() < 1e-7, "{s2}");
     }
 

@@ -163,6 +163,11 @@ fn run_manifest(survey: &Survey, opts: &SolveOptions) -> Result<RunManifest, Wor
     if opts.deblur != 0 {
         m.option("--deblur", opts.deblur);
     }
+    // recorded when on (igi solve's default without --spp): a folder of an igi without it
+    // resumes only with a --spp given
+    if opts.adaptive_spp {
+        m.option("adaptive samples", true);
+    }
     // recorded when on (the default): a folder of an igi without it resumes only with it off
     if opts.smooth_shading {
         m.option("--shading-smoothing", true);
