@@ -225,8 +225,7 @@ fn write_task(
     dir: &Path,
     mut done: TaskDone,
 ) -> Result<(), ReflectError> {
-    std::fs::create_dir_all(dir)
-        .map_err(|e| ReflectError::file(dir, format!("cannot create folder: {e}")))?;
+    std::fs::create_dir_all(dir).map_err(|e| ReflectError::io(dir, "create folder", e))?;
     for &i in parts {
         write_atlases(state, i, dir)?;
         done.parts.push(state.report.parts[i].clone());
@@ -372,10 +371,9 @@ pub fn merge(
 /// The iteration a result folder's next tasks solve (its committed iterations plus one).
 pub fn next_iteration(result: &Path) -> Result<u32, ReflectError> {
     let rp = result.join("report.json");
-    let text = std::fs::read_to_string(&rp)
-        .map_err(|e| ReflectError::file(&rp, format!("cannot read: {e}")))?;
-    let v: serde_json::Value = serde_json::from_str(&text)
-        .map_err(|e| ReflectError::file(&rp, format!("not a solve report: {e}")))?;
+    let text = std::fs::read_to_string(&rp).map_err(|e| ReflectError::io(&rp, "read", e))?;
+    let v: serde_json::Value =
+        serde_json::from_str(&text).map_err(|e| ReflectError::json(&rp, "solve report", e))?;
     Ok(v["iterations"].as_array().map_or(0, |a| a.len()) as u32 + 1)
 }
 
@@ -385,9 +383,8 @@ pub fn read_done(dir: &Path) -> Result<Option<TaskDone>, ReflectError> {
     if !p.is_file() {
         return Ok(None);
     }
-    let text = std::fs::read_to_string(&p)
-        .map_err(|e| ReflectError::file(&p, format!("cannot read: {e}")))?;
+    let text = std::fs::read_to_string(&p).map_err(|e| ReflectError::io(&p, "read", e))?;
     serde_json::from_str(&text)
         .map(Some)
-        .map_err(|e| ReflectError::file(&p, format!("not a task report: {e}")))
+        .map_err(|e| ReflectError::json(&p, "task report", e))
 }

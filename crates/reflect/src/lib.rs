@@ -23,7 +23,7 @@
 //! already loaded: [`Photo`]), [`weights`] and [`fill`] (the documented rules),
 //! [`result`] (the result folder: atlases, `scene.toml`, `report.json`, export, sampling),
 //! [`truth`] (ground truth: the true atlases and scene, and the albedo error per texel and over
-//! the surface).
+//! the surface), and the errors ([`ReflectError`], in `error.rs`).
 //!
 //! The survey folder, where each photo's light comes from, the run manifest, the folder lock
 //! and the demo are `igi-workflow`'s: this crate solves what it is given. The synthetic surveys
@@ -32,6 +32,7 @@
 pub mod atlas_size;
 mod deblur;
 pub mod distributed;
+mod error;
 pub mod fill;
 pub mod parts;
 pub mod photo;
@@ -43,119 +44,10 @@ pub mod solver;
 pub mod truth;
 pub mod weights;
 
-use std::path::PathBuf;
-
+pub use error::ReflectError;
 pub use parts::{Part, TexelCache};
 pub use photo::Photo;
 pub use result::{load_result_scene, SolveResult, UNKNOWN_STDERR};
 pub use solver::{
     solve, solve_in_memory, IterationRecord, Progress, Schedule, SolveOptions, SolveReport,
 };
-
-/// Errors of the inverse solver.
-#[derive(Debug, thiserror::Error)]
-pub enum ReflectError {
-    /// A file is missing, unreadable or malformed.
-    #[error("{path}: {msg}")]
-    File { path: PathBuf, msg: String },
-    /// Input that cannot be used (kept for callers' own checks, e.g. a checkpoint callback).
-    #[error("invalid input: {0}")]
-    Invalid(String),
-    /// Solve options that cannot mean a solve (the message names the option).
-    #[error("invalid input: {0}")]
-    Options(String),
-    /// No photograph to solve from.
-    #[error("invalid input: no photographs to solve from")]
-    NoPhotos,
-    /// A part name that cannot name files (empty, or with a path separator).
-    #[error("invalid input: `{0}` cannot name a part")]
-    UnnamablePart(String),
-    /// Two site meshes with the same name.
-    #[error("invalid input: two site meshes are both named `{0}`")]
-    DuplicatePart(String),
-    /// `--atlas auto` cut a piece whose name another mesh has.
-    #[error("invalid input: {source}: a site mesh has the name `--atlas auto` gives a piece cut from another (NAME-K); rename the mesh")]
-    PieceName {
-        #[source]
-        source: Box<ReflectError>,
-    },
-    /// The atlas of a part could not be built.
-    #[error("invalid input: atlas of `{part}`: {source}")]
-    Atlas {
-        part: String,
-        #[source]
-        source: Box<igi_geometry::GeometryError>,
-    },
-    /// The trial atlas of `--atlas auto` could not be built.
-    #[error("invalid input: trial atlas: {0}")]
-    TrialAtlas(#[source] Box<igi_geometry::GeometryError>),
-    /// A part selection (`--parts`) names no part; `known` lists some of the parts.
-    #[error("invalid input: --parts: no part named `{name}` in the site (parts: {known})")]
-    UnknownPart { name: String, known: String },
-    /// A voxel or part to solve that the plan does not hold; `known` lists some of them.
-    #[error("invalid input: no voxel or part `{name}` to solve (there are {count}: {known})")]
-    UnknownGroup {
-        name: String,
-        count: usize,
-        known: String,
-    },
-    /// A prepared site's voxel that the result has no part for.
-    #[error("invalid input: the prepared site holds {0}, which the result does not")]
-    UnknownVoxel(String),
-    /// A voxel group without the prepared site it comes from.
-    #[error("invalid input: a voxel group needs its prepared site")]
-    NoPreparedSite,
-    /// Prepared voxels mixed with plain meshes.
-    #[error("invalid input: a site is either prepared or a set of meshes, not both")]
-    MixedSite,
-    /// Distributed iterations under another schedule than Jacobi.
-    #[error("invalid input: distributed iterations need the Jacobi schedule")]
-    NotJacobi,
-    /// No photograph saw any texel of the parts being solved.
-    #[error("no photograph sees any solved part (0 observations in iteration {0}): check the cameras' poses and sizes against the site, and the part selection")]
-    NoObservations(u32),
-    /// A merge found tasks of its iteration unfinished.
-    #[error("iteration {iteration}: {} task(s) have not finished: {}", groups.len(), groups.join(", "))]
-    MissingTasks { iteration: u32, groups: Vec<String> },
-    #[error(transparent)]
-    Format(#[from] igi_formats::FormatsError),
-    #[error(transparent)]
-    Imaging(#[from] igi_imaging::ImagingError),
-    /// A camera, its file, radiometry or rig, or an OpenCV call (`igi-camera`).
-    #[error(transparent)]
-    Camera(#[from] igi_camera::CameraError),
-    /// A plot that could not be drawn or written.
-    #[error(transparent)]
-    Plot(#[from] igi_plot::PlotError),
-    /// An output file or folder, a run manifest or the folder lock.
-    #[error(transparent)]
-    Files(#[from] igi_files::FilesError),
-    #[error(transparent)]
-    Geometry(#[from] igi_geometry::GeometryError),
-    #[error(transparent)]
-    Render(#[from] igi_render::RenderError),
-    /// The ray scene of the site (`--atlas auto`'s visibility tests).
-    #[error(transparent)]
-    Raycast(#[from] igi_raycast::RaycastError),
-    #[error(transparent)]
-    Brdf(#[from] igi_brdf::BrdfError),
-    /// A BRDF file (samples, materials) that reads but cannot be used.
-    #[error("{path}: {source}")]
-    BrdfFile {
-        path: PathBuf,
-        #[source]
-        source: igi_brdf::BrdfError,
-    },
-    /// A numeric CSV table (`igi sample`'s points): the file, the line and the problem.
-    #[error(transparent)]
-    Csv(#[from] igi_imaging::csv::CsvError),
-}
-
-impl ReflectError {
-    pub(crate) fn file(path: impl Into<PathBuf>, msg: impl Into<String>) -> Self {
-        ReflectError::File {
-            path: path.into(),
-            msg: msg.into(),
-        }
-    }
-}

@@ -120,8 +120,7 @@ impl SolveResult {
     /// Writes the parts' geometry and texel caches (once, at the start of a solve).
     pub fn write_geometry(&self, dir: &Path) -> Result<(), ReflectError> {
         let pdir = dir.join("parts");
-        std::fs::create_dir_all(&pdir)
-            .map_err(|e| ReflectError::file(&pdir, format!("cannot create folder: {e}")))?;
+        std::fs::create_dir_all(&pdir).map_err(|e| ReflectError::io(&pdir, "create folder", e))?;
         for p in &self.parts {
             if p.stored.is_none() {
                 write_ply(&pdir.join(format!("{}.ply", p.name)), &p.mesh)?;
@@ -146,11 +145,10 @@ impl SolveResult {
         let sdir = dir.join(STAGED);
         if sdir.exists() {
             // an earlier checkpoint that never reached its commit point
-            std::fs::remove_dir_all(&sdir)
-                .map_err(|e| ReflectError::file(&sdir, format!("cannot remove: {e}")))?;
+            std::fs::remove_dir_all(&sdir).map_err(|e| ReflectError::io(&sdir, "remove", e))?;
         }
         std::fs::create_dir_all(sdir.join("parts"))
-            .map_err(|e| ReflectError::file(&sdir, format!("cannot create folder: {e}")))?;
+            .map_err(|e| ReflectError::io(&sdir, "create folder", e))?;
         self.stage(&sdir)?;
         Self::commit_staged(dir)
     }
@@ -244,15 +242,14 @@ impl SolveResult {
     fn commit_staged(dir: &Path) -> Result<(), ReflectError> {
         let sdir = dir.join(STAGED);
         let mv = |from: PathBuf, to: PathBuf| {
-            std::fs::rename(&from, &to)
-                .map_err(|e| ReflectError::file(&to, format!("cannot move a staged file: {e}")))
+            std::fs::rename(&from, &to).map_err(|e| ReflectError::io(&to, "move a staged file", e))
         };
         let spdir = sdir.join("parts");
         if spdir.is_dir() {
             let entries = std::fs::read_dir(&spdir)
-                .map_err(|e| ReflectError::file(&spdir, format!("cannot read folder: {e}")))?;
+                .map_err(|e| ReflectError::io(&spdir, "read folder", e))?;
             for e in entries {
-                let e = e.map_err(|e| ReflectError::file(&spdir, format!("cannot read: {e}")))?;
+                let e = e.map_err(|e| ReflectError::io(&spdir, "read", e))?;
                 let name = e.file_name();
                 if name.to_string_lossy().starts_with('.') {
                     continue; // a dead writer's temporary file
@@ -265,8 +262,7 @@ impl SolveResult {
                 mv(sdir.join(f), dir.join(f))?;
             }
         }
-        std::fs::remove_dir_all(&sdir)
-            .map_err(|e| ReflectError::file(&sdir, format!("cannot remove: {e}")))
+        std::fs::remove_dir_all(&sdir).map_err(|e| ReflectError::io(&sdir, "remove", e))
     }
 
     /// Repairs a result folder after a killed checkpoint: a staging folder that reached its
@@ -276,8 +272,7 @@ impl SolveResult {
         if sdir.join("report.json").is_file() {
             Self::commit_staged(dir)
         } else if sdir.exists() {
-            std::fs::remove_dir_all(&sdir)
-                .map_err(|e| ReflectError::file(&sdir, format!("cannot remove: {e}")))
+            std::fs::remove_dir_all(&sdir).map_err(|e| ReflectError::io(&sdir, "remove", e))
         } else {
             Ok(())
         }
@@ -304,10 +299,9 @@ impl SolveResult {
             ));
         }
         let rp = dir.join("report.json");
-        let text = std::fs::read_to_string(&rp)
-            .map_err(|e| ReflectError::file(&rp, format!("cannot read: {e}")))?;
-        let report: SolveReport = serde_json::from_str(&text)
-            .map_err(|e| ReflectError::file(&rp, format!("not a solve report: {e}")))?;
+        let text = std::fs::read_to_string(&rp).map_err(|e| ReflectError::io(&rp, "read", e))?;
+        let report: SolveReport =
+            serde_json::from_str(&text).map_err(|e| ReflectError::json(&rp, "solve report", e))?;
         let pdir = dir.join("parts");
         let mut parts = Vec::new();
         let (mut rho, mut weight_sum, mut observations, mut stderr, mut lobes) =
@@ -436,8 +430,8 @@ fn read_lobes(lp: &Path) -> Result<Vec<Lobe>, ReflectError> {
     if !lp.exists() {
         return Ok(Vec::new());
     }
-    let t = std::fs::read_to_string(lp).map_err(|e| ReflectError::file(lp, e.to_string()))?;
-    serde_json::from_str(&t).map_err(|e| ReflectError::file(lp, format!("not a lobe list: {e}")))
+    let t = std::fs::read_to_string(lp).map_err(|e| ReflectError::io(lp, "read", e))?;
+    serde_json::from_str(&t).map_err(|e| ReflectError::json(lp, "lobe list", e))
 }
 
 /// A TOML basic string (quoted, with backslashes and quotes escaped).
