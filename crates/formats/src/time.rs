@@ -88,6 +88,11 @@ pub enum TimeProblem {
     /// An EXIF date left blank by the camera (`    :  :     :  :  `).
     #[error("the EXIF date and time are blank (the camera did not know them)")]
     Blank,
+    /// EXIF data without `DateTimeOriginal` and without a GPS date and time.
+    #[error(
+        "the EXIF data holds no DateTimeOriginal and no GPS date and time; give the photo a `time`"
+    )]
+    NoExifTime,
 }
 
 const RFC3339: &str = "an RFC 3339 time (YYYY-MM-DDTHH:MM:SS[.fraction] then Z or +HH:MM)";
@@ -361,6 +366,23 @@ impl PhotoTime {
             }
         };
         Ok(PhotoTime::from_local(&civil, 0, offset))
+    }
+
+    /// When a photograph was taken, from its EXIF (`igi_imaging::exif::read_exif`):
+    /// `DateTimeOriginal` with `OffsetTimeOriginal`, else the GPS date and time (UTC, so the
+    /// instant keeps offset 0). A `DateTimeOriginal` without its offset and without a GPS time
+    /// is [`TimeProblem::UnknownOffset`]; neither is [`TimeProblem::NoExifTime`].
+    pub fn from_photo_exif(exif: &igi_imaging::exif::PhotoExif) -> Result<PhotoTime, TimeProblem> {
+        match (
+            &exif.date_time_original,
+            &exif.offset_time_original,
+            &exif.gps_utc,
+        ) {
+            (Some(local), Some(offset), _) => PhotoTime::from_exif(local, Some(offset)),
+            (_, _, Some(utc)) => PhotoTime::from_exif(utc, Some("+00:00")),
+            (Some(local), None, None) => PhotoTime::from_exif(local, None),
+            (None, _, None) => Err(TimeProblem::NoExifTime),
+        }
     }
 
     fn from_local(civil: &Civil, nanos: u32, offset_seconds: i32) -> PhotoTime {
@@ -670,6 +692,38 @@ mod tests {
             err("2026-06-21T09:30:00+0300").to_string(),
             format!("not {RFC3339}: expected `:` in the UTC offset at character 23")
         );
+    }
+
+    /// Real photographs (../shared/data/CATALOGUE.md): the Sony writes its offset, the
+    /// iPhone 7 does not; the GPS time stands in for a missing offset.
+    #[test]
+    fn times_of_real_jpegs_and_of_gps_stamps() {
+        use igi_imaging::exif::{read_exif, PhotoExif};
+        let shared = igi_testkit::shared_data;
+        let sony = read_exif(&shared("mirror_ball_ldr/olapietka_sony_a6400/raw1.jpg")).unwrap();
+        let t = PhotoTime::from_photo_exif(&sony).unwrap();
+        assert_eq!(t.to_rfc3339(), "2023-04-06T16:51:33+02:00");
+        assert_eq!(t.to_rfc3339_utc(), "2023-04-06T14:51:33Z");
+        let iphone = read_exif(&shared(
+            "mirror_ball_ldr/uiuc_cs445_kagrawal_iphone7/ball_10.JPG",
+        ))
+        .unwrap();
+        assert_eq!(
+            PhotoTime::from_photo_exif(&iphone),
+            Err(TimeProblem::UnknownOffset)
+        );
+        let gps = PhotoExif {
+            gps_utc: Some("2017:10:31 05:39:43".into()),
+            ..iphone.clone()
+        };
+        assert_eq!(
+            PhotoTime::from_photo_exif(&gps).unwrap().to_rfc3339(),
+            "2017-10-31T05:39:43Z"
+        );
+        let none = PhotoExif::default();
+        let e = PhotoTime::from_photo_exif(&none).unwrap_err();
+        assert_eq!(e, TimeProblem::NoExifTime);
+        assert!(e.to_string().contains("DateTimeOriginal"), "{e}");
     }
 
     #[test]

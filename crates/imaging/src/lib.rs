@@ -6,6 +6,8 @@
 //! * [`io`]: [`read_image`] (EXR, Radiance HDR, PNG/JPEG/TIFF; headers checked against the
 //!   pixel limit before decoding), [`write_exr`], [`write_hdr`], [`write_png_tonemapped`], the
 //!   sRGB transfer functions.
+//! * [`exif`]: when a photograph was taken and how it was exposed, from its EXIF
+//!   ([`exif::read_exif`], [`exif::PhotoExif::exposure`]).
 //! * [`hdr`]: merging exposure brackets (linear sensors, the least-squares slope of Matusik
 //!   et al. 2002, or LDR via Debevec & Malik 1997 response recovery), EXIF exposure times.
 //! * [`merge`]: `igi hdr merge` as one job ([`merge::merge_files`]: brackets and times read,
@@ -30,6 +32,7 @@
 pub mod color;
 pub mod csv;
 mod error;
+pub mod exif;
 pub mod hdr;
 mod image;
 pub mod io;
