@@ -11,8 +11,6 @@ pub enum CameraError {
         #[source]
         problem: CameraFileError,
     },
-    #[error("{}: invalid camera radiometry file: {msg}", path.display())]
-    Radiometry { path: PathBuf, msg: String },
     #[error("{}: {msg}", path.display())]
     Rig { path: PathBuf, msg: String },
     /// A rig file that is not TOML of a rig.

@@ -4,9 +4,12 @@
 
 use crate::{CameraError, RadiometryError};
 use glam::DVec2;
+use igi_formats::radiometry::{FalloffTerms, RadiometryFile};
 use igi_imaging::HdrImage;
 use nalgebra::{DMatrix, DVector, Matrix3};
 use std::path::Path;
+
+pub use igi_formats::radiometry::RadiometryFit;
 
 /// Radial falloff `f(r) = 1 + a2 r^2 + a4 r^4 + a6 r^6`, `r` = distance from the image
 /// centre divided by the half-diagonal (so r = 1 at the corners), f(0) = 1.
@@ -604,10 +607,10 @@ fn mat_vec(m: &[[f64; 3]; 3], v: &[f64; 3]) -> [f64; 3] {
     [0, 1, 2].map(|r| m[r][0] * v[0] + m[r][1] * v[1] + m[r][2] * v[2])
 }
 
-/// A camera's radiometric calibration (the camera radiometry file, JSON): the lens falloff
-/// divided out first, then the colour matrix applied (`corrected = M * (raw / f(r))`).
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
+/// A camera's radiometric calibration (the camera radiometry file, JSON, read and written by
+/// `igi_formats::radiometry`): the lens falloff divided out first, then the colour matrix
+/// applied (`corrected = M * (raw / f(r))`).
+#[derive(Clone, Debug, PartialEq)]
 pub struct CameraRadiometry {
     /// Image size the calibration was fitted at; photographs must have the same aspect ratio
     /// (the falloff's radius is normalised by the half-diagonal, so any size of that shape works).
@@ -616,80 +619,48 @@ pub struct CameraRadiometry {
     pub falloff: Option<Falloff>,
     pub color_matrix: Option<[[f64; 3]; 3]>,
     /// How the fit went (informative; ignored when applying).
-    #[serde(default)]
     pub fit: RadiometryFit,
 }
 
-/// Diagnostics of a radiometry fit, stored in the file.
-#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct RadiometryFit {
-    pub flat_fields: usize,
-    /// RMS relative residual of the flat fields after the falloff fit.
-    pub falloff_rms: Option<f64>,
-    /// RMS relative error of the 24 corrected checker patches.
-    pub color_rms: Option<f64>,
-    /// The chart's white radiance when given (absolute calibration), else null.
-    pub white: Option<f64>,
-}
-
 impl CameraRadiometry {
-    /// Reads and validates a camera radiometry file (naming it in every error).
+    /// Reads and checks a camera radiometry file (naming it in every error).
     pub fn load(path: &Path) -> Result<CameraRadiometry, CameraError> {
-        let bad = |msg: String| CameraError::Radiometry {
-            path: path.to_path_buf(),
-            msg,
-        };
-        let text = std::fs::read_to_string(path).map_err(|e| CameraError::io(path, e))?;
-        let r: CameraRadiometry = serde_json::from_str(&text)
-            .map_err(|e| bad(format!("not a camera radiometry file: {e}")))?;
-        r.validate().map_err(bad)?;
-        Ok(r)
+        Ok(Self::from_file(RadiometryFile::read(path)?))
     }
 
-    fn validate(&self) -> Result<(), String> {
-        if self.width == 0 || self.height == 0 {
-            return Err(format!(
-                "image size {}x{} is empty",
-                self.width, self.height
-            ));
+    /// The calibration a (checked) radiometry file holds.
+    pub fn from_file(file: RadiometryFile) -> CameraRadiometry {
+        CameraRadiometry {
+            width: file.width,
+            height: file.height,
+            falloff: file.falloff.map(|f| Falloff {
+                a2: f.a2,
+                a4: f.a4,
+                a6: f.a6,
+            }),
+            color_matrix: file.color_matrix,
+            fit: file.fit,
         }
-        if self.falloff.is_none() && self.color_matrix.is_none() {
-            return Err("holds neither a falloff nor a colour matrix".into());
-        }
-        if let Some(f) = &self.falloff {
-            if ![f.a2, f.a4, f.a6].iter().all(|v| v.is_finite()) {
-                return Err("falloff coefficients are not finite".into());
-            }
-            if let Some(r) = (0..=100)
-                .map(|i| i as f64 / 100.0)
-                .find(|r| !(f.eval(*r) > 1e-3))
-            {
-                return Err(format!(
-                    "falloff f(r) is not positive at r = {r} (f = {})",
-                    f.eval(r)
-                ));
-            }
-        }
-        if let Some(m) = &self.color_matrix {
-            if !m.iter().flatten().all(|v| v.is_finite()) {
-                return Err("colour matrix holds a non-finite value".into());
-            }
-            if Matrix3::from_fn(|r, c| m[r][c]).determinant().abs() < 1e-9 {
-                return Err("colour matrix is singular".into());
-            }
-        }
-        Ok(())
     }
 
-    /// Writes the file atomically (pretty JSON).
+    /// The radiometry file of this calibration.
+    pub fn to_file(&self) -> RadiometryFile {
+        RadiometryFile {
+            width: self.width,
+            height: self.height,
+            falloff: self.falloff.map(|f| FalloffTerms {
+                a2: f.a2,
+                a4: f.a4,
+                a6: f.a6,
+            }),
+            color_matrix: self.color_matrix,
+            fit: self.fit.clone(),
+        }
+    }
+
+    /// Checks the calibration and writes the file atomically (pretty JSON).
     pub fn save(&self, path: &Path) -> Result<(), CameraError> {
-        self.validate().map_err(|msg| CameraError::Radiometry {
-            path: path.to_path_buf(),
-            msg,
-        })?;
-        let text = serde_json::to_string_pretty(self).expect("radiometry serialises");
-        Ok(igi_files::write_text_atomic(path, &(text + "\n"))?)
+        Ok(self.to_file().write(path)?)
     }
 
     /// Whether an image of `w` x `h` has the calibration's aspect ratio (within 1 %).

@@ -30,6 +30,9 @@
 //! does when it reads a TOML float into an `f32`. Writers of `f32` data pass it through
 //! [`f32_decimal`], so a file shows `0.1` rather than `0.10000000149011612`.
 //!
+//! - [`radiometry`]: the camera radiometry file (JSON, [`RadiometryFile`]: image size, lens
+//!   falloff, colour matrix, the fit's diagnostics), read and checked with
+//!   [`RadiometryFile::read`], written with [`RadiometryFile::write`].
 //! - [`brdf_samples`]: the BRDF-sample CSV and the direction-pair table ([`BrdfSample`],
 //!   [`PairTable`]; [`brdf_samples::read_samples`], [`brdf_samples::write_samples`]), read
 //!   through `igi_imaging::csv`.
@@ -44,6 +47,7 @@ pub mod camera;
 pub mod control;
 pub mod lighting;
 pub mod points;
+pub mod radiometry;
 pub mod scene;
 pub mod survey;
 pub mod time;
@@ -53,6 +57,7 @@ pub use brdf_samples::{BrdfSample, PairRow, PairTable};
 pub use camera::CameraFile;
 pub use control::ControlObservation;
 pub use lighting::LightingFile;
+pub use radiometry::RadiometryFile;
 pub use scene::SceneFile;
 pub use survey::{ReferenceTarget, SurveyFile};
 pub use time::{PhotoTime, TimeProblem};
@@ -171,6 +176,21 @@ pub enum FormatsError {
     /// A table that holds no rows (`what`: of what).
     #[error("{path}: no {what}")]
     NoRows { path: PathBuf, what: &'static str },
+    /// A file that cannot be read (missing, a folder, not UTF-8), for the files whose message
+    /// has always been the path and the system's reason alone (radiometry, rig, materials).
+    #[error("{path}: {source}")]
+    Open {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// A camera radiometry file that cannot be used (not its JSON, or values no calibration
+    /// can hold): from [`RadiometryFile::read`] and [`RadiometryFile::write`].
+    #[error("{path}: invalid camera radiometry file: {problem}")]
+    Radiometry {
+        path: PathBuf,
+        problem: Box<radiometry::RadiometryProblem>,
+    },
     /// Writing the file failed (the atomic writer names the file).
     #[error(transparent)]
     Write(Box<igi_files::FilesError>),
