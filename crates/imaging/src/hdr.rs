@@ -52,38 +52,15 @@ pub fn read_times_file(path: &Path) -> Result<Vec<f64>, ImagingError> {
         .collect()
 }
 
-/// The EXIF `ExposureTime` of an image file (JPEG/TIFF/PNG/...).
+/// The EXIF `ExposureTime` of an image file (JPEG/TIFF/PNG/...), read by
+/// [`crate::exif::read_exif`].
 pub fn exif_exposure_time(path: &Path) -> Result<f64, ImagingError> {
-    let err = |msg: String| ImagingError::Exif {
-        path: path.to_path_buf(),
-        msg,
-    };
-    let f = std::fs::File::open(path).map_err(|e| ImagingError::io(path, e))?;
-    let mut r = std::io::BufReader::new(f);
-    let ex = exif::Reader::new()
-        .read_from_container(&mut r)
-        .map_err(|source| ImagingError::NoExif {
+    crate::exif::read_exif(path)?
+        .exposure_time_s
+        .ok_or_else(|| ImagingError::Exif {
             path: path.to_path_buf(),
-            source,
-        })?;
-    let field = ex
-        .get_field(exif::Tag::ExposureTime, exif::In::PRIMARY)
-        .ok_or_else(|| {
-            err("EXIF has no ExposureTime; give the exposure times explicitly".into())
-        })?;
-    let v = match &field.value {
-        exif::Value::Rational(v) if !v.is_empty() => v[0].to_f64(),
-        exif::Value::SRational(v) if !v.is_empty() => v[0].to_f64(),
-        other => {
-            return Err(err(format!(
-                "ExposureTime has an unexpected type: {other:?}"
-            )))
-        }
-    };
-    if !(v.is_finite() && v > 0.0) {
-        return Err(err(format!("ExposureTime {v} is not a positive number")));
-    }
-    Ok(v)
+            msg: "EXIF has no ExposureTime; give the exposure times explicitly".into(),
+        })
 }
 
 /// Check a bracket set: at least one image, all the same size, one positive finite time per
