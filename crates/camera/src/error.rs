@@ -13,14 +13,6 @@ pub enum CameraError {
     },
     #[error("{}: {msg}", path.display())]
     Rig { path: PathBuf, msg: String },
-    /// A rig file that is not TOML of a rig.
-    #[error("{}: {source}", path.display())]
-    RigSyntax {
-        path: PathBuf,
-        /// Boxed so that the error stays small inside other crates' errors.
-        #[source]
-        source: Box<toml::de::Error>,
-    },
     #[error("{}: view {view:?}: {msg}", path.display())]
     RigView {
         path: PathBuf,

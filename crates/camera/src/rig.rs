@@ -1,138 +1,84 @@
 //! The multi-view capture file `rig.toml` (FORMATS.md, "Multi-view capture"), shared by the
 //! opacity-hull and surface-light-field pipelines.
 //!
-//! [`Rig::load`] parses the file, resolves every path relative to the folder of the rig file,
-//! and validates what can be checked without reading images: a finite, non-empty bounding box,
-//! unique non-empty view ids, matting entries with `n = +-1` and a positive `lambda`, light
-//! directions that are finite and non-zero (normalised on load). Every error names the rig
-//! file and, where it concerns one view, the view's id. [`Rig::load_cameras`] loads and checks
+//! [`Rig::load`] reads the file through `igi_formats::rig::RigFile` (which checks what can be
+//! checked without reading images: a finite, non-empty bounding box, unique non-empty view ids,
+//! matting entries with `n = +-1` and a positive `lambda`, light directions that are finite and
+//! non-zero), resolves every path relative to the folder of the rig file and normalises the
+//! light directions. Every error names the rig file and, where it concerns one view, the view's
+//! id. [`Rig::load_cameras`] loads and checks
 //! each view's camera; [`Rig::save`] writes the file back with paths relative to its folder
 //! where they lie below it.
 
 use crate::{Camera, CameraError};
-use serde::{Deserialize, Serialize};
+use igi_formats::rig::RigFile;
+use igi_formats::FormatsError;
 use std::path::{Path, PathBuf};
 
-/// `[object]`: a box that surely contains the object (world frame, metres).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct RigObject {
-    pub bbox_min: [f64; 3],
-    pub bbox_max: [f64; 3],
-}
-
-/// One matting capture of a view: the backdrop pattern alone and the object in front of it.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct BackdropPair {
-    /// Pattern wavelength in pixels (Eq. 1 of Matusik et al. 2002).
-    pub lambda: f64,
-    /// Pattern sign, +1 or -1.
-    pub n: i32,
-    pub backdrop: PathBuf,
-    pub object: PathBuf,
-}
-
-/// One reflectance-field capture: the object lit by one distant light of unit irradiance.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct LightImage {
-    /// Unit vector from the object toward the light (world frame); normalised on load.
-    pub direction: [f64; 3],
-    pub image: PathBuf,
-}
-
-/// One `[[view]]`: a camera pose and the images taken from it.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct RigView {
-    pub id: String,
-    pub camera: PathBuf,
-    pub photo: PathBuf,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub mask: Option<PathBuf>,
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub backdrops: Vec<BackdropPair>,
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub lights: Vec<LightImage>,
-}
+pub use igi_formats::rig::{BackdropPair, LightImage, RigObject, RigView};
 
 /// A multi-view capture. After [`Rig::load`] every path is resolved (joined to the rig file's
-/// folder when relative) and `path` is the rig file itself.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+/// folder when relative), every light direction is a unit vector, and `path` is the rig file
+/// itself.
+#[derive(Clone, Debug, PartialEq)]
 pub struct Rig {
     pub object: RigObject,
-    #[serde(rename = "view", default)]
     pub views: Vec<RigView>,
-    /// The file this rig was read from (not part of the TOML).
-    #[serde(skip)]
+    /// The file this rig was read from.
     pub path: PathBuf,
 }
 
 impl Rig {
-    /// Read, resolve and validate a rig file.
+    /// Read, check and resolve a rig file (read and checked by `igi_formats::rig`).
     pub fn load(path: &Path) -> Result<Rig, CameraError> {
-        let text = std::fs::read_to_string(path).map_err(|e| CameraError::io(path, e))?;
-        Self::from_toml_str(&text, path)
+        Ok(Self::from_file(RigFile::read(path)?, path))
     }
 
     /// Parse rig TOML text as if read from `path` (relative paths resolve against its folder).
     pub fn from_toml_str(text: &str, path: &Path) -> Result<Rig, CameraError> {
-        let mut rig: Rig = toml::from_str(text).map_err(|source| CameraError::RigSyntax {
+        let file = RigFile::parse(text).map_err(|problem| FormatsError::Rig {
             path: path.to_path_buf(),
-            source: Box::new(source),
+            problem: Box::new(problem),
         })?;
-        rig.path = path.to_path_buf();
-        let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
-        for v in &mut rig.views {
-            resolve_view(v, &base);
-        }
-        rig.validate()?;
-        Ok(rig)
+        Ok(Self::from_file(file, path))
     }
 
-    fn validate(&mut self) -> Result<(), CameraError> {
-        let (lo, hi) = (self.object.bbox_min, self.object.bbox_max);
-        if lo.iter().chain(&hi).any(|x| !x.is_finite()) || (0..3).any(|k| !(lo[k] < hi[k])) {
-            return Err(rig_error(
-                &self.path,
-                format!("[object] bbox_min {lo:?} must be below bbox_max {hi:?} on every axis"),
-            ));
-        }
-        let mut seen = std::collections::HashSet::new();
-        for v in &mut self.views {
-            let err = |msg: String| CameraError::RigView {
-                path: self.path.clone(),
-                view: v.id.clone(),
-                msg,
-            };
-            if v.id.trim().is_empty() {
-                return Err(err("empty view id".into()));
-            }
-            if !seen.insert(v.id.clone()) {
-                return Err(err("view id used twice".into()));
-            }
-            for b in &v.backdrops {
-                if !(b.n == 1 || b.n == -1) || !(b.lambda > 0.0 && b.lambda.is_finite()) {
-                    return Err(err(format!(
-                        "backdrop entry lambda = {}, n = {}: n must be 1 or -1 and lambda positive",
-                        b.lambda, b.n
-                    )));
+    /// The rig a (checked) rig file read from `path` describes: paths joined to the file's
+    /// folder when relative, light directions normalised.
+    pub fn from_file(file: RigFile, path: &Path) -> Rig {
+        let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        let mut views = file.views;
+        for v in &mut views {
+            v.for_each_path(|p| {
+                if p.is_relative() {
+                    *p = base.join(&*p);
                 }
-            }
+            });
             for l in &mut v.lights {
-                let d = glam::DVec3::from_array(l.direction);
-                if !d.is_finite() || d.length() < 1e-12 {
-                    return Err(err(format!(
-                        "light direction {:?} is not a non-zero vector",
-                        l.direction
-                    )));
-                }
-                l.direction = d.normalize().to_array();
+                l.direction = glam::DVec3::from_array(l.direction).normalize().to_array();
             }
         }
-        Ok(())
+        Rig {
+            object: file.object,
+            views,
+            path: path.to_path_buf(),
+        }
+    }
+
+    /// The rig file of this rig, every path written relative to `dir` where it lies below it.
+    pub fn to_file(&self, dir: &Path) -> RigFile {
+        let mut views = self.views.clone();
+        for v in &mut views {
+            v.for_each_path(|p| {
+                if let Ok(r) = p.strip_prefix(dir) {
+                    *p = r.to_path_buf();
+                }
+            });
+        }
+        RigFile {
+            object: self.object.clone(),
+            views,
+        }
     }
 
     /// Fail unless the rig has at least `n` views.
@@ -181,24 +127,13 @@ impl Rig {
 
     /// TOML text with every path written relative to `dir` where it lies below it.
     pub fn to_toml_string(&self, dir: &Path) -> String {
-        let mut out = self.clone();
-        for v in &mut out.views {
-            v.for_each_path(|p| {
-                if let Ok(r) = p.strip_prefix(dir) {
-                    *p = r.to_path_buf();
-                }
-            });
-        }
-        toml::to_string(&out).expect("rig serialises")
+        self.to_file(dir).to_toml().expect("rig serialises")
     }
 
     /// Write the rig to `path` atomically (paths relative to its folder where possible).
     pub fn save(&self, path: &Path) -> Result<(), CameraError> {
         let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-        Ok(igi_files::write_text_atomic(
-            path,
-            &self.to_toml_string(&dir),
-        )?)
+        Ok(self.to_file(&dir).write(path)?)
     }
 }
 
@@ -206,32 +141,6 @@ fn rig_error(path: &Path, msg: String) -> CameraError {
     CameraError::Rig {
         path: path.to_path_buf(),
         msg,
-    }
-}
-
-fn resolve_view(v: &mut RigView, base: &Path) {
-    v.for_each_path(|p| {
-        if p.is_relative() {
-            *p = base.join(&*p);
-        }
-    });
-}
-
-impl RigView {
-    /// Calls `f` on every file path of the view (camera, photo, mask, backdrops, lights).
-    fn for_each_path(&mut self, mut f: impl FnMut(&mut PathBuf)) {
-        f(&mut self.camera);
-        f(&mut self.photo);
-        if let Some(m) = &mut self.mask {
-            f(m);
-        }
-        for b in &mut self.backdrops {
-            f(&mut b.backdrop);
-            f(&mut b.object);
-        }
-        for l in &mut self.lights {
-            f(&mut l.image);
-        }
     }
 }
 

@@ -33,6 +33,9 @@
 //! - [`radiometry`]: the camera radiometry file (JSON, [`RadiometryFile`]: image size, lens
 //!   falloff, colour matrix, the fit's diagnostics), read and checked with
 //!   [`RadiometryFile::read`], written with [`RadiometryFile::write`].
+//! - [`rig`]: the multi-view capture file `rig.toml` ([`RigFile`]: the object's box, the
+//!   views with their camera, photo, mask, matting pairs and light images; paths as written),
+//!   read and checked with [`RigFile::read`], written with [`RigFile::write`].
 //! - [`brdf_samples`]: the BRDF-sample CSV and the direction-pair table ([`BrdfSample`],
 //!   [`PairTable`]; [`brdf_samples::read_samples`], [`brdf_samples::write_samples`]), read
 //!   through `igi_imaging::csv`.
@@ -48,6 +51,7 @@ pub mod control;
 pub mod lighting;
 pub mod points;
 pub mod radiometry;
+pub mod rig;
 pub mod scene;
 pub mod survey;
 pub mod time;
@@ -58,6 +62,7 @@ pub use camera::CameraFile;
 pub use control::ControlObservation;
 pub use lighting::LightingFile;
 pub use radiometry::RadiometryFile;
+pub use rig::RigFile;
 pub use scene::SceneFile;
 pub use survey::{ReferenceTarget, SurveyFile};
 pub use time::{PhotoTime, TimeProblem};
@@ -78,6 +83,7 @@ pub enum FileKind {
     BrdfPairs,
     ControlPoints,
     Points,
+    Rig,
 }
 
 impl fmt::Display for FileKind {
@@ -91,6 +97,7 @@ impl fmt::Display for FileKind {
             FileKind::BrdfPairs => "direction-pair file",
             FileKind::ControlPoints => "control-point file",
             FileKind::Points => "point table",
+            FileKind::Rig => "rig file",
         })
     }
 }
@@ -107,6 +114,7 @@ impl FileKind {
             FileKind::BrdfPairs => "direction pairs",
             FileKind::ControlPoints => "control points",
             FileKind::Points => "points",
+            FileKind::Rig => "rig file",
         }
     }
 }
@@ -190,6 +198,13 @@ pub enum FormatsError {
     Radiometry {
         path: PathBuf,
         problem: Box<radiometry::RadiometryProblem>,
+    },
+    /// A rig file that cannot be used (not its TOML, or values no capture can hold): from
+    /// [`RigFile::read`]; the problem names the view it concerns.
+    #[error("{path}: {problem}")]
+    Rig {
+        path: PathBuf,
+        problem: Box<rig::RigProblem>,
     },
     /// Writing the file failed (the atomic writer names the file).
     #[error(transparent)]
