@@ -102,10 +102,12 @@ pub struct Alignment {
 }
 
 /// One control point with its observations resolved to cameras.
-struct Group<'a> {
-    name: String,
-    world: DVec3,
-    views: Vec<(&'a Camera, [f64; 2])>,
+pub(crate) struct Group<'a> {
+    pub(crate) name: String,
+    pub(crate) world: DVec3,
+    pub(crate) views: Vec<(&'a Camera, [f64; 2])>,
+    /// The image of each view.
+    pub(crate) images: Vec<String>,
 }
 
 /// The observations grouped by point (file order), each image found and each pixel checked.
@@ -130,11 +132,15 @@ fn group<'a>(
             ));
         }
         match groups.iter_mut().find(|g| g.name == o.name) {
-            Some(g) => g.views.push((cam, o.pixel)),
+            Some(g) => {
+                g.views.push((cam, o.pixel));
+                g.images.push(o.image.clone());
+            }
             None => groups.push(Group {
                 name: o.name.clone(),
                 world: DVec3::from_array(o.world),
                 views: vec![(cam, o.pixel)],
+                images: vec![o.image.clone()],
             }),
         }
     }
@@ -322,16 +328,31 @@ pub fn align(
 }
 
 /// Each group's triangulated point; a point seen once, or whose rays are parallel, is refused.
-fn triangulate_all(path: &Path, groups: &[Group]) -> Result<Vec<DVec3>, ImportError> {
+/// Each group's point triangulated from its views, which must be two or more, not (near)
+/// parallel, and meet in front of every camera that sees the point.
+pub(crate) fn triangulate_all(path: &Path, groups: &[Group]) -> Result<Vec<DVec3>, ImportError> {
     groups
         .iter()
         .map(|g| {
             if g.views.len() < 2 {
                 return Err(ImportError::control(path, format!("point `{}` is seen in only one image; a point needs two views to be triangulated", g.name)));
             }
-            triangulate(&g.views).ok_or_else(|| ImportError::control(path, format!("point `{}`: its rays are (near) parallel and do not fix a position", g.name)))
+            let x = triangulate(&g.views).ok_or_else(|| ImportError::control(path, format!("point `{}`: its rays are (near) parallel and do not fix a position", g.name)))?;
+            in_front(path, g, x)?;
+            Ok(x)
         })
         .collect()
+}
+
+/// Refuses a triangulated point `x` that lies behind a camera of its group: its rows do not
+/// observe one point (a mislabelled point or image).
+fn in_front(path: &Path, g: &Group, x: DVec3) -> Result<(), ImportError> {
+    for ((cam, _), image) in g.views.iter().zip(&g.images) {
+        if !(cam.pose.apply(x).z > 0.0) {
+            return Err(ImportError::control(path, format!("point `{}` triangulates behind the camera of image `{image}`: its rows do not observe one point (a mislabelled point or image?)", g.name)));
+        }
+    }
+    Ok(())
 }
 
 fn refit(

@@ -379,6 +379,43 @@ fn bad_control_points_are_refused_by_name() {
     assert!(align_error(&noisy, Some(1e-7)).contains("--max-residual"));
 }
 
+/// Two rows of one point whose rays, as lines, meet behind both cameras (A looks left of its
+/// axis, B right of its own, 2 m to A's right): refused, naming the point and an image.
+#[test]
+fn a_point_that_triangulates_behind_a_camera_is_refused() {
+    let a = Camera::look_at(DVec3::ZERO, DVec3::new(0.0, 10.0, 0.0), 640, 480, 60.0).unwrap();
+    let b = Camera::look_at(
+        DVec3::new(2.0, 0.0, 0.0),
+        DVec3::new(2.0, 10.0, 0.0),
+        640,
+        480,
+        60.0,
+    )
+    .unwrap();
+    let px = |c: &Camera, p: DVec3| c.project(p).unwrap().to_array();
+    let group = |pa: DVec3, pb: DVec3| crate::align::Group {
+        name: "gcp-7".into(),
+        world: DVec3::ZERO,
+        views: vec![(&a, px(&a, pa)), (&b, px(&b, pb))],
+        images: vec!["A.JPG".into(), "B.JPG".into()],
+    };
+    let path = Path::new("control.csv");
+    // crossing in front: (1, 5, 0)
+    let ok = group(DVec3::new(1.0, 5.0, 0.0), DVec3::new(1.0, 5.0, 0.0));
+    let x = crate::align::triangulate_all(path, &[ok]).unwrap();
+    assert!((x[0] - DVec3::new(1.0, 5.0, 0.0)).length() < 1e-9, "{x:?}");
+    // lines through (-1, 5, 0) and (3, 5, 0) meet at (1, -5, 0), behind both
+    let bad = group(DVec3::new(-1.0, 5.0, 0.0), DVec3::new(3.0, 5.0, 0.0));
+    let e = crate::align::triangulate_all(path, &[bad])
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.starts_with("control.csv: ")
+            && e.contains("point `gcp-7` triangulates behind the camera of image `A.JPG`"),
+        "{e}"
+    );
+}
+
 #[test]
 fn unsupported_camera_models_are_refused_by_name() {
     let mut model = colmap_of(&truth_cameras(), &truth_points());
