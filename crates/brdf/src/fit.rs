@@ -110,20 +110,8 @@ pub struct CvScore {
     pub score: f64,
 }
 
-/// Standard errors in the units of the fitted parameters (`cz` is fixed, so it has none).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct LobeStderr {
-    pub rho: [f64; 3],
-    pub cxy: f64,
-    pub n: f64,
-}
-
-/// Standard errors of a fit, laid out like the material.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Stderr {
-    pub rho_d: [f64; 3],
-    pub lobes: Vec<LobeStderr>,
-}
+/// Standard errors of a fit, laid out like the material (as `materials.json` holds them).
+pub use igi_formats::materials::{LobeStderr, Stderr};
 
 /// The result of fitting one material.
 #[derive(Clone, Debug)]

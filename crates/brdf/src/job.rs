@@ -54,10 +54,7 @@ pub fn fit_file(
         }
     })?;
     let reports: Vec<FitReport> = fits.iter().map(|(_, r)| r.clone()).collect();
-    write_text_atomic(
-        &req.output,
-        &MaterialsFile::from_reports(&reports).to_json(),
-    )?;
+    MaterialsFile::from_reports(&reports).write(&req.output)?;
     written(&reports);
     if let Some(p) = &req.plot {
         let m: Vec<_> = fits
@@ -159,7 +156,7 @@ pub fn infer_file(req: &InferRequest) -> Result<String, BrdfError> {
     );
     let text = out.to_json();
     if let Some(p) = &req.output {
-        write_text_atomic(p, &text)?;
+        out.write(p)?;
     }
     Ok(text)
 }

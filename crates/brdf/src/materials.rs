@@ -1,28 +1,25 @@
 //! The materials JSON written by `igi brdf fit` and read by eval/infer and the solver:
 //! `{ "materials": { name: { "rho_d": [..], "lobes": [ {rho, cxy, cz, n} ...], "rms": .., "stderr": {...} } } }`.
+//! Read, checked and written by `igi_formats::materials`; the BRDFs are built from it here.
 
 use std::collections::BTreeMap;
 use std::path::Path;
 
 use glam::Vec3;
-use serde::{Deserialize, Serialize};
+use igi_formats::materials as file;
 
 use crate::{BrdfError, FitReport, Lafortune, Lobe, Stderr};
 
 /// One material: the BRDF and, when it came from a fit, its quality figures.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct MaterialEntry {
     pub rho_d: Vec3,
     pub lobes: Vec<Lobe>,
     /// RMS of the relative residuals of the fit.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rms: Option<f64>,
     /// RMS of the absolute residuals (pi times the BRDF).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rms_abs: Option<f64>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub samples: Option<usize>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stderr: Option<Stderr>,
 }
 
@@ -31,6 +28,48 @@ impl MaterialEntry {
         Lafortune {
             rho_d: self.rho_d,
             lobes: self.lobes.clone(),
+        }
+    }
+
+    /// The material a (checked) file entry holds.
+    pub fn from_file(e: file::MaterialEntry) -> MaterialEntry {
+        MaterialEntry {
+            rho_d: e.rho_d,
+            lobes: e
+                .lobes
+                .iter()
+                .map(|l| Lobe {
+                    rho: l.rho,
+                    cxy: l.cxy,
+                    cz: l.cz,
+                    n: l.n,
+                })
+                .collect(),
+            rms: e.rms,
+            rms_abs: e.rms_abs,
+            samples: e.samples,
+            stderr: e.stderr,
+        }
+    }
+
+    /// The file entry of this material.
+    pub fn to_file(&self) -> file::MaterialEntry {
+        file::MaterialEntry {
+            rho_d: self.rho_d,
+            lobes: self
+                .lobes
+                .iter()
+                .map(|l| file::Lobe {
+                    rho: l.rho,
+                    cxy: l.cxy,
+                    cz: l.cz,
+                    n: l.n,
+                })
+                .collect(),
+            rms: self.rms,
+            rms_abs: self.rms_abs,
+            samples: self.samples,
+            stderr: self.stderr.clone(),
         }
     }
 }
@@ -49,7 +88,7 @@ impl From<&FitReport> for MaterialEntry {
 }
 
 /// A set of named materials (sorted by name).
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct MaterialsFile {
     pub materials: BTreeMap<String, MaterialEntry>,
 }
@@ -64,52 +103,53 @@ impl MaterialsFile {
         }
     }
 
-    /// Read and validate (finite, non-negative colours, non-negative exponents, at least one material).
+    /// Read and validate (finite, non-negative colours, non-negative exponents, at least one
+    /// material) through `igi_formats::materials`.
     pub fn read(path: &Path) -> Result<Self, BrdfError> {
-        let text = std::fs::read_to_string(path).map_err(|source| BrdfError::Io {
-            path: path.into(),
-            source,
-        })?;
-        Self::parse(&text, path)
+        Ok(Self::from_file(file::MaterialsFile::read(path)?))
     }
 
     /// [`Self::read`] on text in memory (`path` names it in errors).
     pub fn parse(text: &str, path: &Path) -> Result<Self, BrdfError> {
-        let err = |msg: String| BrdfError::File {
-            path: path.into(),
-            msg,
-        };
-        let m: MaterialsFile =
-            serde_json::from_str(text).map_err(|e| err(format!("not a materials JSON: {e}")))?;
-        if m.materials.is_empty() {
-            return Err(err("no materials".into()));
-        }
-        for (name, e) in &m.materials {
-            if !e.rho_d.is_finite() || e.rho_d.min_element() < 0.0 {
-                return Err(err(format!(
-                    "material `{name}`: rho_d {:?} must be finite and non-negative",
-                    e.rho_d
-                )));
-            }
-            for (i, l) in e.lobes.iter().enumerate() {
-                let ok = l.rho.is_finite()
-                    && l.rho.min_element() >= 0.0
-                    && l.cxy.is_finite()
-                    && l.cz.is_finite()
-                    && l.n.is_finite()
-                    && l.n >= 0.0;
-                if !ok {
-                    return Err(err(format!(
-                        "material `{name}`, lobe {i}: {l:?} needs finite values, rho >= 0, n >= 0"
-                    )));
-                }
-            }
-        }
-        Ok(m)
+        Ok(Self::from_file(file::MaterialsFile::parse_at(text, path)?))
     }
 
+    /// The materials a (checked) materials file holds.
+    pub fn from_file(f: file::MaterialsFile) -> Self {
+        MaterialsFile {
+            materials: f
+                .materials
+                .into_iter()
+                .map(|(k, e)| (k, MaterialEntry::from_file(e)))
+                .collect(),
+        }
+    }
+
+    /// The materials file of these materials.
+    pub fn to_file(&self) -> file::MaterialsFile {
+        file::MaterialsFile {
+            materials: self
+                .materials
+                .iter()
+                .map(|(k, e)| (k.clone(), e.to_file()))
+                .collect(),
+        }
+    }
+
+    /// The file's text (pretty JSON, a final newline).
     pub fn to_json(&self) -> String {
-        serde_json::to_string_pretty(self).expect("materials serialise") + "\n"
+        self.to_file().to_json()
+    }
+
+    /// Writes the file atomically (a failure to write says "cannot write", as it always has).
+    pub fn write(&self, path: &Path) -> Result<(), BrdfError> {
+        self.to_file().write(path).map_err(|e| match e {
+            igi_formats::FormatsError::Write(e) => BrdfError::File {
+                path: path.into(),
+                msg: format!("cannot write: {e}"),
+            },
+            e => e.into(),
+        })
     }
 
     /// The named material, or an error listing the available names.

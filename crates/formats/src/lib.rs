@@ -36,6 +36,10 @@
 //! - [`rig`]: the multi-view capture file `rig.toml` ([`RigFile`]: the object's box, the
 //!   views with their camera, photo, mask, matting pairs and light images; paths as written),
 //!   read and checked with [`RigFile::read`], written with [`RigFile::write`].
+//! - [`materials`]: `materials.json`, the fitted BRDFs ([`MaterialsFile`]: named materials
+//!   with `rho_d`, lobes and the fit's figures, `f32` values written in their shortest
+//!   decimals), read and checked with [`MaterialsFile::read`], written with
+//!   [`MaterialsFile::write`].
 //! - [`brdf_samples`]: the BRDF-sample CSV and the direction-pair table ([`BrdfSample`],
 //!   [`PairTable`]; [`brdf_samples::read_samples`], [`brdf_samples::write_samples`]), read
 //!   through `igi_imaging::csv`.
@@ -49,6 +53,7 @@ pub mod brdf_samples;
 pub mod camera;
 pub mod control;
 pub mod lighting;
+pub mod materials;
 pub mod points;
 pub mod radiometry;
 pub mod rig;
@@ -61,6 +66,7 @@ pub use brdf_samples::{BrdfSample, PairRow, PairTable};
 pub use camera::CameraFile;
 pub use control::ControlObservation;
 pub use lighting::LightingFile;
+pub use materials::MaterialsFile;
 pub use radiometry::RadiometryFile;
 pub use rig::RigFile;
 pub use scene::SceneFile;
@@ -205,6 +211,13 @@ pub enum FormatsError {
     Rig {
         path: PathBuf,
         problem: Box<rig::RigProblem>,
+    },
+    /// A materials file that cannot be used (not its JSON, no material, a colour or lobe no
+    /// BRDF can hold): from [`MaterialsFile::read`].
+    #[error("{path}: {problem}")]
+    Materials {
+        path: PathBuf,
+        problem: Box<materials::MaterialsProblem>,
     },
     /// Writing the file failed (the atomic writer names the file).
     #[error(transparent)]
