@@ -117,3 +117,64 @@ fn bad_atlas_values_are_refused_before_any_work() {
         assert!(!out.exists(), "{args:?} left an output folder");
     }
 }
+
+/// A photograph taken at another exposure, with its `exposure` in the survey, solves to the
+/// same albedo: the fixture's photos at 4 times their values with `exposure = 4.0` give the
+/// same bytes as the fixture itself (dividing by 4 is exact in floating point).
+#[test]
+fn a_photos_exposure_puts_it_on_the_surveys_scale() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("survey");
+    std::fs::create_dir_all(dir.join("scaled")).unwrap();
+    let text = std::fs::read_to_string(fixture().join("survey.toml"))
+        .unwrap()
+        .replace(
+            "\"geometry/",
+            &format!("\"{}/geometry/", fixture().display()),
+        );
+    let mut out = String::new();
+    for line in text.lines() {
+        let Some((key, value)) = line.split_once(" = \"") else {
+            out += &format!("{line}\n");
+            continue;
+        };
+        let rel = value.trim_end_matches('"');
+        if key == "image" {
+            // every photo is read from its scaled copy
+            let mut img = igi_imaging::read_image(&fixture().join(rel)).unwrap();
+            img.pixels.iter_mut().for_each(|p| *p = p.map(|c| 4.0 * c));
+            let scaled = dir.join("scaled").join(Path::new(rel).file_name().unwrap());
+            igi_imaging::write_exr(&scaled, &img).unwrap();
+            out += &format!("image = {:?}\nexposure = 4.0\n", scaled.to_str().unwrap());
+        } else {
+            let abs = fixture().join(rel);
+            out += &format!("{key} = {:?}\n", abs.to_str().unwrap());
+        }
+    }
+    assert_eq!(out.matches("exposure = 4.0").count(), 8, "{out}");
+    std::fs::write(dir.join("survey.toml"), out).unwrap();
+    let rho = |survey: &Path, name: &str| {
+        let res = tmp.path().join(name);
+        let mut c = igi();
+        c.arg("solve").arg(survey).arg("-o").arg(&res).args([
+            "--iterations",
+            "1",
+            "--spp",
+            "4",
+            "--atlas",
+            "64",
+            "--quiet",
+        ]);
+        run_ok(&mut c);
+        std::fs::read(res.join("parts/ground_rho_d.exr")).unwrap()
+    };
+    assert!(rho(&dir, "scaled") == rho(&fixture(), "plain"));
+    // without the exposure the same photographs give a brighter albedo
+    let text = std::fs::read_to_string(dir.join("survey.toml")).unwrap();
+    std::fs::write(
+        dir.join("survey.toml"),
+        text.replace("exposure = 4.0\n", ""),
+    )
+    .unwrap();
+    assert!(rho(&dir, "unscaled") != rho(&fixture(), "plain2"));
+}

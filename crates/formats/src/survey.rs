@@ -109,6 +109,12 @@ pub struct PhotoEntry {
     pub time: Option<String>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub lighting: Option<PathBuf>,
+    /// The photo's exposure relative to the survey's radiometric scale (an igi extension,
+    /// docs/FORMATS.md Part 2): its linear pixel values are divided by it when it is loaded, so
+    /// photographs taken at different settings share one scale (from EXIF: exposure time x
+    /// ISO / 100 / f-number^2, `igi_imaging::exif::PhotoExif::exposure`). Positive; 1 if absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub exposure: Option<f64>,
     /// The camera radiometry applied to this photo (overrides `[radiometry]`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub radiometry: Option<PathBuf>,
@@ -214,6 +220,9 @@ pub enum SurveyProblem {
         #[source]
         source: TimeProblem,
     },
+    /// A photo's `exposure` that is not a positive finite number.
+    #[error("[[photo]] `{id}` exposure = {value} is not a positive number")]
+    Exposure { id: String, value: f64 },
     /// A value of a `[[reference]]` target (counted from 1 in file order).
     #[error("[[reference]] {number}: {key} = {value} {why}")]
     Reference {
@@ -228,7 +237,8 @@ impl SurveyFile {
     /// Checks the values the site location, the photo times and the reference targets must
     /// have: latitude in [-90, 90] and longitude in [-180, 180], given together or not at all;
     /// `north` finite, non-zero and horizontal (|z| at most [`NORTH_MAX_TILT`] of its length);
-    /// every photo `time` an RFC 3339 instant with its UTC offset; each reference's `center`
+    /// every photo `time` an RFC 3339 instant with its UTC offset, every `exposure` positive and
+    /// finite; each reference's `center`
     /// finite, `normal` finite and non-zero, `radius` finite and > 0, `albedo` in [0, 1].
     /// `file` names the survey in errors. A photo with neither lighting nor a time is not an
     /// error here (its time may come from its EXIF).
@@ -244,6 +254,12 @@ impl SurveyFile {
                     id: p.id.clone(),
                     time: time.clone(),
                     source,
+                }));
+            }
+            if let Some(value) = p.exposure.filter(|e| !(e.is_finite() && *e > 0.0)) {
+                return Err(err(SurveyProblem::Exposure {
+                    id: p.id.clone(),
+                    value,
                 }));
             }
         }
@@ -345,6 +361,7 @@ mod tests {
             camera: format!("cameras/{id}.json").into(),
             time: None,
             lighting: Some(format!("lighting/{lighting}.toml").into()),
+            exposure: None,
             radiometry: None,
             probe: None,
         }

@@ -330,6 +330,7 @@ impl Shoot<'_> {
             radiometry: None,
             probe: None,
             time: None,
+            exposure: None,
         })
     }
 }

@@ -36,6 +36,9 @@ pub struct PhotoSpec {
     pub radiometry: Option<PathBuf>,
     /// When the photo was taken (`time = ...`, checked to carry its UTC offset).
     pub time: Option<igi_formats::PhotoTime>,
+    /// The photo's exposure on the survey's radiometric scale (`exposure = ...`, 1 if absent):
+    /// its pixels are divided by it on load.
+    pub exposure: f64,
 }
 
 /// A parsed survey: everything is checked to exist, nothing heavy is loaded yet.
@@ -234,6 +237,7 @@ impl SurveyPaths<'_> {
             },
             // checked with the survey file
             time: p.photo_time().and_then(Result::ok),
+            exposure: p.exposure.unwrap_or(1.0),
         })
     }
 
@@ -308,6 +312,13 @@ impl PhotoSpec {
         self.check_image(&image, &camera)?;
         if let Some(path) = &self.radiometry {
             self.apply_radiometry(path, &mut image)?;
+        }
+        if self.exposure != 1.0 {
+            let scale = (1.0 / self.exposure) as f32;
+            image
+                .pixels
+                .iter_mut()
+                .for_each(|p| *p = p.map(|c| c * scale));
         }
         let lighting = match &self.lighting {
             LightingSource::File(f) => Lighting::load(f)?,
@@ -491,6 +502,23 @@ mod tests {
         );
         let s = Survey::load(dir.path()).unwrap();
         assert_eq!(s.photos[0].radiometry, Some(dir.path().join("rad.json")));
+    }
+
+    #[test]
+    fn a_photos_exposure_is_read_and_checked() {
+        let s = Survey::load(survey_dir("", "exposure = 0.0125").path()).unwrap();
+        assert_eq!(s.photos[0].exposure, 0.0125);
+        let s = Survey::load(survey_dir("", "").path()).unwrap();
+        assert_eq!(s.photos[0].exposure, 1.0);
+        for bad in ["0.0", "-2.0", "nan", "inf"] {
+            let e = error_of("", &format!("exposure = {bad}"));
+            assert!(
+                e.contains("survey.toml")
+                    && e.contains("`p` exposure")
+                    && e.contains("not a positive number"),
+                "{bad}: {e}"
+            );
+        }
     }
 
     #[test]
