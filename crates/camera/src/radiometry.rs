@@ -21,9 +21,18 @@ pub struct Falloff {
 }
 
 impl Falloff {
+    /// `f(r)`, evaluated by the file model's polynomial (`FalloffTerms::eval`).
     pub fn eval(&self, r: f64) -> f64 {
-        let r2 = r * r;
-        1.0 + r2 * (self.a2 + r2 * (self.a4 + r2 * self.a6))
+        self.terms().eval(r)
+    }
+
+    /// The coefficients as the radiometry file holds them.
+    fn terms(&self) -> FalloffTerms {
+        FalloffTerms {
+            a2: self.a2,
+            a4: self.a4,
+            a6: self.a6,
+        }
     }
 
     /// Normalised radius of pixel (x, y) (pixel centres at integers) in a `w` x `h` image.
@@ -648,11 +657,7 @@ impl CameraRadiometry {
         RadiometryFile {
             width: self.width,
             height: self.height,
-            falloff: self.falloff.map(|f| FalloffTerms {
-                a2: f.a2,
-                a4: f.a4,
-                a6: f.a6,
-            }),
+            falloff: self.falloff.map(|f| f.terms()),
             color_matrix: self.color_matrix,
             fit: self.fit.clone(),
         }
