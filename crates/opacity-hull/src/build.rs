@@ -115,6 +115,13 @@ pub fn build(
     if opts.resolution < 256 {
         return Err(HullError::CoarseResolution(opts.resolution));
     }
+    if rig.views.len() > crate::carve::MAX_VIEWS {
+        return Err(HullError::TooManyViews {
+            rig: rig.path.clone(),
+            views: rig.views.len(),
+            max: crate::carve::MAX_VIEWS,
+        });
+    }
     check_output(out)?;
     let mut t = Timings::default();
     let mut clock = Instant::now();

@@ -16,8 +16,15 @@ use crate::views::View;
 use glam::DVec3;
 use rayon::prelude::*;
 
+/// The index of a view in a carving (the first view that carves a cell).
+pub type ViewIndex = u16;
+
 /// Marker for a cell no view carves.
-pub const KEPT: u8 = u8::MAX;
+pub const KEPT: ViewIndex = ViewIndex::MAX;
+
+/// The most views a hull is carved from (Matusik et al.'s rig had 6 cameras x 36 turntable
+/// positions = 216). `igi hull build` refuses more before any work.
+pub const MAX_VIEWS: usize = 1024;
 
 /// The cell grid over a box.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -163,25 +170,33 @@ impl<'a> ViewTable<'a> {
 }
 
 /// For every cell of `grid`, the index of the first view that carves it, or [`KEPT`].
-/// At most 255 views.
-pub fn carve(grid: &CellGrid, views: &[&View]) -> Vec<u8> {
-    assert!(views.len() < KEPT as usize, "at most 254 views");
+/// At most [`MAX_VIEWS`] views (callers check; more is a programming error).
+pub fn carve(grid: &CellGrid, views: &[&View]) -> Vec<ViewIndex> {
+    assert!(views.len() <= MAX_VIEWS, "at most {MAX_VIEWS} views");
     let tables: Vec<ViewTable> = views.iter().map(|v| ViewTable::new(v)).collect();
     let block = 16usize;
     let nb = grid.dims.map(|d| d.div_ceil(block));
     let blocks: Vec<[usize; 3]> = (0..nb[2])
         .flat_map(|k| (0..nb[1]).flat_map(move |j| (0..nb[0]).map(move |i| [i, j, k])))
         .collect();
-    let results: Vec<([usize; 3], [usize; 3], Vec<u8>)> = blocks
+    let results: Vec<([usize; 3], [usize; 3], Vec<ViewIndex>)> = blocks
         .par_iter()
         .map(|b| {
             let lo = [0, 1, 2].map(|a| b[a] * block);
             let hi = [0, 1, 2].map(|a| ((b[a] + 1) * block).min(grid.dims[a]));
             let size = [0, 1, 2].map(|a| hi[a] - lo[a]);
             let mut local = vec![KEPT; size[0] * size[1] * size[2]];
-            carve_range(grid, &tables, lo, hi, 0, &mut |c: [usize; 3], v: u8| {
-                local[(c[0] - lo[0]) + size[0] * ((c[1] - lo[1]) + size[1] * (c[2] - lo[2]))] = v;
-            });
+            carve_range(
+                grid,
+                &tables,
+                lo,
+                hi,
+                0,
+                &mut |c: [usize; 3], v: ViewIndex| {
+                    local[(c[0] - lo[0]) + size[0] * ((c[1] - lo[1]) + size[1] * (c[2] - lo[2]))] =
+                        v;
+                },
+            );
             (lo, size, local)
         })
         .collect();
@@ -206,7 +221,7 @@ fn carve_range(
     lo: [usize; 3],
     hi: [usize; 3],
     first: usize,
-    set: &mut dyn FnMut([usize; 3], u8),
+    set: &mut dyn FnMut([usize; 3], ViewIndex),
 ) {
     let cs = grid.cell_size();
     let corner = |c: [usize; 3]| grid.min + DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64) * cs;
@@ -214,7 +229,7 @@ fn carve_range(
     if single {
         let p = grid.center(lo);
         if let Some(v) = (first..tables.len()).find(|&v| tables[v].carves_point(p)) {
-            set(lo, v as u8);
+            set(lo, v as ViewIndex);
         }
         return;
     }
@@ -226,7 +241,7 @@ fn carve_range(
                 for k in lo[2]..hi[2] {
                     for j in lo[1]..hi[1] {
                         for i in lo[0]..hi[0] {
-                            set([i, j, k], v as u8);
+                            set([i, j, k], v as ViewIndex);
                         }
                     }
                 }
@@ -248,28 +263,63 @@ fn carve_range(
 }
 
 /// Cells kept after the first `k` views: those whose first carving view is `>= k`.
-pub fn volume_after(carver: &[u8], k: usize) -> usize {
+pub fn volume_after(carver: &[ViewIndex], k: usize) -> usize {
     carver.iter().filter(|&&v| v as usize >= k).count()
 }
 
 /// Per cell, the bit set of every view that carves its centre (direct test, no early out):
-/// for volume-against-views studies over many view orders. At most 64 views.
-pub fn carve_sets(grid: &CellGrid, views: &[&View]) -> Vec<u64> {
-    assert!(views.len() <= 64, "at most 64 views");
+/// for volume-against-views studies over many view orders.
+#[derive(Clone, Debug)]
+pub struct ViewSets {
+    /// 64-bit words per cell.
+    words: usize,
+    bits: Vec<u64>,
+}
+
+impl ViewSets {
+    /// Cells in the grid.
+    pub fn len(&self) -> usize {
+        self.bits.len() / self.words
+    }
+
+    /// Whether the grid has no cell.
+    pub fn is_empty(&self) -> bool {
+        self.bits.is_empty()
+    }
+
+    /// Whether view `v` carves cell `cell`.
+    pub fn carves(&self, cell: usize, v: usize) -> bool {
+        self.bits[cell * self.words + v / 64] >> (v % 64) & 1 == 1
+    }
+
+    /// Whether no view carves cell `cell`.
+    pub fn kept(&self, cell: usize) -> bool {
+        self.bits[cell * self.words..(cell + 1) * self.words]
+            .iter()
+            .all(|&w| w == 0)
+    }
+}
+
+/// The views carving each cell of `grid` (see [`ViewSets`]). At most [`MAX_VIEWS`] views.
+pub fn carve_sets(grid: &CellGrid, views: &[&View]) -> ViewSets {
+    assert!(views.len() <= MAX_VIEWS, "at most {MAX_VIEWS} views");
     let tables: Vec<ViewTable> = views.iter().map(|v| ViewTable::new(v)).collect();
-    (0..grid.len())
-        .into_par_iter()
-        .map(|i| {
+    let words = views.len().div_ceil(64).max(1);
+    let mut bits = vec![0u64; grid.len() * words];
+    bits.par_chunks_mut(words)
+        .enumerate()
+        .for_each(|(i, cell)| {
             let c = [
                 i % grid.dims[0],
                 (i / grid.dims[0]) % grid.dims[1],
                 i / (grid.dims[0] * grid.dims[1]),
             ];
             let p = grid.center(c);
-            tables
-                .iter()
-                .enumerate()
-                .fold(0u64, |acc, (v, t)| acc | ((t.carves_point(p) as u64) << v))
-        })
-        .collect()
+            for (v, t) in tables.iter().enumerate() {
+                if t.carves_point(p) {
+                    cell[v / 64] |= 1 << (v % 64);
+                }
+            }
+        });
+    ViewSets { words, bits }
 }

@@ -74,6 +74,13 @@ pub enum HullError {
     /// A build resolution coarser than the bounding box over 256.
     #[error("invalid argument: resolution {0} is coarser than bbox/256")]
     CoarseResolution(usize),
+    /// A rig with more views than a hull is carved from.
+    #[error("{}: {views} views; a hull is carved from at most {max} (Matusik et al.'s rig had 216)", rig.display())]
+    TooManyViews {
+        rig: PathBuf,
+        views: usize,
+        max: usize,
+    },
     /// A backdrop pattern size outside 1..32768 on a side.
     #[error("invalid argument: backdrop size {width}x{height} must be 1..32768 on each side")]
     BackdropSize { width: usize, height: usize },

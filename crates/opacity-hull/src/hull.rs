@@ -1,7 +1,7 @@
 //! The visual hull of a set of views: carving, the surface mesh, reprojection checks, and the
 //! volume against the number of views.
 
-use crate::carve::{carve, carve_sets, CellGrid, KEPT};
+use crate::carve::{carve, carve_sets, CellGrid, ViewIndex, KEPT, MAX_VIEWS};
 use crate::raster::{iou_over, rasterize_depth, uncovered_fraction};
 use crate::views::View;
 use crate::HullError;
@@ -16,7 +16,7 @@ use std::path::Path;
 pub struct VisualHull {
     pub grid: CellGrid,
     /// Per cell, the index (into the views given) of the first view that carves it, or [`KEPT`].
-    pub carver: Vec<u8>,
+    pub carver: Vec<ViewIndex>,
     pub mesh: TriMesh,
 }
 
@@ -47,6 +47,13 @@ pub fn carve_hull(
     if !(2..=2048).contains(&resolution) {
         return Err(HullError::CarvingResolution(resolution));
     }
+    if views.len() > MAX_VIEWS {
+        return Err(HullError::TooManyViews {
+            rig: rig.to_path_buf(),
+            views: views.len(),
+            max: MAX_VIEWS,
+        });
+    }
     let grid = CellGrid::new(min, max, resolution);
     let carver = carve(&grid, views);
     if !carver.contains(&KEPT) {
@@ -61,7 +68,7 @@ pub fn carve_hull(
 }
 
 /// Marching cubes on the kept cells (1 inside, 0 outside) padded with one empty layer.
-fn occupancy_mesh(grid: &CellGrid, carver: &[u8]) -> Result<TriMesh, HullError> {
+fn occupancy_mesh(grid: &CellGrid, carver: &[ViewIndex]) -> Result<TriMesh, HullError> {
     let [nx, ny, nz] = grid.dims;
     let d = [nx + 2, ny + 2, nz + 2];
     let mut values = vec![0.0f32; d[0] * d[1] * d[2]];
@@ -141,20 +148,31 @@ pub fn volume_curves(
 ) -> Vec<Vec<f64>> {
     let grid = CellGrid::new(min, max, resolution);
     let sets = carve_sets(&grid, views);
-    let final_volume = sets.iter().filter(|&&s| s == 0).count().max(1) as f64;
+    let final_volume = (0..sets.len()).filter(|&c| sets.kept(c)).count().max(1) as f64;
     let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
     (0..orders)
         .map(|_| {
             let mut order: Vec<usize> = (0..views.len()).collect();
             order.shuffle(&mut rng);
-            let mut mask = 0u64;
-            order
-                .iter()
-                .map(|&v| {
-                    mask |= 1 << v;
-                    sets.iter().filter(|&&s| s & mask == 0).count() as f64 / final_volume
-                })
-                .collect()
+            volume_in_order(&sets, &order, final_volume)
+        })
+        .collect()
+}
+
+/// Relative volume after the first 1..=n views of `order`: each cell is counted until the
+/// first view of the order that carves it (one pass over the cells, whatever the view count).
+fn volume_in_order(sets: &crate::carve::ViewSets, order: &[usize], final_volume: f64) -> Vec<f64> {
+    let n = order.len();
+    let first = |c: usize| order.iter().position(|&v| sets.carves(c, v)).unwrap_or(n);
+    let mut carved_at = vec![0usize; n + 1];
+    for c in 0..sets.len() {
+        carved_at[first(c)] += 1;
+    }
+    let mut left = sets.len();
+    (0..n)
+        .map(|k| {
+            left -= carved_at[k];
+            left as f64 / final_volume
         })
         .collect()
 }

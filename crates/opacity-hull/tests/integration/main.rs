@@ -3,5 +3,6 @@
 //! binary instead of one per file.
 
 mod middlebury;
+mod paper_rig;
 mod relight;
 mod synthetic_matting;
