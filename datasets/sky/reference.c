@@ -13,7 +13,8 @@
  *   Rows with gamma_deg >= 0 are the radiance at that angle from the disk's centre; the row
  *   with gamma_deg = -1 is the disk's irradiance at normal incidence, integral of L dOmega,
  *   by a midpoint rule over 4000 rings of the disk.
- * consistency (stdout): the RGB sky against the CIE XYZ sky put through the same matrix.
+ * consistency (stdout): the RGB sky against the CIE XYZ sky put through the same matrix
+ *   (with SKY_RATIOS set, each ratio too: turbidity, elevation, theta, gamma, channel, ratio).
  */
 #include <math.h>
 #include <stdio.h>

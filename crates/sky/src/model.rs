@@ -125,11 +125,16 @@ impl Sky {
 
     /// The sky dome's RGB radiance arriving from the world direction `d` (toward the sky; any
     /// length), without the solar disk: zero below the horizon and for a zero or non-finite
-    /// direction.
+    /// direction. The model's fit dips below zero in some channels near the horizon for a
+    /// sun near the horizon (down to about -6.5 in the reference's own values); such values
+    /// are set to zero here (docs/SKY.md).
     pub fn radiance(&self, d: DVec3) -> [f64; 3] {
         match unit(d) {
             None => [0.0; 3],
-            Some(d) => self.model.radiance(angle(d, DVec3::Z), angle(d, self.sun)),
+            Some(d) => self
+                .model
+                .radiance(angle(d, DVec3::Z), angle(d, self.sun))
+                .map(|v| v.max(0.0)),
         }
     }
 
