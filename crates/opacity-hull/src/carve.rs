@@ -74,6 +74,62 @@ impl CellGrid {
     }
 }
 
+/// The pixel nearest the projection of `p` in `view`, when it lies in front and inside the frame.
+fn pixel_of(view: &View, p: DVec3) -> Option<(usize, usize)> {
+    let px = view.camera.project(p)?;
+    let (x, y) = (px.x.round(), px.y.round());
+    let (w, h) = (view.silhouette.width as f64, view.silhouette.height as f64);
+    (x >= 0.0 && y >= 0.0 && x < w && y < h).then_some((x as usize, y as usize))
+}
+
+/// Band views that carve a cell whatever the views that see it as object.
+pub const BAND_AGREEMENT: usize = 2;
+
+/// Carve the cells that [`carve`] kept where the views that see the cell as background inside
+/// their frame bands ([`View::is_band_background`]) are at least one, and at least
+/// [`BAND_AGREEMENT`] or as many as the views that see it inside their silhouettes; such a cell
+/// records the first of them.
+/// Frame-band evidence is weak, not absent: where the object runs out of the frame, a surface
+/// in shadow can read like the backdrop in one view (the dino's foot, which the other views see
+/// as object: kept); where the band is the only view of a cell, or the band views outnumber
+/// the object views, the cell is empty space the band would otherwise leave as phantom volume
+/// (thin parts running out of every frame). Returns the cells carved.
+pub fn carve_band_votes(grid: &CellGrid, views: &[&View], carver: &mut [ViewIndex]) -> usize {
+    let dims = grid.dims;
+    carver
+        .par_iter_mut()
+        .enumerate()
+        .filter(|(_, c)| **c == KEPT)
+        .map(|(i, c)| {
+            let cell = [
+                i % dims[0],
+                (i / dims[0]) % dims[1],
+                i / (dims[0] * dims[1]),
+            ];
+            let p = grid.center(cell);
+            let (mut first, mut background, mut object) = (None, 0usize, 0usize);
+            for (v, view) in views.iter().enumerate() {
+                let Some((x, y)) = pixel_of(view, p) else {
+                    continue;
+                };
+                if view.is_band_background(x, y) {
+                    first = first.or(Some(v));
+                    background += 1;
+                } else if view.silhouette.get(x, y) {
+                    object += 1;
+                }
+            }
+            match first {
+                Some(v) if background >= object.min(BAND_AGREEMENT) => {
+                    *c = v as ViewIndex;
+                    1
+                }
+                _ => 0,
+            }
+        })
+        .sum()
+}
+
 /// Summed-area table of a view's known-background pixels.
 struct ViewTable<'a> {
     view: &'a View,
@@ -113,18 +169,7 @@ impl<'a> ViewTable<'a> {
 
     /// Does this view carve the cell centred at `p`?
     fn carves_point(&self, p: DVec3) -> bool {
-        let Some(px) = self.view.camera.project(p) else {
-            return false;
-        };
-        let (x, y) = (px.x.round(), px.y.round());
-        let (w, h) = (
-            self.view.silhouette.width as f64,
-            self.view.silhouette.height as f64,
-        );
-        if !(x >= 0.0 && y >= 0.0 && x < w && y < h) {
-            return false;
-        }
-        self.view.is_background(x as usize, y as usize)
+        pixel_of(self.view, p).is_some_and(|(x, y)| self.view.is_background(x, y))
     }
 
     /// Decision for a box: Some(true) = all carved, Some(false) = none carved, None = mixed.

@@ -1,7 +1,7 @@
 //! The visual hull of a set of views: carving, the surface mesh, reprojection checks, and the
 //! volume against the number of views.
 
-use crate::carve::{carve, carve_sets, CellGrid, ViewIndex, KEPT, MAX_VIEWS};
+use crate::carve::{carve, carve_band_votes, carve_sets, CellGrid, ViewIndex, KEPT, MAX_VIEWS};
 use crate::raster::{iou_over, rasterize_depth, uncovered_fraction};
 use crate::views::View;
 use crate::HullError;
@@ -55,7 +55,10 @@ pub fn carve_hull(
         });
     }
     let grid = CellGrid::new(min, max, resolution);
-    let carver = carve(&grid, views);
+    let mut carver = carve(&grid, views);
+    if std::env::var_os("IGI_NO_VOTES").is_none() {
+        carve_band_votes(&grid, views, &mut carver);
+    }
     if !carver.contains(&KEPT) {
         let last = carver.iter().copied().max().unwrap_or(0) as usize;
         return Err(HullError::CarvedEmpty {

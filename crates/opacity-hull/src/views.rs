@@ -6,8 +6,10 @@
 //! are all pixels outside the frame: neither carves. Where the silhouette runs into the frame's
 //! edge, the object goes on outside the frame, and its parts near the edge that lie in shadow
 //! read like the backdrop (the Middlebury README warns of dark shadows on the object): there a
-//! band along the edge ([`MatteOptions::frame_band`]) does not carve either. The band is left out
-//! of the carving only; every known pixel counts in the reprojection IoU.
+//! band along the edge ([`MatteOptions::frame_band`]) is weak evidence: a cell that only band
+//! pixels call background is carved when two views' bands agree, or when no more views see it
+//! as object than see it as band background ([`crate::carve::carve_band_votes`]). The band is left out of the carving only; every known
+//! pixel counts in the reprojection IoU.
 
 use crate::backdrop::{alpha_from_pair, Matte};
 use crate::HullError;
@@ -59,6 +61,14 @@ impl View {
     pub fn is_background(&self, x: usize, y: usize) -> bool {
         let i = y * self.silhouette.width + x;
         self.carves.data[i] && !self.silhouette.data[i]
+    }
+
+    /// True when pixel (x, y) is known background inside the frame band: weak evidence, weighed
+    /// against the other views ([`crate::carve::carve_band_votes`]).
+    #[inline]
+    pub fn is_band_background(&self, x: usize, y: usize) -> bool {
+        let i = y * self.silhouette.width + x;
+        self.known.data[i] && !self.carves.data[i] && !self.silhouette.data[i]
     }
 }
 

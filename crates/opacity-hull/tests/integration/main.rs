@@ -6,3 +6,4 @@ mod middlebury;
 mod paper_rig;
 mod relight;
 mod synthetic_matting;
+mod thin_parts;
