@@ -125,9 +125,9 @@ impl Sky {
 
     /// The sky dome's RGB radiance arriving from the world direction `d` (toward the sky; any
     /// length), without the solar disk: zero below the horizon and for a zero or non-finite
-    /// direction. The model's fit dips below zero in some channels near the horizon for a
-    /// sun near the horizon (down to about -6.5 in the reference's own values); such values
-    /// are set to zero here (docs/SKY.md).
+    /// direction. The model's fit dips below zero in one or two channels near the horizon for
+    /// a sun near the horizon (down to -0.38, in 0.014 % of the directions scanned over its
+    /// whole range: docs/SKY.md); such values are set to zero here.
     pub fn radiance(&self, d: DVec3) -> [f64; 3] {
         match unit(d) {
             None => [0.0; 3],
