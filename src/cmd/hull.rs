@@ -32,10 +32,11 @@ pub struct BuildArgs {
     /// Carving cells per axis of the bounding box (at least 256).
     #[arg(long, default_value_t = 256)]
     pub resolution: usize,
-    /// Depth in pixels of the band along the frame's edge that does not carve wherever a
-    /// view's silhouette runs into the edge: the object goes on outside the frame, and its
-    /// shadowed parts there read like the backdrop (docs/OPACITY_HULL.md). 0: every known
-    /// background pixel carves.
+    /// Depth in pixels of the band along the frame's edge, wherever a view's silhouette runs
+    /// into the edge, whose background is weak evidence: the object goes on outside the frame,
+    /// and its shadowed parts there read like the backdrop. A cell only band pixels call
+    /// background is carved when two views' bands agree or when no more views see it as
+    /// object (docs/OPACITY_HULL.md). 0: every known background pixel carves.
     #[arg(long, default_value_t = 30)]
     pub frame_band: usize,
     /// Print the report as JSON.
