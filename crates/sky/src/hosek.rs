@@ -97,12 +97,9 @@ fn cook(data: &[f64], n: usize, i: usize, turbidity: f64, albedo: f64, bezier: &
 /// elevation: its nine coefficients and radiance scale per channel.
 #[derive(Clone, Debug, PartialEq)]
 pub struct HosekWilkie {
-    /// Atmospheric turbidity, 1 (very clear) to 10 (hazy).
-    pub turbidity: f64,
-    /// Ground albedo per channel, 0 to 1.
-    pub albedo: [f64; 3],
-    /// The sun's elevation above the horizon, radians, 0 to pi/2.
-    pub solar_elevation_rad: f64,
+    turbidity: f64,
+    albedo: [f64; 3],
+    solar_elevation_rad: f64,
     coeffs: [[f64; 9]; 3],
     scale: [f64; 3],
 }
@@ -132,6 +129,27 @@ impl HosekWilkie {
             coeffs,
             scale,
         })
+    }
+
+    /// Atmospheric turbidity, 1 (very clear) to 10 (hazy).
+    pub fn turbidity(&self) -> f64 {
+        self.turbidity
+    }
+
+    /// Ground albedo per channel, 0 to 1.
+    pub fn albedo(&self) -> [f64; 3] {
+        self.albedo
+    }
+
+    /// The sun's elevation above the horizon, radians, 0 to pi/2.
+    pub fn solar_elevation_rad(&self) -> f64 {
+        self.solar_elevation_rad
+    }
+
+    /// The model's nine coefficients per channel, in the reference's order (A, B, C, D, E, F,
+    /// G, I, H: index 7 multiplies `sqrt(cos theta)`, index 8 is the Mie term's `g`).
+    pub fn coefficients(&self) -> [[f64; 9]; 3] {
+        self.coeffs
     }
 
     /// The model's radiance scale `L_M` per channel.

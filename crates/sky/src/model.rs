@@ -78,12 +78,9 @@ fn latlong_map(
 /// and sun direction.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Sky {
-    /// Atmospheric turbidity, 1 (very clear) to 10 (hazy).
-    pub turbidity: f64,
-    /// Ground albedo per channel, 0 to 1.
-    pub albedo: [f64; 3],
-    /// Unit world direction toward the sun (Z up), at most 90 degrees from the zenith.
-    pub sun: DVec3,
+    turbidity: f64,
+    albedo: [f64; 3],
+    sun: DVec3,
     model: HosekWilkie,
 }
 
@@ -113,9 +110,24 @@ impl Sky {
         Sky::new(turbidity, albedo, sun_direction(position, north)?)
     }
 
+    /// Atmospheric turbidity, 1 (very clear) to 10 (hazy).
+    pub fn turbidity(&self) -> f64 {
+        self.turbidity
+    }
+
+    /// Ground albedo per channel, 0 to 1.
+    pub fn albedo(&self) -> [f64; 3] {
+        self.albedo
+    }
+
+    /// Unit world direction toward the sun (Z up), at most 90 degrees from the zenith.
+    pub fn sun(&self) -> DVec3 {
+        self.sun
+    }
+
     /// The sun's elevation above the horizon, radians.
     pub fn solar_elevation_rad(&self) -> f64 {
-        self.model.solar_elevation_rad
+        self.model.solar_elevation_rad()
     }
 
     /// The Hosek-Wilkie model behind this sky.
@@ -142,7 +154,7 @@ impl Sky {
     /// RGB, as the model gives it (a channel may be negative for a sun so red that it lies
     /// outside the Rec. 709 gamut).
     pub fn solar_irradiance(&self) -> [f64; 3] {
-        hosek::solar_irradiance_rgb(self.turbidity, self.model.solar_elevation_rad)
+        hosek::solar_irradiance_rgb(self.turbidity, self.model.solar_elevation_rad())
     }
 
     /// The sun as a uniform disk of [`SUN_ANGULAR_RADIUS_DEG`] giving the model's solar

@@ -285,6 +285,10 @@ fn out_of_range_parameters_are_refused_by_name() {
         zenith_deg: 60.0,
     };
     let sky = Sky::at_position(2.0, [0.2; 3], p, [0.0, 1.0, 0.0]).unwrap();
-    assert!((sky.sun - dir(0.0, 30.0)).length() < 1e-12, "{}", sky.sun);
+    assert!(
+        (sky.sun() - dir(0.0, 30.0)).length() < 1e-12,
+        "{}",
+        sky.sun()
+    );
     assert!((sky.solar_elevation_rad() - 30f64.to_radians()).abs() < 1e-12);
 }
