@@ -105,3 +105,85 @@ pub(crate) fn check_folder_path(dir: &Path) -> Result<(), FilesError> {
         path: dir.to_path_buf(),
     })
 }
+
+/// Refuses, before any work, two outputs that name one file, or an output that names one of the
+/// inputs (which it would overwrite, or be read from half-written): each entry is what the
+/// file is to the command (`--stderr`, `the scene`) and its path. Paths are compared as the
+/// file system resolves them (`a/../b.exr` is `b.exr`; a symbolic link is its target).
+pub fn check_distinct(
+    outputs: &[(&str, &Path)],
+    inputs: &[(&str, &Path)],
+) -> Result<(), FilesError> {
+    let keys: Vec<(&str, &Path, PathBuf)> = outputs
+        .iter()
+        .map(|&(what, p)| (what, p, file_identity(p)))
+        .collect();
+    for (i, (what, path, key)) in keys.iter().enumerate() {
+        if let Some((other, _, _)) = keys[..i].iter().find(|(_, _, k)| k == key) {
+            return Err(FilesError::SameFile {
+                path: path.to_path_buf(),
+                first: other.to_string(),
+                second: what.to_string(),
+            });
+        }
+        if let Some((input, _)) = inputs.iter().find(|(_, p)| file_identity(p) == *key) {
+            return Err(FilesError::SameFile {
+                path: path.to_path_buf(),
+                first: format!("the input {input}"),
+                second: format!("the output {what}"),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// A file's path as the file system resolves it: the file itself when it exists, else its
+/// folder's resolved path and its name, else the path as given.
+fn file_identity(path: &Path) -> PathBuf {
+    if let Ok(p) = std::fs::canonicalize(path) {
+        return p;
+    }
+    let parent = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    match (std::fs::canonicalize(parent), path.file_name()) {
+        (Ok(dir), Some(name)) => dir.join(name),
+        _ => path.to_path_buf(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn outputs_may_not_name_each_other_or_an_input() {
+        let tmp = tempfile::tempdir().unwrap();
+        let d = tmp.path();
+        let scene = d.join("scene.toml");
+        std::fs::write(&scene, "x").unwrap();
+        let out = d.join("out.exr");
+        let other = d.join("sub/../out.exr");
+        std::fs::create_dir(d.join("sub")).unwrap();
+        let e = check_distinct(&[("--output", &out), ("--stderr", &other)], &[])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("both --output and --stderr"), "{e}");
+        let e = check_distinct(
+            &[("--output", &d.join("sub/../scene.toml"))],
+            &[("the scene", &scene)],
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("both the input the scene and the output --output"),
+            "{e}"
+        );
+        check_distinct(
+            &[("--output", &out), ("--stderr", &d.join("se.exr"))],
+            &[("the scene", &scene)],
+        )
+        .unwrap();
+    }
+}

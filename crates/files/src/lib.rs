@@ -7,18 +7,24 @@
 //!   the same folder, renamed into place, flushed first on shared file systems) and the
 //!   cleanup of killed writers' temporary files ([`remove_dead_temps`]).
 //! * [`folder`]: output files and folders checked before the first byte of work
-//!   ([`check_output_folder`], [`check_output_file`], [`check_output_extension`]).
+//!   ([`check_output_folder`], [`check_output_file`], [`check_output_extension`], and
+//!   [`check_distinct`]: no two outputs, and no output and input, naming one file).
+//! * [`memory`]: every size-driven allocation estimated and refused above a limit before it
+//!   happens ([`check_alloc`], [`max_alloc`]: 8 GiB or `IGI_MAX_MEMORY`).
 //! * [`run`]: run manifests (`run.json`: input fingerprints and result-changing options, so a
-//!   resumed command never mixes two runs' work) and the one-writer folder lock
-//!   ([`FolderLock`]).
+//!   resumed command never mixes two runs' work), the one-writer folder lock ([`FolderLock`])
+//!   and what `--restart` removes ([`remove_own`]: only the names the command writes, only
+//!   in a folder whose manifest names the same command).
 
 pub mod atomic;
 pub mod folder;
+pub mod memory;
 pub mod run;
 
 pub use atomic::{remove_dead_temps, write_atomic, write_text_atomic};
-pub use folder::{check_output_extension, check_output_file, check_output_folder};
-pub use run::{Fingerprint, FolderLock, FolderState, RunManifest, RUN_FILE};
+pub use folder::{check_distinct, check_output_extension, check_output_file, check_output_folder};
+pub use memory::{check_alloc, check_alloc_default, check_input_file, max_alloc};
+pub use run::{remove_own, Fingerprint, FolderLock, FolderState, RunManifest, RUN_FILE};
 
 use std::path::PathBuf;
 
@@ -43,6 +49,26 @@ pub enum FilesError {
     IsAFolder(PathBuf),
     #[error("{}: is a file, not a folder (cannot write into {})", path.display(), wanted.display())]
     NotAFolder { path: PathBuf, wanted: PathBuf },
+    /// Two outputs, or an output and an input, that name one file.
+    #[error("invalid input: {}: is both {first} and {second}; give each its own file", path.display())]
+    SameFile {
+        path: PathBuf,
+        first: String,
+        second: String,
+    },
+    /// A size-driven allocation estimated above the limit (`memory`).
+    #[error("invalid input: {what} would need about {} ({bytes} bytes) of memory, more than the limit of {} (set IGI_MAX_MEMORY to allow more)", crate::memory::show_bytes(*bytes as u128), crate::memory::show_bytes(*limit as u128))]
+    TooLarge {
+        what: String,
+        bytes: u64,
+        limit: u64,
+    },
+    /// An input to be read whole that is no regular file (a device, a pipe, a folder).
+    #[error("invalid input: {}: {what} must be a regular file (not a device, pipe or folder)", path.display())]
+    NotAFile { path: PathBuf, what: String },
+    /// `IGI_MAX_MEMORY` that is no byte count.
+    #[error("invalid input: IGI_MAX_MEMORY={0:?} is not a byte count (e.g. 16G)")]
+    BadMemoryLimit(String),
     #[error("{}: output folder does not exist", path.display())]
     NoFolder { path: PathBuf },
     #[error("{}: cannot write into this folder", path.display())]
@@ -58,11 +84,19 @@ pub enum FilesError {
         was: String,
         now: String,
     },
+    /// A folder whose run manifest names another command: neither resumed nor, with
+    /// `--restart`, cleared.
+    #[error("{}: holds the output of `igi {was}`, not of `igi {now}`; choose another output folder", path.display())]
+    OtherCommand {
+        path: PathBuf,
+        was: String,
+        now: String,
+    },
     #[error("{}: {msg}", path.display())]
     NotARunFolder { path: PathBuf, msg: String },
     #[error("{}: another igi run ({holder}) is writing this folder; wait for it to finish, or choose another output", path.display())]
     FolderBusy { path: PathBuf, holder: String },
-    #[error("{}: unreadable run manifest: {source}; use --restart to start afresh", path.display())]
+    #[error("{}: unreadable run manifest: {source}; igi cannot tell whose folder this is: choose another output folder (or remove this one yourself)", path.display())]
     BadManifest {
         path: PathBuf,
         #[source]

@@ -159,21 +159,81 @@ pub enum FolderState {
     Resume,
 }
 
-/// Removes the entries `names` of `dir` that a command writes (files or folders), as a
-/// `--restart` does; other entries are left alone.
-pub fn remove_entries(dir: &Path, names: &[&str]) -> Result<(), FilesError> {
-    for name in names {
-        let p = dir.join(name);
-        let r = if p.is_dir() {
-            std::fs::remove_dir_all(&p)
-        } else if p.exists() {
-            std::fs::remove_file(&p)
-        } else {
-            Ok(())
-        };
-        r.map_err(|e| FilesError::io(&p, e))?;
+/// Removes, as a `--restart` does, the files of `dir` that a command writes: those matching
+/// one of `patterns`, each a path relative to `dir` with `/` between folders and `*` standing
+/// for any run of characters within one name (`parts/*_rho_d.exr`, `voxels/*_*_*/level*.ply`),
+/// and the temporary files of [`crate::atomic::write_atomic`] writing such a name
+/// (`.NAME.tmp...`). A folder on a pattern's path is removed when that leaves it empty;
+/// everything else (a user's `parts/notes.txt`) stays. Symbolic links are never followed.
+/// Returns how many files were removed.
+pub fn remove_own(dir: &Path, patterns: &[&str]) -> Result<usize, FilesError> {
+    let mut removed = 0;
+    for pattern in patterns {
+        let parts: Vec<&str> = pattern.split('/').filter(|p| !p.is_empty()).collect();
+        removed += remove_matching(dir, &parts)?;
     }
-    Ok(())
+    Ok(removed)
+}
+
+fn remove_matching(dir: &Path, parts: &[&str]) -> Result<usize, FilesError> {
+    let Some((first, rest)) = parts.split_first() else {
+        return Ok(0);
+    };
+    let entries = match std::fs::read_dir(dir) {
+        Ok(e) => e,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(0),
+        Err(e) => return Err(FilesError::io(dir, e)),
+    };
+    let mut removed = 0;
+    for entry in entries {
+        let entry = entry.map_err(|e| FilesError::io(dir, e))?;
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let path = entry.path();
+        let kind = entry.file_type().map_err(|e| FilesError::io(&path, e))?;
+        if rest.is_empty() {
+            if !kind.is_dir() && (glob(first, &name) || is_temp_of(first, &name)) {
+                std::fs::remove_file(&path).map_err(|e| FilesError::io(&path, e))?;
+                removed += 1;
+            }
+        } else if kind.is_dir() && glob(first, &name) {
+            removed += remove_matching(&path, rest)?;
+            // a folder only igi's files were in goes too; one holding anything else stays
+            let empty = std::fs::read_dir(&path)
+                .map_err(|e| FilesError::io(&path, e))?
+                .next()
+                .is_none();
+            if empty {
+                std::fs::remove_dir(&path).map_err(|e| FilesError::io(&path, e))?;
+            }
+        }
+    }
+    Ok(removed)
+}
+
+/// Whether `name` matches `pattern`, where `*` is any run of characters (none included).
+pub fn glob(pattern: &str, name: &str) -> bool {
+    match pattern.split_once('*') {
+        None => pattern == name,
+        Some((head, tail)) => {
+            let Some(rest) = name.strip_prefix(head) else {
+                return false;
+            };
+            (0..=rest.len())
+                .filter(|&i| rest.is_char_boundary(i))
+                .any(|i| glob(tail, &rest[i..]))
+        }
+    }
+}
+
+/// Whether `name` is a temporary file of `write_atomic` writing a name that matches `pattern`
+/// (`.NAME.tmpPID-N_HOST_JOB.EXT`).
+fn is_temp_of(pattern: &str, name: &str) -> bool {
+    let Some(inner) = name.strip_prefix('.') else {
+        return false;
+    };
+    inner
+        .match_indices(".tmp")
+        .any(|(i, _)| glob(pattern, &inner[..i]))
 }
 
 /// What a resumable run was started with (see the module overview).
@@ -186,6 +246,11 @@ pub struct RunManifest {
     /// For a shard: the parts (or voxels) this folder's run solves; `None` for all.
     #[serde(default)]
     pub owns: Option<Vec<String>>,
+    /// Options that say how far to go, which a resume may raise but never lower
+    /// (`--iterations`: more iterations continue the same run; fewer would leave a result of
+    /// more iterations than asked for). Absent in manifests of older igi versions.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub raisable: BTreeMap<String, u64>,
 }
 
 impl RunManifest {
@@ -195,7 +260,14 @@ impl RunManifest {
             inputs: Vec::new(),
             options: BTreeMap::new(),
             owns: None,
+            raisable: BTreeMap::new(),
         }
+    }
+
+    /// Records an option a resume may raise but not lower (see [`RunManifest::raisable`]).
+    pub fn raisable(&mut self, name: &str, value: u64) -> &mut Self {
+        self.raisable.insert(name.to_string(), value);
+        self
     }
 
     /// Records a result-changing option under its command-line name; floats should be given
@@ -235,8 +307,15 @@ impl RunManifest {
     /// [`crate::folder::check_output_folder`]): a folder holding an identical manifest resumes
     /// ([`FolderState::Resume`]), a different manifest is an error naming the difference; a
     /// folder without a manifest must be empty, and one holding `legacy` (the result of an
-    /// older igi, which wrote no manifest) is refused with a `--restart` hint. A missing folder,
-    /// or `restart`, is [`FolderState::Fresh`]. `kind` names the folder in messages ("site").
+    /// older igi, which wrote no manifest) is refused with a `--restart` hint. A missing or
+    /// empty folder is [`FolderState::Fresh`].
+    ///
+    /// With `restart` the answer is [`FolderState::Fresh`] only for a folder this command may
+    /// clear (with [`remove_own`]): one whose manifest names the same command, or an older
+    /// igi's (`legacy`, no manifest). A folder of another command, one with an unreadable
+    /// manifest and one that holds neither (not igi's) are refused as without `restart`:
+    /// `--restart` never touches a folder igi cannot tell is its own. `kind` names the folder
+    /// in messages ("site").
     pub fn check_folder(
         &self,
         dir: &Path,
@@ -244,10 +323,20 @@ impl RunManifest {
         legacy: &str,
         kind: &str,
     ) -> Result<FolderState, FilesError> {
-        if !dir.exists() || restart {
+        if !dir.exists() {
             return Ok(FolderState::Fresh);
         }
         if let Some(old) = RunManifest::read(dir)? {
+            if old.command != self.command {
+                return Err(FilesError::OtherCommand {
+                    path: dir.to_path_buf(),
+                    was: old.command,
+                    now: self.command.clone(),
+                });
+            }
+            if restart {
+                return Ok(FolderState::Fresh);
+            }
             self.check_resume(&old, dir)?;
             return Ok(FolderState::Resume);
         }
@@ -256,6 +345,9 @@ impl RunManifest {
             msg,
         };
         if dir.join(legacy).exists() {
+            if restart {
+                return Ok(FolderState::Fresh);
+            }
             return Err(refuse(format!(
                 "holds a {kind} without a run manifest (another command or an older igi); use --restart to start afresh"
             )));
@@ -265,8 +357,13 @@ impl RunManifest {
             .map_err(|e| FilesError::io(dir, e))?
             .all(|e| e.is_ok_and(|e| e.file_name() == LOCK_FILE));
         if !empty {
+            let hint = if restart {
+                " (--restart clears only a folder that igi wrote)"
+            } else {
+                ""
+            };
             return Err(refuse(format!(
-                "exists and is not a {kind} folder; choose another output"
+                "exists and is not a {kind} folder; choose another output{hint}"
             )));
         }
         Ok(FolderState::Fresh)
@@ -305,6 +402,17 @@ impl RunManifest {
             if a != b {
                 let show = |v: Option<&String>| v.cloned().unwrap_or_else(|| "(unset)".into());
                 return Err(mismatch(format!("option {k}"), show(a), show(b)));
+            }
+        }
+        for (k, &now) in &self.raisable {
+            if let Some(&was) = old.raisable.get(k) {
+                if now < was {
+                    return Err(mismatch(
+                        format!("option {k} (a resume may raise it, not lower it)"),
+                        was.to_string(),
+                        now.to_string(),
+                    ));
+                }
             }
         }
         let roles: std::collections::BTreeSet<&String> = old
@@ -363,6 +471,84 @@ mod tests {
     }
 
     #[test]
+    fn restart_clears_only_a_folder_of_the_same_command_and_only_its_names() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("res");
+        std::fs::create_dir_all(dir.join("parts")).unwrap();
+        std::fs::write(dir.join("parts/notes.txt"), "mine").unwrap();
+        let solve = RunManifest::new("solve");
+        // not igi's folder: refused with and without --restart, nothing touched
+        for restart in [false, true] {
+            let e = solve
+                .check_folder(&dir, restart, "report.json", "result")
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("is not a result folder"), "{e}");
+        }
+        // another command's folder: refused with and without --restart
+        RunManifest::new("prepare").write(&dir).unwrap();
+        for restart in [false, true] {
+            let e = solve
+                .check_folder(&dir, restart, "report.json", "result")
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("`igi prepare`, not of `igi solve`"), "{e}");
+        }
+        solve.write(&dir).unwrap();
+        let state = solve.check_folder(&dir, true, "report.json", "result");
+        assert_eq!(state.unwrap(), FolderState::Fresh);
+        for f in [
+            "parts/a_rho_d.exr",
+            "parts/a.ply",
+            "parts/b_lobe2_rho.exr",
+            "report.json",
+        ] {
+            std::fs::write(dir.join(f), "igi").unwrap();
+        }
+        std::fs::write(dir.join("parts/.a_rho_d.exr.tmp99-0_h_0.exr"), "t").unwrap();
+        std::fs::create_dir_all(dir.join("staged/parts")).unwrap();
+        std::fs::write(dir.join("staged/parts/a_rho_d.exr"), "igi").unwrap();
+        let patterns = [
+            "parts/*.ply",
+            "parts/*_rho_d.exr",
+            "parts/*_lobe*_rho.exr",
+            "staged/parts/*_rho_d.exr",
+            "report.json",
+            RUN_FILE,
+        ];
+        assert_eq!(remove_own(&dir, &patterns).unwrap(), 7);
+        let mut left: Vec<String> = walk(&dir);
+        left.sort();
+        assert_eq!(left, ["parts", "parts/notes.txt"]);
+    }
+
+    fn walk(dir: &Path) -> Vec<String> {
+        let mut v = Vec::new();
+        for e in std::fs::read_dir(dir).unwrap() {
+            let e = e.unwrap();
+            let name = e.file_name().to_string_lossy().into_owned();
+            if e.file_type().unwrap().is_dir() {
+                v.extend(walk(&e.path()).into_iter().map(|n| format!("{name}/{n}")));
+            }
+            v.push(name);
+        }
+        v
+    }
+
+    #[test]
+    fn glob_matches_stars_within_a_name() {
+        assert!(glob("*_rho_d.exr", "wall_rho_d.exr"));
+        assert!(glob("*_lobe*_rho.exr", "a_b_lobe12_rho.exr"));
+        assert!(glob("level*.ply", "level0.ply"));
+        assert!(glob("*_*_*", "1_-2_3"));
+        assert!(!glob("*_*_*", "notes"));
+        assert!(!glob("*.ply", "notes.txt"));
+        assert!(!glob("report.json", "report.json.bak"));
+        assert!(is_temp_of("*.ply", ".a.ply.tmp12-0_h_0.ply"));
+        assert!(!is_temp_of("*.ply", ".notes.txt.tmp12-0_h_0.txt"));
+    }
+
+    #[test]
     fn fnv_matches_reference_values() {
         // reference values of the FNV-1a 64 specification
         assert_eq!(fnv1a64(b""), 0xcbf29ce484222325);
@@ -409,6 +595,28 @@ mod tests {
             .unwrap();
         let e = d.check_resume(&old, dir.path()).unwrap_err().to_string();
         assert!(e.contains("input mesh (the file changed)"), "{e}");
+    }
+
+    #[test]
+    fn a_raisable_option_resumes_when_raised_and_is_refused_when_lowered() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut a = RunManifest::new("solve");
+        a.raisable("--iterations", 4);
+        let mut more = a.clone();
+        more.raisable("--iterations", 6);
+        more.check_resume(&a, dir.path()).unwrap();
+        a.check_resume(&a, dir.path()).unwrap();
+        let e = a.check_resume(&more, dir.path()).unwrap_err().to_string();
+        assert!(
+            e.contains("option --iterations (a resume may raise it, not lower it)")
+                && e.contains("there: 6; now: 4"),
+            "{e}"
+        );
+        // a manifest of an igi that did not record it resumes
+        a.check_resume(&RunManifest::new("solve"), dir.path())
+            .unwrap();
+        let text = serde_json::to_string(&RunManifest::new("x")).unwrap();
+        assert!(!text.contains("raisable"), "{text}");
     }
 
     #[test]
@@ -462,7 +670,7 @@ mod tests {
             e.contains("option --spp") && e.contains("there: 4; now: 8"),
             "{e}"
         );
-        remove_entries(&dir, &["report.json", RUN_FILE, "absent"]).unwrap();
+        remove_own(&dir, &["report.json", RUN_FILE, "absent"]).unwrap();
         assert!(dir.join("notes.txt").exists() && !dir.join("report.json").exists());
         assert!(!dir.join(RUN_FILE).exists());
     }

@@ -156,10 +156,19 @@ impl PrepareRun {
     }
 }
 
-/// The files and folders a prepare run writes into its output folder (what `restart` removes).
-const SITE_ENTRIES: [&str; 5] = [
-    "voxels",
-    "terrain",
+/// The files a prepare run writes into its output folder, as `igi_files::remove_own`
+/// patterns: what `restart` removes (nothing else, so a user's file in `voxels/` stays).
+const SITE_FILES: [&str; 13] = [
+    "voxels/*_*_*/done.json",
+    "voxels/*_*_*/position.exr",
+    "voxels/*_*_*/normal.exr",
+    "voxels/*_*_*/coverage.exr",
+    "voxels/*_*_*/level*.ply",
+    "terrain/done.json",
+    "terrain/position.exr",
+    "terrain/normal.exr",
+    "terrain/coverage.exr",
+    "terrain/level*.ply",
     "manifest.json",
     "settings.json",
     RUN_FILE,
@@ -183,7 +192,8 @@ pub fn check_prepare_output(
 
 /// Removes what an earlier prepare wrote into `out` (only the names a prepare writes).
 fn remove_site_entries(out: &Path) -> Result<(), GeometryError> {
-    Ok(igi_files::run::remove_entries(out, &SITE_ENTRIES)?)
+    igi_files::remove_own(out, &SITE_FILES)?;
+    Ok(())
 }
 
 const FORMAT: &str = "igi-site-1";

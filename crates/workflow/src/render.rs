@@ -122,6 +122,14 @@ fn checked_scene_file(req: &RenderRequest) -> Result<PathBuf, WorkflowError> {
         image_format(out)?;
         igi_files::check_output_file(out)?;
     }
+    let mut outputs = vec![("--output", req.output.as_path())];
+    outputs.extend(req.stderr.as_deref().map(|p| ("--stderr", p)));
+    let mut inputs = vec![
+        ("the scene", scene_file.as_path()),
+        ("--camera", req.camera.as_path()),
+    ];
+    inputs.extend(req.lighting.as_deref().map(|p| ("--lighting", p)));
+    igi_files::check_distinct(&outputs, &inputs)?;
     Ok(scene_file)
 }
 

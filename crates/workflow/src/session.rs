@@ -7,13 +7,17 @@
 //! (`--atlas`, `--spp`, `--indirect`, `--seed`, `--initial`, the weighting rules, `--schedule`
 //! and `--deblur` when not their defaults, `--shading-smoothing` when on) with the part
 //! selection as the shard's `owns`.
-//! `--iterations` and `--tolerance` are left out on purpose: they say how far to go, and a
-//! resume with more iterations continues the same run.
+//! `--tolerance` (when not the default) and the `--truth` scene (an input) are recorded too:
+//! they change what the report says. `--iterations` is recorded as a raisable option: a
+//! resume with more iterations continues the same run (run.json and the report then record
+//! the new maximum), one with fewer is refused.
 //!
 //! A folder with a `run.json` is resumed only when the manifests are equal; otherwise the
 //! error names the first differing option or input and suggests `--restart`. Two shards
 //! (different `--parts`) therefore never share a folder. `--restart` removes what an earlier
-//! solve wrote (only the names a solve writes) before starting afresh. Temporary files of
+//! solve wrote (only the file names a solve writes, and only in a folder whose `run.json` names
+//! `solve`, or an older igi's result) before starting afresh; a folder igi did not write is
+//! refused, `--restart` or not. Temporary files of
 //! killed runs are removed on resume.
 //!
 //! From [`SolveSession::start`] or [`SolveSession::load`] on, the session holds the folder's
@@ -23,21 +27,45 @@
 
 use crate::survey::{LightingSource, Survey};
 use crate::WorkflowError;
-use igi_files::run::{FolderState, RUN_FILE};
+use igi_files::run::FolderState;
 use igi_files::{FolderLock, RunManifest};
 use igi_reflect::result::{SolveResult, STAGED};
 use igi_reflect::{Part, Schedule, SolveOptions};
 use std::cell::OnceCell;
 use std::path::{Path, PathBuf};
 
-/// The names a solve writes into its result folder (what `--restart` removes).
-const RESULT_ENTRIES: [&str; 6] = [
-    "parts",
-    STAGED,
+/// The files a solve writes into its result folder, as `igi_files::remove_own` patterns: what
+/// `--restart` removes (a user's `parts/notes.txt` stays).
+const RESULT_FILES: [&str; 29] = [
+    "parts/*.ply",
+    "parts/*_position.exr",
+    "parts/*_normal.exr",
+    "parts/*_coverage.exr",
+    "parts/*_rho_d.exr",
+    "parts/*_weight.exr",
+    "parts/*_observations.exr",
+    "parts/*_stderr.exr",
+    "parts/*_lobes.json",
+    "parts/*_lobe*_rho.exr",
+    "parts/*_lobe*_shape.exr",
+    "staged/parts/*.ply",
+    "staged/parts/*_position.exr",
+    "staged/parts/*_normal.exr",
+    "staged/parts/*_coverage.exr",
+    "staged/parts/*_rho_d.exr",
+    "staged/parts/*_weight.exr",
+    "staged/parts/*_observations.exr",
+    "staged/parts/*_stderr.exr",
+    "staged/parts/*_lobes.json",
+    "staged/parts/*_lobe*_rho.exr",
+    "staged/parts/*_lobe*_shape.exr",
+    "staged/report.json",
+    "staged/scene.toml",
+    "staged/convergence.png",
     "report.json",
     "scene.toml",
     "convergence.png",
-    RUN_FILE,
+    "run.json",
 ];
 
 /// A checked result folder and the run manifest of this solve.
@@ -55,11 +83,15 @@ impl SolveSession {
         dir: &Path,
         survey: &Survey,
         opts: &SolveOptions,
+        truth: Option<&Path>,
         restart: bool,
     ) -> Result<SolveSession, WorkflowError> {
         opts.validate()?;
         igi_files::check_output_folder(dir)?;
-        let manifest = run_manifest(survey, opts)?;
+        let mut manifest = run_manifest(survey, opts)?;
+        if let Some(t) = truth {
+            manifest.input("truth scene (--truth)", t)?;
+        }
         let state = manifest.check_folder(dir, restart, "report.json", "result")?;
         let resume = state == FolderState::Resume && has_checkpoint(dir);
         Ok(SolveSession {
@@ -80,6 +112,8 @@ impl SolveSession {
     pub fn load(&self) -> Result<SolveResult, WorkflowError> {
         self.claim()?;
         igi_files::remove_dead_temps(&self.dir, true)?;
+        // the same run, perhaps with more iterations: run.json records them
+        self.manifest.write(&self.dir)?;
         SolveResult::recover(&self.dir)?;
         Ok(SolveResult::load(&self.dir)?)
     }
@@ -97,9 +131,6 @@ impl SolveSession {
         std::fs::create_dir_all(&self.dir)
             .map_err(|e| WorkflowError::file(&self.dir, format!("cannot create folder: {e}")))?;
         self.claim()?;
-        if self.restart {
-            igi_files::run::remove_entries(&self.dir, &RESULT_ENTRIES)?;
-        }
         // another run may have written here since `check`
         let state = self
             .manifest
@@ -109,6 +140,9 @@ impl SolveSession {
                 &self.dir,
                 "another solve wrote this folder while this one was starting; run again to resume it",
             ));
+        }
+        if self.restart {
+            igi_files::remove_own(&self.dir, &RESULT_FILES)?;
         }
         igi_files::remove_dead_temps(&self.dir, true)?;
         self.manifest.write(&self.dir)?;
@@ -144,6 +178,16 @@ fn run_manifest(survey: &Survey, opts: &SolveOptions) -> Result<RunManifest, Wor
         None => m.option("--atlas", opts.atlas_resolution),
         Some(a) => m.option("--atlas", "auto").option("--atlas-max", a.max),
     };
+    // how far to go: more iterations continue the same run, fewer are refused
+    m.raisable("--iterations", opts.max_iterations as u64);
+    let defaults = SolveOptions::default();
+    // recorded only when not the default, so folders of earlier igi versions still resume
+    if opts.tolerance.to_bits() != defaults.tolerance.to_bits() {
+        m.option("--tolerance", format!("{:?}", opts.tolerance));
+    }
+    if opts.min_iterations != defaults.min_iterations {
+        m.option("minimum iterations", opts.min_iterations);
+    }
     m.option("--spp", join(&opts.spp))
         .option("--indirect", opts.indirect)
         .option("--seed", opts.seed)

@@ -77,7 +77,13 @@ impl SolveJob {
             None => None,
         };
         let options = atlas_options(request, store.as_ref());
-        let session = SolveSession::check(&request.output, &survey, &options, request.restart)?;
+        let session = SolveSession::check(
+            &request.output,
+            &survey,
+            &options,
+            request.truth.as_deref(),
+            request.restart,
+        )?;
         let basis = survey.basis()?;
         let truth_scene = match &request.truth {
             Some(t) => Some(igi_render::Scene::load(t)?.0),
@@ -137,7 +143,9 @@ impl SolveJob {
     /// The folder's checkpoint of this run, or a fresh result on the survey's parts.
     fn start_or_resume(&self, photos: &[Photo]) -> Result<SolveResult, WorkflowError> {
         if self.session.resumes() {
-            let r = self.session.load()?;
+            let mut r = self.session.load()?;
+            // a resume may raise --iterations: the report records the maximum now asked for
+            r.report.options.max_iterations = self.options.max_iterations;
             tracing::info!("resuming after iteration {}", r.report.iterations.len());
             return Ok(r);
         }
@@ -219,7 +227,7 @@ pub fn reopen(
     options: &SolveOptions,
 ) -> Result<(Vec<Photo>, Option<Basis>), WorkflowError> {
     let survey = Survey::load(survey)?;
-    SolveSession::check(result, &survey, options, false)?;
+    SolveSession::check(result, &survey, options, None, false)?;
     let photos = survey.load_photos(&igi_reflect::solver::NoProgress)?;
     Ok((photos, survey.basis()?))
 }

@@ -320,6 +320,9 @@ impl PhotoSpec {
                 .iter_mut()
                 .for_each(|p| *p = p.map(|c| c * scale));
         }
+        if self.radiometry.is_some() || self.exposure != 1.0 {
+            self.check_pixels(&image, " after the radiometry and exposure")?;
+        }
         let lighting = match &self.lighting {
             LightingSource::File(f) => Lighting::load(f)?,
             LightingSource::Probe {
@@ -351,17 +354,27 @@ impl PhotoSpec {
                 ),
             ));
         }
+        self.check_pixels(image, "")
+    }
+
+    /// Every pixel finite, non-negative and at most the radiance a lighting file may hold
+    /// (`igi_formats::lighting::MAX_RADIANCE`, 1e15: larger values overflow the solver's f32
+    /// sums into NaN); `after` says what the pixels went through ("" as read).
+    fn check_pixels(&self, image: &HdrImage, after: &str) -> Result<(), WorkflowError> {
+        let max = igi_formats::lighting::MAX_RADIANCE;
         if let Some(i) = image
             .pixels
             .iter()
-            .position(|p| p.iter().any(|c| !c.is_finite() || *c < 0.0))
+            .position(|p| p.iter().any(|c| !(c.is_finite() && *c >= 0.0 && *c <= max)))
         {
             return Err(WorkflowError::file(
                 &self.image,
                 format!(
-                    "pixel ({}, {}) is negative or not finite",
+                    "photo `{}`: pixel ({}, {}) is {:?}{after}: pixels must be finite, >= 0 and at most {max:e} (as lighting radiance; check the units)",
+                    self.id,
                     i % image.width,
-                    i / image.width
+                    i / image.width,
+                    image.pixels[i],
                 ),
             ));
         }
