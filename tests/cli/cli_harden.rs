@@ -71,11 +71,7 @@ fn solve_resume_refuses_other_options_and_names_them() {
         );
     }
     // more iterations of the same run resume it; --restart starts afresh with other options
-    igi().ok(&solve_args(
-        s(&survey),
-        s(&out),
-        &["--iterations", "2", "--tolerance", "0"],
-    ));
+    igi().ok(&solve_args(s(&survey), s(&out), &["--iterations", "2"]));
     let r: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
     assert_eq!(r["iterations"].as_array().unwrap().len(), 2);
@@ -687,4 +683,361 @@ fn a_sample_point_far_from_the_site_is_an_error() {
     assert!(!csv.exists());
     std::fs::write(&pts, "\u{feff}x,y,z,nx,ny,nz\n0,0,0,0,0,1\n").unwrap();
     igi().ok(&["sample", s(&out), "--points", s(&pts), "-o", s(&csv)]);
+}
+
+// Issue 36, the second round: each test reproduces one of its cases.
+
+#[test]
+fn restart_never_deletes_what_igi_did_not_write() {
+    let d = tempfile::tempdir().unwrap();
+    let survey = fixture("survey");
+    // a folder igi did not write: refused, --restart or not, and nothing touched
+    let res = d.path().join("res");
+    std::fs::create_dir_all(res.join("parts")).unwrap();
+    std::fs::write(res.join("parts/notes.txt"), "x").unwrap();
+    let o = igi().run(&solve_args(s(&survey), s(&res), &["--restart"]));
+    let e = stderr(&o);
+    assert!(
+        !o.status.success() && e.contains("is not a result folder"),
+        "{e}"
+    );
+    assert_eq!(std::fs::read(res.join("parts/notes.txt")).unwrap(), b"x");
+    // a solve's own folder: --restart removes its files, not the user's note beside them
+    let out = d.path().join("out");
+    igi().ok(&solve_args(s(&survey), s(&out), &[]));
+    std::fs::write(out.join("parts/notes.txt"), "mine").unwrap();
+    std::fs::write(out.join("notes.txt"), "mine too").unwrap();
+    igi().ok(&solve_args(
+        s(&survey),
+        s(&out),
+        &["--seed", "5", "--restart"],
+    ));
+    assert_eq!(std::fs::read(out.join("parts/notes.txt")).unwrap(), b"mine");
+    assert_eq!(std::fs::read(out.join("notes.txt")).unwrap(), b"mine too");
+    let r: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(r["options"]["seed"].as_u64(), Some(5), "restarted afresh");
+    // a prepared site is not a solve's folder: --restart refuses to clear it
+    let site = d.path().join("site.igi");
+    let ground = fixture("outdoor/ground.ply");
+    let prep = |extra: &[&'static str]| -> Vec<String> {
+        let mut v = vec![
+            "prepare",
+            s(&ground),
+            "-o",
+            s(&site),
+            "--atlas",
+            "64",
+            "--voxel",
+            "20",
+        ];
+        v.extend_from_slice(extra);
+        v.into_iter().map(String::from).collect()
+    };
+    igi().ok(&strs(&prep(&[])));
+    let o = igi().run(&solve_args(s(&survey), s(&site), &["--restart"]));
+    let e = stderr(&o);
+    assert!(
+        !o.status.success() && e.contains("`igi prepare`, not of `igi solve`"),
+        "{e}"
+    );
+    assert!(site.join("manifest.json").is_file(), "the site untouched");
+    // prepare --restart keeps a user's file inside voxels/
+    std::fs::write(site.join("voxels/notes.txt"), "mine").unwrap();
+    igi().ok(&strs(&prep(&["--levels", "1.0", "--restart"])));
+    assert_eq!(
+        std::fs::read(site.join("voxels/notes.txt")).unwrap(),
+        b"mine"
+    );
+    let m: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(site.join("manifest.json")).unwrap()).unwrap();
+    assert_eq!(m["levels"].as_array().map(|l| l.len()), Some(1), "{m}");
+    // the earlier run's coarser levels went with it
+    for v in std::fs::read_dir(site.join("voxels")).unwrap() {
+        let v = v.unwrap().path();
+        if v.is_dir() {
+            assert!(v.join("level0.ply").is_file() && !v.join("level1.ply").exists());
+        }
+    }
+}
+
+#[test]
+fn render_outputs_may_not_name_each_other_or_an_input() {
+    let d = tempfile::tempdir().unwrap();
+    let scene = fixture("outdoor/scene.toml");
+    let cam_src = fixture("outdoor/camera.json");
+    let cam = d.path().join("camera.json");
+    std::fs::copy(&cam_src, &cam).unwrap();
+    let out = d.path().join("out.exr");
+    let same = d.path().join(".").join("out.exr");
+    let render = |o: &Path, se: &Path| {
+        igi().run(&[
+            "render",
+            s(&scene),
+            "--camera",
+            s(&cam),
+            "--spp",
+            "1",
+            "--stderr",
+            s(se),
+            "-o",
+            s(o),
+        ])
+    };
+    let o = render(&out, &same);
+    let e = stderr(&o);
+    assert!(
+        !o.status.success() && e.contains("is both --output and --stderr"),
+        "{e}"
+    );
+    assert!(!out.exists(), "nothing written");
+    // the same file through a symbolic link to its folder
+    std::os::unix::fs::symlink(d.path(), d.path().join("link")).unwrap();
+    let o = render(&out, &d.path().join("link/out.exr"));
+    assert!(
+        !o.status.success() && stderr(&o).contains("is both --output and --stderr"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!out.exists(), "nothing written");
+}
+
+fn strs(v: &[String]) -> Vec<&str> {
+    v.iter().map(|x| x.as_str()).collect()
+}
+
+#[test]
+fn size_driven_allocations_are_refused_naming_the_option_and_the_bytes() {
+    let d = tempfile::tempdir().unwrap();
+    let p = |name: &str| d.path().join(name);
+    let img = fixture("outdoor/reference.exr");
+    // each aborted ("memory allocation failed", exit 134) or ran for minutes before
+    let cases: Vec<(Vec<String>, &str)> = vec![
+        (
+            vec![
+                "camera".into(),
+                "calibrate".into(),
+                s(&img).into(),
+                "--board".into(),
+                "100000x100000".into(),
+                "--square".into(),
+                "0.03".into(),
+                "-o".into(),
+                s(&p("cam.json")).into(),
+            ],
+            "the board's corners (--board 100000x100000)",
+        ),
+        (
+            vec![
+                "slf".into(),
+                "build".into(),
+                s(&p("rig.json")).into(),
+                "--mesh".into(),
+                s(&p("mesh.ply")).into(),
+                "--atlas".into(),
+                "100000".into(),
+                "-o".into(),
+                s(&p("slf")).into(),
+            ],
+            "the atlas (--atlas 100000)",
+        ),
+        (
+            vec![
+                "slf".into(),
+                "build".into(),
+                s(&p("rig.json")).into(),
+                "--mesh".into(),
+                s(&p("mesh.ply")).into(),
+                "--method".into(),
+                "fq".into(),
+                "--codewords".into(),
+                (1u64 << 30).to_string(),
+                "-o".into(),
+                s(&p("slf")).into(),
+            ],
+            "the codebook (--codewords 1073741824)",
+        ),
+        (
+            vec![
+                "slf".into(),
+                "build".into(),
+                s(&p("rig.json")).into(),
+                "--mesh".into(),
+                s(&p("mesh.ply")).into(),
+                "--method".into(),
+                "pfa".into(),
+                "--q".into(),
+                "100000".into(),
+                "-o".into(),
+                s(&p("slf")).into(),
+            ],
+            "(--q 100000)",
+        ),
+        (
+            vec![
+                "probe".into(),
+                s(&img).into(),
+                "--camera".into(),
+                s(&p("c.json")).into(),
+                "--board".into(),
+                s(&p("b.json")).into(),
+                "--hemi-size".into(),
+                "20000".into(),
+                "-o".into(),
+                s(&p("l.toml")).into(),
+            ],
+            "the hemisphere pictures (--hemi-size 20000)",
+        ),
+        (
+            vec![
+                "probe".into(),
+                s(&img).into(),
+                "--camera".into(),
+                s(&p("c.json")).into(),
+                "--board".into(),
+                s(&p("b.json")).into(),
+                "--map-width".into(),
+                "1000000".into(),
+                "-o".into(),
+                s(&p("l.toml")).into(),
+            ],
+            "the lat-long maps (--map-width 1000000)",
+        ),
+    ];
+    for (args, what) in &cases {
+        let t0 = std::time::Instant::now();
+        let o = igi().run(&strs(args));
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {e}");
+        assert!(
+            e.contains(what) && e.contains("bytes) of memory") && e.contains("IGI_MAX_MEMORY"),
+            "{args:?}: {e}"
+        );
+        assert!(t0.elapsed().as_secs_f64() < 5.0, "{args:?} refused at once");
+    }
+    // the documented maximum backdrop (6 GiB of pixels and PNG stream) on a machine of less:
+    // refused before the folder or a temporary file is made
+    let out = p("backdrops");
+    let o = igi().with_env("IGI_MAX_MEMORY", "4G").run(&[
+        "hull",
+        "backdrops",
+        "--width",
+        "32768",
+        "--height",
+        "32768",
+        "-o",
+        s(&out),
+    ]);
+    let e = stderr(&o);
+    assert!(
+        o.status.code() == Some(1)
+            && e.contains("a backdrop pattern (--width 32768 --height 32768)")
+            && e.contains("6.0 GiB (6442450944 bytes)")
+            && e.contains("limit of 4.0 GiB"),
+        "{e}"
+    );
+    assert!(!out.exists(), "nothing written");
+    // a device as the samples file is refused, not read until memory runs out
+    let o = igi().run(&["brdf", "fit", "/dev/zero", "-o", s(&p("m.json"))]);
+    let e = stderr(&o);
+    assert!(
+        o.status.code() == Some(1) && e.contains("/dev/zero") && e.contains("regular file"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_solve_rerun_with_another_tolerance_truth_or_fewer_iterations_is_refused() {
+    let d = tempfile::tempdir().unwrap();
+    let survey = fixture("survey");
+    let truth = survey.join("truth/scene.toml");
+    let out = d.path().join("res");
+    igi().ok(&solve_args(s(&survey), s(&out), &["--iterations", "2"]));
+    let report = std::fs::read(out.join("report.json")).unwrap();
+    for (extra, what) in [
+        (
+            vec!["--iterations", "2", "--tolerance", "0"],
+            "option --tolerance (there: (unset); now: 0.0)",
+        ),
+        (
+            vec!["--iterations", "2", "--truth", s(&truth)],
+            "input truth scene (--truth)",
+        ),
+        (
+            vec!["--iterations", "1"],
+            "option --iterations (a resume may raise it, not lower it) (there: 2; now: 1)",
+        ),
+    ] {
+        let o = igi().run(&solve_args(s(&survey), s(&out), &extra));
+        let e = stderr(&o);
+        assert!(!o.status.success() && e.contains(what), "{extra:?}: {e}");
+        assert_eq!(std::fs::read(out.join("report.json")).unwrap(), report);
+    }
+    // raised, it continues the run: the report and run.json record the new maximum
+    igi().ok(&solve_args(s(&survey), s(&out), &["--iterations", "3"]));
+    let r: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(
+        r["options"]["max_iterations"].as_u64(),
+        Some(3),
+        "{}",
+        r["options"]
+    );
+    let m: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("run.json")).unwrap()).unwrap();
+    assert_eq!(m["raisable"]["--iterations"].as_u64(), Some(3), "{m}");
+    // with the truth from the start, the same truth resumes
+    let t = d.path().join("t");
+    let args = ["--iterations", "1", "--truth", s(&truth)];
+    igi().ok(&solve_args(s(&survey), s(&t), &args));
+    igi().ok(&solve_args(
+        s(&survey),
+        s(&t),
+        &["--iterations", "2", "--truth", s(&truth)],
+    ));
+    let r: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(t.join("report.json")).unwrap()).unwrap();
+    assert_eq!(r["iterations"].as_array().unwrap().len(), 2);
+    assert!(
+        r["iterations"][1]["truth_mae"].is_array(),
+        "{}",
+        r["iterations"][1]
+    );
+}
+
+#[test]
+fn photo_pixels_beyond_the_lighting_radiance_limit_are_refused_naming_the_photo() {
+    let d = tempfile::tempdir().unwrap();
+    let survey = d.path().join("survey");
+    copy_dir(&fixture("survey"), &survey);
+    // v00 1e20 times too bright (it solved to "residual NaN%" and a report of nulls)
+    let photo = survey.join("photos/v00-sunny.exr");
+    let img = exr::prelude::read_first_rgba_layer_from_file(
+        &photo,
+        |size, _| (size.width(), vec![[0f32; 3]; size.area()]),
+        |(w, px), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+            px[pos.y() * *w + pos.x()] = [r, g, b];
+        },
+    )
+    .unwrap();
+    let size = img.layer_data.size;
+    let (w, px) = &img.layer_data.channel_data.pixels;
+    let brightest = px.iter().flatten().fold(0f32, |m, &c| m.max(c));
+    assert!(brightest > 1e-5, "the photo is not black");
+    exr::prelude::write_rgb_file(&photo, size.width(), size.height(), |x, y| {
+        let p = px[y * *w + x];
+        (p[0] * 1e20, p[1] * 1e20, p[2] * 1e20)
+    })
+    .unwrap();
+    let out = d.path().join("res");
+    let o = igi().run(&solve_args(s(&survey), s(&out), &[]));
+    let e = stderr(&o);
+    assert!(
+        o.status.code() == Some(1)
+            && e.contains("v00-sunny.exr")
+            && e.contains("photo `v00-sunny`")
+            && e.contains("at most 1e15"),
+        "{e}"
+    );
+    assert!(!out.join("report.json").exists(), "no result");
 }

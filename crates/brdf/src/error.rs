@@ -71,4 +71,7 @@ pub enum BrdfError {
     Formats(#[from] igi_formats::FormatsError),
     #[error("json: {0}")]
     Json(#[from] serde_json::Error),
+    /// An input or output file checked by `igi-files` (a device given as the samples file).
+    #[error(transparent)]
+    Files(#[from] igi_files::FilesError),
 }

@@ -45,6 +45,7 @@ pub fn fit_file(
     written: &dyn Fn(&[FitReport]),
 ) -> Result<Vec<FitReport>, BrdfError> {
     let opts = fit_options(req)?;
+    igi_files::check_input_file(&req.samples, "the samples file")?;
     let samples = read_samples(&req.samples)?;
     step(FitStep::Materials(group_by_material(&samples).len()));
     let fits = fit_materials(&samples, &opts, &|| step(FitStep::Fitted)).map_err(|e| {

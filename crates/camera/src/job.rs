@@ -109,6 +109,12 @@ pub fn calibrate_files(
     read: &dyn Fn(),
 ) -> Result<CalibrateOutcome, CameraError> {
     let (cols, rows) = parse_board(&req.board)?;
+    // per view: the board's object points (3 f64) and the found corners (2 f32), and the
+    // template; refused before any is allocated
+    igi_files::check_alloc_default(
+        &format!("the board's corners (--board {cols}x{rows})"),
+        cols as u128 * rows as u128 * 32 * (req.images.len() as u128 + 1),
+    )?;
     if !(req.square > 0.0 && req.square.is_finite()) {
         return Err(CameraError::Arguments(format!(
             "--square {}: must be a positive length in metres",

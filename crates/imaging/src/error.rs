@@ -152,6 +152,14 @@ pub enum CompareError {
         size: (usize, usize),
         expected: (usize, usize),
     },
+    /// Two image files whose headers declare different sizes (found before decoding either).
+    #[error("{} is {} x {} but {} is {} x {}: compare images of one size", b.display(), b_size.0, b_size.1, a.display(), a_size.0, a_size.1)]
+    FileSizes {
+        a: PathBuf,
+        a_size: (usize, usize),
+        b: PathBuf,
+        b_size: (usize, usize),
+    },
     #[error("no pixel is valid in both images")]
     NoCommonPixels,
     /// An image of a comparison that cannot be read.

@@ -456,6 +456,15 @@ pub fn recover_response(
         }
         .into());
     }
+    // each sample is a pixel (picked ones deduplicated): more than a bracket's pixels cannot
+    // add anything, and the list of picks would take 8 bytes a sample
+    let pixels = images[0].pixels.len();
+    if p.samples > pixels {
+        return Err(ImagingError::InvalidInput(format!(
+            "--samples {}: more than the {pixels} pixels of a bracket (each sample is a pixel)",
+            p.samples
+        )));
+    }
     let mut g: [Vec<f64>; 3] = Default::default();
     for (c, gc) in g.iter_mut().enumerate() {
         let samples = select_samples(images, times, c, p.samples, p.seed);

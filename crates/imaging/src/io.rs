@@ -78,12 +78,47 @@ fn check_finite(path: &Path, img: &HdrImage) -> Result<(), ImagingError> {
     Ok(())
 }
 
+/// Reads the header of a PNG, JPEG or TIFF file and refuses, before the decoder allocates
+/// anything, one that declares more pixels than [`MAX_IMAGE_PIXELS`] or whose decoding would
+/// take more memory than `igi_files::max_alloc` (the decoded pixels, their `f32` copy and the
+/// image: 28 bytes a pixel at most).
+fn check_image_header(path: &Path) -> Result<(), ImagingError> {
+    let (w, h) = ::image::ImageReader::open(path)
+        .map_err(|e| ImagingError::io(path, e))?
+        .with_guessed_format()
+        .map_err(|e| ImagingError::io(path, e))?
+        .into_dimensions()
+        .map_err(|e| ImagingError::decode_failed(path, e))?;
+    let (w, h) = (w as u128, h as u128);
+    if w * h > MAX_IMAGE_PIXELS as u128 {
+        return Err(ImagingError::Decode {
+            path: path.to_path_buf(),
+            msg: format!(
+                "declares {w} x {h} pixels, more than the {} Mpixel limit",
+                MAX_IMAGE_PIXELS / 1_000_000
+            ),
+        });
+    }
+    igi_files::check_alloc_default(
+        &format!("decoding {} ({w} x {h} pixels)", path.display()),
+        w * h * 28,
+    )?;
+    Ok(())
+}
+
 fn read_with_image_crate(path: &Path) -> Result<HdrImage, ImagingError> {
     let dec = |e: ::image::ImageError| ImagingError::decode_failed(path, e);
-    let reader = ::image::ImageReader::open(path)
+    check_image_header(path)?;
+    let mut reader = ::image::ImageReader::open(path)
         .map_err(|e| ImagingError::io(path, e))?
         .with_guessed_format()
         .map_err(|e| ImagingError::io(path, e))?;
+    // the decoder's own guard as well: no allocation above the limit checked above
+    let mut limits = ::image::Limits::default();
+    limits.max_image_width = Some(1 << 20);
+    limits.max_image_height = Some(1 << 20);
+    limits.max_alloc = Some(igi_files::max_alloc()?);
+    reader.limits(limits);
     let dynimg = reader.decode().map_err(dec)?;
     let rgb = dynimg.into_rgb32f();
     let (w, h) = (rgb.width() as usize, rgb.height() as usize);

@@ -266,6 +266,23 @@ pub struct CompareRequest {
 /// `igi compare`: reads the images of `req` (masking uncovered pixels), compares them and
 /// writes the difference picture when asked.
 pub fn compare_files(req: &CompareRequest) -> Result<Comparison, ImagingError> {
+    if let Some(d) = &req.diff {
+        // the difference picture is a PNG: another extension would name the wrong format
+        igi_files::check_output_extension(d, &["png"])?;
+        igi_files::check_output_file(d)?;
+    }
+    // the sizes from the headers, before either image is decoded
+    let a_size = crate::io::image_size(&req.a).map_err(|e| CompareError::read(&req.a, e))?;
+    let b_size = crate::io::image_size(&req.b).map_err(|e| CompareError::read(&req.b, e))?;
+    if a_size != b_size {
+        return Err(CompareError::FileSizes {
+            a: req.a.clone(),
+            a_size,
+            b: req.b.clone(),
+            b_size,
+        }
+        .into());
+    }
     let mut a = read_covered(&req.a)?;
     let b = read_covered(&req.b)?;
     if let Some(w) = &req.within {

@@ -55,6 +55,7 @@ pub fn build_file(
 ) -> Result<BuildOutcome, LightFieldError> {
     req.options.validate(req.method)?;
     req.grid.validate()?;
+    check_sizes(req)?;
     store::check_output(&req.output)?;
     let rig = Rig::load(&req.rig)?;
     rig.require_views(1)?;
@@ -83,6 +84,40 @@ pub fn build_file(
         median_pixel_footprint: built.report.median_pixel_footprint,
         seconds,
     })
+}
+
+/// Refuses, before any work, options whose buffers would not fit in memory (see
+/// `igi_files::memory`): the atlas (position, normal and coverage, f32 RGB and a validity byte
+/// a texel), FQ's codebook of `--codewords` lumispheres, and PFA's `--q`+1 prototypes, the
+/// (q+1)^2 Gram matrix of each worker and q+1 weights a grid point (at most one a texel).
+fn check_sizes(req: &BuildRequest) -> Result<(), LightFieldError> {
+    let texels = req.grid.atlas as u128 * req.grid.atlas as u128;
+    let check = |what: String, bytes: u128| {
+        igi_imaging::memory::check_alloc_default(&what, bytes)
+            .map_err(igi_imaging::ImagingError::from)
+    };
+    check(
+        format!("the atlas (--atlas {})", req.grid.atlas),
+        texels * 39,
+    )?;
+    // octahedron subdivision level s: 4^(s+1) + 2 directions a lumisphere, RGB f32
+    let lumisphere = ((4u128 << (2 * req.options.level.min(16))) + 2) * 12;
+    let threads = rayon::current_num_threads() as u128;
+    match req.method {
+        Method::Fq { codewords } => check(
+            format!("the codebook (--codewords {codewords})"),
+            codewords as u128 * lumisphere,
+        )?,
+        Method::Pfa { q } => {
+            let k = q as u128 + 1;
+            check(
+                format!("the prototypes and weights (--q {q})"),
+                k * lumisphere + threads * k * k * 4 + texels * k * 4,
+            )?
+        }
+        _ => {}
+    }
+    Ok(())
 }
 
 /// `igi slf render`: the stored field, the camera, a rotated or deformed copy of its mesh

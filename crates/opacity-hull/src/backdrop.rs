@@ -49,7 +49,16 @@ pub fn write_patterns(dir: &Path, width: usize, height: usize) -> Result<Vec<Pat
     if width == 0 || height == 0 || width > 1 << 15 || height > 1 << 15 {
         return Err(HullError::BackdropSize { width, height });
     }
+    // one pattern at a time: its 8-bit RGB pixels and the PNG encoder's zlib stream, which it
+    // holds whole (as large as the pixels when they do not compress)
+    igi_files::check_alloc_default(
+        &format!("a backdrop pattern (--width {width} --height {height})"),
+        width as u128 * height as u128 * 6,
+    )?;
+    igi_files::check_output_folder(dir)?;
     std::fs::create_dir_all(dir).map_err(|e| HullError::io(dir, e))?;
+    // the temporary files of an earlier run that was killed mid-write
+    igi_files::remove_dead_temps(dir, false)?;
     let mut out = Vec::new();
     for lambda in LAMBDAS {
         for n in [1, -1] {

@@ -96,6 +96,18 @@ fn check_request(req: &ProbeRequest) -> Result<(), ProbeError> {
         });
     }
     igi_files::check_output_file(&req.output)?;
+    // the pictures the pipeline holds at once, each f32 RGB with a validity byte (13 bytes a
+    // pixel): the lat-long maps (measured, filled, convolved, written; and their supersampled
+    // reads) and the hemispheres (mirror, black sphere, diffuse, written)
+    let (mw, hs) = (req.map_width as u128, req.hemi_size as u128);
+    igi_files::check_alloc_default(
+        &format!("the lat-long maps (--map-width {})", req.map_width),
+        mw * (mw / 2) * 13 * 6,
+    )?;
+    igi_files::check_alloc_default(
+        &format!("the hemisphere pictures (--hemi-size {})", req.hemi_size),
+        hs * hs * 13 * 6,
+    )?;
     if !(req.sun_mask_px >= 0.0 && req.sun_mask_px.is_finite()) {
         return Err(ProbeError::Arguments(format!(
             "--sun-mask-px {} must be a finite radius in pixels, 0 or more",
