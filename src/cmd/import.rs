@@ -1,11 +1,12 @@
 //! `igi import`: photogrammetry models as survey folders.
 use crate::report::{print_json, Ctx};
-use igi_import::{import_colmap, AlignOptions, ColmapImport};
+use igi_import::{import_colmap, AlignOptions, ColmapImport, ModelFormat};
 use std::path::PathBuf;
 
 #[derive(clap::Subcommand, Debug)]
 pub enum ImportCmd {
-    /// A COLMAP sparse model (text or binary) as a survey folder: one contract camera per image
+    /// A COLMAP sparse model (text or binary), a Metashape cameras XML or a nerfstudio
+    /// transforms.json (--format) as a survey folder: one contract camera per image
     /// (cameras/NAME.json, NAME the image's file stem), survey.toml and alignment.json.
     ///
     /// Conventions: COLMAP's poses are world to camera with Hamilton quaternions (w, x, y, z)
@@ -15,18 +16,42 @@ pub enum ImportCmd {
     /// k4 = k5 = k6 = 0) convert exactly to OpenCV's (k1, k2, p1, p2, k3); others are refused.
     /// Each of cameras, images, points3D is read from its .bin when present, else its .txt.
     ///
+    /// --format metashape (File > Export Cameras, Agisoft XML): principal point w/2 + cx - 0.5
+    /// (Metashape's cx, cy are offsets from the image centre, its top-left pixel centre at
+    /// (0.5, 0.5)), fx = f + b1, fy = f, OpenCV's p1, p2 = Metashape's P2, P1; nonzero b2, k4,
+    /// p3, p4 and sensor types other than frame are refused; each camera's transform (camera
+    /// to chunk, OpenCV axes) is taken through its component's and the chunk's transforms;
+    /// cameras without a transform (not aligned) are left out and listed. A label without an
+    /// extension finds the one photo in --images with that stem.
+    ///
+    /// --format nerfstudio (transforms.json or its folder): camera to world in OpenGL axes,
+    /// y and z flipped to OpenCV's; principal point cx - 0.5, cy - 0.5 (nerfstudio's pixel
+    /// centres are at +0.5, as COLMAP's); intrinsics global or per frame; camera_model OPENCV
+    /// or PINHOLE (OPENCV_FISHEYE and others refused, as is nonzero k4); applied_transform, if
+    /// present, is undone so the cameras are in the original tool's frame. A file_path is
+    /// looked up in --images as written, else by its file name.
+    ///
     /// With --control, each control point is triangulated from its observations (u, v in the
     /// contract's pixels, at least two images each) and the similarity x_scan = s R x_model + t
     /// fitted (Umeyama inside a deterministic RANSAC, refitted on the inliers) moves every
     /// camera into the scan's frame; without it the cameras stay in the model's own frame.
+    /// Each photo's EXIF gives its survey `time` (DateTimeOriginal with OffsetTimeOriginal,
+    /// else the GPS date and time, UTC; a time without a known offset is left out, not
+    /// guessed) and `exposure` (ExposureTime x ISO/100 / FNumber^2; written only when every
+    /// photo has one). What was left out is listed per photo.
+    ///
     /// Nothing is written unless every check passes.
     Colmap(ColmapArgs),
 }
 
 #[derive(clap::Args, Debug)]
 pub struct ColmapArgs {
-    /// The sparse model folder (cameras, images, points3D as .bin or .txt).
+    /// The sparse model folder (cameras, images, points3D as .bin or .txt); with --format
+    /// metashape the cameras XML file, with --format nerfstudio transforms.json or its folder.
     pub sparse: PathBuf,
+    /// Whose cameras SPARSE is.
+    #[arg(long, value_enum, default_value_t = Format::Colmap)]
+    pub format: Format,
     /// The folder of the photographs the model names (each must exist).
     #[arg(long)]
     pub images: PathBuf,
@@ -53,6 +78,17 @@ pub struct ColmapArgs {
     pub json: bool,
 }
 
+/// The photogrammetry tool that wrote SPARSE.
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum Format {
+    /// A COLMAP sparse model folder.
+    Colmap,
+    /// Metashape's cameras XML (Agisoft XML).
+    Metashape,
+    /// nerfstudio's transforms.json.
+    Nerfstudio,
+}
+
 pub fn run(c: ImportCmd, _ctx: &Ctx) -> anyhow::Result<()> {
     match c {
         ImportCmd::Colmap(a) => run_colmap(a),
@@ -60,7 +96,13 @@ pub fn run(c: ImportCmd, _ctx: &Ctx) -> anyhow::Result<()> {
 }
 
 fn run_colmap(a: ColmapArgs) -> anyhow::Result<()> {
+    let format = match a.format {
+        Format::Colmap => ModelFormat::Colmap,
+        Format::Metashape => ModelFormat::Metashape,
+        Format::Nerfstudio => ModelFormat::Nerfstudio,
+    };
     let job = ColmapImport {
+        format,
         sparse: a.sparse,
         images: a.images,
         control: a.control,
@@ -78,9 +120,16 @@ fn run_colmap(a: ColmapArgs) -> anyhow::Result<()> {
     let read: Vec<String> = r.read.iter().map(|p| p.display().to_string()).collect();
     println!("read                  {}", read.join(", "));
     println!(
-        "model                 {} cameras, {} images, {} 3D points",
-        r.cameras, r.images, r.points3d
+        "model                 {}: {} cameras, {} images, {} 3D points",
+        r.format, r.cameras, r.images, r.points3d
     );
+    if !r.unposed.is_empty() {
+        println!(
+            "left out              {} images without a pose: {}",
+            r.unposed.len(),
+            r.unposed.join(", ")
+        );
+    }
     match (r.rms_m, r.max_residual_m) {
         (Some(rms), Some(bound)) => {
             println!("frame                 scan (scale {:.6})", r.scale);
@@ -90,6 +139,13 @@ fn run_colmap(a: ColmapArgs) -> anyhow::Result<()> {
         _ => println!(
             "frame                 the COLMAP model's own (no --control: not aligned to the scan)"
         ),
+    }
+    println!(
+        "EXIF                  {} of {} photos with a time, {} with an exposure",
+        r.times, r.images, r.exposures
+    );
+    for (id, note) in &r.exif_notes {
+        println!("  {id:<20} {note}");
     }
     if !r.lighting {
         println!("note                  photos have no lighting: add lighting (or photo times and the site's location) before `igi solve`");

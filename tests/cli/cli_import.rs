@@ -200,3 +200,164 @@ fn import_colmap_refuses_a_control_image_not_in_the_model_and_writes_nothing() {
         &keep,
     );
 }
+
+/// Empty photos named `names` in `dir/photos`, and a mesh file.
+fn photo_folder(dir: &Path, names: &[&str]) {
+    let photos = dir.join("photos");
+    std::fs::create_dir_all(&photos).unwrap();
+    for n in names {
+        std::fs::write(photos.join(n), b"jpeg").unwrap();
+    }
+    std::fs::write(dir.join("site.ply"), b"ply\n").unwrap();
+}
+
+fn import_args(format: &str, model: &Path, dir: &Path, out: &Path) -> Vec<String> {
+    [
+        "import",
+        "colmap",
+        "--format",
+        format,
+        s(model),
+        "--images",
+        s(&dir.join("photos")),
+        "--mesh",
+        s(&dir.join("site.ply")),
+        "-o",
+        s(out),
+    ]
+    .map(String::from)
+    .to_vec()
+}
+
+fn run_ok(a: &[String]) -> String {
+    let o = igi().ok(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+/// The committed Metashape fixture: its chunk and component transforms put camera DSC01001
+/// at (506, 1200.125, 36.875) and the point every camera looks at at (499.75, 1200.125,
+/// 36.875) (worked by hand in the fixture's comment), which must land on the principal point
+/// w/2 + cx - 0.5, h/2 + cy - 0.5 of each camera.
+#[test]
+fn import_metashape_fixture() {
+    let dir = tempfile::tempdir().unwrap();
+    photo_folder(
+        dir.path(),
+        &["DSC01001.JPG", "DSC01002.JPG", "DSC01003.JPG", "other.JPG"],
+    );
+    let xml = igi_testkit::fixture("import/metashape/cameras.xml");
+    let out = dir.path().join("survey");
+    let stdout = run_ok(&import_args("metashape", &xml, dir.path(), &out));
+    assert!(
+        stdout.contains("metashape: 1 cameras, 3 images")
+            && stdout.contains("1 images without a pose: DSC01004"),
+        "{stdout}"
+    );
+    let target = DVec3::new(499.75, 1200.125, 36.875);
+    for n in ["DSC01001", "DSC01002", "DSC01003"] {
+        let cam = Camera::load(&out.join(format!("cameras/{n}.json"))).unwrap();
+        let k = cam.intrinsics;
+        assert_eq!((k.fx, k.fy), (4480.8, 4480.0));
+        assert!(
+            (k.cx - 3011.8).abs() < 1e-9 && (k.cy - 1990.8).abs() < 1e-9,
+            "{k:?}"
+        );
+        // Metashape's P1, P2 are OpenCV's p2, p1
+        assert_eq!((k.dist.p1, k.dist.p2), (-0.0002, 0.0004));
+        let q = cam.project(target).unwrap();
+        assert!(
+            (q.x - 3011.8).abs() < 1e-6 && (q.y - 1990.8).abs() < 1e-6,
+            "{n}: {q}"
+        );
+    }
+    let c = Camera::load(&out.join("cameras/DSC01001.json")).unwrap();
+    let centre = c.center_world();
+    assert!(
+        (centre - DVec3::new(506.0, 1200.125, 36.875)).length() < 1e-9,
+        "{centre}"
+    );
+    let survey = std::fs::read_to_string(out.join("survey.toml")).unwrap();
+    assert!(survey.contains("../photos/DSC01002.JPG"), "{survey}");
+}
+
+/// The committed nerfstudio fixture (as ns-process-data writes from COLMAP, applied_transform
+/// included): undone, the cameras sit where they were made in COLMAP's frame, looking at its
+/// origin with the scene's up (-y there) up in the image.
+#[test]
+fn import_nerfstudio_fixture() {
+    let dir = tempfile::tempdir().unwrap();
+    photo_folder(
+        dir.path(),
+        &["frame_00001.jpg", "frame_00002.jpg", "frame_00003.jpg"],
+    );
+    let ns = igi_testkit::fixture("import/nerfstudio");
+    let out = dir.path().join("survey");
+    let stdout = run_ok(&import_args("nerfstudio", &ns, dir.path(), &out));
+    assert!(
+        stdout.contains("nerfstudio: 1 cameras, 3 images"),
+        "{stdout}"
+    );
+    let made = [[4.0, -1.0, -3.0], [0.5, -1.2, -5.0], [-3.5, -0.8, -3.5]];
+    for (i, p) in made.iter().enumerate() {
+        let cam = Camera::load(&out.join(format!("cameras/frame_{:05}.json", i + 1))).unwrap();
+        assert!(
+            (cam.center_world() - DVec3::from_array(*p)).length() < 1e-9,
+            "{}",
+            cam.center_world()
+        );
+        let o = cam.project(DVec3::ZERO).unwrap();
+        assert!(
+            (o.x - 958.75).abs() < 1e-6 && (o.y - 541.25).abs() < 1e-6,
+            "{o}"
+        );
+        let up = cam.project(DVec3::new(0.0, -0.5, 0.0)).unwrap();
+        assert!(up.y < o.y - 50.0, "up is up: {up} vs {o}");
+    }
+}
+
+#[test]
+fn import_refuses_a_fisheye_sensor_and_a_fisheye_nerfstudio_model_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    photo_folder(dir.path(), &["DSC01001.JPG", "frame_00001.jpg"]);
+    let xml = std::fs::read_to_string(igi_testkit::fixture("import/metashape/cameras.xml"))
+        .unwrap()
+        .replace(
+            "label=\"ILCE-7RM3 (35mm)\" type=\"frame\"",
+            "type=\"fisheye\"",
+        );
+    let bad = dir.path().join("fisheye.xml");
+    std::fs::write(&bad, xml).unwrap();
+    let out = dir.path().join("survey");
+    let a = import_args("metashape", &bad, dir.path(), &out);
+    let o = igi().run(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    let keep: Vec<_> = ["photos", "site.ply", "fisheye.xml"]
+        .map(|n| dir.path().join(n))
+        .to_vec();
+    assert_failed(
+        &o,
+        "fisheye.xml:9",
+        "camera type `fisheye` is not supported",
+        dir.path(),
+        &keep,
+    );
+    let json = std::fs::read_to_string(igi_testkit::fixture("import/nerfstudio/transforms.json"))
+        .unwrap()
+        .replace("\"OPENCV\"", "\"OPENCV_FISHEYE\"");
+    std::fs::write(dir.path().join("transforms.json"), json).unwrap();
+    let a = import_args(
+        "nerfstudio",
+        &dir.path().join("transforms.json"),
+        dir.path(),
+        &out,
+    );
+    let o = igi().run(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    let mut keep = keep;
+    keep.push(dir.path().join("transforms.json"));
+    assert_failed(
+        &o,
+        "transforms.json",
+        "camera model OPENCV_FISHEYE is not supported",
+        dir.path(),
+        &keep,
+    );
+}

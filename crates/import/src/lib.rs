@@ -25,7 +25,10 @@ pub mod align;
 pub mod binary;
 pub mod colmap;
 mod error;
+pub mod metashape;
 pub mod model;
+pub mod nerfstudio;
+pub mod source;
 pub mod survey;
 pub mod text;
 
@@ -33,9 +36,16 @@ pub use align::{AlignOptions, Alignment, Similarity};
 pub use binary::write_binary;
 pub use colmap::read_model;
 pub use error::ImportError;
+pub use metashape::read_metashape;
 pub use model::ColmapModel;
-pub use survey::{import_colmap, ColmapImport, ImportReport};
+pub use nerfstudio::read_nerfstudio;
+pub use source::{CameraSet, ModelFormat, PosedImage};
+pub use survey::{import_colmap, read_cameras, ColmapImport, ImportReport};
 pub use text::write_text;
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_exif;
+#[cfg(test)]
+mod tests_formats;

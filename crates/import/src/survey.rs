@@ -1,4 +1,5 @@
-//! `igi import colmap`: a COLMAP model as a survey folder. Everything is read and checked first
+//! `igi import colmap`: a photogrammetry model (COLMAP, Metashape's camera XML, nerfstudio's
+//! `transforms.json`: [`ModelFormat`]) as a survey folder. Everything is read and checked first
 //! (the output folder, the model, each camera, each image file, the mesh, the lighting file, the
 //! control points and the alignment); only then is anything written, each file atomically:
 //! `cameras/NAME.json` per image, `alignment.json`, and `survey.toml` last.
@@ -16,12 +17,16 @@ use serde_json::json;
 use crate::align::{align, AlignOptions, Alignment, Similarity};
 use crate::colmap::read_model;
 use crate::error::ImportError;
-use crate::model::{contract_camera, ColmapModel};
+use crate::source::{colmap_cameras, CameraSet, ModelFormat};
 
 /// What `igi import colmap` is asked to do.
 #[derive(Clone, Debug)]
 pub struct ColmapImport {
-    /// The sparse model folder (`cameras`, `images`, `points3D` as `.bin` or `.txt`).
+    /// What `sparse` is.
+    pub format: ModelFormat,
+    /// The sparse model folder (`cameras`, `images`, `points3D` as `.bin` or `.txt`); with
+    /// [`ModelFormat::Metashape`] the cameras XML file, with [`ModelFormat::Nerfstudio`]
+    /// `transforms.json` or its folder.
     pub sparse: PathBuf,
     /// The folder of the photographs the model names.
     pub images: PathBuf,
@@ -39,11 +44,15 @@ pub struct ColmapImport {
 /// What was read and written.
 #[derive(Clone, Debug, Serialize)]
 pub struct ImportReport {
+    /// `colmap`, `metashape` or `nerfstudio`.
+    pub format: &'static str,
     /// The model files read (`.bin` preferred over `.txt`).
     pub read: Vec<PathBuf>,
     pub cameras: usize,
     pub images: usize,
     pub points3d: usize,
+    /// Images the model lists without a pose (left out).
+    pub unposed: Vec<String>,
     /// `scan` (aligned by control points) or `model` (COLMAP's own frame).
     pub frame: &'static str,
     pub scale: f64,
@@ -54,14 +63,76 @@ pub struct ImportReport {
     pub outliers: Vec<String>,
     /// Whether every photo has a lighting file.
     pub lighting: bool,
+    /// Photos given a `time` from their EXIF.
+    pub times: usize,
+    /// Photos given an `exposure` from their EXIF.
+    pub exposures: usize,
+    /// Per photo (by id), why its time or exposure was left out, or what was assumed.
+    pub exif_notes: Vec<(String, String)>,
     pub survey: PathBuf,
 }
 
-/// One photo to write: its id (the image's file stem), image file and camera.
+/// One photo to write: its id (the image's file stem), image file and camera, and what its
+/// EXIF says of when it was taken and how it was exposed.
 struct Photo {
     id: String,
     image: PathBuf,
     camera: Camera,
+    exif: PhotoExifInfo,
+}
+
+/// What a photo's EXIF gives the survey: its `time` (RFC 3339 with the UTC offset) and its
+/// `exposure` (t x ISO/100 / N^2), each `None` with the reason in `notes`.
+#[derive(Clone, Debug, Default)]
+struct PhotoExifInfo {
+    time: Option<String>,
+    exposure: Option<f64>,
+    notes: Vec<String>,
+}
+
+/// A photo's time and exposure from its EXIF. A file without EXIF (or one that is not an image
+/// format EXIF can live in) gives neither; a `DateTimeOriginal` without `OffsetTimeOriginal`
+/// and without a GPS time gives no time (its instant is unknown: nothing is guessed); a missing
+/// f-number or ISO is noted (`PhotoExif::exposure` counts it as f/1, ISO 100). A malformed EXIF
+/// field or date is refused, naming the file.
+fn photo_exif(image: &Path) -> Result<PhotoExifInfo, ImportError> {
+    use igi_formats::TimeProblem;
+    let mut out = PhotoExifInfo::default();
+    let exif = match igi_imaging::exif::read_exif(image) {
+        Ok(e) => e,
+        Err(igi_imaging::ImagingError::NoExif { .. }) => {
+            out.notes.push("no EXIF data: no time, no exposure".into());
+            return Ok(out);
+        }
+        Err(e) => return Err(input_error(image, format!("its EXIF cannot be read: {e}"))),
+    };
+    match igi_formats::PhotoTime::from_photo_exif(&exif) {
+        Ok(t) => out.time = Some(t.to_rfc3339()),
+        Err(p @ (TimeProblem::UnknownOffset | TimeProblem::NoExifTime | TimeProblem::Blank)) => {
+            out.notes.push(format!("time left out: {p}"))
+        }
+        Err(p) => {
+            return Err(input_error(
+                image,
+                format!("its EXIF time cannot be read: {p}"),
+            ))
+        }
+    }
+    out.exposure = exif.exposure();
+    match out.exposure {
+        None => out.notes.push("no EXIF ExposureTime: no exposure".into()),
+        Some(_) => {
+            for (missing, what) in [
+                (exif.f_number.is_none(), "FNumber (taken as f/1)"),
+                (exif.iso.is_none(), "ISO (taken as 100)"),
+            ] {
+                if missing {
+                    out.notes.push(format!("exposure without EXIF {what}"));
+                }
+            }
+        }
+    }
+    Ok(out)
 }
 
 fn input_error(path: &Path, problem: impl Into<String>) -> ImportError {
@@ -90,19 +161,36 @@ fn check_output(out: &Path) -> Result<(), ImportError> {
     Ok(())
 }
 
-/// Each image's contract camera (model frame) by image name, its file checked to exist and its
-/// stem unique.
-fn photos(
-    model: &ColmapModel,
-    images_file: &Path,
-    images_dir: &Path,
-) -> Result<Vec<Photo>, ImportError> {
-    let mut out: Vec<Photo> = Vec::with_capacity(model.images.len());
-    for img in &model.images {
-        let camera = contract_camera(model, img).map_err(|problem| ImportError::Model {
-            path: images_file.to_path_buf(),
-            problem,
-        })?;
+/// The image file of a model's image name: `DIR/NAME`, else `DIR/FILE_NAME` (a nerfstudio
+/// `file_path` relative to its own folder), else, for a name without an extension (a Metashape
+/// label), the one file of `DIR` whose stem it is.
+fn find_image(dir: &Path, name: &str) -> Option<PathBuf> {
+    let direct = dir.join(name);
+    if direct.is_file() {
+        return Some(direct);
+    }
+    let file = Path::new(name).file_name()?;
+    let flat = dir.join(file);
+    if flat.is_file() {
+        return Some(flat);
+    }
+    if Path::new(name).extension().is_some() {
+        return None;
+    }
+    let mut hits = std::fs::read_dir(dir)
+        .ok()?
+        .filter_map(Result::ok)
+        .map(|e| e.path())
+        .filter(|p| p.is_file() && p.file_stem() == Some(file));
+    let one = hits.next()?;
+    hits.next().is_none().then_some(one)
+}
+
+/// Each image's contract camera (model frame), its file checked to exist and its stem unique.
+fn photos(set: &CameraSet, images_dir: &Path) -> Result<Vec<Photo>, ImportError> {
+    let images_file = set.images_file.as_path();
+    let mut out: Vec<Photo> = Vec::with_capacity(set.images.len());
+    for img in &set.images {
         let stem = Path::new(&img.name)
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned());
@@ -116,44 +204,86 @@ fn photos(
             let problem = format!("images `{}` and `{}` share the name `{id}`: camera files are named by the image's stem", other.image.display(), img.name);
             return Err(input_error(images_file, problem));
         }
-        let image = images_dir.join(&img.name);
-        if !image.is_file() {
-            return Err(input_error(
-                &image,
-                format!("image `{}` of the model is not in --images", img.name),
-            ));
+        let image = find_image(images_dir, &img.name).ok_or_else(|| {
+            input_error(
+                &images_dir.join(&img.name),
+                format!(
+                    "image `{}` of the model ({}) is not in --images",
+                    img.name,
+                    images_file.display()
+                ),
+            )
+        })?;
+        let exif = photo_exif(&image)?;
+        out.push(Photo {
+            id,
+            image,
+            camera: img.camera.clone(),
+            exif,
+        });
+    }
+    // exposures put photos on one scale only when every photo has one
+    if out.iter().any(|p| p.exif.exposure.is_none())
+        && out.iter().any(|p| p.exif.exposure.is_some())
+    {
+        for p in &mut out {
+            if p.exif.exposure.take().is_some() {
+                p.exif.notes.push(
+                    "exposure left out: not every photo has one, and a photo without one would \
+                     count as exposure 1"
+                        .into(),
+                );
+            }
         }
-        out.push(Photo { id, image, camera });
     }
     Ok(out)
 }
 
-/// The alignment of the control file, if given (cameras in the model frame by image name).
+/// The alignment of the control file, if given (cameras in the model frame by image name, and
+/// by file name where that is unambiguous).
 fn alignment(
     job: &ColmapImport,
     photos: &[Photo],
-    model: &ColmapModel,
+    set: &CameraSet,
 ) -> Result<Option<Alignment>, ImportError> {
     let Some(path) = &job.control else {
         return Ok(None);
     };
     let obs = igi_formats::control::read_control_points(path)?;
-    let cams: HashMap<String, Camera> = model
-        .images
-        .iter()
-        .zip(photos)
-        .map(|(i, p)| (i.name.clone(), p.camera.clone()))
-        .collect();
+    let mut cams: HashMap<String, Camera> = HashMap::new();
+    for (i, p) in set.images.iter().zip(photos) {
+        if let Some(f) = Path::new(&i.name).file_name() {
+            cams.insert(f.to_string_lossy().into_owned(), p.camera.clone());
+        }
+    }
+    for (i, p) in set.images.iter().zip(photos) {
+        cams.insert(i.name.clone(), p.camera.clone());
+    }
     align(path, &obs, &cams, job.align).map(Some)
+}
+
+/// The model's cameras, read as `job.format` says.
+pub fn read_cameras(format: ModelFormat, path: &Path) -> Result<CameraSet, ImportError> {
+    match format {
+        ModelFormat::Colmap => {
+            let (model, read) = read_model(path)?;
+            colmap_cameras(&model, read)
+        }
+        ModelFormat::Metashape => crate::metashape::read_metashape(path),
+        ModelFormat::Nerfstudio => crate::nerfstudio::read_nerfstudio(path),
+    }
 }
 
 /// Checks everything, then writes the survey folder.
 pub fn import_colmap(job: &ColmapImport) -> Result<ImportReport, ImportError> {
     check_output(&job.output)?;
-    let (model, read) = read_model(&job.sparse)?;
-    let mut photos = photos(&model, &read[1], &job.images)?;
+    let set = read_cameras(job.format, &job.sparse)?;
+    let mut photos = photos(&set, &job.images)?;
     if photos.is_empty() {
-        return Err(input_error(&read[1], "the model has no registered image"));
+        return Err(input_error(
+            &set.images_file,
+            "the model has no registered (posed) image",
+        ));
     }
     if !job.mesh.is_file() {
         return Err(input_error(&job.mesh, "site mesh not found (--mesh)"));
@@ -161,7 +291,7 @@ pub fn import_colmap(job: &ColmapImport) -> Result<ImportReport, ImportError> {
     if let Some(l) = &job.lighting {
         LightingFile::read(l)?;
     }
-    let aligned = alignment(job, &photos, &model)?;
+    let aligned = alignment(job, &photos, &set)?;
     let sim = aligned
         .as_ref()
         .map_or(Similarity::identity(), |a| a.similarity);
@@ -169,21 +299,29 @@ pub fn import_colmap(job: &ColmapImport) -> Result<ImportReport, ImportError> {
         .iter_mut()
         .for_each(|p| p.camera = sim.camera(&p.camera));
     write_folder(job, &photos, aligned.as_ref())?;
-    Ok(report(job, &model, read, aligned.as_ref(), sim))
+    let mut r = report(job, set, aligned.as_ref(), sim);
+    r.times = photos.iter().filter(|p| p.exif.time.is_some()).count();
+    r.exposures = photos.iter().filter(|p| p.exif.exposure.is_some()).count();
+    r.exif_notes = photos
+        .iter()
+        .flat_map(|p| p.exif.notes.iter().map(|n| (p.id.clone(), n.clone())))
+        .collect();
+    Ok(r)
 }
 
 fn report(
     job: &ColmapImport,
-    model: &ColmapModel,
-    read: Vec<PathBuf>,
+    set: CameraSet,
     a: Option<&Alignment>,
     sim: Similarity,
 ) -> ImportReport {
     ImportReport {
-        read,
-        cameras: model.cameras.len(),
-        images: model.images.len(),
-        points3d: model.points.len(),
+        format: job.format.name(),
+        read: set.read,
+        cameras: set.cameras,
+        images: set.images.len(),
+        points3d: set.points3d,
+        unposed: set.unposed,
         frame: if a.is_some() { "scan" } else { "model" },
         scale: sim.scale,
         rms_m: a.map(|a| a.rms_m),
@@ -196,6 +334,9 @@ fn report(
                 .collect()
         }),
         lighting: job.lighting.is_some(),
+        times: 0,
+        exposures: 0,
+        exif_notes: Vec::new(),
         survey: job.output.join("survey.toml"),
     }
 }
@@ -237,9 +378,13 @@ fn write_files(
     let text = serde_json::to_string_pretty(&alignment_json(job, a)).unwrap_or_default();
     igi_files::write_text_atomic(&out.join("alignment.json"), &(text + "\n"))?;
     let survey = survey_file(job, photos)?;
+    let written = format!(
+        "written by `igi import colmap --format {}`",
+        job.format.name()
+    );
     let header = [
-        "written by `igi import colmap`",
-        "cameras: one contract camera per COLMAP image",
+        written.as_str(),
+        "cameras: one contract camera per image of the model",
     ];
     survey.write(&out.join("survey.toml"), &header)?;
     Ok(())
@@ -269,6 +414,8 @@ fn survey_file(job: &ColmapImport, photos: &[Photo]) -> Result<SurveyFile, Impor
                 image: rel(&p.image)?,
                 camera: PathBuf::from(format!("cameras/{}.json", p.id)),
                 lighting: lighting.clone(),
+                time: p.exif.time.clone(),
+                exposure: p.exif.exposure,
                 ..PhotoEntry::default()
             })
         })
@@ -305,13 +452,15 @@ fn alignment_json(job: &ColmapImport, a: Option<&Alignment>) -> serde_json::Valu
     let Some(a) = a else {
         return json!({
             "frame": "model",
-            "note": "no --control: the cameras are in the COLMAP model's own frame (arbitrary scale, orientation and origin), not the scan's",
+            "format": job.format,
+            "note": "no --control: the cameras are in the model's own frame (arbitrary scale, orientation and origin), not the scan's",
         });
     };
     let s = &a.similarity;
     let rows = s.rotation.transpose().to_cols_array_2d();
     json!({
         "frame": "scan",
+        "format": job.format,
         "control": job.control,
         "transform": "x_scan = scale * rotation * x_model + translation",
         "scale": s.scale,

@@ -57,7 +57,7 @@ fn truth_intrinsics(model: CameraModel, p: &[f64]) -> Intrinsics {
 }
 
 /// Six contract cameras on a ring 15 m from the origin, looking at it.
-fn truth_cameras() -> Vec<Camera> {
+pub(crate) fn truth_cameras() -> Vec<Camera> {
     models()
         .iter()
         .enumerate()
@@ -76,7 +76,7 @@ fn truth_cameras() -> Vec<Camera> {
 }
 
 /// Known 3D points (scan frame) around the origin.
-fn truth_points() -> Vec<DVec3> {
+pub(crate) fn truth_points() -> Vec<DVec3> {
     vec![
         DVec3::new(-3.0, -2.0, 0.0),
         DVec3::new(3.5, -1.5, 0.2),
@@ -597,6 +597,7 @@ fn import_inputs(root: &Path) -> ColmapImport {
     igi_formats::control::write_control_points(&control, &observe(&scan, &truth_points(), 0.0))
         .unwrap();
     ColmapImport {
+        format: crate::ModelFormat::Colmap,
         sparse,
         images,
         control: Some(control),
@@ -639,7 +640,8 @@ fn a_failed_import_writes_nothing() {
     std::fs::remove_file(job.images.join("IMG_0003.JPG")).unwrap();
     let e = import_colmap(&job).unwrap_err().to_string();
     assert!(
-        e.contains("IMG_0003.JPG: image `IMG_0003.JPG` of the model is not in --images"),
+        e.contains("IMG_0003.JPG: image `IMG_0003.JPG` of the model (")
+            && e.contains("images.bin) is not in --images"),
         "{e}"
     );
     assert!(!job.output.exists());
