@@ -1,7 +1,16 @@
 //! # igi-import
 //!
-//! Photogrammetry models as survey folders: COLMAP sparse models (text and binary) converted
-//! to the contract's cameras and aligned to the scan by ground control points.
+//! Photogrammetry models as survey folders: COLMAP sparse models (text and binary), Metashape's
+//! camera XML and nerfstudio's `transforms.json` converted to the contract's cameras and aligned
+//! to the scan by ground control points; each photo's time and exposure from its EXIF.
+//!
+//! * [`source`]: what every format becomes ([`CameraSet`]: posed images named as the tool
+//!   names its photos) and [`ModelFormat`].
+//! * [`metashape`]: Metashape's camera XML ([`read_metashape`]: principal point
+//!   `w/2 + cx - 0.5`, `fx = f + b1`, OpenCV's `p1, p2` = Metashape's `P2, P1`; camera,
+//!   component and chunk transforms; skew, `k4`, `p3`, `p4` and non-frame sensors refused).
+//! * [`nerfstudio`]: `transforms.json` ([`read_nerfstudio`]: OpenGL axes flipped to OpenCV's,
+//!   principal point minus 0.5, intrinsics global or per frame, `applied_transform` undone).
 //!
 //! * [`model`]: the model as read ([`ColmapModel`]: cameras, images, 3D points), COLMAP's
 //!   camera models, and the conversion of an image to the contract camera
@@ -18,7 +27,8 @@
 //! * [`align`]: control points triangulated from their observations, the similarity
 //!   `x_scan = s R x_model + t` fitted by Umeyama's method in a deterministic RANSAC and
 //!   refitted on the inliers, per-point residuals in metres and pixels.
-//! * [`survey`]: `igi import colmap` itself ([`import_colmap`]): everything checked, then
+//! * [`survey`]: `igi import colmap` itself ([`import_colmap`], any [`ModelFormat`]):
+//!   everything checked (each photo's EXIF read for its `time` and `exposure`), then
 //!   `cameras/NAME.json`, `alignment.json` and `survey.toml` written atomically.
 
 pub mod align;
