@@ -59,3 +59,5 @@ mod tests;
 mod tests_exif;
 #[cfg(test)]
 mod tests_formats;
+#[cfg(test)]
+mod tests_pycolmap;
