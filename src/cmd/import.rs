@@ -35,6 +35,7 @@ pub enum ImportCmd {
     /// contract's pixels, at least two images each) and the similarity x_scan = s R x_model + t
     /// fitted (Umeyama inside a deterministic RANSAC, refitted on the inliers) moves every
     /// camera into the scan's frame; without it the cameras stay in the model's own frame.
+    ///
     /// Each photo's EXIF gives its survey `time` (DateTimeOriginal with OffsetTimeOriginal,
     /// else the GPS date and time, UTC; a time without a known offset is left out, not
     /// guessed) and `exposure` (ExposureTime x ISO/100 / FNumber^2; written only when every
@@ -137,7 +138,7 @@ fn run_colmap(a: ColmapArgs) -> anyhow::Result<()> {
             println!("control outliers      {:?}", r.outliers);
         }
         _ => println!(
-            "frame                 the COLMAP model's own (no --control: not aligned to the scan)"
+            "frame                 the model's own (no --control: not aligned to the scan)"
         ),
     }
     println!(

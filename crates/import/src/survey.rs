@@ -397,12 +397,20 @@ fn survey_file(job: &ColmapImport, photos: &[Photo]) -> Result<SurveyFile, Impor
         what: "the output folder",
         source,
     })?;
+    // the folder made absolute, the file's own name kept: a photo that is a symlink stays
+    // the name under --images, not its target
     let rel = |p: &Path| -> Result<PathBuf, ImportError> {
-        let abs = std::fs::canonicalize(p).map_err(|source| ImportError::Read {
+        let (dir, name) = match (p.parent(), p.file_name()) {
+            (Some(d), Some(n)) if !d.as_os_str().is_empty() => (d, Some(n)),
+            (_, Some(n)) => (Path::new("."), Some(n)),
+            _ => (p, None),
+        };
+        let dir = std::fs::canonicalize(dir).map_err(|source| ImportError::Read {
             path: p.to_path_buf(),
             what: "an input",
             source,
         })?;
+        let abs = name.map_or(dir.clone(), |n| dir.join(n));
         Ok(relative_to(&abs, &base).unwrap_or(abs))
     };
     let lighting = job.lighting.as_deref().map(rel).transpose()?;
