@@ -41,6 +41,19 @@ pub enum ImagingError {
     },
     #[error("invalid input: {0}")]
     InvalidInput(String),
+    /// A numeric CSV table (a camera response file) that cannot be read.
+    #[error(transparent)]
+    Csv(#[from] crate::csv::CsvError),
+    /// A camera response file whose values cannot be a response (`photo`), with its line.
+    #[error("{}:{line}: {msg}", path.display())]
+    ResponseFile {
+        path: PathBuf,
+        line: usize,
+        msg: String,
+    },
+    /// A photograph's bit depth or format and the transfer asked for it do not go together.
+    #[error("{}: {msg}", path.display())]
+    PhotoTransfer { path: PathBuf, msg: String },
     /// Exposure times and brackets that cannot be merged.
     #[error(transparent)]
     Hdr(#[from] HdrError),

@@ -107,6 +107,19 @@ fn check_image_header(path: &Path) -> Result<(), ImagingError> {
 }
 
 fn read_with_image_crate(path: &Path) -> Result<HdrImage, ImagingError> {
+    let dynimg = decode_with_image_crate(path)?;
+    let rgb = dynimg.into_rgb32f();
+    let (w, h) = (rgb.width() as usize, rgb.height() as usize);
+    let mut out = HdrImage::new(w, h);
+    for (i, p) in rgb.pixels().enumerate() {
+        out.pixels[i] = p.0;
+    }
+    Ok(out)
+}
+
+/// Decodes a PNG, JPEG or TIFF file as stored (its bit depth kept), the header checked against
+/// the pixel and memory limits first.
+pub(crate) fn decode_with_image_crate(path: &Path) -> Result<::image::DynamicImage, ImagingError> {
     let dec = |e: ::image::ImageError| ImagingError::decode_failed(path, e);
     check_image_header(path)?;
     let mut reader = ::image::ImageReader::open(path)
@@ -119,14 +132,7 @@ fn read_with_image_crate(path: &Path) -> Result<HdrImage, ImagingError> {
     limits.max_image_height = Some(1 << 20);
     limits.max_alloc = Some(igi_files::max_alloc()?);
     reader.limits(limits);
-    let dynimg = reader.decode().map_err(dec)?;
-    let rgb = dynimg.into_rgb32f();
-    let (w, h) = (rgb.width() as usize, rgb.height() as usize);
-    let mut out = HdrImage::new(w, h);
-    for (i, p) in rgb.pixels().enumerate() {
-        out.pixels[i] = p.0;
-    }
-    Ok(out)
+    reader.decode().map_err(dec)
 }
 
 /// The most a deflate stream (ZIP, the best-compressing EXR codec on uniform data) can shrink

@@ -6,6 +6,9 @@
 //! * [`io`]: [`read_image`] (EXR, Radiance HDR, PNG/JPEG/TIFF; headers checked against the
 //!   pixel limit before decoding), [`write_exr`], [`write_hdr`], [`write_png_tonemapped`], the
 //!   sRGB transfer functions.
+//! * [`photo`]: photographs as cameras write them made linear ([`photo::read_photo`]: 8-bit
+//!   through a Debevec-Malik camera response or sRGB, 16-bit linear, clipped pixels masked and
+//!   counted; [`photo::read_response_csv`]).
 //! * [`exif`]: when a photograph was taken and how it was exposed, from its EXIF
 //!   ([`exif::read_exif`], [`exif::PhotoExif::exposure`]).
 //! * [`hdr`]: merging exposure brackets (linear sensors, the least-squares slope of Matusik
@@ -40,6 +43,7 @@ pub mod latlong;
 pub mod mask;
 pub mod merge;
 pub mod metrics;
+pub mod photo;
 
 pub use error::{CompareError, HdrError, ImagingError};
 /// The size check before every size-driven allocation (`igi_files::memory`), for the crates
