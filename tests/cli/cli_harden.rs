@@ -1041,3 +1041,139 @@ fn photo_pixels_beyond_the_lighting_radiance_limit_are_refused_naming_the_photo(
     );
     assert!(!out.join("report.json").exists(), "no result");
 }
+
+/// A rig of 6 views of a sphere of radius 0.3 (exact masks, flat photos) in `dir`.
+fn sphere_rig(dir: &Path) -> PathBuf {
+    use glam::DVec3;
+    let (w, h) = (128usize, 96usize);
+    std::fs::create_dir_all(dir).unwrap();
+    let mut text =
+        String::from("[object]\nbbox_min = [-0.4, -0.4, -0.4]\nbbox_max = [0.4, 0.4, 0.4]\n");
+    for i in 0..6 {
+        let a = i as f64 / 6.0 * std::f64::consts::TAU;
+        let eye = DVec3::new(2.0 * a.cos(), 2.0 * a.sin(), 0.5);
+        let mut c = igi_camera::Camera::pinhole(w as u32, h as u32, 80.0, 80.0, 63.5, 47.5);
+        c.pose = igi_camera::WorldToCamera::look_at(eye, DVec3::ZERO, DVec3::Z).unwrap();
+        c.save(&dir.join(format!("c{i}.json"))).unwrap();
+        let mut m = igi_imaging::Mask::new(w, h);
+        let half = (0.3 / eye.length()).asin();
+        let mut photo = igi_imaging::HdrImage::new(w, h);
+        for y in 0..h {
+            for x in 0..w {
+                let (_, d) = c.pixel_ray(x as f64, y as f64);
+                let inside = d.angle_between(-c.center_world()) < half;
+                m.set(x, y, inside);
+                if inside {
+                    photo.set(x, y, [0.5, 0.4, 0.3]);
+                }
+            }
+        }
+        m.save_png(&dir.join(format!("m{i}.png"))).unwrap();
+        igi_imaging::write_exr(&dir.join(format!("p{i}.exr")), &photo).unwrap();
+        text += &format!(
+            "\n[[view]]\nid = \"v{i}\"\ncamera = \"c{i}.json\"\nphoto = \"p{i}.exr\"\nmask = \"m{i}.png\"\n"
+        );
+    }
+    let rig = dir.join("rig.toml");
+    std::fs::write(&rig, text).unwrap();
+    rig
+}
+
+#[test]
+fn hull_build_cleans_dead_staging_stores_no_timings_and_render_writes_what_it_is_named() {
+    let d = tempfile::tempdir().unwrap();
+    let rig = sphere_rig(&d.path().join("cap"));
+    // a killed build's staging folder (pid 4194305 is above Linux's pid_max: never running)
+    let dead = d.path().join(".hull.partial-4194305");
+    std::fs::create_dir_all(dead.join("mattes")).unwrap();
+    std::fs::write(dead.join("mattes/v0.exr"), vec![0u8; 1 << 20]).unwrap();
+    let out = d.path().join("hull");
+    igi().ok(&["hull", "build", s(&rig), "-o", s(&out)]);
+    assert!(!dead.exists(), "the dead staging folder was removed");
+    let left: Vec<String> = std::fs::read_dir(d.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains("partial"))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+    // identical builds, identical report.json (no wall-clock timings in it)
+    let out2 = d.path().join("hull2");
+    let o = igi().ok(&["hull", "build", s(&rig), "-o", s(&out2), "--json"]);
+    let a = std::fs::read(out.join("report.json")).unwrap();
+    assert_eq!(a, std::fs::read(out2.join("report.json")).unwrap());
+    let printed: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(printed["timings"].is_object(), "timings still printed");
+    assert!(!String::from_utf8_lossy(&a).contains("timings"));
+    // an output that is a file: refused before the work, naming it
+    let file = d.path().join("afile");
+    std::fs::write(&file, "x").unwrap();
+    let o = igi().run(&["hull", "build", s(&rig), "-o", s(&file.join("h"))]);
+    assert!(
+        !o.status.success() && stderr(&o).contains("afile"),
+        "{}",
+        stderr(&o)
+    );
+    // hull render writes an RGBA EXR: -o x.png is refused, not filled with EXR bytes
+    let png = d.path().join("x.png");
+    let o = igi().run(&[
+        "hull",
+        "render",
+        s(&out),
+        "--camera",
+        s(&d.path().join("cap/c1.json")),
+        "-o",
+        s(&png),
+    ]);
+    let e = stderr(&o);
+    assert!(
+        !o.status.success() && e.contains("x.png: output must be .exr"),
+        "{e}"
+    );
+    assert!(!png.exists());
+}
+
+#[test]
+fn compare_checks_header_sizes_before_decoding_and_names_the_diff_format() {
+    let d = tempfile::tempdir().unwrap();
+    let small = d.path().join("small.png");
+    image::RgbImage::new(8, 8).save(&small).unwrap();
+    // 8000 x 8000 of one grey: a small file that decodes to gigabytes of f32 RGB
+    let big = d.path().join("big.png");
+    image::GrayImage::new(8000, 8000).save(&big).unwrap();
+    assert!(std::fs::metadata(&big).unwrap().len() < 2 << 20);
+    let t0 = std::time::Instant::now();
+    let o = igi().run(&["compare", s(&small), s(&big)]);
+    let e = stderr(&o);
+    assert!(
+        o.status.code() == Some(1)
+            && e.contains("big.png is 8000 x 8000 but")
+            && e.contains("small.png is 8 x 8"),
+        "{e}"
+    );
+    assert!(t0.elapsed().as_secs_f64() < 5.0, "refused from the headers");
+    // decoding it at all is refused above the memory limit, naming the file and the bytes
+    let o = igi()
+        .with_env("IGI_MAX_MEMORY", "1G")
+        .run(&["compare", s(&big), s(&big)]);
+    let e = stderr(&o);
+    assert!(
+        o.status.code() == Some(1)
+            && e.contains("decoding")
+            && e.contains("big.png")
+            && e.contains("8000 x 8000"),
+        "{e}"
+    );
+    // the difference picture is a PNG: --diff d.exr is refused before the work
+    let o = igi().run(&[
+        "compare",
+        s(&small),
+        s(&small),
+        "--diff",
+        s(&d.path().join("d.exr")),
+    ]);
+    let e = stderr(&o);
+    assert!(
+        !o.status.success() && e.contains("d.exr: output must be .png"),
+        "{e}"
+    );
+}

@@ -153,6 +153,146 @@ fn file_identity(path: &Path) -> PathBuf {
     }
 }
 
+/// A whole output folder written under a staging name beside it and renamed into place (igi
+/// hull build, igi slf build), so that it is never half-written, with the rules of every igi
+/// output folder: one writer at a time (a [`crate::FolderLock`] on `.NAME.igi-lock` beside the
+/// folder, held until the value is dropped), a staging name of this process and host
+/// (`.NAME.partial-PID_HOST`, so two runs never share one), and the staging folders of killed
+/// runs of this host removed when the next run begins. Dropped without [`Staging::commit`],
+/// the staging folder is removed.
+#[derive(Debug)]
+pub struct Staging {
+    out: PathBuf,
+    tmp: PathBuf,
+    done: bool,
+    _lock: crate::FolderLock,
+}
+
+impl Staging {
+    /// Claims `out` (refused while another igi run writes it), removes dead runs' staging
+    /// folders beside it and creates this run's. Call it before the work: an output that
+    /// cannot be written is found here.
+    pub fn begin(out: &Path) -> Result<Staging, FilesError> {
+        let (parent, name) = parent_and_name(out)?;
+        check_folder_path(&parent)?;
+        check_output_folder(&parent)?;
+        if out.exists() && !out.is_dir() {
+            return Err(FilesError::NotAFolder {
+                path: out.to_path_buf(),
+                wanted: out.to_path_buf(),
+            });
+        }
+        let lock =
+            crate::FolderLock::acquire_beside(&parent.join(format!(".{name}.igi-lock")), out)?;
+        remove_dead_staging(&parent, &name)?;
+        let tmp = parent.join(format!(
+            ".{name}.partial-{}_{}",
+            std::process::id(),
+            crate::atomic::this_host()
+        ));
+        if tmp.exists() {
+            std::fs::remove_dir_all(&tmp).map_err(|e| FilesError::io(&tmp, e))?;
+        }
+        std::fs::create_dir_all(&tmp).map_err(|e| FilesError::io(&tmp, e))?;
+        Ok(Staging {
+            out: out.to_path_buf(),
+            tmp,
+            done: false,
+            _lock: lock,
+        })
+    }
+
+    /// The staging folder to fill.
+    pub fn path(&self) -> &Path {
+        &self.tmp
+    }
+
+    /// Renames the staging folder to the output. An existing output is removed first: an
+    /// empty folder always, a full one only with `replace` (the caller has checked that it is
+    /// an earlier output of the same kind); otherwise it is an error.
+    pub fn commit(mut self, replace: bool) -> Result<(), FilesError> {
+        let out = &self.out;
+        if out.exists() {
+            let empty = std::fs::read_dir(out)
+                .map_err(|e| FilesError::io(out, e))?
+                .next()
+                .is_none();
+            if empty {
+                std::fs::remove_dir(out).map_err(|e| FilesError::io(out, e))?;
+            } else if replace {
+                std::fs::remove_dir_all(out).map_err(|e| FilesError::io(out, e))?;
+            } else {
+                return Err(FilesError::NotARunFolder {
+                    path: out.clone(),
+                    msg: "was filled by someone else during the build; choose another output"
+                        .into(),
+                });
+            }
+        }
+        std::fs::rename(&self.tmp, out).map_err(|e| FilesError::io(out, e))?;
+        self.done = true;
+        Ok(())
+    }
+}
+
+impl Drop for Staging {
+    fn drop(&mut self) {
+        if !self.done {
+            let _ = std::fs::remove_dir_all(&self.tmp);
+        }
+    }
+}
+
+/// The folder `out` is in and its name.
+fn parent_and_name(out: &Path) -> Result<(PathBuf, String), FilesError> {
+    let name = out
+        .file_name()
+        .ok_or_else(|| FilesError::NotAFilePath(out.to_path_buf()))?
+        .to_string_lossy()
+        .into_owned();
+    let parent = match out.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    Ok((parent, name))
+}
+
+/// Removes the staging folders `.NAME.partial-PID_HOST` (and the older `.NAME.partial-PID`) in
+/// `parent` whose process, on this host, no longer runs. Returns how many were removed.
+pub fn remove_dead_staging(parent: &Path, name: &str) -> Result<usize, FilesError> {
+    let prefix = format!(".{name}.partial-");
+    let entries = match std::fs::read_dir(parent) {
+        Ok(e) => e,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(0),
+        Err(e) => return Err(FilesError::io(parent, e)),
+    };
+    let mut removed = 0;
+    for entry in entries {
+        let entry = entry.map_err(|e| FilesError::io(parent, e))?;
+        let file = entry.file_name().to_string_lossy().into_owned();
+        let Some(owner) = file.strip_prefix(&prefix) else {
+            continue;
+        };
+        let (pid, host) = match owner.split_once('_') {
+            Some((p, h)) => (p, Some(h)),
+            None => (owner, None),
+        };
+        let Ok(pid) = pid.parse::<u32>() else {
+            continue;
+        };
+        let elsewhere = host.is_some_and(|h| h != crate::atomic::this_host());
+        let alive = elsewhere
+            || pid == std::process::id()
+            || Path::new("/proc").join(pid.to_string()).exists();
+        if !alive {
+            let p = entry.path();
+            std::fs::remove_dir_all(&p).map_err(|e| FilesError::io(&p, e))?;
+            removed += 1;
+        }
+    }
+    Ok(removed)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -185,5 +325,50 @@ mod tests {
             &[("the scene", &scene)],
         )
         .unwrap();
+    }
+
+    #[test]
+    fn staging_is_per_process_locked_and_dead_runs_are_cleaned() {
+        let tmp = tempfile::tempdir().unwrap();
+        let out = tmp.path().join("hull");
+        // a killed run's staging folder (pid 4194305 is above Linux's pid_max) and another
+        // host's, which is not ours to judge
+        let dead = tmp.path().join(".hull.partial-4194305");
+        let dead_new = tmp.path().join(format!(
+            ".hull.partial-4194305_{}",
+            crate::atomic::this_host()
+        ));
+        let remote = tmp.path().join(".hull.partial-4194305_elsewhere-node7");
+        for d in [&dead, &dead_new, &remote] {
+            std::fs::create_dir_all(d.join("sub")).unwrap();
+        }
+        let st = Staging::begin(&out).unwrap();
+        assert!(!dead.exists() && !dead_new.exists() && remote.exists());
+        assert!(st.path().is_dir());
+        let e = Staging::begin(&out).unwrap_err().to_string();
+        assert!(e.contains("another igi run"), "{e}");
+        std::fs::write(st.path().join("a.txt"), "a").unwrap();
+        st.commit(false).unwrap();
+        assert_eq!(std::fs::read_to_string(out.join("a.txt")).unwrap(), "a");
+        // a full output is replaced only when asked; a dropped staging folder goes
+        let st = Staging::begin(&out).unwrap();
+        let staged = st.path().to_path_buf();
+        assert!(st.commit(false).is_err());
+        assert!(!staged.exists());
+        let st = Staging::begin(&out).unwrap();
+        std::fs::write(st.path().join("b.txt"), "b").unwrap();
+        st.commit(true).unwrap();
+        assert!(out.join("b.txt").exists() && !out.join("a.txt").exists());
+        // nothing is left beside the output: no staging folder, no lock file
+        let mut left: Vec<String> = std::fs::read_dir(tmp.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        left.sort();
+        assert_eq!(left, [".hull.partial-4194305_elsewhere-node7", "hull"]);
+        // an output that is a file is found before any work
+        let file = tmp.path().join("f");
+        std::fs::write(&file, "x").unwrap();
+        assert!(Staging::begin(&file).is_err());
     }
 }

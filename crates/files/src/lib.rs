@@ -8,7 +8,9 @@
 //!   cleanup of killed writers' temporary files ([`remove_dead_temps`]).
 //! * [`folder`]: output files and folders checked before the first byte of work
 //!   ([`check_output_folder`], [`check_output_file`], [`check_output_extension`], and
-//!   [`check_distinct`]: no two outputs, and no output and input, naming one file).
+//!   [`check_distinct`]: no two outputs, and no output and input, naming one file), and
+//!   [`Staging`]: a whole folder written beside its output and renamed into place, under the
+//!   lock, with per-process staging names and dead ones removed.
 //! * [`memory`]: every size-driven allocation estimated and refused above a limit before it
 //!   happens ([`check_alloc`], [`max_alloc`]: 8 GiB or `IGI_MAX_MEMORY`).
 //! * [`run`]: run manifests (`run.json`: input fingerprints and result-changing options, so a
@@ -22,7 +24,9 @@ pub mod memory;
 pub mod run;
 
 pub use atomic::{remove_dead_temps, write_atomic, write_text_atomic};
-pub use folder::{check_distinct, check_output_extension, check_output_file, check_output_folder};
+pub use folder::{
+    check_distinct, check_output_extension, check_output_file, check_output_folder, Staging,
+};
 pub use memory::{check_alloc, check_alloc_default, check_input_file, max_alloc};
 pub use run::{remove_own, Fingerprint, FolderLock, FolderState, RunManifest, RUN_FILE};
 

@@ -41,15 +41,43 @@ pub const LOCK_FILE: &str = ".igi-lock";
 /// overview). Advisory: it keeps igi runs apart, not other programs.
 #[derive(Debug)]
 pub struct FolderLock {
-    _file: std::fs::File,
+    file: std::fs::File,
+    /// The lock file to remove on release ([`FolderLock::acquire_beside`]).
+    remove: Option<std::path::PathBuf>,
+}
+
+impl Drop for FolderLock {
+    fn drop(&mut self) {
+        // unlinked while still held: an opener of the old file then finds it replaced (see
+        // `acquire_file`) and is refused instead of locking a file nobody else sees
+        if let Some(p) = &self.remove {
+            let _ = std::fs::remove_file(p);
+        }
+        let _ = self.file.unlock();
+    }
 }
 
 impl FolderLock {
     /// Claims the existing folder `dir`, or fails with [`FilesError::FolderBusy`] naming the
     /// process and host that hold it. Never waits.
     pub fn acquire(dir: &Path) -> Result<FolderLock, FilesError> {
+        FolderLock::acquire_file(&dir.join(LOCK_FILE), dir)
+    }
+
+    /// Claims `folder` (which need not exist yet) through the lock file `path` beside it,
+    /// removed again when the lock is released so that nothing is left next to the output.
+    pub fn acquire_beside(path: &Path, folder: &Path) -> Result<FolderLock, FilesError> {
+        let mut lock = FolderLock::acquire_file(path, folder)?;
+        lock.remove = Some(path.to_path_buf());
+        Ok(lock)
+    }
+
+    /// Claims `folder` through the lock file `path`, or fails with [`FilesError::FolderBusy`]
+    /// naming the holder.
+    fn acquire_file(path: &Path, folder: &Path) -> Result<FolderLock, FilesError> {
         use std::io::Write;
-        let path = dir.join(LOCK_FILE);
+        let dir = folder;
+        let path = path.to_path_buf();
         let mut file = std::fs::OpenOptions::new()
             .create(true)
             .truncate(false)
@@ -72,6 +100,14 @@ impl FolderLock {
             }
             Err(std::fs::TryLockError::Error(e)) => return Err(FilesError::io(&path, e)),
         }
+        // a holder that removes its lock file on release may have done so between our open
+        // and our lock: then the file we hold is no longer the one at `path`
+        if !same_file(&file, &path) {
+            return Err(FilesError::FolderBusy {
+                path: dir.to_path_buf(),
+                holder: "a run that has just finished; run again".into(),
+            });
+        }
         let holder = format!(
             "process {} on host {}",
             std::process::id(),
@@ -80,8 +116,23 @@ impl FolderLock {
         file.set_len(0)
             .and_then(|()| file.write_all(holder.as_bytes()))
             .map_err(|e| FilesError::io(&path, e))?;
-        Ok(FolderLock { _file: file })
+        Ok(FolderLock { file, remove: None })
     }
+}
+
+/// Whether the open `file` is the file now at `path` (same device and inode).
+#[cfg(unix)]
+fn same_file(file: &std::fs::File, path: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    match (file.metadata(), std::fs::metadata(path)) {
+        (Ok(a), Ok(b)) => a.dev() == b.dev() && a.ino() == b.ino(),
+        _ => false,
+    }
+}
+
+#[cfg(not(unix))]
+fn same_file(_file: &std::fs::File, path: &Path) -> bool {
+    path.exists()
 }
 
 /// The identity of one input file.

@@ -426,15 +426,23 @@ fn select_samples(images: &[HdrImage], times: &[f64], c: usize, n: usize, seed: 
     if nonempty.is_empty() {
         return Vec::new();
     }
-    let mut picked = Vec::with_capacity(n);
+    // the picks as a set over the pixels (ascending, without repeats), so that memory is one
+    // flag a pixel however large `n` is; once every candidate is picked, further picks could
+    // only repeat one, so the loop stops (the same set as picking all `n`)
+    let candidates: usize = buckets.iter().map(Vec::len).sum();
+    let mut picked = vec![false; mid.pixels.len()];
+    let mut count = 0;
     for k in 0..n {
+        if count == candidates {
+            break;
+        }
         let target = k * nonempty.len() / n;
         let b = &buckets[nonempty[target]];
-        picked.push(b[rng.gen_range(0..b.len())]);
+        let i = b[rng.gen_range(0..b.len())];
+        count += usize::from(!picked[i]);
+        picked[i] = true;
     }
-    picked.sort_unstable();
-    picked.dedup();
-    picked
+    (0..picked.len()).filter(|&i| picked[i]).collect()
 }
 
 /// Recover the camera response from 8-bit brackets (Debevec & Malik 1997), per channel.
@@ -455,15 +463,6 @@ pub fn recover_response(
             samples: p.samples,
         }
         .into());
-    }
-    // each sample is a pixel (picked ones deduplicated): more than a bracket's pixels cannot
-    // add anything, and the list of picks would take 8 bytes a sample
-    let pixels = images[0].pixels.len();
-    if p.samples > pixels {
-        return Err(ImagingError::InvalidInput(format!(
-            "--samples {}: more than the {pixels} pixels of a bracket (each sample is a pixel)",
-            p.samples
-        )));
     }
     let mut g: [Vec<f64>; 3] = Default::default();
     for (c, gc) in g.iter_mut().enumerate() {

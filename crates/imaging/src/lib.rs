@@ -46,9 +46,6 @@ pub mod metrics;
 pub mod photo;
 
 pub use error::{CompareError, HdrError, ImagingError};
-/// The size check before every size-driven allocation (`igi_files::memory`), for the crates
-/// above that reach `igi-files` through this one.
-pub use igi_files::memory;
 pub use image::HdrImage;
 pub use io::{
     read_exr_alpha, read_image, write_exr, write_exr_rgba, write_hdr, write_png_tonemapped,

@@ -48,7 +48,7 @@ pub struct BuildOutcome {
 }
 
 /// Checks the request, reads the rig and the mesh, builds the field and stores it (with a
-/// `report.json` that records the inputs, the gather and the timing).
+/// `report.json` that records the inputs and the gather; the time is returned, not stored).
 pub fn build_file(
     req: &BuildRequest,
     step: &dyn Fn(BuildStep),
@@ -56,6 +56,8 @@ pub fn build_file(
     req.options.validate(req.method)?;
     req.grid.validate()?;
     check_sizes(req)?;
+    // the output checked and claimed before the work (its lock, a staging folder of this run)
+    let staging = igi_files::Staging::begin(&req.output)?;
     store::check_output(&req.output)?;
     let rig = Rig::load(&req.rig)?;
     rig.require_views(1)?;
@@ -68,12 +70,14 @@ pub fn build_file(
         step(BuildStep::Warning(w));
     }
     let seconds = t.elapsed().as_secs_f64();
+    // no wall-clock time in report.json: identical builds give identical bytes (the command
+    // prints the time)
     let extra = serde_json::json!({
         "rig": req.rig, "mesh": req.mesh, "views": built.views, "invalid_pixels": built.invalid_pixels,
-        "gather": built.report, "atlas_texel_m": built.atlas.texel_size, "seconds": seconds,
+        "gather": built.report, "atlas_texel_m": built.atlas.texel_size,
         "warnings": built.warnings,
     });
-    let report = store::save(&req.output, &built.field, &built.atlas.mesh, extra)?;
+    let report = store::save_staged(staging, &built.field, &built.atlas.mesh, extra)?;
     Ok(BuildOutcome {
         report,
         views: built.views,
@@ -92,10 +96,7 @@ pub fn build_file(
 /// (q+1)^2 Gram matrix of each worker and q+1 weights a grid point (at most one a texel).
 fn check_sizes(req: &BuildRequest) -> Result<(), LightFieldError> {
     let texels = req.grid.atlas as u128 * req.grid.atlas as u128;
-    let check = |what: String, bytes: u128| {
-        igi_imaging::memory::check_alloc_default(&what, bytes)
-            .map_err(igi_imaging::ImagingError::from)
-    };
+    let check = |what: String, bytes: u128| igi_files::check_alloc_default(&what, bytes);
     check(
         format!("the atlas (--atlas {})", req.grid.atlas),
         texels * 39,
@@ -152,6 +153,9 @@ pub fn render_file(req: &RenderRequest) -> Result<RenderOutcome, LightFieldError
             req.bias, req.white
         )));
     }
+    // an RGBA EXR is written: another extension would name the wrong format
+    igi_files::check_output_extension(&req.output, &["exr"])?;
+    igi_files::check_output_file(&req.output)?;
     let camera = Camera::load(&req.camera)?;
     let (field, stored) = store::load(&req.slf_dir).map_err(|e| LightFieldError::Reading {
         path: req.slf_dir.clone(),

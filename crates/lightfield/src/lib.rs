@@ -57,6 +57,9 @@ pub enum LightFieldError {
     MeshWithoutUvs,
     #[error(transparent)]
     Imaging(#[from] igi_imaging::ImagingError),
+    /// The output folder (its lock and staging) or a size check (`igi-files`).
+    #[error(transparent)]
+    Files(#[from] igi_files::FilesError),
     /// A camera, its file, radiometry or rig, or an OpenCV call (`igi-camera`).
     #[error(transparent)]
     Camera(#[from] igi_camera::CameraError),

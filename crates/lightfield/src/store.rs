@@ -16,7 +16,7 @@ use glam::Vec3;
 use igi_geometry::TriMesh;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// The `format` of `header.json`.
 pub const FORMAT: &str = "igi-slf";
@@ -126,11 +126,21 @@ pub fn save(
     mesh: &TriMesh,
     extra: serde_json::Value,
 ) -> Result<StoreReport, LightFieldError> {
-    let tmp = PathBuf::from(format!("{}.partial", dir.display()));
-    if tmp.exists() {
-        std::fs::remove_dir_all(&tmp).map_err(io_err(&tmp))?;
-    }
-    std::fs::create_dir_all(&tmp).map_err(io_err(&tmp))?;
+    let staging = igi_files::Staging::begin(dir)?;
+    check_output(dir)?;
+    save_staged(staging, field, mesh, extra)
+}
+
+/// [`save`] through a staging folder claimed before the work (`igi_files::Staging`: the
+/// output's lock, a staging name of this process, dead runs' staging removed), renamed into
+/// place at the end; an earlier field there is replaced.
+pub fn save_staged(
+    staging: igi_files::Staging,
+    field: &SurfaceLightField,
+    mesh: &TriMesh,
+    extra: serde_json::Value,
+) -> Result<StoreReport, LightFieldError> {
+    let tmp = staging.path().to_path_buf();
     let (header, files) = encode(field);
     let mut sizes = BTreeMap::new();
     for (name, bytes) in &files {
@@ -152,10 +162,8 @@ pub fn save(
     let rp = tmp.join("report.json");
     std::fs::write(&rp, serde_json::to_string_pretty(&report).expect("report"))
         .map_err(io_err(&rp))?;
-    if dir.exists() {
-        std::fs::remove_dir_all(dir).map_err(io_err(dir))?;
-    }
-    std::fs::rename(&tmp, dir).map_err(io_err(dir))?;
+    // check_output let only an earlier field (or an empty folder) stand there
+    staging.commit(true)?;
     Ok(report)
 }
 

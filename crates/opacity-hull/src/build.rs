@@ -122,6 +122,8 @@ pub fn build(
             max: crate::carve::MAX_VIEWS,
         });
     }
+    // the output claimed and checked before any work (staging of this process, the lock)
+    let staging = igi_files::Staging::begin(out)?;
     check_output(out)?;
     let mut t = Timings::default();
     let mut clock = Instant::now();
@@ -168,7 +170,7 @@ pub fn build(
     let mut report = build_report(reps, &opts, &hull, surfels.len(), t);
     report.reflectance = field.as_ref().map(|f| f.1.clone());
     let write_start = Instant::now();
-    write_folder(out, |dir| {
+    write_staged(staging, |dir| {
         write_products(dir, &manifest, &hull.mesh, &surfels, &views, &curves)?;
         if let Some((fields, r)) = &field {
             crate::reflectance::write_fields(dir, fields, r)?;
@@ -176,11 +178,24 @@ pub fn build(
         report.timings.write_s = write_start.elapsed().as_secs_f64();
         igi_files::write_text_atomic(
             &dir.join("report.json"),
-            &serde_json::to_string_pretty(&report).expect("report"),
+            &serde_json::to_string_pretty(&stored_report(&report)).expect("report"),
         )?;
         Ok(())
     })?;
     Ok(report)
+}
+
+/// The report as the folder stores it: without wall-clock times (`timings`, the reflectance
+/// fit's `seconds`), so identical builds give identical bytes; the command prints them.
+fn stored_report(report: &BuildReport) -> serde_json::Value {
+    let mut v = serde_json::to_value(report).expect("report");
+    if let Some(o) = v.as_object_mut() {
+        o.remove("timings");
+        if let Some(r) = o.get_mut("reflectance").and_then(|r| r.as_object_mut()) {
+            r.remove("seconds");
+        }
+    }
+    v
 }
 
 /// The folder's `hull.json`.
@@ -267,34 +282,26 @@ fn check_output(out: &Path) -> Result<(), HullError> {
     Ok(())
 }
 
-/// Fill a temporary sibling of `out` with `fill`, then rename it to `out` (which must be absent
-/// or empty); on error the temporary folder is removed.
+/// Fill a staging folder beside `out` with `fill`, then rename it to `out` (which must be
+/// absent or empty); on error the staging folder is removed (`igi_files::Staging`: per-process
+/// names, dead ones removed, the lock).
 pub(crate) fn write_folder(
     out: &Path,
     fill: impl FnOnce(&Path) -> Result<(), HullError>,
 ) -> Result<(), HullError> {
+    let staging = igi_files::Staging::begin(out)?;
     check_output(out)?;
-    let parent = out
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let name = out
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let tmp = parent.join(format!(".{name}.partial-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&tmp);
-    std::fs::create_dir_all(&tmp).map_err(|e| HullError::io(&tmp, e))?;
-    let result = fill(&tmp).and_then(|()| {
-        if out.exists() {
-            std::fs::remove_dir(out).map_err(|e| HullError::io(out, e))?;
-        }
-        std::fs::rename(&tmp, out).map_err(|e| HullError::io(out, e))
-    });
-    if result.is_err() {
-        let _ = std::fs::remove_dir_all(&tmp);
-    }
-    result
+    write_staged(staging, fill)
+}
+
+/// [`write_folder`] into a staging folder begun before the work.
+fn write_staged(
+    staging: igi_files::Staging,
+    fill: impl FnOnce(&Path) -> Result<(), HullError>,
+) -> Result<(), HullError> {
+    fill(staging.path())?;
+    staging.commit(false)?;
+    Ok(())
 }
 
 /// A hull folder opened for rendering: its manifest, surfels and rig.

@@ -68,6 +68,9 @@ pub struct RenderOutcome {
 /// Renders the hull folder through the camera (relit first under the lighting file when one
 /// is given) and writes the RGBA EXR (colour premultiplied by alpha).
 pub fn render_file(req: &RenderRequest) -> Result<RenderOutcome, HullError> {
+    // an RGBA EXR is written: another extension would name the wrong format
+    igi_files::check_output_extension(&req.output, &["exr"])?;
+    igi_files::check_output_file(&req.output)?;
     let camera = Camera::load(&req.camera)?;
     let model = match &req.lighting {
         Some(l) => load_relit_model(&req.hull, &LightingRadiance::load(l)?)?,

@@ -80,6 +80,14 @@ pub fn render(
             out.bad_samples
         );
     }
+    // the temporary files a killed render of these outputs left behind
+    for out in std::iter::once(&req.output).chain(req.stderr.as_ref()) {
+        if let Some(dir) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
+            igi_files::remove_dead_temps(dir, false)?;
+        } else {
+            igi_files::remove_dead_temps(Path::new("."), false)?;
+        }
+    }
     write_image(&req.output, &out.mean)?;
     if let Some(se) = &req.stderr {
         write_image(se, &out.stderr)?;
