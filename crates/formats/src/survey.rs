@@ -118,6 +118,16 @@ pub struct PhotoEntry {
     /// The camera radiometry applied to this photo (overrides `[radiometry]`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub radiometry: Option<PathBuf>,
+    /// An 8-bit photo's camera response (an igi extension): the CSV `igi hdr merge
+    /// --response-out` writes, through which its codes are made linear (overrides
+    /// `[radiometry] response`; not with `transfer`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub response: Option<PathBuf>,
+    /// How the photo's stored values become linear when it has no `response` (an igi
+    /// extension): `"srgb"` or `"linear"`; if absent, sRGB for 8-bit files and linear for
+    /// 16-bit and float ones (docs/IMAGING.md, "Linearising photographs").
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub transfer: Option<PhotoTransfer>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub probe: Option<ProbeEntry>,
 }
@@ -178,11 +188,26 @@ pub struct BrdfSection {
     pub samples: PathBuf,
 }
 
-/// `[radiometry]`: the camera radiometry file applied to every photograph on load.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+/// A photo's `transfer`: how its stored values become linear.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PhotoTransfer {
+    /// Decode the sRGB curve (8- or 16-bit files).
+    Srgb,
+    /// The stored values are linear (`value / max code`).
+    Linear,
+}
+
+/// `[radiometry]`: the camera radiometry file applied to every photograph on load, and the
+/// camera response through which every 8-bit photograph without its own `response` or
+/// `transfer` is made linear.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RadiometrySection {
-    pub camera: PathBuf,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub camera: Option<PathBuf>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub response: Option<PathBuf>,
 }
 
 impl TomlFile for SurveyFile {
@@ -363,6 +388,8 @@ mod tests {
             lighting: Some(format!("lighting/{lighting}.toml").into()),
             exposure: None,
             radiometry: None,
+            response: None,
+            transfer: None,
             probe: None,
         }
     }
@@ -392,6 +419,8 @@ mod tests {
         let mut p = photo("p", "x");
         p.lighting = None;
         p.radiometry = Some("r.json".into());
+        p.response = Some("camera_response.csv".into());
+        p.transfer = Some(PhotoTransfer::Srgb);
         p.probe = Some(ProbeEntry {
             image: "probe.exr".into(),
             camera: "probe.json".into(),
@@ -406,7 +435,8 @@ mod tests {
                 samples: "brdf/samples.csv".into(),
             }),
             radiometry: Some(RadiometrySection {
-                camera: "radiometry.json".into(),
+                camera: Some("radiometry.json".into()),
+                response: Some("camera_response.csv".into()),
             }),
             photo: vec![p],
             reference: Vec::new(),

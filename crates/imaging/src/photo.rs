@@ -32,6 +32,9 @@ pub enum Transfer {
     /// Through a camera response recovered by Debevec-Malik (8-bit only): code `z` of channel
     /// `c` becomes `exp(g[c][z])`, on the response's own scale (`g(128) = 0`).
     Response(Response),
+    /// A survey's camera response: 8-bit files through it (as [`Transfer::Response`]), 16-bit
+    /// and float files by their own rule (as [`Transfer::Default`]).
+    ResponseFor8Bit(Response),
 }
 
 /// The linear transfer curve a photo went through, as reported.
@@ -95,7 +98,9 @@ pub fn read_photo(path: &Path, transfer: &Transfer) -> Result<LinearPhoto, Imagi
             let (lut, applied) = match transfer {
                 Transfer::Default | Transfer::Srgb => (srgb_lut(255), Applied::Srgb),
                 Transfer::Linear => (linear_lut(255), Applied::Linear),
-                Transfer::Response(r) => (response_lut(r), Applied::Response),
+                Transfer::Response(r) | Transfer::ResponseFor8Bit(r) => {
+                    (response_lut(r), Applied::Response)
+                }
             };
             Ok(linearise(
                 w,
@@ -113,7 +118,9 @@ pub fn read_photo(path: &Path, transfer: &Transfer) -> Result<LinearPhoto, Imagi
             let codes: Vec<[u16; 3]> = rgb.pixels().map(|p| p.0).collect();
             let (w, h) = (rgb.width() as usize, rgb.height() as usize);
             let (lut, applied) = match transfer {
-                Transfer::Default | Transfer::Linear => (linear_lut(65535), Applied::Linear),
+                Transfer::Default | Transfer::Linear | Transfer::ResponseFor8Bit(_) => {
+                    (linear_lut(65535), Applied::Linear)
+                }
                 Transfer::Srgb => (srgb_lut(65535), Applied::Srgb),
                 Transfer::Response(_) => {
                     return Err(ImagingError::PhotoTransfer {
@@ -143,7 +150,7 @@ fn float_photo(
     transfer: &Transfer,
 ) -> Result<LinearPhoto, ImagingError> {
     let what = match transfer {
-        Transfer::Default | Transfer::Linear => None,
+        Transfer::Default | Transfer::Linear | Transfer::ResponseFor8Bit(_) => None,
         Transfer::Srgb => Some("sRGB decoding"),
         Transfer::Response(_) => Some("a camera response"),
     };

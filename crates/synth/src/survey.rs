@@ -331,6 +331,7 @@ impl Shoot<'_> {
             probe: None,
             time: None,
             exposure: None,
+            ..PhotoEntry::default()
         })
     }
 }

@@ -39,6 +39,24 @@ pub struct PhotoSpec {
     /// The photo's exposure on the survey's radiometric scale (`exposure = ...`, 1 if absent):
     /// its pixels are divided by it on load.
     pub exposure: f64,
+    /// How its stored values become linear (`response = ...`, `transfer = ...`, or the
+    /// survey's `[radiometry] response = ...`).
+    pub transfer: TransferSpec,
+}
+
+/// How a photograph's stored values become linear (docs/IMAGING.md, "Linearising
+/// photographs"); response files are checked when the photo is loaded.
+#[derive(Clone, Debug, PartialEq)]
+pub enum TransferSpec {
+    /// The file's own rule (8-bit sRGB, 16-bit and float linear); with the survey's
+    /// `[radiometry] response`, 8-bit files through that response instead.
+    Default { survey_response: Option<PathBuf> },
+    /// `transfer = "srgb"`.
+    Srgb,
+    /// `transfer = "linear"`.
+    Linear,
+    /// The photo's own `response = ...` (8-bit files only).
+    Response(PathBuf),
 }
 
 /// A parsed survey: everything is checked to exist, nothing heavy is loaded yet.
@@ -117,10 +135,19 @@ impl Survey {
         if f.photo.is_empty() {
             return Err(WorkflowError::file(&file, "no [[photo]] entries"));
         }
-        let default_radiometry = match &f.radiometry {
-            Some(r) => Some(radiometry_file(
-                paths.existing(&r.camera, "camera radiometry file")?,
+        let default_radiometry = match f.radiometry.as_ref().and_then(|r| r.camera.as_ref()) {
+            Some(c) => Some(radiometry_file(
+                paths.existing(c, "camera radiometry file")?,
             )?),
+            None => None,
+        };
+        let survey_response = match f.radiometry.as_ref().and_then(|r| r.response.as_ref()) {
+            Some(r) => {
+                let r = paths.existing(r, "[radiometry] response file")?;
+                // checked before any work; read again when the photos are loaded
+                igi_imaging::photo::read_response_csv(&r)?;
+                Some(r)
+            }
             None => None,
         };
         let mut photos = Vec::new();
@@ -131,7 +158,7 @@ impl Survey {
                     format!("photo id `{}` appears twice", p.id),
                 ));
             }
-            photos.push(paths.photo(p, &default_radiometry)?);
+            photos.push(paths.photo(p, &default_radiometry, &survey_response)?);
             check_radiometry_size(photos.last().expect("just pushed"))?;
         }
         let brdf_samples = match &f.brdf {
@@ -223,7 +250,30 @@ impl SurveyPaths<'_> {
         &self,
         p: &igi_formats::survey::PhotoEntry,
         default_radiometry: &Option<PathBuf>,
+        survey_response: &Option<PathBuf>,
     ) -> Result<PhotoSpec, WorkflowError> {
+        use igi_formats::survey::PhotoTransfer;
+        let transfer = match (&p.response, p.transfer) {
+            (Some(_), Some(t)) => {
+                return Err(WorkflowError::file(
+                    self.file,
+                    format!(
+                        "photo `{}` has both `response` and `transfer = {t:?}`: give one (a response already says how its codes become linear)",
+                        p.id
+                    ),
+                ))
+            }
+            (Some(r), None) => {
+                let r = self.existing(r, &format!("photo `{}` response file", p.id))?;
+                igi_imaging::photo::read_response_csv(&r)?;
+                TransferSpec::Response(r)
+            }
+            (None, Some(PhotoTransfer::Srgb)) => TransferSpec::Srgb,
+            (None, Some(PhotoTransfer::Linear)) => TransferSpec::Linear,
+            (None, None) => TransferSpec::Default {
+                survey_response: survey_response.clone(),
+            },
+        };
         Ok(PhotoSpec {
             id: p.id.clone(),
             image: self.existing(&p.image, &format!("photo `{}` image", p.id))?,
@@ -238,6 +288,7 @@ impl SurveyPaths<'_> {
             // checked with the survey file
             time: p.photo_time().and_then(Result::ok),
             exposure: p.exposure.unwrap_or(1.0),
+            transfer,
         })
     }
 
@@ -307,7 +358,8 @@ impl PhotoSpec {
     /// Loads the image, camera and lighting; the image must match the camera's size and hold
     /// only finite, non-negative radiance (saturated pixels stay marked invalid).
     pub fn load(&self) -> Result<Photo, WorkflowError> {
-        let mut image = igi_imaging::read_image(&self.image)?;
+        let linear = self.read_linear()?;
+        let mut image = linear.image;
         let camera = Camera::load(&self.camera)?;
         self.check_image(&image, &camera)?;
         if let Some(path) = &self.radiometry {
@@ -337,6 +389,41 @@ impl PhotoSpec {
             camera,
             lighting,
         })
+    }
+
+    /// The photograph's pixels made linear by its transfer (docs/IMAGING.md), before the
+    /// radiometry and the exposure; the clipped pixels it lost are reported (a warning when
+    /// there are any).
+    pub fn read_linear(&self) -> Result<igi_imaging::photo::LinearPhoto, WorkflowError> {
+        use igi_imaging::photo::{read_photo, read_response_csv, Transfer};
+        let transfer = match &self.transfer {
+            TransferSpec::Default {
+                survey_response: None,
+            } => Transfer::Default,
+            TransferSpec::Default {
+                survey_response: Some(r),
+            } => Transfer::ResponseFor8Bit(read_response_csv(r)?),
+            TransferSpec::Srgb => Transfer::Srgb,
+            TransferSpec::Linear => Transfer::Linear,
+            TransferSpec::Response(r) => Transfer::Response(read_response_csv(r)?),
+        };
+        let linear = read_photo(&self.image, &transfer)?;
+        let n = linear.image.pixels.len().max(1);
+        let msg = format!(
+            "photo {}: {}-bit, {}: {} of {} pixels ({:.2}%) clipped, masked out of the solve",
+            self.id,
+            linear.bits,
+            linear.applied,
+            linear.clipped,
+            linear.image.pixels.len(),
+            100.0 * linear.clipped as f64 / n as f64
+        );
+        if linear.clipped > 0 {
+            tracing::warn!("{msg}");
+        } else {
+            tracing::info!("{msg}");
+        }
+        Ok(linear)
     }
 
     /// The image has the camera's size and only finite, non-negative pixels.
@@ -492,6 +579,59 @@ mod tests {
         );
         std::fs::write(dir.path().join("survey.toml"), text).unwrap();
         dir
+    }
+
+    #[test]
+    fn response_and_transfer_keys_are_read_and_checked() {
+        let dir = survey_dir("[radiometry]\nresponse = \"resp.csv\"", "");
+        igi_imaging::hdr::Response::linear()
+            .write_csv(&dir.path().join("resp.csv"))
+            .unwrap();
+        let s = Survey::load(dir.path()).unwrap();
+        assert_eq!(
+            s.photos[0].transfer,
+            TransferSpec::Default {
+                survey_response: Some(dir.path().join("resp.csv"))
+            }
+        );
+        let e = error_of("", "response = \"nope.csv\"");
+        assert!(
+            e.contains("nope.csv") && e.contains("photo `p` response"),
+            "{e}"
+        );
+        let e = error_of("", "transfer = \"gamma\"");
+        assert!(e.contains("gamma") && e.contains("survey.toml"), "{e}");
+        let dir = survey_dir("", "transfer = \"linear\"");
+        assert_eq!(
+            Survey::load(dir.path()).unwrap().photos[0].transfer,
+            TransferSpec::Linear
+        );
+        // both keys: refused; a response that decreases: refused naming its line
+        let dir = survey_dir("", "response = \"r.csv\"\ntransfer = \"srgb\"");
+        let mut text = String::from("z,g_r,g_g,g_b\n");
+        for z in 0..256 {
+            let g = if z == 40 {
+                -9.0
+            } else {
+                (z.max(1) as f64 / 128.0).ln()
+            };
+            text.push_str(&format!("{z},{g},{g},{g}\n"));
+        }
+        std::fs::write(dir.path().join("r.csv"), &text).unwrap();
+        let e = Survey::load(dir.path()).unwrap_err().to_string();
+        assert!(e.contains("both `response` and `transfer"), "{e}");
+        std::fs::write(
+            dir.path().join("survey.toml"),
+            std::fs::read_to_string(dir.path().join("survey.toml"))
+                .unwrap()
+                .replace("transfer = \"srgb\"", ""),
+        )
+        .unwrap();
+        let e = Survey::load(dir.path()).unwrap_err().to_string();
+        assert!(
+            e.contains("r.csv:42:") && e.contains("must not decrease"),
+            "{e}"
+        );
     }
 
     fn error_of(extra: &str, photo_extra: &str) -> String {
