@@ -1177,3 +1177,39 @@ fn compare_checks_header_sizes_before_decoding_and_names_the_diff_format() {
         "{e}"
     );
 }
+
+#[test]
+fn undistort_checks_both_outputs_and_renders_name_a_wrong_folder() {
+    let d = tempfile::tempdir().unwrap();
+    let img = fixture("outdoor/reference.exr");
+    let cam = fixture("outdoor/camera.json");
+    let out = d.path().join("u.exr");
+    // it exited 1 after writing its main output
+    let o = igi().run(&[
+        "camera",
+        "undistort",
+        s(&img),
+        "--camera",
+        s(&cam),
+        "--camera-out",
+        s(&d.path().join("nope/c.json")),
+        "-o",
+        s(&out),
+    ]);
+    let e = stderr(&o);
+    assert!(
+        o.status.code() == Some(1) && e.contains("nope") && e.contains("does not exist"),
+        "{e}"
+    );
+    assert!(!out.exists(), "the main output was not written");
+    // a folder that is no hull or light field: said so, not "hull.json: No such file"
+    let r = d.path().join("r.exr");
+    for (cmd, what) in [
+        ("hull", "is not a hull folder"),
+        ("slf", "is not a surface light field folder"),
+    ] {
+        let o = igi().run(&[cmd, "render", s(d.path()), "--camera", s(&cam), "-o", s(&r)]);
+        let e = stderr(&o);
+        assert!(o.status.code() == Some(1) && e.contains(what), "{cmd}: {e}");
+    }
+}

@@ -352,7 +352,7 @@ fn relighting_refuses_a_hull_without_a_reflectance_field_and_a_bad_lighting_file
         "-o",
         s(&img),
     ]);
-    assert_failed(&o, "hull.json", "No such file", t.path(), &keep);
+    assert_failed(&o, "hull.json", "is not a hull folder", t.path(), &keep);
     // and one that lights nothing
     std::fs::write(&bad, "# nothing\n").unwrap();
     let o = igi().run(&[

@@ -22,6 +22,21 @@ pub struct UndistortRequest {
 /// Removes the lens distortion of `req.image`: same size and K, no distortion.
 pub fn undistort_file(req: &UndistortRequest) -> Result<(), CameraError> {
     igi_files::check_output_extension(&req.output, &["exr"])?;
+    // both outputs checked before the work, so neither is written when the other cannot be
+    igi_files::check_output_file(&req.output)?;
+    if let Some(p) = &req.camera_out {
+        igi_files::check_output_file(p)?;
+        igi_files::check_distinct(
+            &[
+                ("--output", req.output.as_path()),
+                ("--camera-out", p.as_path()),
+            ],
+            &[
+                ("--camera", req.camera.as_path()),
+                ("the image", req.image.as_path()),
+            ],
+        )?;
+    }
     let cam = Camera::load(&req.camera)?;
     let img = read_image(&req.image)?;
     let (out, ocam) = undistort_image(&img, &cam).map_err(|e| CameraError::at(&req.image, e))?;

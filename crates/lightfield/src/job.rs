@@ -156,6 +156,12 @@ pub fn render_file(req: &RenderRequest) -> Result<RenderOutcome, LightFieldError
     // an RGBA EXR is written: another extension would name the wrong format
     igi_files::check_output_extension(&req.output, &["exr"])?;
     igi_files::check_output_file(&req.output)?;
+    if !req.slf_dir.join("header.json").is_file() {
+        return Err(LightFieldError::Format {
+            path: req.slf_dir.clone(),
+            msg: "is not a surface light field folder (it has no header.json); make one with igi slf build".into(),
+        });
+    }
     let camera = Camera::load(&req.camera)?;
     let (field, stored) = store::load(&req.slf_dir).map_err(|e| LightFieldError::Reading {
         path: req.slf_dir.clone(),

@@ -72,8 +72,19 @@ pub fn render_file(req: &RenderRequest) -> Result<RenderOutcome, HullError> {
     igi_files::check_output_extension(&req.output, &["exr"])?;
     igi_files::check_output_file(&req.output)?;
     let camera = Camera::load(&req.camera)?;
-    let model = match &req.lighting {
-        Some(l) => load_relit_model(&req.hull, &LightingRadiance::load(l)?)?,
+    let lighting = req
+        .lighting
+        .as_ref()
+        .map(|l| LightingRadiance::load(l))
+        .transpose()?;
+    if !req.hull.join("hull.json").is_file() {
+        return Err(HullError::HullFolder {
+            path: req.hull.clone(),
+            msg: "is not a hull folder (it has no hull.json); make one with igi hull build".into(),
+        });
+    }
+    let model = match &lighting {
+        Some(l) => load_relit_model(&req.hull, l)?,
         None => load_model(&req.hull)?,
     };
     let t = std::time::Instant::now();
