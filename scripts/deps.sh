@@ -4,7 +4,9 @@
 #   demo: what the default build needs (Embree 3 for ray tracing, a font for plot labels)
 #   test: also OpenCV with contrib and clang/libclang (the `opencv` feature generates its
 #         bindings with libclang), Slurm and munge (tests/cli/cli_cluster.rs runs a one-node
-#         loopback cluster, scripts/slurm-loopback.sh), everything the test command builds and runs
+#         loopback cluster, scripts/slurm-loopback.sh), Debian's chromium (tests/cli/cli_view.rs
+#         opens `igi view` headless, WebGL through SwiftShader), everything the test command
+#         builds and runs
 #   mitsuba: what regenerating the reference data of datasets/mitsuba/ needs (never igi itself,
 #         nor the tests): Mitsuba 3.9.1 for python3 and Debian's libllvm19 for its llvm_ad_rgb
 #         variant (the scripts find libLLVM-19.so with `dpkg -L libllvm19`)
@@ -13,7 +15,7 @@ profile="${1:-test}"
 pkgs=(libembree-dev pkg-config fonts-dejavu-core)
 case "$profile" in
   demo) ;;
-  test) pkgs+=(libopencv-dev clang libclang-dev slurm-wlm slurmctld slurmd slurm-client munge) ;;
+  test) pkgs+=(libopencv-dev clang libclang-dev slurm-wlm slurmctld slurmd slurm-client munge chromium) ;;
   mitsuba) pkgs=(libllvm19 python3) ;;
   *) echo "igi: deps.sh: unknown profile '$profile' (demo, test or mitsuba)" >&2; exit 2 ;;
 esac
