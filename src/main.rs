@@ -50,7 +50,7 @@ enum Command {
     Solve(cmd::solve::SolveArgs),
     /// Recovered diffuse albedo at given surface points (compare with colour-checker readings).
     Sample(cmd::solve::SampleArgs),
-    /// Export a recovered site as PLY, OBJ or a Mitsuba 3 scene.
+    /// Export a recovered site as PLY, OBJ, a Mitsuba 3 scene or glTF 2.0.
     Export(cmd::solve::ExportArgs),
     /// Solve a prepared site across a Slurm cluster: submit, status, resume, cancel.
     #[command(subcommand)]

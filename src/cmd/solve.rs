@@ -245,19 +245,52 @@ pub fn run_sample(a: SampleArgs, _ctx: &Ctx) -> anyhow::Result<()> {
 pub struct ExportArgs {
     /// Result folder of `igi solve`.
     pub result: PathBuf,
-    /// ply, obj or mitsuba. Every format writes per part the mesh with atlas UVs, the albedo
-    /// (NAME_albedo.exr), the lobe maps when the result has lobes (NAME_lobeK_rho.exr,
-    /// NAME_lobeK_shape.exr) and an igi scene.toml of them; mitsuba adds scene.xml, which keeps
-    /// the diffuse term only (Mitsuba 3 has no Lafortune BSDF).
+    /// ply, obj, mitsuba or gltf. Every format writes per part the albedo (NAME_albedo.exr)
+    /// and the lobe maps when the result has lobes (NAME_lobeK_rho.exr, NAME_lobeK_shape.exr);
+    /// ply, obj and mitsuba the mesh with atlas UVs and an igi scene.toml of them; mitsuba adds
+    /// scene.xml, which keeps the diffuse term only (Mitsuba 3 has no Lafortune BSDF). gltf
+    /// writes one binary glTF 2.0 file, scene.glb: a mesh and a material per part, Y up at its
+    /// root node, base colour the albedo as an embedded 8-bit sRGB PNG, the lobes approximated
+    /// by roughness and KHR_materials_specular fitted by least squares (the fit's relative RMS
+    /// error printed; retroreflective lobes folded in), the exact lobes in the material's
+    /// extras (docs/EXPORT.md).
     #[arg(long)]
     pub format: ExportFormat,
-    /// Output folder.
+    /// Output folder: new, empty, or an earlier `igi export` (its export.json lists its files),
+    /// which is replaced whole; never the result folder or a folder inside it.
     #[arg(short, long)]
     pub output: PathBuf,
 }
 
 pub fn run_export(a: ExportArgs, _ctx: &Ctx) -> anyhow::Result<()> {
-    let files = igi_export::export(&a.result, a.format, &a.output)?;
-    println!("{} files written to {}", files.len(), a.output.display());
+    let done = igi_export::export(&a.result, a.format, &a.output)?;
+    for (part, lobes, f) in &done.materials {
+        if *lobes == 0 {
+            println!("part {part}: no lobes: pure diffuse (roughness 1, specular 0, exact)");
+        } else {
+            let retro = if f.retroreflective_lobes > 0 {
+                format!(
+                    ", {} retroreflective lobe(s) folded in",
+                    f.retroreflective_lobes
+                )
+            } else {
+                String::new()
+            };
+            println!(
+                "part {part}: {lobes} lobe(s) as roughness {:.3}, specular {:.3}, specular colour {:.3} {:.3} {:.3}: fit error {:.1}% (relative RMS){retro}",
+                f.roughness,
+                f.specular,
+                f.specular_color[0],
+                f.specular_color[1],
+                f.specular_color[2],
+                100.0 * f.rel_rms
+            );
+        }
+    }
+    println!(
+        "{} files written to {}",
+        done.files.len(),
+        a.output.display()
+    );
     Ok(())
 }

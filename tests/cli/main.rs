@@ -8,6 +8,7 @@ mod cli_brdf;
 mod cli_camera_calib;
 mod cli_cluster;
 mod cli_geometry;
+mod cli_gltf;
 mod cli_harden;
 mod cli_hull;
 mod cli_imaging;

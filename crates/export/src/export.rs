@@ -1,7 +1,9 @@
-//! `igi export --format ply|obj|mitsuba`: the recovered site as files other tools open.
+//! `igi export --format ply|obj|mitsuba|gltf`: the recovered site as files other tools open.
 
+use crate::lobefit::GltfFit;
 use crate::ExportError;
 use glam::Vec3;
+use igi_brdf::Lobe;
 use igi_files::write_text_atomic as write_text;
 use igi_formats::scene::SceneFile;
 use igi_formats::TomlFile;
@@ -17,6 +19,20 @@ pub enum ExportFormat {
     Ply,
     Obj,
     Mitsuba,
+    /// One binary glTF 2.0 file, `scene.glb` ([`crate::gltf`]).
+    Gltf,
+}
+
+impl ExportFormat {
+    /// The name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            ExportFormat::Ply => "ply",
+            ExportFormat::Obj => "obj",
+            ExportFormat::Mitsuba => "mitsuba",
+            ExportFormat::Gltf => "gltf",
+        }
+    }
 }
 
 impl std::str::FromStr for ExportFormat {
@@ -26,7 +42,10 @@ impl std::str::FromStr for ExportFormat {
             "ply" => Ok(ExportFormat::Ply),
             "obj" => Ok(ExportFormat::Obj),
             "mitsuba" => Ok(ExportFormat::Mitsuba),
-            _ => Err(format!("unknown export format `{s}` (ply, obj or mitsuba)")),
+            "gltf" | "glb" => Ok(ExportFormat::Gltf),
+            _ => Err(format!(
+                "unknown export format `{s}` (ply, obj, mitsuba or gltf)"
+            )),
         }
     }
 }
@@ -49,6 +68,16 @@ fn stderr_picture(stderr: &[Vec3], r: usize) -> HdrImage {
 /// The standard error shown white in `NAME_stderr.png` of `igi export`.
 pub const STDERR_PICTURE_MAX: f32 = 0.05;
 
+/// What [`export`] wrote.
+#[derive(Clone, Debug)]
+pub struct Exported {
+    /// Every file written into the output folder (`export.json` last).
+    pub files: Vec<PathBuf>,
+    /// For glTF, per part: its name, the number of lobes the fit approximated (per texel or
+    /// constant) and the fit ([`crate::lobefit`]); empty for the other formats.
+    pub materials: Vec<(String, usize, GltfFit)>,
+}
+
 /// Writes the recovered site into `out` (layout in docs/SOLVER.md, "Export"): per part the mesh
 /// with atlas UVs (`NAME.ply`, or `NAME.obj` with `NAME.mtl`), the linear albedo texture
 /// `NAME_albedo.exr` with an sRGB preview, `NAME_stderr.png` (a picture of the albedo's standard
@@ -59,25 +88,50 @@ pub const STDERR_PICTURE_MAX: f32 = 0.05;
 /// `scene.xml`: diffuse bitmap textures only, since Mitsuba 3 has no Lafortune BSDF (the file
 /// says so and names the lobe maps it leaves out). Mitsuba reads the EXR as linear; its bitmap
 /// lookup has v = 0 at the top row, so `to_uv` flips v to FORMATS.md's convention, as
-/// `datasets/mitsuba/outdoor_reference.py` verifies against Mitsuba. Returns the files written.
+/// `datasets/mitsuba/outdoor_reference.py` verifies against Mitsuba. For `Gltf`, `scene.glb`
+/// ([`crate::gltf`]) in place of the meshes and `scene.toml`, beside the same textures.
+///
+/// The output folder is checked first ([`crate::outdir`]: not the result folder nor inside it;
+/// new, empty, or an earlier igi export only, which is then replaced whole), the export is
+/// written into a staging folder and moved into place complete, with `export.json` listing it.
 pub fn export(
     result_dir: &Path,
     format: ExportFormat,
     out: &Path,
-) -> Result<Vec<PathBuf>, ExportError> {
+) -> Result<Exported, ExportError> {
+    let plan = crate::outdir::check(result_dir, out)?;
     let res = SolveResult::load(result_dir)?;
-    std::fs::create_dir_all(out)
-        .map_err(|e| ExportError::file(out, format!("cannot create folder: {e}")))?;
-    let mut written = Vec::new();
+    plan.begin()?;
+    let materials = match write_export(&res, result_dir, format, &plan.staging) {
+        Ok(m) => m,
+        Err(e) => {
+            plan.abandon();
+            return Err(e);
+        }
+    };
+    let files = plan.commit(format.name(), result_dir)?;
+    Ok(Exported { files, materials })
+}
+
+/// Writes the export of `res` into the (staging) folder `out`.
+fn write_export(
+    res: &SolveResult,
+    result_dir: &Path,
+    format: ExportFormat,
+    out: &Path,
+) -> Result<Vec<(String, usize, GltfFit)>, ExportError> {
+    if format == ExportFormat::Gltf {
+        return write_gltf(res, result_dir, out);
+    }
     let mut scene = SceneFile::default();
     let mut shapes = String::new();
     let mut lobe_maps = 0;
     for (i, p) in res.parts.iter().enumerate() {
-        let (files, per_texel) = export_textures(&res, result_dir, i, out)?;
+        let (_, per_texel) = export_textures(res, result_dir, i, out)?;
+        let per_texel = per_texel.len();
         lobe_maps += per_texel;
-        written.extend(files);
         let mesh = match format {
-            ExportFormat::Ply | ExportFormat::Mitsuba => {
+            ExportFormat::Ply | ExportFormat::Mitsuba | ExportFormat::Gltf => {
                 let mp = out.join(format!("{}.ply", p.name));
                 write_ply(&mp, &*p.full_mesh()?)?;
                 let _ = writeln!(
@@ -101,7 +155,6 @@ pub fn export(
         scene
             .object
             .push(res.object_entry(i, &mesh_name, &albedo, "", per_texel));
-        written.push(mesh);
     }
     let sp = out.join("scene.toml");
     scene.write(
@@ -111,7 +164,6 @@ pub fn export(
             "igi render THIS_FILE --lighting L.toml --camera C.json --spp N -o out.exr",
         ],
     )?;
-    written.push(sp);
     if format == ExportFormat::Mitsuba {
         let lobes = if lobe_maps == 0 {
             "The result has no specular lobes: the scene is complete.".to_string()
@@ -121,22 +173,139 @@ pub fn export(
         let xml = format!(
             "<scene version=\"3.0.0\">\n  <!-- igi export: recovered reflectance; world Z up, metres. Add a sensor and emitters to render (datasets/mitsuba/export_reference.py does). -->\n  <!-- {lobes} -->\n  <integrator type=\"path\"><integer name=\"max_depth\" value=\"4\"/></integrator>\n{shapes}</scene>\n"
         );
-        let xp = out.join("scene.xml");
-        write_text(&xp, &xml)?;
-        written.push(xp);
+        write_text(&out.join("scene.xml"), &xml)?;
     }
-    Ok(written)
+    Ok(Vec::new())
+}
+
+/// The mean lobes of per-texel lobe maps over the covered texels: each lobe's colour averaged,
+/// its shape (Cxy, Cz, N) averaged weighted by the colour's luminance.
+fn mean_lobes(maps: &[(HdrImage, HdrImage)], covered: &[usize]) -> Vec<Lobe> {
+    maps.iter()
+        .map(|(rho, shape)| {
+            let (mut sum, mut w, mut sh) = (Vec3::ZERO, 0.0f64, [0.0f64; 3]);
+            for &k in covered {
+                let r = Vec3::from(rho.pixels[k]);
+                let l = igi_brdf::luminance(r).max(0.0) as f64;
+                sum += r;
+                w += l;
+                for c in 0..3 {
+                    sh[c] += l * shape.pixels[k][c] as f64;
+                }
+            }
+            let n = covered.len().max(1) as f32;
+            if w > 0.0 {
+                Lobe {
+                    rho: sum / n,
+                    cxy: (sh[0] / w) as f32,
+                    cz: (sh[1] / w) as f32,
+                    n: (sh[2] / w) as f32,
+                }
+            } else {
+                Lobe {
+                    rho: Vec3::ZERO,
+                    cxy: -1.0,
+                    cz: 1.0,
+                    n: 1.0,
+                }
+            }
+        })
+        .collect()
+}
+
+/// `scene.glb` and the textures beside it; returns the fit per part.
+fn write_gltf(
+    res: &SolveResult,
+    result_dir: &Path,
+    out: &Path,
+) -> Result<Vec<(String, usize, GltfFit)>, ExportError> {
+    let glb_path = out.join("scene.glb");
+    let mut meshes = Vec::new();
+    let mut albedos = Vec::new();
+    let mut fits = Vec::new();
+    let mut extras = Vec::new();
+    for (i, p) in res.parts.iter().enumerate() {
+        let (albedo, maps) = export_textures(res, result_dir, i, out)?;
+        let covered: Vec<usize> = p.cache.texels.iter().map(|t| t.index as usize).collect();
+        let mean_rho =
+            covered.iter().map(|&k| res.rho[i][k]).sum::<Vec3>() / covered.len().max(1) as f32;
+        let (lobes, mut ex) = if maps.is_empty() {
+            let l = res.lobes[i].clone();
+            let ex = serde_json::json!({ "lobes": crate::gltf::lobes_json(&l) });
+            (l, ex)
+        } else {
+            let l = mean_lobes(&maps, &covered);
+            let names: Vec<_> = (0..maps.len())
+                .map(|k| {
+                    serde_json::json!({
+                        "rho": format!("{}_lobe{k}_rho.exr", p.name),
+                        "shape": format!("{}_lobe{k}_shape.exr", p.name),
+                    })
+                })
+                .collect();
+            let ex = serde_json::json!({
+                "lobe_maps": names,
+                "lobe_maps_note": "per texel: lobe k's RGB colour in _rho.exr, its Cxy, Cz, N in the channels of _shape.exr (atlas rows top first, igi's v up)",
+                "mean_lobes": crate::gltf::lobes_json(&l),
+            });
+            (l, ex)
+        };
+        let fit = crate::lobefit::fit_gltf(mean_rho, &lobes);
+        ex["albedo"] = format!("{}_albedo.exr", p.name).into();
+        ex["brdf"] = "Lafortune: f = rho_d / pi + sum_l rho_l max(0, Cxy (ux vx + uy vy) + Cz uz vz)^N_l (local frame, z the normal)".into();
+        ex["fit"] = if lobes.is_empty() {
+            serde_json::json!({
+                "model": "pure diffuse: the result has no lobes, so roughness 1 and specular 0 are exact",
+                "rel_rms": 0.0,
+            })
+        } else {
+            serde_json::json!({
+                "model": "glTF metallic-roughness (metallic 0) with KHR_materials_specular, least squares to the Lafortune BRDF with base colour the part's mean albedo",
+                "base_color": mean_rho.to_array(),
+                "rel_rms": fit.rel_rms,
+                "pairs": crate::lobefit::FIT_PAIRS,
+                "error": "relative RMS of f cos(theta_i) over the pairs, weighted by solid angle",
+                "retroreflective": format!("{} retroreflective lobe(s) folded: the fit's target includes them, glTF has no such lobe, what it cannot express is in rel_rms", fit.retroreflective_lobes),
+            })
+        };
+        meshes.push(p.full_mesh()?);
+        albedos.push(albedo);
+        fits.push((p.name.clone(), lobes.len(), fit));
+        extras.push(ex);
+    }
+    let parts: Vec<crate::gltf::GlbPart> = res
+        .parts
+        .iter()
+        .enumerate()
+        .map(|(i, p)| crate::gltf::GlbPart {
+            name: &p.name,
+            mesh: &meshes[i],
+            albedo: &albedos[i],
+            fit: fits[i].2,
+            extras: extras[i].clone(),
+        })
+        .collect();
+    let asset = serde_json::json!({
+        "result": result_dir.display().to_string(),
+        "axes": "igi world Z up (metres); the root node rotates it to glTF's Y up",
+        "texcoord": "v_gltf = 1 - v_igi (igi's atlas origin is the bottom-left)",
+    });
+    let bytes = crate::gltf::glb_bytes(&glb_path, &parts, asset)?;
+    igi_files::write_atomic(&glb_path, |tmp| {
+        std::fs::write(tmp, &bytes)
+            .map_err(|e| ExportError::file(&glb_path, format!("cannot write: {e}")))
+    })?;
+    Ok(fits)
 }
 
 /// Writes part `i`'s albedo (EXR and PNG preview), its standard-error picture and the lobe maps
-/// the result holds into `out`; returns the standard-error picture, the albedo EXR and the lobe
-/// maps, and the number of lobes per texel.
+/// the result holds into `out`; returns the albedo atlas and the lobe maps (colour, shape).
 fn export_textures(
     res: &SolveResult,
     result_dir: &Path,
     i: usize,
     out: &Path,
-) -> Result<(Vec<PathBuf>, usize), ExportError> {
+) -> Result<(HdrImage, Vec<(HdrImage, HdrImage)>), ExportError> {
     let p = &res.parts[i];
     let r = p.resolution();
     let mut tex = HdrImage::new(r, r);
@@ -148,7 +317,7 @@ fn export_textures(
     igi_imaging::write_png_tonemapped(&out.join(format!("{}_albedo.png", p.name)), &tex, 1.0)?;
     let se_png = out.join(format!("{}_stderr.png", p.name));
     igi_imaging::write_png_tonemapped(&se_png, &stderr_picture(&res.stderr[i], r), 1.0)?;
-    let mut written = vec![se_png, albedo];
+    let mut maps = Vec::new();
     // the lobe maps the result wrote (a loaded result does not keep its basis)
     let mut k = 0;
     loop {
@@ -157,6 +326,7 @@ fn export_textures(
         if !src.join(name("rho")).is_file() {
             break;
         }
+        let mut pair = Vec::new();
         for suffix in ["rho", "shape"] {
             let im = read_image(&src.join(name(suffix)))?;
             if (im.width, im.height) != (r, r) {
@@ -165,11 +335,13 @@ fn export_textures(
                     format!("is {}x{}, the part's atlas {r}x{r}", im.width, im.height),
                 ));
             }
-            let f = out.join(name(suffix));
-            write_exr(&f, &im)?;
-            written.push(f);
+            write_exr(&out.join(name(suffix)), &im)?;
+            pair.push(im);
         }
+        let [rho, shape] = <[HdrImage; 2]>::try_from(pair)
+            .map_err(|_| ExportError::file(src.join(name("rho")), "lobe map pair incomplete"))?;
+        maps.push((rho, shape));
         k += 1;
     }
-    Ok((written, k))
+    Ok((tex, maps))
 }

@@ -2,17 +2,27 @@
 //!
 //! Results out: what reads a solve result folder (`igi_reflect::SolveResult`) for other tools.
 //!
-//! * [`mod@export`]: `igi export --format ply|obj|mitsuba`: per part the mesh with atlas UVs, the
+//! * [`mod@export`]: `igi export --format ply|obj|mitsuba|gltf`: per part the mesh with atlas UVs, the
 //!   albedo texture with an sRGB preview, a picture of its standard error, the per-texel lobe
 //!   maps, an igi `scene.toml` that renders like the result, and for Mitsuba 3 a `scene.xml`
 //!   (diffuse term only: Mitsuba has no Lafortune BSDF, and the file says so).
+//! * [`gltf`]: `igi export --format gltf`: one binary glTF 2.0 file of the result (Y up at the
+//!   root node, v flipped, the albedo as an embedded sRGB PNG), whose materials approximate the
+//!   Lafortune lobes with `KHR_materials_specular` ([`lobefit`], the fit's error reported) and
+//!   keep the exact lobes in `extras`.
+//! * [`outdir`]: the output folder's rules for every format (never the result folder; new,
+//!   empty or an earlier igi export, replaced whole; `export.json`).
 //! * [`sample`]: `igi sample`: the albedo and its standard error at surface points (for
 //!   colour-checker comparisons), read and written through `igi_formats::points`.
 
 pub mod export;
+pub mod gltf;
+pub mod lobefit;
+pub mod outdir;
 pub mod sample;
 
-pub use export::{export, ExportFormat, STDERR_PICTURE_MAX};
+pub use export::{export, ExportFormat, Exported, STDERR_PICTURE_MAX};
+pub use lobefit::{fit_gltf, GltfFit};
 pub use sample::{sample_albedo, sample_file, AlbedoSample};
 
 use std::path::PathBuf;

@@ -1,0 +1,288 @@
+//! `igi export --format gltf`: one binary glTF 2.0 file (`scene.glb`) of a result, with a mesh
+//! and a material per part (docs/EXPORT.md, "glTF").
+//!
+//! * Axes: igi's world is Z up, glTF's Y up. The positions stay in igi's frame; the root node
+//!   carries the rotation of -90 degrees about X that takes Z up to Y up (igi (x, y, z) is glTF
+//!   (x, z, -y)), so the file's coordinates are the result's.
+//! * Texture coordinates: igi's atlas has (0, 0) at the bottom-left (FORMATS.md), glTF's at the
+//!   top-left, so `v_gltf = 1 - v`; the image rows are the atlas rows (row 0 at the top).
+//! * Base colour: the albedo atlas as an 8-bit sRGB PNG inside the GLB (the linear EXR atlases
+//!   are written beside it, as for the other formats).
+//! * Lobes: glTF's metallic-roughness BRDF with `KHR_materials_specular` fitted per part
+//!   ([`crate::lobefit`]); the exact Lafortune parameters (or the lobe maps' file names) and
+//!   the fit's error in the material's `extras.igi`.
+
+use crate::lobefit::GltfFit;
+use crate::ExportError;
+use igi_brdf::Lobe;
+use igi_geometry::TriMesh;
+use igi_imaging::HdrImage;
+use serde_json::{json, Value};
+use std::path::Path;
+
+/// The root node's rotation (x, y, z, w): -90 degrees about X, igi's Z up to glTF's Y up.
+pub const Z_UP_TO_Y_UP: [f32; 4] = [
+    -std::f32::consts::FRAC_1_SQRT_2,
+    0.0,
+    0.0,
+    std::f32::consts::FRAC_1_SQRT_2,
+];
+
+/// The largest GLB a reader must accept (glTF 2.0: lengths are 32-bit; many readers stop at
+/// 2 GiB).
+pub const GLB_MAX_BYTES: u64 = 1 << 31;
+
+/// One part of the GLB.
+pub struct GlbPart<'a> {
+    pub name: &'a str,
+    pub mesh: &'a TriMesh,
+    /// The albedo atlas (linear RGB, row 0 at the top).
+    pub albedo: &'a HdrImage,
+    /// The part's mean albedo (the base colour the lobe fit assumed).
+    pub fit: GltfFit,
+    /// What `extras.igi` of the material holds (the exact lobes, file names).
+    pub extras: Value,
+}
+
+/// The exact Lafortune lobes as JSON (`extras`).
+pub fn lobes_json(lobes: &[Lobe]) -> Value {
+    Value::Array(
+        lobes
+            .iter()
+            .map(|l| {
+                json!({
+                    "rho": l.rho.to_array(), "cxy": l.cxy, "cz": l.cz, "n": l.n,
+                    "kind": if l.cxy > 0.0 && l.cz > 0.0 { "retroreflective" } else { "specular" },
+                })
+            })
+            .collect(),
+    )
+}
+
+/// The albedo atlas as 8-bit sRGB PNG bytes (clipped to [0, 1]; NaN as 0).
+pub fn albedo_png(path: &Path, img: &HdrImage) -> Result<Vec<u8>, ExportError> {
+    use image::ImageEncoder;
+    let buf: Vec<u8> = img
+        .pixels
+        .iter()
+        .flatten()
+        .map(|&c| {
+            let v = if c.is_finite() { c } else { 0.0 };
+            (igi_imaging::io::linear_to_srgb(v) * 255.0 + 0.5) as u8
+        })
+        .collect();
+    let mut png = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut png)
+        .write_image(
+            &buf,
+            img.width as u32,
+            img.height as u32,
+            image::ExtendedColorType::Rgb8,
+        )
+        .map_err(|e| ExportError::file(path, format!("cannot encode the albedo PNG: {e}")))?;
+    Ok(png)
+}
+
+/// The binary chunk and the JSON lists being built.
+#[derive(Default)]
+struct Builder {
+    bin: Vec<u8>,
+    views: Vec<Value>,
+    accessors: Vec<Value>,
+}
+
+impl Builder {
+    /// Appends `bytes` as a buffer view (4-byte aligned); returns its index.
+    fn view(&mut self, bytes: &[u8], target: Option<u32>) -> usize {
+        while !self.bin.len().is_multiple_of(4) {
+            self.bin.push(0);
+        }
+        let mut v = json!({"buffer": 0, "byteOffset": self.bin.len(), "byteLength": bytes.len()});
+        if let Some(t) = target {
+            v["target"] = json!(t);
+        }
+        self.bin.extend_from_slice(bytes);
+        self.views.push(v);
+        self.views.len() - 1
+    }
+
+    /// A float accessor of `n`-component vectors; with `bounds`, its min and max.
+    fn floats(&mut self, data: &[f32], n: usize, kind: &str, bounds: bool) -> usize {
+        let bytes: Vec<u8> = data.iter().flat_map(|f| f.to_le_bytes()).collect();
+        let view = self.view(&bytes, Some(34962));
+        let mut a = json!({"bufferView": view, "componentType": 5126, "count": data.len() / n, "type": kind});
+        if bounds {
+            let mut lo = vec![f32::INFINITY; n];
+            let mut hi = vec![f32::NEG_INFINITY; n];
+            for c in data.chunks(n) {
+                for k in 0..n {
+                    lo[k] = lo[k].min(c[k]);
+                    hi[k] = hi[k].max(c[k]);
+                }
+            }
+            a["min"] = json!(lo);
+            a["max"] = json!(hi);
+        }
+        self.accessors.push(a);
+        self.accessors.len() - 1
+    }
+
+    fn indices(&mut self, idx: &[[u32; 3]]) -> usize {
+        let bytes: Vec<u8> = idx.iter().flatten().flat_map(|i| i.to_le_bytes()).collect();
+        let view = self.view(&bytes, Some(34963));
+        self.accessors.push(json!({"bufferView": view, "componentType": 5125, "count": idx.len() * 3, "type": "SCALAR"}));
+        self.accessors.len() - 1
+    }
+}
+
+/// The mesh's unit vertex normals (computed when the mesh has none; a vertex whose normal
+/// cannot be normalised gets +Z, igi's up).
+fn unit_normals(mesh: &TriMesh) -> Vec<f32> {
+    let computed;
+    let normals = match &mesh.normals {
+        Some(n) if n.len() == mesh.positions.len() => n,
+        _ => {
+            let mut m = TriMesh {
+                positions: mesh.positions.clone(),
+                indices: mesh.indices.clone(),
+                ..TriMesh::default()
+            };
+            m.compute_vertex_normals();
+            computed = m.normals.unwrap_or_default();
+            &computed
+        }
+    };
+    (0..mesh.positions.len())
+        .flat_map(|i| {
+            let n = normals.get(i).copied().unwrap_or([0.0; 3]);
+            let n = glam::Vec3::from(n).normalize_or(glam::Vec3::Z);
+            n.to_array()
+        })
+        .collect()
+}
+
+/// The GLB bytes of `parts` (module overview); `path` names the file in errors.
+pub fn glb_bytes(
+    path: &Path,
+    parts: &[GlbPart],
+    asset_extras: Value,
+) -> Result<Vec<u8>, ExportError> {
+    let mut b = Builder::default();
+    let (mut meshes, mut materials, mut textures, mut images, mut nodes) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let mut children = Vec::new();
+    for (i, p) in parts.iter().enumerate() {
+        let m = p.mesh;
+        let Some(uvs) = m.uvs.as_ref().filter(|u| u.len() == m.positions.len()) else {
+            return Err(ExportError::file(
+                path,
+                format!("part {}: its mesh has no atlas UVs", p.name),
+            ));
+        };
+        let pos: Vec<f32> = m.positions.iter().flatten().copied().collect();
+        let normals = unit_normals(m);
+        let uv: Vec<f32> = uvs.iter().flat_map(|t| [t[0], 1.0 - t[1]]).collect();
+        let a_pos = b.floats(&pos, 3, "VEC3", true);
+        let a_nor = b.floats(&normals, 3, "VEC3", false);
+        let a_uv = b.floats(&uv, 2, "VEC2", false);
+        let a_idx = b.indices(&m.indices);
+        let png = albedo_png(path, p.albedo)?;
+        let view = b.view(&png, None);
+        images.push(json!({"bufferView": view, "mimeType": "image/png", "name": format!("{}_albedo", p.name)}));
+        textures.push(json!({"source": i, "sampler": 0}));
+        let f = &p.fit;
+        materials.push(json!({
+            "name": p.name,
+            "doubleSided": true,
+            "pbrMetallicRoughness": {
+                "baseColorTexture": {"index": i},
+                "metallicFactor": 0.0,
+                "roughnessFactor": f.roughness,
+            },
+            "extensions": {"KHR_materials_specular": {
+                "specularFactor": f.specular,
+                "specularColorFactor": f.specular_color,
+            }},
+            "extras": {"igi": p.extras},
+        }));
+        meshes.push(json!({"name": p.name, "primitives": [{
+            "attributes": {"POSITION": a_pos, "NORMAL": a_nor, "TEXCOORD_0": a_uv},
+            "indices": a_idx, "material": i, "mode": 4,
+        }]}));
+        nodes.push(json!({"name": p.name, "mesh": i}));
+        children.push(i + 1);
+    }
+    let mut all_nodes = vec![json!({
+        "name": "igi result (Z up to Y up)",
+        "rotation": Z_UP_TO_Y_UP,
+        "children": children,
+    })];
+    all_nodes.extend(nodes);
+    while !b.bin.len().is_multiple_of(4) {
+        b.bin.push(0);
+    }
+    let mut doc = json!({
+        "asset": {"version": "2.0", "generator": concat!("igi export ", env!("CARGO_PKG_VERSION")), "extras": {"igi": asset_extras}},
+        "extensionsUsed": ["KHR_materials_specular"],
+        "scene": 0,
+        "scenes": [{"name": "igi result", "nodes": [0]}],
+        "nodes": all_nodes,
+        "meshes": meshes,
+        "materials": materials,
+        "textures": textures,
+        "images": images,
+        "samplers": [{"magFilter": 9729, "minFilter": 9729, "wrapS": 33071, "wrapT": 33071}],
+        "accessors": b.accessors,
+        "bufferViews": b.views,
+        "buffers": [{"byteLength": b.bin.len()}],
+    });
+    if parts.is_empty() {
+        for k in [
+            "meshes",
+            "materials",
+            "textures",
+            "images",
+            "samplers",
+            "accessors",
+            "bufferViews",
+            "buffers",
+        ] {
+            doc.as_object_mut().map(|o| o.remove(k));
+        }
+    }
+    let mut js = serde_json::to_vec(&doc)
+        .map_err(|e| ExportError::file(path, format!("cannot write the glTF JSON: {e}")))?;
+    while !js.len().is_multiple_of(4) {
+        js.push(b' ');
+    }
+    let total = 12
+        + 8
+        + js.len() as u64
+        + if b.bin.is_empty() {
+            0
+        } else {
+            8 + b.bin.len() as u64
+        };
+    if total > GLB_MAX_BYTES {
+        return Err(ExportError::file(
+            path,
+            format!(
+                "the GLB would be {:.2} GiB, more than glTF readers accept (2 GiB); export fewer parts (per-part GLBs with a 3D Tiles tileset are not written yet)",
+                total as f64 / (1u64 << 30) as f64
+            ),
+        ));
+    }
+    let mut out = Vec::with_capacity(total as usize);
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(js.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&js);
+    if !b.bin.is_empty() {
+        out.extend_from_slice(&(b.bin.len() as u32).to_le_bytes());
+        out.extend_from_slice(b"BIN\0");
+        out.extend_from_slice(&b.bin);
+    }
+    Ok(out)
+}

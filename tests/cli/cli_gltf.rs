@@ -1,0 +1,533 @@
+//! `igi export --format gltf` (issue 35, item 1) on a quick solve of the Mitsuba survey fixture
+//! (`datasets/fixtures/survey`):
+//!
+//! * the base colour read back from `scene.glb` (the embedded PNG decoded, sRGB to linear,
+//!   bilinear at the glTF UV) at points found through the root node's Y-up rotation equals
+//!   `igi sample`'s albedo there within 8-bit quantisation (this checks the axes, the V flip and
+//!   the sRGB transfer);
+//! * the GLB passes the Khronos glTF-Validator (npm `gltf-validator`, run with node) with 0
+//!   errors; a missing node or validator fails the test with the reason
+//!   (`bash scripts/deps.sh test` installs it);
+//! * a part with a known Lafortune lobe gets a fitted material whose error is printed and kept
+//!   in `extras` with the exact lobe; a part without lobes is pure diffuse (roughness 1,
+//!   specular 0);
+//! * the output folder's rules: never the result folder or inside it, never a folder with
+//!   other files; an earlier export is replaced whole.
+
+use glam::Vec3;
+use igi_testkit::run_ok;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn igi() -> Command {
+    igi_testkit::Cli::new(env!("CARGO_BIN_EXE_igi")).command()
+}
+
+fn fixture() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("datasets/fixtures/survey")
+}
+
+/// A quick result of the fixture (one iteration, 32 x 32 atlases).
+fn quick_result(tmp: &Path) -> PathBuf {
+    let res = tmp.join("res");
+    run_ok(igi().arg("solve").arg(fixture()).arg("-o").arg(&res).args([
+        "--atlas",
+        "32",
+        "--iterations",
+        "1",
+        "--spp",
+        "4",
+        "--quiet",
+    ]));
+    res
+}
+
+fn export(res: &Path, format: &str, out: &Path) -> std::process::Output {
+    igi()
+        .arg("export")
+        .arg(res)
+        .args(["--format", format, "-o"])
+        .arg(out)
+        .output()
+        .unwrap()
+}
+
+/// The folder of the npm package `gltf-validator`: `IGI_GLTF_VALIDATOR`, or where
+/// `scripts/deps.sh test` installs it.
+fn validator() -> PathBuf {
+    let dir = std::env::var_os("IGI_GLTF_VALIDATOR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from("/opt/igi-node/node_modules/gltf-validator"));
+    assert!(
+        dir.join("package.json").is_file(),
+        "the Khronos glTF-Validator is not installed at {} (run `bash scripts/deps.sh test`, or set IGI_GLTF_VALIDATOR to the gltf-validator package folder)",
+        dir.display()
+    );
+    dir
+}
+
+/// Runs the Khronos glTF-Validator on `glb`: its report (JSON).
+fn validate(glb: &Path) -> serde_json::Value {
+    let dir = tempfile::tempdir().unwrap();
+    let script = dir.path().join("validate.js");
+    std::fs::write(
+        &script,
+        "const v = require(process.argv[2]);\n\
+         const bytes = new Uint8Array(require('fs').readFileSync(process.argv[3]));\n\
+         v.validateBytes(bytes, {maxIssues: 100}).then(r => console.log(JSON.stringify(r)))\n\
+           .catch(e => { console.error('validator failed: ' + e); process.exit(2); });\n",
+    )
+    .unwrap();
+    let out = Command::new("node")
+        .arg(&script)
+        .arg(validator())
+        .arg(glb)
+        .output()
+        .unwrap_or_else(|e| panic!("node (needed to run the glTF-Validator) cannot run: {e}"));
+    assert!(
+        out.status.success(),
+        "glTF-Validator: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("validator report")
+}
+
+/// sRGB to linear.
+fn srgb_to_linear(x: f32) -> f32 {
+    if x <= 0.040_45 {
+        x / 12.92
+    } else {
+        ((x + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// One part read back from the GLB.
+struct GlbPart {
+    name: String,
+    positions: Vec<Vec3>,
+    normals: Vec<Vec3>,
+    uvs: Vec<[f32; 2]>,
+    indices: Vec<u32>,
+    /// The base colour texture: width, height, 8-bit sRGB RGB rows from the top.
+    png: image::RgbImage,
+    roughness: f32,
+    specular: f32,
+    extras: serde_json::Value,
+}
+
+/// The root node's rotation and the parts of `scene.glb`.
+fn read_glb(path: &Path) -> (glam::Quat, Vec<GlbPart>) {
+    let bytes = std::fs::read(path).unwrap();
+    let g = gltf::Gltf::from_slice(&bytes).expect("the gltf crate reads the GLB");
+    let blob = g.blob.clone().expect("a BIN chunk");
+    let scene = g.default_scene().expect("a default scene");
+    let roots: Vec<_> = scene.nodes().collect();
+    assert_eq!(roots.len(), 1, "one root node");
+    let (_, rot, scale) = roots[0].transform().decomposed();
+    assert_eq!(scale, [1.0; 3]);
+    let mut parts = Vec::new();
+    for node in roots[0].children() {
+        let mesh = node.mesh().expect("a part node holds its mesh");
+        let prim = mesh.primitives().next().unwrap();
+        let r = prim.reader(|_| Some(&blob[..]));
+        let material = prim.material();
+        let pbr = material.pbr_metallic_roughness();
+        let tex = pbr.base_color_texture().expect("a base colour texture");
+        let gltf::image::Source::View { view, mime_type } = tex.texture().source().source() else {
+            panic!("the texture is embedded")
+        };
+        assert_eq!(mime_type, "image/png");
+        let png = &blob[view.offset()..view.offset() + view.length()];
+        let png = image::load_from_memory_with_format(png, image::ImageFormat::Png)
+            .unwrap()
+            .to_rgb8();
+        let extras: serde_json::Value =
+            serde_json::from_str(material.extras().as_ref().unwrap().get()).unwrap();
+        parts.push(GlbPart {
+            name: node.name().unwrap().to_string(),
+            positions: r.read_positions().unwrap().map(Vec3::from).collect(),
+            normals: r.read_normals().unwrap().map(Vec3::from).collect(),
+            uvs: r.read_tex_coords(0).unwrap().into_f32().collect(),
+            indices: r.read_indices().unwrap().into_u32().collect(),
+            png,
+            roughness: pbr.roughness_factor(),
+            specular: material
+                .specular()
+                .map(|s| s.specular_factor())
+                .unwrap_or(1.0),
+            extras: extras["igi"].clone(),
+        });
+    }
+    (glam::Quat::from_array(rot), parts)
+}
+
+/// The base colour at glTF `uv` (top-left origin): bilinear in linear RGB over the texel
+/// centres, clamped at the edges (the sampler's CLAMP_TO_EDGE), and its 8-bit quantisation
+/// bound (half a step of each texel's sRGB value, in linear, weighted as the lookup).
+fn base_colour(png: &image::RgbImage, uv: [f32; 2]) -> (Vec3, Vec3) {
+    let (w, h) = (png.width() as i64, png.height() as i64);
+    let x = uv[0] * w as f32 - 0.5;
+    let y = uv[1] * h as f32 - 0.5;
+    let (x0, y0) = (x.floor(), y.floor());
+    let (fx, fy) = (x - x0, y - y0);
+    let mut c = Vec3::ZERO;
+    let mut bound = Vec3::ZERO;
+    for (dx, dy, wgt) in [
+        (0, 0, (1.0 - fx) * (1.0 - fy)),
+        (1, 0, fx * (1.0 - fy)),
+        (0, 1, (1.0 - fx) * fy),
+        (1, 1, fx * fy),
+    ] {
+        let px = (x0 as i64 + dx).clamp(0, w - 1) as u32;
+        let py = (y0 as i64 + dy).clamp(0, h - 1) as u32;
+        let p = png.get_pixel(px, py).0;
+        for k in 0..3 {
+            let s = p[k] as f32 / 255.0;
+            c[k] += wgt * srgb_to_linear(s);
+            let hi = srgb_to_linear((s + 0.5 / 255.0).min(1.0)) - srgb_to_linear(s);
+            let lo = srgb_to_linear(s) - srgb_to_linear((s - 0.5 / 255.0).max(0.0));
+            bound[k] += wgt * hi.max(lo);
+        }
+    }
+    (c, bound)
+}
+
+/// Points on every part's triangles (every `step`th, at six barycentric positions) in glTF's
+/// scene (the root rotation applied), their glTF UVs and normals, per part.
+fn surface_points(rot: glam::Quat, p: &GlbPart, step: usize) -> Vec<(Vec3, Vec3, [f32; 2])> {
+    let mut out = Vec::new();
+    for t in p.indices.chunks(3).step_by(step) {
+        let [a, b, c] = [t[0], t[1], t[2]].map(|i| i as usize);
+        for w in [
+            [1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0],
+            [0.6, 0.3, 0.1],
+            [0.1, 0.6, 0.3],
+            [0.2, 0.15, 0.65],
+            [0.45, 0.45, 0.1],
+            [0.05, 0.25, 0.7],
+        ] {
+            let pos = p.positions[a] * w[0] + p.positions[b] * w[1] + p.positions[c] * w[2];
+            let e1 = p.positions[b] - p.positions[a];
+            let e2 = p.positions[c] - p.positions[a];
+            let n = e1.cross(e2);
+            if n.length() < 1e-10 {
+                continue;
+            }
+            let nv = p.normals[a] + p.normals[b] + p.normals[c];
+            let n = if n.dot(nv) < 0.0 { -n } else { n };
+            let uv = [0, 1].map(|k| p.uvs[a][k] * w[0] + p.uvs[b][k] * w[1] + p.uvs[c][k] * w[2]);
+            out.push((rot * pos, rot * n.normalize(), uv));
+        }
+    }
+    out
+}
+
+/// glTF's Y-up scene point as igi's world point (Z up): igi (x, y, z) is glTF (x, z, -y).
+fn to_igi(q: Vec3) -> Vec3 {
+    Vec3::new(q.x, -q.z, q.y)
+}
+
+#[test]
+fn gltf_export_matches_igi_sample_passes_the_validator_and_keeps_the_result_safe() {
+    let tmp = tempfile::tempdir().unwrap();
+    let tmp = tmp.path();
+    let res = quick_result(tmp);
+    let out = tmp.join("gltf");
+    let o = export(&res, "gltf", &out);
+    let stdout = String::from_utf8_lossy(&o.stdout).to_string();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let glb = out.join("scene.glb");
+    // the fixture's result has no lobes: every part is pure diffuse, and says so
+    assert!(
+        stdout.contains("part wall: no lobes: pure diffuse (roughness 1, specular 0, exact)"),
+        "{stdout}"
+    );
+    for f in ["wall_albedo.exr", "wall_albedo.png", "export.json"] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
+    let (rot, parts) = read_glb(&glb);
+    let want = glam::Quat::from_rotation_x(-std::f32::consts::FRAC_PI_2);
+    assert!(rot.dot(want).abs() > 1.0 - 1e-6, "root rotation {rot}");
+    assert_eq!(parts.len(), 3);
+    for p in &parts {
+        assert_eq!((p.roughness, p.specular), (1.0, 0.0), "{}", p.name);
+        assert!(
+            p.extras["fit"]["model"]
+                .as_str()
+                .unwrap()
+                .starts_with("pure diffuse"),
+            "{}",
+            p.extras
+        );
+    }
+    check_base_colour(tmp, &res, rot, &parts);
+    check_validator(&glb);
+    check_fitted_lobes(tmp, &res);
+    check_output_folders(tmp, &res, &out);
+}
+
+/// The base colour at points of every part equals `igi sample` there within 8-bit
+/// quantisation.
+fn check_base_colour(tmp: &Path, res: &Path, rot: glam::Quat, parts: &[GlbPart]) {
+    let mut points = Vec::new();
+    for p in parts {
+        for (q, n, uv) in surface_points(rot, p, 1) {
+            // an underside (a block's bottom face) lies on the ground: `igi sample` may find
+            // either surface there
+            if to_igi(n).z < -0.5 {
+                continue;
+            }
+            points.push((
+                p.name.clone(),
+                to_igi(q),
+                to_igi(n),
+                uv,
+                base_colour(&p.png, uv),
+            ));
+        }
+    }
+    assert!(points.len() > 50, "{} points", points.len());
+    let mut csv = String::from("x,y,z,nx,ny,nz\n");
+    for (_, q, n, _, _) in &points {
+        csv.push_str(&format!(
+            "{},{},{},{},{},{}\n",
+            q.x, q.y, q.z, n.x, n.y, n.z
+        ));
+    }
+    let pts = tmp.join("glb_points.csv");
+    std::fs::write(&pts, csv).unwrap();
+    let vals = tmp.join("glb_values.csv");
+    run_ok(
+        igi()
+            .arg("sample")
+            .arg(res)
+            .arg("--points")
+            .arg(&pts)
+            .arg("-o")
+            .arg(&vals),
+    );
+    let text = std::fs::read_to_string(&vals).unwrap();
+    let (mut checked, mut worst) = (0, 0.0f32);
+    for (line, (name, q, _, uv, (c, bound))) in text.lines().skip(1).zip(&points) {
+        let v: Vec<f32> = line
+            .split(',')
+            .take(9)
+            .map(|s| s.parse().unwrap())
+            .collect();
+        let rho = Vec3::new(v[6], v[7], v[8]);
+        if rho.max_element() > 1.0 {
+            continue; // the PNG clips above 1
+        }
+        checked += 1;
+        for k in 0..3 {
+            let err = (c[k] - rho[k]).abs();
+            worst = worst.max(err / (bound[k] + 1e-6));
+            assert!(
+                err <= bound[k] + 1e-5,
+                "{name} at {q} (glTF uv {uv:?}): base colour {c} vs igi sample {rho} (channel {k}: {err:.2e} > 8-bit bound {:.2e})",
+                bound[k]
+            );
+        }
+    }
+    eprintln!(
+        "base colour vs igi sample: {checked} of {} points checked, worst error {worst:.2} of the 8-bit bound",
+        points.len()
+    );
+    assert!(
+        checked * 10 >= points.len() * 9,
+        "{checked} of {}",
+        points.len()
+    );
+}
+
+fn check_validator(glb: &Path) {
+    let r = validate(glb);
+    let issues = &r["issues"];
+    eprintln!(
+        "glTF-Validator {}: {} errors, {} warnings, {} infos, {} hints",
+        r["validatorVersion"],
+        issues["numErrors"],
+        issues["numWarnings"],
+        issues["numInfos"],
+        issues["numHints"]
+    );
+    assert_eq!(
+        issues["numErrors"], 0,
+        "glTF-Validator: {}",
+        issues["messages"]
+    );
+    assert_eq!(r["info"]["version"], "2.0");
+}
+
+/// A copy of the result whose wall has a known glossy lobe (and the ground a retroreflective
+/// one besides): the fit's error is printed, small for the glossy lobe, and kept in extras with
+/// the exact lobes.
+fn check_fitted_lobes(tmp: &Path, res: &Path) {
+    let glossy = tmp.join("res-glossy");
+    std::fs::create_dir_all(glossy.join("parts")).unwrap();
+    for e in std::fs::read_dir(res).unwrap() {
+        let e = e.unwrap();
+        if e.file_type().unwrap().is_file() {
+            std::fs::copy(e.path(), glossy.join(e.file_name())).unwrap();
+        }
+    }
+    for e in std::fs::read_dir(res.join("parts")).unwrap() {
+        let e = e.unwrap();
+        std::fs::copy(e.path(), glossy.join("parts").join(e.file_name())).unwrap();
+    }
+    std::fs::write(
+        glossy.join("parts/wall_lobes.json"),
+        r#"[{"rho": [0.1, 0.1, 0.1], "cxy": -1.0, "cz": 1.0, "n": 30.0}]"#,
+    )
+    .unwrap();
+    std::fs::write(
+        glossy.join("parts/ground_lobes.json"),
+        r#"[{"rho": [0.1, 0.1, 0.1], "cxy": -1.0, "cz": 1.0, "n": 30.0}, {"rho": [0.05, 0.05, 0.05], "cxy": 0.9, "cz": 0.9, "n": 10.0}]"#,
+    )
+    .unwrap();
+    let out = tmp.join("gltf-glossy");
+    let o = export(&glossy, "gltf", &out);
+    let stdout = String::from_utf8_lossy(&o.stdout).to_string();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    eprintln!("{stdout}");
+    let error_of = |part: &str| -> f32 {
+        let line = stdout
+            .lines()
+            .find(|l| l.starts_with(&format!("part {part}:")))
+            .unwrap_or_else(|| panic!("{stdout}"));
+        let pc = line
+            .split("fit error ")
+            .nth(1)
+            .unwrap()
+            .split('%')
+            .next()
+            .unwrap();
+        pc.parse::<f32>().unwrap() / 100.0
+    };
+    let (wall, ground) = (error_of("wall"), error_of("ground"));
+    assert!(wall > 0.0 && wall < 0.25, "wall fit error {wall}");
+    assert!(
+        stdout.contains("1 retroreflective lobe(s) folded in"),
+        "{stdout}"
+    );
+    let (_, parts) = read_glb(&out.join("scene.glb"));
+    let wall_p = parts.iter().find(|p| p.name == "wall").unwrap();
+    assert!(wall_p.specular > 0.0 && wall_p.roughness < 1.0);
+    let fit = &wall_p.extras["fit"];
+    assert!(
+        (fit["rel_rms"].as_f64().unwrap() as f32 - wall).abs() < 6e-4,
+        "{fit}"
+    );
+    let lobe = &wall_p.extras["lobes"][0];
+    assert_eq!(lobe["n"], 30.0);
+    assert_eq!(lobe["cxy"], -1.0);
+    let ground_p = parts.iter().find(|p| p.name == "ground").unwrap();
+    assert_eq!(ground_p.extras["lobes"][1]["kind"], "retroreflective");
+    assert!(
+        ground_p.extras["fit"]["retroreflective"]
+            .as_str()
+            .unwrap()
+            .contains("folded"),
+        "{}",
+        ground_p.extras
+    );
+    // the retroreflective lobe cannot be expressed: the ground fits worse than the wall
+    assert!(ground > wall, "ground {ground} vs wall {wall}");
+    // the block kept no lobes: pure diffuse
+    let block = parts.iter().find(|p| p.name == "block").unwrap();
+    assert_eq!((block.roughness, block.specular), (1.0, 0.0));
+    check_validator(&out.join("scene.glb"));
+}
+
+/// Every file under `dir` with its bytes.
+fn snapshot(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
+    let mut v = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                stack.push(p);
+            } else {
+                v.push((p.clone(), std::fs::read(&p).unwrap()));
+            }
+        }
+    }
+    v.sort();
+    v
+}
+
+fn refused(o: &std::process::Output, needle: &str) {
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "accepted; stderr: {err}");
+    assert!(err.contains(needle), "expected `{needle}` in: {err}");
+}
+
+/// The output folder's rules, checked before the first byte.
+fn check_output_folders(tmp: &Path, res: &Path, earlier: &Path) {
+    let before = snapshot(res);
+    // the result folder itself, and a folder inside it
+    for (out, needle) in [
+        (res.to_path_buf(), "is the result folder"),
+        (res.join("export"), "lies inside the result folder"),
+        (res.join("parts/../x"), "lies inside the result folder"),
+    ] {
+        for fmt in ["gltf", "ply"] {
+            refused(&export(res, fmt, &out), needle);
+        }
+    }
+    assert!(snapshot(res) == before, "the result folder changed");
+    // a folder holding other files
+    let busy = tmp.join("busy");
+    std::fs::create_dir_all(&busy).unwrap();
+    std::fs::write(busy.join("notes.txt"), "mine").unwrap();
+    refused(&export(res, "gltf", &busy), "holds no earlier igi export");
+    assert_eq!(
+        snapshot(&busy).len(),
+        1,
+        "nothing written into the refused folder"
+    );
+    // an earlier export with a file of someone else's
+    std::fs::write(earlier.join("notes.txt"), "mine").unwrap();
+    let had = snapshot(earlier);
+    refused(&export(res, "ply", earlier), "notes.txt");
+    assert!(snapshot(earlier) == had, "the refused folder changed");
+    std::fs::remove_file(earlier.join("notes.txt")).unwrap();
+    // an earlier export alone is replaced whole: a PLY export leaves no GLB behind
+    let o = export(res, "ply", earlier);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(!earlier.join("scene.glb").exists(), "two exports mixed");
+    assert!(earlier.join("wall.ply").is_file());
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(earlier.join("export.json")).unwrap())
+            .unwrap();
+    assert_eq!(m["format"], "ply");
+    let listed: Vec<&str> = m["files"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f.as_str().unwrap())
+        .collect();
+    let mut present: Vec<String> = std::fs::read_dir(earlier)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n != "export.json")
+        .collect();
+    present.sort();
+    assert_eq!(
+        present, listed,
+        "export.json lists exactly the folder's files"
+    );
+    // and no staging folder is left beside it
+    let leftovers: Vec<_> = std::fs::read_dir(tmp)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains("partial"))
+        .collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+    // an empty folder is fine
+    let empty = tmp.join("empty");
+    std::fs::create_dir_all(&empty).unwrap();
+    let o = export(res, "gltf", &empty);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
