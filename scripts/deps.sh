@@ -30,6 +30,18 @@ if ((${#missing[@]})); then
   $SUDO apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >&2
 fi
+if [ "$profile" = test ]; then
+  # the Khronos glTF-Validator of tests/cli/cli_gltf.rs (found there, or via IGI_GLTF_VALIDATOR)
+  GLTF_VALIDATOR_VERSION=2.0.0-dev.3.10
+  IGI_NODE=/opt/igi-node
+  if ! grep -q "\"version\": \"$GLTF_VALIDATOR_VERSION\"" "$IGI_NODE/node_modules/gltf-validator/package.json" 2>/dev/null; then
+    echo "igi: installing gltf-validator@$GLTF_VALIDATOR_VERSION (npm) under $IGI_NODE" >&2
+    SUDO=""
+    if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+    $SUDO mkdir -p "$IGI_NODE"
+    $SUDO npm install --prefix "$IGI_NODE" --no-audit --no-fund --silent "gltf-validator@$GLTF_VALIDATOR_VERSION" >&2
+  fi
+fi
 if [ "$profile" = mitsuba ]; then
   # the reference scripts (datasets/mitsuba, datasets/demo_error.py) need numpy beside Mitsuba
   if ! python3 -c 'import numpy, mitsuba, sys; sys.exit(mitsuba.__version__ != "3.9.1")' 2>/dev/null; then
