@@ -525,9 +525,34 @@ fn check_output_folders(tmp: &Path, res: &Path, earlier: &Path) {
         .filter(|n| n.contains("partial"))
         .collect();
     assert!(leftovers.is_empty(), "{leftovers:?}");
-    // an empty folder is fine
+    // an empty folder is fine, and a staging folder a killed export to it left is removed
     let empty = tmp.join("empty");
     std::fs::create_dir_all(&empty).unwrap();
+    let host = std::fs::read_to_string("/proc/sys/kernel/hostname").unwrap();
+    let host: String = host
+        .trim()
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' {
+                c
+            } else {
+                'x'
+            }
+        })
+        .collect();
+    let max_pid: u32 = std::fs::read_to_string("/proc/sys/kernel/pid_max")
+        .unwrap()
+        .trim()
+        .parse()
+        .unwrap();
+    // a process id above the largest the kernel hands out: never a running process
+    let stale = tmp.join(format!(".empty.igi-export-{host}-{}.partial", max_pid + 1));
+    std::fs::create_dir_all(&stale).unwrap();
+    std::fs::write(stale.join("scene.glb"), "half").unwrap();
     let o = export(res, "gltf", &empty);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        !stale.exists(),
+        "the killed export's staging folder is left"
+    );
 }

@@ -7,7 +7,9 @@
 //!   lists every file it wrote. Such a folder is replaced whole (only the names the earlier
 //!   export wrote are removed), so two results' files never mix. Any other file refuses it.
 //! * The export is written into a staging folder beside `-o`
-//!   (`.NAME.igi-export-PID.partial`) and moved into place once complete, `export.json` last.
+//!   (`.NAME.igi-export-HOST-PID.partial`) and moved into place once complete, `export.json`
+//!   last. A staging folder of this host whose process is gone (a killed export) is removed by
+//!   the next export to the same `-o`.
 
 use crate::ExportError;
 use serde::{Deserialize, Serialize};
@@ -137,7 +139,11 @@ pub(crate) fn check(result_dir: &Path, out: &Path) -> Result<OutPlan, ExportErro
     let parent = out_abs.parent().unwrap_or(Path::new("/")).to_path_buf();
     Ok(OutPlan {
         out: out.to_path_buf(),
-        staging: parent.join(format!(".{name}.igi-export-{}.partial", std::process::id())),
+        staging: parent.join(format!(
+            ".{name}.igi-export-{}-{}.partial",
+            igi_files::atomic::this_host(),
+            std::process::id()
+        )),
         earlier,
     })
 }
@@ -152,9 +158,31 @@ fn shown(names: &[String]) -> String {
 }
 
 impl OutPlan {
-    /// Creates the staging folder (removing a stale one of this process id).
+    /// Creates the staging folder, after removing those that killed exports of this host to
+    /// the same folder left (their process is gone, judged by `/proc/PID`).
     pub fn begin(&self) -> Result<(), ExportError> {
         let _ = std::fs::remove_dir_all(&self.staging);
+        let own = self
+            .staging
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned());
+        let own = own.unwrap_or_default();
+        // `.NAME.igi-export-HOST-` and the process id after it
+        let prefix = own[..own.len() - ".partial".len()]
+            .trim_end_matches(|c: char| c.is_ascii_digit())
+            .to_string();
+        if let (Some(dir), true) = (self.staging.parent(), Path::new("/proc/self").exists()) {
+            for e in std::fs::read_dir(dir).into_iter().flatten().flatten() {
+                let n = e.file_name().to_string_lossy().into_owned();
+                let pid = n
+                    .strip_prefix(&prefix)
+                    .and_then(|r| r.strip_suffix(".partial"))
+                    .and_then(|p| p.parse::<u32>().ok());
+                if pid.is_some_and(|p| !Path::new("/proc").join(p.to_string()).exists()) {
+                    let _ = std::fs::remove_dir_all(e.path());
+                }
+            }
+        }
         std::fs::create_dir_all(&self.staging).map_err(|e| {
             ExportError::file(
                 &self.staging,
