@@ -60,7 +60,8 @@ def main():
     # run.json records this machine's absolute input paths; a result loads without it
     os.remove(os.path.join(out, "result", "run.json"))
     for f in os.listdir(os.path.join(out, "export")):
-        if f.endswith(".png"):  # previews, not part of the Mitsuba scene
+        # previews, not part of the Mitsuba scene; export.json names this machine's result path
+        if f.endswith(".png") or f == "export.json":
             os.remove(os.path.join(out, "export", f))
 
     variant = "llvm_ad_rgb" if sr.llvm_path() else "scalar_rgb"
