@@ -73,5 +73,11 @@ pub enum BrdfError {
     Json(#[from] serde_json::Error),
     /// An input or output file checked by `igi-files` (a device given as the samples file).
     #[error(transparent)]
-    Files(#[from] igi_files::FilesError),
+    Files(Box<igi_files::FilesError>),
+}
+
+impl From<igi_files::FilesError> for BrdfError {
+    fn from(e: igi_files::FilesError) -> Self {
+        BrdfError::Files(Box::new(e))
+    }
 }

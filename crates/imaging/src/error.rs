@@ -155,6 +155,15 @@ pub enum HdrError {
     TimesPerImage { images: usize, times: usize },
 }
 
+/// Two image files of a comparison and the sizes their headers declare.
+#[derive(Debug)]
+pub struct FileSizes {
+    pub a: PathBuf,
+    pub a_size: (usize, usize),
+    pub b: PathBuf,
+    pub b_size: (usize, usize),
+}
+
 /// Images that cannot be compared (`metrics`).
 #[derive(Debug, thiserror::Error)]
 pub enum CompareError {
@@ -166,13 +175,8 @@ pub enum CompareError {
         expected: (usize, usize),
     },
     /// Two image files whose headers declare different sizes (found before decoding either).
-    #[error("{} is {} x {} but {} is {} x {}: compare images of one size", b.display(), b_size.0, b_size.1, a.display(), a_size.0, a_size.1)]
-    FileSizes {
-        a: PathBuf,
-        a_size: (usize, usize),
-        b: PathBuf,
-        b_size: (usize, usize),
-    },
+    #[error("{} is {} x {} but {} is {} x {}: compare images of one size", .0.b.display(), .0.b_size.0, .0.b_size.1, .0.a.display(), .0.a_size.0, .0.a_size.1)]
+    FileSizes(Box<FileSizes>),
     #[error("no pixel is valid in both images")]
     NoCommonPixels,
     /// An image of a comparison that cannot be read.

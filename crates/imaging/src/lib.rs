@@ -45,7 +45,7 @@ pub mod merge;
 pub mod metrics;
 pub mod photo;
 
-pub use error::{CompareError, HdrError, ImagingError};
+pub use error::{CompareError, FileSizes, HdrError, ImagingError};
 pub use image::HdrImage;
 pub use io::{
     read_exr_alpha, read_image, write_exr, write_exr_rgba, write_hdr, write_png_tonemapped,

@@ -275,12 +275,12 @@ pub fn compare_files(req: &CompareRequest) -> Result<Comparison, ImagingError> {
     let a_size = crate::io::image_size(&req.a).map_err(|e| CompareError::read(&req.a, e))?;
     let b_size = crate::io::image_size(&req.b).map_err(|e| CompareError::read(&req.b, e))?;
     if a_size != b_size {
-        return Err(CompareError::FileSizes {
+        return Err(CompareError::FileSizes(Box::new(crate::error::FileSizes {
             a: req.a.clone(),
             a_size,
             b: req.b.clone(),
             b_size,
-        }
+        }))
         .into());
     }
     let mut a = read_covered(&req.a)?;
