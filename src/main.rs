@@ -66,6 +66,9 @@ enum Command {
     Import(cmd::import::ImportCmd),
     /// The embedded default: a procedural site photographed under three skies, solved, re-lit.
     Demo(cmd::demo::DemoArgs),
+    /// A local web viewer of a result folder (three.js, on 127.0.0.1): orbit, relight with a
+    /// sun, albedo alone; the first line of output is its URL.
+    View(cmd::view::ViewArgs),
 }
 
 fn main() {
@@ -89,6 +92,7 @@ fn main() {
         Command::Hull(c) => cmd::hull::run(c, &ctx),
         Command::Cluster(c) => cmd::cluster::run(c, &ctx),
         Command::Import(c) => cmd::import::run(c, &ctx),
+        Command::View(a) => cmd::view::run(a, &ctx),
     };
     if let Err(e) = result {
         eprintln!("error: {}", error_chain(&e));

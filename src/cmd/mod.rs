@@ -13,3 +13,4 @@ pub mod probe;
 pub mod render;
 pub mod slf;
 pub mod solve;
+pub mod view;

@@ -18,6 +18,7 @@ mod cli_radiometry_detect;
 mod cli_render;
 mod cli_slf;
 mod cli_solve;
+mod cli_view;
 mod mitsuba_export;
 mod mitsuba_reference;
 mod mitsuba_survey;

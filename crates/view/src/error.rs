@@ -1,0 +1,22 @@
+use std::path::PathBuf;
+
+/// Why a viewer could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum ViewError {
+    /// The folder is not one igi view shows.
+    #[error("{}: not a result folder of `igi solve` (no report.json and parts/); igi view shows result folders", dir.display())]
+    NotViewable { dir: PathBuf },
+    /// The folder cannot be read.
+    #[error("{}: {source}", dir.display())]
+    Folder {
+        dir: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// The result could not be made into a scene.
+    #[error(transparent)]
+    Export(#[from] igi_export::ExportError),
+    /// The port could not be bound (in use, or not permitted).
+    #[error("cannot listen on 127.0.0.1:{port}: {reason}")]
+    Bind { port: u16, reason: String },
+}

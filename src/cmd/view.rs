@@ -1,0 +1,45 @@
+//! `igi view`: a local web viewer of a result folder.
+use crate::report::Ctx;
+use igi_view::{ViewEvent, ViewRequest};
+use std::io::Write;
+use std::path::PathBuf;
+
+#[derive(clap::Args, Debug)]
+pub struct ViewArgs {
+    /// A result folder of `igi solve`.
+    pub dir: PathBuf,
+    /// Port on 127.0.0.1 (default: 8765, or any free port when it is taken; a port given here
+    /// that is in use is an error; 0: any free port).
+    #[arg(long)]
+    pub port: Option<u16>,
+    /// Open the page in the desktop's browser (xdg-open).
+    #[arg(long)]
+    pub open: bool,
+}
+
+/// Serve until interrupted. The first line of standard output is the page's URL; the page's
+/// title becomes `igi: ready` once its first frame is drawn, and what the page says (its
+/// title, its frame time) is printed as `page: ...` on standard error.
+pub fn run(a: ViewArgs, _ctx: &Ctx) -> anyhow::Result<()> {
+    let req = ViewRequest {
+        dir: a.dir,
+        port: a.port,
+    };
+    igi_view::serve(&req, &mut |event| match event {
+        ViewEvent::Ready(url) => {
+            println!("{url}");
+            let _ = std::io::stdout().flush();
+            if a.open {
+                open_browser(url);
+            }
+        }
+        ViewEvent::Page(text) => eprintln!("page: {text}"),
+    })?;
+    Ok(())
+}
+
+fn open_browser(url: &str) {
+    if let Err(e) = std::process::Command::new("xdg-open").arg(url).spawn() {
+        eprintln!("warning: could not open a browser ({e}); open {url} by hand");
+    }
+}
