@@ -8,7 +8,8 @@ use std::path::PathBuf;
 #[derive(clap::Subcommand, Debug)]
 pub enum HullCmd {
     /// Build a hull folder from a rig.toml: mattes, visual hull (hull.ply), surfels
-    /// (surfels.ply), volume against views (volume.png) and report.json (per-view IoU, timings);
+    /// (surfels.ply), volume against views (volume.png) and report.json (per-view IoU; the
+    /// timings are printed with --json, not stored);
     /// with light images in the rig, the surface reflectance field (reflectance/: PCA per 8x8
     /// block to 1% RMS).
     Build(BuildArgs),
