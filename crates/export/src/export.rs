@@ -345,3 +345,27 @@ fn export_textures(
     }
     Ok((tex, maps))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_mean_lobe_averages_colour_and_weighs_shape_by_luminance() {
+        // three texels, two covered: lobe colours grey 0.2 and 0.6; shapes n = 10 and n = 50
+        let mut rho = HdrImage::new(3, 1);
+        let mut shape = HdrImage::new(3, 1);
+        rho.pixels = vec![[0.2; 3], [0.6; 3], [9.0; 3]];
+        shape.pixels = vec![[-1.0, 1.0, 10.0], [-0.5, 0.8, 50.0], [5.0, 5.0, 5.0]];
+        let m = mean_lobes(&[(rho, shape)], &[0, 1]);
+        assert_eq!(m.len(), 1);
+        assert!((m[0].rho - Vec3::splat(0.4)).abs().max_element() < 1e-6);
+        // luminance weights 0.2 and 0.6: n = (0.2 * 10 + 0.6 * 50) / 0.8 = 40
+        assert!((m[0].n - 40.0).abs() < 1e-4, "{:?}", m[0]);
+        assert!((m[0].cxy - (-0.625)).abs() < 1e-5, "{:?}", m[0]);
+        assert!((m[0].cz - 0.85).abs() < 1e-5, "{:?}", m[0]);
+        // a lobe dark everywhere reflects nothing
+        let dark = mean_lobes(&[(HdrImage::new(2, 1), HdrImage::new(2, 1))], &[0, 1]);
+        assert_eq!(dark[0].rho, Vec3::ZERO);
+    }
+}
