@@ -46,6 +46,7 @@ use igi_camera::{Camera, Distortion, Intrinsics};
 use roxmltree::{Document, Node};
 
 use crate::error::ImportError;
+use crate::model::from_pixel_corner_origin;
 use crate::source::{pose_from_camera_to_world, Affine, CameraSet, PosedImage};
 
 /// An element's line in the file, for errors.
@@ -253,14 +254,16 @@ fn sensor(cx: &Ctx, node: Node) -> Result<Sensor, ImportError> {
             ),
         ));
     }
-    let intrinsics = Intrinsics {
+    // Metashape's P1 multiplies (r^2 + 2x^2) in x': OpenCV's p2; its P2 is OpenCV's p1
+    let dist = Distortion::from_array([g("k1"), g("k2"), g("p2"), g("p1"), g("k3")]);
+    // cx, cy are offsets from the image centre
+    let intrinsics = from_pixel_corner_origin(
         fx,
-        fy: f,
-        cx: f64::from(width) / 2.0 + g("cx") - 0.5,
-        cy: f64::from(height) / 2.0 + g("cy") - 0.5,
-        // Metashape's P1 multiplies (r^2 + 2x^2) in x': OpenCV's p2; its P2 is OpenCV's p1
-        dist: Distortion::from_array([g("k1"), g("k2"), g("p2"), g("p1"), g("k3")]),
-    };
+        f,
+        f64::from(width) / 2.0 + g("cx"),
+        f64::from(height) / 2.0 + g("cy"),
+        dist,
+    );
     Ok(Sensor {
         width,
         height,

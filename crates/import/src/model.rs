@@ -250,18 +250,30 @@ pub fn contract_intrinsics(cam: &ColmapCamera) -> Result<(u32, u32, Intrinsics),
             cam.params
         ));
     }
-    let dist = Distortion::from_array(d);
     Ok((
         w,
         h,
-        Intrinsics {
-            fx,
-            fy,
-            cx: cx - 0.5,
-            cy: cy - 0.5,
-            dist,
-        },
+        from_pixel_corner_origin(fx, fy, cx, cy, Distortion::from_array(d)),
     ))
+}
+
+/// The contract's intrinsics from a principal point measured with the centre of the top-left
+/// pixel at (0.5, 0.5), as COLMAP, Metashape and nerfstudio do (the contract puts it at
+/// (0, 0): the point moves by -0.5 px).
+pub fn from_pixel_corner_origin(
+    fx: f64,
+    fy: f64,
+    cx: f64,
+    cy: f64,
+    dist: Distortion,
+) -> Intrinsics {
+    Intrinsics {
+        fx,
+        fy,
+        cx: cx - 0.5,
+        cy: cy - 0.5,
+        dist,
+    }
 }
 
 /// The world-to-camera pose of an image, or why it has none.

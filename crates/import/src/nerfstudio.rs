@@ -31,6 +31,7 @@ use igi_camera::{Camera, Distortion, Intrinsics};
 use serde_json::{Map, Value};
 
 use crate::error::ImportError;
+use crate::model::from_pixel_corner_origin;
 use crate::source::{pose_from_camera_to_world, Affine, CameraSet, PosedImage};
 
 /// `transforms.json` itself, or the file of that name in a folder.
@@ -165,17 +166,7 @@ fn intrinsics(
         ));
     }
     let dist = Distortion::from_array([d("k1")?, d("k2")?, d("p1")?, d("p2")?, d("k3")?]);
-    Ok((
-        w,
-        h,
-        Intrinsics {
-            fx,
-            fy,
-            cx: cx - 0.5,
-            cy: cy - 0.5,
-            dist,
-        },
-    ))
+    Ok((w, h, from_pixel_corner_origin(fx, fy, cx, cy, dist)))
 }
 
 /// The cameras of a nerfstudio `transforms.json` (or the folder holding one), in the frame of
