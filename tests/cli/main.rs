@@ -13,6 +13,7 @@ mod cli_harden;
 mod cli_hull;
 mod cli_imaging;
 mod cli_import;
+mod cli_photos;
 mod cli_probe;
 mod cli_radiometry_detect;
 mod cli_render;
