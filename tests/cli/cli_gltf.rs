@@ -27,8 +27,8 @@ fn fixture() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("datasets/fixtures/survey")
 }
 
-/// A quick result of the fixture (one iteration, 32 x 32 atlases).
-fn quick_result(tmp: &Path) -> PathBuf {
+/// A quick result of the fixture (one iteration, 32 x 32 atlases); `igi view`'s tests use it too.
+pub(crate) fn quick_result(tmp: &Path) -> PathBuf {
     let res = tmp.join("res");
     run_ok(igi().arg("solve").arg(fixture()).arg("-o").arg(&res).args([
         "--atlas",

@@ -8,28 +8,13 @@
 //!   empty page's sky colour).
 //! * Bad input: a folder that is not a result; a port in use; a path outside the folder.
 
-use igi_testkit::run_ok;
+use crate::cli_gltf::quick_result;
 use std::io::{BufRead, BufReader, Read, Write};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 
 fn igi() -> Command {
     igi_testkit::Cli::new(env!("CARGO_BIN_EXE_igi")).command()
-}
-
-fn quick_result(tmp: &Path) -> PathBuf {
-    let res = tmp.join("res");
-    let fixture = Path::new(env!("CARGO_MANIFEST_DIR")).join("datasets/fixtures/survey");
-    run_ok(igi().arg("solve").arg(fixture).arg("-o").arg(&res).args([
-        "--atlas",
-        "32",
-        "--iterations",
-        "1",
-        "--spp",
-        "4",
-        "--quiet",
-    ]));
-    res
 }
 
 /// A running `igi view`, its URL and the lines of its standard error; killed when dropped.
