@@ -1163,6 +1163,20 @@ fn compare_checks_header_sizes_before_decoding_and_names_the_diff_format() {
             && e.contains("8000 x 8000"),
         "{e}"
     );
+    // an all-zero reference: an error, not "NaN%" and "-inf dB"
+    let grey = d.path().join("grey.png");
+    image::RgbImage::from_pixel(8, 8, image::Rgb([90, 90, 90]))
+        .save(&grey)
+        .unwrap();
+    let o = igi().run(&["compare", s(&grey), s(&small)]);
+    let e = stderr(&o);
+    assert!(
+        o.status.code() == Some(1)
+            && e.contains("small.png")
+            && e.contains("reference image is zero"),
+        "{e}"
+    );
+    assert!(!String::from_utf8_lossy(&o.stdout).contains("NaN"));
     // the difference picture is a PNG: --diff d.exr is refused before the work
     let o = igi().run(&[
         "compare",

@@ -179,6 +179,10 @@ pub enum CompareError {
     FileSizes(Box<FileSizes>),
     #[error("no pixel is valid in both images")]
     NoCommonPixels,
+    /// A reference that is black wherever both images are valid: no relative difference and
+    /// no PSNR can be given against it (they were NaN% and -inf dB).
+    #[error("{}: the reference image is zero wherever both images are valid; the relative difference and PSNR against it are undefined (compare against another reference)", path.display())]
+    ZeroReference { path: PathBuf },
     /// An image of a comparison that cannot be read.
     #[error("reading {}", path.display())]
     Read {

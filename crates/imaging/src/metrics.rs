@@ -296,6 +296,12 @@ pub fn compare_files(req: &CompareRequest) -> Result<Comparison, ImagingError> {
             b: req.b.clone(),
             source: Box::new(e),
         })?;
+    if c.mean_b == 0.0 {
+        return Err(CompareError::ZeroReference {
+            path: req.b.clone(),
+        }
+        .into());
+    }
     if let Some(d) = &req.diff {
         let img = difference_image(&a, &b, None)?;
         crate::write_png_tonemapped(d, &img, 1.0)?;
