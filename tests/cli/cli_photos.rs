@@ -300,3 +300,57 @@ fn a_malformed_or_decreasing_response_is_refused_by_solve_naming_file_and_line()
         assert_failed(&out, at, problem, tmp.path(), &keep);
     }
 }
+
+/// `igi solve` on the demo survey with its photographs as 8-bit sRGB PNGs: each photo's
+/// clipped pixels (counted here from the PNG codes) are reported on stderr.
+#[test]
+fn solve_reports_each_8_bit_photos_clipped_pixels() {
+    let tmp = tempfile::tempdir().unwrap();
+    let demo = tmp.path().join("demo");
+    let out = igi(&["demo", "--quick", "--quiet", "-o", s(&demo)]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let survey = demo.join("survey");
+    let toml = std::fs::read_to_string(survey.join("survey.toml")).unwrap();
+    let mut expected = Vec::new();
+    for line in toml.lines() {
+        let Some(rel) = line
+            .strip_prefix("image = \"")
+            .and_then(|l| l.strip_suffix(".exr\""))
+        else {
+            continue;
+        };
+        let img = igi_imaging::read_image(&survey.join(format!("{rel}.exr"))).unwrap();
+        let png = survey.join(format!("{rel}.png"));
+        // exposure 2: the brightest sunlit stone clips, as in a real photograph
+        igi_imaging::write_png_tonemapped(&png, &img, 2.0).unwrap();
+        let codes = image::open(&png).unwrap().into_rgb8();
+        let clipped = codes
+            .pixels()
+            .filter(|p| p.0.iter().any(|&z| z == 255 || z <= 1))
+            .count();
+        let id = rel.trim_start_matches("photos/").to_string();
+        expected.push((id, clipped, codes.len() / 3));
+    }
+    assert!(expected.len() >= 2, "{toml}");
+    let toml = toml
+        .replace(".exr\"", ".png\"")
+        .replace("[[photo]]\nid", "[[photo]]\nexposure = 2.0\nid");
+    std::fs::write(survey.join("survey.toml"), toml).unwrap();
+    let out = igi(&["solve", s(&survey), "-o", s(&tmp.path().join("result"))]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(expected.iter().any(|e| e.1 > 0), "{expected:?}");
+    for (id, clipped, n) in &expected {
+        let line = format!("photo {id}: 8-bit, sRGB: {clipped} of {n} pixels");
+        assert_eq!(
+            err.contains(&line),
+            *clipped > 0,
+            "{line:?} in stderr: {err}"
+        );
+    }
+    println!("clipped per photo: {expected:?}");
+}

@@ -392,8 +392,8 @@ impl PhotoSpec {
     }
 
     /// The photograph's pixels made linear by its transfer (docs/IMAGING.md), before the
-    /// radiometry and the exposure; the clipped pixels it lost are reported (a warning when
-    /// there are any).
+    /// radiometry and the exposure; the clipped pixels it lost are reported (a warning when an
+    /// 8- or 16-bit file has any; for a float file, its own invalid pixels, at info level).
     pub fn read_linear(&self) -> Result<igi_imaging::photo::LinearPhoto, WorkflowError> {
         use igi_imaging::photo::{read_photo, read_response_csv, Transfer};
         let transfer = match &self.transfer {
@@ -418,7 +418,8 @@ impl PhotoSpec {
             linear.image.pixels.len(),
             100.0 * linear.clipped as f64 / n as f64
         );
-        if linear.clipped > 0 {
+        // float files carry their own mask (e.g. a merge's saturated pixels): not news
+        if linear.clipped > 0 && linear.bits < 32 {
             tracing::warn!("{msg}");
         } else {
             tracing::info!("{msg}");
