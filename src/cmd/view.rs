@@ -8,6 +8,10 @@ use std::path::PathBuf;
 pub struct ViewArgs {
     /// A result folder of `igi solve`.
     pub dir: PathBuf,
+    /// Lighting files the page offers to light the site with (each sets the sun and the sky;
+    /// e.g. the survey's `lighting/*.toml`). Repeatable.
+    #[arg(long = "lighting")]
+    pub lightings: Vec<PathBuf>,
     /// Port on 127.0.0.1 (default: 8765, or any free port when it is taken; a port given here
     /// that is in use is an error; 0: any free port).
     #[arg(long)]
@@ -23,6 +27,7 @@ pub struct ViewArgs {
 pub fn run(a: ViewArgs, _ctx: &Ctx) -> anyhow::Result<()> {
     let req = ViewRequest {
         dir: a.dir,
+        lightings: a.lightings,
         port: a.port,
     };
     igi_view::serve(&req, &mut |event| match event {

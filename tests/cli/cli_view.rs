@@ -27,11 +27,12 @@ impl Drop for Served {
     }
 }
 
-fn serve(dir: &Path, port: &str) -> Served {
+fn serve(dir: &Path, port: &str, lightings: &[PathBuf]) -> Served {
     let mut child = igi()
         .arg("view")
         .arg(dir)
         .args(["--port", port])
+        .args(lightings.iter().flat_map(|l| [Path::new("--lighting"), l]))
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
@@ -124,9 +125,11 @@ fn chromium_command(url: &str, extra: &[&str]) -> Command {
 fn a_result_opens_in_a_real_browser() {
     let tmp = tempfile::tempdir().unwrap();
     let res = quick_result(tmp.path());
-    let served = serve(&res, "0");
+    let fixture = Path::new(env!("CARGO_MANIFEST_DIR")).join("datasets/fixtures/survey/lighting");
+    let lightings = ["sunny", "lowsun"].map(|n| fixture.join(format!("{n}.toml")));
+    let served = serve(&res, "0", &lightings);
     // The page tells the server its title as it changes and, each second, its frame time.
-    let fixed = format!("{}?width=1024&height=768", served.1);
+    let fixed = format!("{}?width=1024&height=768&lighting=1", served.1);
     let unlimited = ["--disable-gpu-vsync", "--disable-frame-rate-limit"];
     let mut browser = chromium_command(&fixed, &unlimited).spawn().unwrap();
     let frames = std::cell::Cell::new(0);
@@ -145,6 +148,10 @@ fn a_result_opens_in_a_real_browser() {
         "the page never became ready: {said:?}"
     );
     assert!(!said.iter().any(|l| l.contains("igi: error")), "{said:?}");
+    assert!(
+        said.iter().any(|l| l == "page: lighting=lowsun"),
+        "{said:?}"
+    );
     let frames: Vec<&String> = said
         .iter()
         .filter(|l| l.starts_with("page: frame_ms="))
@@ -180,7 +187,7 @@ fn the_server_answers_only_get_and_head_under_its_folder() {
     let tmp = tempfile::tempdir().unwrap();
     let res = quick_result(tmp.path());
     std::fs::write(tmp.path().join("secret.txt"), "secret").unwrap();
-    let served = serve(&res, "0");
+    let served = serve(&res, "0", &[]);
     let url = &served.1;
     let get = |p: &str| http(url, &format!("GET {p} HTTP/1.0\r\n\r\n"));
     assert_eq!(status(&get("/")), 200, "{}", get("/"));
@@ -209,6 +216,20 @@ fn bad_folders_and_busy_ports_are_refused() {
     );
 
     let res = quick_result(tmp.path());
+    let nope = tmp.path().join("nope.toml");
+    let out = igi()
+        .arg("view")
+        .arg(&res)
+        .arg("--lighting")
+        .arg(&nope)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("nope.toml"), "{err}");
+    assert!(
+        out.stdout.is_empty(),
+        "a URL was printed for a refused lighting"
+    );
     let busy = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
     let port = busy.local_addr().unwrap().port().to_string();
     let out = igi()

@@ -16,6 +16,9 @@ pub enum ViewError {
     /// The result could not be made into a scene.
     #[error(transparent)]
     Export(#[from] igi_export::ExportError),
+    /// A lighting file given with `--lighting` cannot light the page.
+    #[error(transparent)]
+    Lighting(#[from] igi_formats::lighting::LightingLoadError),
     /// The port could not be bound (in use, or not permitted).
     #[error("cannot listen on 127.0.0.1:{port}: {reason}")]
     Bind { port: u16, reason: String },

@@ -18,6 +18,7 @@
 //! starts: the folder must be a result folder, and the port free.
 
 mod error;
+pub mod light;
 mod route;
 
 pub use error::ViewError;
@@ -29,6 +30,8 @@ use std::path::{Path, PathBuf};
 #[derive(Clone, Debug)]
 pub struct ViewRequest {
     pub dir: PathBuf,
+    /// Lighting files the page offers (the survey's, or any contract lighting file).
+    pub lightings: Vec<PathBuf>,
     /// The port on 127.0.0.1: `None` tries [`DEFAULT_PORT`], then any free port; a port asked
     /// for that is in use is an error (0: any free port).
     pub port: Option<u16>,
@@ -63,7 +66,12 @@ pub struct Viewer {
 impl Viewer {
     /// Check the folder, make its scene and bind the port.
     pub fn bind(req: &ViewRequest) -> Result<Viewer, ViewError> {
-        let site = route::Site::open(&req.dir)?;
+        let lights = req
+            .lightings
+            .iter()
+            .map(|p| light::page_light(p))
+            .collect::<Result<Vec<_>, _>>()?;
+        let site = route::Site::open(&req.dir, &lights)?;
         let bind = |port: u16| {
             tiny_http::Server::http(("127.0.0.1", port)).map_err(|e| ViewError::Bind {
                 port,

@@ -44,7 +44,7 @@ pub struct Site {
 
 impl Site {
     /// Check that `dir` is a result folder and make its glTF scene.
-    pub fn open(dir: &Path) -> Result<Site, ViewError> {
+    pub fn open(dir: &Path, lights: &[crate::light::PageLight]) -> Result<Site, ViewError> {
         let root = dir.canonicalize().map_err(|source| ViewError::Folder {
             dir: dir.to_path_buf(),
             source,
@@ -58,8 +58,12 @@ impl Site {
         let name = root
             .file_name()
             .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
-        let scene_json =
-            serde_json::json!({ "kind": "result", "name": name, "scene": "/igi/scene.glb" });
+        let scene_json = serde_json::json!({
+            "kind": "result",
+            "name": name,
+            "scene": "/igi/scene.glb",
+            "lightings": lights,
+        });
         Ok(Site {
             root,
             scene_json: serde_json::to_vec_pretty(&scene_json).expect("JSON"),
