@@ -69,6 +69,9 @@ enum Command {
     /// A local web viewer of a result folder (three.js, on 127.0.0.1): orbit, relight with a
     /// sun, albedo alone; the first line of output is its URL.
     View(cmd::view::ViewArgs),
+    /// The lighting file of a place and time: sun position (NREL SPA) and Hosek-Wilkie clear
+    /// sky, or the CIE overcast sky, as a lat-long map and [sun].
+    Sky(cmd::sky::SkyArgs),
 }
 
 fn main() {
@@ -93,6 +96,7 @@ fn main() {
         Command::Cluster(c) => cmd::cluster::run(c, &ctx),
         Command::Import(c) => cmd::import::run(c, &ctx),
         Command::View(a) => cmd::view::run(a, &ctx),
+        Command::Sky(a) => cmd::sky::run(a, &ctx),
     };
     if let Err(e) = result {
         eprintln!("error: {}", error_chain(&e));

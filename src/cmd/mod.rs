@@ -11,6 +11,7 @@ pub mod import;
 pub mod prepare;
 pub mod probe;
 pub mod render;
+pub mod sky;
 pub mod slf;
 pub mod solve;
 pub mod view;

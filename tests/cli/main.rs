@@ -17,6 +17,7 @@ mod cli_photos;
 mod cli_probe;
 mod cli_radiometry_detect;
 mod cli_render;
+mod cli_sky;
 mod cli_slf;
 mod cli_solve;
 mod cli_view;

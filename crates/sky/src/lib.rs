@@ -23,6 +23,7 @@ mod cie_data;
 mod hosek_data;
 
 pub mod hosek;
+pub mod job;
 pub mod model;
 pub mod overcast;
 pub mod sun;
