@@ -13,6 +13,8 @@
 //! - [`model`]: the sky as the lighting estimation uses it: [`Sky`] (turbidity, ground albedo,
 //!   sun direction) gives the radiance in a world direction, a lat-long map in igi's
 //!   convention and the sun's disk ([`SunDisk`]) as a lighting file's `[sun]`.
+//! - [`job`]: `igi sky`'s job, a lighting file (sky map + `[sun]`) for a survey's site or a
+//!   given place at an RFC 3339 time ([`job::write_sky`]).
 //!
 //! docs/SKY.md describes the models, their data, units and checks. The joint estimation of the
 //! light with the albedo is the next part of the issue.
