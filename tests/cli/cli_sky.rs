@@ -187,3 +187,39 @@ fn bad_input_is_refused_naming_the_option_and_nothing_is_written() {
         assert!(left.is_empty(), "{args:?} left {left:?}");
     }
 }
+
+#[test]
+fn igi_render_relights_a_result_with_the_written_sky() {
+    let dir = tempfile::tempdir().unwrap();
+    let light = dir.path().join("evening.toml");
+    let o = igi(&[
+        "sky",
+        "--site",
+        "48.85,2.35",
+        "--time",
+        TIME,
+        "--width",
+        "64",
+        "-o",
+        s(&light),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let fx = Path::new(env!("CARGO_MANIFEST_DIR")).join("datasets/fixtures");
+    let out = dir.path().join("render.exr");
+    let o = igi(&[
+        "render",
+        s(&fx.join("export/result")),
+        "--lighting",
+        s(&light),
+        "--camera",
+        s(&fx.join("outdoor/camera.json")),
+        "--spp",
+        "2",
+        "-o",
+        s(&out),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let img = igi_imaging::read_image(&out).unwrap();
+    let mean: f64 = img.pixels.iter().map(|p| p[1] as f64).sum::<f64>() / img.pixels.len() as f64;
+    assert!(mean.is_finite() && mean > 0.0, "mean green {mean}");
+}
