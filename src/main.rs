@@ -70,7 +70,7 @@ enum Command {
     /// sun, albedo alone; the first line of output is its URL.
     View(cmd::view::ViewArgs),
     /// The lighting file of a place and time: sun position (NREL SPA) and Hosek-Wilkie clear
-    /// sky, or the CIE overcast sky, as a lat-long map and [sun].
+    /// sky, or the CIE overcast sky, as a lat-long map and `[sun]`.
     Sky(cmd::sky::SkyArgs),
 }
 

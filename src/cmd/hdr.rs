@@ -42,7 +42,7 @@ pub struct MergeArgs {
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Write the recovered response g(z) = ln exposure as CSV (z,g_r,g_g,g_b). A survey's
-    /// `response = FILE` (per photo or under [radiometry]) makes 8-bit photos of this camera
+    /// `response = FILE` (per photo or under `[radiometry]`) makes 8-bit photos of this camera
     /// linear through it (docs/IMAGING.md, "Linearising photographs").
     #[arg(long)]
     response_out: Option<PathBuf>,

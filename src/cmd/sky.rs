@@ -6,11 +6,11 @@ use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
 pub struct SkyArgs {
-    /// The survey folder (or its survey.toml) whose [site] gives latitude_deg, longitude_deg
+    /// The survey folder (or its survey.toml) whose `[site]` gives latitude_deg, longitude_deg
     /// and north.
     #[arg(long, required_unless_present = "site", conflicts_with = "site")]
     survey: Option<PathBuf>,
-    /// The site directly: LAT,LON[,NORTH_DEG] (degrees, north and east positive; NORTH_DEG:
+    /// The site directly: `LAT,LON[,NORTH_DEG]` (degrees, north and east positive; NORTH_DEG:
     /// true north as world direction (sin a, cos a, 0), clockwise from +Y seen from above,
     /// default 0).
     #[arg(long, value_parser = parse_site, allow_hyphen_values = true)]
@@ -38,7 +38,8 @@ pub struct SkyArgs {
     /// Print a JSON summary on stdout.
     #[arg(long)]
     json: bool,
-    /// The lighting file (.toml); the sky map is written beside it as <stem>.exr.
+    /// The lighting file (.toml); the sky map is written beside it as `STEM.exr` (STEM: the
+    /// file's name without `.toml`).
     #[arg(short, long)]
     output: PathBuf,
 }
