@@ -141,7 +141,7 @@ pub(crate) fn check(result_dir: &Path, out: &Path) -> Result<OutPlan, ExportErro
         out: out.to_path_buf(),
         staging: parent.join(format!(
             ".{name}.igi-export-{}-{}.partial",
-            igi_files::atomic::this_host(),
+            igi_files::host::this_host(),
             std::process::id()
         )),
         earlier,

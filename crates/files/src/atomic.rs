@@ -1,6 +1,7 @@
 //! Atomic file writing (a temporary file in the same folder, renamed into place) and the
 //! cleanup of the temporary files of killed writers.
 
+use crate::host::{safe_name_part, this_host};
 use crate::FilesError;
 use std::path::{Path, PathBuf};
 
@@ -19,7 +20,7 @@ pub fn write_atomic<E: From<FilesError>>(
         .ok_or_else(|| FilesError::NotAFilePath(path.to_path_buf()))?
         .to_string_lossy()
         .into_owned();
-    crate::folder::check_folder_path(&dir)?;
+    check_folder_path(&dir)?;
     // Keep the extension last so extension-sniffing writers still work.
     static COUNTER: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
     let n = COUNTER.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
@@ -52,32 +53,6 @@ pub fn write_atomic<E: From<FilesError>>(
             Err(e)
         }
     }
-}
-
-/// This machine's host name, reduced to letters, digits and `-` (it goes into temporary names,
-/// so that writers on several hosts of a shared file system never collide).
-pub fn this_host() -> String {
-    let h = std::fs::read_to_string("/proc/sys/kernel/hostname")
-        .or_else(|_| std::env::var("HOSTNAME"))
-        .unwrap_or_default();
-    let h = safe_name_part(h.trim());
-    if h.is_empty() {
-        "host".into()
-    } else {
-        h
-    }
-}
-
-fn safe_name_part(s: &str) -> String {
-    s.chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || c == '-' {
-                c
-            } else {
-                'x'
-            }
-        })
-        .collect()
 }
 
 /// Flushes a finished temporary file to stable storage before it is renamed into place, when
@@ -165,6 +140,35 @@ fn ext_of(path: &Path) -> String {
     path.extension()
         .map(|e| e.to_string_lossy().to_lowercase())
         .unwrap_or_default()
+}
+
+/// The folder a file is written into must exist and be a folder.
+pub(crate) fn check_folder_path(dir: &Path) -> Result<(), FilesError> {
+    if dir.is_dir() {
+        return Ok(());
+    }
+    let mut at = dir;
+    while let Some(p) = at.parent() {
+        if p.as_os_str().is_empty() {
+            break;
+        }
+        if p.exists() && !p.is_dir() {
+            return Err(FilesError::NotAFolder {
+                path: p.to_path_buf(),
+                wanted: dir.to_path_buf(),
+            });
+        }
+        at = p;
+    }
+    if dir.exists() {
+        return Err(FilesError::NotAFolder {
+            path: dir.to_path_buf(),
+            wanted: dir.to_path_buf(),
+        });
+    }
+    Err(FilesError::NoFolder {
+        path: dir.to_path_buf(),
+    })
 }
 
 #[cfg(test)]

@@ -70,40 +70,11 @@ pub fn check_output_file(path: &Path) -> Result<(), FilesError> {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),
     };
-    check_folder_path(&dir)?;
+    crate::atomic::check_folder_path(&dir)?;
     if path.is_dir() {
         return Err(FilesError::IsAFolder(path.to_path_buf()));
     }
     check_output_folder(&dir)
-}
-
-/// The folder a file is written into must exist and be a folder.
-pub(crate) fn check_folder_path(dir: &Path) -> Result<(), FilesError> {
-    if dir.is_dir() {
-        return Ok(());
-    }
-    let mut at = dir;
-    while let Some(p) = at.parent() {
-        if p.as_os_str().is_empty() {
-            break;
-        }
-        if p.exists() && !p.is_dir() {
-            return Err(FilesError::NotAFolder {
-                path: p.to_path_buf(),
-                wanted: dir.to_path_buf(),
-            });
-        }
-        at = p;
-    }
-    if dir.exists() {
-        return Err(FilesError::NotAFolder {
-            path: dir.to_path_buf(),
-            wanted: dir.to_path_buf(),
-        });
-    }
-    Err(FilesError::NoFolder {
-        path: dir.to_path_buf(),
-    })
 }
 
 /// Refuses, before any work, two outputs that name one file, or an output that names one of the
@@ -174,7 +145,7 @@ impl Staging {
     /// cannot be written is found here.
     pub fn begin(out: &Path) -> Result<Staging, FilesError> {
         let (parent, name) = parent_and_name(out)?;
-        check_folder_path(&parent)?;
+        crate::atomic::check_folder_path(&parent)?;
         check_output_folder(&parent)?;
         if out.exists() && !out.is_dir() {
             return Err(FilesError::NotAFolder {
@@ -188,7 +159,7 @@ impl Staging {
         let tmp = parent.join(format!(
             ".{name}.partial-{}_{}",
             std::process::id(),
-            crate::atomic::this_host()
+            crate::host::this_host()
         ));
         if tmp.exists() {
             std::fs::remove_dir_all(&tmp).map_err(|e| FilesError::io(&tmp, e))?;
@@ -280,7 +251,7 @@ pub fn remove_dead_staging(parent: &Path, name: &str) -> Result<usize, FilesErro
         let Ok(pid) = pid.parse::<u32>() else {
             continue;
         };
-        let elsewhere = host.is_some_and(|h| h != crate::atomic::this_host());
+        let elsewhere = host.is_some_and(|h| h != crate::host::this_host());
         let alive = elsewhere
             || pid == std::process::id()
             || Path::new("/proc").join(pid.to_string()).exists();
@@ -336,7 +307,7 @@ mod tests {
         let dead = tmp.path().join(".hull.partial-4194305");
         let dead_new = tmp.path().join(format!(
             ".hull.partial-4194305_{}",
-            crate::atomic::this_host()
+            crate::host::this_host()
         ));
         let remote = tmp.path().join(".hull.partial-4194305_elsewhere-node7");
         for d in [&dead, &dead_new, &remote] {

@@ -11,6 +11,8 @@
 //!   [`check_distinct`]: no two outputs, and no output and input, naming one file), and
 //!   [`Staging`]: a whole folder written beside its output and renamed into place, under the
 //!   lock, with per-process staging names and dead ones removed.
+//! * [`host`]: this machine's name as temporary and staging names carry it ([`host::this_host`]),
+//!   so writers on several hosts of a shared file system never collide.
 //! * [`memory`]: every size-driven allocation estimated and refused above a limit before it
 //!   happens ([`check_alloc`], [`max_alloc`]: 8 GiB or `IGI_MAX_MEMORY`).
 //! * [`run`]: run manifests (`run.json`: input fingerprints and result-changing options, so a
@@ -20,6 +22,7 @@
 
 pub mod atomic;
 pub mod folder;
+pub mod host;
 pub mod memory;
 pub mod run;
 

@@ -111,7 +111,7 @@ impl FolderLock {
         let holder = format!(
             "process {} on host {}",
             std::process::id(),
-            crate::atomic::this_host()
+            crate::host::this_host()
         );
         file.set_len(0)
             .and_then(|()| file.write_all(holder.as_bytes()))
