@@ -111,6 +111,7 @@ impl SolveResult {
                 converged: false,
                 site,
                 pending: None,
+                lighting: None,
             },
             changed,
             basis: None,

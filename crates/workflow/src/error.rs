@@ -54,6 +54,9 @@ pub enum WorkflowError {
     Render(#[from] igi_render::RenderError),
     #[error(transparent)]
     Brdf(#[from] igi_brdf::BrdfError),
+    /// The sun or sky model of a photo whose light is estimated.
+    #[error(transparent)]
+    Sky(#[from] igi_sky::SkyError),
     #[error(transparent)]
     Probe(Box<igi_probe::ProbeError>),
     /// The demo's synthetic survey could not be made.

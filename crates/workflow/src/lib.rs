@@ -12,6 +12,10 @@
 //!   light comes from ([`LightingSource`]: a lighting file, or a probe capture processed as
 //!   `igi probe` does), decided once, here; photographs loaded into the solver's
 //!   [`igi_reflect::Photo`]; the BRDF basis fitted from the survey's samples.
+//! - [`lightfit`]: lighting without probes (issue 34): a photo with a time and no lighting
+//!   lit by the SPA sun and a Hosek-Wilkie / CIE overcast sky whose scales and turbidity are
+//!   fitted to the photographs, alternating with the albedo solve; the global scale from
+//!   `[[reference]]` targets.
 //! - [`session`]: the resume rule of a result folder: the run manifest (`run.json`), the
 //!   folder lock, `--restart`.
 //! - [`mod@solve`]: `igi solve` as one job ([`SolveRequest`] -> [`SolveJob`] -> result), and the
@@ -24,6 +28,7 @@
 
 pub mod demo;
 mod error;
+pub mod lightfit;
 pub mod render;
 pub mod session;
 pub mod solve;

@@ -245,6 +245,8 @@ fn run_manifest(survey: &Survey, opts: &SolveOptions) -> Result<RunManifest, Wor
                 m.input(&format!("photo {} probe camera", p.id), camera)?;
                 m.input(&format!("photo {} probe board", p.id), board)?;
             }
+            // its time and the site are in the survey file
+            LightingSource::Estimated(_) => {}
         }
     }
     if let Some(p) = &survey.brdf_samples {

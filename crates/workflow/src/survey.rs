@@ -22,6 +22,10 @@ pub enum LightingSource {
         camera: PathBuf,
         board: PathBuf,
     },
+    /// No lighting file: the sun of the photo's time at the site and a sky estimated with the
+    /// albedo (`crate::lightfit`), starting from the Hosek-Wilkie sky of turbidity
+    /// `lightfit::DEFAULT_TURBIDITY`.
+    Estimated(crate::lightfit::SkyPhoto),
 }
 
 /// One photograph as listed in `survey.toml` (paths resolved against the survey folder).
@@ -130,6 +134,7 @@ impl Survey {
         let paths = SurveyPaths {
             root: &root,
             file: &file,
+            site: &f.site,
         };
         let (meshes, prepared) = paths.site(&f.site)?;
         if f.photo.is_empty() {
@@ -161,6 +166,7 @@ impl Survey {
             photos.push(paths.photo(p, &default_radiometry, &survey_response)?);
             check_radiometry_size(photos.last().expect("just pushed"))?;
         }
+        check_references_seen(&file, &f.reference, &photos)?;
         let brdf_samples = match &f.brdf {
             Some(b) => Some(paths.existing(&b.samples, "BRDF samples")?),
             None => None,
@@ -184,6 +190,8 @@ struct SurveyPaths<'a> {
     root: &'a Path,
     /// The survey file (named in errors).
     file: &'a Path,
+    /// `[site]`: its location lights the photos without lighting files.
+    site: &'a igi_formats::survey::SiteSection,
 }
 
 impl SurveyPaths<'_> {
@@ -307,20 +315,93 @@ impl SurveyPaths<'_> {
                 camera: self.existing(&b.camera, &format!("photo `{id}` probe camera"))?,
                 board: self.existing(&b.board, &format!("photo `{id}` probe board"))?,
             }),
-            (None, None) if p.time.is_some() => Err(WorkflowError::file(
-                self.file,
-                format!(
-                    "photo `{id}` has a `time` but no `lighting`: estimating a photo's light from its time and the site's location is not implemented yet; give it `lighting = ...` or a [photo.probe] capture"
-                ),
-            )),
+            (None, None) => self.estimated(p),
             _ => Err(WorkflowError::file(
                 self.file,
                 format!(
-                    "photo `{id}` needs exactly one of `lighting = ...` and a [photo.probe] capture"
+                    "photo `{id}` has both `lighting = ...` and a [photo.probe] capture: give one"
                 ),
             )),
         }
     }
+}
+
+impl SurveyPaths<'_> {
+    /// A photo without lighting file or probe: lit by the sun of its time at the site's
+    /// location, with the sky estimated. Needs its `time` and `[site] latitude_deg` /
+    /// `longitude_deg`, and the sun above the horizon then.
+    fn estimated(
+        &self,
+        p: &igi_formats::survey::PhotoEntry,
+    ) -> Result<LightingSource, WorkflowError> {
+        let id = &p.id;
+        let Some(time) = p.photo_time().and_then(Result::ok) else {
+            return Err(WorkflowError::file(
+                self.file,
+                format!(
+                    "photo `{id}` has no `lighting`, no [photo.probe] and no `time`: give it a lighting file, a probe capture, or the time it was taken (RFC 3339 with its UTC offset) so that its light can be estimated"
+                ),
+            ));
+        };
+        let Some((latitude_deg, longitude_deg)) = self.site.location() else {
+            return Err(WorkflowError::file(
+                self.file,
+                format!(
+                    "photo `{id}` has no `lighting`, so its light is estimated from its time and the site's location, but [site] has no `latitude_deg` and `longitude_deg`"
+                ),
+            ));
+        };
+        let site = crate::lightfit::SiteLocation {
+            latitude_deg,
+            longitude_deg,
+            north: self.site.north_or_default(),
+        };
+        match crate::lightfit::SkyPhoto::new(time, site)? {
+            Ok(sky) => Ok(LightingSource::Estimated(sky)),
+            Err(elevation) => Err(WorkflowError::file(
+                self.file,
+                format!(
+                    "photo `{id}`: at its `time` {} the sun stands {:.2} deg below the horizon at the site; the estimated sky (Hosek-Wilkie) needs the sun up: give this photo a lighting file",
+                    p.time.as_deref().unwrap_or(""),
+                    -elevation
+                ),
+            )),
+        }
+    }
+}
+
+/// Every `[[reference]]` target is in front of some photo's camera, its centre inside the
+/// frame (occlusion is not checked here: a target hidden behind the site is found unseen after
+/// the first iteration and leaves the scale unfixed, as the report says).
+fn check_references_seen(
+    file: &Path,
+    references: &[igi_formats::survey::ReferenceTarget],
+    photos: &[PhotoSpec],
+) -> Result<(), WorkflowError> {
+    if references.is_empty() {
+        return Ok(());
+    }
+    let cameras = photos
+        .iter()
+        .map(|p| Camera::load(&p.camera))
+        .collect::<Result<Vec<_>, _>>()?;
+    for (i, r) in references.iter().enumerate() {
+        let c = glam::DVec3::from_array(r.center);
+        let seen = cameras
+            .iter()
+            .any(|cam| cam.project(c).is_some_and(|q| cam.in_frame(q)));
+        if !seen {
+            return Err(WorkflowError::file(
+                file,
+                format!(
+                    "[[reference]] {} (center {:?}): no photo sees it (its centre is outside every photo's frame); move it, or remove it",
+                    i + 1,
+                    r.center
+                ),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// Checks that a camera radiometry file reads (so that a bad one fails before any work).
@@ -382,6 +463,9 @@ impl PhotoSpec {
                 camera,
                 board,
             } => self.probe_lighting(image, camera, board)?,
+            LightingSource::Estimated(sky) => {
+                sky.lighting(&crate::lightfit::SkyParams::default())?
+            }
         };
         Ok(Photo {
             id: self.id.clone(),

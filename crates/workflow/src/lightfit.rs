@@ -1,0 +1,844 @@
+//! Lighting without probes (issue 34, docs/SKY.md "Lighting estimated with the albedo"): a
+//! photo with a `time` and no lighting file is lit by the sun of its time and place (NREL SPA
+//! through `igi_sky::sun`) and a physical sky whose parameters are fitted to the photographs,
+//! alternating with the albedo solve.
+//!
+//! The sky of a photo is
+//!
+//! ```text
+//! L = sun_scale * HW_sun(T) + sky_scale * HW_sky(T) + overcast_scale * CIE_overcast(1)
+//! ```
+//!
+//! with `HW_sun(T)` and `HW_sky(T)` the Hosek-Wilkie sun disk and clear sky of turbidity `T`
+//! (ground albedo [`GROUND_ALBEDO`]) toward the SPA sun, and `CIE_overcast(1)` the CIE overcast
+//! sky of unit zenith radiance. With the albedo fixed, a photograph is linear in the three
+//! scales: each photo's scene (the current albedo) is path-traced under each basis light once
+//! (the sun as a white disk of unit radiance, then coloured per turbidity; the clear sky per
+//! turbidity; the overcast sky), and the scales are the non-negative weighted least-squares
+//! fit of the photograph's pixels that see the site, with relative weights (each pixel's
+//! residual divided by its value). The turbidity is the grid value with the smallest residual
+//! ([`FitOptions::turbidities`]). Uncertainties are the least-squares standard errors (the
+//! residual variance times the inverse normal matrix), which treat pixels as independent.
+//!
+//! The global scale: the product of albedo and light is fixed by the photographs, one factor
+//! is not. With `[[reference]]` targets (discs of known diffuse albedo) the albedo over the
+//! seen texels of each disc fixes it ([`apply_gauge`]); without one, the scales are normalised
+//! so that the mean sun scale of the photos with sun is 1 (the model's clear-sky sun), and the
+//! result says that its albedo is known only up to one scale.
+
+use crate::WorkflowError;
+use glam::{DVec3, Vec3};
+use igi_camera::Camera;
+use igi_formats::lighting::{EnvironmentSection, LightingFile};
+use igi_formats::survey::ReferenceTarget;
+use igi_formats::{PhotoTime, TomlFile};
+use igi_imaging::HdrImage;
+use igi_reflect::SolveResult;
+use igi_render::lighting::{Environment, Sun};
+use igi_render::{render_image, Lighting, RenderOptions, Scene};
+use igi_sky::{sun_direction, sun_position, CieOvercast, Refraction, Sky, SunPosition};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// The turbidity a photo's sky starts from (and keeps when not fitted).
+pub const DEFAULT_TURBIDITY: f64 = 3.0;
+/// The Hosek-Wilkie sky's ground albedo (every channel).
+pub const GROUND_ALBEDO: f64 = 0.2;
+/// Width of the lat-long sky maps (height half).
+pub const MAP_WIDTH: usize = 256;
+
+/// A site's location and north, checked (`[site]`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SiteLocation {
+    pub latitude_deg: f64,
+    pub longitude_deg: f64,
+    /// The world direction of true north (horizontal).
+    pub north: [f64; 3],
+}
+
+/// A photo whose light is estimated: its time at the site.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SkyPhoto {
+    pub time: PhotoTime,
+    pub site: SiteLocation,
+    /// The sun's topocentric position (SPA, standard refraction).
+    pub position: SunPosition,
+    /// The unit world direction toward the sun.
+    pub sun: [f64; 3],
+}
+
+impl SkyPhoto {
+    /// The sun of `time` at `site`; `None` (with the elevation) when it stands below the
+    /// horizon, where the Hosek-Wilkie sky does not hold.
+    pub fn new(
+        time: PhotoTime,
+        site: SiteLocation,
+    ) -> Result<Result<SkyPhoto, f64>, WorkflowError> {
+        let position = sun_position(
+            &time,
+            site.latitude_deg,
+            site.longitude_deg,
+            0.0,
+            Refraction::STANDARD,
+        )?;
+        if position.elevation_deg() < 0.0 {
+            return Ok(Err(position.elevation_deg()));
+        }
+        let sun = sun_direction(position, site.north)?.to_array();
+        Ok(Ok(SkyPhoto {
+            time,
+            site,
+            position,
+            sun,
+        }))
+    }
+
+    fn clear_sky(&self, turbidity: f64) -> Result<Sky, WorkflowError> {
+        Ok(Sky::new(
+            turbidity,
+            [GROUND_ALBEDO; 3],
+            DVec3::from_array(self.sun),
+        )?)
+    }
+
+    /// The lighting of `params`.
+    pub fn lighting(&self, params: &SkyParams) -> Result<Lighting, WorkflowError> {
+        let (map, sun) = self.map_and_sun(params)?;
+        let environment = Some(Environment::from_image(&map, 1.0)?);
+        let sun = match sun {
+            Some(s) => Some(Sun::new(
+                Vec3::from_array(s.direction.map(|x| x as f32)),
+                Vec3::from_array(s.radiance.map(|x| x as f32)),
+                s.angular_diameter_deg as f32,
+            )?),
+            None => None,
+        };
+        Ok(Lighting { environment, sun })
+    }
+
+    /// The sky map and the sun's section of `params`.
+    fn map_and_sun(
+        &self,
+        params: &SkyParams,
+    ) -> Result<(HdrImage, Option<igi_formats::lighting::SunSection>), WorkflowError> {
+        let sky = self.clear_sky(params.turbidity)?;
+        let (w, h) = (MAP_WIDTH, MAP_WIDTH / 2);
+        let mut map = sky.latlong(w, h)?;
+        let overcast = CieOvercast::new([1.0; 3])?.latlong(w, h)?;
+        for (p, o) in map.pixels.iter_mut().zip(&overcast.pixels) {
+            for c in 0..3 {
+                p[c] =
+                    (params.sky_scale * p[c] as f64 + params.overcast_scale * o[c] as f64) as f32;
+            }
+        }
+        let sun = (params.sun_scale > 0.0).then(|| {
+            let mut s = sky.sun_disk().to_section();
+            s.radiance = s.radiance.map(|r| r * params.sun_scale);
+            s
+        });
+        Ok((map, sun))
+    }
+
+    /// Writes the lighting of `params` as a contract lighting file `dir/ID.toml` with its map
+    /// `dir/ID.exr` (each atomically).
+    pub fn write_lighting(
+        &self,
+        dir: &Path,
+        id: &str,
+        params: &SkyParams,
+    ) -> Result<(), WorkflowError> {
+        let (map, sun) = self.map_and_sun(params)?;
+        let map_name = format!("{id}.exr");
+        igi_imaging::io::write_exr(&dir.join(&map_name), &map)?;
+        let file = LightingFile {
+            environment: Some(EnvironmentSection {
+                map: map_name.into(),
+                scale: 1.0,
+            }),
+            sun,
+        };
+        let header = format!(
+            "estimated by igi solve for photo {id} at {}: Hosek-Wilkie turbidity {:.3}, sun scale {:.6}, sky scale {:.6}, CIE overcast zenith {:.6}; sun azimuth {:.4} deg, elevation {:.4} deg",
+            self.time.to_rfc3339(),
+            params.turbidity,
+            params.sun_scale,
+            params.sky_scale,
+            params.overcast_scale,
+            self.position.azimuth_deg,
+            self.position.elevation_deg()
+        );
+        file.write(&dir.join(format!("{id}.toml")), &[&header])?;
+        Ok(())
+    }
+}
+
+/// The sky parameters of one photo.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SkyParams {
+    /// Hosek-Wilkie turbidity (1-10).
+    pub turbidity: f64,
+    /// The sun disk's radiance over the model's (transmission through cloud and haze).
+    pub sun_scale: f64,
+    /// The clear sky's radiance over the model's.
+    pub sky_scale: f64,
+    /// The zenith radiance of an added CIE overcast sky.
+    pub overcast_scale: f64,
+}
+
+impl Default for SkyParams {
+    fn default() -> Self {
+        SkyParams {
+            turbidity: DEFAULT_TURBIDITY,
+            sun_scale: 1.0,
+            sky_scale: 1.0,
+            overcast_scale: 0.0,
+        }
+    }
+}
+
+/// How the scales are fitted.
+#[derive(Clone, Debug)]
+pub struct FitOptions {
+    /// Samples per pixel of each basis render (stratified).
+    pub spp: u32,
+    /// Indirect bounces of the basis renders (the solve's).
+    pub indirect: u32,
+    /// The turbidities tried (each costs one render of the clear sky per photo).
+    pub turbidities: Vec<f64>,
+    /// Fit an added CIE overcast sky.
+    pub overcast: bool,
+    pub seed: u64,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        FitOptions {
+            spp: 32,
+            indirect: 2,
+            turbidities: vec![2.0, 3.0, 4.5],
+            overcast: true,
+            seed: 34,
+        }
+    }
+}
+
+/// One photo's fitted sky.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PhotoFit {
+    pub photo: String,
+    pub time: String,
+    pub sun_azimuth_deg: f64,
+    pub sun_elevation_deg: f64,
+    pub sun_direction: [f64; 3],
+    pub params: SkyParams,
+    /// Standard errors of `params` (the turbidity's from the curvature of the residual over
+    /// the grid, 0 when the grid has one value or the minimum lies on its edge).
+    pub stderr: SkyParams,
+    /// Pixels used (valid and seeing the site).
+    pub pixels: usize,
+    /// RMS of the relative residual at the fit.
+    pub relative_rms: f64,
+}
+
+/// The record of the estimation in `report.json` (`lighting`).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct LightingRecord {
+    /// Whether `[[reference]]` targets fixed the global scale; otherwise the albedo (and every
+    /// scale) is known only up to one factor.
+    pub absolute_scale: bool,
+    /// The factor the last gauge step multiplied the fitted light scales by (and divided the
+    /// albedo by): the reference's albedo over the solved one, or without a reference the one
+    /// that made the mean sun scale 1.
+    pub gauge: f64,
+    /// The reference targets' solved albedo over their known albedo before the gauge (one
+    /// value per target seen).
+    pub reference_ratio: Vec<f64>,
+    /// Rounds of lighting estimation done (one after each albedo iteration).
+    pub rounds: u32,
+    pub photos: Vec<PhotoFit>,
+}
+
+/// Per photo of `survey` (its order): the sun and site of a photo whose light is estimated.
+pub fn estimated_photos(survey: &crate::Survey) -> Vec<Option<SkyPhoto>> {
+    survey
+        .photos
+        .iter()
+        .map(|p| match &p.lighting {
+            crate::LightingSource::Estimated(s) => Some(s.clone()),
+            _ => None,
+        })
+        .collect()
+}
+
+/// The scene a fit renders: the parts with the current albedo.
+pub fn scene_of(state: &SolveResult) -> Result<Scene, WorkflowError> {
+    Ok(igi_reflect::truth::scene_with_albedo(
+        &state.parts,
+        &state.rho,
+    )?)
+}
+
+/// The photograph's pixels the fit uses: valid, and seeing the site (a pixel-centre ray hits
+/// the scene).
+fn site_pixels(scene: &Scene, image: &HdrImage, camera: &Camera) -> Vec<usize> {
+    (0..image.pixels.len())
+        .filter(|&i| {
+            if !image.valid[i] {
+                return false;
+            }
+            let (x, y) = ((i % image.width) as f64, (i / image.width) as f64);
+            let (o, d) = camera.pixel_ray(x, y);
+            scene.intersect(o.as_vec3(), d.as_vec3()).is_some()
+        })
+        .collect()
+}
+
+fn render(
+    scene: &Scene,
+    lighting: &Lighting,
+    camera: &Camera,
+    opts: &FitOptions,
+    salt: u64,
+) -> Result<HdrImage, WorkflowError> {
+    let ro = RenderOptions {
+        spp: opts.spp,
+        seed: opts.seed.wrapping_mul(1_000_003).wrapping_add(salt),
+        indirect: opts.indirect,
+        russian_roulette: false,
+        stratified: true,
+        adaptive: false,
+    };
+    Ok(render_image(scene, lighting, camera, &ro, &|_| {})
+        .map_err(|e| WorkflowError::Rendering {
+            path: Path::new("(lighting estimation)").to_path_buf(),
+            source: Box::new(e),
+        })?
+        .mean)
+}
+
+/// Fits one photo's sky to its photograph with the albedo of `scene` fixed.
+pub fn fit_photo(
+    scene: &Scene,
+    id: &str,
+    image: &HdrImage,
+    camera: &Camera,
+    sky: &SkyPhoto,
+    opts: &FitOptions,
+    index: u64,
+) -> Result<PhotoFit, WorkflowError> {
+    let pixels = site_pixels(scene, image, camera);
+    let sun_dir = Vec3::from_array(sky.sun.map(|x| x as f32));
+    let diameter = 2.0 * igi_sky::SUN_ANGULAR_RADIUS_DEG as f32;
+    let white_sun = Lighting {
+        environment: None,
+        sun: Some(Sun::new(sun_dir, Vec3::ONE, diameter)?),
+    };
+    let r_sun = render(scene, &white_sun, camera, opts, index * 64)?;
+    let (w, h) = (MAP_WIDTH, MAP_WIDTH / 2);
+    let r_ovc = if opts.overcast {
+        let map = CieOvercast::new([1.0; 3])?.latlong(w, h)?;
+        let l = Lighting {
+            environment: Some(Environment::from_image(&map, 1.0)?),
+            sun: None,
+        };
+        Some(render(scene, &l, camera, opts, index * 64 + 1)?)
+    } else {
+        None
+    };
+    let obs: Vec<[f64; 3]> = pixels
+        .iter()
+        .map(|&i| image.pixels[i].map(|c| c as f64))
+        .collect();
+    let mean =
+        obs.iter().map(|p| p.iter().sum::<f64>()).sum::<f64>() / (3 * obs.len().max(1)) as f64;
+    let floor = (0.05 * mean).max(1e-12);
+    let mut best: Option<Candidate> = None;
+    let mut curve = Vec::new();
+    for (k, &t) in opts.turbidities.iter().enumerate() {
+        let clear = sky.clear_sky(t)?;
+        let sun_rad = clear.sun_disk().radiance;
+        let map = clear.latlong(w, h)?;
+        let l = Lighting {
+            environment: Some(Environment::from_image(&map, 1.0)?),
+            sun: None,
+        };
+        let r_sky = render(scene, &l, camera, opts, index * 64 + 2 + k as u64)?;
+        // normal equations over pixels and channels, relative weights
+        let nb = if r_ovc.is_some() { 3 } else { 2 };
+        let mut ata = [[0.0f64; 3]; 3];
+        let mut atb = [0.0f64; 3];
+        let mut btb = 0.0;
+        for (j, &i) in pixels.iter().enumerate() {
+            for c in 0..3 {
+                let b = obs[j][c];
+                let wt = 1.0 / b.max(floor).powi(2);
+                let a = [
+                    r_sun.pixels[i][c] as f64 * sun_rad[c],
+                    r_sky.pixels[i][c] as f64,
+                    r_ovc.as_ref().map_or(0.0, |r| r.pixels[i][c] as f64),
+                ];
+                for p in 0..nb {
+                    atb[p] += wt * a[p] * b;
+                    for q in 0..nb {
+                        ata[p][q] += wt * a[p] * a[q];
+                    }
+                }
+                btb += wt * b * b;
+            }
+        }
+        let (x, sse, active) = nnls3(&ata, &atb, btb, nb);
+        curve.push((t, sse));
+        let n = 3 * pixels.len();
+        if best.as_ref().is_none_or(|b| sse < b.sse) {
+            best = Some(Candidate {
+                turbidity: t,
+                sse,
+                x,
+                cov: covariance(&ata, &active),
+                n,
+            });
+        }
+    }
+    let Candidate {
+        turbidity: t,
+        sse,
+        x,
+        cov,
+        n,
+    } = best.ok_or_else(|| {
+        WorkflowError::Arguments("lighting estimation: no turbidity to try".into())
+    })?;
+    let dof = n.saturating_sub(3).max(1) as f64;
+    let s2 = sse / dof;
+    let se = |k: usize| (s2 * cov[k][k]).max(0.0).sqrt();
+    let t_se = turbidity_stderr(&curve, t, s2);
+    Ok(PhotoFit {
+        photo: id.to_string(),
+        time: sky.time.to_rfc3339(),
+        sun_azimuth_deg: sky.position.azimuth_deg,
+        sun_elevation_deg: sky.position.elevation_deg(),
+        sun_direction: sky.sun,
+        params: SkyParams {
+            turbidity: t,
+            sun_scale: x[0],
+            sky_scale: x[1],
+            overcast_scale: x[2],
+        },
+        stderr: SkyParams {
+            turbidity: t_se,
+            sun_scale: se(0),
+            sky_scale: se(1),
+            overcast_scale: se(2),
+        },
+        pixels: pixels.len(),
+        relative_rms: (sse / n.max(1) as f64).sqrt(),
+    })
+}
+
+/// The best fit so far over the turbidity grid.
+struct Candidate {
+    turbidity: f64,
+    /// Weighted sum of squared residuals.
+    sse: f64,
+    x: [f64; 3],
+    /// Inverse normal matrix on the active set.
+    cov: [[f64; 3]; 3],
+    /// Residuals (pixels x channels).
+    n: usize,
+}
+
+/// The standard error of the turbidity from a parabola through the residuals at the grid
+/// minimum and its neighbours (`sse(T) ~ sse_min + (T - T0)^2 / (2 sigma^2 var_T)`); 0 on the
+/// grid's edge.
+fn turbidity_stderr(curve: &[(f64, f64)], t: f64, s2: f64) -> f64 {
+    let Some(k) = curve.iter().position(|c| c.0 == t) else {
+        return 0.0;
+    };
+    if k == 0 || k + 1 >= curve.len() {
+        return 0.0;
+    }
+    let (x0, y0) = curve[k - 1];
+    let (x1, y1) = curve[k];
+    let (x2, y2) = curve[k + 1];
+    // second derivative of the parabola through three points
+    let d2 = 2.0 * ((y2 - y1) / (x2 - x1) - (y1 - y0) / (x1 - x0)) / (x2 - x0);
+    if d2 > 0.0 {
+        (2.0 * s2 / d2).sqrt()
+    } else {
+        0.0
+    }
+}
+
+/// Solves `ata x = atb` restricted to the set `active` (others zero).
+fn solve_subset(ata: &[[f64; 3]; 3], atb: &[f64; 3], active: &[usize]) -> Option<[f64; 3]> {
+    let m = active.len();
+    let mut a = [[0.0f64; 4]; 3];
+    for (r, &p) in active.iter().enumerate() {
+        for (c, &q) in active.iter().enumerate() {
+            a[r][c] = ata[p][q];
+        }
+        a[r][m] = atb[p];
+    }
+    // Gauss-Jordan with partial pivoting
+    for col in 0..m {
+        let piv = (col..m).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))?;
+        if a[piv][col].abs() < 1e-300 {
+            return None;
+        }
+        a.swap(col, piv);
+        for r in 0..m {
+            if r != col {
+                let f = a[r][col] / a[col][col];
+                for c in col..=m {
+                    a[r][c] -= f * a[col][c];
+                }
+            }
+        }
+    }
+    let mut x = [0.0; 3];
+    for (r, &p) in active.iter().enumerate() {
+        x[p] = a[r][m] / a[r][r];
+    }
+    x.iter().all(|v| v.is_finite()).then_some(x)
+}
+
+/// Non-negative least squares of `nb` (at most 3) unknowns from the normal equations, by trying
+/// every subset: `(x, sum of squared residuals, active set)`.
+fn nnls3(ata: &[[f64; 3]; 3], atb: &[f64; 3], btb: f64, nb: usize) -> ([f64; 3], f64, Vec<usize>) {
+    let mut best = ([0.0; 3], btb, Vec::new());
+    for mask in 1u32..(1 << nb) {
+        let active: Vec<usize> = (0..nb).filter(|&p| mask & (1 << p) != 0).collect();
+        let Some(x) = solve_subset(ata, atb, &active) else {
+            continue;
+        };
+        if active.iter().any(|&p| x[p] < 0.0) {
+            continue;
+        }
+        // sse = b'b - 2 x'A'b + x'A'A x
+        let mut sse = btb;
+        for p in 0..3 {
+            sse -= 2.0 * x[p] * atb[p];
+            for q in 0..3 {
+                sse += x[p] * ata[p][q] * x[q];
+            }
+        }
+        let sse = sse.max(0.0);
+        if sse < best.1 {
+            best = (x, sse, active);
+        }
+    }
+    best
+}
+
+/// The inverse of `ata` restricted to `active` (zero elsewhere).
+fn covariance(ata: &[[f64; 3]; 3], active: &[usize]) -> [[f64; 3]; 3] {
+    let mut cov = [[0.0; 3]; 3];
+    for &p in active {
+        let mut e = [0.0; 3];
+        e[p] = 1.0;
+        if let Some(col) = solve_subset(ata, &e, active) {
+            for &q in active {
+                cov[q][p] = col[q];
+            }
+        }
+    }
+    cov
+}
+
+/// The solved albedo over a reference target's disc (mean over its seen texels, within 0.8 of
+/// the radius, on a surface facing the disc's normal, at most 5 cm off its plane) against its
+/// known albedo: the mean over channels of the ratio, or `None` when no texel of it is seen.
+pub fn reference_ratio(state: &SolveResult, r: &ReferenceTarget) -> Option<f64> {
+    let c = DVec3::from_array(r.center);
+    let n = DVec3::from_array(r.normal).normalize_or_zero();
+    let mut sum = DVec3::ZERO;
+    let mut count = 0usize;
+    for (pi, part) in state.parts.iter().enumerate() {
+        for t in &part.cache.texels {
+            let i = t.index as usize;
+            if state.observations[pi][i] == 0 {
+                continue;
+            }
+            let p = t.position.as_dvec3() - c;
+            let off = p.dot(n);
+            if off.abs() > 0.05 || (p - off * n).length() > 0.8 * r.radius {
+                continue;
+            }
+            if t.normal.as_dvec3().dot(n) < 0.9 {
+                continue;
+            }
+            sum += state.rho[pi][i].as_dvec3();
+            count += 1;
+        }
+    }
+    (count > 0).then(|| {
+        let m = sum / count as f64;
+        (m.x / r.albedo[0].max(1e-9) + m.y / r.albedo[1].max(1e-9) + m.z / r.albedo[2].max(1e-9))
+            / 3.0
+    })
+}
+
+/// Fixes the global scale: with references, the albedo is divided (and the light scales
+/// multiplied) by the mean solved-over-known ratio of the seen targets; without, by the factor
+/// that makes the mean sun scale of the photos with sun 1. Returns (gauge, ratios).
+pub fn apply_gauge(
+    state: &mut SolveResult,
+    fits: &mut [PhotoFit],
+    references: &[ReferenceTarget],
+) -> (f64, Vec<f64>) {
+    let ratios: Vec<f64> = references
+        .iter()
+        .filter_map(|r| reference_ratio(state, r))
+        .collect();
+    let gauge = if !ratios.is_empty() {
+        ratios.iter().sum::<f64>() / ratios.len() as f64
+    } else {
+        let suns: Vec<f64> = fits
+            .iter()
+            .map(|f| f.params.sun_scale)
+            .filter(|&s| s > 0.0)
+            .collect();
+        if suns.is_empty() {
+            1.0
+        } else {
+            suns.len() as f64 / suns.iter().sum::<f64>()
+        }
+    };
+    if !(gauge.is_finite() && gauge > 0.0) {
+        return (1.0, ratios);
+    }
+    let g = gauge as f32;
+    for (rho, se) in state.rho.iter_mut().zip(state.stderr.iter_mut()) {
+        rho.iter_mut().for_each(|v| *v /= g);
+        se.iter_mut().filter(|v| v.x >= 0.0).for_each(|v| *v /= g);
+    }
+    for f in fits.iter_mut() {
+        for p in [&mut f.params, &mut f.stderr] {
+            p.sun_scale *= gauge;
+            p.sky_scale *= gauge;
+            p.overcast_scale *= gauge;
+        }
+    }
+    (gauge, ratios)
+}
+
+/// What the alternation of albedo iterations and lighting fits reads.
+pub struct Estimation<'a> {
+    /// Per photo (the photos' order): the sun and site of a photo whose light is estimated.
+    pub sky: &'a [Option<SkyPhoto>],
+    /// The survey's `[[reference]]` targets.
+    pub references: &'a [ReferenceTarget],
+    pub basis: Option<&'a igi_brdf::Basis>,
+    pub truth: Option<&'a igi_reflect::solver::Truth>,
+    pub options: &'a igi_reflect::SolveOptions,
+    /// The result folder: checkpoints, and the lighting files in `lighting/`.
+    pub output: &'a Path,
+}
+
+/// Iterates to the end with photos whose light is estimated: each albedo iteration is followed
+/// by a round of the lighting fit, and the photos' lighting is replaced by the fitted one;
+/// a checkpoint after each step, the lighting files in `RESULT/lighting/`, the record in
+/// `report.json` (`lighting`). A resumed result's photos get the lighting its report recorded.
+pub fn iterate(
+    mut state: SolveResult,
+    photos: &mut [igi_reflect::Photo],
+    e: &Estimation,
+    progress: &dyn igi_reflect::Progress,
+) -> Result<SolveResult, WorkflowError> {
+    restore_lighting(&state, photos, e.sky)?;
+    let out = e.output;
+    for k in state.report.iterations.len() as u32..e.options.max_iterations {
+        let opts = igi_reflect::SolveOptions {
+            max_iterations: k + 1,
+            ..e.options.clone()
+        };
+        state = igi_reflect::solve(state, photos, e.basis, e.truth, &opts, progress, &mut |r| {
+            r.write_state(out)
+        })?;
+        if (state.report.iterations.len() as u32) < k + 1 {
+            break;
+        }
+        let converged = state.report.converged;
+        let record = estimate_round(&mut state, photos, e, k + 1)?;
+        write_lighting_files(out, photos, e.sky, &record)?;
+        state.report.lighting = Some(
+            serde_json::to_value(&record)
+                .map_err(|err| WorkflowError::Arguments(format!("lighting record: {err}")))?,
+        );
+        // the albedo moved with the gauge
+        state.changed.iter_mut().for_each(|c| *c = true);
+        state.write_state(out)?;
+        if converged {
+            break;
+        }
+    }
+    Ok(state)
+}
+
+/// A resumed solve's photos get the lighting its report recorded.
+fn restore_lighting(
+    state: &SolveResult,
+    photos: &mut [igi_reflect::Photo],
+    sky: &[Option<SkyPhoto>],
+) -> Result<(), WorkflowError> {
+    let Some(v) = &state.report.lighting else {
+        return Ok(());
+    };
+    let Ok(record) = serde_json::from_value::<LightingRecord>(v.clone()) else {
+        return Ok(());
+    };
+    for (photo, sky) in photos.iter_mut().zip(sky) {
+        if let (Some(sky), Some(f)) = (sky, record.photos.iter().find(|f| f.photo == photo.id)) {
+            photo.lighting = sky.lighting(&f.params)?;
+        }
+    }
+    Ok(())
+}
+
+/// One round of the lighting fit after albedo iteration `round`: every estimated photo's sky
+/// fitted with the albedo fixed, the global scale fixed, the photos' lighting replaced.
+fn estimate_round(
+    state: &mut SolveResult,
+    photos: &mut [igi_reflect::Photo],
+    e: &Estimation,
+    round: u32,
+) -> Result<LightingRecord, WorkflowError> {
+    let t0 = std::time::Instant::now();
+    let scene = scene_of(state)?;
+    let fo = FitOptions {
+        indirect: e.options.indirect,
+        ..FitOptions::default()
+    };
+    let mut fits = Vec::new();
+    for (i, (photo, s)) in photos.iter().zip(e.sky).enumerate() {
+        if let Some(s) = s {
+            fits.push(fit_photo(
+                &scene,
+                &photo.id,
+                &photo.image,
+                &photo.camera,
+                s,
+                &fo,
+                i as u64 + 1000 * round as u64,
+            )?);
+        }
+    }
+    let (gauge, reference_ratio) = apply_gauge(state, &mut fits, e.references);
+    for (photo, s) in photos.iter_mut().zip(e.sky) {
+        if let (Some(s), Some(f)) = (s, fits.iter().find(|f| f.photo == photo.id)) {
+            photo.lighting = s.lighting(&f.params)?;
+        }
+    }
+    for f in &fits {
+        tracing::info!(
+            "lighting round {round}: photo {}: turbidity {}, sun scale {:.4} +- {:.4}, sky scale {:.4} +- {:.4}, overcast {:.4} +- {:.4} ({} pixels, relative RMS {:.3})",
+            f.photo,
+            f.params.turbidity,
+            f.params.sun_scale,
+            f.stderr.sun_scale,
+            f.params.sky_scale,
+            f.stderr.sky_scale,
+            f.params.overcast_scale,
+            f.stderr.overcast_scale,
+            f.pixels,
+            f.relative_rms
+        );
+    }
+    tracing::info!(
+        "lighting round {round}: gauge {gauge:.5} ({}), {:.1} s",
+        if reference_ratio.is_empty() {
+            "no reference target: the albedo is known up to one scale"
+        } else {
+            "from the reference targets"
+        },
+        t0.elapsed().as_secs_f64()
+    );
+    Ok(LightingRecord {
+        absolute_scale: !reference_ratio.is_empty(),
+        gauge,
+        reference_ratio,
+        rounds: round,
+        photos: fits,
+    })
+}
+
+/// Each estimated photo's lighting as a contract lighting file `RESULT/lighting/ID.toml`.
+fn write_lighting_files(
+    out: &Path,
+    photos: &[igi_reflect::Photo],
+    sky: &[Option<SkyPhoto>],
+    record: &LightingRecord,
+) -> Result<(), WorkflowError> {
+    let dir = out.join("lighting");
+    std::fs::create_dir_all(&dir)
+        .map_err(|err| WorkflowError::file(&dir, format!("cannot create the folder: {err}")))?;
+    for (photo, s) in photos.iter().zip(sky) {
+        if let (Some(s), Some(f)) = (s, record.photos.iter().find(|f| f.photo == photo.id)) {
+            s.write_lighting(&dir, &photo.id, &f.params)?;
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nnls_recovers_an_exact_combination_and_clamps_a_negative_one() {
+        // columns a0 = (1,0,1,2), a1 = (0,1,1,0), a2 = (1,1,0,1); b = 2 a0 + 0.5 a1
+        let a = [
+            [1.0, 0.0, 1.0],
+            [0.0, 1.0, 1.0],
+            [1.0, 1.0, 0.0],
+            [2.0, 0.0, 1.0],
+        ];
+        let x_true = [2.0, 0.5, 0.0];
+        let b: Vec<f64> = a
+            .iter()
+            .map(|r| (0..3).map(|k| r[k] * x_true[k]).sum())
+            .collect();
+        let mut ata = [[0.0; 3]; 3];
+        let mut atb = [0.0; 3];
+        let mut btb = 0.0;
+        for (r, bi) in a.iter().zip(&b) {
+            for p in 0..3 {
+                atb[p] += r[p] * bi;
+                for q in 0..3 {
+                    ata[p][q] += r[p] * r[q];
+                }
+            }
+            btb += bi * bi;
+        }
+        let (x, sse, _) = nnls3(&ata, &atb, btb, 3);
+        for k in 0..3 {
+            assert!((x[k] - x_true[k]).abs() < 1e-9, "{x:?}");
+        }
+        assert!(sse < 1e-12);
+        // b = a0 - a2: the unconstrained fit has x2 = -1; the non-negative one none below zero
+        let b2: Vec<f64> = a.iter().map(|r| r[0] - r[2]).collect();
+        let mut atb2 = [0.0; 3];
+        let mut btb2 = 0.0;
+        for (r, bi) in a.iter().zip(&b2) {
+            for p in 0..3 {
+                atb2[p] += r[p] * bi;
+            }
+            btb2 += bi * bi;
+        }
+        let (x2, sse2, _) = nnls3(&ata, &atb2, btb2, 3);
+        assert!(x2.iter().all(|&v| v >= 0.0), "{x2:?}");
+        assert!(sse2 > 0.0 && sse2 <= btb2);
+    }
+
+    #[test]
+    fn turbidity_stderr_of_a_parabola() {
+        // sse = 10 + (T - 3)^2 * 4, s2 = 2: d2 = 8, se = sqrt(2 * 2 / 8)
+        let curve: Vec<(f64, f64)> = [2.0, 3.0, 4.5]
+            .iter()
+            .map(|&t| (t, 10.0 + 4.0 * (t - 3.0f64).powi(2)))
+            .collect();
+        let se = turbidity_stderr(&curve, 3.0, 2.0);
+        assert!((se - 0.5f64.sqrt()).abs() < 1e-12, "{se}");
+        assert_eq!(turbidity_stderr(&curve, 2.0, 2.0), 0.0);
+    }
+}
