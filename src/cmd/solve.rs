@@ -80,7 +80,9 @@ pub struct SolveArgs {
     /// finest photograph that sees each point unhidden, at most --atlas-max; a mesh that would
     /// exceed it, or whose far and near ends differ much, is cut into parts NAME-K;
     /// docs/SOLVER.md "Atlas resolution"), or a number gives every part that many texels per
-    /// side (8 to 16384). A prepared site keeps its own atlases.
+    /// side (8 to 16384). With `auto`, the first iterations run on atlases three times coarser
+    /// and one more on the chosen atlases ends the solve (docs/SOLVER.md "Coarse to fine").
+    /// A prepared site keeps its own atlases.
     #[arg(long, default_value = "auto", value_parser = parse_atlas)]
     pub atlas: AtlasArg,
     /// With `--atlas auto`: the most texels per side of any part (the memory budget; at least
@@ -189,8 +191,9 @@ fn print_report(
             .map(|m| format!(" (over the surface {:.4} {:.4} {:.4})", m[0], m[1], m[2]))
             .unwrap_or_default();
         println!(
-            "iteration {}: {} spp, {:.1} s, {} observations, residual {:.2}% (relative RMS), change {:.4}{}{}",
+            "iteration {}{}: {} spp, {:.1} s, {} observations, residual {:.2}% (relative RMS), change {:.4}{}{}",
             r.iteration,
+            if r.coarse { " (coarse atlases)" } else { "" },
             r.spp,
             r.wall_s,
             r.observations,

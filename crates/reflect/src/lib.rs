@@ -19,7 +19,8 @@
 //! every iteration, and a killed run resumes after its last finished iteration.
 //!
 //! Modules: [`parts`] (atlases and texel caches of the site), [`atlas_size`] (`--atlas auto`:
-//! atlas sizes, and cutting meshes into parts), [`solver`] (the iteration, over photographs
+//! atlas sizes, and cutting meshes into parts), [`coarse`] (the first iterations on coarser
+//! atlases, then one on the fine ones), [`solver`] (the iteration, over photographs
 //! already loaded: [`Photo`]), [`weights`] and [`fill`] (the documented rules),
 //! [`result`] (the result folder: atlases, `scene.toml`, `report.json`, export, sampling),
 //! [`truth`] (ground truth: the true atlases and scene, and the albedo error per texel and over
@@ -30,10 +31,12 @@
 //! the tests and the demo solve are made by `igi-synth`.
 
 pub mod atlas_size;
+pub mod coarse;
 mod deblur;
 pub mod distributed;
 mod error;
 pub mod fill;
+mod lattice;
 pub mod parts;
 pub mod photo;
 pub mod plot;

@@ -256,7 +256,18 @@ pub struct IterationRecord {
     /// counted as converged.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub stale: Vec<String>,
+    /// The iteration ran on the coarse atlases of a coarse-to-fine solve (`crate::coarse`):
+    /// its albedo is the coarse one (its errors against the truth are the coarse atlases'),
+    /// and the one iteration on the solve's own atlases follows the last such. Reports
+    /// written before the field existed read `false`.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub coarse: bool,
 }
+
+/// How many times larger the texels of a coarse-to-fine solve's coarse stage are, per side
+/// (`crate::coarse`); the fine iteration after it traces its shading at the same spacing
+/// (`crate::lattice`).
+pub const COARSE_FACTOR: u32 = 3;
 
 /// Per-part summary in the report.
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -313,11 +324,6 @@ pub struct SolveReport {
     /// The iteration in progress when a voxel-by-voxel solve was checkpointed after a voxel.
     #[serde(default)]
     pub pending: Option<Pending>,
-    /// The lighting estimated with the albedo for photos without lighting files (written by
-    /// `igi-workflow`'s `lightfit`: fitted sky parameters with uncertainties, the global
-    /// scale); absent otherwise.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub lighting: Option<serde_json::Value>,
 }
 
 /// A voxel-by-voxel iteration in progress: the groups already solved and the running sums of

@@ -3,6 +3,7 @@
 use crate::atlas_size::point_footprint;
 use crate::deblur::Footprint;
 use crate::fill::fill_unseen;
+use crate::lattice::{blend, reach, Lattice};
 use crate::parts::{stored_part_name, Part};
 use crate::photo::Photo;
 use crate::record::Obs;
@@ -511,6 +512,13 @@ pub(crate) fn solve_group(
         .map(|p| p.cache.texels.len() as u64)
         .sum();
     let texels = group_texels(start, g);
+    // the fine iteration after a coarse stage reads its shading from a lattice
+    let after_coarse = start.report.iterations.last().is_some_and(|r| r.coarse);
+    let shading_step = if after_coarse {
+        crate::record::COARSE_FACTOR
+    } else {
+        1
+    };
     let mut obs: Vec<Obs> = Vec::new();
     for (pi, photo) in inputs.photos.iter().enumerate() {
         let pass = PhotoPass {
@@ -524,6 +532,7 @@ pub(crate) fn solve_group(
             opts,
             iteration: k,
             spp,
+            shading_step,
         };
         obs.extend(pass.observe(progress));
     }
@@ -612,6 +621,7 @@ pub(crate) fn finish_iteration(
         truth_surface_mae,
         seen_texels: acc.seen_texels,
         stale: Vec::new(),
+        coarse: false,
     };
     tracing::info!(
         "iteration {}: {} spp, {:.1} s, {} observations, residual {:.4} ({:.2}% rel), change {:.5} ({:.5} beyond Monte-Carlo noise), photographs' noise {:.5}",
@@ -629,12 +639,16 @@ pub(crate) fn finish_iteration(
         return Err(ReflectError::NoObservations(rec.iteration));
     }
     let next_level = level + usize::from(!opts.adaptive_spp || rises(&rec));
-    let done = acc.iteration >= opts.min_iterations
+    let settled = acc.iteration >= opts.min_iterations
         && (rec.delta_rho < opts.tolerance
             || (rec.systematic_change_rho < rec.noise_rho && spp_at(opts, next_level) <= rec.spp));
+    // after a coarse stage (crate::coarse) one iteration on the fine atlases ends the solve,
+    // converged when the coarse stage was
+    let after_coarse = start.report.iterations.last().is_some_and(|r| r.coarse);
+    let converged = settled || (after_coarse && start.report.converged);
     start.report.iterations.push(rec);
-    start.report.converged = done;
-    Ok(done)
+    start.report.converged = converged;
+    Ok(settled || after_coarse)
 }
 
 /// sqrt(a / b), or 0 when b is not positive.
@@ -772,9 +786,16 @@ fn change_against_noise(old: Vec3, old_se: Vec3, c: &Combined) -> (f64, f64, f64
 }
 
 /// One texel's raw observation in a photo: what the ratio update needs (see [`PhotoPass`]).
+#[derive(Clone, Copy)]
 struct RawObservation {
     /// The texel's number in the group.
     gi: u32,
+    /// The radiance was traced for this texel (else it is still to be read from the lattice
+    /// around it, `crate::lattice`, or traced).
+    traced: bool,
+    /// The texel's normal facing the camera, and the direction to the camera.
+    n: Vec3,
+    wo: Vec3,
     /// The photograph at the texel's projection (bilinear).
     pixel: Vec3,
     /// The radiance rendered toward the camera with the evaluation albedo, and its standard
@@ -807,6 +828,9 @@ struct PhotoPass<'a> {
     opts: &'a SolveOptions,
     iteration: u32,
     spp: u32,
+    /// Trace every `shading_step`-th texel per atlas row and column and read the rest from them
+    /// (`crate::lattice`; 1: trace every texel).
+    shading_step: u32,
 }
 
 /// Texels whose sun visibility differs from an atlas neighbour's (the shadow-edge rule).
@@ -905,6 +929,11 @@ impl PhotoPass<'_> {
             adaptive: false,
         };
         let pt = PathTracer::new(self.scene, &self.photo.lighting, &render_opts);
+        let parts = &self.state.parts;
+        let lattice = (self.shading_step > 1).then(|| {
+            let keys = self.texels.iter().map(|t| (t.part, t.texel));
+            Lattice::new(parts, keys, self.shading_step)
+        });
         let chunk = 4096;
         let raw: Vec<Option<RawObservation>> = self
             .texels
@@ -914,13 +943,85 @@ impl PhotoPass<'_> {
                 let out: Vec<_> = ch
                     .iter()
                     .enumerate()
-                    .map(|(j, t)| self.observe_texel(t, (ci * chunk + j) as u64, &pt, &shadow))
+                    .map(|(j, t)| {
+                        let trace = lattice
+                            .as_ref()
+                            .is_none_or(|l| l.traced(parts, t.part, t.texel));
+                        self.observe_texel(t, (ci * chunk + j) as u64, &pt, &shadow, trace)
+                    })
                     .collect();
                 progress.advance(ch.len() as u64);
                 out
             })
             .collect();
+        let raw = match &lattice {
+            Some(l) => self.between_lattice(raw, l, &pt, &shadow),
+            None => raw,
+        };
         self.proposals(raw)
+    }
+
+    /// The observations off the lattice given their radiance: the blend of the lattice texels
+    /// around them where those stand for them, else traced (`crate::lattice`).
+    fn between_lattice(
+        &self,
+        raw: Vec<Option<RawObservation>>,
+        lattice: &Lattice,
+        pt: &PathTracer,
+        shadow: &Option<ShadowEdges>,
+    ) -> Vec<Option<RawObservation>> {
+        let parts = &self.state.parts;
+        raw.par_iter()
+            .map(|r| {
+                let mut r = (*r)?;
+                if r.traced {
+                    return Some(r);
+                }
+                let t = &self.texels[r.gi as usize];
+                let corners = lattice.corners(parts, t.part, t.texel);
+                let of = |n: u32| self.stands_for(&raw, n, t, shadow);
+                match corners.and_then(|cs| blend(&cs, of)) {
+                    Some((shading, se)) => {
+                        r.radiance = shading * r.rho_eval;
+                        r.stderr = se * r.rho_eval;
+                    }
+                    None => {
+                        let (est, rho_eval) = self.estimate(t, r.n, r.wo, r.gi as u64, pt);
+                        (r.radiance, r.stderr, r.rho_eval) = (est.mean, est.stderr, rho_eval);
+                    }
+                }
+                r.traced = true;
+                Some(r)
+            })
+            .collect()
+    }
+
+    /// The shading and its standard error per unit albedo of lattice texel number `n`, when
+    /// it can stand for texel `t`: traced, clean, in the same sunlight, the same surface.
+    fn stands_for(
+        &self,
+        raw: &[Option<RawObservation>],
+        n: u32,
+        t: &TexelRef,
+        shadow: &Option<ShadowEdges>,
+    ) -> Option<(Vec3, Vec3)> {
+        let c = raw[n as usize].as_ref().filter(|c| c.traced && c.clean)?;
+        let ct = &self.texels[n as usize];
+        let texel_size = self.state.parts[t.part as usize].texel_size;
+        let same_light = shadow.as_ref().is_none_or(|s| {
+            let v = &s.visible[t.part as usize];
+            v[t.texel as usize] == s.visible[ct.part as usize][ct.texel as usize]
+        });
+        let one_surface = ct.part == t.part
+            && ct.normal.dot(t.normal) >= crate::lattice::MIN_NORMAL_DOT
+            && ct.position.distance(t.position) <= reach(self.shading_step, texel_size);
+        (same_light && one_surface).then(|| (c.radiance / c.rho_eval, c.stderr / c.rho_eval))
+    }
+
+    /// The albedo texel `t`'s radiance is rendered with: its current one, at least
+    /// `min_eval_albedo` per channel.
+    fn rho_eval(&self, t: &TexelRef) -> Vec3 {
+        self.rho(t).max(Vec3::splat(self.opts.min_eval_albedo))
     }
 
     /// The current albedo of texel `t`.
@@ -937,6 +1038,7 @@ impl PhotoPass<'_> {
         gi: u64,
         pt: &PathTracer,
         shadow: &Option<ShadowEdges>,
+        trace: bool,
     ) -> Option<RawObservation> {
         let (rules, cam) = (&self.opts.rules, &self.photo.camera);
         let c = cam.center_world().as_vec3();
@@ -974,12 +1076,20 @@ impl PhotoPass<'_> {
             weight *= rules.shadow_edge_factor;
             clean = false;
         }
-        let (est, rho_eval) = self.estimate(t, n, wo, gi, pt);
+        let (radiance, stderr, rho_eval) = if trace {
+            let (est, rho_eval) = self.estimate(t, n, wo, gi, pt);
+            (est.mean, est.stderr, rho_eval)
+        } else {
+            (Vec3::ZERO, Vec3::ZERO, self.rho_eval(t))
+        };
         Some(RawObservation {
             gi: gi as u32,
+            traced: trace,
+            n,
+            wo,
             pixel,
-            radiance: est.mean,
-            stderr: est.stderr,
+            radiance,
+            stderr,
             weight,
             clean,
             rho_eval,
@@ -1036,7 +1146,7 @@ impl PhotoPass<'_> {
         gi: u64,
         pt: &PathTracer,
     ) -> (igi_render::integrator::Estimate, Vec3) {
-        let rho_eval = self.rho(t).max(Vec3::splat(self.opts.min_eval_albedo));
+        let rho_eval = self.rho_eval(t);
         let inferred = self.basis.map(|b| b.infer(rho_eval).lobes);
         let brdf = LafortuneRef {
             rho_d: rho_eval,
@@ -1098,6 +1208,9 @@ impl PhotoPass<'_> {
     fn proposal(&self, r: RawObservation, floor: f32) -> Obs {
         let RawObservation {
             gi,
+            traced: _,
+            n: _,
+            wo: _,
             pixel,
             radiance: l,
             stderr: se,

@@ -107,13 +107,15 @@ impl Truth {
 /// whose meshes stay on disk, get no surface points.
 pub fn truth_from_scene(parts: &[Part], truth: &Scene) -> Truth {
     Truth {
-        texels: parts.iter().map(|p| texel_truth(p, truth)).collect(),
+        texels: parts.iter().map(|p| albedo_at_texels(p, truth)).collect(),
         points: surface_points(parts, truth, SURFACE_POINTS, 1),
     }
 }
 
-/// The true albedo at part `p`'s covered texel centres.
-fn texel_truth(p: &Part, truth: &Scene) -> Vec<Option<Vec3>> {
+/// The albedo of `scene` (the truth, or another result over the same surface) at part `p`'s
+/// covered texel centres, as rendered (its atlases' bilinear lookup): `None` where no surface of
+/// `scene` lies within half a texel along the texel's normal.
+pub(crate) fn albedo_at_texels(p: &Part, truth: &Scene) -> Vec<Option<Vec3>> {
     let eps = (p.texel_size as f32 * 0.5).max(1e-3);
     p.cache
         .texels

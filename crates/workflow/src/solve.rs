@@ -13,6 +13,7 @@ use crate::WorkflowError;
 use igi_brdf::Basis;
 use igi_geometry::SiteStore;
 use igi_reflect::atlas_size::AutoAtlas;
+use igi_reflect::coarse::{coarse_parts, solve_coarse_first, CoarseInputs};
 use igi_reflect::parts::site_parts;
 use igi_reflect::solver::{truth_from_scene, SolveInputs, Truth};
 use igi_reflect::{Photo, Progress, SolveOptions, SolveResult};
@@ -129,18 +130,34 @@ impl SolveJob {
             .truth_scene
             .as_ref()
             .map(|scene| truth_from_scene(&state.parts, scene));
-        let sky = crate::lightfit::estimated_photos(&self.survey);
+        let coarse = self.coarse_stage(&state)?;
         Ok(StartedSolve {
-            sky,
-            references: self.survey.references.clone(),
             state,
             photos,
             basis: self.basis,
             truth,
+            coarse,
             options: self.options,
             output: self.output,
             _session: self.session,
         })
+    }
+
+    /// With `--atlas auto`, before the first iteration: the coarse parts the first iterations
+    /// run on (`igi_reflect::coarse`), with the truth on them.
+    fn coarse_stage(&self, state: &SolveResult) -> Result<Option<CoarseStage>, WorkflowError> {
+        let fresh = state.report.iterations.is_empty() && state.report.pending.is_none();
+        if self.options.atlas_auto.is_none() || !fresh {
+            return Ok(None);
+        }
+        let Some(parts) = coarse_parts(&state.parts, &self.options)? else {
+            return Ok(None);
+        };
+        let truth = self
+            .truth_scene
+            .as_ref()
+            .map(|scene| truth_from_scene(&parts, scene));
+        Ok(Some(CoarseStage { parts, truth }))
     }
 
     /// The folder's checkpoint of this run, or a fresh result on the survey's parts.
@@ -167,15 +184,13 @@ impl SolveJob {
 
 /// A solve whose result folder is started (or resumed) and locked, with everything it reads.
 pub struct StartedSolve {
-    /// Per photo (survey order): the sun and site of a photo whose light is estimated.
-    pub sky: Vec<Option<crate::lightfit::SkyPhoto>>,
-    /// The survey's `[[reference]]` targets (they fix the scale of estimated light).
-    pub references: Vec<igi_formats::survey::ReferenceTarget>,
     /// The result as it stands: fresh, or the checkpoint resumed.
     pub state: SolveResult,
     pub photos: Vec<Photo>,
     pub basis: Option<Basis>,
     pub truth: Option<Truth>,
+    /// The coarse stage the iterations start with (`--atlas auto`, a fresh result).
+    pub coarse: Option<CoarseStage>,
     pub options: SolveOptions,
     output: PathBuf,
     /// Holds the folder's lock until the solve is done.
@@ -192,20 +207,18 @@ impl StartedSolve {
         }
     }
 
-    /// Iterates to the end, writing a checkpoint into the result folder after each step.
+    /// Iterates to the end (the coarse stage first, when there is one), writing a checkpoint
+    /// into the result folder after each step on the result's own atlases.
     pub fn iterate(mut self, progress: &dyn Progress) -> Result<SolveResult, WorkflowError> {
-        let out = &self.output;
-        if self.sky.iter().any(Option::is_some) {
-            let e = crate::lightfit::Estimation {
-                sky: &self.sky,
-                references: &self.references,
+        if let Some(c) = self.coarse.take() {
+            let inputs = CoarseInputs {
+                photos: &self.photos,
                 basis: self.basis.as_ref(),
-                truth: self.truth.as_ref(),
-                options: &self.options,
-                output: out,
+                truth: c.truth.as_ref(),
             };
-            return crate::lightfit::iterate(self.state, &mut self.photos, &e, progress);
+            self.state = solve_coarse_first(self.state, c.parts, &inputs, &self.options, progress)?;
         }
+        let out = &self.output;
         let result = igi_reflect::solve(
             self.state,
             &self.photos,
@@ -217,6 +230,12 @@ impl StartedSolve {
         )?;
         Ok(result)
     }
+}
+
+/// The coarse parts of a coarse-to-fine solve and the truth on them.
+pub struct CoarseStage {
+    pub parts: Vec<igi_reflect::Part>,
+    pub truth: Option<Truth>,
 }
 
 /// The request's options with its atlas: a prepared site's own resolution, else `atlas`.
