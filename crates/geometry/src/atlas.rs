@@ -122,11 +122,129 @@ pub fn build_atlas(mesh: &TriMesh, opts: AtlasOptions) -> Result<Atlas, Geometry
     let (mut charts, chart_of) = group_charts(mesh, &label);
     let scale = pack_charts(&mut charts, res, g)?;
     let (out, texel_xy) = split_vertices(mesh, &charts, scale, res, g);
+    Ok(fill_caches(
+        out,
+        &texel_xy,
+        &chart_of,
+        charts.len(),
+        scale,
+        res,
+        g,
+    ))
+}
+
+/// How the charts of an atlas are made.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Unwrapper {
+    /// Six-axis projected charts, shelf-packed ([`build_atlas`]): exact for boxy, voxel-clipped
+    /// site geometry, tens of thousands of charts on a scan or hull mesh.
+    #[default]
+    Projected,
+    /// `uvunwrap`'s segmented, parameterised (LSCM + ARAP) and shape-packed charts
+    /// ([`crate::unwrap::unwrap_uvunwrap`]): for scans and hull meshes.
+    Uvunwrap,
+    /// xatlas's charts ([`crate::unwrap::unwrap`]), kept for comparison.
+    Xatlas,
+}
+
+impl std::str::FromStr for Unwrapper {
+    type Err = GeometryError;
+    fn from_str(s: &str) -> Result<Self, GeometryError> {
+        match s {
+            "projected" => Ok(Unwrapper::Projected),
+            "uvunwrap" => Ok(Unwrapper::Uvunwrap),
+            "xatlas" => Ok(Unwrapper::Xatlas),
+            _ => Err(GeometryError::InvalidArgument(format!(
+                "unknown unwrapper `{s}` (expected projected, uvunwrap or xatlas)"
+            ))),
+        }
+    }
+}
+
+/// Build the atlas of one mesh with the chosen unwrapper.
+pub fn build_atlas_with(
+    mesh: &TriMesh,
+    opts: AtlasOptions,
+    unwrapper: Unwrapper,
+) -> Result<Atlas, GeometryError> {
+    match unwrapper {
+        Unwrapper::Projected => build_atlas(mesh, opts),
+        u => build_atlas_unwrapped(mesh, opts, u),
+    }
+}
+
+/// The atlas of an unwrapper's charts (vertices split along its seams, normals interpolated from
+/// the input's, computed when it has none); `texel_size` is the unwrapper's common texel scale
+/// (each chart is scaled to it by its own surface over parametric area).
+fn build_atlas_unwrapped(
+    mesh: &TriMesh,
+    opts: AtlasOptions,
+    unwrapper: Unwrapper,
+) -> Result<Atlas, GeometryError> {
+    let res = opts.resolution as usize;
+    let g = opts.gutter as usize;
+    if res < 8 {
+        return Err(GeometryError::InvalidArgument(format!(
+            "atlas resolution {res} is too small (minimum 8)"
+        )));
+    }
+    let unwrap = match unwrapper {
+        Unwrapper::Xatlas => crate::unwrap::unwrap,
+        _ => crate::unwrap::unwrap_uvunwrap,
+    };
+    let u = unwrap(&mesh.positions, &mesh.indices, opts.resolution, opts.gutter)?;
+    let computed;
+    let normals = match &mesh.normals {
+        Some(n) => n,
+        None => {
+            let mut m = mesh.clone();
+            m.compute_vertex_normals();
+            computed = m.normals.unwrap_or_default();
+            &computed
+        }
+    };
+    let pick = |x: &[[f32; 3]]| u.xref.iter().map(|&i| x[i as usize]).collect::<Vec<_>>();
+    let texel_xy: Vec<[f64; 2]> = u.texel_xy.iter().map(|p| p.map(f64::from)).collect();
+    let out = TriMesh {
+        positions: pick(&mesh.positions),
+        normals: Some(pick(normals)),
+        colors: mesh.colors.as_ref().map(|c| pick(c)),
+        uvs: Some(
+            texel_xy
+                .iter()
+                .map(|p| [(p[0] / res as f64) as f32, (1.0 - p[1] / res as f64) as f32])
+                .collect(),
+        ),
+        indices: u.indices,
+    };
+    let scale = u.texels_per_unit;
+    Ok(fill_caches(
+        out,
+        &texel_xy,
+        &u.chart_of,
+        u.charts,
+        scale,
+        res,
+        g,
+    ))
+}
+
+/// Rasterise the texel caches of a mesh laid out in texel space (`chart_of`: each triangle's
+/// chart, [`crate::unwrap::NO_CHART`] for one left out; `scale`: texels per metre).
+fn fill_caches(
+    out: TriMesh,
+    texel_xy: &[[f64; 2]],
+    chart_of: &[u32],
+    charts: usize,
+    scale: f64,
+    res: usize,
+    g: usize,
+) -> Atlas {
     let layout = Layout {
         mesh: &out,
         normals: out.normals.as_ref().unwrap(),
-        texel_xy: &texel_xy,
-        chart_of: &chart_of,
+        texel_xy,
+        chart_of,
         res,
     };
     let mut cache = TexelCache::new(res);
@@ -137,17 +255,17 @@ pub fn build_atlas(mesh: &TriMesh, opts: AtlasOptions) -> Result<Atlas, Geometry
     extend_into_gutters(&layout, &covered, scale, g, &mut cache);
     dilate_into_gutters(&mut cache, g);
     let coverage = cache.mark_validity(&covered);
-    Ok(Atlas {
+    Atlas {
         mesh: out,
         resolution: res,
         texel_size: 1.0 / scale,
-        charts: charts.len(),
+        charts,
         position: cache.position,
         normal: cache.normal,
         coverage,
         covered_texels,
         overlap_texels: overlap,
-    })
+    }
 }
 
 /// The dominant direction of each face's normal, as `2 * axis + (1 when negative)`.
@@ -406,6 +524,9 @@ fn rasterise_texel_centres(layout: &Layout, cache: &mut TexelCache) -> usize {
     let mut overlap = 0usize;
     for t in 0..layout.mesh.indices.len() {
         let c = layout.chart_of[t];
+        if c == crate::unwrap::NO_CHART {
+            continue;
+        }
         let [a, b, cc] = layout.texel_triangle(t);
         let den = (b[1] - cc[1]) * (a[0] - cc[0]) + (cc[0] - b[0]) * (a[1] - cc[1]);
         if den.abs() < 1e-18 {
@@ -456,6 +577,9 @@ fn cover_thin_triangles(layout: &Layout, cache: &mut TexelCache) {
     let res = layout.res;
     for t in 0..layout.mesh.indices.len() {
         let c = layout.chart_of[t];
+        if c == crate::unwrap::NO_CHART {
+            continue;
+        }
         let xy = layout.texel_triangle(t);
         let ps = layout.positions(t);
         let ns = layout.normals(t);
@@ -505,6 +629,9 @@ fn extend_into_gutters(
     let mut best = vec![f64::INFINITY; res * res];
     for t in 0..layout.mesh.indices.len() {
         let c = layout.chart_of[t];
+        if c == crate::unwrap::NO_CHART {
+            continue;
+        }
         let xy = layout.texel_triangle(t);
         let [a, b, cc] = xy;
         let den = (b[1] - cc[1]) * (a[0] - cc[0]) + (cc[0] - b[0]) * (a[1] - cc[1]);

@@ -13,6 +13,8 @@
 //!   voxels share bit-identical boundary vertices).
 //! - [`atlas`]: per-voxel texture atlases (projected charts, shelf packing) and the world
 //!   position / normal texel caches.
+//! - [`unwrap`]: automatic UV unwrapping by the vendored xatlas (segmented, parameterised,
+//!   packed charts for scans and hull meshes), used by `atlas::build_atlas_with`.
 //! - [`texels`]: the covered texels of an atlas (texel centres on the surface) and the
 //!   dilation of texel values into neighbours (hole filling, gutters).
 //! - [`levels`]: multiresolution levels by meshoptimizer edge collapse with the voxel faces locked.
@@ -38,6 +40,7 @@ pub mod procedural;
 pub mod repair;
 pub mod store;
 pub mod texels;
+pub mod unwrap;
 pub mod voxel;
 
 pub use error::{GeometryError, MeshInvariant};
