@@ -15,7 +15,7 @@ use crate::field::SurfaceLightField;
 use crate::LightFieldError;
 use igi_camera::rig::RigView;
 use igi_camera::{Camera, Rig};
-use igi_geometry::atlas::{build_atlas, Atlas, AtlasOptions};
+use igi_geometry::atlas::{build_atlas_with, Atlas, AtlasOptions, Unwrapper};
 use igi_geometry::TriMesh;
 use igi_imaging::{read_image, HdrImage, Mask};
 use igi_raycast::RtScene;
@@ -144,7 +144,8 @@ pub struct GridOptions {
     /// Atlas texels a side.
     pub atlas: u32,
     /// Keep about this fraction of the mesh's triangles (meshopt, borders locked) before the
-    /// atlas: dense scans and hull meshes have more charts than an atlas can hold. 1: as is.
+    /// atlas: dense scans and hull meshes have more charts than an atlas can hold. 1: as is,
+    /// up to one triangle per atlas texel (a denser mesh is simplified to that many).
     pub simplify: f64,
 }
 
@@ -184,15 +185,20 @@ pub fn build_from_rig(
     stage(1);
     let mut mesh = mesh.clone();
     mesh.uvs = None;
-    let mut mesh = igi_geometry::levels::simplify(&mesh, &[], grid.simplify, true).mesh;
+    // at most one triangle per atlas texel: finer triangles add charts, not grid points (a
+    // marching-cubes hull of 800,000 triangles gives 11,528 charts, more than 256 x 256 holds)
+    let budget = grid.atlas as f64 * grid.atlas as f64 / mesh.indices.len().max(1) as f64;
+    let mut mesh = igi_geometry::levels::simplify(&mesh, &[], grid.simplify.min(budget), true).mesh;
     mesh.normals = None;
     mesh.compute_vertex_normals();
-    let atlas = build_atlas(
+    // uvunwrap charts: a scan or hull mesh gives tens of thousands of six-axis projected charts
+    let atlas = build_atlas_with(
         &mesh,
         AtlasOptions {
             resolution: grid.atlas,
             gutter: 1,
         },
+        Unwrapper::Uvunwrap,
     )?;
     let rt = RtScene::new(&[(
         atlas.mesh.positions.as_slice(),
