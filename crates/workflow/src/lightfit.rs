@@ -6,17 +6,21 @@
 //! The sky of a photo is
 //!
 //! ```text
-//! L = sun_scale * HW_sun(T) + sky_scale * HW_sky(T) + overcast_scale * CIE_overcast(1)
+//! L = sun_scale * sun_colour * HW_sun(T) + sky_scale * HW_sky(T) + overcast_scale * CIE_overcast(1)
 //! ```
 //!
 //! with `HW_sun(T)` and `HW_sky(T)` the Hosek-Wilkie sun disk and clear sky of turbidity `T`
 //! (ground albedo [`GROUND_ALBEDO`]) toward the SPA sun, and `CIE_overcast(1)` the CIE overcast
-//! sky of unit zenith radiance. With the albedo fixed, a photograph is linear in the three
-//! scales: each photo's scene (the current albedo) is path-traced under each basis light once
+//! sky of unit zenith radiance, and `sun_colour` a per-channel factor of mean 1 (haze and the
+//! sun's spectrum through the atmosphere redden it beyond what the model's turbidity says). With
+//! the albedo fixed, a photograph is linear in the five unknowns (the sun's scale per channel,
+//! the sky's, the overcast sky's): each photo's scene (the current albedo) is path-traced under each basis light once
 //! (the sun as a white disk of unit radiance, then coloured per turbidity; the clear sky per
 //! turbidity; the overcast sky), and the scales are the non-negative weighted least-squares
 //! fit of the photograph's pixels that see the site, with relative weights (each pixel's
-//! residual divided by its value). The turbidity is the grid value with the smallest residual
+//! residual divided by its value), either of a sunny sky (sun and clear sky) or of an overcast
+//! one (clear and overcast sky, no sun), whichever fits better (with all five free the two
+//! smooth domes trade against each other). The turbidity is the grid value with the smallest residual
 //! ([`FitOptions::turbidities`]). Uncertainties are the least-squares standard errors (the
 //! residual variance times the inverse normal matrix), which treat pixels as independent.
 //!
@@ -133,7 +137,9 @@ impl SkyPhoto {
         }
         let sun = (params.sun_scale > 0.0).then(|| {
             let mut s = sky.sun_disk().to_section();
-            s.radiance = s.radiance.map(|r| r * params.sun_scale);
+            for c in 0..3 {
+                s.radiance[c] *= params.sun_scale * params.sun_colour[c];
+            }
             s
         });
         Ok((map, sun))
@@ -158,10 +164,11 @@ impl SkyPhoto {
             sun,
         };
         let header = format!(
-            "estimated by igi solve for photo {id} at {}: Hosek-Wilkie turbidity {:.3}, sun scale {:.6}, sky scale {:.6}, CIE overcast zenith {:.6}; sun azimuth {:.4} deg, elevation {:.4} deg",
+            "estimated by igi solve for photo {id} at {}: Hosek-Wilkie turbidity {:.3}, sun scale {:.6} colour {:.4?}, sky scale {:.6}, CIE overcast zenith {:.6}; sun azimuth {:.4} deg, elevation {:.4} deg",
             self.time.to_rfc3339(),
             params.turbidity,
             params.sun_scale,
+            params.sun_colour,
             params.sky_scale,
             params.overcast_scale,
             self.position.azimuth_deg,
@@ -179,6 +186,9 @@ pub struct SkyParams {
     pub turbidity: f64,
     /// The sun disk's radiance over the model's (transmission through cloud and haze).
     pub sun_scale: f64,
+    /// Per channel factor of the sun's radiance, mean 1.
+    #[serde(default = "white")]
+    pub sun_colour: [f64; 3],
     /// The clear sky's radiance over the model's.
     pub sky_scale: f64,
     /// The zenith radiance of an added CIE overcast sky.
@@ -190,11 +200,20 @@ impl Default for SkyParams {
         SkyParams {
             turbidity: DEFAULT_TURBIDITY,
             sun_scale: 1.0,
+            sun_colour: [1.0; 3],
             sky_scale: 1.0,
             overcast_scale: 0.0,
         }
     }
 }
+
+fn white() -> [f64; 3] {
+    [1.0; 3]
+}
+
+/// Unknowns of the fit: the sun per channel, the clear sky, the overcast sky.
+const N: usize = 5;
+type Mat = [[f64; N]; N];
 
 /// How the scales are fitted.
 #[derive(Clone, Debug)]
@@ -364,19 +383,18 @@ pub fn fit_photo(
         };
         let r_sky = render(scene, &l, camera, opts, index * 64 + 2 + k as u64)?;
         // normal equations over pixels and channels, relative weights
-        let nb = if r_ovc.is_some() { 3 } else { 2 };
-        let mut ata = [[0.0f64; 3]; 3];
-        let mut atb = [0.0f64; 3];
+        let nb = if r_ovc.is_some() { 5 } else { 4 };
+        let mut ata = [[0.0f64; N]; N];
+        let mut atb = [0.0f64; N];
         let mut btb = 0.0;
         for (j, &i) in pixels.iter().enumerate() {
             for c in 0..3 {
                 let b = obs[j][c];
                 let wt = 1.0 / b.max(floor).powi(2);
-                let a = [
-                    r_sun.pixels[i][c] as f64 * sun_rad[c],
-                    r_sky.pixels[i][c] as f64,
-                    r_ovc.as_ref().map_or(0.0, |r| r.pixels[i][c] as f64),
-                ];
+                let mut a = [0.0; N];
+                a[c] = r_sun.pixels[i][c] as f64 * sun_rad[c];
+                a[3] = r_sky.pixels[i][c] as f64;
+                a[4] = r_ovc.as_ref().map_or(0.0, |r| r.pixels[i][c] as f64);
                 for p in 0..nb {
                     atb[p] += wt * a[p] * b;
                     for q in 0..nb {
@@ -386,7 +404,19 @@ pub fn fit_photo(
                 btb += wt * b * b;
             }
         }
-        let (x, sse, active) = nnls3(&ata, &atb, btb, nb);
+        // a sunny sky (sun and clear sky) or an overcast one (clear and overcast skies, no
+        // sun): both domes with a sun confound the two smooth skies
+        let sunny = nnls(&ata, &atb, btb, 0b01111);
+        let (x, sse, active) = if nb == 5 {
+            let overcast = nnls(&ata, &atb, btb, 0b11000);
+            if overcast.1 < sunny.1 {
+                overcast
+            } else {
+                sunny
+            }
+        } else {
+            sunny
+        };
         curve.push((t, sse));
         let n = 3 * pixels.len();
         if best.as_ref().is_none_or(|b| sse < b.sse) {
@@ -411,6 +441,14 @@ pub fn fit_photo(
     let dof = n.saturating_sub(3).max(1) as f64;
     let s2 = sse / dof;
     let se = |k: usize| (s2 * cov[k][k]).max(0.0).sqrt();
+    let sun = (x[0] + x[1] + x[2]) / 3.0;
+    let sun_var: f64 = (0..3)
+        .flat_map(|p| (0..3).map(move |q| (p, q)))
+        .map(|(p, q)| cov[p][q])
+        .sum::<f64>()
+        / 9.0;
+    let colour = |c: usize| if sun > 0.0 { x[c] / sun } else { 1.0 };
+    let colour_se = |c: usize| if sun > 0.0 { se(c) / sun } else { 0.0 };
     let t_se = turbidity_stderr(&curve, t, s2);
     Ok(PhotoFit {
         photo: id.to_string(),
@@ -420,15 +458,17 @@ pub fn fit_photo(
         sun_direction: sky.sun,
         params: SkyParams {
             turbidity: t,
-            sun_scale: x[0],
-            sky_scale: x[1],
-            overcast_scale: x[2],
+            sun_scale: sun,
+            sun_colour: [colour(0), colour(1), colour(2)],
+            sky_scale: x[3],
+            overcast_scale: x[4],
         },
         stderr: SkyParams {
             turbidity: t_se,
-            sun_scale: se(0),
-            sky_scale: se(1),
-            overcast_scale: se(2),
+            sun_scale: (s2 * sun_var).max(0.0).sqrt(),
+            sun_colour: [colour_se(0), colour_se(1), colour_se(2)],
+            sky_scale: se(3),
+            overcast_scale: se(4),
         },
         pixels: pixels.len(),
         relative_rms: (sse / n.max(1) as f64).sqrt(),
@@ -440,9 +480,9 @@ struct Candidate {
     turbidity: f64,
     /// Weighted sum of squared residuals.
     sse: f64,
-    x: [f64; 3],
+    x: [f64; N],
     /// Inverse normal matrix on the active set.
-    cov: [[f64; 3]; 3],
+    cov: Mat,
     /// Residuals (pixels x channels).
     n: usize,
 }
@@ -470,9 +510,9 @@ fn turbidity_stderr(curve: &[(f64, f64)], t: f64, s2: f64) -> f64 {
 }
 
 /// Solves `ata x = atb` restricted to the set `active` (others zero).
-fn solve_subset(ata: &[[f64; 3]; 3], atb: &[f64; 3], active: &[usize]) -> Option<[f64; 3]> {
+fn solve_subset(ata: &Mat, atb: &[f64; N], active: &[usize]) -> Option<[f64; N]> {
     let m = active.len();
-    let mut a = [[0.0f64; 4]; 3];
+    let mut a = [[0.0f64; N + 1]; N];
     for (r, &p) in active.iter().enumerate() {
         for (c, &q) in active.iter().enumerate() {
             a[r][c] = ata[p][q];
@@ -495,19 +535,22 @@ fn solve_subset(ata: &[[f64; 3]; 3], atb: &[f64; 3], active: &[usize]) -> Option
             }
         }
     }
-    let mut x = [0.0; 3];
+    let mut x = [0.0; N];
     for (r, &p) in active.iter().enumerate() {
         x[p] = a[r][m] / a[r][r];
     }
     x.iter().all(|v| v.is_finite()).then_some(x)
 }
 
-/// Non-negative least squares of `nb` (at most 3) unknowns from the normal equations, by trying
-/// every subset: `(x, sum of squared residuals, active set)`.
-fn nnls3(ata: &[[f64; 3]; 3], atb: &[f64; 3], btb: f64, nb: usize) -> ([f64; 3], f64, Vec<usize>) {
-    let mut best = ([0.0; 3], btb, Vec::new());
-    for mask in 1u32..(1 << nb) {
-        let active: Vec<usize> = (0..nb).filter(|&p| mask & (1 << p) != 0).collect();
+/// Non-negative least squares of the unknowns in `allowed` (a bit mask) from the normal
+/// equations, by trying every subset: `(x, sum of squared residuals, active set)`.
+fn nnls(ata: &Mat, atb: &[f64; N], btb: f64, allowed: u32) -> ([f64; N], f64, Vec<usize>) {
+    let mut best = ([0.0; N], btb, Vec::new());
+    for mask in 1u32..(1 << N) {
+        if mask & !allowed != 0 {
+            continue;
+        }
+        let active: Vec<usize> = (0..N).filter(|&p| mask & (1 << p) != 0).collect();
         let Some(x) = solve_subset(ata, atb, &active) else {
             continue;
         };
@@ -516,9 +559,9 @@ fn nnls3(ata: &[[f64; 3]; 3], atb: &[f64; 3], btb: f64, nb: usize) -> ([f64; 3],
         }
         // sse = b'b - 2 x'A'b + x'A'A x
         let mut sse = btb;
-        for p in 0..3 {
+        for p in 0..N {
             sse -= 2.0 * x[p] * atb[p];
-            for q in 0..3 {
+            for q in 0..N {
                 sse += x[p] * ata[p][q] * x[q];
             }
         }
@@ -531,10 +574,10 @@ fn nnls3(ata: &[[f64; 3]; 3], atb: &[f64; 3], btb: f64, nb: usize) -> ([f64; 3],
 }
 
 /// The inverse of `ata` restricted to `active` (zero elsewhere).
-fn covariance(ata: &[[f64; 3]; 3], active: &[usize]) -> [[f64; 3]; 3] {
-    let mut cov = [[0.0; 3]; 3];
+fn covariance(ata: &Mat, active: &[usize]) -> Mat {
+    let mut cov = [[0.0; N]; N];
     for &p in active {
-        let mut e = [0.0; 3];
+        let mut e = [0.0; N];
         e[p] = 1.0;
         if let Some(col) = solve_subset(ata, &e, active) {
             for &q in active {
@@ -784,6 +827,23 @@ fn write_lighting_files(
 mod tests {
     use super::*;
 
+    /// Normal equations of rows `a` (3 columns, padded to `N`) and right-hand side `b`.
+    fn normal(a: &[[f64; 3]], b: &[f64]) -> (Mat, [f64; N], f64) {
+        let mut ata = [[0.0; N]; N];
+        let mut atb = [0.0; N];
+        let mut btb = 0.0;
+        for (r, bi) in a.iter().zip(b) {
+            for p in 0..3 {
+                atb[p] += r[p] * bi;
+                for q in 0..3 {
+                    ata[p][q] += r[p] * r[q];
+                }
+            }
+            btb += bi * bi;
+        }
+        (ata, atb, btb)
+    }
+
     #[test]
     fn nnls_recovers_an_exact_combination_and_clamps_a_negative_one() {
         // columns a0 = (1,0,1,2), a1 = (0,1,1,0), a2 = (1,1,0,1); b = 2 a0 + 0.5 a1
@@ -798,34 +858,16 @@ mod tests {
             .iter()
             .map(|r| (0..3).map(|k| r[k] * x_true[k]).sum())
             .collect();
-        let mut ata = [[0.0; 3]; 3];
-        let mut atb = [0.0; 3];
-        let mut btb = 0.0;
-        for (r, bi) in a.iter().zip(&b) {
-            for p in 0..3 {
-                atb[p] += r[p] * bi;
-                for q in 0..3 {
-                    ata[p][q] += r[p] * r[q];
-                }
-            }
-            btb += bi * bi;
-        }
-        let (x, sse, _) = nnls3(&ata, &atb, btb, 3);
+        let (ata, atb, btb) = normal(&a, &b);
+        let (x, sse, _) = nnls(&ata, &atb, btb, 0b111);
         for k in 0..3 {
             assert!((x[k] - x_true[k]).abs() < 1e-9, "{x:?}");
         }
         assert!(sse < 1e-12);
         // b = a0 - a2: the unconstrained fit has x2 = -1; the non-negative one none below zero
         let b2: Vec<f64> = a.iter().map(|r| r[0] - r[2]).collect();
-        let mut atb2 = [0.0; 3];
-        let mut btb2 = 0.0;
-        for (r, bi) in a.iter().zip(&b2) {
-            for p in 0..3 {
-                atb2[p] += r[p] * bi;
-            }
-            btb2 += bi * bi;
-        }
-        let (x2, sse2, _) = nnls3(&ata, &atb2, btb2, 3);
+        let (ata, atb2, btb2) = normal(&a, &b2);
+        let (x2, sse2, _) = nnls(&ata, &atb2, btb2, 0b111);
         assert!(x2.iter().all(|&v| v >= 0.0), "{x2:?}");
         assert!(sse2 > 0.0 && sse2 <= btb2);
     }

@@ -3,3 +3,4 @@
 
 mod probe_survey;
 mod radiometry;
+mod sunsky;

@@ -1,0 +1,348 @@
+//! Lighting without probes (issue 34) against independent data: the Mitsuba 3 `sunsky` survey
+//! (`datasets/fixtures/sunsky_survey`, written by `datasets/mitsuba/sunsky_survey.py`): six
+//! photographs at six times of 21 June 2026 in Paris, five under Mitsuba's Hosek-Wilkie sun and
+//! sky with their own sun and sky scales, one under a CIE overcast sky, with a grey card
+//! (`[[reference]]`, albedo 0.5) on the ground. No photo has a lighting file: each gets the SPA
+//! sun of its time and a sky whose turbidity and scales are fitted with the albedo.
+//!
+//! Pass criteria (issue 34): albedo MAE per channel <= 0.02 over texels seen twice; without the
+//! card, MAE <= 0.02 after one global scale, the result saying that its scale is not absolute;
+//! the sun within 0.1 degrees of Mitsuba's; the overcast photo's sky within 2 % and no sun.
+//! The issue's "within 1.5x of the same survey solved with its true lighting" is printed, not
+//! asserted: it is not met yet (docs/SKY.md, "Lighting estimated with the albedo").
+
+use igi_formats::lighting::LightingFile;
+use igi_formats::TomlFile;
+use igi_reflect::solver::truth_from_scene;
+use igi_reflect::{SolveOptions, SolveResult};
+use igi_workflow::lightfit::{LightingRecord, SkyParams};
+use igi_workflow::{AtlasRequest, LightingSource, SolveRequest, Survey};
+use std::path::{Path, PathBuf};
+
+const ATLAS: u32 = 64;
+const ITERATIONS: u32 = 4;
+
+fn fixture() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../datasets/fixtures/sunsky_survey")
+}
+
+fn truth_json() -> serde_json::Value {
+    let p = fixture().join("truth.json");
+    serde_json::from_str(&std::fs::read_to_string(&p).expect("fixture truth.json")).unwrap()
+}
+
+fn options() -> SolveOptions {
+    SolveOptions {
+        max_iterations: ITERATIONS,
+        min_iterations: ITERATIONS,
+        spp: vec![16, 64],
+        ..SolveOptions::default()
+    }
+}
+
+fn solve(survey: &Path, out: &Path) -> SolveResult {
+    let request = SolveRequest {
+        survey: survey.to_path_buf(),
+        output: out.to_path_buf(),
+        atlas: AtlasRequest::Fixed(ATLAS),
+        options: options(),
+        truth: None,
+        restart: true,
+    };
+    igi_workflow::solve(&request, &igi_reflect::solver::NoProgress).unwrap()
+}
+
+/// Per texel seen at least twice: (solved, true) albedo.
+fn pairs(state: &SolveResult) -> Vec<([f32; 3], [f32; 3])> {
+    let scene = igi_render::Scene::load(&fixture().join("truth/scene.toml"))
+        .unwrap()
+        .0;
+    let truth = truth_from_scene(&state.parts, &scene);
+    let mut out = Vec::new();
+    for (pi, part) in state.parts.iter().enumerate() {
+        for (k, t) in part.cache.texels.iter().enumerate() {
+            let i = t.index as usize;
+            if state.observations[pi][i] < 2 {
+                continue;
+            }
+            if let Some(rho) = truth.texels[pi][k] {
+                out.push((state.rho[pi][i].to_array(), rho.to_array()));
+            }
+        }
+    }
+    out
+}
+
+/// Mean absolute error per channel after multiplying the solved albedo by `g`.
+fn mae(p: &[([f32; 3], [f32; 3])], g: f64) -> [f64; 3] {
+    std::array::from_fn(|c| {
+        p.iter()
+            .map(|(a, b)| (g * a[c] as f64 - b[c] as f64).abs())
+            .sum::<f64>()
+            / p.len() as f64
+    })
+}
+
+/// The one global scale that best maps the solved albedo onto the truth (least squares).
+fn best_scale(p: &[([f32; 3], [f32; 3])]) -> f64 {
+    let (mut ab, mut aa) = (0.0, 0.0);
+    for (a, b) in p {
+        for c in 0..3 {
+            ab += a[c] as f64 * b[c] as f64;
+            aa += a[c] as f64 * a[c] as f64;
+        }
+    }
+    ab / aa
+}
+
+fn record(state: &SolveResult) -> LightingRecord {
+    serde_json::from_value(state.report.lighting.clone().expect("a lighting record")).unwrap()
+}
+
+fn angle_deg(a: [f64; 3], b: [f64; 3]) -> f64 {
+    let d: f64 = (0..3).map(|k| a[k] * b[k]).sum();
+    let na: f64 = a.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let nb: f64 = b.iter().map(|x| x * x).sum::<f64>().sqrt();
+    (d / (na * nb)).clamp(-1.0, 1.0).acos().to_degrees()
+}
+
+/// The survey with each photo given its true lighting, written into `dir`: igi-sky's
+/// Hosek-Wilkie sky at the true turbidity and sky scale (the same RGB sky as Mitsuba's, to f32,
+/// docs/SKY.md) with the sun's disk carrying the irradiance Mitsuba's sun delivers, and the CIE
+/// overcast sky of the overcast photo.
+fn true_lighting_survey(dir: &Path) -> PathBuf {
+    let survey = Survey::load(&fixture().join("survey_nocard.toml")).unwrap();
+    let truth = truth_json();
+    let mut text = String::from("[site]\nmeshes = [");
+    text += &survey
+        .meshes
+        .iter()
+        .map(|m| format!("{:?}", m.display().to_string()))
+        .collect::<Vec<_>>()
+        .join(", ");
+    text += "]\n";
+    for (p, t) in survey
+        .photos
+        .iter()
+        .zip(truth["photos"].as_array().unwrap())
+    {
+        let LightingSource::Estimated(sky) = &p.lighting else {
+            panic!("photo {} should have its light estimated", p.id)
+        };
+        let params = SkyParams {
+            turbidity: truth["turbidity"].as_f64().unwrap(),
+            sun_scale: t["sun_scale"].as_f64().unwrap(),
+            sun_colour: [1.0; 3],
+            sky_scale: t["sky_scale"].as_f64().unwrap(),
+            overcast_scale: t["overcast_zenith"].as_f64().unwrap(),
+        };
+        sky.write_lighting(dir, &p.id, &params).unwrap();
+        // the sun's disk with the irradiance Mitsuba's sun delivers (its own limb darkening
+        // and spectral integration), not igi-sky's
+        if params.sun_scale > 0.0 {
+            let path = dir.join(format!("{}.toml", p.id));
+            let mut file = LightingFile::read(&path).unwrap();
+            let sun = file.sun.as_mut().unwrap();
+            let half = (sun.angular_diameter_deg / 2.0).to_radians();
+            let omega = 2.0 * std::f64::consts::PI * (1.0 - half.cos());
+            let e = &t["sun_irradiance_at_scale_1"];
+            sun.radiance = std::array::from_fn(|c| {
+                (params.sun_scale * e[c].as_f64().unwrap() / omega).max(0.0)
+            });
+            file.write(&path, &["true lighting of the test"]).unwrap();
+        }
+        text += &format!(
+            "\n[[photo]]\nid = {:?}\nimage = {:?}\ncamera = {:?}\nlighting = \"{}.toml\"\n",
+            p.id,
+            p.image.display().to_string(),
+            p.camera.display().to_string(),
+            p.id
+        );
+    }
+    let file = dir.join("survey.toml");
+    std::fs::write(&file, text).unwrap();
+    file
+}
+
+#[test]
+fn the_sun_of_each_photo_is_mitsubas_within_a_tenth_of_a_degree() {
+    let survey = Survey::load(&fixture().join("survey.toml")).unwrap();
+    let truth = truth_json();
+    for (p, t) in survey
+        .photos
+        .iter()
+        .zip(truth["photos"].as_array().unwrap())
+    {
+        let LightingSource::Estimated(sky) = &p.lighting else {
+            panic!("photo {} should have its light estimated", p.id)
+        };
+        let m: Vec<f64> = t["mitsuba_sun_direction"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect();
+        let a = angle_deg(sky.sun, [m[0], m[1], m[2]]);
+        println!("{}: sun {:.4} deg from Mitsuba's", p.id, a);
+        assert!(a < 0.1, "photo {}: sun {a} deg from Mitsuba's", p.id);
+    }
+}
+
+#[test]
+fn albedo_and_light_from_photographs_without_probes() {
+    let tmp = tempfile::tempdir().unwrap();
+    let truth = truth_json();
+
+    let t0 = std::time::Instant::now();
+    let card = solve(&fixture().join("survey.toml"), &tmp.path().join("card"));
+    let card_s = t0.elapsed().as_secs_f64();
+    let p = pairs(&card);
+    let card_mae = mae(&p, 1.0);
+    let rec = record(&card);
+    println!(
+        "card: {} texels seen twice, MAE {card_mae:.4?}, {card_s:.1} s, gauge {:.4}, reference ratio {:?}",
+        p.len(),
+        rec.gauge,
+        rec.reference_ratio
+    );
+    for (f, t) in rec.photos.iter().zip(truth["photos"].as_array().unwrap()) {
+        println!(
+            "  {}: T {} +- {:.2}, sun {:.4} +- {:.4} (true {}) colour {:.3?}, sky {:.4} +- {:.4} (true {}), overcast {:.4} +- {:.4} (true {}), rel rms {:.3}",
+            f.photo,
+            f.params.turbidity,
+            f.stderr.turbidity,
+            f.params.sun_scale,
+            f.stderr.sun_scale,
+            t["sun_scale"],
+            f.params.sun_colour,
+            f.params.sky_scale,
+            f.stderr.sky_scale,
+            t["sky_scale"],
+            f.params.overcast_scale,
+            f.stderr.overcast_scale,
+            t["overcast_zenith"],
+            f.relative_rms
+        );
+    }
+    assert!(rec.absolute_scale);
+    // every photo's estimated lighting is a contract lighting file in the result
+    for f in &rec.photos {
+        let l = tmp
+            .path()
+            .join("card/lighting")
+            .join(format!("{}.toml", f.photo));
+        igi_render::Lighting::load(&l).unwrap();
+    }
+
+    let t1 = std::time::Instant::now();
+    let nocard = solve(
+        &fixture().join("survey_nocard.toml"),
+        &tmp.path().join("nocard"),
+    );
+    let nocard_s = t1.elapsed().as_secs_f64();
+    let pn = pairs(&nocard);
+    let g = best_scale(&pn);
+    let nocard_mae = mae(&pn, g);
+    let recn = record(&nocard);
+    println!(
+        "no card: MAE {:.4?} as solved, {nocard_mae:.4?} after the global scale {g:.4}; reported gauge {:.4} (absolute {}), {nocard_s:.1} s",
+        mae(&pn, 1.0),
+        recn.gauge,
+        recn.absolute_scale
+    );
+    assert!(!recn.absolute_scale);
+
+    let lt = tmp.path().join("true_lighting");
+    std::fs::create_dir_all(&lt).unwrap();
+    let t2 = std::time::Instant::now();
+    let known = solve(&true_lighting_survey(&lt), &tmp.path().join("known"));
+    let known_s = t2.elapsed().as_secs_f64();
+    let known_mae = mae(&pairs(&known), 1.0);
+    println!("true lighting: MAE {known_mae:.4?}, {known_s:.1} s");
+
+    let ratio: Vec<f64> = (0..3).map(|c| card_mae[c] / known_mae[c]).collect();
+    println!(
+        "MAE over the true-lighting solve's: {ratio:.2?} (issue 34 asks for 1.5; not met yet)"
+    );
+    for c in 0..3 {
+        assert!(card_mae[c] <= 0.02, "MAE {card_mae:?}");
+        assert!(nocard_mae[c] <= 0.02, "MAE without the card {nocard_mae:?}");
+    }
+    // the overcast photo: no sun, the CIE overcast sky's zenith radiance within 2 %
+    let t = &truth["photos"][3];
+    let f = &rec.photos[3];
+    assert_eq!(f.photo, t["id"].as_str().unwrap());
+    let z = t["overcast_zenith"].as_f64().unwrap();
+    assert!(f.params.sun_scale == 0.0, "{:?}", f.params);
+    assert!(
+        (f.params.overcast_scale - z).abs() <= 0.02 * z,
+        "overcast zenith {} against {z}",
+        f.params.overcast_scale
+    );
+}
+
+/// The fixture's survey text with `edit` applied, written into `dir` with absolute paths.
+fn edited_survey(dir: &Path, edit: impl Fn(String) -> String) -> PathBuf {
+    let root = fixture().canonicalize().unwrap();
+    let text = std::fs::read_to_string(root.join("survey.toml")).unwrap();
+    let text = text
+        .replace("\"geometry/", &format!("\"{}/geometry/", root.display()))
+        .replace("\"photos/", &format!("\"{}/photos/", root.display()))
+        .replace("\"cameras/", &format!("\"{}/cameras/", root.display()));
+    let file = dir.join("survey.toml");
+    std::fs::write(&file, edit(text)).unwrap();
+    file
+}
+
+fn refusal(dir: &Path, edit: impl Fn(String) -> String) -> String {
+    let file = edited_survey(dir, edit);
+    let e = Survey::load(&file)
+        .expect_err("the survey is refused")
+        .to_string();
+    assert!(
+        e.contains(&file.display().to_string()),
+        "the error names the survey file: {e}"
+    );
+    e
+}
+
+#[test]
+fn bad_input_for_estimated_light_is_refused_naming_the_file_and_key() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    // the unedited copy loads
+    Survey::load(&edited_survey(d, |t| t)).unwrap();
+    let e = refusal(d, |t| {
+        t.replacen("time = \"2026-06-21T08:30:00+02:00\"\n", "", 1)
+    });
+    assert!(
+        e.contains("photo `t0830`") && e.contains("no `time`"),
+        "{e}"
+    );
+    let e = refusal(d, |t| {
+        t.replace("latitude_deg = 48.85\nlongitude_deg = 2.35\n", "")
+    });
+    assert!(e.contains("latitude_deg") && e.contains("[site]"), "{e}");
+    let e = refusal(d, |t| {
+        t.replace("latitude_deg = 48.85", "latitude_deg = 91.0")
+    });
+    assert!(e.contains("latitude_deg"), "{e}");
+    let e = refusal(d, |t| {
+        t.replace("2026-06-21T08:30:00+02:00", "2026-06-21T08:30:00")
+    });
+    assert!(e.contains("t0830") && e.contains("offset"), "{e}");
+    let e = refusal(d, |t| {
+        t.replace("center = [2.6, -2.6, 0.0]", "center = [60.0, 60.0, 0.0]")
+    });
+    assert!(
+        e.contains("[[reference]] 1") && e.contains("no photo sees it"),
+        "{e}"
+    );
+    let e = refusal(d, |t| {
+        t.replace("2026-06-21T18:30:00+02:00", "2026-06-21T23:30:00+02:00")
+    });
+    assert!(
+        e.contains("t1830") && e.contains("below the horizon"),
+        "{e}"
+    );
+}
