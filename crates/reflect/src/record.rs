@@ -324,6 +324,11 @@ pub struct SolveReport {
     /// The iteration in progress when a voxel-by-voxel solve was checkpointed after a voxel.
     #[serde(default)]
     pub pending: Option<Pending>,
+    /// The lighting estimated with the albedo for photos without lighting files (written by
+    /// `igi-workflow`'s `lightfit`: fitted sky parameters with uncertainties, the global
+    /// scale); absent otherwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lighting: Option<serde_json::Value>,
 }
 
 /// A voxel-by-voxel iteration in progress: the groups already solved and the running sums of

@@ -277,18 +277,6 @@ pub struct LightingRecord {
     pub photos: Vec<PhotoFit>,
 }
 
-/// Per photo of `survey` (its order): the sun and site of a photo whose light is estimated.
-pub fn estimated_photos(survey: &crate::Survey) -> Vec<Option<SkyPhoto>> {
-    survey
-        .photos
-        .iter()
-        .map(|p| match &p.lighting {
-            crate::LightingSource::Estimated(s) => Some(s.clone()),
-            _ => None,
-        })
-        .collect()
-}
-
 /// The scene a fit renders: the parts with the current albedo.
 pub fn scene_of(state: &SolveResult) -> Result<Scene, WorkflowError> {
     Ok(igi_reflect::truth::scene_with_albedo(

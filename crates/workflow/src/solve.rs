@@ -131,7 +131,10 @@ impl SolveJob {
             .as_ref()
             .map(|scene| truth_from_scene(&state.parts, scene));
         let coarse = self.coarse_stage(&state)?;
+        let sky = self.survey.estimated_photos();
         Ok(StartedSolve {
+            sky,
+            references: self.survey.references.clone(),
             state,
             photos,
             basis: self.basis,
@@ -184,6 +187,10 @@ impl SolveJob {
 
 /// A solve whose result folder is started (or resumed) and locked, with everything it reads.
 pub struct StartedSolve {
+    /// Per photo (survey order): the sun and site of a photo whose light is estimated.
+    pub sky: Vec<Option<crate::lightfit::SkyPhoto>>,
+    /// The survey's `[[reference]]` targets (they fix the scale of estimated light).
+    pub references: Vec<igi_formats::survey::ReferenceTarget>,
     /// The result as it stands: fresh, or the checkpoint resumed.
     pub state: SolveResult,
     pub photos: Vec<Photo>,
@@ -219,6 +226,17 @@ impl StartedSolve {
             self.state = solve_coarse_first(self.state, c.parts, &inputs, &self.options, progress)?;
         }
         let out = &self.output;
+        if self.sky.iter().any(Option::is_some) {
+            let e = crate::lightfit::Estimation {
+                sky: &self.sky,
+                references: &self.references,
+                basis: self.basis.as_ref(),
+                truth: self.truth.as_ref(),
+                options: &self.options,
+                output: out,
+            };
+            return crate::lightfit::iterate(self.state, &mut self.photos, &e, progress);
+        }
         let result = igi_reflect::solve(
             self.state,
             &self.photos,

@@ -103,6 +103,17 @@ impl Survey {
         Ok(Some(igi_brdf::Basis::new(mats)?))
     }
 
+    /// Per photo (the survey's order): the sun and site of a photo whose light is estimated.
+    pub fn estimated_photos(&self) -> Vec<Option<crate::lightfit::SkyPhoto>> {
+        self.photos
+            .iter()
+            .map(|p| match &p.lighting {
+                LightingSource::Estimated(s) => Some(s.clone()),
+                _ => None,
+            })
+            .collect()
+    }
+
     /// Every photograph loaded (image, camera with radiometry applied, lighting), in the
     /// survey's order; `progress` advances by one per photograph.
     pub fn load_photos(&self, progress: &dyn Progress) -> Result<Vec<Photo>, WorkflowError> {
