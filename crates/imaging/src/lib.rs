@@ -9,6 +9,9 @@
 //! * [`photo`]: photographs as cameras write them made linear ([`photo::read_photo`]: 8-bit
 //!   through a Debevec-Malik camera response or sRGB, 16-bit linear, clipped pixels masked and
 //!   counted; [`photo::read_response_csv`]).
+//! * [`raw`]: camera RAW files (DNG and common raw formats) to linear Rec. 709 RGB with the
+//!   file's white balance and colour matrix ([`raw::read_raw`], the optional `raw` feature:
+//!   the `rawler` decoder, LGPL-2.1).
 //! * [`exif`]: when a photograph was taken and how it was exposed, from its EXIF
 //!   ([`exif::read_exif`], [`exif::PhotoExif::exposure`]).
 //! * [`hdr`]: merging exposure brackets (linear sensors, the least-squares slope of Matusik
@@ -44,6 +47,7 @@ pub mod mask;
 pub mod merge;
 pub mod metrics;
 pub mod photo;
+pub mod raw;
 
 pub use error::{CompareError, FileSizes, HdrError, ImagingError};
 pub use image::HdrImage;

@@ -8,6 +8,10 @@
 //! * **16-bit** PNG or TIFF (raw converters' output): linear, `value / 65535`, unless sRGB is
 //!   asked for; a pixel with any channel at 65535 is clipped.
 //! * **Float** (EXR, Radiance HDR, float TIFF): linear as stored; its own validity mask kept.
+//! * **Camera RAW** (DNG, CR2, NEF, ARW, ... [`crate::raw::RAW_EXTENSIONS`]): decoded by
+//!   [`crate::raw::read_raw`] with the file's black and white levels, white balance and colour
+//!   matrix to linear Rec. 709 RGB (the `raw` feature; without it, an error saying so); a pixel
+//!   with a camera channel at the white level is clipped.
 //!
 //! [`read_photo`] counts the clipped pixels so that callers can report them.
 
@@ -75,6 +79,9 @@ pub fn read_photo(path: &Path, transfer: &Transfer) -> Result<LinearPhoto, Imagi
         .extension()
         .map(|e| e.to_string_lossy().to_lowercase())
         .unwrap_or_default();
+    if crate::raw::is_raw_path(path) {
+        return raw_photo(path, transfer);
+    }
     if !matches!(ext.as_str(), "png" | "jpg" | "jpeg" | "tif" | "tiff") {
         let image = read_image(path)?;
         return float_photo(path, image, transfer);
@@ -141,6 +148,28 @@ pub fn read_photo(path: &Path, transfer: &Transfer) -> Result<LinearPhoto, Imagi
             float_photo(path, image, transfer)
         }
     }
+}
+
+/// A camera RAW file: linear by its own levels; sRGB or a response is refused.
+fn raw_photo(path: &Path, transfer: &Transfer) -> Result<LinearPhoto, ImagingError> {
+    let what = match transfer {
+        Transfer::Default | Transfer::Linear | Transfer::ResponseFor8Bit(_) => None,
+        Transfer::Srgb => Some("sRGB decoding"),
+        Transfer::Response(_) => Some("a camera response"),
+    };
+    if let Some(what) = what {
+        return Err(ImagingError::PhotoTransfer {
+            path: path.to_path_buf(),
+            msg: format!("is a camera RAW file, linear by its own black and white levels: {what} applies to 8- and 16-bit photos only"),
+        });
+    }
+    let r = crate::raw::read_raw(path)?;
+    Ok(LinearPhoto {
+        image: r.image,
+        bits: 16,
+        applied: Applied::Linear,
+        clipped: r.clipped,
+    })
 }
 
 /// A float image: linear as stored; sRGB or a response is refused.
