@@ -1,5 +1,6 @@
 //! `igi import`: photogrammetry models as survey folders.
 use crate::report::{print_json, Ctx};
+use igi_import::icp::IcpOptions;
 use igi_import::{import_colmap, AlignOptions, ColmapImport, ModelFormat};
 use std::path::PathBuf;
 
@@ -41,6 +42,15 @@ pub enum ImportCmd {
     /// guessed) and `exposure` (ExposureTime x ISO/100 / FNumber^2; written only when every
     /// photo has one). What was left out is listed per photo.
     ///
+    /// With --icp (COLMAP models, after --control), the alignment is refined by trimmed ICP
+    /// of the model's sparse 3D points against --mesh: each point paired with its closest
+    /// point on the mesh (a kiddo k-d tree of surface samples, then the exact closest point on
+    /// their triangles), the closest --icp-keep fraction kept, the similarity (scale
+    /// included) refitted by Umeyama's method until it settles. Refused when the refinement
+    /// would turn the points by more than 5 degrees, change the scale by more than 10% or
+    /// move them by more than 0.2 of their spread, or when it does not lower the kept
+    /// points' RMS distance to the mesh. alignment.json keeps both similarities.
+    ///
     /// Nothing is written unless every check passes.
     Colmap(ColmapArgs),
 }
@@ -71,6 +81,14 @@ pub struct ColmapArgs {
     /// (default: 5% of the control points' spread).
     #[arg(long)]
     pub max_residual: Option<f64>,
+    /// Refine the control-point alignment by trimmed ICP of the sparse points against --mesh
+    /// (COLMAP models; needs --control).
+    #[arg(long)]
+    pub icp: bool,
+    /// With --icp: the fraction of sparse points kept each iteration (the closest ones;
+    /// outliers and parts the scan misses are left out).
+    #[arg(long, default_value_t = 0.8, requires = "icp")]
+    pub icp_keep: f64,
     /// The survey folder to write (must not exist, or be empty).
     #[arg(short, long)]
     pub output: PathBuf,
@@ -113,6 +131,10 @@ fn run_colmap(a: ColmapArgs) -> anyhow::Result<()> {
         align: AlignOptions {
             max_residual: a.max_residual,
         },
+        icp: a.icp.then(|| IcpOptions {
+            keep: a.icp_keep,
+            ..IcpOptions::default()
+        }),
     };
     let r = import_colmap(&job)?;
     if a.json {
@@ -136,6 +158,18 @@ fn run_colmap(a: ColmapArgs) -> anyhow::Result<()> {
             println!("frame                 scan (scale {:.6})", r.scale);
             println!("control RMS           {rms:.4} m (bound {bound:.4} m)");
             println!("control outliers      {:?}", r.outliers);
+            if let Some(i) = &r.icp {
+                println!(
+                    "ICP                   {} of {} points kept, RMS to the mesh {:.4} -> {:.4} m in {} iterations",
+                    i.kept, i.points, i.rms_before_m, i.rms_after_m, i.iterations
+                );
+                println!(
+                    "ICP correction        {:.4} deg, scale x{:.6}, {:.4} m",
+                    i.turn_deg,
+                    1.0 + i.scale_change,
+                    i.shift_m
+                );
+            }
         }
         _ => println!(
             "frame                 the model's own (no --control: not aligned to the scan)"

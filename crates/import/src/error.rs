@@ -56,6 +56,16 @@ pub enum ImportError {
     Formats(#[from] igi_formats::FormatsError),
     #[error(transparent)]
     Camera(#[from] igi_camera::CameraError),
+    /// The site mesh (`--mesh`) cannot be read.
+    #[error(transparent)]
+    Geometry(#[from] igi_geometry::GeometryError),
+    /// The ICP refinement against the mesh (`--icp`) cannot be made.
+    #[error("{}: ICP of the model's sparse points: {source}", mesh.display())]
+    Icp {
+        mesh: PathBuf,
+        #[source]
+        source: crate::icp::IcpError,
+    },
 }
 
 impl ImportError {

@@ -27,6 +27,9 @@
 //! * [`align`]: control points triangulated from their observations, the similarity
 //!   `x_scan = s R x_model + t` fitted by Umeyama's method in a deterministic RANSAC and
 //!   refitted on the inliers, per-point residuals in metres and pixels.
+//! * [`icp`]: the optional refinement of the alignment by trimmed ICP of the model's sparse
+//!   points against the site mesh (scale included; closest points on the mesh's triangles
+//!   found through a kiddo k-d tree of surface samples).
 //! * [`survey`]: `igi import colmap` itself ([`import_colmap`], any [`ModelFormat`]):
 //!   everything checked (each photo's EXIF read for its `time` and `exposure`), then
 //!   `cameras/NAME.json`, `alignment.json` and `survey.toml` written atomically.
@@ -35,6 +38,7 @@ pub mod align;
 pub mod binary;
 pub mod colmap;
 mod error;
+pub mod icp;
 pub mod metashape;
 pub mod model;
 pub mod nerfstudio;
@@ -59,5 +63,7 @@ mod tests;
 mod tests_exif;
 #[cfg(test)]
 mod tests_formats;
+#[cfg(test)]
+mod tests_icp;
 #[cfg(test)]
 mod tests_pycolmap;

@@ -54,6 +54,9 @@ pub struct CameraSet {
     pub images: Vec<PosedImage>,
     /// The model's 3D points (COLMAP only; 0 otherwise).
     pub points3d: usize,
+    /// The model's 3D points in its own frame (COLMAP only; `igi import colmap --icp` aligns
+    /// them to the mesh).
+    pub points: Vec<glam::DVec3>,
     /// Images the model lists without a pose (Metashape's unaligned cameras), left out.
     pub unposed: Vec<String>,
 }
@@ -82,6 +85,11 @@ pub fn colmap_cameras(model: &ColmapModel, read: Vec<PathBuf>) -> Result<CameraS
         cameras: model.cameras.len(),
         images,
         points3d: model.points.len(),
+        points: model
+            .points
+            .iter()
+            .map(|p| glam::DVec3::from_array(p.xyz))
+            .collect(),
         unposed: Vec::new(),
     })
 }

@@ -2,7 +2,9 @@
 //! `transforms.json`: [`ModelFormat`]) as a survey folder. Everything is read and checked first
 //! (the output folder, the model, each camera, each image file, the mesh, the lighting file, the
 //! control points and the alignment); only then is anything written, each file atomically:
-//! `cameras/NAME.json` per image, `alignment.json`, and `survey.toml` last.
+//! `cameras/NAME.json` per image, `alignment.json`, and `survey.toml` last. With
+//! [`ColmapImport::icp`] the control-point alignment is refined by trimmed ICP of the model's
+//! sparse points against the mesh ([`crate::icp`]) before the cameras are moved.
 
 use std::collections::HashMap;
 use std::path::{Component, Path, PathBuf};
@@ -17,6 +19,7 @@ use serde_json::json;
 use crate::align::{align, AlignOptions, Alignment, Similarity};
 use crate::colmap::read_model;
 use crate::error::ImportError;
+use crate::icp::{compose, icp, Icp, IcpOptions, IcpReport, Surface};
 use crate::source::{colmap_cameras, CameraSet, ModelFormat};
 
 /// What `igi import colmap` is asked to do.
@@ -39,6 +42,9 @@ pub struct ColmapImport {
     /// The survey folder to write (absent or empty).
     pub output: PathBuf,
     pub align: AlignOptions,
+    /// Refine the control-point alignment by ICP of the sparse points against `mesh`
+    /// (COLMAP models with `--control` only).
+    pub icp: Option<IcpOptions>,
 }
 
 /// What was read and written.
@@ -61,6 +67,8 @@ pub struct ImportReport {
     pub max_residual_m: Option<f64>,
     /// Control points left out of the fit (residual above the bound).
     pub outliers: Vec<String>,
+    /// The ICP refinement, when asked for.
+    pub icp: Option<IcpReport>,
     /// Whether every photo has a lighting file.
     pub lighting: bool,
     /// Photos given a `time` from their EXIF.
@@ -292,14 +300,19 @@ pub fn import_colmap(job: &ColmapImport) -> Result<ImportReport, ImportError> {
         LightingFile::read(l)?;
     }
     let aligned = alignment(job, &photos, &set)?;
-    let sim = aligned
+    let mut sim = aligned
         .as_ref()
         .map_or(Similarity::identity(), |a| a.similarity);
+    let refined = refine(job, &set, aligned.is_some(), &sim)?;
+    if let Some(r) = &refined {
+        sim = compose(&r.correction, &sim);
+    }
     photos
         .iter_mut()
         .for_each(|p| p.camera = sim.camera(&p.camera));
-    write_folder(job, &photos, aligned.as_ref())?;
+    write_folder(job, &photos, aligned.as_ref(), refined.as_ref(), &sim)?;
     let mut r = report(job, set, aligned.as_ref(), sim);
+    r.icp = refined.as_ref().map(IcpReport::from);
     r.times = photos.iter().filter(|p| p.exif.time.is_some()).count();
     r.exposures = photos.iter().filter(|p| p.exif.exposure.is_some()).count();
     r.exif_notes = photos
@@ -307,6 +320,38 @@ pub fn import_colmap(job: &ColmapImport) -> Result<ImportReport, ImportError> {
         .flat_map(|p| p.exif.notes.iter().map(|n| (p.id.clone(), n.clone())))
         .collect();
     Ok(r)
+}
+
+/// The ICP refinement of `sim` (the control points' similarity) when asked for.
+fn refine(
+    job: &ColmapImport,
+    set: &CameraSet,
+    aligned: bool,
+    sim: &Similarity,
+) -> Result<Option<Icp>, ImportError> {
+    let Some(opts) = &job.icp else {
+        return Ok(None);
+    };
+    if !aligned {
+        return Err(input_error(
+            &job.sparse,
+            "--icp refines the alignment by control points: give --control as well",
+        ));
+    }
+    if set.points.is_empty() {
+        return Err(input_error(
+            &set.images_file,
+            "the model has no sparse 3D points for --icp (COLMAP's points3D)",
+        ));
+    }
+    let mesh = igi_geometry::read_mesh(&job.mesh)?;
+    let err = |source| ImportError::Icp {
+        mesh: job.mesh.clone(),
+        source,
+    };
+    let surface = Surface::new(&mesh.positions, &mesh.indices, opts.spacing).map_err(err)?;
+    let points: Vec<glam::DVec3> = set.points.iter().map(|p| sim.apply(*p)).collect();
+    icp(&points, &surface, opts).map(Some).map_err(err)
 }
 
 fn report(
@@ -326,6 +371,7 @@ fn report(
         scale: sim.scale,
         rms_m: a.map(|a| a.rms_m),
         max_residual_m: a.map(|a| a.max_residual_m),
+        icp: None,
         outliers: a.map_or(Vec::new(), |a| {
             a.points
                 .iter()
@@ -346,10 +392,12 @@ fn write_folder(
     job: &ColmapImport,
     photos: &[Photo],
     a: Option<&Alignment>,
+    refined: Option<&Icp>,
+    sim: &Similarity,
 ) -> Result<(), ImportError> {
     let out = &job.output;
     let existed = out.exists();
-    let result = write_files(job, photos, a);
+    let result = write_files(job, photos, a, refined, sim);
     if result.is_err() {
         if existed {
             let _ = std::fs::remove_dir_all(out.join("cameras"));
@@ -365,6 +413,8 @@ fn write_files(
     job: &ColmapImport,
     photos: &[Photo],
     a: Option<&Alignment>,
+    refined: Option<&Icp>,
+    sim: &Similarity,
 ) -> Result<(), ImportError> {
     let out = &job.output;
     let cams = out.join("cameras");
@@ -375,7 +425,8 @@ fn write_files(
     for p in photos {
         p.camera.save(&cams.join(format!("{}.json", p.id)))?;
     }
-    let text = serde_json::to_string_pretty(&alignment_json(job, a)).unwrap_or_default();
+    let text =
+        serde_json::to_string_pretty(&alignment_json(job, a, refined, sim)).unwrap_or_default();
     igi_files::write_text_atomic(&out.join("alignment.json"), &(text + "\n"))?;
     let survey = survey_file(job, photos)?;
     let written = format!(
@@ -456,7 +507,12 @@ pub fn relative_to(target: &Path, base: &Path) -> Option<PathBuf> {
     Some(out)
 }
 
-fn alignment_json(job: &ColmapImport, a: Option<&Alignment>) -> serde_json::Value {
+fn alignment_json(
+    job: &ColmapImport,
+    a: Option<&Alignment>,
+    refined: Option<&Icp>,
+    sim: &Similarity,
+) -> serde_json::Value {
     let Some(a) = a else {
         return json!({
             "frame": "model",
@@ -464,8 +520,20 @@ fn alignment_json(job: &ColmapImport, a: Option<&Alignment>) -> serde_json::Valu
             "note": "no --control: the cameras are in the model's own frame (arbitrary scale, orientation and origin), not the scan's",
         });
     };
-    let s = &a.similarity;
-    let rows = s.rotation.transpose().to_cols_array_2d();
+    let rows_of = |s: &Similarity| s.rotation.transpose().to_cols_array_2d();
+    let rows = rows_of(sim);
+    let s = sim;
+    let icp = refined.map(|r| {
+        let c = &a.similarity;
+        json!({
+            "refinement": IcpReport::from(r),
+            "control_points_only": {
+                "scale": c.scale,
+                "rotation": rows_of(c),
+                "translation": c.translation.to_array(),
+            },
+        })
+    });
     json!({
         "frame": "scan",
         "format": job.format,
@@ -478,5 +546,7 @@ fn alignment_json(job: &ColmapImport, a: Option<&Alignment>) -> serde_json::Valu
         "max_residual_m": a.max_residual_m,
         "rms_m": a.rms_m,
         "points": a.points,
+        "points_note": "residuals of the control points' own fit (icp.control_points_only when --icp refined it)",
+        "icp": icp,
     })
 }

@@ -605,6 +605,7 @@ fn import_inputs(root: &Path) -> ColmapImport {
         mesh: root.join("site.ply"),
         output: root.join("survey"),
         align: AlignOptions::default(),
+        icp: None,
     }
 }
 

@@ -164,6 +164,7 @@ fn job(root: &Path, photos: &[(&str, &str)]) -> ColmapImport {
         mesh: root.join("site.ply"),
         output: root.join("survey"),
         align: AlignOptions::default(),
+        icp: None,
     }
 }
 

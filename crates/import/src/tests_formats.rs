@@ -267,6 +267,7 @@ fn job(root: &Path, format: ModelFormat, model: &Path) -> ColmapImport {
         mesh: root.join("site.ply"),
         output: root.join("survey"),
         align: AlignOptions::default(),
+        icp: None,
     }
 }
 
