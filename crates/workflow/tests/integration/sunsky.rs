@@ -9,7 +9,8 @@
 //! card, MAE <= 0.02 after one global scale, the result saying that its scale is not absolute;
 //! the sun within 0.1 degrees of Mitsuba's; the overcast photo's sky within 2 % and no sun.
 //! The issue's "within 1.5x of the same survey solved with its true lighting" is printed, not
-//! asserted: it is not met yet (docs/SKY.md, "Lighting estimated with the albedo").
+//! asserted: red and green meet it, blue does not yet (docs/SKY.md, "Lighting estimated with
+//! the albedo").
 
 use igi_formats::lighting::LightingFile;
 use igi_formats::TomlFile;
@@ -20,7 +21,7 @@ use igi_workflow::{AtlasRequest, LightingSource, SolveRequest, Survey};
 use std::path::{Path, PathBuf};
 
 const ATLAS: u32 = 64;
-const ITERATIONS: u32 = 4;
+const ITERATIONS: u32 = 7;
 
 fn fixture() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../datasets/fixtures/sunsky_survey")
@@ -262,7 +263,7 @@ fn albedo_and_light_from_photographs_without_probes() {
 
     let ratio: Vec<f64> = (0..3).map(|c| card_mae[c] / known_mae[c]).collect();
     println!(
-        "MAE over the true-lighting solve's: {ratio:.2?} (issue 34 asks for 1.5; not met yet)"
+        "MAE over the true-lighting solve's: {ratio:.2?} (issue 34 asks for 1.5)"
     );
     for c in 0..3 {
         assert!(card_mae[c] <= 0.02, "MAE {card_mae:?}");
