@@ -145,7 +145,7 @@ pub struct GridOptions {
     pub atlas: u32,
     /// Keep about this fraction of the mesh's triangles (meshopt, borders locked) before the
     /// atlas: dense scans and hull meshes have more charts than an atlas can hold. 1: as is,
-    /// up to one triangle per atlas texel (a denser mesh is simplified to that many).
+    /// up to one triangle per 4 atlas texels (a denser mesh is simplified to that many).
     pub simplify: f64,
 }
 
@@ -185,9 +185,10 @@ pub fn build_from_rig(
     stage(1);
     let mut mesh = mesh.clone();
     mesh.uvs = None;
-    // at most one triangle per atlas texel: finer triangles add charts, not grid points (a
-    // marching-cubes hull of 800,000 triangles gives 11,528 charts, more than 256 x 256 holds)
-    let budget = grid.atlas as f64 * grid.atlas as f64 / mesh.indices.len().max(1) as f64;
+    // at most one triangle per 4 atlas texels: finer triangles add charts, not grid points (a
+    // marching-cubes hull of 800,000 triangles gives 11,528 charts, more than 256 x 256 holds;
+    // at one triangle per texel its charts leave 8 mm texels, at one per 4 texels 0.85 mm)
+    let budget = grid.atlas as f64 * grid.atlas as f64 / 4.0 / mesh.indices.len().max(1) as f64;
     let mut mesh = igi_geometry::levels::simplify(&mesh, &[], grid.simplify.min(budget), true).mesh;
     mesh.normals = None;
     mesh.compute_vertex_normals();
