@@ -130,8 +130,12 @@ impl SolveJob {
             .truth_scene
             .as_ref()
             .map(|scene| truth_from_scene(&state.parts, scene));
-        let coarse = self.coarse_stage(&state)?;
         let sky = self.survey.estimated_photos();
+        // estimated light is fitted on the result's own atlases: no coarse stage then
+        let coarse = match sky.iter().any(Option::is_some) {
+            true => None,
+            false => self.coarse_stage(&state)?,
+        };
         Ok(StartedSolve {
             sky,
             references: self.survey.references.clone(),
@@ -147,7 +151,7 @@ impl SolveJob {
     }
 
     /// With `--atlas auto`, before the first iteration: the coarse parts the first iterations
-    /// run on (`igi_reflect::coarse`), with the truth on them.
+    /// run on (`igi_reflect::coarse`), with the truth on them. Not where light is estimated.
     fn coarse_stage(&self, state: &SolveResult) -> Result<Option<CoarseStage>, WorkflowError> {
         let fresh = state.report.iterations.is_empty() && state.report.pending.is_none();
         if self.options.atlas_auto.is_none() || !fresh {
