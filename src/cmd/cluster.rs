@@ -191,7 +191,7 @@ fn status(a: StatusArgs) -> anyhow::Result<()> {
     }
     let count = |s: GroupState| st.groups.iter().filter(|(_, g)| *g == s).count();
     println!(
-        "iteration {} of at most {}{}: {} done, {} running, {} pending, {} failed, {} lost; merge {}",
+        "iteration {} of at most {}{}: {} done, {} running, {} pending, {} failed, {} lost, {} not submitted; merge {}",
         st.iteration,
         st.max_iterations,
         if st.converged {
@@ -206,6 +206,7 @@ fn status(a: StatusArgs) -> anyhow::Result<()> {
         count(GroupState::Pending),
         count(GroupState::Failed),
         count(GroupState::Lost),
+        count(GroupState::Unsubmitted),
         st.merge.as_deref().unwrap_or("not queued")
     );
     let t = &st.tasks;

@@ -517,3 +517,96 @@ fn task_with_changed_inputs_is_refused(tmp: &Path, survey: &Path, result: &Path)
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("--restart") || err.contains("differ"), "{err}");
 }
+
+/// Writes an executable `name` into `dir` that runs the shell `body`.
+fn fake_tool(dir: &Path, name: &str, body: &str) {
+    use std::os::unix::fs::PermissionsExt;
+    let p = dir.join(name);
+    std::fs::write(&p, format!("#!/bin/sh\n{body}\n")).unwrap();
+    std::fs::set_permissions(&p, std::fs::Permissions::from_mode(0o755)).unwrap();
+}
+
+/// Issue 36 item 7: `cluster status` where Slurm is missing, failing or silent is an error
+/// naming squeue (it called every task "Lost", exit 0); tasks of a dry run are "unsubmitted";
+/// `#SBATCH` values are quoted and a newline in one is refused before anything is written.
+#[test]
+fn cluster_status_without_slurm_is_an_error_and_sbatch_values_cannot_inject() {
+    let tmp = tempfile::tempdir().unwrap();
+    let survey = prepared_survey(tmp.path());
+    // a dry run: nothing was submitted, so nothing is lost and squeue is not asked
+    let dry = tmp.path().join("dry");
+    let mut args = vec!["cluster", "submit", s(&survey), "-o", s(&dry)];
+    args.extend(SOLVE);
+    let mut with_dry = args.clone();
+    with_dry.extend([
+        "--dry-run",
+        "--partition",
+        "gpu long#x",
+        "--sbatch-arg=--comment=a \"b\" $(touch pwned)",
+    ]);
+    let o = igi().with_env("PATH", "/nonexistent").ok(&with_dry);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("#SBATCH --partition=\"gpu long#x\"\n")
+            && text.contains("#SBATCH \"--comment=a \\\"b\\\" $(touch pwned)\"\n"),
+        "{text}"
+    );
+    let st = igi()
+        .with_env("PATH", "/nonexistent")
+        .ok(&["cluster", "status", s(&dry), "--json"]);
+    let st: serde_json::Value = serde_json::from_slice(&st.stdout).unwrap();
+    assert_eq!(states(&st, "unsubmitted").len(), 13, "{st}");
+    assert!(states(&st, "lost").is_empty(), "{st}");
+    // a newline in a value is refused before anything is written
+    let keep: Vec<PathBuf> = std::fs::read_dir(tmp.path())
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    let bad = tmp.path().join("bad");
+    let mut nl = vec!["cluster", "submit", s(&survey), "-o", s(&bad)];
+    nl.extend(["--partition", "debug\necho injected", "--dry-run"]);
+    let out = igi().run(&nl);
+    assert_failed(&out, "--partition", "control character", tmp.path(), &keep);
+    // a run submitted through a stand-in sbatch (job 4242), then asked about without squeue
+    let bin = tmp.path().join("bin");
+    std::fs::create_dir(&bin).unwrap();
+    fake_tool(&bin, "sbatch", "echo 4242");
+    let run = tmp.path().join("run");
+    let mut submit = vec!["cluster", "submit", s(&survey), "-o", s(&run)];
+    submit.extend(SOLVE);
+    igi().with_env("PATH", s(&bin)).ok(&submit);
+    let no_squeue = igi().with_env("PATH", s(&bin));
+    let out = no_squeue.run(&["cluster", "status", s(&run)]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(
+        err.contains("squeue") && err.contains("is Slurm installed"),
+        "{err}"
+    );
+    assert!(!String::from_utf8_lossy(&out.stdout).contains("lost"));
+    // a controller that cannot be reached: squeue fails
+    fake_tool(
+        &bin,
+        "squeue",
+        "echo 'slurm_load_jobs error: Unable to contact slurm controller (connect failure)' >&2; exit 1",
+    );
+    let out = no_squeue.run(&["cluster", "status", s(&run)]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("Unable to contact slurm controller"),
+        "{err}"
+    );
+    // ... or never answers: given up after IGI_SLURM_TIMEOUT seconds
+    fake_tool(&bin, "squeue", "exec /bin/sleep 60");
+    let t = Instant::now();
+    let out = igi()
+        .with_env("PATH", s(&bin))
+        .with_env("IGI_SLURM_TIMEOUT", "1")
+        .run(&["cluster", "status", s(&run)]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("no answer within 1 s"),
+        "{err}"
+    );
+    assert!(t.elapsed() < Duration::from_secs(20), "{:?}", t.elapsed());
+}

@@ -23,6 +23,85 @@ pub struct SlurmOptions {
     pub extra: Vec<String>,
 }
 
+impl SlurmOptions {
+    /// Refuses a value that cannot be written into an `#SBATCH` line: control characters
+    /// (a newline would end the line and start a shell command of the script) or an empty
+    /// value. Spaces, quotes, `#`, `$` and the like are quoted by [`sbatch_quote`].
+    pub fn check(&self) -> Result<(), ClusterError> {
+        let named = [
+            ("--partition", &self.partition),
+            ("--account", &self.account),
+            ("--time", &self.time),
+            ("--mem", &self.mem),
+        ];
+        for (option, v) in named {
+            if let Some(v) = v {
+                check_sbatch_value(option, v)?;
+            }
+        }
+        for v in &self.extra {
+            check_sbatch_value("--sbatch-arg", v)?;
+            if !v.starts_with('-') {
+                return Err(ClusterError::SbatchValue {
+                    option: "--sbatch-arg".into(),
+                    value: v.clone(),
+                    msg:
+                        "must be one sbatch option starting with '-', e.g. --sbatch-arg=--qos=long"
+                            .into(),
+                });
+            }
+        }
+        if self.cpus_per_task == Some(0) {
+            return Err(ClusterError::SbatchValue {
+                option: "--cpus-per-task".into(),
+                value: "0".into(),
+                msg: "must be at least 1".into(),
+            });
+        }
+        if self.max_parallel == Some(0) {
+            return Err(ClusterError::SbatchValue {
+                option: "--max-parallel".into(),
+                value: "0".into(),
+                msg: "must be at least 1 (leave it out for no limit)".into(),
+            });
+        }
+        Ok(())
+    }
+}
+
+/// Refuses `value` of `option` when it is empty or holds a control character.
+pub fn check_sbatch_value(option: &str, value: &str) -> Result<(), ClusterError> {
+    let msg = if value.trim().is_empty() {
+        "is empty"
+    } else if value.chars().any(char::is_control) {
+        "holds a control character (a newline would end the #SBATCH line)"
+    } else {
+        return Ok(());
+    };
+    Err(ClusterError::SbatchValue {
+        option: option.into(),
+        value: value.into(),
+        msg: msg.into(),
+    })
+}
+
+/// `value` as one argument of an `#SBATCH` line: in double quotes, `\` and `"` escaped with a
+/// backslash. sbatch splits these lines at unquoted white space, reads an unquoted `#` as the
+/// start of a comment and removes quotes and escapes, so the option gets `value` verbatim; the
+/// shell never reads these lines. `value` must have passed [`check_sbatch_value`].
+pub fn sbatch_quote(value: &str) -> String {
+    let mut s = String::with_capacity(value.len() + 2);
+    s.push('"');
+    for c in value.chars() {
+        if c == '\\' || c == '"' {
+            s.push('\\');
+        }
+        s.push(c);
+    }
+    s.push('"');
+    s
+}
+
 /// The jobs of one iteration (and attempt).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct IterationJobs {
@@ -124,5 +203,104 @@ impl ClusterConfig {
             });
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The arguments sbatch reads from the text after `#SBATCH`: a transcription of
+    /// `_get_argument` in Slurm's src/sbatch/opt.c (white space splits unless quoted, a
+    /// backslash escapes the next character, quotes are removed, an unquoted `#` ends the line).
+    fn slurm_args(line: &str) -> Vec<String> {
+        let mut args = Vec::new();
+        let mut chars = line.chars().peekable();
+        loop {
+            while chars.peek().is_some_and(|c| c.is_whitespace()) {
+                chars.next();
+            }
+            if chars.peek().is_none() {
+                return args;
+            }
+            let (mut arg, mut quote, mut escape) = (String::new(), None, false);
+            while let Some(&c) = chars.peek() {
+                if quote.is_none() && c.is_whitespace() || c == '\n' {
+                    break;
+                }
+                chars.next();
+                if escape {
+                    escape = false;
+                } else if c == '\\' {
+                    escape = true;
+                    continue;
+                } else if let Some(q) = quote {
+                    if c == q {
+                        quote = None;
+                        continue;
+                    }
+                } else if c == '"' || c == '\'' {
+                    quote = Some(c);
+                    continue;
+                } else if c == '#' {
+                    args.push(arg);
+                    return args;
+                }
+                arg.push(c);
+            }
+            args.push(arg);
+        }
+    }
+
+    #[test]
+    fn sbatch_values_reach_sbatch_verbatim_as_one_argument() {
+        for v in [
+            "debug",
+            "gpu long",
+            "a --wrap=rm -rf ~",
+            "x\" --output=/etc/passwd \"",
+            "p#comment",
+            "it's $(touch pwned); `id` \\ end\\",
+            "'single' \"double\"",
+        ] {
+            check_sbatch_value("--partition", v).unwrap();
+            let line = format!("--partition={}", sbatch_quote(v));
+            assert_eq!(
+                slurm_args(&line),
+                vec![format!("--partition={v}")],
+                "{line}"
+            );
+        }
+        // unquoted, the same values would have split or been cut
+        assert_eq!(slurm_args("--partition=a --wrap=x").len(), 2);
+        assert_eq!(slurm_args("--partition=p#c"), vec!["--partition=p"]);
+    }
+
+    #[test]
+    fn control_characters_and_empty_values_are_refused_naming_the_option() {
+        for v in ["debug\nrm -rf ~", "a\rb", "tab\there", "", "  "] {
+            let e = check_sbatch_value("--partition", v)
+                .unwrap_err()
+                .to_string();
+            assert!(e.starts_with("--partition "), "{e}");
+        }
+        let o = SlurmOptions {
+            extra: vec!["--qos=long\necho injected".into()],
+            ..SlurmOptions::default()
+        };
+        let e = o.check().unwrap_err().to_string();
+        assert!(
+            e.contains("--sbatch-arg") && e.contains("control character"),
+            "{e}"
+        );
+        let o = SlurmOptions {
+            extra: vec!["qos=long".into()],
+            ..SlurmOptions::default()
+        };
+        assert!(o
+            .check()
+            .unwrap_err()
+            .to_string()
+            .contains("starting with '-'"));
     }
 }

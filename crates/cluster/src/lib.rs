@@ -53,6 +53,13 @@ pub enum ClusterError {
     /// The path of the running binary cannot be found.
     #[error("cannot find the running binary: {0}")]
     CurrentExe(#[source] std::io::Error),
+    /// An sbatch option's value that cannot be written into an `#SBATCH` line.
+    #[error("{option} {value:?}: {msg}")]
+    SbatchValue {
+        option: String,
+        value: String,
+        msg: String,
+    },
     /// A Slurm command could not run or failed.
     #[error("`{command}`: {msg}")]
     Slurm { command: String, msg: String },

@@ -1,26 +1,92 @@
 //! Every call of a Slurm command: `sbatch`, `squeue`, `scancel`, `scontrol` (subprocesses).
 
 use crate::ClusterError;
+use std::io::Read;
 use std::path::Path;
-use std::process::Command;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// How long a Slurm command may take before it is given up (`IGI_SLURM_TIMEOUT` seconds,
+/// default 120): a controller that cannot be reached makes `squeue` retry for minutes.
+fn timeout() -> Duration {
+    let s = std::env::var("IGI_SLURM_TIMEOUT")
+        .ok()
+        .and_then(|v| v.trim().parse::<f64>().ok())
+        .filter(|s| s.is_finite() && *s > 0.0)
+        .unwrap_or(120.0);
+    Duration::from_secs_f64(s)
+}
 
 fn run(cmd: &mut Command) -> Result<String, ClusterError> {
     let shown = format!("{cmd:?}").replace('"', "");
-    let out = cmd.output().map_err(|e| ClusterError::Slurm {
-        command: shown.clone(),
-        msg: if e.kind() == std::io::ErrorKind::NotFound {
-            "not found: is Slurm installed and on PATH? (Debian: slurm-wlm)".into()
-        } else {
-            e.to_string()
-        },
-    })?;
-    if !out.status.success() {
+    let mut child = cmd
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .map_err(|e| ClusterError::Slurm {
+            command: shown.clone(),
+            msg: if e.kind() == std::io::ErrorKind::NotFound {
+                "not found: is Slurm installed and on PATH? (Debian: slurm-wlm)".into()
+            } else {
+                e.to_string()
+            },
+        })?;
+    let pipe = |r: Option<Box<dyn Read + Send>>| {
+        std::thread::spawn(move || {
+            let mut v = Vec::new();
+            if let Some(mut r) = r {
+                let _ = r.read_to_end(&mut v);
+            }
+            v
+        })
+    };
+    let out = pipe(
+        child
+            .stdout
+            .take()
+            .map(|r| Box::new(r) as Box<dyn Read + Send>),
+    );
+    let err = pipe(
+        child
+            .stderr
+            .take()
+            .map(|r| Box::new(r) as Box<dyn Read + Send>),
+    );
+    let limit = timeout();
+    let start = Instant::now();
+    let status = loop {
+        match child.try_wait() {
+            Ok(Some(status)) => break status,
+            Ok(None) if start.elapsed() < limit => std::thread::sleep(Duration::from_millis(20)),
+            Ok(None) => {
+                let _ = child.kill();
+                let _ = child.wait();
+                return Err(ClusterError::Slurm {
+                    command: shown,
+                    msg: format!(
+                        "no answer within {:.0} s: is the Slurm controller reachable? (IGI_SLURM_TIMEOUT sets the limit)",
+                        limit.as_secs_f64()
+                    ),
+                });
+            }
+            Err(e) => {
+                return Err(ClusterError::Slurm {
+                    command: shown,
+                    msg: e.to_string(),
+                })
+            }
+        }
+    };
+    let stdout = out.join().unwrap_or_default();
+    let stderr = err.join().unwrap_or_default();
+    if !status.success() {
         return Err(ClusterError::Slurm {
             command: shown,
-            msg: String::from_utf8_lossy(&out.stderr).trim().to_string(),
+            msg: String::from_utf8_lossy(&stderr).trim().to_string(),
         });
     }
-    Ok(String::from_utf8_lossy(&out.stdout).into_owned())
+    Ok(String::from_utf8_lossy(&stdout).into_owned())
 }
 
 /// Whether `sbatch` can be run at all (checked before a submission writes anything).

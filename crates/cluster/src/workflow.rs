@@ -1,6 +1,8 @@
 //! Submit, task, merge, status, resume, cancel: what `igi cluster` runs.
 
-use crate::config::{ClusterConfig, IterationJobs, SlurmOptions, FORMAT};
+use crate::config::{
+    check_sbatch_value, sbatch_quote, ClusterConfig, IterationJobs, SlurmOptions, FORMAT,
+};
 use crate::slurm::{self, QueueState};
 use crate::ClusterError;
 use igi_files::run::Fingerprint;
@@ -29,6 +31,13 @@ pub struct SubmitRequest {
 /// scripts). Everything is checked before the first byte is written: the survey names a
 /// prepared site, `sbatch` runs, the result folder is new.
 pub fn submit(req: SubmitRequest) -> Result<(ClusterConfig, Vec<PathBuf>), ClusterError> {
+    req.slurm.check()?;
+    for (what, p) in [
+        ("the result folder", &req.result),
+        ("the igi binary", &req.binary),
+    ] {
+        check_sbatch_value(what, &p.display().to_string())?;
+    }
     let survey = Survey::load(&req.survey)?;
     if survey.prepared.is_none() {
         return Err(ClusterError::file(
@@ -171,7 +180,7 @@ fn write_scripts(
         let _ = writeln!(
             s,
             "#SBATCH --output={}",
-            sh(&logs.join(format!("task-{c}-%a.out"))).trim_matches('\'')
+            sbatch_quote(&logs.join(format!("task-{c}-%a.out")).display().to_string())
         );
         let _ = writeln!(
             s,
@@ -188,7 +197,7 @@ fn write_scripts(
     let _ = writeln!(
         s,
         "#SBATCH --output={}",
-        logs.join("merge-%j.out").display()
+        sbatch_quote(&logs.join("merge-%j.out").display().to_string())
     );
     let _ = writeln!(
         s,
@@ -216,11 +225,11 @@ fn header(config: &ClusterConfig, name: &str) -> String {
         ("cpus-per-task", o.cpus_per_task.map(|c| c.to_string())),
     ] {
         if let Some(v) = v {
-            let _ = writeln!(s, "#SBATCH --{flag}={v}");
+            let _ = writeln!(s, "#SBATCH --{flag}={}", sbatch_quote(&v));
         }
     }
     for a in &o.extra {
-        let _ = writeln!(s, "#SBATCH {a}");
+        let _ = writeln!(s, "#SBATCH {}", sbatch_quote(a));
     }
     s
 }
@@ -424,6 +433,9 @@ pub enum GroupState {
     /// Not queued, not done, and no error of its own (cancelled, killed with its node, never
     /// started).
     Lost,
+    /// No job of the iteration was ever submitted for it (a `--dry-run`): nothing to ask
+    /// Slurm about.
+    Unsubmitted,
 }
 
 /// The state of a run (`igi cluster status`).
@@ -469,7 +481,10 @@ impl TaskTotals {
     }
 }
 
-/// Reads the result folder and `squeue` (never accounting).
+/// Reads the result folder and `squeue` (never accounting). When tasks were submitted,
+/// `squeue` must answer: not found, failing or silent for `IGI_SLURM_TIMEOUT` seconds (120) is
+/// an error naming it, never a run of "lost" tasks. Tasks never submitted (a `--dry-run`) are
+/// [`GroupState::Unsubmitted`].
 pub fn status(result: &Path) -> Result<Status, ClusterError> {
     let config = ClusterConfig::read(result)?;
     let report = std::fs::read_to_string(result.join("report.json")).unwrap_or_default();
@@ -501,6 +516,11 @@ pub fn status(result: &Path) -> Result<Status, ClusterError> {
             tasks.add(&d);
             GroupState::Done
         } else {
+            let submitted = jobs.iter().any(|j| j.indices.contains(&i));
+            if !submitted {
+                groups.push((name.clone(), GroupState::Unsubmitted));
+                continue;
+            }
             queued_state(&jobs, &queue, i).unwrap_or_else(|| {
                 match last_line(&config.task_log(k, i)) {
                     Some(l) if l.contains("CANCELLED") => GroupState::Lost,
@@ -564,7 +584,12 @@ pub fn resume(result: &Path, skip: bool) -> Result<Option<IterationJobs>, Cluste
         .groups
         .iter()
         .enumerate()
-        .filter(|(_, (_, s))| matches!(s, GroupState::Failed | GroupState::Lost))
+        .filter(|(_, (_, s))| {
+            matches!(
+                s,
+                GroupState::Failed | GroupState::Lost | GroupState::Unsubmitted
+            )
+        })
         .map(|(i, _)| i)
         .collect();
     let tried = |i: usize| {
