@@ -255,6 +255,7 @@ pub fn cluster(
     }
     ctx.refit_from_scratch(&usable, &mut params, &assignment);
     assignment = ctx.assign(&usable, &params);
+    assignment = ctx.reseed_empty(&usable, &mut params, assignment)?;
     let brdfs: Vec<Lafortune> = params.iter().map(|p| ctx.model.to_lafortune(p)).collect();
     let weights = lumitexels
         .iter()
@@ -382,6 +383,46 @@ impl Ctx<'_> {
             }
         }
         assignment
+    }
+
+    /// Gives every cluster that lost all its members (k-means style) a new seed: the
+    /// worst-fitting lumitexel of a cluster that keeps another member, fitted alone, then
+    /// settles and refits. An empty cluster's parameters fit nothing (they were seen with a
+    /// lobe rho of 4.85e8), so one that stays empty is an error, never a result.
+    fn reseed_empty(
+        &self,
+        usable: &[usize],
+        params: &mut [[f64; NP]],
+        mut assignment: Vec<usize>,
+    ) -> Result<Vec<usize>, BrdfError> {
+        for _ in 0..=params.len() {
+            let count = |a: &[usize], c: usize| usable.iter().filter(|&&t| a[t] == c).count();
+            let Some(c) = (0..params.len()).find(|&c| count(&assignment, c) == 0) else {
+                return Ok(assignment);
+            };
+            let seed = usable
+                .iter()
+                .copied()
+                .filter(|&t| count(&assignment, assignment[t]) >= 2)
+                .map(|t| (t, self.err(t, &params[assignment[t]])))
+                .filter(|(_, e)| e.is_finite())
+                .max_by(|a, b| a.1.total_cmp(&b.1));
+            let Some((t, _)) = seed else {
+                break;
+            };
+            assignment[t] = c;
+            params[c] = fit_data(&self.model, &self.data_of(&[t])).0;
+            assignment = self.settle(usable, params, assignment);
+            self.refit_from_scratch(usable, params, &assignment);
+            assignment = self.assign(usable, params);
+        }
+        match (0..params.len()).find(|&c| !usable.iter().any(|&t| assignment[t] == c)) {
+            None => Ok(assignment),
+            Some(c) => Err(BrdfError::EmptyCluster {
+                cluster: c,
+                k: params.len(),
+            }),
+        }
     }
 
     /// A final full refit of every cluster from scratch (multi-start), kept where it lowers the
@@ -605,6 +646,68 @@ mod tests {
             }
         }
         out
+    }
+
+    /// Issue 36 item 4: two matte materials (albedo 0.1 and 0.8, 20 lumitexels each) in two
+    /// clusters. It returned one empty cluster with a lobe rho of 4.85e8 and the other holding
+    /// all 40 lumitexels.
+    #[test]
+    fn two_matte_materials_make_two_clusters_none_empty() {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
+        let mut lts = Vec::new();
+        for albedo in [0.1f32, 0.8] {
+            for _ in 0..20 {
+                let normal = dir(rng.gen_range(0.0..40.0), rng.gen_range(0.0..360.0));
+                let f = Frame::from_normal(normal);
+                let samples = (0..12)
+                    .map(|_| {
+                        let l = dir(rng.gen_range(0.0..80.0), rng.gen_range(0.0..360.0));
+                        let v = dir(rng.gen_range(0.0..80.0), rng.gen_range(0.0..360.0));
+                        (f.to_world(l), f.to_world(v), Vec3::splat(albedo))
+                    })
+                    .collect();
+                lts.push(Lumitexel {
+                    position: Vec3::ZERO,
+                    normal,
+                    samples,
+                });
+            }
+        }
+        let r = cluster(
+            &lts,
+            &ClusterOptions {
+                k: 2,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let first = r.assignment[0];
+        assert!(
+            r.assignment[..20].iter().all(|&a| a == first),
+            "{:?}",
+            r.assignment
+        );
+        assert!(
+            r.assignment[20..].iter().all(|&a| a == 1 - first),
+            "{:?}",
+            r.assignment
+        );
+        for (k, albedo) in [(first, 0.1f32), (1 - first, 0.8)] {
+            let b = &r.brdfs[k];
+            eprintln!("cluster {k}: rho_d {:?}, lobes {:?}", b.rho_d, b.lobes);
+            // what the cluster's BRDF predicts (pi f) is the matte albedo, within 10 %
+            for (lt, lp, vt, vp) in [(30.0, 0.0, 30.0, 180.0), (10.0, 90.0, 60.0, 0.0)] {
+                let y = b.as_ref().eval(dir(lt, lp), dir(vt, vp)) * std::f32::consts::PI;
+                let rel = ((y - Vec3::splat(albedo)).abs() / albedo).max_element();
+                assert!(
+                    rel < 0.1,
+                    "cluster {k}: pi f = {y:?} for albedo {albedo}: {b:?}"
+                );
+            }
+            let lobe: f32 = b.lobes.iter().map(|l| l.rho.max_element()).sum();
+            assert!(lobe.is_finite() && lobe < 1.0, "cluster {k}: {b:?}");
+        }
+        assert!(r.errors.iter().all(|e| e.is_finite()));
     }
 
     #[test]

@@ -63,6 +63,9 @@ pub enum BrdfError {
     /// A cluster whose members all agree, so it cannot be split.
     #[error("invalid input: cluster {cluster} cannot be split further ({members} members agree)")]
     Unsplittable { cluster: usize, members: usize },
+    /// A cluster that no lumitexel fits better than the others, even after reseeding.
+    #[error("cluster {cluster} of {k} stays empty: the lumitexels hold fewer than {k} distinguishable materials; lower -k")]
+    EmptyCluster { cluster: usize, k: usize },
     /// A material name not in the materials file; `have` lists its names.
     #[error("invalid input: no material `{name}` (have: {have})")]
     NoMaterial { name: String, have: String },
