@@ -66,12 +66,12 @@ pub struct FitArgs {
     #[arg(long)]
     pub plot: Option<PathBuf>,
     /// Largest lobe exponent N.
-    #[arg(long, default_value_t = 2.0e4)]
+    #[arg(allow_negative_numbers = true, value_parser = crate::cmd::values::positive, long, default_value_t = 2.0e4)]
     pub max_n: f64,
     /// Weight each sample by the share of all direction pairs it stands for (its Voronoi cell in
     /// the isotropic pair space), each weight at most this times the mean; 0 = unweighted
     /// (docs/BRDF.md, "Sparse hand-held samples").
-    #[arg(long, default_value_t = igi_brdf::fit::COVERAGE_CAP)]
+    #[arg(allow_negative_numbers = true, value_parser = crate::cmd::values::non_negative, long, default_value_t = igi_brdf::fit::COVERAGE_CAP)]
     pub coverage_cap: f64,
     /// Largest grazing gain |Cxy|^N of a lobe (its peak at grazing over its peak at normal
     /// incidence); `inf` = unbounded.
@@ -103,7 +103,7 @@ pub struct InferArgs {
     /// Materials JSON used as the basis.
     pub materials: PathBuf,
     /// Diffuse colour r,g,b.
-    #[arg(long, value_delimiter = ',', required = true)]
+    #[arg(allow_negative_numbers = true, value_parser = crate::cmd::values::unit_f32, long, value_delimiter = ',', required = true)]
     pub rho: Vec<f32>,
     /// Write the inferred material as a materials JSON (name "inferred") instead of printing it.
     #[arg(short, long)]
@@ -115,7 +115,7 @@ pub struct ClusterArgs {
     /// Lumitexels CSV: id,px,py,pz,nx,ny,nz,light_x,light_y,light_z,view_x,view_y,view_z,r,g,b (world frame).
     pub lumitexels: PathBuf,
     /// Number of clusters.
-    #[arg(short, long)]
+    #[arg(allow_negative_numbers = true, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..), short, long)]
     pub k: usize,
     /// Output JSON: cluster BRDFs and per-lumitexel cluster and weights.
     #[arg(short, long)]

@@ -36,7 +36,7 @@ pub struct RefineArgs {
     mesh: Vec<PathBuf>,
     /// Initial search range along each model edge's normal, pixels (about twice the expected
     /// pose error in pixels).
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(allow_negative_numbers = true, value_parser = crate::cmd::values::positive, long, default_value_t = 10.0)]
     search: f64,
     /// Also match creases (faces meeting at an angle); by default only silhouettes and
     /// occlusion boundaries are matched, since shading at creases (ambient occlusion, contact
@@ -65,7 +65,7 @@ pub struct RadiometryArgs {
     corners: Option<String>,
     /// Radiance of a perfect white diffuser under the checker's light, for an absolute
     /// calibration; without it the matrix keeps the grey patches' luminance.
-    #[arg(long)]
+    #[arg(allow_negative_numbers = true, value_parser = crate::cmd::values::positive, long)]
     white: Option<f64>,
     #[arg(long)]
     json: bool,
@@ -95,7 +95,7 @@ pub struct PoseArgs {
     #[arg(long)]
     points: PathBuf,
     /// RANSAC inlier threshold, pixels.
-    #[arg(long, default_value_t = 4.0)]
+    #[arg(allow_negative_numbers = true, value_parser = crate::cmd::values::positive, long, default_value_t = 4.0)]
     threshold: f64,
     #[arg(long)]
     json: bool,
@@ -112,7 +112,7 @@ pub struct CalibrateArgs {
     #[arg(long)]
     board: String,
     /// Square size, metres.
-    #[arg(long)]
+    #[arg(allow_negative_numbers = true, value_parser = crate::cmd::values::positive, long)]
     square: f64,
     #[arg(long)]
     json: bool,

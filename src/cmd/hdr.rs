@@ -27,13 +27,13 @@ pub struct MergeArgs {
     #[arg(long)]
     linear: bool,
     /// Linear merge: values at or below this are noise.
-    #[arg(long, default_value_t = 0.002)]
+    #[arg(allow_negative_numbers = true, value_parser = crate::cmd::values::non_negative_f32, long, default_value_t = 0.002)]
     noise_floor: f32,
     /// Linear merge: values at or above this are saturated.
-    #[arg(long, default_value_t = 0.98)]
+    #[arg(allow_negative_numbers = true, value_parser = crate::cmd::values::positive_f32, long, default_value_t = 0.98)]
     saturation: f32,
     /// Response recovery: smoothness weight lambda.
-    #[arg(long, default_value_t = 50.0)]
+    #[arg(allow_negative_numbers = true, value_parser = crate::cmd::values::non_negative, long, default_value_t = 50.0)]
     lambda: f64,
     /// Response recovery: number of sampled pixels.
     #[arg(long, default_value_t = 1000)]

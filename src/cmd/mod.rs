@@ -14,4 +14,5 @@ pub mod render;
 pub mod sky;
 pub mod slf;
 pub mod solve;
+pub mod values;
 pub mod view;

@@ -15,7 +15,7 @@ pub struct PrepareArgs {
     #[arg(short, long)]
     pub output: PathBuf,
     /// Voxel edge in metres.
-    #[arg(long, default_value_t = 4.3)]
+    #[arg(allow_negative_numbers = true, value_parser = crate::cmd::values::positive, long, default_value_t = 4.3)]
     pub voxel: f64,
     /// Lattice origin "x,y,z" in metres.
     #[arg(long, default_value = "0,0,0")]
@@ -34,7 +34,7 @@ pub struct PrepareArgs {
     #[arg(long)]
     pub restart: bool,
     /// Refuse runs estimated to need more memory than this many GiB.
-    #[arg(long, default_value_t = 8.0)]
+    #[arg(allow_negative_numbers = true, value_parser = crate::cmd::values::positive, long, default_value_t = 8.0)]
     pub max_memory: f64,
     /// Print the manifest as JSON on stdout.
     #[arg(long)]

@@ -35,7 +35,7 @@ pub struct ProbeArgs {
     pub srgb: bool,
     /// Pixel value (after --srgb decoding) at or above which a pixel counts as saturated.
     /// Default: 0.98 for LDR inputs, none for HDR inputs.
-    #[arg(long)]
+    #[arg(allow_negative_numbers = true, value_parser = crate::cmd::values::positive_f32, long)]
     pub saturation: Option<f32>,
     /// Width of the lat-long sky map (height is half).
     #[arg(long, default_value_t = 256)]
@@ -44,15 +44,15 @@ pub struct ProbeArgs {
     #[arg(long, default_value_t = 512)]
     pub hemi_size: usize,
     /// Masked cone around the camera's own reflection, degrees.
-    #[arg(long, default_value_t = 4.0)]
+    #[arg(allow_negative_numbers = true, value_parser = crate::cmd::values::cone_deg, long, default_value_t = 4.0)]
     pub camera_mask_deg: f64,
     /// Largest incidence angle used on the mirror and black spheres, degrees.
-    #[arg(long, default_value_t = 72.0)]
+    #[arg(allow_negative_numbers = true, value_parser = crate::cmd::values::incidence_deg, long, default_value_t = 72.0)]
     pub max_incidence_deg: f64,
     /// Radius (pixels) masked around the sun's reflection in the mirror sphere, so the sun's light
     /// stays out of the sky map. On spheres under about 30 px in radius, 3 keeps more of the sky
     /// around the sun (docs/PROBE.md).
-    #[arg(long, default_value_t = 4.0)]
+    #[arg(allow_negative_numbers = true, value_parser = crate::cmd::values::non_negative, long, default_value_t = 4.0)]
     pub sun_mask_px: f64,
     /// Refine the mirror and black spheres' centres from their outlines in the image: auto (when
     /// the board's fiducials placed them; an imprecise pose), on (also `--refine-spheres` alone)

@@ -12,13 +12,13 @@ pub struct RenderArgs {
     #[arg(long)]
     pub camera: PathBuf,
     /// Samples per pixel.
-    #[arg(long, default_value_t = 64)]
+    #[arg(allow_negative_numbers = true, value_parser = clap::builder::RangedU64ValueParser::<u32>::new().range(1..), long, default_value_t = 64)]
     pub spp: u32,
     /// Random seed (same seed, same image).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Indirect bounces after direct lighting (Mitsuba max_depth = K + 2).
-    #[arg(long, default_value_t = 2)]
+    #[arg(allow_negative_numbers = true, value_parser = clap::builder::RangedU64ValueParser::<u32>::new().range(0..=64), long, default_value_t = 2)]
     pub indirect: u32,
     /// Use this lighting file instead of the one the scene names.
     #[arg(long)]

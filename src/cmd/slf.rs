@@ -50,13 +50,13 @@ pub struct BuildArgs {
     pub atlas: u32,
     /// Keep about this fraction of the mesh's triangles before the atlas (dense scans and hull
     /// meshes have more charts than an atlas holds); 1 keeps the mesh as it is.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(allow_negative_numbers = true, value_parser = crate::cmd::values::share, long, default_value_t = 1.0)]
     pub simplify: f64,
     /// Octahedron subdivisions of a lumisphere (3: 258 directions).
     #[arg(long, default_value_t = 3)]
     pub level: u32,
     /// Weight of the thin-plate smoothness term of the fits.
-    #[arg(long, default_value_t = 0.02)]
+    #[arg(allow_negative_numbers = true, value_parser = crate::cmd::values::non_negative_f32, long, default_value_t = 0.02)]
     pub lambda: f32,
     /// Seed of the training subsets (same seed, same bytes).
     #[arg(long, default_value_t = 0)]
@@ -83,7 +83,7 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = 0.5)]
     pub bias: f32,
     /// The value mapped to 1 before the bias.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(allow_negative_numbers = true, value_parser = crate::cmd::values::positive_f32, long, default_value_t = 1.0)]
     pub white: f32,
     /// Output EXR, RGBA (FORMATS.md): radiance where the surface is seen, alpha 1 there and 0
     /// elsewhere (colour premultiplied, so 0 where alpha is 0).

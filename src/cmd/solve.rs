@@ -14,27 +14,27 @@ pub struct IterationArgs {
     pub iterations: u32,
     /// Stop when the mean change of rho_d over seen texels is below this, or below the
     /// photographs' own noise in rho_d (after 2 iterations).
-    #[arg(long, default_value_t = 0.002)]
+    #[arg(allow_negative_numbers = true, value_parser = crate::cmd::values::non_negative_f32, long, default_value_t = 0.002)]
     pub tolerance: f32,
     /// Samples per radiance estimate, per iteration (the last repeats). Without it: 16, 64,
     /// 256 as levels, the solve moving to the next level only after an iteration that changed
     /// rho_d by no more than its Monte-Carlo noise (while the albedo still settles, more
     /// samples would not make it settle faster; docs/SOLVER.md).
-    #[arg(long, value_delimiter = ',')]
+    #[arg(allow_negative_numbers = true, value_parser = clap::builder::RangedU64ValueParser::<u32>::new().range(1..), long, value_delimiter = ',')]
     pub spp: Option<Vec<u32>>,
     /// Indirect bounces after direct lighting.
-    #[arg(long, default_value_t = 2)]
+    #[arg(allow_negative_numbers = true, value_parser = clap::builder::RangedU64ValueParser::<u32>::new().range(0..=64), long, default_value_t = 2)]
     pub indirect: u32,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Initial albedo of every texel (r,g,b).
-    #[arg(long, value_delimiter = ',', default_value = "0.5,0.5,0.5")]
+    #[arg(allow_negative_numbers = true, value_parser = crate::cmd::values::unit_f32, long, value_delimiter = ',', default_value = "0.5,0.5,0.5")]
     pub initial: Vec<f32>,
     /// Rounds of footprint deblurring per iteration: each texel's reading of a photograph is
     /// corrected by the blur of the pixel footprint that the current albedo predicts. For
     /// albedo detail near the pixel size (the demo: MAE -20 % at 4 rounds); on smooth albedo
     /// each round adds noise (docs/SOLVER.md). 0: one bilinear read per texel and photograph.
-    #[arg(long, default_value_t = 0)]
+    #[arg(allow_negative_numbers = true, value_parser = clap::builder::RangedU64ValueParser::<u32>::new().range(0..=100), long, default_value_t = 0)]
     pub deblur: u32,
     /// Average each texel's rendered shading with its neighbours' of the same surface and
     /// light (3 x 3 texels, never across a shadow edge or a crease) before dividing the

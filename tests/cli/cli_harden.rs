@@ -1227,3 +1227,129 @@ fn undistort_checks_both_outputs_and_renders_name_a_wrong_folder() {
         assert!(o.status.code() == Some(1) && e.contains(what), "{cmd}: {e}");
     }
 }
+
+/// Issue 36 item 7: numbers that cannot mean anything are refused by the option's parser,
+/// naming the option, before any work (nothing written); `--spp -1` no longer gets clap's
+/// "use '-- -1'" tip.
+#[test]
+fn nonsense_numbers_are_refused_naming_the_option() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("out");
+    let o = s(&out);
+    let f = fixture("survey");
+    let survey = s(&f);
+    let cases: Vec<(Vec<&str>, &str, &str)> = vec![
+        (
+            vec![
+                "render",
+                "scene.toml",
+                "--camera",
+                "cam.json",
+                "-o",
+                o,
+                "--spp",
+                "-1",
+            ],
+            "--spp",
+            "-1",
+        ),
+        (
+            vec![
+                "render",
+                "scene.toml",
+                "--camera",
+                "cam.json",
+                "-o",
+                o,
+                "--indirect",
+                "4294967295",
+            ],
+            "--indirect",
+            "4294967295",
+        ),
+        (
+            vec!["solve", survey, "-o", o, "--deblur", "1000000"],
+            "--deblur",
+            "1000000",
+        ),
+        (
+            vec!["solve", survey, "-o", o, "--tolerance", "nan"],
+            "--tolerance",
+            "NaN",
+        ),
+        (
+            vec!["solve", survey, "-o", o, "--tolerance", "-1"],
+            "--tolerance",
+            "at least 0",
+        ),
+        (
+            vec!["solve", survey, "-o", o, "--initial", "5,5,5"],
+            "--initial",
+            "[0, 1]",
+        ),
+        (
+            vec!["solve", survey, "-o", o, "--spp", "4,-1"],
+            "--spp",
+            "-1",
+        ),
+        (
+            vec!["prepare", "m.ply", "-o", o, "--voxel", "-1"],
+            "--voxel",
+            "above 0",
+        ),
+        (
+            vec!["prepare", "m.ply", "-o", o, "--max-memory", "0"],
+            "--max-memory",
+            "above 0",
+        ),
+        (
+            vec!["brdf", "infer", "m.json", "--rho", "5,5,5", "-o", o],
+            "--rho",
+            "[0, 1]",
+        ),
+        (
+            vec!["brdf", "cluster", "l.csv", "-k", "0", "-o", o],
+            "--k",
+            "0",
+        ),
+        (
+            vec!["brdf", "fit", "s.csv", "-o", o, "--max-n", "-5"],
+            "--max-n",
+            "above 0",
+        ),
+        (
+            vec![
+                "slf",
+                "build",
+                "rig.json",
+                "--mesh",
+                "m.ply",
+                "-o",
+                o,
+                "--simplify",
+                "0",
+            ],
+            "--simplify",
+            "above 0",
+        ),
+        (
+            vec![
+                "slf", "build", "rig.json", "--mesh", "m.ply", "-o", o, "--lambda", "-1",
+            ],
+            "--lambda",
+            "at least 0",
+        ),
+    ];
+    for (args, option, why) in cases {
+        let r = igi().run(&args);
+        let err = stderr(&r);
+        assert_eq!(r.status.code(), Some(2), "{args:?}: {err}");
+        assert!(
+            err.contains(&format!("'{option} ")) || err.contains(&format!("'{option}")),
+            "{args:?} does not name {option}: {err}"
+        );
+        assert!(err.contains(why), "{args:?}: {err}");
+        assert!(!err.contains("'-- "), "{args:?}: clap's tip: {err}");
+        assert!(!out.exists(), "{args:?} wrote its output");
+    }
+}

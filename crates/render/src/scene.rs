@@ -578,13 +578,18 @@ impl ObjectContext<'_> {
         }
     }
 
-    /// The albedo: a constant (finite, >= 0) or a texture read and checked texel by texel.
+    /// The albedo: a constant (finite, in [0, 1]) or a texture read and checked texel by texel.
     fn albedo(&self, entry: &AlbedoEntry) -> Result<Albedo, RenderError> {
         match entry {
             AlbedoEntry::Constant(c) => {
                 let c = DVec3::from_array(*c).as_vec3();
                 if !c.is_finite() || c.min_element() < 0.0 {
                     return Err(self.file_err(format!("albedo {c:?} must be finite and >= 0")));
+                }
+                if c.max_element() > 1.0 {
+                    return Err(self.file_err(format!(
+                        "albedo {c:?} must be at most 1 in each channel (a diffuse surface cannot reflect more light than it receives)"
+                    )));
                 }
                 Ok(Albedo::Constant(c))
             }
@@ -854,6 +859,17 @@ lobes = [ { rho = [0.1, 0.1, 0.1], cxy = -0.9, cz = 1.0, n = 30.0 } ]
         .unwrap();
         let e = Scene::load(&p).err().unwrap().to_string();
         assert!(e.contains("scene.toml") && e.contains("albedo"), "{e}");
+        // issue 36 item 7: albedo 5 reflects five times the light it receives
+        std::fs::write(
+            &p,
+            "[[object]]\nmesh = \"geometry/ground.ply\"\nalbedo = [5, 0.5, 0.5]\n",
+        )
+        .unwrap();
+        let e = Scene::load(&p).err().unwrap().to_string();
+        assert!(
+            e.contains("scene.toml") && e.contains("object ") && e.contains("at most 1"),
+            "{e}"
+        );
         std::fs::write(&p, "lighting = 3\n").unwrap();
         let e = Scene::load(&p).err().unwrap().to_string();
         assert!(
