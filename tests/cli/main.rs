@@ -19,6 +19,7 @@ mod cli_radiometry_detect;
 mod cli_render;
 mod cli_sky;
 mod cli_slf;
+mod cli_slf_dino;
 mod cli_solve;
 mod cli_view;
 mod mitsuba_export;
