@@ -44,7 +44,7 @@ pub struct SkyArgs {
     output: PathBuf,
 }
 
-fn parse_site(s: &str) -> Result<(f64, f64, f64), String> {
+pub(crate) fn parse_site(s: &str) -> Result<(f64, f64, f64), String> {
     let v: Vec<f64> = s
         .split(',')
         .map(|p| p.trim().parse::<f64>())

@@ -1,4 +1,4 @@
-//! `igi view`: a local web viewer of a result folder.
+//! `igi view`: a local web viewer of a result, hull or light-field folder.
 use crate::report::Ctx;
 use igi_view::{ViewEvent, ViewRequest};
 use std::io::Write;
@@ -6,7 +6,8 @@ use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
 pub struct ViewArgs {
-    /// A result folder of `igi solve`.
+    /// A result folder of `igi solve`, an opacity-hull folder of `igi hull build` or a
+    /// surface-light-field folder of `igi slf build`.
     pub dir: PathBuf,
     /// Lighting files the page offers to light the site with (each sets the sun and the sky;
     /// e.g. the survey's `lighting/*.toml`). Repeatable.
@@ -16,6 +17,14 @@ pub struct ViewArgs {
     /// that is in use is an error; 0: any free port).
     #[arg(long)]
     pub port: Option<u16>,
+    /// The survey folder (or its survey.toml) whose `[site]` places the sun and sky the page
+    /// computes for a date and time (igi-sky, as `igi sky --survey`).
+    #[arg(long, conflicts_with = "site")]
+    pub survey: Option<PathBuf>,
+    /// The site directly, for the page's date and time: `LAT,LON[,NORTH_DEG]` (as `igi sky
+    /// --site`).
+    #[arg(long, value_parser = crate::cmd::sky::parse_site, allow_hyphen_values = true)]
+    pub site: Option<(f64, f64, f64)>,
     /// Open the page in the desktop's browser (xdg-open).
     #[arg(long)]
     pub open: bool,
@@ -29,6 +38,17 @@ pub fn run(a: ViewArgs, _ctx: &Ctx) -> anyhow::Result<()> {
         dir: a.dir,
         lightings: a.lightings,
         port: a.port,
+        sky_place: match (a.survey, a.site) {
+            (Some(path), _) => Some(igi_sky::job::Place::Survey { path }),
+            (None, Some((latitude_deg, longitude_deg, north_deg))) => {
+                Some(igi_sky::job::Place::Site {
+                    latitude_deg,
+                    longitude_deg,
+                    north_deg,
+                })
+            }
+            (None, None) => None,
+        },
     };
     igi_view::serve(&req, &mut |event| match event {
         ViewEvent::Ready(url) => {

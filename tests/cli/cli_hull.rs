@@ -36,7 +36,7 @@ fn sphere_mask(c: &Camera) -> Mask {
 }
 
 /// A rig of `n` views around the sphere in `dir`; `edit(i, mask)` may change each mask.
-fn make_rig(dir: &Path, n: usize, edit: &dyn Fn(usize, &mut Mask)) -> PathBuf {
+pub(crate) fn make_rig(dir: &Path, n: usize, edit: &dyn Fn(usize, &mut Mask)) -> PathBuf {
     std::fs::create_dir_all(dir).unwrap();
     let mut text =
         String::from("[object]\nbbox_min = [-0.4, -0.4, -0.4]\nbbox_max = [0.4, 0.4, 0.4]\n");

@@ -8,7 +8,8 @@
 //!   empty page's sky colour).
 //! * Bad input: a folder that is not a result; a port in use; a path outside the folder.
 
-use crate::cli_gltf::quick_result;
+use crate::cli_gltf::{quick_result, sphere_hull, sphere_light_field};
+use igi_testkit::run_ok;
 use std::io::{BufRead, BufReader, Read, Write};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -28,11 +29,16 @@ impl Drop for Served {
 }
 
 fn serve(dir: &Path, port: &str, lightings: &[PathBuf]) -> Served {
+    serve_with(dir, port, lightings, &[])
+}
+
+fn serve_with(dir: &Path, port: &str, lightings: &[PathBuf], extra: &[&str]) -> Served {
     let mut child = igi()
         .arg("view")
         .arg(dir)
         .args(["--port", port])
         .args(lightings.iter().flat_map(|l| [Path::new("--lighting"), l]))
+        .args(extra)
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
@@ -199,6 +205,55 @@ fn the_server_answers_only_get_and_head_under_its_folder() {
     assert!(!head.contains("glTF"), "HEAD sent a body");
     let post = http(url, "POST / HTTP/1.0\r\nContent-Length: 0\r\n\r\n");
     assert_eq!(status(&post), 405, "{post}");
+    // each part's standard-error picture is the export's NAME_stderr.png, pixel for pixel
+    let out = tmp.path().join("gltf");
+    run_ok(
+        igi()
+            .arg("export")
+            .arg(&res)
+            .args(["--format", "gltf", "-o"])
+            .arg(&out),
+    );
+    let scene: serde_json::Value =
+        serde_json::from_slice(&http_body(&get("/igi/scene.json"))).unwrap();
+    let parts = scene["parts"].as_array().unwrap();
+    assert!(!parts.is_empty(), "{scene}");
+    for p in parts {
+        let answer = http_bytes(
+            url,
+            &format!("GET {} HTTP/1.0\r\n\r\n", p["stderr"].as_str().unwrap()),
+        );
+        let served = image::load_from_memory(&answer).unwrap().to_rgb8();
+        let name = p["name"].as_str().unwrap();
+        let written = image::open(out.join(format!("{name}_stderr.png")))
+            .unwrap()
+            .to_rgb8();
+        assert_eq!(served.dimensions(), written.dimensions(), "{name}");
+        assert!(
+            served.pixels().eq(written.pixels()),
+            "{name}: pixels differ"
+        );
+    }
+    // no site given: no sky
+    assert_eq!(status(&get("/igi/sky?time=2026-06-21T12:00:00Z")), 404);
+}
+
+/// The body of a raw HTTP answer (after the blank line).
+fn http_body(answer: &str) -> Vec<u8> {
+    answer
+        .split_once("\r\n\r\n")
+        .map_or(Vec::new(), |(_, b)| b.as_bytes().to_vec())
+}
+
+/// The body of the answer to `request`, as bytes.
+fn http_bytes(url: &str, request: &str) -> Vec<u8> {
+    let addr = url.trim_start_matches("http://").trim_end_matches('/');
+    let mut s = std::net::TcpStream::connect(addr).unwrap();
+    s.write_all(request.as_bytes()).unwrap();
+    let mut out = Vec::new();
+    s.read_to_end(&mut out).unwrap();
+    let at = out.windows(4).position(|w| w == b"\r\n\r\n").unwrap() + 4;
+    out[at..].to_vec()
 }
 
 #[test]
@@ -207,7 +262,10 @@ fn bad_folders_and_busy_ports_are_refused() {
     let out = igi().arg("view").arg(tmp.path()).output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
-        !out.status.success() && err.contains("not a result folder"),
+        !out.status.success()
+            && err.contains("not a result folder")
+            && err.contains("an opacity-hull folder")
+            && err.contains("nor a surface-light-field folder"),
         "{err}"
     );
     assert!(
@@ -242,5 +300,251 @@ fn bad_folders_and_busy_ports_are_refused() {
     assert!(
         !out.status.success() && err.contains(&format!("cannot listen on 127.0.0.1:{port}")),
         "{err}"
+    );
+}
+
+/// The `key=value` pairs of a page message (`page: measure=...&a=...`).
+fn fields(line: &str) -> std::collections::HashMap<String, String> {
+    line.trim_start_matches("page: ")
+        .split('&')
+        .filter_map(|kv| kv.split_once('='))
+        .map(|(k, v)| (k.to_string(), v.to_string()))
+        .collect()
+}
+
+fn vec3(s: &str) -> glam::Vec3 {
+    let v: Vec<f32> = s.split(',').map(|x| x.parse().unwrap()).collect();
+    glam::Vec3::new(v[0], v[1], v[2])
+}
+
+/// Display modes, distance measurement and the sky of a date and time, in the browser:
+/// * the page's materials carry the export's fitted roughness and specular per part;
+/// * two points picked on the canvas lie on the result's surface (`igi sample` finds them)
+///   and the distance shown is theirs;
+/// * the sun and sky the page gets for a date and time at the site are `igi sky`'s.
+#[test]
+fn lobes_measurement_and_the_sky_of_a_date_in_a_real_browser() {
+    let tmp = tempfile::tempdir().unwrap();
+    let res = quick_result(tmp.path());
+    let served = serve_with(&res, "0", &[], &["--site", "48.85,2.35"]);
+    let time = "2026-06-21T12:00:00Z";
+    let url = format!(
+        "{}?width=1024&height=768&mode=lobes&measure=412,600,612,560&time={time}",
+        served.1
+    );
+    let mut browser = chromium_command(&url, &[]).spawn().unwrap();
+    let said = page_says(&served, |l| l.starts_with("page: title=igi"), 180);
+    let _ = browser.kill();
+    let _ = browser.wait();
+    assert!(
+        said.iter().any(|l| l == "page: title=igi: ready"),
+        "the page never became ready: {said:?}"
+    );
+    assert!(said.iter().any(|l| l == "page: mode=lobes"), "{said:?}");
+
+    // the lobes: as the export fitted them
+    let out = tmp.path().join("gltf");
+    run_ok(
+        igi()
+            .arg("export")
+            .arg(&res)
+            .args(["--format", "gltf", "-o"])
+            .arg(&out),
+    );
+    let bytes = std::fs::read(out.join("scene.glb")).unwrap();
+    let g = gltf::Gltf::from_slice(&bytes).unwrap();
+    let lobes = said
+        .iter()
+        .find_map(|l| l.strip_prefix("page: lobes="))
+        .expect("the page told its lobes");
+    let mut checked = 0;
+    for m in g.materials() {
+        let name = m.name().unwrap();
+        let (r, sp) = lobes
+            .split(';')
+            .find_map(|p| p.strip_prefix(&format!("{name}:")))
+            .and_then(|rs| rs.split_once(':'))
+            .unwrap_or_else(|| panic!("no part {name} in {lobes}"));
+        let rough = m.pbr_metallic_roughness().roughness_factor();
+        let spec = m.specular().map_or(1.0, |s| s.specular_factor());
+        assert!(
+            (r.parse::<f32>().unwrap() - rough).abs() < 1e-4,
+            "{name}: {r} vs {rough}"
+        );
+        assert!(
+            (sp.parse::<f32>().unwrap() - spec).abs() < 1e-4,
+            "{name}: {sp} vs {spec}"
+        );
+        checked += 1;
+    }
+    println!("lobes as the page has them: {lobes} ({checked} parts)");
+
+    // the measurement: two surface points, their distance
+    let m = said
+        .iter()
+        .find(|l| l.starts_with("page: measure="))
+        .expect("the page measured");
+    let f = fields(m);
+    let (a, b) = (vec3(&f["a"]), vec3(&f["b"]));
+    let d: f32 = f["measure"].parse().unwrap();
+    assert!(
+        d > 0.0 && ((a - b).length() - d).abs() < 1e-5 * d.max(1.0),
+        "{m}"
+    );
+    let pts = tmp.path().join("picked.csv");
+    let (na, nb) = (vec3(&f["na"]), vec3(&f["nb"]));
+    std::fs::write(
+        &pts,
+        format!(
+            "x,y,z,nx,ny,nz\n{},{},{},{},{},{}\n{},{},{},{},{},{}\n",
+            a.x, a.y, a.z, na.x, na.y, na.z, b.x, b.y, b.z, nb.x, nb.y, nb.z
+        ),
+    )
+    .unwrap();
+    // igi sample refuses a point farther than its tolerance from every surface of the result
+    run_ok(
+        igi()
+            .arg("sample")
+            .arg(&res)
+            .arg("--points")
+            .arg(&pts)
+            .arg("-o")
+            .arg(tmp.path().join("picked_values.csv")),
+    );
+    println!("measured {d} m between {a} and {b}");
+
+    // the sky: igi sky's sun and sky at the same time and site
+    let sky = said
+        .iter()
+        .find_map(|l| l.strip_prefix("page: sky="))
+        .expect("the page got a sky");
+    let sky: serde_json::Value = serde_json::from_str(sky).unwrap();
+    let o = run_ok(
+        igi()
+            .args([
+                "sky",
+                "--site",
+                "48.85,2.35",
+                "--time",
+                time,
+                "--width",
+                "64",
+                "--json",
+                "-o",
+            ])
+            .arg(tmp.path().join("sky.toml")),
+    );
+    let want: serde_json::Value = serde_json::from_str(&o).unwrap();
+    let num = |v: &serde_json::Value| v.as_f64().unwrap();
+    assert!((num(&sky["sun_elevation_deg"]) - num(&want["sun_elevation_deg"])).abs() < 1e-9);
+    assert!((num(&sky["sun_azimuth_deg"]) - num(&want["sun_azimuth_deg"])).abs() < 1e-9);
+    for c in 0..3 {
+        let (got, w) = (
+            num(&sky["sun_direction"][c]),
+            num(&want["sun_direction"][c]),
+        );
+        assert!((got - w).abs() < 1e-6, "{sky} {want}");
+        let (got, w) = (
+            num(&sky["sky_up"][c]),
+            num(&want["sky_horizontal_irradiance"][c]),
+        );
+        assert!((got / w - 1.0).abs() < 1e-4, "sky up {got} vs {w}");
+    }
+    // Paris at 12:00 UTC on the solstice (14:00 CEST): the sun 55 to 66 degrees up
+    let el = num(&sky["sun_elevation_deg"]);
+    assert!(el > 55.0 && el < 66.0, "{el}");
+    println!(
+        "sky at {time}: sun elevation {el:.3} deg, sky irradiance up {}",
+        sky["sky_up"]
+    );
+}
+
+/// A hull (surfels as splats, its surface) and a light field (its median texture) open in
+/// the browser; the screenshot shows them over the page's background.
+#[test]
+fn a_hull_and_a_light_field_open_in_a_real_browser() {
+    let tmp = tempfile::tempdir().unwrap();
+    let hull = sphere_hull(tmp.path());
+    let (slf, _) = sphere_light_field(tmp.path());
+    for (dir, kind, keep) in [
+        (&hull, "hull", "IGI_VIEW_SCREENSHOT_HULL"),
+        (&slf, "light field", "IGI_VIEW_SCREENSHOT_SLF"),
+    ] {
+        let served = serve(dir, "0", &[]);
+        let scene = http(&served.1, "GET /igi/scene.json HTTP/1.0\r\n\r\n");
+        assert!(scene.contains(&format!("\"kind\": \"{kind}\"")), "{scene}");
+        let fixed = format!("{}?width=1024&height=768", served.1);
+        let mut browser = chromium_command(&fixed, &[]).spawn().unwrap();
+        let said = page_says(&served, |l| l.starts_with("page: title=igi"), 180);
+        let _ = browser.kill();
+        let _ = browser.wait();
+        assert!(
+            said.iter().any(|l| l == "page: title=igi: ready"),
+            "{kind}: the page never became ready: {said:?}"
+        );
+        let shot = tmp.path().join(format!("{}.png", kind.replace(' ', "_")));
+        let arg = format!("--screenshot={}", shot.display());
+        let status = chromium_command(&served.1, &[&arg, "--virtual-time-budget=200000"])
+            .status()
+            .unwrap();
+        assert!(shot.exists(), "no screenshot ({status})");
+        let img = image::open(&shot).unwrap().to_rgb8();
+        let sky = [0x87i32, 0xa9, 0xc9];
+        let covered = img
+            .pixels()
+            .filter(|p| p.0.iter().zip(sky).any(|(&a, b)| (a as i32 - b).abs() > 24))
+            .count() as f64
+            / (img.width() * img.height()) as f64;
+        println!("{kind}: covers {covered:.3} of the frame");
+        assert!(covered > 0.1, "{kind} covers {covered:.3} of the frame");
+        if let Some(to) = std::env::var_os(keep) {
+            std::fs::copy(&shot, to).unwrap();
+        }
+    }
+}
+
+/// The viewer's frame time at 1024 x 768 on the demo's result (`igi demo`: three parts of
+/// 128 x 128 texels), as the page reports it over its first one-second windows, in headless
+/// chromium on SwiftShader (software WebGL, no frame-rate limit). Printed for docs/VIEW.md; the
+/// test asserts that the page draws and that every window's mean is a finite positive time.
+#[test]
+fn the_demo_result_frame_time_at_1024x768() {
+    let tmp = tempfile::tempdir().unwrap();
+    let demo = tmp.path().join("demo");
+    run_ok(igi().arg("demo").arg("-o").arg(&demo));
+    let served = serve(&demo.join("result"), "0", &[]);
+    let fixed = format!("{}?width=1024&height=768", served.1);
+    let unlimited = ["--disable-gpu-vsync", "--disable-frame-rate-limit"];
+    let mut browser = chromium_command(&fixed, &unlimited).spawn().unwrap();
+    let frames = std::cell::Cell::new(0);
+    let said = page_says(
+        &served,
+        |l| {
+            frames.set(frames.get() + l.starts_with("page: frame_ms=") as usize);
+            frames.get() == 5
+        },
+        180,
+    );
+    let _ = browser.kill();
+    let _ = browser.wait();
+    assert!(
+        said.iter().any(|l| l == "page: title=igi: ready"),
+        "the page never became ready: {said:?}"
+    );
+    let ms: Vec<f64> = said
+        .iter()
+        .filter_map(|l| l.strip_prefix("page: frame_ms="))
+        .map(|f| {
+            assert!(f.ends_with("&width=1024&height=768"), "{f}");
+            f.split('&').next().unwrap().parse().unwrap()
+        })
+        .collect();
+    assert_eq!(ms.len(), 5, "{said:?}");
+    assert!(ms.iter().all(|m| m.is_finite() && *m > 0.0), "{ms:?}");
+    let mut sorted = ms.clone();
+    sorted.sort_by(f64::total_cmp);
+    println!(
+        "demo result at 1024 x 768: frame time per one-second window {ms:?} ms, median {:.2} ms",
+        sorted[2]
     );
 }

@@ -99,6 +99,32 @@ pub fn export(
     format: ExportFormat,
     out: &Path,
 ) -> Result<Exported, ExportError> {
+    let kind = crate::folders::folder_kind(result_dir)?;
+    if kind != crate::FolderKind::Result {
+        if format != ExportFormat::Gltf {
+            return Err(ExportError::GltfOnly {
+                dir: result_dir.to_path_buf(),
+                kind: kind.name(),
+                format: format.name(),
+            });
+        }
+        let plan = crate::outdir::check(result_dir, out)?;
+        let glb = crate::folders::folder_glb(result_dir)?;
+        plan.begin()?;
+        let glb_path = plan.staging.join("scene.glb");
+        if let Err(e) = igi_files::write_atomic(&glb_path, |tmp| {
+            std::fs::write(tmp, &glb.bytes)
+                .map_err(|e| ExportError::file(&glb_path, format!("cannot write: {e}")))
+        }) {
+            plan.abandon();
+            return Err(e);
+        }
+        let files = plan.commit(format.name(), result_dir)?;
+        return Ok(Exported {
+            files,
+            materials: Vec::new(),
+        });
+    }
     let plan = crate::outdir::check(result_dir, out)?;
     let res = SolveResult::load(result_dir)?;
     plan.begin()?;
@@ -127,8 +153,9 @@ fn write_export(
     let mut shapes = String::new();
     let mut lobe_maps = 0;
     for (i, p) in res.parts.iter().enumerate() {
-        let (_, per_texel) = export_textures(res, result_dir, i, out)?;
-        let per_texel = per_texel.len();
+        let (albedo, maps) = part_textures(res, result_dir, i)?;
+        write_textures(res, i, &albedo, &maps, out)?;
+        let per_texel = maps.len();
         lobe_maps += per_texel;
         let mesh = match format {
             ExportFormat::Ply | ExportFormat::Mitsuba | ExportFormat::Gltf => {
@@ -213,19 +240,43 @@ fn mean_lobes(maps: &[(HdrImage, HdrImage)], covered: &[usize]) -> Vec<Lobe> {
         .collect()
 }
 
-/// `scene.glb` and the textures beside it; returns the fit per part.
-fn write_gltf(
+/// A result as one binary glTF file, in memory ([`result_glb`]).
+#[derive(Clone, Debug)]
+pub struct ResultGlb {
+    /// The GLB bytes, exactly those `igi export --format gltf` writes as `scene.glb`.
+    pub bytes: Vec<u8>,
+    /// Per part: its name, the number of lobes the fit approximated and the fit
+    /// ([`crate::lobefit`]).
+    pub materials: Vec<(String, usize, GltfFit)>,
+    /// Per part, in the parts' order: its standard-error picture (`NAME_stderr.png` of the
+    /// export) as PNG bytes.
+    pub stderr_png: Vec<Vec<u8>>,
+}
+
+/// The result folder `result_dir` as the GLB `igi export --format gltf` writes (docs/EXPORT.md,
+/// "glTF"), in memory, with the fit of each part's lobes: what `igi view` serves.
+pub fn result_glb(result_dir: &Path) -> Result<ResultGlb, ExportError> {
+    let res = SolveResult::load(result_dir)?;
+    let (glb, _) = gltf_of(&res, result_dir)?;
+    Ok(glb)
+}
+
+/// The GLB of `res` and each part's textures (the albedo atlas and the lobe maps).
+#[allow(clippy::type_complexity)]
+fn gltf_of(
     res: &SolveResult,
     result_dir: &Path,
-    out: &Path,
-) -> Result<Vec<(String, usize, GltfFit)>, ExportError> {
-    let glb_path = out.join("scene.glb");
+) -> Result<(ResultGlb, Vec<(HdrImage, Vec<(HdrImage, HdrImage)>)>), ExportError> {
+    let glb_path = result_dir.to_path_buf();
     let mut meshes = Vec::new();
-    let mut albedos = Vec::new();
+    let mut textures = Vec::new();
     let mut fits = Vec::new();
     let mut extras = Vec::new();
+    let mut stderr_png = Vec::new();
     for (i, p) in res.parts.iter().enumerate() {
-        let (albedo, maps) = export_textures(res, result_dir, i, out)?;
+        let (albedo, maps) = part_textures(res, result_dir, i)?;
+        let se = stderr_picture(&res.stderr[i], p.resolution());
+        stderr_png.push(crate::gltf::albedo_png(&glb_path, &se)?);
         let covered: Vec<usize> = p.cache.texels.iter().map(|t| t.index as usize).collect();
         let mean_rho =
             covered.iter().map(|&k| res.rho[i][k]).sum::<Vec3>() / covered.len().max(1) as f32;
@@ -269,7 +320,7 @@ fn write_gltf(
             })
         };
         meshes.push(p.full_mesh()?);
-        albedos.push(albedo);
+        textures.push((albedo, maps));
         fits.push((p.name.clone(), lobes.len(), fit));
         extras.push(ex);
     }
@@ -280,7 +331,7 @@ fn write_gltf(
         .map(|(i, p)| crate::gltf::GlbPart {
             name: &p.name,
             mesh: &meshes[i],
-            albedo: &albedos[i],
+            albedo: &textures[i].0,
             fit: fits[i].2,
             extras: extras[i].clone(),
         })
@@ -291,20 +342,41 @@ fn write_gltf(
         "texcoord": "v_gltf = 1 - v_igi (igi's atlas origin is the bottom-left)",
     });
     let bytes = crate::gltf::glb_bytes(&glb_path, &parts, asset)?;
-    igi_files::write_atomic(&glb_path, |tmp| {
-        std::fs::write(tmp, &bytes)
-            .map_err(|e| ExportError::file(&glb_path, format!("cannot write: {e}")))
-    })?;
-    Ok(fits)
+    Ok((
+        ResultGlb {
+            bytes,
+            materials: fits,
+            stderr_png,
+        },
+        textures,
+    ))
 }
 
-/// Writes part `i`'s albedo (EXR and PNG preview), its standard-error picture and the lobe maps
-/// the result holds into `out`; returns the albedo atlas and the lobe maps (colour, shape).
-fn export_textures(
+/// `scene.glb` and the textures beside it; returns the fit per part.
+fn write_gltf(
+    res: &SolveResult,
+    result_dir: &Path,
+    out: &Path,
+) -> Result<Vec<(String, usize, GltfFit)>, ExportError> {
+    let (glb, textures) = gltf_of(res, result_dir)?;
+    for (i, (albedo, maps)) in textures.iter().enumerate() {
+        write_textures(res, i, albedo, maps, out)?;
+    }
+    let glb_path = out.join("scene.glb");
+    igi_files::write_atomic(&glb_path, |tmp| {
+        std::fs::write(tmp, &glb.bytes)
+            .map_err(|e| ExportError::file(&glb_path, format!("cannot write: {e}")))
+    })?;
+    Ok(glb.materials)
+}
+
+/// Part `i`'s albedo atlas and the lobe maps (colour, shape) the result holds, read from
+/// `result_dir/parts`.
+#[allow(clippy::type_complexity)]
+fn part_textures(
     res: &SolveResult,
     result_dir: &Path,
     i: usize,
-    out: &Path,
 ) -> Result<(HdrImage, Vec<(HdrImage, HdrImage)>), ExportError> {
     let p = &res.parts[i];
     let r = p.resolution();
@@ -312,11 +384,6 @@ fn export_textures(
     for (k, px) in tex.pixels.iter_mut().enumerate() {
         *px = res.rho[i][k].to_array();
     }
-    let albedo = out.join(format!("{}_albedo.exr", p.name));
-    write_exr(&albedo, &tex)?;
-    igi_imaging::write_png_tonemapped(&out.join(format!("{}_albedo.png", p.name)), &tex, 1.0)?;
-    let se_png = out.join(format!("{}_stderr.png", p.name));
-    igi_imaging::write_png_tonemapped(&se_png, &stderr_picture(&res.stderr[i], r), 1.0)?;
     let mut maps = Vec::new();
     // the lobe maps the result wrote (a loaded result does not keep its basis)
     let mut k = 0;
@@ -335,7 +402,6 @@ fn export_textures(
                     format!("is {}x{}, the part's atlas {r}x{r}", im.width, im.height),
                 ));
             }
-            write_exr(&out.join(name(suffix)), &im)?;
             pair.push(im);
         }
         let [rho, shape] = <[HdrImage; 2]>::try_from(pair)
@@ -344,6 +410,31 @@ fn export_textures(
         k += 1;
     }
     Ok((tex, maps))
+}
+
+/// Writes part `i`'s albedo (EXR and PNG preview), its standard-error picture and its lobe
+/// maps into `out`.
+fn write_textures(
+    res: &SolveResult,
+    i: usize,
+    albedo: &HdrImage,
+    maps: &[(HdrImage, HdrImage)],
+    out: &Path,
+) -> Result<(), ExportError> {
+    let p = &res.parts[i];
+    write_exr(&out.join(format!("{}_albedo.exr", p.name)), albedo)?;
+    igi_imaging::write_png_tonemapped(&out.join(format!("{}_albedo.png", p.name)), albedo, 1.0)?;
+    let se_png = out.join(format!("{}_stderr.png", p.name));
+    igi_imaging::write_png_tonemapped(
+        &se_png,
+        &stderr_picture(&res.stderr[i], p.resolution()),
+        1.0,
+    )?;
+    for (k, (rho, shape)) in maps.iter().enumerate() {
+        write_exr(&out.join(format!("{}_lobe{k}_rho.exr", p.name)), rho)?;
+        write_exr(&out.join(format!("{}_lobe{k}_shape.exr", p.name)), shape)?;
+    }
+    Ok(())
 }
 
 #[cfg(test)]

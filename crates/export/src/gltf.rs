@@ -167,65 +167,195 @@ pub fn glb_bytes(
     parts: &[GlbPart],
     asset_extras: Value,
 ) -> Result<Vec<u8>, ExportError> {
+    let items: Vec<GlbItem> = parts.iter().map(GlbItem::Part).collect();
+    glb_of_items(path, &items, "igi result (Z up to Y up)", asset_extras)
+}
+
+/// One node of a GLB: a result's part, an unlit textured mesh (a light field's median
+/// radiance), an untextured mesh (a hull's surface) or points (a hull's surfels).
+pub enum GlbItem<'a> {
+    /// A result's part: its albedo as base colour, its lobes fitted ([`GlbPart`]).
+    Part(&'a GlbPart<'a>),
+    /// A mesh with atlas UVs whose texture is shown as it is (`KHR_materials_unlit`): a light
+    /// field's median radiance, tone-mapped to sRGB.
+    Unlit {
+        name: &'a str,
+        mesh: &'a TriMesh,
+        image: &'a HdrImage,
+        extras: Value,
+    },
+    /// A mesh without texture, grey and lit (a hull's surface).
+    Plain {
+        name: &'a str,
+        mesh: &'a TriMesh,
+        extras: Value,
+    },
+    /// Points (`mode` 0) with their colour and opacity (`COLOR_0`, linear RGBA in `[0, 1]`),
+    /// drawn unlit (`KHR_materials_unlit`): a hull's surfels.
+    Points {
+        name: &'a str,
+        positions: &'a [[f32; 3]],
+        normals: &'a [[f32; 3]],
+        colors: &'a [[f32; 4]],
+        extras: Value,
+    },
+}
+
+/// The GLB bytes of `items` under one root node named `root` that turns igi's Z up to glTF's
+/// Y up; `path` names the file in errors.
+pub fn glb_of_items(
+    path: &Path,
+    items: &[GlbItem],
+    root: &str,
+    asset_extras: Value,
+) -> Result<Vec<u8>, ExportError> {
     let mut b = Builder::default();
     let (mut meshes, mut materials, mut textures, mut images, mut nodes) =
         (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let mut children = Vec::new();
-    for (i, p) in parts.iter().enumerate() {
-        let m = p.mesh;
-        let Some(uvs) = m.uvs.as_ref().filter(|u| u.len() == m.positions.len()) else {
-            return Err(ExportError::file(
-                path,
-                format!("part {}: its mesh has no atlas UVs", p.name),
-            ));
+    let (mut specular, mut unlit) = (false, false);
+    for (i, item) in items.iter().enumerate() {
+        let name = match item {
+            GlbItem::Part(p) => p.name,
+            GlbItem::Unlit { name, .. }
+            | GlbItem::Plain { name, .. }
+            | GlbItem::Points { name, .. } => name,
         };
-        let pos: Vec<f32> = m.positions.iter().flatten().copied().collect();
-        let normals = unit_normals(m);
-        let uv: Vec<f32> = uvs.iter().flat_map(|t| [t[0], 1.0 - t[1]]).collect();
-        let a_pos = b.floats(&pos, 3, "VEC3", true);
-        let a_nor = b.floats(&normals, 3, "VEC3", false);
-        let a_uv = b.floats(&uv, 2, "VEC2", false);
-        let a_idx = b.indices(&m.indices);
-        let png = albedo_png(path, p.albedo)?;
-        let view = b.view(&png, None);
-        images.push(json!({"bufferView": view, "mimeType": "image/png", "name": format!("{}_albedo", p.name)}));
-        textures.push(json!({"source": i, "sampler": 0}));
-        let f = &p.fit;
-        materials.push(json!({
-            "name": p.name,
-            "doubleSided": true,
-            "pbrMetallicRoughness": {
-                "baseColorTexture": {"index": i},
-                "metallicFactor": 0.0,
-                "roughnessFactor": f.roughness,
-            },
-            "extensions": {"KHR_materials_specular": {
-                "specularFactor": f.specular,
-                "specularColorFactor": f.specular_color,
-            }},
-            "extras": {"igi": p.extras},
-        }));
-        meshes.push(json!({"name": p.name, "primitives": [{
-            "attributes": {"POSITION": a_pos, "NORMAL": a_nor, "TEXCOORD_0": a_uv},
-            "indices": a_idx, "material": i, "mode": 4,
-        }]}));
-        nodes.push(json!({"name": p.name, "mesh": i}));
+        let primitive = match item {
+            GlbItem::Points {
+                positions,
+                normals,
+                colors,
+                extras,
+                ..
+            } => {
+                let pos: Vec<f32> = positions.iter().flatten().copied().collect();
+                let nor: Vec<f32> = normals
+                    .iter()
+                    .flat_map(|n| glam::Vec3::from(*n).normalize_or(glam::Vec3::Z).to_array())
+                    .collect();
+                let col: Vec<f32> = colors
+                    .iter()
+                    .flatten()
+                    .map(|c| {
+                        if c.is_finite() {
+                            c.clamp(0.0, 1.0)
+                        } else {
+                            0.0
+                        }
+                    })
+                    .collect();
+                let a_pos = b.floats(&pos, 3, "VEC3", true);
+                let mut attributes =
+                    json!({"POSITION": a_pos, "COLOR_0": b.floats(&col, 4, "VEC4", false)});
+                if normals.len() == positions.len() {
+                    attributes["NORMAL"] = json!(b.floats(&nor, 3, "VEC3", false));
+                }
+                unlit = true;
+                materials.push(json!({
+                    "name": name,
+                    "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0},
+                    "alphaMode": "BLEND",
+                    "extensions": {"KHR_materials_unlit": {}},
+                    "extras": {"igi": extras},
+                }));
+                json!({"attributes": attributes, "material": materials.len() - 1, "mode": 0})
+            }
+            GlbItem::Part(GlbPart { mesh, .. })
+            | GlbItem::Unlit { mesh, .. }
+            | GlbItem::Plain { mesh, .. } => {
+                let m = *mesh;
+                let pos: Vec<f32> = m.positions.iter().flatten().copied().collect();
+                let normals = unit_normals(m);
+                let a_pos = b.floats(&pos, 3, "VEC3", true);
+                let a_nor = b.floats(&normals, 3, "VEC3", false);
+                let mut attributes = json!({"POSITION": a_pos, "NORMAL": a_nor});
+                let image = match item {
+                    GlbItem::Part(p) => Some(p.albedo),
+                    GlbItem::Unlit { image, .. } => Some(*image),
+                    _ => None,
+                };
+                if let Some(image) = image {
+                    let Some(uvs) = m.uvs.as_ref().filter(|u| u.len() == m.positions.len()) else {
+                        return Err(ExportError::file(
+                            path,
+                            format!("part {name}: its mesh has no atlas UVs"),
+                        ));
+                    };
+                    let uv: Vec<f32> = uvs.iter().flat_map(|t| [t[0], 1.0 - t[1]]).collect();
+                    attributes["TEXCOORD_0"] = json!(b.floats(&uv, 2, "VEC2", false));
+                    let png = albedo_png(path, image)?;
+                    let view = b.view(&png, None);
+                    images.push(json!({"bufferView": view, "mimeType": "image/png", "name": format!("{name}_albedo")}));
+                    textures.push(json!({"source": images.len() - 1, "sampler": 0}));
+                }
+                let texture = textures.len().wrapping_sub(1);
+                materials.push(match item {
+                    GlbItem::Part(p) => {
+                        specular = true;
+                        let f = &p.fit;
+                        json!({
+                            "name": name,
+                            "doubleSided": true,
+                            "pbrMetallicRoughness": {
+                                "baseColorTexture": {"index": texture},
+                                "metallicFactor": 0.0,
+                                "roughnessFactor": f.roughness,
+                            },
+                            "extensions": {"KHR_materials_specular": {
+                                "specularFactor": f.specular,
+                                "specularColorFactor": f.specular_color,
+                            }},
+                            "extras": {"igi": p.extras},
+                        })
+                    }
+                    GlbItem::Unlit { extras, .. } => {
+                        unlit = true;
+                        json!({
+                            "name": name,
+                            "doubleSided": true,
+                            "pbrMetallicRoughness": {"baseColorTexture": {"index": texture}, "metallicFactor": 0.0, "roughnessFactor": 1.0},
+                            "extensions": {"KHR_materials_unlit": {}},
+                            "extras": {"igi": extras},
+                        })
+                    }
+                    GlbItem::Plain { extras, .. } => json!({
+                        "name": name,
+                        "doubleSided": true,
+                        "pbrMetallicRoughness": {"baseColorFactor": [0.6, 0.6, 0.6, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0},
+                        "extras": {"igi": extras},
+                    }),
+                    GlbItem::Points { .. } => unreachable!("points are handled above"),
+                });
+                let a_idx = b.indices(&m.indices);
+                json!({"attributes": attributes, "indices": a_idx, "material": materials.len() - 1, "mode": 4})
+            }
+        };
+        meshes.push(json!({"name": name, "primitives": [primitive]}));
+        nodes.push(json!({"name": name, "mesh": i}));
         children.push(i + 1);
     }
     let mut all_nodes = vec![json!({
-        "name": "igi result (Z up to Y up)",
+        "name": root,
         "rotation": Z_UP_TO_Y_UP,
         "children": children,
     })];
     all_nodes.extend(nodes);
+    let used: Vec<&str> = [
+        (specular, "KHR_materials_specular"),
+        (unlit, "KHR_materials_unlit"),
+    ]
+    .into_iter()
+    .filter_map(|(u, e)| u.then_some(e))
+    .collect();
     while !b.bin.len().is_multiple_of(4) {
         b.bin.push(0);
     }
     let mut doc = json!({
         "asset": {"version": "2.0", "generator": concat!("igi export ", env!("CARGO_PKG_VERSION")), "extras": {"igi": asset_extras}},
-        "extensionsUsed": ["KHR_materials_specular"],
+        "extensionsUsed": used,
         "scene": 0,
-        "scenes": [{"name": "igi result", "nodes": [0]}],
+        "scenes": [{"name": root.split(" (").next().unwrap_or(root), "nodes": [0]}],
         "nodes": all_nodes,
         "meshes": meshes,
         "materials": materials,
@@ -236,7 +366,15 @@ pub fn glb_bytes(
         "bufferViews": b.views,
         "buffers": [{"byteLength": b.bin.len()}],
     });
-    if parts.is_empty() {
+    if textures.is_empty() {
+        for k in ["textures", "images", "samplers"] {
+            doc.as_object_mut().map(|o| o.remove(k));
+        }
+    }
+    if used.is_empty() {
+        doc.as_object_mut().map(|o| o.remove("extensionsUsed"));
+    }
+    if items.is_empty() {
         for k in [
             "meshes",
             "materials",

@@ -10,18 +10,22 @@
 //!   root node, v flipped, the albedo as an embedded sRGB PNG), whose materials approximate the
 //!   Lafortune lobes with `KHR_materials_specular` ([`lobefit`], the fit's error reported) and
 //!   keep the exact lobes in `extras`.
+//! * [`folders`]: the folders `igi export --format gltf` and `igi view` take (a result, an
+//!   opacity hull, a surface light field), told apart, each as one GLB in memory.
 //! * [`outdir`]: the output folder's rules for every format (never the result folder; new,
 //!   empty or an earlier igi export, replaced whole; `export.json`).
 //! * [`sample`]: `igi sample`: the albedo and its standard error at surface points (for
 //!   colour-checker comparisons), read and written through `igi_formats::points`.
 
 pub mod export;
+pub mod folders;
 pub mod gltf;
 pub mod lobefit;
 pub mod outdir;
 pub mod sample;
 
-pub use export::{export, ExportFormat, Exported, STDERR_PICTURE_MAX};
+pub use export::{export, result_glb, ExportFormat, Exported, ResultGlb, STDERR_PICTURE_MAX};
+pub use folders::{folder_glb, folder_kind, FolderGlb, FolderKind};
 pub use lobefit::{fit_gltf, GltfFit};
 pub use sample::{sample_albedo, sample_file, AlbedoSample};
 
@@ -41,6 +45,20 @@ pub enum ExportError {
         distance: f32,
         far: f32,
     },
+    /// A folder that is none of a result, an opacity hull and a surface light field.
+    #[error("{}: not a result folder of `igi solve` (report.json and parts/), an opacity-hull folder of `igi hull build` (hull.json and surfels.ply) nor a surface-light-field folder of `igi slf build` (header.json and mesh.ply)", dir.display())]
+    NotExportable { dir: PathBuf },
+    /// A hull or light-field folder exported to a format other than glTF.
+    #[error("{}: a {kind} folder exports only as glTF (--format gltf), not {format}", dir.display())]
+    GltfOnly {
+        dir: PathBuf,
+        kind: &'static str,
+        format: &'static str,
+    },
+    #[error(transparent)]
+    Hull(#[from] Box<igi_opacity_hull::HullError>),
+    #[error(transparent)]
+    LightField(#[from] Box<igi_lightfield::LightFieldError>),
     #[error(transparent)]
     Reflect(#[from] igi_reflect::ReflectError),
     #[error(transparent)]

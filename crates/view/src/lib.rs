@@ -1,13 +1,17 @@
 //! # igi-view
 //!
-//! `igi view DIR`: a local web viewer of a solve result folder. A small HTTP server
+//! `igi view DIR`: a local web viewer of a solve result, opacity-hull or surface-light-field
+//! folder. A small HTTP server
 //! (`tiny_http`) on 127.0.0.1 serves
 //! * `/`: the page (embedded: `assets/index.html`), which orbits the site, lights it with a sun
 //!   whose direction the user sets, and shows the albedo lit or alone; its title becomes
 //!   `igi: ready` once the first frame is drawn, `igi: error: ...` if anything fails;
 //! * `/three/...`: three.js r170, vendored and embedded (`assets/three`, MIT licence kept);
-//! * `/igi/scene.json` (what is shown) and `/igi/scene.glb` (the result as glTF, made once at
-//!   start by `igi-export`, as `igi export --format gltf` writes it);
+//! * `/igi/scene.json` (what is shown) and `/igi/scene.glb` (the folder as glTF, made once at
+//!   start in memory by `igi_export::folder_glb`, the bytes `igi export --format gltf`
+//!   writes); `/igi/stderr/K.png` (part K's standard-error picture);
+//! * `/igi/sky?time=RFC3339`: the sun and sky of the site (`--survey` or `--site`) at that
+//!   time, as `igi sky` writes them (igi-sky), in the page's terms ([`light::PageLight`]);
 //! * `/files/PATH`: the served folder's own files, and nothing outside it (`..`, absolute
 //!   paths and links that leave the folder are refused);
 //! * `/igi/event?...`: what the page tells the server (its title as it changes, its frame
@@ -15,14 +19,14 @@
 //!   standard error), so scripts and tests learn when the page is ready.
 //!
 //! Only GET and HEAD are answered (405 otherwise). Everything is checked before the server
-//! starts: the folder must be a result folder, and the port free.
+//! starts: the folder must be a result, hull or light-field folder, and the port free.
 
 mod error;
 pub mod light;
 mod route;
 
 pub use error::ViewError;
-pub use route::{respond, Reply};
+pub use route::{respond, sky_light, Reply};
 
 use std::path::{Path, PathBuf};
 
@@ -35,6 +39,9 @@ pub struct ViewRequest {
     /// The port on 127.0.0.1: `None` tries [`DEFAULT_PORT`], then any free port; a port asked
     /// for that is in use is an error (0: any free port).
     pub port: Option<u16>,
+    /// The site whose sun and sky at a date and time the page may ask for (`/igi/sky`):
+    /// a survey's `[site]` or a place given directly, as for `igi sky`.
+    pub sky_place: Option<igi_sky::job::Place>,
 }
 
 /// The port tried first when none is asked for.
@@ -71,7 +78,7 @@ impl Viewer {
             .iter()
             .map(|p| light::page_light(p))
             .collect::<Result<Vec<_>, _>>()?;
-        let site = route::Site::open(&req.dir, &lights)?;
+        let site = route::Site::open(&req.dir, &lights, req.sky_place.clone())?;
         let bind = |port: u16| {
             tiny_http::Server::http(("127.0.0.1", port)).map_err(|e| ViewError::Bind {
                 port,

@@ -40,55 +40,114 @@ pub struct Site {
     pub root: PathBuf,
     scene_json: Vec<u8>,
     scene_glb: Vec<u8>,
+    /// Per part of a result, its standard-error picture (PNG; `/igi/stderr/K.png`).
+    stderr_png: Vec<Vec<u8>>,
+    /// Where the sun and sky of a date and time are computed (`/igi/sky?time=...`).
+    sky_place: Option<igi_sky::job::Place>,
 }
 
 impl Site {
-    /// Check that `dir` is a result folder and make its glTF scene.
-    pub fn open(dir: &Path, lights: &[crate::light::PageLight]) -> Result<Site, ViewError> {
+    /// Check that `dir` is a result, hull or light-field folder and make its glTF scene.
+    pub fn open(
+        dir: &Path,
+        lights: &[crate::light::PageLight],
+        sky_place: Option<igi_sky::job::Place>,
+    ) -> Result<Site, ViewError> {
         let root = dir.canonicalize().map_err(|source| ViewError::Folder {
             dir: dir.to_path_buf(),
             source,
         })?;
-        if !(root.join("report.json").is_file() && root.join("parts").is_dir()) {
-            return Err(ViewError::NotViewable {
+        let glb = igi_export::folder_glb(&root).map_err(|e| match e {
+            igi_export::ExportError::NotExportable { .. } => ViewError::NotViewable {
                 dir: dir.to_path_buf(),
-            });
-        }
-        let scene_glb = result_glb(&root)?;
+            },
+            e => ViewError::Export(e),
+        })?;
         let name = root
             .file_name()
             .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+        let (parts, stderr_png) = match &glb.result {
+            Some(r) => (
+                r.materials
+                    .iter()
+                    .enumerate()
+                    .map(|(k, (name, lobes, fit))| {
+                        serde_json::json!({
+                            "name": name,
+                            "lobes": lobes,
+                            "roughness": fit.roughness,
+                            "specular": fit.specular,
+                            "specular_color": fit.specular_color,
+                            "fit_rel_rms": fit.rel_rms,
+                            "stderr": format!("/igi/stderr/{k}.png"),
+                        })
+                    })
+                    .collect(),
+                r.stderr_png.clone(),
+            ),
+            None => (Vec::new(), Vec::new()),
+        };
         let scene_json = serde_json::json!({
-            "kind": "result",
+            "kind": glb.kind.name(),
             "name": name,
             "scene": "/igi/scene.glb",
+            "summary": glb.summary,
             "lightings": lights,
+            "parts": parts,
+            "stderr_white": igi_export::STDERR_PICTURE_MAX,
+            "sky": sky_place.is_some(),
         });
         Ok(Site {
             root,
             scene_json: serde_json::to_vec_pretty(&scene_json).expect("JSON"),
-            scene_glb,
+            scene_glb: glb.bytes,
+            stderr_png,
+            sky_place,
         })
     }
 }
 
-/// The result as `igi export --format gltf` writes it (exported into a temporary folder, read,
-/// removed).
-fn result_glb(root: &Path) -> Result<Vec<u8>, ViewError> {
-    let tmp = std::env::temp_dir().join(format!("igi-view-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&tmp);
-    let glb = tmp.join("scene.glb");
-    let bytes = igi_export::export(root, igi_export::ExportFormat::Gltf, &tmp)
-        .map_err(ViewError::from)
-        .and_then(|_| {
-            std::fs::read(&glb).map_err(|source| ViewError::Folder {
-                dir: glb.clone(),
-                source,
-            })
+/// The page's light at an RFC 3339 time: `igi sky`'s lighting file for the site (written into
+/// a temporary folder by `igi_sky::job::write_sky`, with a 64 x 32 map, turbidity 3, ground
+/// albedo 0.2) read as `--lighting` reads it, with the sun's azimuth and elevation.
+pub fn sky_light(place: &igi_sky::job::Place, time: &str) -> Result<serde_json::Value, String> {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    static N: AtomicUsize = AtomicUsize::new(0);
+    let tmp = std::env::temp_dir().join(format!(
+        "igi-view-sky-{}-{}",
+        std::process::id(),
+        N.fetch_add(1, Ordering::Relaxed)
+    ));
+    std::fs::create_dir_all(&tmp).map_err(|e| format!("{}: {e}", tmp.display()))?;
+    let req = igi_sky::job::SkyRequest {
+        place: place.clone(),
+        time: time.to_string(),
+        turbidity: SKY_TURBIDITY,
+        albedo: SKY_GROUND_ALBEDO,
+        width: SKY_MAP_WIDTH,
+        overcast: false,
+        zenith_radiance: None,
+        output: tmp.join("sky.toml"),
+    };
+    let got = igi_sky::job::write_sky(&req)
+        .map_err(|e| e.to_string())
+        .and_then(|report| {
+            let mut l = crate::light::page_light(&req.output).map_err(|e| e.to_string())?;
+            l.name = format!("sky at {}", report.time_utc);
+            let mut v = serde_json::to_value(&l).map_err(|e| e.to_string())?;
+            v["sun_azimuth_deg"] = report.sun_azimuth_deg.into();
+            v["sun_elevation_deg"] = report.sun_elevation_deg.into();
+            v["time_utc"] = report.time_utc.into();
+            Ok(v)
         });
     let _ = std::fs::remove_dir_all(&tmp);
-    bytes
+    got
 }
+
+/// The sky of `/igi/sky`: its map's width (as `igi sky --width`), turbidity and ground albedo.
+pub const SKY_MAP_WIDTH: usize = 64;
+pub const SKY_TURBIDITY: f64 = 3.0;
+pub const SKY_GROUND_ALBEDO: f64 = 0.2;
 
 const PAGE: &str = include_str!("../assets/index.html");
 const THREE: &[(&str, &str)] = &[
@@ -124,6 +183,33 @@ pub fn respond(site: &Site, method: &str, url: &str) -> Reply {
         return Reply {
             event: Some(text),
             ..Reply::ok("text/plain; charset=utf-8", Vec::new())
+        };
+    }
+    if path == "/igi/sky" {
+        let Some(place) = &site.sky_place else {
+            return Reply::error(
+                404,
+                "no site: start igi view with --survey or --site for the sky of a date and time",
+            );
+        };
+        let query = url.split_once('?').map_or("", |(_, q)| q);
+        let time = query
+            .split('&')
+            .find_map(|kv| kv.strip_prefix("time="))
+            .and_then(percent_decode)
+            .unwrap_or_default();
+        return match sky_light(place, &time) {
+            Ok(v) => Reply::ok("application/json", serde_json::to_vec(&v).expect("JSON")),
+            Err(e) => Reply::error(400, &e),
+        };
+    }
+    if let Some(k) = path
+        .strip_prefix("/igi/stderr/")
+        .and_then(|f| f.strip_suffix(".png"))
+    {
+        return match k.parse::<usize>().ok().and_then(|k| site.stderr_png.get(k)) {
+            Some(png) => Reply::ok("image/png", png.clone()),
+            None => Reply::error(404, "not found"),
         };
     }
     match path {
@@ -207,6 +293,8 @@ mod tests {
             root: root.canonicalize().unwrap(),
             scene_json: b"{}".to_vec(),
             scene_glb: b"glTF".to_vec(),
+            stderr_png: vec![b"png".to_vec()],
+            sky_place: None,
         }
     }
 
@@ -252,6 +340,9 @@ mod tests {
         assert_eq!(three.content_type, "text/javascript; charset=utf-8");
         assert!(String::from_utf8_lossy(&three.body).contains("const t=\"170\""));
         assert_eq!(respond(&s, "GET", "/igi/scene.glb").body, b"glTF");
+        assert_eq!(respond(&s, "GET", "/igi/stderr/0.png").body, b"png");
+        assert_eq!(respond(&s, "GET", "/igi/stderr/1.png").status, 404);
+        assert_eq!(respond(&s, "GET", "/igi/sky?time=x").status, 404);
         let told = respond(&s, "GET", "/igi/event?title=igi%3A%20ready");
         assert_eq!(told.event.as_deref(), Some("title=igi: ready"));
     }
