@@ -64,7 +64,7 @@ pub enum ImportError {
     Icp {
         mesh: PathBuf,
         #[source]
-        source: crate::icp::IcpError,
+        source: IcpError,
     },
 }
 
@@ -83,4 +83,26 @@ impl ImportError {
             problem: problem.into(),
         }
     }
+}
+
+/// The fewest sparse points ICP runs on (`crate::icp::MIN_POINTS`).
+pub const ICP_MIN_POINTS: usize = 10;
+
+/// Why the ICP refinement (`crate::icp`) cannot be made.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum IcpError {
+    #[error("the mesh has no triangle of nonzero area")]
+    EmptyMesh,
+    #[error("{0} sparse points: ICP needs at least {ICP_MIN_POINTS}")]
+    TooFewPoints(usize),
+    #[error("keep fraction {0} is not in (0, 1]")]
+    BadKeep(f64),
+    #[error("a point is not finite")]
+    NotFinite,
+    #[error("the kept points are degenerate (all on a point or line): no similarity fits them")]
+    Degenerate,
+    #[error("the refinement would {0}: the control-point alignment and the mesh disagree, so nearest points are not correspondences")]
+    TooFar(String),
+    #[error("the refinement does not lower the kept points' RMS distance to the mesh ({before:.4} m -> {after:.4} m)")]
+    NoGain { before: f64, after: f64 },
 }

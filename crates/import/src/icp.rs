@@ -23,6 +23,7 @@ use serde::Serialize;
 use std::num::NonZeroUsize;
 
 use crate::align::{umeyama, Similarity};
+pub use crate::error::IcpError;
 
 /// Samples of the mesh looked at per closest-point query.
 pub const NEIGHBOURS: usize = 16;
@@ -35,7 +36,7 @@ pub const MAX_SCALE_CHANGE: f64 = 0.1;
 /// The largest accepted shift of the points' centroid, as a fraction of their spread.
 pub const MAX_SHIFT: f64 = 0.2;
 /// The fewest points ICP runs on.
-pub const MIN_POINTS: usize = 10;
+pub const MIN_POINTS: usize = crate::error::ICP_MIN_POINTS;
 
 /// How the refinement runs.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -55,25 +56,6 @@ impl Default for IcpOptions {
             spacing: None,
         }
     }
-}
-
-/// Why the refinement cannot be made.
-#[derive(Clone, Debug, PartialEq, thiserror::Error)]
-pub enum IcpError {
-    #[error("the mesh has no triangle of nonzero area")]
-    EmptyMesh,
-    #[error("{0} sparse points: ICP needs at least {MIN_POINTS}")]
-    TooFewPoints(usize),
-    #[error("keep fraction {0} is not in (0, 1]")]
-    BadKeep(f64),
-    #[error("a point is not finite")]
-    NotFinite,
-    #[error("the kept points are degenerate (all on a point or line): no similarity fits them")]
-    Degenerate,
-    #[error("the refinement would {0}: the control-point alignment and the mesh disagree, so nearest points are not correspondences")]
-    TooFar(String),
-    #[error("the refinement does not lower the kept points' RMS distance to the mesh ({before:.4} m -> {after:.4} m)")]
-    NoGain { before: f64, after: f64 },
 }
 
 /// The refinement found: `correction` moves scan-frame points (already aligned) onto the mesh.
