@@ -179,6 +179,41 @@ pub fn build_from_rig(
     stage: &dyn Fn(usize),
 ) -> Result<RigBuild, LightFieldError> {
     opts.validate(method)?;
+    let prepared = prepare_rig(rig, mesh, grid, opts.level, stage)?;
+    stage(3);
+    let field = prepared.prepared.fit(method, opts)?;
+    Ok(RigBuild {
+        field,
+        atlas: prepared.atlas,
+        report: prepared.prepared.report.clone(),
+        views: prepared.views,
+        invalid_pixels: prepared.invalid_pixels,
+        warnings: prepared.warnings,
+    })
+}
+
+/// The first three stages of [`build_from_rig`] (reading, atlas, gathering): the data
+/// lumispheres ready for any number of fits.
+pub struct RigPrepared {
+    pub prepared: Prepared,
+    /// The atlas whose covered texels are the grid points.
+    pub atlas: Atlas,
+    /// Views read, and their pixels marked invalid (masked or clipped).
+    pub views: usize,
+    pub invalid_pixels: usize,
+    /// As [`RigBuild::warnings`].
+    pub warnings: Vec<String>,
+}
+
+/// Reads the views of `rig`, builds the atlas of `mesh` and gathers the data lumispheres of its
+/// grid points on an octahedron of `level` (stages 0-2 of [`STAGES`], reported to `stage`).
+pub fn prepare_rig(
+    rig: &Rig,
+    mesh: &TriMesh,
+    grid: GridOptions,
+    level: u32,
+    stage: &dyn Fn(usize),
+) -> Result<RigPrepared, LightFieldError> {
     grid.validate()?;
     stage(0);
     let views = load_views(rig)?;
@@ -217,17 +252,14 @@ pub fn build_from_rig(
     // every pixel's ray is cast once: for the silhouette check and for the gathering
     let hits: Vec<Vec<bool>> = refs.par_iter().map(|v| pixel_hits(&rt, v)).collect();
     let warnings = silhouette_warnings(&views, &hits);
-    let prepared = Prepared::with_hits(&atlas, &rt, &refs, &hits, opts.level);
-    stage(3);
-    let field = prepared.fit(method, opts)?;
+    let prepared = Prepared::with_hits(&atlas, &rt, &refs, &hits, level);
     let invalid_pixels = views
         .iter()
         .map(|v| v.photo.valid.iter().filter(|ok| !**ok).count())
         .sum();
-    Ok(RigBuild {
-        field,
+    Ok(RigPrepared {
+        prepared,
         atlas,
-        report: prepared.report.clone(),
         views: views.len(),
         invalid_pixels,
         warnings,

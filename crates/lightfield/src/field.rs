@@ -4,7 +4,7 @@
 //! output values; a rotated or deformed mesh with the same texture coordinates, whose new
 //! normals reflect the view directions).
 
-use crate::lumisphere::{eval_bary, reflect_about_normal, Octahedron};
+use crate::lumisphere::{eval_bary, reflect_about_normal, Bary, Octahedron};
 use crate::pfa::Pfa;
 use crate::quantize::Codebook;
 use crate::LightFieldError;
@@ -104,18 +104,61 @@ impl SurfaceLightField {
 
     /// The lumisphere value (median removed) of point `p` in reflected direction `r`.
     pub fn lumisphere_value(&self, p: usize, r: Vec3) -> Vec3 {
+        self.lumisphere_value_at(p, &self.oct.locate(r))
+    }
+
+    /// The lumisphere value (median removed) of point `p` at a located direction `b`.
+    fn lumisphere_value_at(&self, p: usize, b: &Bary) -> Vec3 {
         match &self.coding {
             Coding::MedianOnly => Vec3::ZERO,
-            Coding::Faired(f) => self.oct.eval(&f[p], r),
-            Coding::Quantized(c) => self.oct.eval(&c.codewords[c.index[p] as usize], r),
-            Coding::Pfa(pfa) => {
-                let b = self.oct.locate(r);
-                pfa.prototypes
-                    .iter()
-                    .zip(&pfa.coefficients[p])
-                    .map(|(pr, a)| eval_bary(pr, &b) * *a)
-                    .sum()
+            Coding::Faired(f) => eval_bary(&f[p], b),
+            Coding::Quantized(c) => eval_bary(&c.codewords[c.index[p] as usize], b),
+            Coding::Pfa(pfa) => pfa
+                .prototypes
+                .iter()
+                .zip(&pfa.coefficients[p])
+                .map(|(pr, a)| eval_bary(pr, b) * *a)
+                .sum(),
+        }
+    }
+
+    /// The outgoing colour at texture coordinate `uv` toward unit direction `w` with surface
+    /// normal `n`: the bilinear blend of the four nearest texels' grid points (each its median
+    /// plus its lumisphere at the one reflected direction), over the covered texels among them;
+    /// the nearest texel's point (gutters included) where none is covered, `None` where that
+    /// has none either.
+    pub fn radiance_at(&self, uv: Vec2, w: Vec3, n: Vec3) -> Option<Vec3> {
+        let res = self.resolution;
+        let (u, v) = igi_geometry::texels::clamp_uv(uv);
+        let x = u * res as f32 - 0.5;
+        let y = (1.0 - v) * res as f32 - 0.5;
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let b = self.oct.locate(reflect_about_normal(w, n));
+        let (mut sum, mut wsum) = (Vec3::ZERO, 0.0f32);
+        for (dy, wy) in [(0, 1.0 - fy), (1, fy)] {
+            for (dx, wx) in [(0, 1.0 - fx), (1, fx)] {
+                let (tx, ty) = (x0 as i64 + dx, y0 as i64 + dy);
+                let wt = wx * wy;
+                if wt <= 0.0 || tx < 0 || ty < 0 || tx >= res as i64 || ty >= res as i64 {
+                    continue;
+                }
+                let t = ty as usize * res + tx as usize;
+                let p = self.point_of_texel[t];
+                // only covered texels (a gutter texel borrows a neighbour's point, which may
+                // belong to another chart, elsewhere on the surface)
+                if p == u32::MAX || self.texels[p as usize] as usize != t {
+                    continue;
+                }
+                let p = p as usize;
+                sum += (self.median[p] + self.lumisphere_value_at(p, &b)) * wt;
+                wsum += wt;
             }
+        }
+        if wsum > 0.0 {
+            Some((sum / wsum).max(Vec3::ZERO))
+        } else {
+            self.point_at(uv).map(|p| self.radiance(p, w, n))
         }
     }
 
@@ -201,10 +244,19 @@ impl FieldRenderer<'_> {
             n += self.normals[tri[k] as usize] * bw[k];
         }
         let n = n.normalize_or(hit.ng.normalize_or(Vec3::Z));
-        let Some(p) = self.field.point_at(uv) else {
+        let [a, b, c] = tri.map(|i| Vec3::from_array(self.mesh.positions[i as usize]));
+        let face = (b - a).cross(c - a);
+        // the face normal turned to the side of the vertex normals (whatever the winding)
+        let face = if face.dot(n) < 0.0 { -face } else { face };
+        if face.dot(d) > 0.0 {
+            // the back of the surface (its inside, through a hole of an open mesh): no view
+            // photographed it (the gather keeps only points facing the camera), so it has no
+            // light field; it occludes what lies behind and shows black, as an unlit inside does
+            return ([0.0; 3], 1.0);
+        }
+        let Some(c) = self.field.radiance_at(uv, -d, n) else {
             return ([0.0; 3], 1.0);
         };
-        let c = self.field.radiance(p, -d, n);
         let c = if (opts.bias - 0.5).abs() < 1e-7 {
             c
         } else {

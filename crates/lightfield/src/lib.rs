@@ -34,7 +34,7 @@ pub mod quantize;
 pub mod store;
 
 pub use build::{grid_points, BuildOptions, Method, Prepared};
-pub use capture::{build_from_rig, GridOptions, RigBuild};
+pub use capture::{build_from_rig, prepare_rig, GridOptions, RigBuild, RigPrepared};
 pub use data::{
     gather, gather_with_hits, pixel_hits, reparameterise, GatherReport, GridPoint, View,
 };

@@ -5,3 +5,4 @@
 mod common;
 mod editing;
 mod glossy_bunny;
+mod mitsuba_gloss;
