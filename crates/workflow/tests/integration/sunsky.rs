@@ -262,9 +262,7 @@ fn albedo_and_light_from_photographs_without_probes() {
     println!("true lighting: MAE {known_mae:.4?}, {known_s:.1} s");
 
     let ratio: Vec<f64> = (0..3).map(|c| card_mae[c] / known_mae[c]).collect();
-    println!(
-        "MAE over the true-lighting solve's: {ratio:.2?} (issue 34 asks for 1.5)"
-    );
+    println!("MAE over the true-lighting solve's: {ratio:.2?} (issue 34 asks for 1.5)");
     for c in 0..3 {
         assert!(card_mae[c] <= 0.02, "MAE {card_mae:?}");
         assert!(nocard_mae[c] <= 0.02, "MAE without the card {nocard_mae:?}");
