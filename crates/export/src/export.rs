@@ -109,7 +109,7 @@ pub fn export(
             });
         }
         let plan = crate::outdir::check(result_dir, out)?;
-        let glb = crate::folders::folder_glb(result_dir)?;
+        let glb = folder_glb(result_dir)?;
         plan.begin()?;
         let glb_path = plan.staging.join("scene.glb");
         if let Err(e) = igi_files::write_atomic(&glb_path, |tmp| {
@@ -259,6 +259,56 @@ pub fn result_glb(result_dir: &Path) -> Result<ResultGlb, ExportError> {
     let res = SolveResult::load(result_dir)?;
     let (glb, _) = gltf_of(&res, result_dir)?;
     Ok(glb)
+}
+
+/// A folder of any kind as one GLB, in memory.
+#[derive(Clone, Debug)]
+pub struct FolderGlb {
+    pub kind: crate::FolderKind,
+    pub bytes: Vec<u8>,
+    /// For a result, the GLB and its fits ([`ResultGlb`]); `None` otherwise.
+    pub result: Option<ResultGlb>,
+    /// What the GLB holds, for a summary (`part wall`, `12000 surfels`, ...).
+    pub summary: Vec<String>,
+}
+
+/// `dir` (a result, hull or light field: [`crate::folder_kind`]) as the GLB `igi export --format
+/// gltf` writes.
+pub fn folder_glb(dir: &Path) -> Result<FolderGlb, ExportError> {
+    let kind = crate::folders::folder_kind(dir)?;
+    match kind {
+        crate::FolderKind::Result => {
+            let r = result_glb(dir)?;
+            Ok(FolderGlb {
+                kind,
+                bytes: r.bytes.clone(),
+                summary: r
+                    .materials
+                    .iter()
+                    .map(|m| format!("part {}", m.0))
+                    .collect(),
+                result: Some(r),
+            })
+        }
+        crate::FolderKind::Hull => {
+            let (bytes, summary) = crate::folders::hull_glb(dir)?;
+            Ok(FolderGlb {
+                kind,
+                bytes,
+                result: None,
+                summary,
+            })
+        }
+        crate::FolderKind::LightField => {
+            let (bytes, summary) = crate::folders::light_field_glb(dir)?;
+            Ok(FolderGlb {
+                kind,
+                bytes,
+                result: None,
+                summary,
+            })
+        }
+    }
 }
 
 /// The GLB of `res` and each part's textures (the albedo atlas and the lobe maps).

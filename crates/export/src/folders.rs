@@ -56,56 +56,6 @@ pub fn folder_kind(dir: &Path) -> Result<FolderKind, ExportError> {
     }
 }
 
-/// A folder of any kind as one GLB, in memory.
-#[derive(Clone, Debug)]
-pub struct FolderGlb {
-    pub kind: FolderKind,
-    pub bytes: Vec<u8>,
-    /// For a result, the GLB and its fits ([`crate::ResultGlb`]); `None` otherwise.
-    pub result: Option<crate::ResultGlb>,
-    /// What the GLB holds, for a summary (`part wall`, `12000 surfels`, ...).
-    pub summary: Vec<String>,
-}
-
-/// `dir` (a result, hull or light field: [`folder_kind`]) as the GLB `igi export --format
-/// gltf` writes.
-pub fn folder_glb(dir: &Path) -> Result<FolderGlb, ExportError> {
-    let kind = folder_kind(dir)?;
-    match kind {
-        FolderKind::Result => {
-            let r = crate::result_glb(dir)?;
-            Ok(FolderGlb {
-                kind,
-                bytes: r.bytes.clone(),
-                summary: r
-                    .materials
-                    .iter()
-                    .map(|m| format!("part {}", m.0))
-                    .collect(),
-                result: Some(r),
-            })
-        }
-        FolderKind::Hull => {
-            let (bytes, summary) = hull_glb(dir)?;
-            Ok(FolderGlb {
-                kind,
-                bytes,
-                result: None,
-                summary,
-            })
-        }
-        FolderKind::LightField => {
-            let (bytes, summary) = light_field_glb(dir)?;
-            Ok(FolderGlb {
-                kind,
-                bytes,
-                result: None,
-                summary,
-            })
-        }
-    }
-}
-
 /// Each surfel's colour (the mean of the views that see it, weighted by its opacity in each,
 /// so a view whose matte says the surfel is not there adds nothing) and opacity (the mean
 /// over those views); a surfel no view sees, or none sees opaque, is black and transparent.
@@ -133,7 +83,7 @@ pub fn surfel_colors(model: &igi_opacity_hull::render::HullModel) -> Vec<[f32; 4
         .collect()
 }
 
-fn hull_glb(dir: &Path) -> Result<(Vec<u8>, Vec<String>), ExportError> {
+pub(crate) fn hull_glb(dir: &Path) -> Result<(Vec<u8>, Vec<String>), ExportError> {
     let model = igi_opacity_hull::build::load_model(dir).map_err(Box::new)?;
     let colors = surfel_colors(&model);
     let surface_path = dir.join("hull.ply");
@@ -213,7 +163,7 @@ pub fn median_texture(field: &igi_lightfield::SurfaceLightField) -> (HdrImage, f
     (img, scale)
 }
 
-fn light_field_glb(dir: &Path) -> Result<(Vec<u8>, Vec<String>), ExportError> {
+pub(crate) fn light_field_glb(dir: &Path) -> Result<(Vec<u8>, Vec<String>), ExportError> {
     let (field, mesh) = igi_lightfield::store::load(dir).map_err(Box::new)?;
     let (texture, scale) = median_texture(&field);
     let items = [crate::gltf::GlbItem::Unlit {

@@ -24,8 +24,11 @@ pub mod lobefit;
 pub mod outdir;
 pub mod sample;
 
-pub use export::{export, result_glb, ExportFormat, Exported, ResultGlb, STDERR_PICTURE_MAX};
-pub use folders::{folder_glb, folder_kind, FolderGlb, FolderKind};
+pub use export::{
+    export, folder_glb, result_glb, ExportFormat, Exported, FolderGlb, ResultGlb,
+    STDERR_PICTURE_MAX,
+};
+pub use folders::{folder_kind, FolderKind};
 pub use lobefit::{fit_gltf, GltfFit};
 pub use sample::{sample_albedo, sample_file, AlbedoSample};
 
