@@ -147,19 +147,10 @@ fn mean_albedo(parts: &[Part], rho: &[Vec<glam::Vec3>]) -> glam::Vec3 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::parts::build_parts;
     use glam::Vec3;
-    use igi_geometry::TriMesh;
 
-    /// A 4 m square in z = 0.
     fn ground(res: u32) -> Vec<Part> {
-        let mut m = TriMesh::default();
-        for [x, y] in [[-2.0, -2.0], [2.0, -2.0], [2.0, 2.0], [-2.0, 2.0]] {
-            m.positions.push([x, y, 0.0]);
-        }
-        m.indices = vec![[0, 1, 2], [0, 2, 3]];
-        m.compute_vertex_normals();
-        build_parts(vec![("ground".into(), m)], res).unwrap()
+        crate::parts::square_part(res)
     }
 
     /// The coarse parts have a ninth of the texels; a part already small gets no coarse stage.

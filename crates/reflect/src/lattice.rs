@@ -125,17 +125,9 @@ pub(crate) fn blend(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::parts::build_parts;
-    use igi_geometry::TriMesh;
 
     fn ground(res: u32) -> Vec<Part> {
-        let mut m = TriMesh::default();
-        for [x, y] in [[-2.0, -2.0], [2.0, -2.0], [2.0, 2.0], [-2.0, 2.0]] {
-            m.positions.push([x, y, 0.0]);
-        }
-        m.indices = vec![[0, 1, 2], [0, 2, 3]];
-        m.compute_vertex_normals();
-        build_parts(vec![("ground".into(), m)], res).unwrap()
+        crate::parts::square_part(res)
     }
 
     /// A shading linear in position is read back exactly between the lattice texels, about a

@@ -272,3 +272,16 @@ fn part_atlas(name: &str, mesh: &TriMesh, resolution: u32) -> Result<Atlas, Refl
         source: Box::new(e),
     })
 }
+
+/// A 4 m square in z = 0 as one part `ground` on an atlas of `res` texels per side (the tests'
+/// smallest site).
+#[cfg(test)]
+pub(crate) fn square_part(res: u32) -> Vec<Part> {
+    let mut m = TriMesh::default();
+    for [x, y] in [[-2.0, -2.0], [2.0, -2.0], [2.0, 2.0], [-2.0, 2.0]] {
+        m.positions.push([x, y, 0.0]);
+    }
+    m.indices = vec![[0, 1, 2], [0, 2, 3]];
+    m.compute_vertex_normals();
+    build_parts(vec![("ground".into(), m)], res).unwrap()
+}

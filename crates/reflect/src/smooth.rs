@@ -126,19 +126,10 @@ fn apply(o: &mut Obs, shading: Vec3, n: usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::parts::build_parts;
     use glam::Vec2;
-    use igi_geometry::TriMesh;
 
-    /// A 4 m square in z = 0 on a 64-texel atlas.
     fn ground() -> Vec<Part> {
-        let mut m = TriMesh::default();
-        for [x, y] in [[-2.0, -2.0], [2.0, -2.0], [2.0, 2.0], [-2.0, 2.0]] {
-            m.positions.push([x, y, 0.0]);
-        }
-        m.indices = vec![[0, 1, 2], [0, 2, 3]];
-        m.compute_vertex_normals();
-        build_parts(vec![("ground".into(), m)], 64).unwrap()
+        crate::parts::square_part(64)
     }
 
     /// Observations of an albedo with texel detail under a shading with a shadow edge at
