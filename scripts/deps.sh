@@ -5,17 +5,19 @@
 #   test: also OpenCV with contrib and clang/libclang (the `opencv` feature generates its
 #         bindings with libclang), Slurm and munge (tests/cli/cli_cluster.rs runs a one-node
 #         loopback cluster, scripts/slurm-loopback.sh), Debian's chromium (tests/cli/cli_view.rs
-#         opens `igi view` headless, WebGL through SwiftShader), everything the test command
-#         builds and runs
-#   mitsuba: what regenerating the reference data of datasets/mitsuba/ needs (never igi itself,
-#         nor the tests): Mitsuba 3.9.1 for python3 and Debian's libllvm19 for its llvm_ad_rgb
+#         opens `igi view` headless, WebGL through SwiftShader), Mitsuba 3.9.1 (the gloss test
+#         of crates/lightfield renders its 20 MB capture with datasets/mitsuba/slf_gloss.py
+#         rather than committing it), everything the test command builds and runs
+#   mitsuba: what regenerating the reference data of datasets/mitsuba/ needs (never igi
+#         itself): Mitsuba 3.9.1 for python3 and Debian's libllvm19 for its llvm_ad_rgb
 #         variant (the scripts find libLLVM-19.so with `dpkg -L libllvm19`)
 set -euo pipefail
 profile="${1:-test}"
 pkgs=(libembree-dev pkg-config fonts-dejavu-core)
 case "$profile" in
   demo) ;;
-  test) pkgs+=(libopencv-dev clang libclang-dev slurm-wlm slurmctld slurmd slurm-client munge chromium) ;;
+  test) pkgs+=(libopencv-dev clang libclang-dev slurm-wlm slurmctld slurmd slurm-client munge chromium
+               libllvm19 python3 python3-pip) ;;
   mitsuba) pkgs=(libllvm19 python3) ;;
   *) echo "igi: deps.sh: unknown profile '$profile' (demo, test or mitsuba)" >&2; exit 2 ;;
 esac
@@ -42,7 +44,7 @@ if [ "$profile" = test ]; then
     $SUDO npm install --prefix "$IGI_NODE" --no-audit --no-fund --silent "gltf-validator@$GLTF_VALIDATOR_VERSION" >&2
   fi
 fi
-if [ "$profile" = mitsuba ]; then
+if [ "$profile" = mitsuba ] || [ "$profile" = test ]; then
   # the reference scripts (datasets/mitsuba, datasets/demo_error.py) need numpy beside Mitsuba
   if ! python3 -c 'import numpy, mitsuba, sys; sys.exit(mitsuba.__version__ != "3.9.1")' 2>/dev/null; then
     if ! python3 -m pip --version >/dev/null 2>&1; then
@@ -53,7 +55,7 @@ if [ "$profile" = mitsuba ]; then
     python3 -m pip install -q "mitsuba==3.9.1" numpy \
       || python3 -m pip install -q --break-system-packages "mitsuba==3.9.1" numpy
   fi
-  exit 0
+  if [ "$profile" = mitsuba ]; then exit 0; fi
 fi
 if ! command -v cargo >/dev/null 2>&1; then
   echo "igi: cargo not found; install the Rust toolchain (rustup) first" >&2
