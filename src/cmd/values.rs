@@ -1,5 +1,5 @@
 //! clap value parsers for numbers that must mean something (issue 36 item 7): clap names the
-//! option in its error ("invalid value '-1' for '--threshold <THRESHOLD>': ..."), before any
+//! option in its error (`invalid value '-1' for '--threshold <THRESHOLD>': ...`), before any
 //! work.
 
 fn number(s: &str) -> Result<f64, String> {
