@@ -125,7 +125,11 @@ fn probe_refine_spheres_reports_the_outline_fits() {
     let bad = probe_fixture(&f, &out, &["--sun-mask-px=-1"]);
     assert!(!bad.status.success());
     let e = String::from_utf8_lossy(&bad.stderr);
-    assert!(e.contains("--sun-mask-px -1 must be"), "{e}");
+    // the option's parser names it and the value (issue 36 item 7)
+    assert!(
+        e.contains("'-1'") && e.contains("--sun-mask-px") && e.contains("at least 0"),
+        "{e}"
+    );
     assert!(!out.exists());
     let o = probe_fixture(&f, &out, &["--refine-spheres"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));

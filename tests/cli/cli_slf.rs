@@ -314,7 +314,11 @@ fn slf_build_refuses_bad_input_before_any_work() {
     assert!(!out.exists());
     // a simplification or subdivision level out of range
     for (flag, v, msg) in [
-        ("--simplify", "0", "fraction of triangles"),
+        (
+            "--simplify",
+            "0",
+            "'--simplify <SIMPLIFY>': 0 must be above 0 and at most 1",
+        ),
         ("--level", "9", "subdivision level"),
     ] {
         let o = igi().run(&[

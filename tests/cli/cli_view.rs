@@ -111,7 +111,12 @@ fn chromium() -> PathBuf {
 }
 
 fn chromium_command(url: &str, extra: &[&str]) -> Command {
+    // a profile of its own, so browsers of tests running side by side never share one
+    static NEXT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let profile = std::env::temp_dir().join(format!("igi-chromium-{}-{n}", std::process::id()));
     let mut c = Command::new(chromium());
+    c.arg(format!("--user-data-dir={}", profile.display()));
     c.args([
         "--headless=new",
         "--no-sandbox",
