@@ -811,7 +811,7 @@ mod tests {
     }
 
     #[test]
-    fn a_photo_with_a_time_but_no_lighting_is_refused_with_the_reason() {
+    fn a_photo_with_a_time_and_no_lighting_is_lit_by_the_sun_of_its_time() {
         let dir = survey_dir("latitude_deg = 37.9\nlongitude_deg = 23.7", "");
         let text = std::fs::read_to_string(dir.path().join("survey.toml")).unwrap();
         let text = text.replace(
@@ -819,10 +819,20 @@ mod tests {
             "time = \"2026-06-21T09:30:00+03:00\"",
         );
         std::fs::write(dir.path().join("survey.toml"), text).unwrap();
-        let e = Survey::load(dir.path()).unwrap_err().to_string();
-        assert!(
-            e.contains("survey.toml") && e.contains("`p`") && e.contains("not implemented"),
-            "{e}"
-        );
+        let s = Survey::load(dir.path()).unwrap();
+        let LightingSource::Estimated(sky) = &s.photos[0].lighting else {
+            panic!(
+                "the photo's light is not estimated: {:?}",
+                s.photos[0].lighting
+            );
+        };
+        // Athens at 06:30 UTC on the solstice: the sun low in the east, where NOAA's solar
+        // calculator (its spreadsheet's algorithm, with refraction) puts it at zenith 52.059 and
+        // azimuth 88.14 degrees; its direction east-north-up with the default north (+Y)
+        let z = sky.position.zenith_deg.to_radians().cos();
+        assert!((sky.sun[2] - z).abs() < 1e-6, "{sky:?}");
+        assert!((sky.position.zenith_deg - 52.06).abs() < 0.05, "{sky:?}");
+        assert!((sky.position.azimuth_deg - 88.14).abs() < 0.05, "{sky:?}");
+        assert!(sky.sun[0] > 0.75, "the sun is not in the east: {sky:?}");
     }
 }
