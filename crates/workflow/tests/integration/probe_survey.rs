@@ -50,18 +50,24 @@ fn a_probe_capture_in_the_survey_gives_the_photo_its_lighting() {
     );
     assert!(p.lighting.environment.is_some());
 
-    // exactly one of a lighting file and a probe capture
+    // at most one of a lighting file and a probe capture; with neither, a time to estimate
+    // the light from
     std::fs::write(d.join("l.toml"), "").unwrap();
-    for text in [
-        format!("[site]\nmesh = \"geometry/site.ply\"\n\n{photo}lighting = \"l.toml\"\n{probe}"),
-        format!("[site]\nmesh = \"geometry/site.ply\"\n\n{photo}"),
+    for (text, says) in [
+        (
+            format!(
+                "[site]\nmesh = \"geometry/site.ply\"\n\n{photo}lighting = \"l.toml\"\n{probe}"
+            ),
+            "has both `lighting = ...` and a [photo.probe] capture",
+        ),
+        (
+            format!("[site]\nmesh = \"geometry/site.ply\"\n\n{photo}"),
+            "no `lighting`, no [photo.probe] and no `time`",
+        ),
     ] {
         std::fs::write(d.join("survey.toml"), text).unwrap();
         let e = Survey::load(d).unwrap_err().to_string();
-        assert!(
-            e.contains("survey.toml") && e.contains("exactly one"),
-            "{e}"
-        );
+        assert!(e.contains("survey.toml") && e.contains(says), "{e}");
     }
 }
 
