@@ -7,7 +7,9 @@
 //! albedo beside them) and named by `IGI_SURVEY` (default `/tmp/survey_large_c25`). Each run is
 //! `igi solve SURVEY --truth SURVEY/truth/scene.toml` with the defaults (4 iterations, adaptive
 //! samples), once with `--atlas auto` (the default: a coarse stage, then one iteration on the
-//! chosen atlases) and once with `--atlas 512`; `IGI_BENCH_RUNS=auto` or `=512` runs one.
+//! chosen atlases) and once with `--atlas 512`; `IGI_BENCH_RUNS=auto` or `=512` runs one, and
+//! `IGI_BENCH_RUNS=lattice` runs only the default with `--shading-lattice false` (its fine
+//! iteration traced at every texel: about 20 minutes).
 //! Prints per iteration the cumulative time and the albedo MAE per texel and over the surface,
 //! and the whole run's wall time (loading, atlases, truth and writing included); writes
 //! `target/survey_solve.json` and the error-against-time plot `target/survey_solve.png`.
@@ -30,15 +32,31 @@ fn main() {
         survey.display()
     );
     let which = std::env::var("IGI_BENCH_RUNS").unwrap_or_default();
-    let runs: Vec<(&str, AtlasRequest)> = [
-        ("--atlas auto (default)", AtlasRequest::Auto { max: 2048 }),
-        ("--atlas 512", AtlasRequest::Fixed(512)),
+    // the third (the fine iteration traced at every texel) runs only when IGI_BENCH_RUNS names it
+    let runs: Vec<(&str, AtlasRequest, bool)> = [
+        (
+            "--atlas auto (default)",
+            AtlasRequest::Auto { max: 2048 },
+            true,
+        ),
+        ("--atlas 512", AtlasRequest::Fixed(512), true),
+        (
+            "--shading-lattice false",
+            AtlasRequest::Auto { max: 2048 },
+            false,
+        ),
     ]
     .into_iter()
-    .filter(|(name, _)| which.is_empty() || name.contains(which.as_str()))
+    .filter(|(name, _, lattice)| {
+        if which.is_empty() {
+            *lattice
+        } else {
+            name.contains(which.as_str())
+        }
+    })
     .collect();
     let mut reports: Vec<(String, SolveReport, f64)> = Vec::new();
-    for (name, atlas) in runs {
+    for (name, atlas, lattice_shading) in runs {
         let out = tempfile::tempdir().expect("a temporary folder");
         let request = SolveRequest {
             survey: survey.clone(),
@@ -47,6 +65,7 @@ fn main() {
             options: SolveOptions {
                 adaptive_spp: true,
                 smooth_shading: true,
+                lattice_shading,
                 ..SolveOptions::default()
             },
             truth: Some(survey.join("truth").join("scene.toml")),

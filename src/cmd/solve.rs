@@ -42,6 +42,12 @@ pub struct IterationArgs {
     /// the solve's Monte-Carlo noise out of rho_d (docs/SOLVER.md). `false`: each texel's own.
     #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
     pub shading_smoothing: bool,
+    /// In the fine iteration after the coarse stage of `--atlas auto`, path-trace the shading
+    /// at every third texel per atlas row and column and read the texels between bilinearly
+    /// (never across a shadow edge, a crease, an occlusion boundary or a chart border;
+    /// docs/SOLVER.md). `false`: trace every texel, the same error at several times the time.
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
+    pub shading_lattice: bool,
 }
 
 impl IterationArgs {
@@ -63,6 +69,7 @@ impl IterationArgs {
             initial_albedo: [r, g, b],
             deblur: self.deblur,
             smooth_shading: self.shading_smoothing,
+            lattice_shading: self.shading_lattice,
             ..SolveOptions::default()
         })
     }

@@ -93,6 +93,17 @@ pub struct SolveOptions {
     /// field existed read `false`, their meaning.
     #[serde(default)]
     pub smooth_shading: bool,
+    /// In the fine iteration after a coarse stage, trace the shading at every third texel per
+    /// atlas row and column only and read the rest bilinearly from them (`crate::lattice`; on
+    /// by default). `false` traces every texel: the same error at several times the time
+    /// (docs/SOLVER.md, "Coarse to fine"). Options files written before the field existed read
+    /// `true`, their meaning.
+    #[serde(default = "yes")]
+    pub lattice_shading: bool,
+}
+
+fn yes() -> bool {
+    true
 }
 
 /// The order of updates within an iteration of a voxel-by-voxel solve.
@@ -149,6 +160,7 @@ impl Default for SolveOptions {
             schedule: Schedule::GaussSeidel,
             deblur: 0,
             smooth_shading: true,
+            lattice_shading: true,
         }
     }
 }

@@ -514,7 +514,7 @@ pub(crate) fn solve_group(
     let texels = group_texels(start, g);
     // the fine iteration after a coarse stage reads its shading from a lattice
     let after_coarse = start.report.iterations.last().is_some_and(|r| r.coarse);
-    let shading_step = if after_coarse {
+    let shading_step = if after_coarse && opts.lattice_shading {
         crate::record::COARSE_FACTOR
     } else {
         1

@@ -216,6 +216,10 @@ fn run_manifest(survey: &Survey, opts: &SolveOptions) -> Result<RunManifest, Wor
     if opts.smooth_shading {
         m.option("--shading-smoothing", true);
     }
+    // recorded when off: the folders of an igi without the option traced on the lattice
+    if !opts.lattice_shading {
+        m.option("--shading-lattice", false);
+    }
     m.owns = opts.parts.as_ref().map(|p| {
         let mut v = p.clone();
         v.sort();
