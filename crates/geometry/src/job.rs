@@ -1,15 +1,17 @@
 //! `igi prepare` and `igi info` as one call each, from a request of paths and options: a
-//! scanned site read, repaired and prepared into a site folder ([`prepare_file`]); a site
-//! folder summarised, optionally with one voxel loaded as a solve would ([`site_info`]).
+//! scanned site streamed through per-voxel spill files, repaired and prepared into a site
+//! folder voxel by voxel ([`prepare_file`]; [`prepare_file_in_memory`] is the same with the
+//! whole mesh in memory); a site folder summarised, optionally with one voxel loaded as a
+//! solve would ([`site_info`]).
 
 use crate::atlas::AtlasOptions;
 use crate::repair::{repair, RepairReport};
 use crate::store::Manifest;
 use crate::{
-    check_prepare_output, prepare_run, read_mesh, GeometryError, PrepareOptions, PrepareRun,
-    SiteStore, TriMesh, VoxelGrid, VoxelId,
+    check_prepare_output, prepare_run, prepare_streamed, read_mesh, GeometryError, PrepareOptions,
+    PrepareRun, SiteSpill, SiteStore, TriMesh, VoxelGrid, VoxelId,
 };
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// `igi prepare`: the site mesh and an optional terrain, the site folder, and the options as
 /// given (`origin` as `x,y,z`, `levels` as comma-separated fractions; checked by
@@ -50,15 +52,58 @@ pub struct Prepared {
     pub seconds: f64,
 }
 
-/// Checks the request and the output folder, reads and repairs the mesh and the terrain, and
-/// prepares (or resumes) the site folder.
+/// Checks the request and the output folder, streams the mesh into per-voxel spill files
+/// ([`SiteSpill`]), reads and repairs the terrain, and prepares (or resumes) the site folder
+/// voxel by voxel ([`prepare_streamed`]): memory follows the largest voxel (and the terrain),
+/// not the site; the folder is the one [`prepare_file_in_memory`] writes.
 pub fn prepare_file(
     req: &PrepareRequest,
     step: &(dyn Fn(PrepareStep) + Sync),
 ) -> Result<Prepared, GeometryError> {
     let (opts, run) = prepare_options(req)?;
     check_prepare_output(&req.output, &run, &opts, req.terrain.is_some())?;
-    // read and check everything before creating the output folder
+    // read and check everything before creating the output folder: the mesh streams into
+    // per-voxel spill files in a folder of their own beside the output (removed at the end)
+    let t0 = std::time::Instant::now();
+    let spill = SiteSpill::bin(&req.mesh, &opts.grid, &spill_folder(&req.output))?;
+    let stats = spill.stats();
+    step(PrepareStep::Read {
+        triangles: stats.triangles_in,
+        seconds: t0.elapsed().as_secs_f64(),
+    });
+    if stats.triangles_in == stats.degenerate_removed {
+        return Err(no_triangle_left(&req.mesh));
+    }
+    let terrain = read_terrain(req)?;
+    let report = spill.repair_report()?;
+    step(PrepareStep::Repaired(&report));
+    let source = req.mesh.display().to_string();
+    let progress = |done, total| step(PrepareStep::Voxels { done, total });
+    let manifest = prepare_streamed(
+        &spill,
+        terrain,
+        report,
+        &req.output,
+        &source,
+        &run,
+        &opts,
+        &progress,
+    )?;
+    Ok(Prepared {
+        manifest,
+        seconds: t0.elapsed().as_secs_f64(),
+    })
+}
+
+/// [`prepare_file`] as it was before streaming: the mesh read whole, repaired and cut in
+/// memory ([`prepare_run`]); the same site folder, byte for byte (the streaming path's test
+/// and benchmark baseline).
+pub fn prepare_file_in_memory(
+    req: &PrepareRequest,
+    step: &(dyn Fn(PrepareStep) + Sync),
+) -> Result<Prepared, GeometryError> {
+    let (opts, run) = prepare_options(req)?;
+    check_prepare_output(&req.output, &run, &opts, req.terrain.is_some())?;
     let t0 = std::time::Instant::now();
     let (mesh, terrain, report) = read_repaired(req, step)?;
     let source = req.mesh.display().to_string();
@@ -77,6 +122,40 @@ pub fn prepare_file(
         manifest,
         seconds: t0.elapsed().as_secs_f64(),
     })
+}
+
+/// The folder of a streamed prepare's spill files: hidden, beside the output folder (on the
+/// same disk) when its parent exists (else in the system's temporary folder), named after it
+/// and this process.
+fn spill_folder(out: &Path) -> PathBuf {
+    let name = format!(
+        ".{}.spill-{}",
+        out.file_name()
+            .map_or("site".into(), |n| n.to_string_lossy()),
+        std::process::id()
+    );
+    let parent = match out.parent() {
+        Some(p) if p.as_os_str().is_empty() => Some(Path::new(".")),
+        p => p,
+    };
+    match parent {
+        Some(p) if out.file_name().is_some() && p.is_dir() => p.join(name),
+        _ => std::env::temp_dir().join(name),
+    }
+}
+
+fn no_triangle_left(mesh: &Path) -> GeometryError {
+    GeometryError::format(mesh, "no triangle left after removing degenerate ones")
+}
+
+/// Reads and repairs the terrain, if the request has one.
+fn read_terrain(req: &PrepareRequest) -> Result<Option<TriMesh>, GeometryError> {
+    Ok(req
+        .terrain
+        .as_deref()
+        .map(read_mesh)
+        .transpose()?
+        .map(|t| repair(&t).0))
 }
 
 /// The prepare options and run of a request.
@@ -146,10 +225,7 @@ fn read_repaired(
     drop(mesh);
     step(PrepareStep::Repaired(&report));
     if repaired.indices.is_empty() {
-        return Err(GeometryError::format(
-            &req.mesh,
-            "no triangle left after removing degenerate ones",
-        ));
+        return Err(no_triangle_left(&req.mesh));
     }
     let terrain = terrain.map(|t| repair(&t).0);
     Ok((repaired, terrain, report))

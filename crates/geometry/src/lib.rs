@@ -18,6 +18,8 @@
 //! - [`texels`]: the covered texels of an atlas (texel centres on the surface) and the
 //!   dilation of texel values into neighbours (hole filling, gutters).
 //! - [`levels`]: multiresolution levels by meshoptimizer edge collapse with the voxel faces locked.
+//! - [`stream`]: a site mesh read in chunks and binned into per-voxel spill files on disk, for
+//!   [`store::prepare_streamed`] (`igi prepare`), whose memory follows the voxel, not the site.
 //! - [`store`]: `prepare` writes a site folder; [`store::SiteStore`] loads "this voxel high,
 //!   neighbours medium, the rest low".
 //! - [`job`]: `igi prepare` and `igi info` as one call each, from a request of paths and
@@ -39,6 +41,7 @@ pub mod points;
 pub mod procedural;
 pub mod repair;
 pub mod store;
+pub mod stream;
 pub mod texels;
 pub mod unwrap;
 pub mod voxel;
@@ -50,8 +53,10 @@ pub use obj::{read_obj, write_obj};
 pub use ply::{read_ply, write_ply};
 pub use points::{read_points_ply, write_points_ply, PointCloud};
 pub use store::{
-    check_prepare_output, prepare, prepare_run, Manifest, PrepareOptions, PrepareRun, SiteStore,
+    check_prepare_output, prepare, prepare_run, prepare_streamed, Manifest, PrepareOptions,
+    PrepareRun, SiteStore,
 };
+pub use stream::SiteSpill;
 pub use voxel::{VoxelGrid, VoxelId};
 
 use std::path::Path;

@@ -66,29 +66,8 @@ impl TriMesh {
     /// degenerate faces (or none) gets +Z.
     pub fn compute_vertex_normals(&mut self) {
         let mut acc = vec![[0.0f64; 3]; self.positions.len()];
-        for tri in &self.indices {
-            let [a, b, c] = tri.map(|i| self.positions[i as usize].map(f64::from));
-            // cross product has length 2*area: area weighting for free
-            let n = cross(sub(b, a), sub(c, a));
-            for &i in tri {
-                let s = &mut acc[i as usize];
-                for k in 0..3 {
-                    s[k] += n[k];
-                }
-            }
-        }
-        let normals = acc
-            .into_iter()
-            .map(|n| {
-                let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-                if l > 0.0 && l.is_finite() {
-                    [(n[0] / l) as f32, (n[1] / l) as f32, (n[2] / l) as f32]
-                } else {
-                    [0.0, 0.0, 1.0]
-                }
-            })
-            .collect();
-        self.normals = Some(normals);
+        accumulate_face_normals(&self.positions, &self.indices, &mut acc);
+        self.normals = Some(finish_normals(acc));
     }
 
     /// Check the invariants: at least one triangle, finite coordinates and attributes,
@@ -102,6 +81,14 @@ impl TriMesh {
             }
             .into());
         }
+        self.validate_vertices()?;
+        check_indices(&self.indices, 0, nv)
+    }
+
+    /// The vertex half of [`TriMesh::validate`]: finite coordinates and attributes, attributes
+    /// of the right length.
+    pub(crate) fn validate_vertices(&self) -> Result<(), GeometryError> {
+        let nv = self.positions.len();
         if let Some(i) = self
             .positions
             .iter()
@@ -141,18 +128,7 @@ impl TriMesh {
         }
         check("normals", &self.normals, nv)?;
         check("uvs", &self.uvs, nv)?;
-        check("colors", &self.colors, nv)?;
-        for (t, tri) in self.indices.iter().enumerate() {
-            if let Some(&i) = tri.iter().find(|&&i| i as usize >= nv) {
-                return Err(MeshInvariant::IndexOutOfRange {
-                    triangle: t,
-                    index: i,
-                    vertices: nv,
-                }
-                .into());
-            }
-        }
-        Ok(())
+        check("colors", &self.colors, nv)
     }
 
     /// Append another mesh (attributes kept only when both meshes have them).
@@ -173,6 +149,59 @@ impl TriMesh {
         self.indices
             .extend(other.indices.iter().map(|t| t.map(|i| i + base)));
     }
+}
+
+/// Adds each triangle's area-weighted normal to its corners' sums in `acc` (the first half of
+/// [`TriMesh::compute_vertex_normals`], which a streamed mesh runs chunk by chunk).
+pub(crate) fn accumulate_face_normals(
+    positions: &[[f32; 3]],
+    indices: &[[u32; 3]],
+    acc: &mut [[f64; 3]],
+) {
+    for tri in indices {
+        let [a, b, c] = tri.map(|i| positions[i as usize].map(f64::from));
+        // cross product has length 2*area: area weighting for free
+        let n = cross(sub(b, a), sub(c, a));
+        for &i in tri {
+            let s = &mut acc[i as usize];
+            for k in 0..3 {
+                s[k] += n[k];
+            }
+        }
+    }
+}
+
+/// The unit vertex normals of the sums from [`accumulate_face_normals`] (+Z where a sum is 0).
+pub(crate) fn finish_normals(acc: Vec<[f64; 3]>) -> Vec<[f32; 3]> {
+    acc.into_iter()
+        .map(|n| {
+            let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+            if l > 0.0 && l.is_finite() {
+                [(n[0] / l) as f32, (n[1] / l) as f32, (n[2] / l) as f32]
+            } else {
+                [0.0, 0.0, 1.0]
+            }
+        })
+        .collect()
+}
+
+/// Checks that `indices` (triangles numbered from `first`) refer to the `nv` vertices.
+pub(crate) fn check_indices(
+    indices: &[[u32; 3]],
+    first: usize,
+    nv: usize,
+) -> Result<(), GeometryError> {
+    for (t, tri) in indices.iter().enumerate() {
+        if let Some(&i) = tri.iter().find(|&&i| i as usize >= nv) {
+            return Err(MeshInvariant::IndexOutOfRange {
+                triangle: first + t,
+                index: i,
+                vertices: nv,
+            }
+            .into());
+        }
+    }
+    Ok(())
 }
 
 pub(crate) fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {

@@ -412,6 +412,28 @@ fn capacity_for(el: &Element, enc: Encoding, file_len: u64) -> usize {
 /// Read a PLY file without validating the mesh (a point cloud has no faces); also returns the
 /// vertex element's other scalar properties.
 pub(crate) fn read_ply_unchecked(path: &Path) -> Result<(TriMesh, ExtraProperties), GeometryError> {
+    read_ply_with(path, None)
+}
+
+/// Faces handed over in chunks as they are read: the vertex table read so far (the mesh's
+/// `indices` empty) and the next triangles, numbered from the given triangle index.
+pub(crate) type FaceSink<'a> =
+    &'a mut dyn FnMut(&TriMesh, usize, &[[u32; 3]]) -> Result<(), GeometryError>;
+
+/// Triangles per chunk handed to a [`FaceSink`].
+pub(crate) const FACE_CHUNK: usize = 1 << 16;
+
+/// Read a PLY mesh, handing the faces to `sink` in chunks of [`FACE_CHUNK`] triangles (once the
+/// vertices are read) instead of keeping them: the returned mesh holds the vertex table only.
+/// Nothing is validated here (the sink checks the indices).
+pub(crate) fn read_ply_chunked(path: &Path, sink: FaceSink) -> Result<TriMesh, GeometryError> {
+    Ok(read_ply_with(path, Some(sink))?.0)
+}
+
+fn read_ply_with(
+    path: &Path,
+    sink: Option<FaceSink>,
+) -> Result<(TriMesh, ExtraProperties), GeometryError> {
     let f = std::fs::File::open(path).map_err(|e| GeometryError::io(path, e))?;
     let file_len = f.metadata().map_err(|e| GeometryError::io(path, e))?.len();
     let mut r = BufReader::with_capacity(1 << 20, f);
@@ -430,6 +452,9 @@ pub(crate) fn read_ply_unchecked(path: &Path) -> Result<(TriMesh, ExtraPropertie
         path,
         enc: header.enc,
         file_len,
+        sink,
+        flushed: 0,
+        saw_vertex: false,
     };
     let mut mesh = TriMesh::default();
     let mut extras: ExtraProperties = Vec::new();
@@ -440,6 +465,7 @@ pub(crate) fn read_ply_unchecked(path: &Path) -> Result<(TriMesh, ExtraPropertie
             "vertex" if !saw_vertex => {
                 saw_vertex = true;
                 extras = body.read_vertices(el, &mut mesh)?;
+                body.saw_vertex = true;
             }
             "face" if !saw_face => {
                 saw_face = true;
@@ -452,15 +478,22 @@ pub(crate) fn read_ply_unchecked(path: &Path) -> Result<(TriMesh, ExtraPropertie
         return Err(GeometryError::format(path, "PLY has no vertex element"));
     }
     body.check_no_trailing_data()?;
+    body.flush(&mut mesh, 0)?;
     Ok((mesh, extras))
 }
 
 /// The data after a PLY header, read element by element.
-struct Body<'a, R: BufRead> {
+struct Body<'a, 's, R: BufRead> {
     src: Source<R>,
     path: &'a Path,
     enc: Encoding,
     file_len: u64,
+    /// Where faces go in chunks, if not into the mesh.
+    sink: Option<FaceSink<'s>>,
+    /// Triangles already handed to the sink.
+    flushed: usize,
+    /// The vertex element has been read (faces are handed over only then).
+    saw_vertex: bool,
 }
 
 /// The error for a failed read in element `i` of `el`.
@@ -514,7 +547,24 @@ impl VertexRecord {
     }
 }
 
-impl<R: BufRead> Body<'_, R> {
+impl<R: BufRead> Body<'_, '_, R> {
+    /// Hands the triangles in `mesh.indices` to the sink (if any) once there are at least
+    /// `min` of them and the vertices are read.
+    fn flush(&mut self, mesh: &mut TriMesh, min: usize) -> Result<(), GeometryError> {
+        let Some(sink) = self.sink.as_mut() else {
+            return Ok(());
+        };
+        if !self.saw_vertex || mesh.indices.len() < min.max(1) {
+            return Ok(());
+        }
+        let chunk = std::mem::take(&mut mesh.indices);
+        sink(mesh, self.flushed, &chunk)?;
+        self.flushed += chunk.len();
+        mesh.indices = chunk;
+        mesh.indices.clear();
+        Ok(())
+    }
+
     /// One scalar of element `i` of `el`.
     fn scalar(&mut self, el: &Element, ty: Scalar, i: usize) -> Result<f64, GeometryError> {
         let path = self.path;
@@ -629,8 +679,10 @@ impl<R: BufRead> Body<'_, R> {
             .ok_or_else(|| {
                 GeometryError::format(path, "PLY face element has no vertex_indices list")
             })?;
-        mesh.indices
-            .reserve(capacity_for(el, self.enc, self.file_len));
+        if self.sink.is_none() {
+            mesh.indices
+                .reserve(capacity_for(el, self.enc, self.file_len));
+        }
         let mut poly: Vec<u32> = Vec::with_capacity(8);
         for i in 0..el.count {
             for (k, p) in el.props.iter().enumerate() {
@@ -650,6 +702,9 @@ impl<R: BufRead> Body<'_, R> {
                         mesh.indices.push([poly[0], poly[j], poly[j + 1]]);
                     }
                 }
+            }
+            if mesh.indices.len() >= FACE_CHUNK {
+                self.flush(mesh, FACE_CHUNK)?;
             }
         }
         Ok(())

@@ -61,9 +61,63 @@ pub fn repair(mesh: &TriMesh) -> (TriMesh, RepairReport) {
         colors: mesh.colors.clone(),
         indices,
     };
-    (rep.border_edges, rep.non_manifold_edges) = count_open_and_non_manifold_edges(&out);
+    (rep.border_edges, rep.non_manifold_edges) = count_open_and_non_manifold_edges(&out, &|_| true);
     rep.triangles_out = out.indices.len();
     (out, rep)
+}
+
+/// What [`repair_share`] found in one voxel's share of a mesh.
+pub(crate) struct ShareRepair {
+    /// Duplicates whose smallest corner (by position) this share owns.
+    pub duplicate_removed: usize,
+    /// Border and non-manifold edges whose smallest corner this share owns.
+    pub border_edges: usize,
+    pub non_manifold_edges: usize,
+}
+
+/// [`repair`] of one part of a mesh streamed voxel by voxel: `mesh` holds, in the mesh's order,
+/// every non-degenerate triangle whose box of voxels holds this voxel (so every copy of a
+/// triangle, and every triangle on an edge, whose smallest corner lies in the voxel); `owns(p)`
+/// says whether the voxel holds the point `p`. Each duplicate and each edge is counted by
+/// exactly one voxel, the one holding its smallest corner, so the shares sum to [`repair`]'s
+/// report.
+pub(crate) fn repair_share(
+    mesh: &TriMesh,
+    owns: &(dyn Fn([f32; 3]) -> bool + Sync),
+) -> ShareRepair {
+    let duplicate = duplicates(mesh);
+    let duplicate_removed = (0..mesh.indices.len())
+        .filter(|&t| duplicate[t] && owns(key_point(triangle_key(mesh, t)[0])))
+        .count();
+    let kept = TriMesh {
+        positions: mesh.positions.clone(),
+        indices: mesh
+            .indices
+            .iter()
+            .zip(&duplicate)
+            .filter(|(_, d)| !**d)
+            .map(|(t, _)| *t)
+            .collect(),
+        ..Default::default()
+    };
+    let (border_edges, non_manifold_edges) =
+        count_open_and_non_manifold_edges(&kept, &|k| owns(key_point(k[0])));
+    ShareRepair {
+        duplicate_removed,
+        border_edges,
+        non_manifold_edges,
+    }
+}
+
+/// True for each triangle of `mesh` with the same corner positions as an earlier one (the
+/// duplicates [`repair`] removes, when `mesh` has no degenerate triangle).
+pub(crate) fn duplicates(mesh: &TriMesh) -> Vec<bool> {
+    later_duplicates(mesh, &vec![true; mesh.indices.len()])
+}
+
+/// The point of a position key (`-0.0` read as `0.0`, which lies in the same voxel).
+fn key_point(k: [u32; 3]) -> [f32; 3] {
+    k.map(f32::from_bits)
 }
 
 /// False for triangles with a repeated vertex or zero area.
@@ -138,13 +192,20 @@ fn later_duplicates(mesh: &TriMesh, keep: &[bool]) -> Vec<bool> {
     dup
 }
 
-/// Edges (by corner positions) used by exactly one triangle, and by more than two.
-fn count_open_and_non_manifold_edges(mesh: &TriMesh) -> (usize, usize) {
+/// Edges (by corner positions) used by exactly one triangle, and by more than two, among
+/// the edges whose key passes `counted`.
+fn count_open_and_non_manifold_edges(
+    mesh: &TriMesh,
+    counted: &(dyn Fn(&[[u32; 3]; 2]) -> bool + Sync),
+) -> (usize, usize) {
     let (mut border, mut non_manifold) = (0, 0);
     // edges by position: (hash, edge id), exact compare in runs
     let mut edges: Vec<(u64, u32)> = (0..mesh.indices.len() * 3)
         .into_par_iter()
-        .map(|e| (hash_words(edge_key(mesh, e).as_flattened()), e as u32))
+        .filter_map(|e| {
+            let k = edge_key(mesh, e);
+            counted(&k).then(|| (hash_words(k.as_flattened()), e as u32))
+        })
         .collect();
     edges.par_sort_unstable();
     let mut i = 0;

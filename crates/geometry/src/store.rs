@@ -22,6 +22,7 @@ use crate::error::GeometryError;
 use crate::levels::simplify;
 use crate::mesh::TriMesh;
 use crate::repair::RepairReport;
+use crate::stream::{SiteSpill, SpillStats};
 use crate::voxel::{partition, VoxelGrid, VoxelId};
 use igi_files::run::RUN_FILE;
 use igi_files::RunManifest;
@@ -234,8 +235,7 @@ fn check_resources(
     Ok(())
 }
 
-/// The most non-empty voxels a prepare accepts.
-pub const MAX_VOXELS: u64 = 10_000_000;
+pub use crate::voxel::MAX_VOXELS;
 
 fn voxel_dir(v: VoxelId) -> String {
     format!("voxels/{}_{}_{}", v[0], v[1], v[2])
@@ -262,6 +262,22 @@ fn mkdir(p: &Path) -> Result<(), GeometryError> {
     std::fs::create_dir_all(p).map_err(|e| GeometryError::io(p, e))
 }
 
+/// The entry of a part an earlier run finished (its `done.json`, levels and caches present).
+fn finished_part(
+    site: &Path,
+    dir: &str,
+    voxel: Option<VoxelId>,
+    opts: &PrepareOptions,
+) -> Option<PartEntry> {
+    let folder = site.join(dir);
+    let entry = read_json::<PartEntry>(&folder.join("done.json")).ok()?;
+    let complete = (0..opts.levels.len()).all(|l| folder.join(level_file(l)).exists())
+        && ["position.exr", "normal.exr", "coverage.exr"]
+            .iter()
+            .all(|f| folder.join(f).exists());
+    (complete && entry.voxel == voxel).then_some(entry)
+}
+
 /// Atlas, caches and levels of one part, written into `site/dir`; reuses a finished part.
 fn process_part(
     site: &Path,
@@ -270,19 +286,11 @@ fn process_part(
     mesh: TriMesh,
     opts: &PrepareOptions,
 ) -> Result<PartEntry, GeometryError> {
+    if let Some(entry) = finished_part(site, dir, voxel, opts) {
+        return Ok(entry);
+    }
     let folder = site.join(dir);
     let done = folder.join("done.json");
-    if done.exists() {
-        if let Ok(entry) = read_json::<PartEntry>(&done) {
-            let complete = (0..opts.levels.len()).all(|l| folder.join(level_file(l)).exists())
-                && ["position.exr", "normal.exr", "coverage.exr"]
-                    .iter()
-                    .all(|f| folder.join(f).exists());
-            if complete && entry.voxel == voxel {
-                return Ok(entry);
-            }
-        }
-    }
     mkdir(&folder)?;
     let area = mesh.total_area();
     let atlas = build_atlas(&mesh, opts.atlas).map_err(|e| match e {
@@ -360,11 +368,71 @@ pub fn prepare_run(
     if let Some(t) = &terrain {
         t.validate()?;
     }
-    let manifest = check_prepare_output(out, run, opts, terrain.is_some())?;
+    check_prepare_output(out, run, opts, terrain.is_some())?;
     check_resources(&site, terrain.as_ref(), opts)?;
+    let _lock = open_site(out, run, opts, terrain.is_some())?;
+    let (lo, hi) = site.bounds().expect("validated mesh has vertices");
+    let bounds = combined_bounds([lo, hi], terrain.as_ref());
+    let parts: Vec<(VoxelId, TriMesh)> = partition(&site, &opts.grid).into_iter().collect();
+    drop(site);
+    let part =
+        |(v, m): (VoxelId, TriMesh)| process_part(out, &voxel_dir(v), Some(v), m, opts).map(Some);
+    let (voxels, terrain) = process_parts(out, parts, &part, terrain, opts, progress)?;
+    finish_site(out, source, opts, bounds, repair, voxels, terrain)
+}
+
+/// [`prepare_run`] of a site streamed from its mesh file through per-voxel spill files
+/// ([`SiteSpill`]): each voxel is repaired, cut and prepared from its own spill file, two at a
+/// time (one per worker thread), so memory follows the largest voxel, not the site. `repair`
+/// is the spill's [`SiteSpill::repair_report`]. The store is the one [`prepare_run`] writes
+/// for the read and repaired mesh, byte for byte (for a mesh with duplicate triangles and no
+/// vertex normals, see [`crate::stream`]).
+#[allow(clippy::too_many_arguments)]
+pub fn prepare_streamed(
+    site: &SiteSpill,
+    terrain: Option<TriMesh>,
+    repair: RepairReport,
+    out: &Path,
+    source: &str,
+    run: &PrepareRun,
+    opts: &PrepareOptions,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<Manifest, GeometryError> {
+    if let Some(t) = &terrain {
+        t.validate()?;
+    }
+    check_prepare_output(out, run, opts, terrain.is_some())?;
+    check_streamed_resources(site.stats(), terrain.is_some(), opts)?;
+    let _lock = open_site(out, run, opts, terrain.is_some())?;
+    let bounds = combined_bounds(site.stats().bounds, terrain.as_ref());
+    let part = |v: VoxelId| -> Result<Option<PartEntry>, GeometryError> {
+        let dir = voxel_dir(v);
+        if let Some(entry) = finished_part(out, &dir, Some(v), opts) {
+            return Ok(Some(entry));
+        }
+        match site.voxel_mesh(v)? {
+            Some(m) => process_part(out, &dir, Some(v), m, opts).map(Some),
+            None => Ok(None),
+        }
+    };
+    let (voxels, terrain) = process_parts(out, site.voxel_ids(), &part, terrain, opts, progress)?;
+    finish_site(out, source, opts, bounds, repair, voxels, terrain)
+}
+
+/// Creates (or resumes) the site folder `out` for a run whose settings are checked: takes
+/// its lock (held until the returned guard is dropped; the folder is checked again under the
+/// lock), removes an earlier run's files on restart and dead temporary files, and writes the
+/// run manifest.
+fn open_site(
+    out: &Path,
+    run: &PrepareRun,
+    opts: &PrepareOptions,
+    has_terrain: bool,
+) -> Result<igi_files::FolderLock, GeometryError> {
+    let manifest = run.manifest(opts, has_terrain)?;
     mkdir(out)?;
     // one writer at a time; the folder is checked again under the lock
-    let _lock = igi_files::FolderLock::acquire(out)?;
+    let lock = igi_files::FolderLock::acquire(out)?;
     manifest.check_folder(out, run.restart, "settings.json", "site")?;
     if run.restart {
         remove_site_entries(out)?;
@@ -372,19 +440,58 @@ pub fn prepare_run(
     mkdir(&out.join("voxels"))?;
     igi_files::remove_dead_temps(out, true)?;
     manifest.write(out)?;
-    let bounds = combined_bounds(&site, terrain.as_ref());
-    let parts: Vec<(VoxelId, TriMesh)> = partition(&site, &opts.grid).into_iter().collect();
-    drop(site);
-    let (mut voxels, terrain) = process_parts(out, parts, terrain, opts, progress)?;
+    Ok(lock)
+}
+
+/// Writes the site's `manifest.json` from the parts' entries (sorted by voxel here).
+#[allow(clippy::too_many_arguments)]
+fn finish_site(
+    out: &Path,
+    source: &str,
+    opts: &PrepareOptions,
+    bounds: [[f32; 3]; 2],
+    repair: RepairReport,
+    mut voxels: Vec<PartEntry>,
+    terrain: Option<PartEntry>,
+) -> Result<Manifest, GeometryError> {
     voxels.sort_by_key(|e| e.voxel);
     let manifest = site_manifest(source, opts, bounds, repair, voxels, terrain);
     write_json(&out.join("manifest.json"), &manifest)?;
     Ok(manifest)
 }
 
-/// Bounds of the site and the terrain together.
-fn combined_bounds(site: &TriMesh, terrain: Option<&TriMesh>) -> [[f32; 3]; 2] {
-    let (mut lo, mut hi) = site.bounds().expect("validated mesh has vertices");
+/// [`check_resources`] for a streamed site: the voxel count from the surface area, memory as
+/// the largest voxel's spill (read, and cut into pieces) plus an atlas with its caches, per
+/// worker thread. (The vertex table held while binning is already behind.)
+fn check_streamed_resources(
+    stats: &SpillStats,
+    has_terrain: bool,
+    opts: &PrepareOptions,
+) -> Result<(), GeometryError> {
+    let size = opts.grid.size;
+    let voxels = stats.area / (size * size);
+    let res = opts.atlas.resolution as f64;
+    let threads = rayon::current_num_threads() as f64 + f64::from(u8::from(has_terrain));
+    let largest = stats.largest_voxel_triangles as f64;
+    let pieces = threads * largest * (stats.record_bytes as f64 + 120.0 + 96.0);
+    let atlases = threads * res * res * 3.0 * 16.0;
+    let bytes = pieces + atlases;
+    if voxels > MAX_VOXELS as f64 || bytes > opts.max_memory as f64 {
+        return Err(GeometryError::TooLarge {
+            what: format!(
+                "a {size} m voxel over {:.3} m^2 of surface gives about {voxels:.3e} voxels (limit {MAX_VOXELS}) and needs about {:.1} GiB (limit {:.1} GiB, see --max-memory)",
+                stats.area,
+                bytes / (1u64 << 30) as f64,
+                opts.max_memory as f64 / (1u64 << 30) as f64
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// Bounds of the site (`site`) and the terrain together.
+fn combined_bounds(site: [[f32; 3]; 2], terrain: Option<&TriMesh>) -> [[f32; 3]; 2] {
+    let [mut lo, mut hi] = site;
     if let Some((tl, th)) = terrain.and_then(|t| t.bounds()) {
         for k in 0..3 {
             lo[k] = lo[k].min(tl[k]);
@@ -396,9 +503,10 @@ fn combined_bounds(site: &TriMesh, terrain: Option<&TriMesh>) -> [[f32; 3]; 2] {
 
 /// Process every voxel part in parallel, with the terrain (one large part) beside them;
 /// `progress(done, total)` after each part.
-fn process_parts(
+fn process_parts<T: Send>(
     out: &Path,
-    parts: Vec<(VoxelId, TriMesh)>,
+    parts: Vec<T>,
+    part: &(dyn Fn(T) -> Result<Option<PartEntry>, GeometryError> + Sync),
     terrain: Option<TriMesh>,
     opts: &PrepareOptions,
     progress: &(dyn Fn(usize, usize) + Sync),
@@ -415,11 +523,12 @@ fn process_parts(
         || {
             parts
                 .into_par_iter()
-                .map(|(v, m)| {
-                    let r = process_part(out, &voxel_dir(v), Some(v), m, opts);
+                .map(|p| {
+                    let r = part(p);
                     tick();
                     r
                 })
+                .filter_map(Result::transpose)
                 .collect::<Result<Vec<PartEntry>, _>>()
         },
         || -> Result<Option<PartEntry>, GeometryError> {

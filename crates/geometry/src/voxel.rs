@@ -17,6 +17,9 @@ use std::collections::{BTreeMap, HashMap};
 /// Integer coordinates of a voxel in the lattice.
 pub type VoxelId = [i32; 3];
 
+/// The most non-empty voxels a prepare accepts.
+pub const MAX_VOXELS: u64 = 10_000_000;
+
 /// A lattice of cubic voxels: voxel `[i, j, k]` spans `origin + [i, j, k] * size` to
 /// `origin + [i + 1, j + 1, k + 1] * size`.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -87,13 +90,13 @@ impl VoxelGrid {
 }
 
 /// A clip vertex: position and interpolated attributes.
-#[derive(Clone, Copy, Debug)]
-struct CV {
-    p: [f32; 3],
-    n: [f32; 3],
-    c: [f32; 3],
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct CV {
+    pub(crate) p: [f32; 3],
+    pub(crate) n: [f32; 3],
+    pub(crate) c: [f32; 3],
     /// index of the source vertex, or u32::MAX for a cut point
-    src: u32,
+    pub(crate) src: u32,
 }
 
 fn key_lt(a: &CV, b: &CV) -> bool {
@@ -197,6 +200,18 @@ impl VoxelBuilder {
         id
     }
 
+    /// The voxel's mesh (normals always, colours when the source has them), or `None` when
+    /// it has no triangle.
+    fn finish(self, has_colors: bool) -> Option<TriMesh> {
+        if self.mesh.indices.is_empty() {
+            return None;
+        }
+        let mut m = self.mesh;
+        m.normals = Some(self.normals);
+        m.colors = has_colors.then_some(self.colors);
+        Some(m)
+    }
+
     fn polygon(&mut self, poly: &[CV]) {
         let ids: Vec<u32> = poly.iter().map(|v| self.vertex(v)).collect();
         for j in 1..ids.len() - 1 {
@@ -228,30 +243,54 @@ pub fn partition(mesh: &TriMesh, grid: &VoxelGrid) -> BTreeMap<VoxelId, TriMesh>
     let mut out: BTreeMap<VoxelId, VoxelBuilder> = BTreeMap::new();
     let mut pieces = Pieces::default();
     for tri in &mesh.indices {
-        let vs = tri.map(cv);
-        let (lo, hi) = cell_range(grid, &vs);
-        if lo == hi {
-            out.entry(lo).or_default().polygon(&vs);
-            continue;
-        }
-        pieces.clip_to_cells(grid, &vs, lo, hi);
-        for (poly, id) in &pieces.cur {
-            out.entry(*id).or_default().polygon(poly);
-        }
+        pieces.place(grid, &tri.map(cv), &mut |id, poly| {
+            out.entry(id).or_default().polygon(poly)
+        });
     }
     out.into_iter()
-        .filter(|(_, b)| !b.mesh.indices.is_empty())
-        .map(|(id, b)| {
-            let mut m = b.mesh;
-            m.normals = Some(b.normals);
-            m.colors = has_colors.then_some(b.colors);
-            (id, m)
-        })
+        .filter_map(|(id, b)| Some((id, b.finish(has_colors)?)))
         .collect()
 }
 
+/// Voxel `v` of [`partition`] alone, from the triangles (in the mesh's order, their normals
+/// given or computed as `partition` does) of which pieces may lie in `v`: the same mesh, bit for
+/// bit, as `partition(mesh, grid)[&v]`, or `None` when nothing of them lies in `v`. This is how
+/// a site streamed through per-voxel spill files (`crate::stream`) is cut.
+pub(crate) fn partition_voxel(
+    v: VoxelId,
+    triangles: impl Iterator<Item = [CV; 3]>,
+    grid: &VoxelGrid,
+    has_colors: bool,
+) -> Option<TriMesh> {
+    let mut b = VoxelBuilder::default();
+    let mut pieces = Pieces::default();
+    for vs in triangles {
+        pieces.place(grid, &vs, &mut |id, poly| {
+            if id == v {
+                b.polygon(poly)
+            }
+        });
+    }
+    b.finish(has_colors)
+}
+
+/// The box of voxels (lowest and highest per axis) that a triangle with corners `p` spans:
+/// every piece [`partition`] cuts from it lies in one of them.
+pub(crate) fn cell_box(grid: &VoxelGrid, p: [[f32; 3]; 3]) -> (VoxelId, VoxelId) {
+    let mut lo = [i32::MAX; 3];
+    let mut hi = [i32::MIN; 3];
+    for q in p {
+        for k in 0..3 {
+            let c = grid.cell(k, q[k]);
+            lo[k] = lo[k].min(c);
+            hi[k] = hi[k].max(c);
+        }
+    }
+    (lo, hi)
+}
+
 /// The mesh's vertex normals, computed from its triangles when it has none.
-fn vertex_normals(mesh: &TriMesh) -> std::borrow::Cow<'_, [[f32; 3]]> {
+pub(crate) fn vertex_normals(mesh: &TriMesh) -> std::borrow::Cow<'_, [[f32; 3]]> {
     match &mesh.normals {
         Some(n) => std::borrow::Cow::Borrowed(n),
         None => {
@@ -266,20 +305,6 @@ fn vertex_normals(mesh: &TriMesh) -> std::borrow::Cow<'_, [[f32; 3]]> {
     }
 }
 
-/// The lowest and highest cell, per axis, of the cells a triangle's corners lie in.
-fn cell_range(grid: &VoxelGrid, vs: &[CV; 3]) -> (VoxelId, VoxelId) {
-    let mut lo = [i32::MAX; 3];
-    let mut hi = [i32::MIN; 3];
-    for v in vs {
-        for k in 0..3 {
-            let c = grid.cell(k, v.p[k]);
-            lo[k] = lo[k].min(c);
-            hi[k] = hi[k].max(c);
-        }
-    }
-    (lo, hi)
-}
-
 /// The polygons a triangle is clipped into, with the voxel each lies in (and scratch space
 /// reused from triangle to triangle).
 #[derive(Default)]
@@ -289,6 +314,20 @@ struct Pieces {
 }
 
 impl Pieces {
+    /// Hands each piece of triangle `vs` to `f` with its voxel (the whole triangle when it
+    /// lies in one voxel), in the order `partition` uses.
+    fn place(&mut self, grid: &VoxelGrid, vs: &[CV; 3], f: &mut dyn FnMut(VoxelId, &[CV])) {
+        let (lo, hi) = cell_box(grid, vs.map(|v| v.p));
+        if lo == hi {
+            f(lo, vs);
+            return;
+        }
+        self.clip_to_cells(grid, vs, lo, hi);
+        for (poly, id) in &self.cur {
+            f(*id, poly);
+        }
+    }
+
     /// Clips triangle `vs`, whose corners span cells `lo..=hi`, at the lattice planes between
     /// them, axis by axis: `cur` becomes the polygons (3 or more corners) with their voxels.
     fn clip_to_cells(&mut self, grid: &VoxelGrid, vs: &[CV; 3], lo: VoxelId, hi: VoxelId) {
