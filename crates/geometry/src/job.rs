@@ -65,7 +65,9 @@ pub fn prepare_file(
     // read and check everything before creating the output folder: the mesh streams into
     // per-voxel spill files in a folder of their own beside the output (removed at the end)
     let t0 = std::time::Instant::now();
-    let spill = SiteSpill::bin(&req.mesh, &opts.grid, &spill_folder(&req.output))?;
+    let folder = spill_folder(&req.output);
+    remove_dead_spills(&folder);
+    let spill = SiteSpill::bin(&req.mesh, &opts.grid, &folder)?;
     let stats = spill.stats();
     step(PrepareStep::Read {
         triangles: stats.triangles_in,
@@ -141,6 +143,33 @@ fn spill_folder(out: &Path) -> PathBuf {
     match parent {
         Some(p) if out.file_name().is_some() && p.is_dir() => p.join(name),
         _ => std::env::temp_dir().join(name),
+    }
+}
+
+/// Removes the spill folders a killed prepare of the same output left beside `folder` (those
+/// of processes no longer running; where `/proc` cannot tell, none).
+fn remove_dead_spills(folder: &Path) {
+    let (Some(parent), Some(name)) = (folder.parent(), folder.file_name()) else {
+        return;
+    };
+    let name = name.to_string_lossy();
+    let Some((stem, _)) = name.rsplit_once('-') else {
+        return;
+    };
+    if !Path::new("/proc/self").exists() {
+        return;
+    }
+    let Ok(entries) = std::fs::read_dir(parent) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let n = e.file_name().to_string_lossy().into_owned();
+        let Some(pid) = n.strip_prefix(stem).and_then(|r| r.strip_prefix('-')) else {
+            continue;
+        };
+        if pid.parse::<u32>().is_ok() && !Path::new("/proc").join(pid).exists() {
+            let _ = std::fs::remove_dir_all(e.path());
+        }
     }
 }
 

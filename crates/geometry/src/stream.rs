@@ -560,6 +560,36 @@ mod tests {
     }
 
     #[test]
+    fn a_killed_runs_spill_folder_is_removed_and_bad_input_leaves_none() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (mesh, terrain) = site(colonnade_site(1, 1));
+        let (m, t) = (tmp.path().join("s.ply"), tmp.path().join("t.ply"));
+        crate::write_ply(&m, &mesh).unwrap();
+        crate::write_ply(&t, &terrain).unwrap();
+        // a spill folder of a process that no longer runs (pid beyond the kernel's limit)
+        let dead = tmp.path().join(".out.igi.spill-2147483647");
+        std::fs::create_dir(&dead).unwrap();
+        std::fs::write(dead.join("0_0_0.bin"), [0u8; 84]).unwrap();
+        let out = tmp.path().join("out.igi");
+        prepare_file(&request(&m, &t, &out), &|_| {}).unwrap();
+        assert!(!dead.exists());
+        // an index out of range: refused by name, no output and no spill folder left
+        let b = tmp.path().join("bad.ply");
+        let text = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 2\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n3 0 7 2\n";
+        std::fs::write(&b, text).unwrap();
+        let e = prepare_file(&request(&b, &t, &tmp.path().join("bad.igi")), &|_| {})
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("bad.ply") && e.contains("triangle 1"), "{e}");
+        let left: Vec<_> = std::fs::read_dir(tmp.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| n.contains("spill") || n.starts_with("bad.igi"))
+            .collect();
+        assert!(left.is_empty(), "{left:?}");
+    }
+
+    #[test]
     fn the_largest_chunk_in_memory_does_not_grow_with_the_site() {
         // one colonnade against a 3 x 3 field of them 20 m apart, on 5 m voxels (20 m is four
         // voxels, so every colonnade is cut alike): 9 times the triangles, the same largest voxel
