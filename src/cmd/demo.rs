@@ -17,6 +17,14 @@ pub struct DemoArgs {
     /// atlases (docs/SOLVER.md, "Two errors").
     #[arg(long)]
     pub atlas_auto: bool,
+    /// No probes (issue 34): the photographs carry their time and the survey the site's
+    /// location (Paris, 21 June 2026) and no lighting file; the solve estimates each photo's
+    /// light (SPA sun, Hosek-Wilkie and CIE overcast skies fitted with the albedo,
+    /// docs/SKY.md), and the report compares it with the true skies. Each estimated photo's
+    /// lighting file and picture (photograph, re-rendering, fitted sky) are in
+    /// result/lighting/.
+    #[arg(long)]
+    pub no_probes: bool,
     /// Print demo.json on stdout.
     #[arg(long)]
     pub json: bool,
@@ -41,6 +49,7 @@ pub fn run(a: DemoArgs, ctx: &Ctx) -> anyhow::Result<()> {
     if a.atlas_auto {
         opts.atlas_auto_max = Some(512);
     }
+    opts.estimate_light = a.no_probes;
     let bar = Bar(ctx.progress(1, "demo"));
     let quiet = ctx.quiet;
     let report = run_demo(&a.output, &opts, &bar, &|s| {
@@ -68,6 +77,43 @@ pub fn run(a: DemoArgs, ctx: &Ctx) -> anyhow::Result<()> {
                     p.check_rms_percent.unwrap_or(f64::NAN)
                 ),
                 _ => println!("probe {}: no sun (found: {}), check {:.2}% RMS", p.name, p.sun_found, p.check_rms_percent.unwrap_or(f64::NAN)),
+            }
+        }
+        if let Some(l) = &report.estimated_light {
+            println!(
+                "no probes: each photo's light estimated with the albedo ({} rounds; {})",
+                l.rounds,
+                if l.absolute_scale {
+                    "scale from a reference target".to_string()
+                } else {
+                    format!(
+                        "no reference target: scale from a mean sun scale of 1, last gauge {:.4}",
+                        l.gauge
+                    )
+                }
+            );
+            for p in &l.photos {
+                let f = &p.fitted;
+                let t = &p.truth;
+                let sun = match p.sun_direction_error_deg {
+                    Some(d) => format!("sun within {d:.4} deg, "),
+                    None => String::new(),
+                };
+                let clear = if f.sun_scale > 0.0 || f.sky_scale > 0.0 {
+                    format!(
+                        "turbidity {:.1} (true {:.1}), sun {:.3} (true {:.3}), sky {:.3} (true {:.3}), ",
+                        f.turbidity, t.turbidity, f.sun_scale, t.sun_scale, f.sky_scale, t.sky_scale
+                    )
+                } else {
+                    "no sun, no clear sky, ".to_string()
+                };
+                println!(
+                    "  {}: {sun}{clear}overcast zenith {:.3} (true {:.3}), residual {:.1}% RMS",
+                    p.photo,
+                    f.overcast_scale,
+                    t.overcast_zenith,
+                    100.0 * p.relative_rms
+                );
             }
         }
         if let Some(m) = report.albedo_mae {

@@ -7,6 +7,7 @@ mod cli_atlas;
 mod cli_brdf;
 mod cli_camera_calib;
 mod cli_cluster;
+mod cli_demo_no_probes;
 mod cli_geometry;
 mod cli_gltf;
 mod cli_harden;

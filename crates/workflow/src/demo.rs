@@ -16,6 +16,13 @@
 //!    compare with a rendering of the true site (relative mean, RMSE against the two images'
 //!    Monte-Carlo noise).
 //! 6. Write pictures a person can look at and `demo.json`.
+//!
+//! With `estimate_light` (`igi demo --no-probes`, issue 34) step 2 has no probes: the three
+//! skies are physical ([`TRUE_SKIES`]: Hosek-Wilkie sun and sky, CIE overcast) at three times
+//! of 21 June 2026 in Paris, the sun placed by NOAA's algorithm ([`noaa_sun_direction`]); the
+//! survey carries the site's location and each photo's `time` and no lighting file, so step 4
+//! estimates each photo's light with the albedo ([`crate::lightfit`]), and `demo.json` says how
+//! close it came ([`EstimatedLight`]).
 
 use crate::solve::{AtlasRequest, SolveJob, SolveRequest};
 use crate::WorkflowError;
@@ -53,6 +60,13 @@ pub struct DemoOptions {
     /// Rounds of footprint deblurring per solve iteration (`SolveOptions::deblur`; 4 by
     /// default: the demo's albedo has detail near the pixel size).
     pub deblur: u32,
+    /// No probes (`igi demo --no-probes`, issue 34): the photographs carry their `time` and
+    /// the survey its `[site]` location, no lighting file, so the solve estimates each photo's
+    /// light ([`crate::lightfit`]); the true skies are Hosek-Wilkie and CIE overcast skies of
+    /// known scales with the sun placed by NOAA's solar calculator algorithm
+    /// ([`noaa_sun_direction`]), independent of the solve's SPA.
+    #[serde(default)]
+    pub estimate_light: bool,
 }
 
 impl Default for DemoOptions {
@@ -68,6 +82,7 @@ impl Default for DemoOptions {
             iterations: 3,
             relight_spp: 32,
             deblur: 4,
+            estimate_light: false,
         }
     }
 }
@@ -87,7 +102,11 @@ pub struct DemoReport {
     /// Mean absolute rho_d error per channel as rendered, at area-uniform points of the site's
     /// surface whose texel two photos saw (`igi_reflect::truth`).
     pub albedo_surface_mae: Option<[f32; 3]>,
+    /// The probe captures (none with `estimate_light`).
     pub probes: Vec<ProbeSummary>,
+    /// With `estimate_light`: the estimated lighting against the truth.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub estimated_light: Option<EstimatedLight>,
     pub relight: Comparison,
     pub total_seconds: f64,
 }
@@ -235,10 +254,20 @@ pub fn run_demo(
         .iter()
         .map(|p| truth_atlas(p, albedo_pattern))
         .collect();
-    let lights = lightings();
+    let (lights, true_suns) = if opts.estimate_light {
+        let (l, s) = true_skies()?;
+        (l, Some(s))
+    } else {
+        (lightings(), None)
+    };
     let shots = demo_shots(&lights, opts)?;
-    stage("recovering the lighting from probe captures");
-    let (recorded, probes) = capture_lightings(&lights, &pictures)?;
+    let (recorded, probes) = if opts.estimate_light {
+        // the survey names no lighting file (make_probeless); the true skies are kept
+        (true_skies()?.0, Vec::new())
+    } else {
+        stage("recovering the lighting from probe captures");
+        capture_lightings(&lights, &pictures)?
+    };
     stage("rendering the survey photographs");
     let survey_dir = out.join("survey");
     let tp = Instant::now();
@@ -263,8 +292,15 @@ pub fn run_demo(
     )?;
     progress.finish();
     let photo_seconds = tp.elapsed().as_secs_f64();
-    write_photo_pictures(&survey_dir, &shots, &pictures)?;
-    stage("solving for the albedo");
+    if opts.estimate_light {
+        make_probeless(&survey_dir, &shots)?;
+    }
+    write_photo_pictures(&survey_dir, &shots, &pictures, opts.estimate_light)?;
+    stage(if opts.estimate_light {
+        "solving for the albedo and each photo's light (no probes)"
+    } else {
+        "solving for the albedo"
+    });
     let solved = solve_demo(out, opts, progress)?;
     stage("re-lighting from a held-out view");
     let relight = relight_held_out(out, &solved, opts)?;
@@ -294,6 +330,10 @@ pub fn run_demo(
             .last()
             .and_then(|r| r.truth_surface_mae),
         probes,
+        estimated_light: match &true_suns {
+            Some(suns) => Some(estimated_light(&solved.result, &shots, suns)?),
+            None => None,
+        },
         relight,
         total_seconds: t0.elapsed().as_secs_f64(),
     };
@@ -348,16 +388,23 @@ fn capture_lightings(
     Ok((recorded, probes))
 }
 
-/// Tone-mapped pictures of the survey photographs.
+/// Tone-mapped pictures of the survey photographs (each at its own exposure with `auto`: the
+/// physical skies of the probe-less demo are about 40 times brighter than the probe demo's).
 fn write_photo_pictures(
     survey_dir: &Path,
     shots: &[ShotSpec],
     pictures: &Path,
+    auto: bool,
 ) -> Result<(), WorkflowError> {
     for s in shots {
         let img =
             igi_imaging::read_image(&survey_dir.join("photos").join(format!("{}.exr", s.id)))?;
-        write_png_tonemapped(&pictures.join(format!("photo-{}.png", s.id)), &img, 1.0)?;
+        let e = if auto {
+            igi_probe::outputs::auto_exposure(&img)
+        } else {
+            1.0
+        };
+        write_png_tonemapped(&pictures.join(format!("photo-{}.png", s.id)), &img, e)?;
     }
     Ok(())
 }
@@ -504,4 +551,301 @@ fn copy_file(from: &Path, to: &Path) -> Result<(), WorkflowError> {
     std::fs::copy(from, to)
         .map(|_| ())
         .map_err(|e| WorkflowError::file(from, format!("cannot copy: {e}")))
+}
+
+/// The site of the probe-less demo: Paris (WGS84 degrees); north is +Y (the default).
+pub const SITE: (f64, f64) = (48.85, 2.35);
+
+/// One true sky of the probe-less demo: at `time` (21 June 2026, Paris summer time), the
+/// Hosek-Wilkie sun and clear sky of `turbidity` (ground albedo
+/// [`crate::lightfit::GROUND_ALBEDO`]) times `sun_scale` and `sky_scale`, plus a CIE overcast
+/// sky of zenith radiance `overcast_zenith`: the model of [`crate::lightfit`], so its
+/// parameters are what the fit should find.
+#[derive(Clone, Debug, Serialize)]
+pub struct TrueSky {
+    pub name: &'static str,
+    pub time: &'static str,
+    pub turbidity: f64,
+    pub sun_scale: f64,
+    pub sky_scale: f64,
+    pub overcast_zenith: f64,
+}
+
+/// The probe-less demo's three skies (lighting 0, 1, 2 of the demo's eight shots: three, two and
+/// three photos). Without a reference target the solve fixes the global scale by making the
+/// mean fitted sun scale over the photos with a sun 1: the true scales meet it (3 x 0.96 + 2 x
+/// 1.06 = 5), so the albedo is comparable to the truth without a rescale.
+pub const TRUE_SKIES: [TrueSky; 3] = [
+    TrueSky {
+        name: "sunny",
+        time: "2026-06-21T11:00:00+02:00",
+        turbidity: 3.0,
+        sun_scale: 0.96,
+        sky_scale: 0.95,
+        overcast_zenith: 0.0,
+    },
+    TrueSky {
+        name: "low-sun",
+        time: "2026-06-21T19:45:00+02:00",
+        turbidity: 4.5,
+        sun_scale: 1.06,
+        sky_scale: 1.1,
+        overcast_zenith: 0.0,
+    },
+    TrueSky {
+        name: "overcast",
+        time: "2026-06-21T15:00:00+02:00",
+        turbidity: 3.0,
+        sun_scale: 0.0,
+        sky_scale: 0.0,
+        overcast_zenith: 2.0,
+    },
+];
+
+/// The lighting of a true sky with the sun toward `sun` (world, unit).
+fn true_sky_lighting(t: &TrueSky, sun: [f64; 3]) -> Result<LightingSpec, WorkflowError> {
+    use igi_sky::{CieOvercast, Sky};
+    let (w, h) = (crate::lightfit::MAP_WIDTH, crate::lightfit::MAP_WIDTH / 2);
+    let g = crate::lightfit::GROUND_ALBEDO;
+    let sky = Sky::new(t.turbidity, [g; 3], DVec3::from_array(sun))?;
+    let mut map = sky.latlong(w, h)?;
+    let overcast = CieOvercast::new([1.0; 3])?.latlong(w, h)?;
+    for (p, o) in map.pixels.iter_mut().zip(&overcast.pixels) {
+        for c in 0..3 {
+            p[c] = (t.sky_scale * p[c] as f64 + t.overcast_zenith * o[c] as f64) as f32;
+        }
+    }
+    // the model's disk irradiance, carried by a disk of the lighting files' diameter
+    let half = (igi_imaging::color::SUN_ANGULAR_DIAMETER_DEG / 2.0).to_radians();
+    let omega = 2.0 * std::f64::consts::PI * (1.0 - half.cos());
+    let e = sky.sun_disk().irradiance();
+    let dir = DVec3::from_array(sun).as_vec3();
+    Ok(LightingSpec {
+        name: t.name.into(),
+        sky: map,
+        sun: (t.sun_scale > 0.0).then(|| {
+            (
+                dir,
+                Vec3::new(
+                    (t.sun_scale * e[0] / omega) as f32,
+                    (t.sun_scale * e[1] / omega) as f32,
+                    (t.sun_scale * e[2] / omega) as f32,
+                ),
+            )
+        }),
+    })
+}
+
+/// The sun's world direction (x east, y north, z up) at `time` seen from (`latitude_deg`,
+/// `longitude_deg`) by NOAA's solar calculator algorithm (Meeus's low-precision formulae with
+/// NOAA's refraction approximation; good to about 0.01-0.02 degrees between 1900 and 2100): the
+/// probe-less demo's true sun, independent of the NREL SPA the solve uses.
+pub fn noaa_sun_direction(
+    time: &igi_formats::PhotoTime,
+    latitude_deg: f64,
+    longitude_deg: f64,
+) -> [f64; 3] {
+    let (sin, cos) = (|d: f64| d.to_radians().sin(), |d: f64| d.to_radians().cos());
+    let secs = time.unix_seconds() as f64 + time.nanos() as f64 * 1e-9;
+    let jd = secs / 86400.0 + 2_440_587.5;
+    let t = (jd - 2_451_545.0) / 36525.0;
+    let l0 = (280.46646 + t * (36000.76983 + t * 0.0003032)).rem_euclid(360.0);
+    let m = 357.52911 + t * (35999.05029 - 0.0001537 * t);
+    let e = 0.016708634 - t * (0.000042037 + 0.0000001267 * t);
+    let c = sin(m) * (1.914602 - t * (0.004817 + 0.000014 * t))
+        + sin(2.0 * m) * (0.019993 - 0.000101 * t)
+        + sin(3.0 * m) * 0.000289;
+    let omega = 125.04 - 1934.136 * t;
+    let lambda = l0 + c - 0.00569 - 0.00478 * sin(omega);
+    let eps0 = 23.0 + (26.0 + (21.448 - t * (46.815 + t * (0.00059 - t * 0.001813))) / 60.0) / 60.0;
+    let eps = eps0 + 0.00256 * cos(omega);
+    let decl = (sin(eps) * sin(lambda)).asin().to_degrees();
+    let y = (eps / 2.0).to_radians().tan().powi(2);
+    let eq_time = 4.0
+        * (y * sin(2.0 * l0) - 2.0 * e * sin(m) + 4.0 * e * y * sin(m) * cos(2.0 * l0)
+            - 0.5 * y * y * sin(4.0 * l0)
+            - 1.25 * e * e * sin(2.0 * m))
+        .to_degrees();
+    let minutes = secs.rem_euclid(86400.0) / 60.0;
+    let true_solar = (minutes + eq_time + 4.0 * longitude_deg).rem_euclid(1440.0);
+    let hour_angle = if true_solar / 4.0 < 0.0 {
+        true_solar / 4.0 + 180.0
+    } else {
+        true_solar / 4.0 - 180.0
+    };
+    let lat = latitude_deg;
+    let cos_zen = (sin(lat) * sin(decl) + cos(lat) * cos(decl) * cos(hour_angle)).clamp(-1.0, 1.0);
+    let zen = cos_zen.acos().to_degrees();
+    let a = (((sin(lat) * cos(zen)) - sin(decl)) / (cos(lat) * sin(zen)))
+        .clamp(-1.0, 1.0)
+        .acos()
+        .to_degrees();
+    let azimuth = if hour_angle > 0.0 {
+        (a + 180.0).rem_euclid(360.0)
+    } else {
+        (540.0 - a).rem_euclid(360.0)
+    };
+    let el = 90.0 - zen;
+    let te = el.to_radians().tan();
+    let refraction = (if el > 85.0 {
+        0.0
+    } else if el > 5.0 {
+        58.1 / te - 0.07 / te.powi(3) + 0.000086 / te.powi(5)
+    } else if el > -0.575 {
+        1735.0 + el * (-518.2 + el * (103.4 + el * (-12.79 + el * 0.711)))
+    } else {
+        -20.772 / te
+    }) / 3600.0;
+    let el = el + refraction;
+    [sin(azimuth) * cos(el), cos(azimuth) * cos(el), sin(el)]
+}
+
+/// The probe-less demo's lightings (photos rendered under them) and each one's true sun.
+fn true_skies() -> Result<(Vec<LightingSpec>, Vec<Option<[f64; 3]>>), WorkflowError> {
+    let mut lights = Vec::new();
+    let mut suns = Vec::new();
+    for t in &TRUE_SKIES {
+        let time = igi_formats::PhotoTime::parse_rfc3339(t.time)
+            .map_err(|e| WorkflowError::Options(format!("demo time {}: {e}", t.time)))?;
+        let sun = noaa_sun_direction(&time, SITE.0, SITE.1);
+        lights.push(true_sky_lighting(t, sun)?);
+        suns.push((t.sun_scale > 0.0).then_some(sun));
+    }
+    Ok((lights, suns))
+}
+
+/// Turns the written survey into a probe-less one: the site's location, each photo's `time`,
+/// no lighting files (the true skies stay in `lighting/`, unnamed by the survey).
+fn make_probeless(survey_dir: &Path, shots: &[ShotSpec]) -> Result<(), WorkflowError> {
+    use igi_formats::survey::SurveyFile;
+    use igi_formats::TomlFile;
+    let path = survey_dir.join("survey.toml");
+    let mut f = SurveyFile::read(&path)?;
+    f.site.latitude_deg = Some(SITE.0);
+    f.site.longitude_deg = Some(SITE.1);
+    for (p, s) in f.photo.iter_mut().zip(shots) {
+        p.lighting = None;
+        p.time = Some(TRUE_SKIES[s.lighting].time.to_string());
+    }
+    f.write(
+        &path,
+        &["igi demo --no-probes: no lighting files; each photo's light is estimated from its time at the site"],
+    )?;
+    Ok(())
+}
+
+/// How the probe-less demo's estimated lighting compares with the truth (`demo.json`).
+#[derive(Clone, Debug, Serialize)]
+pub struct EstimatedLight {
+    /// Whether a reference target fixed the scale (the demo has none: `false`).
+    pub absolute_scale: bool,
+    /// The factor of the solve's last gauge step.
+    pub gauge: f64,
+    /// Lighting rounds done.
+    pub rounds: u32,
+    pub photos: Vec<EstimatedPhoto>,
+}
+
+/// One photo's estimated lighting against its true sky.
+#[derive(Clone, Debug, Serialize)]
+pub struct EstimatedPhoto {
+    pub photo: String,
+    pub time: String,
+    /// Angle between the solve's sun (SPA) and the photographs' (NOAA), degrees; `None` for an
+    /// overcast sky.
+    pub sun_direction_error_deg: Option<f64>,
+    pub fitted: crate::lightfit::SkyParams,
+    pub stderr: crate::lightfit::SkyParams,
+    pub truth: TrueSky,
+    /// Relative RMS residual of the fit.
+    pub relative_rms: f64,
+}
+
+/// The solve's lighting record against the true skies.
+fn estimated_light(
+    result: &SolveResult,
+    shots: &[ShotSpec],
+    suns: &[Option<[f64; 3]>],
+) -> Result<EstimatedLight, WorkflowError> {
+    let record: crate::lightfit::LightingRecord = result
+        .report
+        .lighting
+        .clone()
+        .and_then(|v| serde_json::from_value(v).ok())
+        .ok_or_else(|| WorkflowError::Options("the demo's solve recorded no lighting".into()))?;
+    let mut photos = Vec::new();
+    for f in &record.photos {
+        let Some(s) = shots.iter().find(|s| s.id == f.photo) else {
+            continue;
+        };
+        let d = DVec3::from_array(f.sun_direction);
+        photos.push(EstimatedPhoto {
+            photo: f.photo.clone(),
+            time: f.time.clone(),
+            sun_direction_error_deg: suns[s.lighting].map(|t| {
+                d.normalize()
+                    .dot(DVec3::from_array(t).normalize())
+                    .clamp(-1.0, 1.0)
+                    .acos()
+                    .to_degrees()
+            }),
+            fitted: f.params,
+            stderr: f.stderr,
+            truth: TRUE_SKIES[s.lighting].clone(),
+            relative_rms: f.relative_rms,
+        });
+    }
+    Ok(EstimatedLight {
+        absolute_scale: record.absolute_scale,
+        gauge: record.gauge,
+        rounds: record.rounds,
+        photos,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn angle(a: [f64; 3], b: [f64; 3]) -> f64 {
+        DVec3::from_array(a)
+            .normalize()
+            .dot(DVec3::from_array(b).normalize())
+            .clamp(-1.0, 1.0)
+            .acos()
+            .to_degrees()
+    }
+
+    #[test]
+    fn noaa_sun_matches_noaas_calculator_and_spa() {
+        // NOAA's solar calculator at (37.9 N, 23.7 E), 06:30 UTC on the 2026 solstice: zenith 52.059,
+        // azimuth 88.14 degrees (with refraction)
+        let t = igi_formats::PhotoTime::parse_rfc3339("2026-06-21T06:30:00Z").unwrap();
+        let d = noaa_sun_direction(&t, 37.9, 23.7);
+        let zen = d[2].acos().to_degrees();
+        let az = d[0].atan2(d[1]).to_degrees();
+        assert!((zen - 52.059).abs() < 0.01, "zenith {zen}");
+        assert!((az - 88.14).abs() < 0.01, "azimuth {az}");
+        // the demo's sunny times against the solve's SPA (igi-sky)
+        for s in TRUE_SKIES.iter().filter(|s| s.sun_scale > 0.0) {
+            let t = igi_formats::PhotoTime::parse_rfc3339(s.time).unwrap();
+            let spa = crate::lightfit::SkyPhoto::new(
+                t.clone(),
+                crate::lightfit::SiteLocation {
+                    latitude_deg: SITE.0,
+                    longitude_deg: SITE.1,
+                    north: [0.0, 1.0, 0.0],
+                },
+            )
+            .unwrap()
+            .unwrap();
+            let a = angle(spa.sun, noaa_sun_direction(&t, SITE.0, SITE.1));
+            assert!(a < 0.05, "{}: NOAA {a} deg from SPA", s.time);
+            println!(
+                "{}: elevation {:.2} deg, NOAA {a:.4} deg from SPA",
+                s.time,
+                spa.position.elevation_deg()
+            );
+        }
+    }
 }

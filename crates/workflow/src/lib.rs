@@ -16,6 +16,8 @@
 //!   lit by the SPA sun and a Hosek-Wilkie / CIE overcast sky whose scales and turbidity are
 //!   fitted to the photographs, alternating with the albedo solve; the global scale from
 //!   `[[reference]]` targets.
+//! - [`lightfit_picture`]: the picture of a photo whose light was estimated (photograph,
+//!   re-rendering, fitted sky).
 //! - [`session`]: the resume rule of a result folder: the run manifest (`run.json`), the
 //!   folder lock, `--restart`.
 //! - [`mod@solve`]: `igi solve` as one job ([`SolveRequest`] -> [`SolveJob`] -> result), and the
@@ -29,6 +31,7 @@
 pub mod demo;
 mod error;
 pub mod lightfit;
+pub mod lightfit_picture;
 pub mod render;
 pub mod session;
 pub mod solve;

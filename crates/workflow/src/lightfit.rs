@@ -323,6 +323,15 @@ fn render(
         .mean)
 }
 
+/// One photo's fit and the photo re-rendered under it.
+pub struct Fitted {
+    pub fit: PhotoFit,
+    /// The scene of the fit re-rendered through the photo's camera under the fitted sky: the
+    /// fitted combination of the basis renders (light transport is linear in the light), so
+    /// over the site's pixels its relative residual against the photograph is the fit's.
+    pub render: HdrImage,
+}
+
 /// Fits one photo's sky to its photograph with the albedo of `scene` fixed.
 pub fn fit_photo(
     scene: &Scene,
@@ -332,7 +341,7 @@ pub fn fit_photo(
     sky: &SkyPhoto,
     opts: &FitOptions,
     index: u64,
-) -> Result<PhotoFit, WorkflowError> {
+) -> Result<Fitted, WorkflowError> {
     let pixels = site_pixels(scene, image, camera);
     let sun_dir = Vec3::from_array(sky.sun.map(|x| x as f32));
     let diameter = 2.0 * igi_sky::SUN_ANGULAR_RADIUS_DEG as f32;
@@ -414,6 +423,8 @@ pub fn fit_photo(
                 x,
                 cov: covariance(&ata, &active),
                 n,
+                r_sky,
+                sun_rad,
             });
         }
     }
@@ -423,6 +434,8 @@ pub fn fit_photo(
         x,
         cov,
         n,
+        r_sky,
+        sun_rad,
     } = best.ok_or_else(|| {
         WorkflowError::Arguments("lighting estimation: no turbidity to try".into())
     })?;
@@ -438,7 +451,16 @@ pub fn fit_photo(
     let colour = |c: usize| if sun > 0.0 { x[c] / sun } else { 1.0 };
     let colour_se = |c: usize| if sun > 0.0 { se(c) / sun } else { 0.0 };
     let t_se = turbidity_stderr(&curve, t, s2);
-    Ok(PhotoFit {
+    let mut model = HdrImage::new(image.width, image.height);
+    for (i, m) in model.pixels.iter_mut().enumerate() {
+        for (c, v) in m.iter_mut().enumerate() {
+            let o = r_ovc.as_ref().map_or(0.0, |r| r.pixels[i][c] as f64);
+            *v = (x[c] * sun_rad[c] * r_sun.pixels[i][c] as f64
+                + x[3] * r_sky.pixels[i][c] as f64
+                + x[4] * o) as f32;
+        }
+    }
+    let fit = PhotoFit {
         photo: id.to_string(),
         time: sky.time.to_rfc3339(),
         sun_azimuth_deg: sky.position.azimuth_deg,
@@ -460,7 +482,8 @@ pub fn fit_photo(
         },
         pixels: pixels.len(),
         relative_rms: (sse / n.max(1) as f64).sqrt(),
-    })
+    };
+    Ok(Fitted { fit, render: model })
 }
 
 /// The best fit so far over the turbidity grid.
@@ -473,6 +496,10 @@ struct Candidate {
     cov: Mat,
     /// Residuals (pixels x channels).
     n: usize,
+    /// The clear sky's basis render at this turbidity.
+    r_sky: HdrImage,
+    /// The Hosek-Wilkie sun disk's radiance at this turbidity.
+    sun_rad: [f64; 3],
 }
 
 /// The standard error of the turbidity from a parabola through the residuals at the grid
@@ -690,8 +717,8 @@ pub fn iterate(
             break;
         }
         let converged = state.report.converged;
-        let record = estimate_round(&mut state, photos, e, k + 1)?;
-        write_lighting_files(out, photos, e.sky, &record)?;
+        let (record, renders) = estimate_round(&mut state, photos, e, k + 1)?;
+        write_lighting_files(out, photos, e.sky, &record, &renders)?;
         state.report.lighting = Some(
             serde_json::to_value(&record)
                 .map_err(|err| WorkflowError::Arguments(format!("lighting record: {err}")))?,
@@ -727,13 +754,14 @@ fn restore_lighting(
 }
 
 /// One round of the lighting fit after albedo iteration `round`: every estimated photo's sky
-/// fitted with the albedo fixed, the global scale fixed, the photos' lighting replaced.
+/// fitted with the albedo fixed, the global scale fixed, the photos' lighting replaced; the
+/// record and each fitted photo's re-rendering (by photo id).
 fn estimate_round(
     state: &mut SolveResult,
     photos: &mut [igi_reflect::Photo],
     e: &Estimation,
     round: u32,
-) -> Result<LightingRecord, WorkflowError> {
+) -> Result<(LightingRecord, Vec<(String, HdrImage)>), WorkflowError> {
     let t0 = std::time::Instant::now();
     let scene = scene_of(state)?;
     let fo = FitOptions {
@@ -741,9 +769,10 @@ fn estimate_round(
         ..FitOptions::default()
     };
     let mut fits = Vec::new();
+    let mut renders = Vec::new();
     for (i, (photo, s)) in photos.iter().zip(e.sky).enumerate() {
         if let Some(s) = s {
-            fits.push(fit_photo(
+            let f = fit_photo(
                 &scene,
                 &photo.id,
                 &photo.image,
@@ -751,7 +780,9 @@ fn estimate_round(
                 s,
                 &fo,
                 i as u64 + 1000 * round as u64,
-            )?);
+            )?;
+            fits.push(f.fit);
+            renders.push((photo.id.clone(), f.render));
         }
     }
     let (gauge, reference_ratio) = apply_gauge(state, &mut fits, e.references);
@@ -784,21 +815,27 @@ fn estimate_round(
         },
         t0.elapsed().as_secs_f64()
     );
-    Ok(LightingRecord {
-        absolute_scale: !reference_ratio.is_empty(),
-        gauge,
-        reference_ratio,
-        rounds: round,
-        photos: fits,
-    })
+    Ok((
+        LightingRecord {
+            absolute_scale: !reference_ratio.is_empty(),
+            gauge,
+            reference_ratio,
+            rounds: round,
+            photos: fits,
+        },
+        renders,
+    ))
 }
 
-/// Each estimated photo's lighting as a contract lighting file `RESULT/lighting/ID.toml`.
+/// Each estimated photo's lighting as a contract lighting file `RESULT/lighting/ID.toml`
+/// (with its map `ID.exr`), its re-rendering under it `ID_render.exr` and the picture `ID.png`
+/// (photograph | re-rendering | sky, [`crate::lightfit_picture`]), each written atomically.
 fn write_lighting_files(
     out: &Path,
     photos: &[igi_reflect::Photo],
     sky: &[Option<SkyPhoto>],
     record: &LightingRecord,
+    renders: &[(String, HdrImage)],
 ) -> Result<(), WorkflowError> {
     let dir = out.join("lighting");
     std::fs::create_dir_all(&dir)
@@ -806,6 +843,22 @@ fn write_lighting_files(
     for (photo, s) in photos.iter().zip(sky) {
         if let (Some(s), Some(f)) = (s, record.photos.iter().find(|f| f.photo == photo.id)) {
             s.write_lighting(&dir, &photo.id, &f.params)?;
+            let Some((_, render)) = renders.iter().find(|r| r.0 == photo.id) else {
+                continue;
+            };
+            igi_imaging::io::write_exr(&dir.join(format!("{}_render.exr", photo.id)), render)?;
+            let (map, sun) = s.map_and_sun(&f.params)?;
+            let picture = crate::lightfit_picture::lighting_picture(
+                &photo.image,
+                render,
+                &map,
+                sun.map(|s| s.direction),
+            );
+            igi_imaging::write_png_tonemapped(
+                &dir.join(format!("{}.png", photo.id)),
+                &picture,
+                1.0,
+            )?;
         }
     }
     Ok(())

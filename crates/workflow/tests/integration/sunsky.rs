@@ -234,6 +234,7 @@ fn albedo_and_light_from_photographs_without_probes() {
             .join(format!("{}.toml", f.photo));
         igi_render::Lighting::load(&l).unwrap();
     }
+    check_pictures(&tmp.path().join("card"), &rec);
 
     let t1 = std::time::Instant::now();
     let nocard = solve(
@@ -278,6 +279,60 @@ fn albedo_and_light_from_photographs_without_probes() {
         "overcast zenith {} against {z}",
         f.params.overcast_scale
     );
+}
+
+/// Each estimated photo's picture `RESULT/lighting/ID.png` (photograph | re-rendering | sky)
+/// is written, and its re-rendering `ID_render.exr` has the fit's residual against the
+/// photograph (relative RMS over the pixels that see the site, weighted as the fit weighs
+/// them).
+fn check_pictures(result: &Path, rec: &LightingRecord) {
+    let survey = Survey::load(&fixture().join("survey.toml")).unwrap();
+    let scene = igi_render::Scene::load(&fixture().join("truth/scene.toml"))
+        .unwrap()
+        .0;
+    for f in &rec.photos {
+        let dir = result.join("lighting");
+        let p = survey.photos.iter().find(|p| p.id == f.photo).unwrap();
+        let pic = igi_imaging::read_image(&dir.join(format!("{}.png", f.photo))).unwrap();
+        let photo = igi_imaging::read_image(&p.image).unwrap();
+        assert_eq!(
+            (pic.width, pic.height),
+            (2 * photo.width + 2 * photo.height + 8, photo.height)
+        );
+        let render = igi_imaging::read_image(&dir.join(format!("{}_render.exr", f.photo))).unwrap();
+        let camera = igi_camera::Camera::load(&p.camera).unwrap();
+        let pixels: Vec<usize> = (0..photo.pixels.len())
+            .filter(|&i| {
+                let (x, y) = ((i % photo.width) as f64, (i / photo.width) as f64);
+                let (o, d) = camera.pixel_ray(x, y);
+                photo.valid[i] && scene.intersect(o.as_vec3(), d.as_vec3()).is_some()
+            })
+            .collect();
+        let mean = pixels
+            .iter()
+            .map(|&i| photo.pixels[i].iter().map(|&c| c as f64).sum::<f64>())
+            .sum::<f64>()
+            / (3 * pixels.len()) as f64;
+        let sse: f64 = pixels
+            .iter()
+            .flat_map(|&i| (0..3).map(move |c| (i, c)))
+            .map(|(i, c)| {
+                let b = photo.pixels[i][c] as f64;
+                ((render.pixels[i][c] as f64 - b) / b.max(0.05 * mean)).powi(2)
+            })
+            .sum();
+        let rms = (sse / (3 * pixels.len()) as f64).sqrt();
+        println!(
+            "  {}: re-rendering's relative RMS {rms:.4} (fit {:.4})",
+            f.photo, f.relative_rms
+        );
+        assert!(
+            (rms - f.relative_rms).abs() <= 0.01 * f.relative_rms,
+            "{}: re-rendering {rms} against the fit's {}",
+            f.photo,
+            f.relative_rms
+        );
+    }
 }
 
 /// The fixture's survey text with `edit` applied, written into `dir` with absolute paths.
