@@ -5,7 +5,7 @@
 
 pub use crate::error::{CameraFileError, RotationError};
 use crate::CameraError;
-use glam::{DMat3, DVec2, DVec3};
+use glam::{DMat3, DVec2, DVec3, Vec2, Vec3};
 pub use igi_formats::CameraFile;
 use igi_imaging::HdrImage;
 use rayon::prelude::*;
@@ -504,6 +504,58 @@ impl Camera {
     }
 }
 
+/// [`Camera::pixel_ray`] in f32 for a renderer's inner loop: the camera-to-world rotation,
+/// the centre and the intrinsics are converted once, and a ray costs a few multiplies and one
+/// normalisation. A camera with lens distortion goes through the f64 undistortion (Newton
+/// steps) of [`Camera::pixel_ray`], whose cost dwarfs the conversion.
+#[derive(Clone, Copy, Debug)]
+pub struct PixelRays<'a> {
+    camera: &'a Camera,
+    distorted: bool,
+    origin: Vec3,
+    /// Columns of the camera-to-world rotation.
+    r: [Vec3; 3],
+    inv_f: Vec2,
+    c: Vec2,
+}
+
+impl<'a> PixelRays<'a> {
+    pub fn new(camera: &'a Camera) -> Self {
+        let i = &camera.intrinsics;
+        let c2w = camera.pose.inverse();
+        PixelRays {
+            camera,
+            distorted: !i.dist.is_zero(),
+            origin: c2w.t.as_vec3(),
+            r: [
+                c2w.r.x_axis.as_vec3(),
+                c2w.r.y_axis.as_vec3(),
+                c2w.r.z_axis.as_vec3(),
+            ],
+            inv_f: Vec2::new((1.0 / i.fx) as f32, (1.0 / i.fy) as f32),
+            c: Vec2::new(i.cx as f32, i.cy as f32),
+        }
+    }
+
+    /// Image width of the camera, in pixels.
+    pub fn width(&self) -> u32 {
+        self.camera.width
+    }
+
+    /// World-space ray (origin = camera centre, unit direction) through pixel (u, v), as
+    /// [`Camera::pixel_ray`] gives it, rounded to f32.
+    #[inline]
+    pub fn ray(&self, u: f32, v: f32) -> (Vec3, Vec3) {
+        if self.distorted {
+            let (o, d) = self.camera.pixel_ray(u as f64, v as f64);
+            return (o.as_vec3(), d.as_vec3());
+        }
+        let xn = (Vec2::new(u, v) - self.c) * self.inv_f;
+        let d = self.r[0] * xn.x + self.r[1] * xn.y + self.r[2];
+        (self.origin, d.normalize())
+    }
+}
+
 /// Remove lens distortion from `img` taken with `cam`: the output has the same size and
 /// K and no distortion. Each output pixel is the bilinear sample of the input at the
 /// distorted position; pixels that map outside the input (or onto invalid pixels) are
@@ -662,6 +714,25 @@ mod tests {
                 assert!((d.distort(back) - pd).length() < 1e-10);
             }
             assert!(worst < 1e-4, "{d:?}: worst round trip {worst} px");
+        }
+    }
+
+    #[test]
+    fn f32_pixel_rays_match_the_f64_ones() {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
+        for cam in [test_camera(), test_camera().without_distortion()] {
+            let rays = PixelRays::new(&cam);
+            assert_eq!(rays.width(), 640);
+            for _ in 0..500 {
+                let (u, v) = (rng.gen_range(-0.5f32..639.5), rng.gen_range(-0.5f32..479.5));
+                let (o, d) = cam.pixel_ray(u as f64, v as f64);
+                let (o32, d32) = rays.ray(u, v);
+                assert!((o32.as_dvec3() - o).length() < 1e-6 * (1.0 + o.length()));
+                assert!(
+                    (d32.as_dvec3() - d).length() < 5e-7,
+                    "{u} {v}: {d32} vs {d}"
+                );
+            }
         }
     }
 

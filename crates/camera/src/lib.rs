@@ -32,7 +32,9 @@ pub mod planar;
 pub mod radiometry;
 pub mod rig;
 
-pub use camera::{Camera, CameraFile, CameraToWorld, Distortion, Intrinsics, WorldToCamera};
+pub use camera::{
+    Camera, CameraFile, CameraToWorld, Distortion, Intrinsics, PixelRays, WorldToCamera,
+};
 pub use error::{
     CameraError, CameraFileError, PlanarError, PnpError, RadiometryError, RotationError,
 };

@@ -6,7 +6,8 @@
 
 use crate::RaycastError;
 use embree3::{
-    BufferUsage, Device, Format, GeometryKind, IntersectContext, Ray, RayHit, Scene, SceneFlags,
+    BufferUsage, Device, Format, GeometryKind, Hit8, IntersectContext, Ray, Ray8, RayHit, RayHit8,
+    Scene, SceneFlags, ValidMask, ValidMaskN,
 };
 use glam::{Vec2, Vec3};
 
@@ -159,6 +160,54 @@ impl RtScene {
         rs.iter().map(|r| r.tfar == f32::NEG_INFINITY).collect()
     }
 
+    /// Closest hits of up to [`PACKET`] rays through Embree's 8-wide packet
+    /// (`rtcIntersect8`): `out[i]` for `rays[i]`. A single ray goes through `rtcIntersect1`.
+    /// `coherent` marks rays that start close together in similar directions (a pixel's camera
+    /// rays, a tile's sun rays), for which packet traversal pays.
+    pub fn intersect_packet(&self, rays: &[RaySegment], coherent: bool, out: &mut [Option<Hit>]) {
+        assert!(rays.len() <= PACKET && out.len() >= rays.len());
+        if rays.len() <= 1 {
+            if let Some(r) = rays.first() {
+                out[0] = self.intersect(r.origin, r.dir, r.tnear, r.tfar);
+            }
+            return;
+        }
+        let mut ctx = stream_context(coherent);
+        let (ray, valid) = packet8(rays);
+        let mut rh = RayHit8 {
+            ray,
+            hit: Hit8::new(),
+        };
+        self.scene.intersect8(&mut ctx, &mut rh, &valid.0);
+        for (i, o) in out.iter_mut().enumerate().take(rays.len()) {
+            *o = (rh.hit.geomID[i] != u32::MAX).then(|| Hit {
+                t: rh.ray.tfar[i],
+                geom: rh.hit.geomID[i],
+                prim: rh.hit.primID[i],
+                bary: Vec2::new(rh.hit.u[i], rh.hit.v[i]),
+                ng: Vec3::new(rh.hit.Ng_x[i], rh.hit.Ng_y[i], rh.hit.Ng_z[i]),
+            });
+        }
+    }
+
+    /// Occlusion of up to [`PACKET`] rays through Embree's 8-wide packet (`rtcOccluded8`):
+    /// `out[i]` for `rays[i]`. A single ray goes through `rtcOccluded1`.
+    pub fn occluded_packet(&self, rays: &[RaySegment], coherent: bool, out: &mut [bool]) {
+        assert!(rays.len() <= PACKET && out.len() >= rays.len());
+        if rays.len() <= 1 {
+            if let Some(r) = rays.first() {
+                out[0] = self.occluded(r.origin, r.dir, r.tnear, r.tfar);
+            }
+            return;
+        }
+        let mut ctx = stream_context(coherent);
+        let (mut ray, valid) = packet8(rays);
+        self.scene.occluded8(&mut ctx, &mut ray, &valid.0);
+        for (i, o) in out.iter_mut().enumerate().take(rays.len()) {
+            *o = ray.tfar[i] == f32::NEG_INFINITY;
+        }
+    }
+
     /// Axis-aligned bounds of the committed scene (lower, upper).
     pub fn bounds(&self) -> (Vec3, Vec3) {
         let b = self.scene.get_bounds();
@@ -176,6 +225,34 @@ fn stream_context(coherent: bool) -> IntersectContext {
     } else {
         IntersectContext::incoherent()
     }
+}
+
+/// The width of [`RtScene::intersect_packet`] and [`RtScene::occluded_packet`].
+pub const PACKET: usize = 8;
+
+/// Embree reads a packet's valid mask with aligned vector loads: 32 bytes for 8 lanes, which
+/// `ValidMaskN<8>` (an array of `i32`) does not promise on its own.
+#[repr(C, align(32))]
+struct Aligned<T>(T);
+
+/// An 8-wide Embree packet of `rays` (at most 8), the lanes past them inactive.
+#[inline]
+fn packet8(rays: &[RaySegment]) -> (Ray8, Aligned<ValidMaskN<8>>) {
+    let mut ray = Ray8::empty();
+    let mut valid = [ValidMask::Invalid; 8];
+    for (i, r) in rays.iter().enumerate() {
+        ray.org_x[i] = r.origin.x;
+        ray.org_y[i] = r.origin.y;
+        ray.org_z[i] = r.origin.z;
+        ray.dir_x[i] = r.dir.x;
+        ray.dir_y[i] = r.dir.y;
+        ray.dir_z[i] = r.dir.z;
+        ray.tnear[i] = r.tnear;
+        ray.tfar[i] = r.tfar;
+        ray.id[i] = i as u32;
+        valid[i] = ValidMask::Valid;
+    }
+    (ray, Aligned(ValidMaskN::new(valid)))
 }
 
 /// Embree rays for a batch, each carrying its index as its id.
@@ -285,5 +362,23 @@ mod tests {
         }
         // x, y in {-1.5, -1.1, ..., 1.3}: 5 of the 8 values lie inside [-1, 1] on each axis.
         assert_eq!(n_hit, 25);
+        // Packets of every length from 0 to 8 agree with single rays.
+        for chunk in rays
+            .chunks(3)
+            .chain(rays.chunks(8))
+            .chain([&rays[..0], &rays[..1]])
+        {
+            let mut hits = [None; PACKET];
+            let mut occ = [false; PACKET];
+            for coherent in [false, true] {
+                s.intersect_packet(chunk, coherent, &mut hits);
+                s.occluded_packet(chunk, coherent, &mut occ);
+                for (i, r) in chunk.iter().enumerate() {
+                    let single = s.intersect(r.origin, r.dir, r.tnear, r.tfar);
+                    assert_eq!(hits[i], single);
+                    assert_eq!(occ[i], single.is_some());
+                }
+            }
+        }
     }
 }

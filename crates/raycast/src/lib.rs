@@ -9,7 +9,7 @@
 
 pub mod embree;
 
-pub use embree::{Hit, MeshRef, RaySegment, RtScene};
+pub use embree::{Hit, MeshRef, RaySegment, RtScene, PACKET};
 
 use glam::Vec3;
 

@@ -13,9 +13,9 @@ use crate::scene::{Scene, SurfacePoint};
 use crate::RenderError;
 use glam::{DVec3, Vec2, Vec3};
 use igi_brdf::{BsdfSample, Frame, LafortuneRef};
-use igi_camera::Camera;
+use igi_camera::{Camera, PixelRays};
 use igi_imaging::HdrImage;
-use igi_raycast::offset_origin;
+use igi_raycast::{offset_origin, RaySegment, PACKET};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -62,36 +62,43 @@ pub struct Estimate {
     pub stderr: Vec3,
 }
 
-/// Running mean and variance (Welford) in f64.
+/// Running mean and variance in f64, from sums of the samples' offsets from the first one
+/// (the shifted-data algorithm: as stable as Welford's for these magnitudes, without a
+/// division per sample).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Accumulator {
     n: u64,
-    mean: DVec3,
-    m2: DVec3,
+    shift: DVec3,
+    sum: DVec3,
+    sum2: DVec3,
 }
 
 impl Accumulator {
     #[inline]
     pub fn add(&mut self, x: Vec3) {
         let x = x.as_dvec3();
+        if self.n == 0 {
+            self.shift = x;
+        }
+        let d = x - self.shift;
         self.n += 1;
-        let d = x - self.mean;
-        self.mean += d / self.n as f64;
-        self.m2 += d * (x - self.mean);
+        self.sum += d;
+        self.sum2 += d * d;
     }
 
     pub fn estimate(&self) -> Estimate {
         if self.n == 0 {
             return Estimate::default();
         }
+        let n = self.n as f64;
         let var = if self.n > 1 {
-            (self.m2 / (self.n - 1) as f64).max(DVec3::ZERO)
+            ((self.sum2 - self.sum * self.sum / n) / (n - 1.0)).max(DVec3::ZERO)
         } else {
             DVec3::ZERO
         };
         Estimate {
-            mean: self.mean.as_vec3(),
-            stderr: (var / self.n as f64).map(f64::sqrt).as_vec3(),
+            mean: (self.shift + self.sum / n).as_vec3(),
+            stderr: (var / n).map(f64::sqrt).as_vec3(),
         }
     }
 }
@@ -105,6 +112,23 @@ pub struct Stats {
     pub bad_samples: AtomicU64,
     /// Camera samples traced (an adaptive render's pilot included).
     pub samples: AtomicU64,
+}
+
+/// A thread's own counts, added to [`Stats`] once a row (atomics per pixel cost a shared
+/// cache line per pixel).
+#[derive(Clone, Copy, Debug, Default)]
+struct Counts {
+    rays: u64,
+    bad: u64,
+    samples: u64,
+}
+
+impl Counts {
+    fn flush(&self, stats: &Stats) {
+        stats.rays.fetch_add(self.rays, Ordering::Relaxed);
+        stats.bad_samples.fetch_add(self.bad, Ordering::Relaxed);
+        stats.samples.fetch_add(self.samples, Ordering::Relaxed);
+    }
 }
 
 /// Result of [`render_image`].
@@ -191,7 +215,7 @@ impl<'b> Shading<'b> {
             }
             // Cosine-weighted hemisphere (Malley): pdf = cos / pi.
             let r = u.x.sqrt();
-            let (s, c) = (2.0 * std::f32::consts::PI * u.y).sin_cos();
+            let (s, c) = crate::fastmath::sincos_turns(u.y);
             let wi = Vec3::new(r * c, r * s, (1.0 - u.x).max(0.0).sqrt());
             if !(wi.z > 0.0) {
                 return None;
@@ -373,6 +397,149 @@ impl<'a> PathTracer<'a> {
         l
     }
 
+    /// [`Self::li_from`] for up to [`PACKET`] camera rays at once (`out[i]` for `cam[i]`),
+    /// their paths traced in lockstep so that every ray query goes to Embree as one packet:
+    /// the camera rays and the sun's shadow rays as coherent packets, the environment's shadow
+    /// rays and the BSDF rays as incoherent ones. Same estimator, same random numbers per
+    /// vertex as [`Self::li_from`], drawn path after path at each vertex.
+    fn li_packet(
+        &self,
+        cam: &[RaySegment],
+        first: &[Option<FirstVertex>],
+        rng: &mut Rng,
+        rays: &mut u64,
+        out: &mut [Vec3],
+    ) {
+        let rt = self.scene.rt();
+        let env = self
+            .lighting
+            .environment
+            .as_ref()
+            .filter(|e| e.is_nonzero());
+        let sun = self.lighting.sun.as_ref();
+        let mut hits = [None; PACKET];
+        rt.intersect_packet(cam, true, &mut hits);
+        *rays += cam.len() as u64;
+        let mut paths = [PathState {
+            sample: 0,
+            sp: SurfacePoint {
+                position: Vec3::ZERO,
+                ng: Vec3::Z,
+                ns: Vec3::Z,
+                uv: Vec2::ZERO,
+                object: 0,
+                prim: 0,
+            },
+            wo: Vec3::Z,
+            beta: Vec3::ONE,
+        }; PACKET];
+        let mut n = 0;
+        for (i, (r, h)) in cam.iter().zip(&hits).enumerate() {
+            match h {
+                None => out[i] = self.lighting.escaped(r.dir),
+                Some(h) => {
+                    out[i] = Vec3::ZERO;
+                    paths[n].sample = i;
+                    paths[n].sp = self.scene.surface_point(h);
+                    paths[n].wo = -r.dir;
+                    n += 1;
+                }
+            }
+        }
+        let mut vertex = 1u32;
+        while n > 0 {
+            let verts: [Option<Vertex<'_>>; PACKET] = std::array::from_fn(|k| {
+                (k < n).then(|| self.vertex(&paths[k].sp, paths[k].wo, None))
+            });
+            let given = |sample: usize| first[sample].filter(|_| vertex == 1);
+            // Next-event estimation: the sun's shadow rays as one packet, the environment's.
+            if let Some(sun) = sun {
+                let mut shadow = ShadowRays::new();
+                for (k, v) in verts
+                    .iter()
+                    .enumerate()
+                    .take(n)
+                    .filter_map(|(k, v)| Some((k, v.as_ref()?)))
+                {
+                    let ls = sun
+                        .sample(given(paths[k].sample).map_or_else(|| rng.uniform2(), |f| f.sun));
+                    shadow.push(paths[k].sample, v, paths[k].beta, &ls);
+                }
+                shadow.trace(self.scene, true, out, rays);
+            }
+            if let Some(env) = env {
+                let mut shadow = ShadowRays::new();
+                for (k, v) in verts
+                    .iter()
+                    .enumerate()
+                    .take(n)
+                    .filter_map(|(k, v)| Some((k, v.as_ref()?)))
+                {
+                    let ls = match given(paths[k].sample) {
+                        Some(f) => env.sample_monotone(f.env),
+                        None => env.sample(rng.uniform2()),
+                    };
+                    if let Some(ls) = ls.filter(|ls| ls.radiance != Vec3::ZERO) {
+                        shadow.push(paths[k].sample, v, paths[k].beta, &ls);
+                    }
+                }
+                shadow.trace(self.scene, false, out, rays);
+            }
+            // BSDF sampling: the MIS partner of the light samples and the path continuation.
+            let mut next = [NO_RAY; PACKET];
+            let mut pdfs = [0f32; PACKET];
+            let mut m = 0;
+            for (k, v) in verts
+                .iter()
+                .enumerate()
+                .take(n)
+                .filter_map(|(k, v)| Some((k, v.as_ref()?)))
+            {
+                let (u_sel, u) = match given(paths[k].sample) {
+                    Some(f) => (f.select, f.bsdf),
+                    None => (rng.uniform(), rng.uniform2()),
+                };
+                let Some(bs) = v.brdf.sample(v.wo_l, u_sel, u) else {
+                    continue;
+                };
+                let wi = v.frame.to_world(bs.wi);
+                if !(bs.pdf > 0.0) || wi.dot(v.ng) <= 0.0 || !wi.is_finite() {
+                    continue;
+                }
+                let beta = paths[k].beta * bs.value * (bs.wi.z / bs.pdf);
+                if !beta.is_finite() || beta == Vec3::ZERO {
+                    continue;
+                }
+                next[m] = ray_from(v.origin, wi);
+                pdfs[m] = bs.pdf;
+                paths[m] = PathState { beta, ..paths[k] };
+                m += 1;
+            }
+            rt.intersect_packet(&next[..m], false, &mut hits);
+            *rays += m as u64;
+            n = 0;
+            for k in 0..m {
+                let wi = next[k].dir;
+                let Some(h) = hits[k] else {
+                    out[paths[k].sample] += paths[k].beta * escaped_mis(sun, env, wi, pdfs[k]);
+                    continue;
+                };
+                let mut beta = paths[k].beta;
+                if vertex >= self.max_vertices || !self.survives_roulette(vertex, &mut beta, rng) {
+                    continue;
+                }
+                paths[n] = PathState {
+                    sample: paths[k].sample,
+                    sp: self.scene.surface_point(&h),
+                    wo: -wi,
+                    beta,
+                };
+                n += 1;
+            }
+            vertex += 1;
+        }
+    }
+
     /// The shading context of a path vertex: two-sided surfaces have their normals oriented
     /// toward the outgoing direction; `brdf_override` replaces the material's BRDF.
     #[inline]
@@ -412,20 +579,9 @@ impl<'a> PathTracer<'a> {
         ls: &LightSample,
         rays: &mut u64,
     ) -> Option<Vec3> {
-        if !(ls.wi.dot(v.ng) > 0.0) {
-            return None;
-        }
-        let wi_l = v.frame.to_local(ls.wi);
-        let (f, pdf_b) = v.brdf.eval_pdf(wi_l, v.wo_l);
-        if f == Vec3::ZERO {
-            return None;
-        }
+        let c = light_unoccluded(v, beta, ls)?;
         *rays += 1;
-        if self.scene.occluded(v.origin, ls.wi, f32::INFINITY) {
-            return None;
-        }
-        let w = power_heuristic(ls.pdf, pdf_b);
-        Some(beta * f * ls.radiance * (wi_l.z * w / ls.pdf))
+        (!self.scene.occluded(v.origin, ls.wi, f32::INFINITY)).then_some(c)
     }
 
     /// Russian roulette from the second bounce on (when enabled): whether the path goes on;
@@ -456,6 +612,93 @@ struct Vertex<'b> {
     origin: Vec3,
 }
 
+/// [`PathTracer::light_sample`]'s contribution if the shadow ray is not blocked (`None` when
+/// it need not be traced: the light is below the surface or the BRDF is zero there).
+#[inline]
+fn light_unoccluded(v: &Vertex<'_>, beta: Vec3, ls: &LightSample) -> Option<Vec3> {
+    if !(ls.wi.dot(v.ng) > 0.0) {
+        return None;
+    }
+    let wi_l = v.frame.to_local(ls.wi);
+    let (f, pdf_b) = v.brdf.eval_pdf(wi_l, v.wo_l);
+    if f == Vec3::ZERO {
+        return None;
+    }
+    let w = power_heuristic(ls.pdf, pdf_b);
+    Some(beta * f * ls.radiance * (wi_l.z * w / ls.pdf))
+}
+
+/// Shadow rays gathered over a packet's paths: the ray, the path it belongs to, and what it
+/// adds there when unblocked.
+struct ShadowRays {
+    rays: [RaySegment; PACKET],
+    lane: [usize; PACKET],
+    add: [Vec3; PACKET],
+    n: usize,
+}
+
+impl ShadowRays {
+    fn new() -> Self {
+        ShadowRays {
+            rays: [NO_RAY; PACKET],
+            lane: [0; PACKET],
+            add: [Vec3::ZERO; PACKET],
+            n: 0,
+        }
+    }
+
+    #[inline]
+    fn push(&mut self, lane: usize, v: &Vertex<'_>, beta: Vec3, ls: &LightSample) {
+        if let Some(c) = light_unoccluded(v, beta, ls) {
+            self.rays[self.n] = ray_from(v.origin, ls.wi);
+            self.lane[self.n] = lane;
+            self.add[self.n] = c;
+            self.n += 1;
+        }
+    }
+
+    /// Traces the rays as one packet; adds each unblocked one's light to `l` of its path.
+    fn trace(&self, scene: &Scene, coherent: bool, l: &mut [Vec3], rays: &mut u64) {
+        let mut blocked = [false; PACKET];
+        scene
+            .rt()
+            .occluded_packet(&self.rays[..self.n], coherent, &mut blocked);
+        *rays += self.n as u64;
+        for i in 0..self.n {
+            if !blocked[i] {
+                l[self.lane[i]] += self.add[i];
+            }
+        }
+    }
+}
+
+/// A path of a packet between two vertices: where it stands and what it carries.
+#[derive(Clone, Copy)]
+struct PathState {
+    /// Index of the path's sample in the packet.
+    sample: usize,
+    sp: SurfacePoint,
+    wo: Vec3,
+    beta: Vec3,
+}
+
+const NO_RAY: RaySegment = RaySegment {
+    origin: Vec3::ZERO,
+    dir: Vec3::Z,
+    tnear: 0.0,
+    tfar: f32::INFINITY,
+};
+
+#[inline]
+fn ray_from(origin: Vec3, dir: Vec3) -> RaySegment {
+    RaySegment {
+        origin,
+        dir,
+        tnear: 0.0,
+        tfar: f32::INFINITY,
+    }
+}
+
 /// Radiance of the sun and the environment seen along an escaping BSDF-sampled direction `wi`,
 /// each MIS-weighted against the BSDF pdf `pdf_bsdf`.
 #[inline]
@@ -474,17 +717,17 @@ fn escaped_mis(sun: Option<&Sun>, env: Option<&Environment>, wi: Vec3, pdf_bsdf:
 }
 
 /// Pixel (x, y)'s estimate from `spp` camera samples on the pixel's own stream of
-/// `opts.seed`, and the rays they traced (also added to `stats`).
+/// `opts.seed`, and the rays they traced (also added to `counts`).
 fn render_pixel(
     pt: &PathTracer,
-    camera: &Camera,
+    camera: &PixelRays,
     opts: &RenderOptions,
     spp: u32,
     x: usize,
     y: usize,
-    stats: &Stats,
+    counts: &mut Counts,
 ) -> (Estimate, u64) {
-    let mut rng = Rng::new(opts.seed, (y * camera.width as usize + x) as u64);
+    let mut rng = Rng::new(opts.seed, (y * camera.width() as usize + x) as u64);
     let mut acc = Accumulator::default();
     let spp = spp as usize;
     let (mut rays, mut bad) = (0u64, 0u64);
@@ -492,30 +735,46 @@ fn render_pixel(
         let jitter = shifted_hammersley(spp, &mut rng);
         (jitter, FirstVertexSamples::new(spp, &mut rng))
     });
-    for j in 0..spp {
-        let (jitter, first) = match &strata {
-            Some((jitter, first)) => (jitter[j], Some(first.get(j))),
-            None => (rng.uniform2(), None),
-        };
-        let (o, d) = camera.pixel_ray(
-            x as f64 - 0.5 + jitter.x as f64,
-            y as f64 - 0.5 + jitter.y as f64,
-        );
-        let (o, d) = (o.as_vec3(), d.as_vec3());
-        let mut v = if o.is_finite() && d.is_finite() && d != Vec3::ZERO {
-            pt.li_from(o, d, first, &mut rng, &mut rays)
-        } else {
-            Vec3::ZERO
-        };
-        if !v.is_finite() {
-            bad += 1;
-            v = Vec3::ZERO;
+    let mut j0 = 0;
+    while j0 < spp {
+        let len = (spp - j0).min(PACKET);
+        let mut cam = [NO_RAY; PACKET];
+        let mut first = [None; PACKET];
+        let mut valid = [false; PACKET];
+        let mut n = 0;
+        for j in j0..j0 + len {
+            let (jitter, f) = match &strata {
+                Some((jitter, first)) => (jitter[j], Some(first.get(j))),
+                None => (rng.uniform2(), None),
+            };
+            let (o, d) = camera.ray(x as f32 - 0.5 + jitter.x, y as f32 - 0.5 + jitter.y);
+            if o.is_finite() && d.is_finite() && d != Vec3::ZERO {
+                cam[n] = ray_from(o, d);
+                first[n] = f;
+                valid[j - j0] = true;
+                n += 1;
+            }
         }
-        acc.add(v);
+        let mut li = [Vec3::ZERO; PACKET];
+        pt.li_packet(&cam[..n], &first[..n], &mut rng, &mut rays, &mut li);
+        let mut traced = li[..n].iter();
+        for &ok in &valid[..len] {
+            let mut v = if ok {
+                *traced.next().unwrap_or(&Vec3::ZERO)
+            } else {
+                Vec3::ZERO
+            };
+            if !v.is_finite() {
+                bad += 1;
+                v = Vec3::ZERO;
+            }
+            acc.add(v);
+        }
+        j0 += len;
     }
-    stats.rays.fetch_add(rays, Ordering::Relaxed);
-    stats.bad_samples.fetch_add(bad, Ordering::Relaxed);
-    stats.samples.fetch_add(spp as u64, Ordering::Relaxed);
+    counts.rays += rays;
+    counts.bad += bad;
+    counts.samples += spp as u64;
     (acc.estimate(), rays)
 }
 
@@ -529,17 +788,26 @@ fn pilot(pt: &PathTracer, camera: &Camera, opts: &RenderOptions, stats: &Stats) 
         seed: hash2(opts.seed, PILOT_STREAM),
         ..*opts
     };
-    let pixels = (0..w * h)
+    let rays = PixelRays::new(camera);
+    let rows: Vec<Vec<PilotPixel>> = (0..h)
         .into_par_iter()
-        .map(|i| {
-            let (e, rays) = render_pixel(pt, camera, &pilot_opts, pilot_spp, i % w, i / w, stats);
-            PilotPixel {
-                mean: e.mean.element_sum() / 3.0,
-                sd: e.stderr.element_sum() / 3.0 * (pilot_spp as f32).sqrt(),
-                cost: rays as f32 / pilot_spp as f32,
-            }
+        .map(|y| {
+            let mut counts = Counts::default();
+            let row: Vec<PilotPixel> = (0..w)
+                .map(|x| {
+                    let (e, r) = render_pixel(pt, &rays, &pilot_opts, pilot_spp, x, y, &mut counts);
+                    PilotPixel {
+                        mean: e.mean.element_sum() / 3.0,
+                        sd: e.stderr.element_sum() / 3.0 * (pilot_spp as f32).sqrt(),
+                        cost: r as f32 / pilot_spp as f32,
+                    }
+                })
+                .collect();
+            counts.flush(stats);
+            row
         })
         .collect();
+    let pixels = rows.into_iter().flatten().collect();
     ImagePilot {
         width: w,
         height: h,
@@ -652,17 +920,20 @@ fn trace_image(
     progress: &(dyn Fn(u64) + Sync),
 ) -> RenderOutput {
     let (w, h) = (camera.width as usize, camera.height as usize);
+    let rays = PixelRays::new(camera);
     let rows: Vec<(Vec<[f32; 3]>, Vec<[f32; 3]>)> = (0..h)
         .into_par_iter()
         .map(|y| {
             let mut mean_row = Vec::with_capacity(w);
             let mut se_row = Vec::with_capacity(w);
+            let mut row_counts = Counts::default();
             for x in 0..w {
                 let spp = counts.map_or(opts.spp, |c| c[y * w + x]);
-                let (e, _) = render_pixel(pt, camera, opts, spp, x, y, stats);
+                let (e, _) = render_pixel(pt, &rays, opts, spp, x, y, &mut row_counts);
                 mean_row.push(e.mean.to_array());
                 se_row.push(e.stderr.to_array());
             }
+            row_counts.flush(stats);
             progress(1);
             (mean_row, se_row)
         })

@@ -8,6 +8,7 @@
 //! - [`integrator`]: the path tracer (NEE + MIS), image rendering and the batched solver queries.
 //! - [`adaptive`]: adaptive sampling, the per-pixel sample counts of a render from a pilot.
 //! - [`compare_images`], [`difference_image`]: re-exported from `igi_imaging::metrics`.
+//! - [`fastmath`]: inlined sine/cosine, arctangent and lat-long mapping for the hot loop.
 //! - [`sampling`]: per-pixel PCG streams, piecewise-constant 1D/2D distributions, cone sampling, MIS.
 //!
 //! Conventions: world Z up, metres; linear f32 RGB radiance; directions are unit vectors.
@@ -21,6 +22,7 @@
 )]
 
 pub mod adaptive;
+pub mod fastmath;
 pub mod integrator;
 pub mod lighting;
 pub mod sampling;

@@ -11,6 +11,7 @@
 //!   `direction`, sampled uniformly in that cone (pdf = 1 / solid angle). Membership is tested
 //!   with `|d x s|^2 <= sin^2(half angle)`, which keeps full f32 precision for a 0.53 degree disk.
 
+use crate::fastmath;
 use crate::sampling::{sample_cone_in, Distribution2D};
 use crate::RenderError;
 use glam::{Vec2, Vec3};
@@ -20,7 +21,7 @@ use igi_formats::lighting::{
     check_sun, disk_one_minus_cos, scaled_radiance, LightingFile, LightingRadiance,
 };
 use igi_formats::TomlFile;
-use igi_imaging::{latlong, HdrImage};
+use igi_imaging::HdrImage;
 use std::f32::consts::PI;
 use std::path::Path;
 
@@ -119,7 +120,7 @@ impl Environment {
     /// the poles.
     #[inline]
     pub fn eval(&self, d: Vec3) -> Vec3 {
-        let (u, v) = latlong::direction_to_uv(d);
+        let (u, v) = fastmath::direction_to_uv(d);
         self.eval_uv(u, v)
     }
 
@@ -158,7 +159,7 @@ impl Environment {
         if !self.nonzero {
             return 0.0;
         }
-        let (u, v) = latlong::direction_to_uv(d);
+        let (u, v) = fastmath::direction_to_uv(d);
         self.pdf_uv(d, u, v)
     }
 
@@ -174,7 +175,7 @@ impl Environment {
     /// Radiance and pdf of direction `d` with one lat-long conversion.
     #[inline]
     pub fn eval_pdf(&self, d: Vec3) -> (Vec3, f32) {
-        let (u, v) = latlong::direction_to_uv(d);
+        let (u, v) = fastmath::direction_to_uv(d);
         (self.eval_uv(u, v), self.pdf_uv(d, u, v))
     }
 
@@ -202,8 +203,7 @@ impl Environment {
         } else {
             self.dist.sample(s)
         };
-        let wi = latlong::uv_to_direction(uv.x, uv.y);
-        let sin_t = (PI * uv.y).sin();
+        let (wi, sin_t) = fastmath::uv_to_direction(uv.x, uv.y);
         if !(pdf_uv > 0.0) || !(sin_t > 0.0) {
             return None;
         }
@@ -396,6 +396,7 @@ impl Lighting {
 mod tests {
     use super::*;
     use crate::sampling::Rng;
+    use igi_imaging::latlong;
 
     fn test_map(w: usize, h: usize) -> HdrImage {
         let mut img = HdrImage::new(w, h);

@@ -372,8 +372,7 @@ pub fn sample_cone_in(frame: &Frame, one_minus_cos_max: f32, u: Vec2) -> Vec3 {
     let sin2 = (omc * (2.0 - omc)).max(0.0);
     let sin_t = sin2.sqrt();
     let cos_t = 1.0 - omc;
-    let phi = 2.0 * std::f32::consts::PI * u.y;
-    let (sp, cp) = phi.sin_cos();
+    let (sp, cp) = crate::fastmath::sincos_turns(u.y);
     frame
         .to_world(Vec3::new(sin_t * cp, sin_t * sp, cos_t))
         .normalize()
