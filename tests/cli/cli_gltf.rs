@@ -694,22 +694,43 @@ fn hull_and_light_field_folders_export_as_gltf() {
         .unwrap()
         .to_rgb8();
     assert_eq!(png.dimensions(), (32, 32));
-    let mut worst = 0.0f32;
-    for (t, m) in &points {
+    // the texture at each grid point's texel is the median the folder stores (8 bits of its
+    // own, median.bin) x median_scale, within half an 8-bit sRGB step; the median given
+    // before the store's quantisation is printed beside it
+    let (stored, _) = igi_lightfield::store::load(&slf).unwrap();
+    assert_eq!(stored.texels.len(), points.len());
+    let half_steps = |t: u32, m: Vec3| {
         let px = png.get_pixel(t % 32, t / 32).0;
-        for c in 0..3 {
-            let want = (m[c] * scale).clamp(0.0, 1.0);
-            let got = srgb_to_linear(px[c] as f32 / 255.0);
-            // half an 8-bit sRGB step at most
-            let step = srgb_to_linear((px[c] as f32 + 0.5) / 255.0) - got;
-            worst = worst.max((got - want).abs() / step.max(1e-6));
-        }
-    }
-    // printed, not asserted: the store keeps the median in 8 bits (median.bin), so the texture
-    // is compared here with the median given, before that quantisation (2.27 half-steps seen)
+        (0..3)
+            .map(|c| {
+                let want = (m[c] * scale).clamp(0.0, 1.0);
+                let got = srgb_to_linear(px[c] as f32 / 255.0);
+                let step = if want >= got {
+                    srgb_to_linear((px[c] as f32 + 0.5) / 255.0) - got
+                } else {
+                    got - srgb_to_linear((px[c] as f32 - 0.5) / 255.0)
+                };
+                (got - want).abs() / step.max(1e-9)
+            })
+            .fold(0.0f32, f32::max)
+    };
+    let worst_stored = stored
+        .texels
+        .iter()
+        .zip(&stored.median)
+        .map(|(&t, &m)| half_steps(t, m))
+        .fold(0.0f32, f32::max);
+    let worst_given = points
+        .iter()
+        .map(|&(t, m)| half_steps(t, m))
+        .fold(0.0f32, f32::max);
     eprintln!(
-        "light field: {} grid points' median off by at most {worst:.2} half 8-bit steps",
+        "light field: {} grid points' texture off the stored median by at most {worst_stored:.3} half 8-bit steps ({worst_given:.2} off the median before the store's quantisation)",
         points.len()
+    );
+    assert!(
+        worst_stored <= 1.0 + 1e-3,
+        "the texture is {worst_stored} half-steps off the stored median"
     );
     // the mesh's UVs flipped to glTF's top-left origin
     let mesh = igi_geometry::read_mesh(&slf.join("mesh.ply")).unwrap();
@@ -737,4 +758,295 @@ fn hull_and_light_field_folders_export_as_gltf() {
     let o = export(&hull, "ply", &tmp.path().join("o2"));
     refused(&o, "a hull folder exports only as glTF");
     assert!(!tmp.path().join("o2").exists());
+}
+
+/// A prepared site: the procedural colonnade's stylobate (`igi_geometry::procedural`, as `igi
+/// demo` builds it) and its terrain, `igi prepare --atlas 32` (16 voxels of 4.3 m and the
+/// terrain, 3 levels), solved with the survey fixture's photographs (one iteration, 4 samples
+/// per pixel; most voxels unseen and filled); returns the result folder and the site's
+/// manifest.
+pub(crate) fn prepared_result(tmp: &Path) -> (PathBuf, serde_json::Value) {
+    let site_meshes = igi_geometry::procedural::colonnade_site(1, 1);
+    let mesh = |name: &str| {
+        let path = tmp.join(format!("{name}.ply"));
+        let m = &site_meshes.iter().find(|m| m.0 == name).unwrap().1;
+        igi_geometry::write_ply(&path, m).unwrap();
+        path
+    };
+    let site = tmp.join("site.igi");
+    run_ok(
+        igi()
+            .arg("-q")
+            .arg("prepare")
+            .arg(mesh("stylobate"))
+            .arg("--terrain")
+            .arg(mesh("terrain"))
+            .args(["--atlas", "32", "-o"])
+            .arg(&site),
+    );
+    // the fixture's photographs, by absolute path
+    let text = std::fs::read_to_string(fixture().join("survey.toml")).unwrap();
+    let mut photos = text[text.find("[[photo]]").unwrap()..].to_string();
+    for folder in ["photos/", "cameras/", "lighting/"] {
+        let abs = format!("\"{}/{folder}", fixture().display());
+        photos = photos.replace(&format!("\"{folder}"), &abs);
+    }
+    let prepared = tmp.join("prepared.toml");
+    let site_name = site.display().to_string();
+    std::fs::write(
+        &prepared,
+        format!("[site]\nprepared = {site_name:?}\n\n{photos}"),
+    )
+    .unwrap();
+    let res = tmp.join("prepared-result");
+    run_ok(igi().arg("solve").arg(&prepared).arg("-o").arg(&res).args([
+        "--spp",
+        "4",
+        "--iterations",
+        "1",
+        "--quiet",
+    ]));
+    let man = serde_json::from_str(&std::fs::read_to_string(site.join("manifest.json")).unwrap())
+        .unwrap();
+    (res, man)
+}
+
+/// Runs the Khronos glTF-Validator on every file of `glbs` in one node process: per file its
+/// number of errors and warnings.
+fn validate_all(glbs: &[PathBuf]) -> Vec<(u64, u64)> {
+    let dir = tempfile::tempdir().unwrap();
+    let script = dir.path().join("validate_all.js");
+    std::fs::write(
+        &script,
+        "const v = require(process.argv[2]);\n\
+         const fs = require('fs');\n\
+         (async () => { for (const f of process.argv.slice(3)) {\n\
+           const r = await v.validateBytes(new Uint8Array(fs.readFileSync(f)), {maxIssues: 100});\n\
+           if (r.issues.numErrors > 0) console.error(f + ': ' + JSON.stringify(r.issues.messages));\n\
+           console.log(r.issues.numErrors + ' ' + r.issues.numWarnings);\n\
+         } })().catch(e => { console.error('validator failed: ' + e); process.exit(2); });\n",
+    )
+    .unwrap();
+    let out = Command::new("node")
+        .arg(&script)
+        .arg(validator())
+        .args(glbs)
+        .output()
+        .unwrap_or_else(|e| panic!("node (needed to run the glTF-Validator) cannot run: {e}"));
+    assert!(
+        out.status.success(),
+        "glTF-Validator: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let counts: Vec<(u64, u64)> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| {
+            let (e, w) = l.split_once(' ').unwrap();
+            (e.parse().unwrap(), w.parse().unwrap())
+        })
+        .collect();
+    assert_eq!(
+        counts.len(),
+        glbs.len(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    counts
+}
+
+/// A column-major 4 x 4 matrix from a tileset's `transform`.
+fn mat4(v: &serde_json::Value) -> glam::DMat4 {
+    let a: Vec<f64> = v
+        .as_array()
+        .expect("a transform array")
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    assert_eq!(a.len(), 16, "a transform has 16 numbers");
+    glam::DMat4::from_cols_slice(&a)
+}
+
+/// One tile of a tileset, flattened: its part and level (from the GLB's name), bounding box
+/// (centre, half axes), geometric error, content and depth in its part's chain.
+struct Tile {
+    part_level: Option<(String, usize)>,
+    centre: glam::DVec3,
+    half: [glam::DVec3; 3],
+    error: f64,
+    uri: Option<String>,
+    leaf: bool,
+}
+
+/// Checks the 3D Tiles 1.1 schema's required fields of `t` and its children, that each
+/// child's geometric error is at most its parent's, and flattens the tree into `out`.
+fn walk_tiles(t: &serde_json::Value, parent_error: f64, out: &mut Vec<Tile>) {
+    let b: Vec<f64> = t["boundingVolume"]["box"]
+        .as_array()
+        .expect("boundingVolume.box")
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    assert_eq!(b.len(), 12, "a box has 12 numbers");
+    assert!(b.iter().all(|x| x.is_finite()));
+    let error = t["geometricError"].as_f64().expect("geometricError");
+    assert!(
+        error >= 0.0 && error <= parent_error,
+        "geometricError {error} above its parent's {parent_error}"
+    );
+    if let Some(r) = t.get("refine") {
+        assert!(r == "REPLACE" || r == "ADD", "refine {r}");
+    }
+    let uri = t.get("content").map(|c| {
+        c["uri"]
+            .as_str()
+            .expect("content.uri is required")
+            .to_string()
+    });
+    let kids = t.get("children").map_or(&[][..], |c| {
+        let c = c.as_array().expect("children is an array");
+        assert!(!c.is_empty(), "children has at least one tile");
+        c.as_slice()
+    });
+    let part_level = uri.as_ref().map(|u| {
+        let stem = u.strip_suffix(".glb").expect("a GLB");
+        let (name, level) = stem.rsplit_once("_level").expect("NAME_levelL.glb");
+        (name.to_string(), level.parse().unwrap())
+    });
+    out.push(Tile {
+        part_level,
+        centre: glam::DVec3::new(b[0], b[1], b[2]),
+        half: [
+            glam::DVec3::new(b[3], b[4], b[5]),
+            glam::DVec3::new(b[6], b[7], b[8]),
+            glam::DVec3::new(b[9], b[10], b[11]),
+        ],
+        error,
+        uri,
+        leaf: kids.is_empty(),
+    });
+    for k in kids {
+        walk_tiles(k, error, out);
+    }
+}
+
+/// A prepared site exports as 3D Tiles 1.1 (issue 35 item 1): a GLB per part and level, each
+/// passing the glTF-Validator; `tileset.json` has the schema's required fields, its bounding
+/// boxes hold every vertex of their GLB (through the GLB's root rotation, 3D Tiles' Y up to Z
+/// up and the root transform), its geometric errors fall to 0 at the leaves, and every part
+/// of the result is there once, at every level of the prepared site.
+#[test]
+fn a_prepared_site_exports_as_3d_tiles() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (res, man) = prepared_result(tmp.path());
+    let out = tmp.path().join("tiles");
+    let o = export(&res, "gltf", &out);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        !out.join("scene.glb").exists(),
+        "a prepared site has no single GLB"
+    );
+    let set: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("tileset.json")).unwrap()).unwrap();
+    // required: asset.version, geometricError, root (boundingVolume, geometricError, refine)
+    assert_eq!(set["asset"]["version"], "1.1");
+    let top = set["geometricError"].as_f64().expect("geometricError");
+    let root = &set["root"];
+    assert!(root["refine"] == "REPLACE", "the root's refine is required");
+    let transform = mat4(&root["transform"]);
+    let mut tiles = Vec::new();
+    walk_tiles(root, top, &mut tiles);
+
+    // every part of the result once, at every level of the prepared site
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(res.join("report.json")).unwrap()).unwrap();
+    let mut names: Vec<String> = report["parts"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p["name"].as_str().unwrap().to_string())
+        .collect();
+    names.sort();
+    let levels = man["levels"].as_array().unwrap().len();
+    assert_eq!(levels, 3);
+    assert_eq!(names.len(), man["voxels"].as_array().unwrap().len() + 1);
+    let mut leaves: Vec<String> = tiles
+        .iter()
+        .filter(|t| t.leaf)
+        .map(|t| {
+            let (n, l) = t.part_level.clone().expect("a leaf has content");
+            assert_eq!(l, 0, "a leaf is level 0");
+            assert_eq!(t.error, 0.0, "a leaf's geometric error is 0");
+            n
+        })
+        .collect();
+    leaves.sort();
+    assert_eq!(leaves, names, "each part once, as a leaf");
+    let with_content: Vec<&Tile> = tiles.iter().filter(|t| t.uri.is_some()).collect();
+    assert_eq!(with_content.len(), names.len() * levels);
+    // the chain of a part: coarser levels above, geometric errors not increasing downward
+    // (walk_tiles), and the coarsest one positive where the site simplified the part
+    let coarse_errors: Vec<f64> = tiles
+        .iter()
+        .filter(|t| t.part_level.as_ref().is_some_and(|p| p.1 == levels - 1))
+        .map(|t| t.error)
+        .collect();
+    assert!(coarse_errors.iter().all(|e| *e > 0.0), "{coarse_errors:?}");
+
+    // every GLB validates; every vertex lies in its tile's box
+    let glbs: Vec<PathBuf> = with_content
+        .iter()
+        .map(|t| out.join(t.uri.as_ref().unwrap()))
+        .collect();
+    let counts = validate_all(&glbs);
+    let errors: u64 = counts.iter().map(|c| c.0).sum();
+    let warnings: u64 = counts.iter().map(|c| c.1).sum();
+    eprintln!(
+        "3D Tiles: {} parts x {levels} levels = {} GLBs, glTF-Validator {errors} errors, {warnings} warnings",
+        names.len(),
+        glbs.len()
+    );
+    assert_eq!(errors, 0);
+    let y_up_to_z_up = glam::DMat4::from_cols_array(&[
+        1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0,
+    ]);
+    let (mut vertices, mut worst) = (0usize, f64::NEG_INFINITY);
+    for (t, glb) in with_content.iter().zip(&glbs) {
+        let (rot, parts) = read_glb(glb);
+        assert_eq!(parts.len(), 1, "{}: one part", glb.display());
+        let (name, level) = t.part_level.clone().unwrap();
+        assert_eq!(parts[0].name, name);
+        // level 0 is the prepared site's full mesh
+        if level == 0 {
+            let entry = man["voxels"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .find(|e| {
+                    let v = &e["voxel"];
+                    format!("{}_{}_{}", v[0], v[1], v[2]) == name
+                })
+                .unwrap_or(&man["terrain"]);
+            assert_eq!(
+                parts[0].indices.len(),
+                3 * entry["triangles"][0].as_u64().unwrap() as usize,
+                "{name}"
+            );
+        }
+        let rot = glam::DQuat::from_xyzw(rot.x as f64, rot.y as f64, rot.z as f64, rot.w as f64);
+        for p in &parts[0].positions {
+            let gltf_world = rot * p.as_dvec3();
+            let q = transform.transform_point3(y_up_to_z_up.transform_point3(gltf_world));
+            // the igi point itself (to the f32 rotation's rounding): the tileset's frame is
+            // igi's, so the boxes are checked on p
+            assert!((q - p.as_dvec3()).length() < 1e-5, "{q} against {p}");
+            // inside the box: |(p - c) . a_k| <= |a_k|^2 for each half axis a_k
+            for a in &t.half {
+                let over = (p.as_dvec3() - t.centre).dot(*a).abs() / a.length_squared() - 1.0;
+                worst = worst.max(over);
+            }
+            vertices += 1;
+        }
+    }
+    eprintln!("3D Tiles: {vertices} vertices, the largest (|(q - c) . a| / |a|^2 - 1) {worst:.3e} (<= 0 inside)");
+    assert!(worst <= 1e-9, "a vertex outside its tile's box by {worst}");
 }

@@ -8,7 +8,7 @@
 //!   empty page's sky colour).
 //! * Bad input: a folder that is not a result; a port in use; a path outside the folder.
 
-use crate::cli_gltf::{quick_result, sphere_hull, sphere_light_field};
+use crate::cli_gltf::{prepared_result, quick_result, sphere_hull, sphere_light_field};
 use igi_testkit::run_ok;
 use std::io::{BufRead, BufReader, Read, Write};
 use std::path::{Path, PathBuf};
@@ -552,4 +552,75 @@ fn the_demo_result_frame_time_at_1024x768() {
         "demo result at 1024 x 768: frame time per one-second window {ms:?} ms, median {:.2} ms",
         sorted[2]
     );
+}
+
+/// Headless chromium's screenshot of `served` at 1024 x 768 (kept at `$keep` when set): the
+/// fraction of the frame that is not the page's sky colour.
+fn covered_fraction(served: &Served, shot: &Path, keep: &str) -> f64 {
+    let arg = format!("--screenshot={}", shot.display());
+    let status = chromium_command(&served.1, &[&arg, "--virtual-time-budget=200000"])
+        .status()
+        .unwrap();
+    assert!(shot.exists(), "no screenshot ({status})");
+    let img = image::open(shot).unwrap().to_rgb8();
+    let sky = [0x87i32, 0xa9, 0xc9];
+    if let Some(to) = std::env::var_os(keep) {
+        std::fs::copy(shot, to).unwrap();
+    }
+    img.pixels()
+        .filter(|p| p.0.iter().zip(sky).any(|(&a, b)| (a as i32 - b).abs() > 24))
+        .count() as f64
+        / (img.width() * img.height()) as f64
+}
+
+/// A prepared site opens as 3D Tiles (issue 35, "a prepared site (with its tileset) opens in
+/// the viewer"): its result folder (the tiles made in memory, served under `/igi/tiles/`) and
+/// its `igi export --format gltf` folder (`tileset.json` and the GLBs, served under
+/// `/files/`): the page loads one leaf per part, becomes `igi: ready`, and the site covers the
+/// frame.
+#[test]
+fn a_prepared_site_and_its_3d_tiles_open_in_a_real_browser() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (res, man) = prepared_result(tmp.path());
+    let parts = man["voxels"].as_array().unwrap().len() + 1;
+    let out = tmp.path().join("tiles");
+    run_ok(
+        igi()
+            .arg("export")
+            .arg(&res)
+            .args(["--format", "gltf", "-o"])
+            .arg(&out),
+    );
+    for (dir, label, tileset) in [
+        (&res, "prepared result", "/igi/tiles/tileset.json"),
+        (&out, "3D Tiles export", "/files/tileset.json"),
+    ] {
+        let served = serve(dir, "0", &[]);
+        let scene = http(&served.1, "GET /igi/scene.json HTTP/1.0\r\n\r\n");
+        assert!(scene.contains("\"kind\": \"tiles\""), "{scene}");
+        assert!(
+            scene.contains(&format!("\"tileset\": \"{tileset}\"")),
+            "{scene}"
+        );
+        let set = http(&served.1, &format!("GET {tileset} HTTP/1.0\r\n\r\n"));
+        assert_eq!(status(&set), 200, "{label}: {set}");
+        assert!(set.contains("\"version\": \"1.1\""), "{label}: {set}");
+        let fixed = format!("{}?width=1024&height=768", served.1);
+        let mut browser = chromium_command(&fixed, &[]).spawn().unwrap();
+        let said = page_says(&served, |l| l.starts_with("page: title=igi"), 180);
+        let _ = browser.kill();
+        let _ = browser.wait();
+        assert!(
+            said.iter().any(|l| l == "page: title=igi: ready"),
+            "{label}: the page never became ready: {said:?}"
+        );
+        assert!(
+            said.iter().any(|l| *l == format!("page: tiles={parts}")),
+            "{label}: the page did not load one leaf per part ({parts}): {said:?}"
+        );
+        let shot = tmp.path().join(format!("{}.png", label.replace(' ', "_")));
+        let covered = covered_fraction(&served, &shot, "IGI_VIEW_SCREENSHOT_TILES");
+        println!("{label}: {parts} leaves, covers {covered:.3} of the frame");
+        assert!(covered > 0.1, "{label} covers {covered:.3} of the frame");
+    }
 }

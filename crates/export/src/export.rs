@@ -311,12 +311,12 @@ pub fn folder_glb(dir: &Path) -> Result<FolderGlb, ExportError> {
     }
 }
 
-/// The GLB of `res` and each part's textures (the albedo atlas and the lobe maps).
-#[allow(clippy::type_complexity)]
-fn gltf_of(
-    res: &SolveResult,
+/// The glTF materials of the parts of `res` that `want` picks ([`PartsGltf`]).
+fn parts_gltf<'a>(
+    res: &'a SolveResult,
     result_dir: &Path,
-) -> Result<(ResultGlb, Vec<(HdrImage, Vec<(HdrImage, HdrImage)>)>), ExportError> {
+    want: &dyn Fn(usize) -> bool,
+) -> Result<crate::gltf::PartsGltf<'a>, ExportError> {
     let glb_path = result_dir.to_path_buf();
     let mut meshes = Vec::new();
     let mut textures = Vec::new();
@@ -324,6 +324,9 @@ fn gltf_of(
     let mut extras = Vec::new();
     let mut stderr_png = Vec::new();
     for (i, p) in res.parts.iter().enumerate() {
+        if !want(i) {
+            continue;
+        }
         let (albedo, maps) = part_textures(res, result_dir, i)?;
         let se = stderr_picture(&res.stderr[i], p.resolution());
         stderr_png.push(crate::gltf::albedo_png(&glb_path, &se)?);
@@ -374,6 +377,29 @@ fn gltf_of(
         fits.push((p.name.clone(), lobes.len(), fit));
         extras.push(ex);
     }
+    Ok(crate::gltf::PartsGltf {
+        meshes,
+        textures,
+        fits,
+        extras,
+        stderr_png,
+    })
+}
+
+/// The GLB of `res` and each part's textures (the albedo atlas and the lobe maps).
+#[allow(clippy::type_complexity)]
+fn gltf_of(
+    res: &SolveResult,
+    result_dir: &Path,
+) -> Result<(ResultGlb, Vec<(HdrImage, Vec<(HdrImage, HdrImage)>)>), ExportError> {
+    let glb_path = result_dir.to_path_buf();
+    let crate::gltf::PartsGltf {
+        meshes,
+        textures,
+        fits,
+        extras,
+        stderr_png,
+    } = parts_gltf(res, result_dir, &|_| true)?;
     let parts: Vec<crate::gltf::GlbPart> = res
         .parts
         .iter()
@@ -402,12 +428,60 @@ fn gltf_of(
     ))
 }
 
-/// `scene.glb` and the textures beside it; returns the fit per part.
+/// A result as 3D Tiles 1.1 ([`crate::tiles`]): per part and level one GLB, handed to
+/// `on_part` with the part's index and textures; returns the tileset and the fits.
+#[allow(clippy::type_complexity)]
+fn tiles_of(
+    res: &SolveResult,
+    result_dir: &Path,
+    on_part: &mut dyn FnMut(
+        usize,
+        &(HdrImage, Vec<(HdrImage, HdrImage)>),
+        Vec<(String, Vec<u8>)>,
+    ) -> Result<(), ExportError>,
+) -> Result<crate::tiles::ResultTiles, ExportError> {
+    let mut set = crate::tiles::TilesetBuilder::open(res, result_dir)?;
+    for i in 0..res.parts.len() {
+        let g = parts_gltf(res, result_dir, &|k| k == i)?;
+        let glbs = set.add(&res.parts[i], g.as_glb_part(0))?;
+        on_part(i, &g.textures[0], glbs)?;
+        set.keep(g);
+    }
+    Ok(set.finish())
+}
+
+/// A result as 3D Tiles 1.1 in memory ([`crate::tiles`]): the tileset and the GLBs by file
+/// name, as `igi export --format gltf` writes them for a prepared site; what `igi view` serves.
+#[allow(clippy::type_complexity)]
+pub fn result_tiles(
+    result_dir: &Path,
+) -> Result<(crate::tiles::ResultTiles, Vec<(String, Vec<u8>)>), ExportError> {
+    let res = SolveResult::load(result_dir)?;
+    let mut files = Vec::new();
+    let set = tiles_of(&res, result_dir, &mut |_, _, glbs| {
+        files.extend(glbs);
+        Ok(())
+    })?;
+    Ok((set, files))
+}
+
+/// `scene.glb` and the textures beside it (or, for a prepared site or a result too large for
+/// one GLB, `tileset.json` and a GLB per part and level: [`crate::tiles`]); returns the fit
+/// per part.
 fn write_gltf(
     res: &SolveResult,
     result_dir: &Path,
     out: &Path,
 ) -> Result<Vec<(String, usize, GltfFit)>, ExportError> {
+    if crate::tiles::needs_tiles(res) {
+        let set = tiles_of(res, result_dir, &mut |i, (albedo, maps), glbs| {
+            write_textures(res, i, albedo, maps, out)?;
+            glbs.iter()
+                .try_for_each(|(name, bytes)| crate::tiles::write_file(&out.join(name), bytes))
+        })?;
+        set.write(out)?;
+        return Ok(set.materials);
+    }
     let (glb, textures) = gltf_of(res, result_dir)?;
     for (i, (albedo, maps)) in textures.iter().enumerate() {
         write_textures(res, i, albedo, maps, out)?;

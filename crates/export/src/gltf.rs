@@ -44,6 +44,31 @@ pub struct GlbPart<'a> {
     pub extras: Value,
 }
 
+/// What the glTF of some parts of a result needs, in the parts' order: each part's mesh
+/// (level 0), textures (the albedo atlas and the lobe maps, colour and shape), fit (its name,
+/// the number of lobes fitted, the fit), material extras and standard-error picture (PNG).
+#[allow(clippy::type_complexity)]
+pub(crate) struct PartsGltf<'a> {
+    pub meshes: Vec<std::borrow::Cow<'a, TriMesh>>,
+    pub textures: Vec<(HdrImage, Vec<(HdrImage, HdrImage)>)>,
+    pub fits: Vec<(String, usize, GltfFit)>,
+    pub extras: Vec<Value>,
+    pub stderr_png: Vec<Vec<u8>>,
+}
+
+impl PartsGltf<'_> {
+    /// Part `k` (of those held) as a [`GlbPart`] with its level-0 mesh.
+    pub fn as_glb_part(&self, k: usize) -> GlbPart<'_> {
+        GlbPart {
+            name: &self.fits[k].0,
+            mesh: &self.meshes[k],
+            albedo: &self.textures[k].0,
+            fit: self.fits[k].2,
+            extras: self.extras[k].clone(),
+        }
+    }
+}
+
 /// The exact Lafortune lobes as JSON (`extras`).
 pub fn lobes_json(lobes: &[Lobe]) -> Value {
     Value::Array(
@@ -405,7 +430,7 @@ pub fn glb_of_items(
         return Err(ExportError::file(
             path,
             format!(
-                "the GLB would be {:.2} GiB, more than glTF readers accept (2 GiB); export fewer parts (per-part GLBs with a 3D Tiles tileset are not written yet)",
+                "the GLB would be {:.2} GiB, more than glTF readers accept (2 GiB); a result this large exports as 3D Tiles (per-part GLBs and tileset.json)",
                 total as f64 / (1u64 << 30) as f64
             ),
         ));

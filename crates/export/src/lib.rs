@@ -10,6 +10,8 @@
 //!   root node, v flipped, the albedo as an embedded sRGB PNG), whose materials approximate the
 //!   Lafortune lobes with `KHR_materials_specular` ([`lobefit`], the fit's error reported) and
 //!   keep the exact lobes in `extras`.
+//! * [`tiles`]: a prepared site (or a result too large for one GLB) as 3D Tiles 1.1: a GLB per
+//!   part and level and `tileset.json`.
 //! * [`folders`]: the folders `igi export --format gltf` and `igi view` take (a result, an
 //!   opacity hull, a surface light field), told apart, each as one GLB in memory.
 //! * [`outdir`]: the output folder's rules for every format (never the result folder; new,
@@ -23,9 +25,10 @@ pub mod gltf;
 pub mod lobefit;
 pub mod outdir;
 pub mod sample;
+pub mod tiles;
 
 pub use export::{
-    export, folder_glb, result_glb, ExportFormat, Exported, FolderGlb, ResultGlb,
+    export, folder_glb, result_glb, result_tiles, ExportFormat, Exported, FolderGlb, ResultGlb,
     STDERR_PICTURE_MAX,
 };
 pub use folders::{folder_kind, FolderKind};

@@ -42,6 +42,9 @@ pub struct Site {
     scene_glb: Vec<u8>,
     /// Per part of a result, its standard-error picture (PNG; `/igi/stderr/K.png`).
     stderr_png: Vec<Vec<u8>>,
+    /// A prepared site's 3D Tiles, made in memory (`/igi/tiles/NAME`: `tileset.json` and the
+    /// GLBs it names); empty otherwise.
+    tiles: Vec<(String, Vec<u8>)>,
     /// Where the sun and sky of a date and time are computed (`/igi/sky?time=...`).
     sky_place: Option<igi_sky::job::Place>,
 }
@@ -57,15 +60,18 @@ impl Site {
             dir: dir.to_path_buf(),
             source,
         })?;
+        let name = root
+            .file_name()
+            .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+        if let Some(site) = Site::tiled(&root, &name, lights, &sky_place)? {
+            return Ok(Site { sky_place, ..site });
+        }
         let glb = igi_export::folder_glb(&root).map_err(|e| match e {
             igi_export::ExportError::NotExportable { .. } => ViewError::NotViewable {
                 dir: dir.to_path_buf(),
             },
             e => ViewError::Export(e),
         })?;
-        let name = root
-            .file_name()
-            .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
         let (parts, stderr_png) = match &glb.result {
             Some(r) => (
                 r.materials
@@ -102,8 +108,79 @@ impl Site {
             scene_json: serde_json::to_vec_pretty(&scene_json).expect("JSON"),
             scene_glb: glb.bytes,
             stderr_png,
+            tiles: Vec::new(),
             sky_place,
         })
+    }
+
+    /// A folder shown as 3D Tiles: an export of `igi export --format gltf` holding
+    /// `tileset.json` (its files served under `/files/`), or a result of a prepared site (its
+    /// tiles made in memory as `igi export` writes them, served under `/igi/tiles/`).
+    fn tiled(
+        root: &Path,
+        name: &str,
+        lights: &[crate::light::PageLight],
+        sky_place: &Option<igi_sky::job::Place>,
+    ) -> Result<Option<Site>, ViewError> {
+        let scene = |tileset: &str, summary: Vec<String>, parts: Vec<serde_json::Value>| {
+            serde_json::to_vec_pretty(&serde_json::json!({
+                "kind": "tiles",
+                "name": name,
+                "tileset": tileset,
+                "summary": summary,
+                "lightings": lights,
+                "parts": parts,
+                "stderr_white": igi_export::STDERR_PICTURE_MAX,
+                "sky": sky_place.is_some(),
+            }))
+            .expect("JSON")
+        };
+        let site = |scene_json, stderr_png, tiles| Site {
+            root: root.to_path_buf(),
+            scene_json,
+            scene_glb: Vec::new(),
+            stderr_png,
+            tiles,
+            sky_place: None,
+        };
+        if root.join(igi_export::tiles::TILESET).is_file() {
+            let summary = vec!["3D Tiles export".to_string()];
+            let json = scene("/files/tileset.json", summary, Vec::new());
+            return Ok(Some(site(json, Vec::new(), Vec::new())));
+        }
+        if igi_export::folder_kind(root).ok() != Some(igi_export::FolderKind::Result)
+            || !igi_export::tiles::result_needs_tiles(root)?
+        {
+            return Ok(None);
+        }
+        let (set, mut files) = igi_export::result_tiles(root)?;
+        let parts = set
+            .materials
+            .iter()
+            .enumerate()
+            .map(|(k, (name, lobes, fit))| {
+                serde_json::json!({
+                    "name": name,
+                    "lobes": lobes,
+                    "roughness": fit.roughness,
+                    "specular": fit.specular,
+                    "specular_color": fit.specular_color,
+                    "fit_rel_rms": fit.rel_rms,
+                    "stderr": format!("/igi/stderr/{k}.png"),
+                })
+            })
+            .collect();
+        let summary = vec![format!(
+            "{} parts, {} tiles",
+            set.materials.len(),
+            set.tiles
+        )];
+        files.push((
+            igi_export::tiles::TILESET.to_string(),
+            serde_json::to_vec_pretty(&set.tileset).expect("JSON"),
+        ));
+        let json = scene("/igi/tiles/tileset.json", summary, parts);
+        Ok(Some(site(json, set.stderr_png, files)))
     }
 }
 
@@ -212,6 +289,12 @@ pub fn respond(site: &Site, method: &str, url: &str) -> Reply {
             None => Reply::error(404, "not found"),
         };
     }
+    if let Some(f) = path.strip_prefix("/igi/tiles/") {
+        return match site.tiles.iter().find(|(n, _)| n == f) {
+            Some((n, bytes)) => Reply::ok(content_type(Path::new(n)), bytes.clone()),
+            None => Reply::error(404, "not found"),
+        };
+    }
     match path {
         "/" | "/index.html" => Reply::ok("text/html; charset=utf-8", PAGE.as_bytes().to_vec()),
         "/igi/scene.json" => Reply::ok("application/json", site.scene_json.clone()),
@@ -294,6 +377,7 @@ mod tests {
             scene_json: b"{}".to_vec(),
             scene_glb: b"glTF".to_vec(),
             stderr_png: vec![b"png".to_vec()],
+            tiles: vec![("a_level0.glb".into(), b"glTF".to_vec())],
             sky_place: None,
         }
     }
@@ -342,6 +426,9 @@ mod tests {
         assert_eq!(respond(&s, "GET", "/igi/scene.glb").body, b"glTF");
         assert_eq!(respond(&s, "GET", "/igi/stderr/0.png").body, b"png");
         assert_eq!(respond(&s, "GET", "/igi/stderr/1.png").status, 404);
+        let tile = respond(&s, "GET", "/igi/tiles/a_level0.glb");
+        assert_eq!((tile.status, tile.content_type), (200, "model/gltf-binary"));
+        assert_eq!(respond(&s, "GET", "/igi/tiles/b_level0.glb").status, 404);
         assert_eq!(respond(&s, "GET", "/igi/sky?time=x").status, 404);
         let told = respond(&s, "GET", "/igi/event?title=igi%3A%20ready");
         assert_eq!(told.event.as_deref(), Some("title=igi: ready"));
