@@ -701,7 +701,10 @@ pub fn noaa_sun_direction(
 }
 
 /// The probe-less demo's lightings (photos rendered under them) and each one's true sun.
-fn true_skies() -> Result<(Vec<LightingSpec>, Vec<Option<[f64; 3]>>), WorkflowError> {
+/// The true skies and each one's sun direction (`None` overcast).
+type TrueSkies = (Vec<LightingSpec>, Vec<Option<[f64; 3]>>);
+
+fn true_skies() -> Result<TrueSkies, WorkflowError> {
     let mut lights = Vec::new();
     let mut suns = Vec::new();
     for t in &TRUE_SKIES {
@@ -830,7 +833,7 @@ mod tests {
         for s in TRUE_SKIES.iter().filter(|s| s.sun_scale > 0.0) {
             let t = igi_formats::PhotoTime::parse_rfc3339(s.time).unwrap();
             let spa = crate::lightfit::SkyPhoto::new(
-                t.clone(),
+                t,
                 crate::lightfit::SiteLocation {
                     latitude_deg: SITE.0,
                     longitude_deg: SITE.1,

@@ -7,10 +7,10 @@
 //!
 //! Pass criteria (issue 34): albedo MAE per channel <= 0.02 over texels seen twice; without the
 //! card, MAE <= 0.02 after one global scale, the result saying that its scale is not absolute;
-//! the sun within 0.1 degrees of Mitsuba's; the overcast photo's sky within 2 % and no sun.
-//! The issue's "within 1.5x of the same survey solved with its true lighting" is printed, not
-//! asserted: red and green meet it, blue does not yet (docs/SKY.md, "Lighting estimated with
-//! the albedo").
+//! the sun within 0.1 degrees of Mitsuba's; the overcast photo's sky within 2 % and no sun;
+//! the albedo within 1.5x of the same survey solved with its true lighting, per channel
+//! (1.15x, 1.13x, 1.23x measured with the sun's colour tied to the model's; docs/SKY.md,
+//! "Lighting estimated with the albedo").
 
 use igi_formats::lighting::LightingFile;
 use igi_formats::TomlFile;
@@ -265,6 +265,10 @@ fn albedo_and_light_from_photographs_without_probes() {
     let ratio: Vec<f64> = (0..3).map(|c| card_mae[c] / known_mae[c]).collect();
     println!("MAE over the true-lighting solve's: {ratio:.2?} (issue 34 asks for 1.5)");
     for c in 0..3 {
+        assert!(
+            ratio[c] <= 1.5,
+            "MAE {card_mae:?} over the true lighting's {known_mae:?}"
+        );
         assert!(card_mae[c] <= 0.02, "MAE {card_mae:?}");
         assert!(nocard_mae[c] <= 0.02, "MAE without the card {nocard_mae:?}");
     }
