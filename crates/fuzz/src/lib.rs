@@ -2,7 +2,10 @@
 //!
 //! Mutation fuzzing of every parser a user feeds igi: PLY and OBJ meshes, EXR and Radiance HDR
 //! images (through `igi_imaging::read_image`), camera JSON, lighting, scene and survey TOML,
-//! board JSON and BRDF sample CSV.
+//! board JSON and BRDF sample CSV, and the photogrammetry imports of `igi import colmap`:
+//! COLMAP sparse models (text and binary, the three files of a model as one input split at
+//! a marker line), Metashape's camera XML, nerfstudio's `transforms.json`, a photo's EXIF
+//! (time and exposure) and ground control points (the CSV, then the alignment).
 //!
 //! cargo-fuzz needs libFuzzer's compiler instrumentation (a nightly toolchain); this workspace
 //! builds on stable only, so this crate is a self-contained mutational fuzzer instead: each
@@ -154,6 +157,20 @@ pub fn targets() -> Vec<Target> {
         t("brdf", "in.csv", setup_brdf, |p| {
             checked(igi_brdf::read_samples(p))
         }),
+        t("colmap-txt", "bundle.txt", setup_colmap_txt, |p| {
+            run_colmap(p, "txt")
+        }),
+        t("colmap-bin", "bundle.bin", setup_colmap_bin, |p| {
+            run_colmap(p, "bin")
+        }),
+        t("metashape", "in.xml", setup_metashape, |p| {
+            checked(igi_import::read_metashape(p))
+        }),
+        t("nerfstudio", "ns/transforms.json", setup_nerfstudio, |p| {
+            checked(igi_import::read_nerfstudio(p))
+        }),
+        t("exif", "in.jpg", setup_exif, run_exif),
+        t("control", "control/points.csv", setup_control, run_control),
     ]
 }
 
@@ -327,6 +344,256 @@ fn setup_brdf(fx: &Path, _work: &Path) -> Result<Vec<Vec<u8>>, String> {
         .collect::<Vec<_>>()
         .join(&b'\n');
     Ok(vec![head, text])
+}
+
+/// Separates the files of a COLMAP model in one fuzz input (`cameras`, `images`, `points3D`, in
+/// that order; a missing part is a missing file).
+const SPLIT: &[u8] = b"\n@@igi-fuzz-next-file@@\n";
+
+/// Splits a fuzz input at [`SPLIT`].
+fn split_bundle(data: &[u8]) -> Vec<&[u8]> {
+    let mut parts = Vec::new();
+    let mut rest = data;
+    while let Some(i) = rest.windows(SPLIT.len()).position(|w| w == SPLIT) {
+        parts.push(&rest[..i]);
+        rest = &rest[i + SPLIT.len()..];
+    }
+    parts.push(rest);
+    parts
+}
+
+/// A COLMAP sparse folder from a bundle of its files (`ext`: `txt` or `bin`), read whole and
+/// turned into contract cameras as `igi import colmap` does.
+fn run_colmap(p: &Path, ext: &str) -> Result<(), String> {
+    let data = read(p)?;
+    let dir = p.with_extension("d");
+    let parts = split_bundle(&data);
+    for (i, name) in ["cameras", "images", "points3D"].iter().enumerate() {
+        let f = dir.join(format!("{name}.{ext}"));
+        match parts.get(i) {
+            Some(b) => write(&f, b)?,
+            None => {
+                let _ = std::fs::remove_file(&f);
+            }
+        }
+    }
+    checked(igi_import::read_cameras(
+        igi_import::ModelFormat::Colmap,
+        &dir,
+    ))
+}
+
+fn bundle(parts: &[Vec<u8>]) -> Vec<u8> {
+    parts.join(SPLIT)
+}
+
+fn setup_colmap_bin(fx: &Path, _work: &Path) -> Result<Vec<Vec<u8>>, String> {
+    let dir = fx.join("import/pycolmap/sparse");
+    let files: Vec<Vec<u8>> = ["cameras.bin", "images.bin", "points3D.bin"]
+        .iter()
+        .map(|f| read(&dir.join(f)))
+        .collect::<Result<_, _>>()?;
+    Ok(vec![bundle(&files), bundle(&files[..2])])
+}
+
+fn setup_colmap_txt(fx: &Path, _work: &Path) -> Result<Vec<Vec<u8>>, String> {
+    let (model, _) =
+        igi_import::read_model(&fx.join("import/pycolmap/sparse")).map_err(|e| e.to_string())?;
+    let files: Vec<Vec<u8>> = igi_import::text::to_text(&model)
+        .into_iter()
+        .map(String::into_bytes)
+        .collect();
+    Ok(vec![bundle(&files), bundle(&files[..2])])
+}
+
+fn setup_metashape(fx: &Path, _work: &Path) -> Result<Vec<Vec<u8>>, String> {
+    Ok(vec![read(&fx.join("import/metashape/cameras.xml"))?])
+}
+
+fn setup_nerfstudio(fx: &Path, work: &Path) -> Result<Vec<Vec<u8>>, String> {
+    std::fs::create_dir_all(work.join("ns")).map_err(|e| e.to_string())?;
+    Ok(vec![read(&fx.join("import/nerfstudio/transforms.json"))?])
+}
+
+/// A photo's EXIF as `igi import` reads it: the fields, the instant they name, the exposure.
+fn run_exif(p: &Path) -> Result<(), String> {
+    let e = igi_imaging::exif::read_exif(p).map_err(|e| e.to_string())?;
+    let _ = e.exposure();
+    checked(igi_formats::PhotoTime::from_photo_exif(&e))
+}
+
+/// A little-endian TIFF/EXIF block: IFD0 pointing at an Exif IFD (DateTimeOriginal,
+/// OffsetTimeOriginal, ExposureTime, FNumber, ISO) and a GPS IFD (date and time stamps).
+fn exif_tiff() -> Vec<u8> {
+    // (tag, type, count, value bytes); type 2 ASCII, 3 SHORT, 4 LONG, 5 RATIONAL
+    type Entry = (u16, u16, u32, Vec<u8>);
+    let rational = |v: &[(u32, u32)]| -> Vec<u8> {
+        v.iter()
+            .flat_map(|(n, d)| n.to_le_bytes().into_iter().chain(d.to_le_bytes()))
+            .collect()
+    };
+    let ascii = |s: &str| -> (u32, Vec<u8>) {
+        let mut b = s.as_bytes().to_vec();
+        b.push(0);
+        (b.len() as u32, b)
+    };
+    // IFD layout: 2-byte count, 12 bytes per entry, 4-byte next offset, then the values
+    fn ifd(start: u32, entries: &[Entry]) -> Vec<u8> {
+        let mut out = (entries.len() as u16).to_le_bytes().to_vec();
+        let mut data = Vec::new();
+        let data_at = start + 2 + 12 * entries.len() as u32 + 4;
+        for (tag, ty, count, v) in entries {
+            out.extend_from_slice(&tag.to_le_bytes());
+            out.extend_from_slice(&ty.to_le_bytes());
+            out.extend_from_slice(&count.to_le_bytes());
+            if v.len() <= 4 {
+                let mut w = v.clone();
+                w.resize(4, 0);
+                out.extend_from_slice(&w);
+            } else {
+                out.extend_from_slice(&(data_at + data.len() as u32).to_le_bytes());
+                data.extend_from_slice(v);
+                if data.len() % 2 == 1 {
+                    data.push(0);
+                }
+            }
+        }
+        out.extend_from_slice(&0u32.to_le_bytes());
+        out.extend_from_slice(&data);
+        out
+    }
+    let (n_dt, dt) = ascii("2026:06:21 09:30:00");
+    let (n_off, off) = ascii("+03:00");
+    let exif_entries: Vec<Entry> = vec![
+        (0x829a, 5, 1, rational(&[(1, 250)])),
+        (0x829d, 5, 1, rational(&[(56, 10)])),
+        (0x8827, 3, 1, 200u16.to_le_bytes().to_vec()),
+        (0x9003, 2, n_dt, dt),
+        (0x9011, 2, n_off, off),
+    ];
+    let (n_gd, gd) = ascii("2026:06:21");
+    let gps_entries: Vec<Entry> = vec![
+        (0x0007, 5, 3, rational(&[(6, 1), (30, 1), (0, 1)])),
+        (0x001d, 2, n_gd, gd),
+    ];
+    // IFD0 at 8 with two pointers; its size is 2 + 2 * 12 + 4 = 30
+    let exif_at = 8 + 30;
+    let exif = ifd(exif_at, &exif_entries);
+    let gps_at = exif_at + exif.len() as u32;
+    let gps = ifd(gps_at, &gps_entries);
+    let ifd0 = ifd(
+        8,
+        &[
+            (0x8769, 4, 1, exif_at.to_le_bytes().to_vec()),
+            (0x8825, 4, 1, gps_at.to_le_bytes().to_vec()),
+        ],
+    );
+    let mut t = b"II*\0".to_vec();
+    t.extend_from_slice(&8u32.to_le_bytes());
+    t.extend(ifd0);
+    t.extend(exif);
+    t.extend(gps);
+    t
+}
+
+/// A JPEG holding only its APP1 `Exif` segment (enough for an EXIF reader).
+fn exif_jpeg(tiff: &[u8]) -> Vec<u8> {
+    let mut j = vec![0xff, 0xd8, 0xff, 0xe1];
+    j.extend_from_slice(&((tiff.len() + 8) as u16).to_be_bytes());
+    j.extend_from_slice(b"Exif\0\0");
+    j.extend_from_slice(tiff);
+    j.extend_from_slice(&[0xff, 0xd9]);
+    j
+}
+
+/// The start of a real JPEG up to the end of its APP1 `Exif` segment, if it has one.
+fn jpeg_head(b: &[u8]) -> Option<Vec<u8>> {
+    let mut i = 2;
+    while i + 4 <= b.len() && b[i] == 0xff {
+        let len = u16::from_be_bytes([b[i + 2], b[i + 3]]) as usize;
+        let end = i + 2 + len;
+        if b[i + 1] == 0xe1 && b.get(i + 4..i + 10) == Some(b"Exif\0\0") && end <= b.len() {
+            let mut head = b[..end].to_vec();
+            head.extend_from_slice(&[0xff, 0xd9]);
+            return Some(head);
+        }
+        i = end;
+    }
+    None
+}
+
+/// Seeds: a TIFF and a JPEG written here, and (when `../shared/data` is beside the checkout)
+/// the EXIF of two real cameras' JPEGs (a Sony with OffsetTimeOriginal, an iPhone without),
+/// read at run time.
+fn setup_exif(fx: &Path, _work: &Path) -> Result<Vec<Vec<u8>>, String> {
+    let tiff = exif_tiff();
+    let mut seeds = vec![exif_jpeg(&tiff), tiff];
+    let shared = fx.join("../../../shared/data/mirror_ball_ldr");
+    for f in [
+        "olapietka_sony_a6400/rec1.jpg",
+        "olapietka_sony_a6400/raw2.jpg",
+        "uiuc_cs445_kagrawal_iphone7/ball_40.JPG",
+    ] {
+        if let Some(head) = std::fs::read(shared.join(f))
+            .ok()
+            .and_then(|b| jpeg_head(&b))
+        {
+            seeds.push(head);
+        }
+    }
+    Ok(seeds)
+}
+
+/// Ground control points as `igi import colmap --control` reads them: the CSV, then the
+/// alignment against the survey fixture's cameras (named `vNN.jpg`).
+fn run_control(p: &Path) -> Result<(), String> {
+    let obs = igi_formats::control::read_control_points(p).map_err(|e| e.to_string())?;
+    let dir = p.parent().unwrap_or(Path::new(".")).join("cameras");
+    let mut cams = std::collections::HashMap::new();
+    for i in 0..3 {
+        let c = igi_camera::Camera::load(&dir.join(format!("v{i:02}.json")))
+            .map_err(|e| e.to_string())?;
+        cams.insert(format!("v{i:02}.jpg"), c);
+    }
+    checked(igi_import::align::align(
+        p,
+        &obs,
+        &cams,
+        igi_import::AlignOptions::default(),
+    ))
+}
+
+fn setup_control(fx: &Path, work: &Path) -> Result<Vec<Vec<u8>>, String> {
+    let names = ["v00-sunny.json", "v01-lowsun.json", "v02-overcast.json"];
+    let mut cams = Vec::new();
+    for (i, n) in names.iter().enumerate() {
+        let b = read(&fx.join("survey/cameras").join(n))?;
+        write(&work.join(format!("control/cameras/v{i:02}.json")), &b)?;
+        cams.push(
+            igi_camera::Camera::load(&fx.join("survey/cameras").join(n))
+                .map_err(|e| e.to_string())?,
+        );
+    }
+    // points on and above the survey fixture's site, which lies around the origin
+    let mid = glam::DVec3::ZERO;
+    let mut rows = String::from("name,x,y,z,image,u,v\n");
+    for k in 0..6 {
+        let a = k as f64;
+        let w = glam::DVec3::new(
+            mid.x + (a * 1.3).sin() * 2.0,
+            mid.y + (a * 0.7).cos() * 2.0,
+            (a * 0.37) % 1.5,
+        );
+        for (i, c) in cams.iter().enumerate() {
+            if let Some(q) = c.project(w).filter(|q| c.in_frame(*q)) {
+                rows += &format!(
+                    "gcp{k},{},{},{},v{i:02}.jpg,{},{}\n",
+                    w.x, w.y, w.z, q.x, q.y
+                );
+            }
+        }
+    }
+    Ok(vec![rows.into_bytes()])
 }
 
 const TOKENS: [&[u8]; 26] = [
