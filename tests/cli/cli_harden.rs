@@ -1353,3 +1353,190 @@ fn nonsense_numbers_are_refused_naming_the_option() {
         assert!(!out.exists(), "{args:?} wrote its output");
     }
 }
+
+// Issue 36 item 7, what the first round left: nonsense in files refused (or warned of),
+// naming the file and the value.
+
+#[test]
+fn a_camera_distortion_no_lens_can_have_is_refused_naming_the_file() {
+    let d = tempfile::tempdir().unwrap();
+    let scene = fixture("outdoor/scene.toml");
+    let text = std::fs::read_to_string(fixture("outdoor/camera.json")).unwrap();
+    let mut cam: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let out = d.path().join("r.exr");
+    let render = |cam_path: &Path| {
+        igi().run(&[
+            "render",
+            s(&scene),
+            "--camera",
+            s(cam_path),
+            "--spp",
+            "1",
+            "--indirect",
+            "0",
+            "-o",
+            s(&out),
+        ])
+    };
+    // k1 = 1e6 sees a pixel a quarter of the way to the corner at 3e-2 times its distance
+    // from the axis; k1 = -1e6 folds the image (the only direction left is across the axis)
+    for (k1, why) in [
+        (
+            1e6,
+            "pixel (47.5, 47.5) sees the direction at 3.059e-2 times its distance",
+        ),
+        (
+            -1e6,
+            "pixel (47.5, 47.5) sees the direction at 3.122e-2 times its distance",
+        ),
+    ] {
+        cam["dist"] = serde_json::json!([k1, 0.0, 0.0, 0.0, 0.0]);
+        let p = d.path().join(format!("cam{k1}.json"));
+        std::fs::write(&p, cam.to_string()).unwrap();
+        let o = render(&p);
+        let e = stderr(&o);
+        assert!(
+            o.status.code() == Some(1)
+                && e.contains(&format!("cam{k1}.json"))
+                && e.contains("cannot be a lens")
+                && e.contains(why)
+                && e.lines().count() == 1,
+            "{e}"
+        );
+        assert!(!out.exists());
+    }
+    // a strong real lens (k1 = -0.3, k2 = 0.1: the barrel of a wide angle) renders
+    cam["dist"] = serde_json::json!([-0.3, 0.1, 0.001, -0.001, 0.0]);
+    let p = d.path().join("wide.json");
+    std::fs::write(&p, cam.to_string()).unwrap();
+    let o = render(&p);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+#[test]
+fn the_same_image_as_three_brackets_is_refused_naming_both() {
+    let d = tempfile::tempdir().unwrap();
+    let a = fixture("board/sunny/bracket_0.png");
+    let b = d.path().join("copy_of_0.png");
+    std::fs::copy(&a, &b).unwrap();
+    let out = d.path().join("m.exr");
+    for brackets in [[s(&a), s(&a), s(&a)], [s(&a), s(&b), s(&a)]] {
+        let mut args = vec!["hdr", "merge"];
+        args.extend(brackets);
+        args.extend(["--times", "1/400", "1/100", "1/25", "-o", s(&out)]);
+        let o = igi().run(&args);
+        let e = stderr(&o);
+        assert!(
+            o.status.code() == Some(1)
+                && e.contains("the same picture as")
+                && e.contains(brackets[1])
+                && e.contains(s(&a))
+                && e.lines().count() == 1,
+            "{e}"
+        );
+        assert!(!out.exists());
+    }
+    // the three real brackets merge
+    let mut args = vec!["hdr", "merge"];
+    let real: Vec<PathBuf> = (0..3)
+        .map(|i| fixture(&format!("board/sunny/bracket_{i}.png")))
+        .collect();
+    args.extend(real.iter().map(|p| s(p)));
+    let tf = fixture("board/sunny/times.txt");
+    args.extend(["--times-file", s(&tf), "-o", s(&out)]);
+    let o = igi().run(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+#[test]
+fn a_brdf_fit_from_one_direction_pair_is_refused() {
+    let d = tempfile::tempdir().unwrap();
+    let csv = d.path().join("one_pair.csv");
+    // six measurements of one (light, view) pair: 18 values, but only 3 independent ones for
+    // the 13 parameters (rho_d and two lobes)
+    let mut text = String::from("material,light_x,light_y,light_z,view_x,view_y,view_z,r,g,b\n");
+    for k in 0..6 {
+        let v = 0.4 + 0.001 * k as f64;
+        text += &format!("paint,0,0,1,-0.5,0,0.8660254,{v},{v},{v}\n");
+    }
+    std::fs::write(&csv, &text).unwrap();
+    let out = d.path().join("m.json");
+    let o = igi().run(&["brdf", "fit", s(&csv), "-o", s(&out)]);
+    let e = stderr(&o);
+    assert!(
+        o.status.code() == Some(1)
+            && e.contains("one_pair.csv")
+            && e.contains("`paint`")
+            && e.contains("6 samples hold 1 distinct light/view direction pair")
+            && e.lines().count() == 1,
+        "{e}"
+    );
+    assert!(!out.exists());
+}
+
+#[test]
+fn a_zero_sample_normal_is_refused_naming_the_point() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("res");
+    igi().ok(&solve_args(s(&fixture("survey")), s(&out), &[]));
+    let pts = d.path().join("p.csv");
+    let csv = d.path().join("a.csv");
+    // the zero normal was taken as +z without a word
+    std::fs::write(&pts, "x,y,z,nx,ny,nz\n0,0,0,0,0,1\n0.5,0.5,0,0,0,0\n").unwrap();
+    let o = igi().run(&["sample", s(&out), "--points", s(&pts), "-o", s(&csv)]);
+    let e = stderr(&o);
+    assert!(
+        o.status.code() == Some(1)
+            && e.contains("p.csv")
+            && e.contains("point 2 at (0.5, 0.5, 0)")
+            && e.contains("normal (0, 0, 0) has no direction")
+            && e.lines().count() == 1,
+        "{e}"
+    );
+    assert!(!csv.exists());
+    // any length but zero is a direction
+    std::fs::write(&pts, "x,y,z,nx,ny,nz\n0.5,0.5,0,0,0,3\n").unwrap();
+    igi().ok(&["sample", s(&out), "--points", s(&pts), "-o", s(&csv)]);
+}
+
+#[test]
+fn a_solve_whose_only_sun_is_below_the_horizon_is_refused_naming_the_lighting_file() {
+    let d = tempfile::tempdir().unwrap();
+    let survey = d.path().join("survey");
+    copy_dir(&fixture("survey"), &survey);
+    let out = d.path().join("res");
+    // the sunny photos' sun mirrored below the ground plane, with no sky: nothing lights them
+    let sunny = survey.join("lighting/sunny.toml");
+    std::fs::write(
+        &sunny,
+        "[sun]\ndirection = [0.21, -0.58, -0.79]\nradiance = [60000.0, 57000.0, 52000.0]\n",
+    )
+    .unwrap();
+    let o = igi().run(&solve_args(s(&survey), s(&out), &[]));
+    let e = stderr(&o);
+    assert!(
+        o.status.code() == Some(1)
+            && e.contains("sunny.toml")
+            && e.contains("deg below the horizon")
+            && e.contains("the only light of photo `v00-sunny`")
+            && e.lines().count() == 1,
+        "{e}"
+    );
+    assert!(!out.exists(), "nothing written");
+    // with the sky kept, the sky alone lights the photo: it solves, with a warning naming it
+    std::fs::write(
+        &sunny,
+        "[environment]\nmap = \"sunny_sky.exr\"\n\n[sun]\ndirection = [0.21, -0.58, -0.79]\nradiance = [60000.0, 57000.0, 52000.0]\n",
+    )
+    .unwrap();
+    let o = igi().run(&solve_args(s(&survey), s(&out), &[]));
+    let e = stderr(&o);
+    assert!(
+        o.status.success()
+            && e.contains("WARN")
+            && e.contains("photo `v00-sunny`")
+            && e.contains("sunny.toml")
+            && e.contains("only the sky lights it"),
+        "{e}"
+    );
+}

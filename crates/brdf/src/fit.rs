@@ -1079,6 +1079,16 @@ fn check_samples(samples: &[BrdfSample]) -> Result<(), String> {
             samples.len()
         ));
     }
+    let pairs = distinct_pairs(samples);
+    if pairs < 5 {
+        return Err(format!(
+            "its {} samples hold {pairs} distinct light/view direction pair{}: the {NP}-parameter \
+             model needs at least 5 (repeating a measurement adds no direction to fit the lobes \
+             to)",
+            samples.len(),
+            if pairs == 1 { "" } else { "s" }
+        ));
+    }
     for (i, s) in samples.iter().enumerate() {
         if !(s.light.is_finite() && s.view.is_finite() && s.value.is_finite())
             || s.value.min_element() < 0.0
@@ -1090,6 +1100,17 @@ fn check_samples(samples: &[BrdfSample]) -> Result<(), String> {
         }
     }
     Ok(())
+}
+
+/// How many different (light, view) direction pairs the samples hold (directions that agree
+/// to 1e-4 in every component count as one).
+fn distinct_pairs(samples: &[BrdfSample]) -> usize {
+    let key = |v: Vec3| v.to_array().map(|c| (c * 1e4).round() as i64);
+    samples
+        .iter()
+        .map(|s| (key(s.light), key(s.view)))
+        .collect::<std::collections::HashSet<_>>()
+        .len()
 }
 
 /// Residual statistics of a fit: relative and absolute RMS, the residual variance and the

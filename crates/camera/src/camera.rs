@@ -138,7 +138,63 @@ impl Intrinsics {
             [0.0, 0.0, 1.0],
         ]
     }
+
+    /// Checks that the distortion can be a lens over a `width x height` image: at points along
+    /// the lines from the principal point to the corners and edge midpoints (the pixel grid's
+    /// outer points included), some direction distorts to the pixel and it lies within
+    /// [`LENS_STRETCH`] times the pixel's distance from the axis, either way (k1 = 1e6 puts
+    /// a pixel a quarter of the way to a corner of a 128-pixel image 30 times nearer the axis;
+    /// k1 = -1e6 folds the image, its pixels seeing directions across the axis).
+    pub fn check_lens(&self, width: u32, height: u32) -> Result<(), CameraFileError> {
+        if self.dist.is_zero() {
+            return Ok(());
+        }
+        let (w, h) = (width as f64 - 0.5, height as f64 - 0.5);
+        let outer = [
+            (-0.5, -0.5),
+            (w, -0.5),
+            (-0.5, h),
+            (w, h),
+            (w / 2.0, -0.5),
+            (w / 2.0, h),
+            (-0.5, h / 2.0),
+            (w, h / 2.0),
+        ];
+        let centre = DVec2::new(self.cx, self.cy);
+        for (u, v) in outer {
+            for t in [0.25, 0.5, 0.75, 1.0] {
+                let px = centre + (DVec2::new(u, v) - centre) * t;
+                let pd = DVec2::new((px.x - self.cx) / self.fx, (px.y - self.cy) / self.fy);
+                if pd.length() < 1e-9 {
+                    continue;
+                }
+                let bad = |why: String| CameraFileError::Lens {
+                    dist: self.dist.to_array(),
+                    pixel: [px.x, px.y],
+                    why,
+                };
+                let Some(p) = self.dist.undistort(pd) else {
+                    return Err(bad("no direction distorts to it (the model folds back \
+                                    before it)"
+                        .into()));
+                };
+                let stretch = p.length() / pd.length();
+                if !(1.0 / LENS_STRETCH..=LENS_STRETCH).contains(&stretch) {
+                    return Err(bad(format!(
+                        "sees the direction at {stretch:.3e} times its distance from the axis \
+                         (a lens stays within {LENS_STRETCH}x either way)"
+                    )));
+                }
+            }
+        }
+        Ok(())
+    }
 }
+
+/// How far a lens may move a pixel's direction from where the pinhole would put it: its
+/// distance from the optical axis at most this many times larger or smaller
+/// ([`Intrinsics::check_lens`]).
+pub const LENS_STRETCH: f64 = 10.0;
 
 /// World-to-camera rigid transform: `x_cam = r * x_world + t`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -422,6 +478,7 @@ impl Camera {
         let err = |problem| CameraError::camera(path, problem);
         let (width, height) = camera_size(j).map_err(err)?;
         let intrinsics = camera_intrinsics(j).map_err(err)?;
+        intrinsics.check_lens(width, height).map_err(err)?;
         let pose = camera_pose(j).map_err(err)?;
         Ok(Camera {
             width,

@@ -234,6 +234,12 @@ pub enum CameraFileError {
     Focal { fx: f64, fy: f64 },
     #[error("dist must have 5 entries [k1, k2, p1, p2, k3] (or 4), found {0}")]
     DistLength(usize),
+    #[error("dist {dist:?} cannot be a lens: pixel ({:.1}, {:.1}) {why}", pixel[0], pixel[1])]
+    Lens {
+        dist: [f64; 5],
+        pixel: [f64; 2],
+        why: String,
+    },
     #[error("t must have 3 entries, found {0}")]
     TranslationLength(usize),
     #[error(transparent)]

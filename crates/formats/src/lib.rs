@@ -187,6 +187,13 @@ pub enum FormatsError {
         line: usize,
         problem: Box<control::ControlProblem>,
     },
+    /// A row of a point table whose values mean nothing (`point`: its number, from 1).
+    #[error("{}: point {point} {problem}", path.display())]
+    PointValue {
+        path: PathBuf,
+        point: usize,
+        problem: String,
+    },
     /// A table that holds no rows (`what`: of what).
     #[error("{path}: no {what}")]
     NoRows { path: PathBuf, what: &'static str },

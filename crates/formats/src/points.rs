@@ -17,7 +17,8 @@ pub struct AlbedoRow {
     pub stderr: Option<Vec3>,
 }
 
-/// Reads the query points (position, normal) of `igi sample`; refuses a table without rows.
+/// Reads the query points (position, normal) of `igi sample`; refuses a table without rows
+/// and a normal of (nearly) zero length, naming the point.
 pub fn read_points(path: &Path) -> Result<Vec<(Vec3, Vec3)>, FormatsError> {
     let text = std::fs::read_to_string(path).map_err(|source| FormatsError::Read {
         path: path.to_path_buf(),
@@ -31,10 +32,30 @@ pub fn read_points(path: &Path) -> Result<Vec<(Vec3, Vec3)>, FormatsError> {
             what: "points",
         });
     }
-    Ok(rows
+    let points: Vec<(Vec3, Vec3)> = rows
         .iter()
         .map(|r| (Vec3::new(r[0], r[1], r[2]), Vec3::new(r[3], r[4], r[5])))
-        .collect())
+        .collect();
+    // a zero normal gives no side of the surface to look from (it was taken as +z, silently)
+    if let Some(i) = points.iter().position(|(_, n)| !(n.length() > 1e-6)) {
+        let (p, n) = points[i];
+        return Err(FormatsError::PointValue {
+            path: path.to_path_buf(),
+            point: i + 1,
+            problem: format!(
+                "at ({}, {}, {}): normal ({}, {}, {}) has no direction (length {:e}); give the \
+                 surface's normal there",
+                p.x,
+                p.y,
+                p.z,
+                n.x,
+                n.y,
+                n.z,
+                n.length()
+            ),
+        });
+    }
+    Ok(points)
 }
 
 /// The text of `igi sample`'s output table.

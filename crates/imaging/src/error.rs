@@ -130,6 +130,8 @@ pub enum HdrError {
         time: f64,
         previous: f64,
     },
+    #[error("{name}: the same picture as {first} (identical pixels): brackets must be different exposures of the scene")]
+    SameImage { name: String, first: String },
     #[error("noise floor {noise_floor} must be below saturation {saturation}")]
     Levels { noise_floor: f32, saturation: f32 },
     #[error("slope merge range [{lo}, {hi}] is empty")]

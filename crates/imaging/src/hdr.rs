@@ -126,7 +126,29 @@ pub fn validate_brackets(
             }
         }
     }
+    // the same picture at two exposure times: one of the times is wrong, or the same file was
+    // given twice (the merge would read it as a scene whose radiance changed with the time)
+    for i in 1..images.len() {
+        if let Some(j) = (0..i).find(|&j| same_pixels(&images[i], &images[j])) {
+            return Err(HdrError::SameImage {
+                name: name(i),
+                first: name(j),
+            }
+            .into());
+        }
+    }
     Ok(())
+}
+
+/// Whether two images hold the same pixels (values and validity), bit for bit.
+fn same_pixels(a: &HdrImage, b: &HdrImage) -> bool {
+    let bits = |p: &[f32; 3]| p.map(f32::to_bits);
+    (a.width, a.height) == (b.width, b.height)
+        && a.valid == b.valid
+        && a.pixels
+            .iter()
+            .zip(&b.pixels)
+            .all(|(p, q)| bits(p) == bits(q))
 }
 
 /// Range of usable linear sensor values.

@@ -468,7 +468,11 @@ impl PhotoSpec {
             self.check_pixels(&image, " after the radiometry and exposure")?;
         }
         let lighting = match &self.lighting {
-            LightingSource::File(f) => Lighting::load(f)?,
+            LightingSource::File(f) => {
+                let l = Lighting::load(f)?;
+                self.check_sun_can_light(f, &l)?;
+                l
+            }
             LightingSource::Probe {
                 image,
                 camera,
@@ -484,6 +488,43 @@ impl PhotoSpec {
             camera,
             lighting,
         })
+    }
+
+    /// A sun wholly below the horizon (its disk under the ground plane) lights nothing: an
+    /// error naming the lighting file when it is the only light, a warning when a sky still
+    /// lights the site (docs/RELIABILITY.md, issue 36).
+    fn check_sun_can_light(&self, file: &Path, l: &Lighting) -> Result<(), WorkflowError> {
+        let Some(sun) = &l.sun else {
+            return Ok(());
+        };
+        let elevation = sun.direction.z.clamp(-1.0, 1.0).asin();
+        if elevation >= -sun.angular_diameter / 2.0 {
+            return Ok(());
+        }
+        let what = format!(
+            "[sun] direction {:?} stands {:.1} deg below the horizon: the ground hides it, so it \
+             lights nothing at the site",
+            sun.direction.to_array(),
+            -elevation.to_degrees()
+        );
+        match &l.environment {
+            Some(e) if e.is_nonzero() => {
+                tracing::warn!(
+                    "photo `{}`: {}: {what}; only the sky lights it",
+                    self.id,
+                    file.display()
+                );
+                Ok(())
+            }
+            _ => Err(WorkflowError::File {
+                path: file.to_path_buf(),
+                msg: format!(
+                    "{what}, and it is the only light of photo `{}` (a sun above the horizon has \
+                     direction z > 0; or give an [environment] sky)",
+                    self.id
+                ),
+            }),
+        }
     }
 
     /// The photograph's pixels made linear by its transfer (docs/IMAGING.md), before the
