@@ -815,7 +815,25 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("b.png") && e.contains("positive"), "{e}");
-        assert!(validate_brackets(&[a.clone(), a.clone(), a], &[4.0, 2.0, 1.0], &names).is_ok());
+        // the same picture as three brackets (issue 36): refused, naming both files
+        let e = validate_brackets(&[a.clone(), a.clone(), a.clone()], &[4.0, 2.0, 1.0], &names)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("b.png") && e.contains("the same picture as a.png"),
+            "{e}"
+        );
+        let scaled = |k: f32| {
+            let mut im = a.clone();
+            im.pixels.iter_mut().for_each(|p| *p = p.map(|c| c * k + k));
+            im
+        };
+        validate_brackets(
+            &[a.clone(), scaled(0.5), scaled(0.25)],
+            &[4.0, 2.0, 1.0],
+            &names,
+        )
+        .unwrap();
         assert!((parse_time("1/1024").unwrap() - 1.0 / 1024.0).abs() < 1e-15);
         assert!(parse_time("0").is_err() && parse_time("x").is_err() && parse_time("1/0").is_err());
     }
