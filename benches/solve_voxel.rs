@@ -227,8 +227,9 @@ fn run_schedule(
     let ids = photos.iter().map(|p| p.id.clone()).collect();
     // the other voxels keep the true albedo (as if already solved)
     let mut start = SolveResult::fresh(parts.to_vec(), ids, &opts);
-    let n = start.rho.len();
-    start.rho[1..].clone_from_slice(&truth[1..n]);
+    for (p, t) in start.parts.iter_mut().zip(truth).skip(1) {
+        p.rho.clone_from(t);
+    }
     let t = Instant::now();
     let r = igi_reflect::solve_in_memory(start, photos, None, Some(gt), &opts).unwrap();
     let wall = t.elapsed().as_secs_f64();

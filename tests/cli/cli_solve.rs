@@ -222,8 +222,13 @@ fn check_export(tmp: &Path, res: &Path, survey: &Path, img: &igi_imaging::HdrIma
 /// it the nearest covered texel's.
 fn check_sample(tmp: &Path, res: &Path) {
     let result = igi_reflect::SolveResult::load(res).unwrap();
-    let part = result.parts.iter().position(|p| p.name == "wall").unwrap();
+    let part = result
+        .parts
+        .iter()
+        .position(|p| p.name() == "wall")
+        .unwrap();
     let texels: Vec<_> = result.parts[part]
+        .part
         .cache
         .texels
         .iter()
@@ -273,7 +278,7 @@ fn check_sample(tmp: &Path, res: &Path) {
     for (line, t) in text.lines().skip(1).zip(&texels) {
         let v: Vec<Option<f32>> = line.split(',').map(|s| s.parse().ok()).collect();
         assert_eq!(v.len(), 12, "{line}");
-        let se = result.stderr[part][t.index as usize];
+        let se = result.parts[part].stderr[t.index as usize];
         // the standard error of the texel under the point, or empty where unknown
         if se.min_element() >= 0.0 {
             known += 1;
@@ -284,7 +289,7 @@ fn check_sample(tmp: &Path, res: &Path) {
             assert!(v[9..].iter().all(|x| x.is_none()), "{line}");
         }
         let v: Vec<f32> = v[..9].iter().map(|x| x.unwrap()).collect();
-        let want = result.rho[part][t.index as usize];
+        let want = result.parts[part].rho[t.index as usize];
         // bilinear lookup at the texel centre returns the texel itself
         assert!(
             (v[6] - want.x).abs() < 2e-3
@@ -313,11 +318,11 @@ fn points_csv(texels: &[igi_geometry::texels::Texel]) -> String {
 /// (by brute force).
 fn nearest_texel(result: &igi_reflect::SolveResult, off: glam::Vec3) -> (f32, glam::Vec3) {
     let mut nearest = (f32::INFINITY, glam::Vec3::ZERO);
-    for (i, p) in result.parts.iter().enumerate() {
-        for t in &p.cache.texels {
+    for p in &result.parts {
+        for t in &p.part.cache.texels {
             let d = t.position.distance_squared(off);
             if d < nearest.0 {
-                nearest = (d, result.rho[i][t.index as usize]);
+                nearest = (d, p.rho[t.index as usize]);
             }
         }
     }
@@ -503,6 +508,6 @@ fn bad_surveys_fail_clearly_without_output() {
 /// The atlas resolution of part `name` of a result folder.
 fn result_res(res: &std::path::Path, name: &str) -> usize {
     let r = igi_reflect::SolveResult::load(res).unwrap();
-    let i = r.parts.iter().position(|p| p.name == name).unwrap();
+    let i = r.parts.iter().position(|p| p.name() == name).unwrap();
     r.parts[i].resolution()
 }

@@ -152,7 +152,7 @@ fn write_export(
     let mut scene = SceneFile::default();
     let mut shapes = String::new();
     let mut lobe_maps = 0;
-    for (i, p) in res.parts.iter().enumerate() {
+    for (i, p) in res.parts.iter().map(|p| &p.part).enumerate() {
         let (albedo, maps) = part_textures(res, result_dir, i)?;
         write_textures(res, i, &albedo, &maps, out)?;
         let per_texel = maps.len();
@@ -323,18 +323,19 @@ fn parts_gltf<'a>(
     let mut fits = Vec::new();
     let mut extras = Vec::new();
     let mut stderr_png = Vec::new();
-    for (i, p) in res.parts.iter().enumerate() {
+    for (i, pr) in res.parts.iter().enumerate() {
         if !want(i) {
             continue;
         }
+        let p = &pr.part;
         let (albedo, maps) = part_textures(res, result_dir, i)?;
-        let se = stderr_picture(&res.stderr[i], p.resolution());
+        let se = stderr_picture(&pr.stderr, p.resolution());
         stderr_png.push(crate::gltf::albedo_png(&glb_path, &se)?);
         let covered: Vec<usize> = p.cache.texels.iter().map(|t| t.index as usize).collect();
         let mean_rho =
-            covered.iter().map(|&k| res.rho[i][k]).sum::<Vec3>() / covered.len().max(1) as f32;
+            covered.iter().map(|&k| pr.rho[k]).sum::<Vec3>() / covered.len().max(1) as f32;
         let (lobes, mut ex) = if maps.is_empty() {
-            let l = res.lobes[i].clone();
+            let l = pr.lobes.clone();
             let ex = serde_json::json!({ "lobes": crate::gltf::lobes_json(&l) });
             (l, ex)
         } else {
@@ -405,7 +406,7 @@ fn gltf_of(
         .iter()
         .enumerate()
         .map(|(i, p)| crate::gltf::GlbPart {
-            name: &p.name,
+            name: p.name(),
             mesh: &meshes[i],
             albedo: &textures[i].0,
             fit: fits[i].2,
@@ -506,13 +507,13 @@ fn part_textures(
     let r = p.resolution();
     let mut tex = HdrImage::new(r, r);
     for (k, px) in tex.pixels.iter_mut().enumerate() {
-        *px = res.rho[i][k].to_array();
+        *px = p.rho[k].to_array();
     }
     let mut maps = Vec::new();
     // the lobe maps the result wrote (a loaded result does not keep its basis)
     let mut k = 0;
     loop {
-        let name = |suffix: &str| format!("{}_lobe{k}_{suffix}.exr", p.name);
+        let name = |suffix: &str| format!("{}_lobe{k}_{suffix}.exr", p.name());
         let src = result_dir.join("parts");
         if !src.join(name("rho")).is_file() {
             break;
@@ -545,13 +546,13 @@ fn write_textures(
     maps: &[(HdrImage, HdrImage)],
     out: &Path,
 ) -> Result<(), ExportError> {
-    let p = &res.parts[i];
+    let p = &res.parts[i].part;
     write_exr(&out.join(format!("{}_albedo.exr", p.name)), albedo)?;
     igi_imaging::write_png_tonemapped(&out.join(format!("{}_albedo.png", p.name)), albedo, 1.0)?;
     let se_png = out.join(format!("{}_stderr.png", p.name));
     igi_imaging::write_png_tonemapped(
         &se_png,
-        &stderr_picture(&res.stderr[i], p.resolution()),
+        &stderr_picture(&res.parts[i].stderr, p.resolution()),
         1.0,
     )?;
     for (k, (rho, shape)) in maps.iter().enumerate() {

@@ -4,7 +4,6 @@
 use crate::ExportError;
 use glam::Vec3;
 use igi_formats::points::AlbedoRow;
-use igi_geometry::TriMesh;
 use igi_reflect::{SolveResult, UNKNOWN_STDERR};
 use std::path::Path;
 
@@ -23,33 +22,6 @@ fn stderr_at(stderr: &[Vec3], r: usize, uv: glam::Vec2) -> Vec3 {
     stderr[igi_geometry::texels::texel_at(uv, r, r)]
 }
 
-/// The result's parts as a render scene textured with their recovered albedo (no lobes).
-fn albedo_scene(res: &SolveResult) -> Result<igi_render::Scene, ExportError> {
-    let objects: Vec<(String, TriMesh, igi_render::Material)> = res
-        .parts
-        .iter()
-        .enumerate()
-        .map(|(i, p)| {
-            let r = p.resolution();
-            let tex = igi_render::Texture {
-                width: r,
-                height: r,
-                texels: res.rho[i].clone(),
-            };
-            Ok((
-                p.name.clone(),
-                p.full_mesh()?.into_owned(),
-                igi_render::Material {
-                    lobe_map: None,
-                    albedo: igi_render::Albedo::Texture(tex),
-                    lobes: Vec::new(),
-                },
-            ))
-        })
-        .collect::<Result<_, ExportError>>()?;
-    Ok(igi_render::Scene::new(objects)?)
-}
-
 /// The recovered diffuse albedo (and its standard error) of the surface nearest each query
 /// point: a short ray along the point's normal (both ways) finds the surface; when it misses,
 /// the nearest covered texel.
@@ -58,12 +30,12 @@ pub fn sample_albedo(
     points: &[(Vec3, Vec3)],
 ) -> Result<Vec<AlbedoSample>, ExportError> {
     let res = SolveResult::load(result_dir)?;
-    let scene = albedo_scene(&res)?;
+    let scene = res.albedo_scene()?;
     // how far off the surface a query point may lie: half the finest texel, 1 mm to 5 cm
     let reach = (res
         .parts
         .iter()
-        .map(|p| p.texel_size as f32)
+        .map(|p| p.part.texel_size as f32)
         .fold(f32::INFINITY, f32::min)
         * 0.5)
         .clamp(1e-3, 0.05);
@@ -71,7 +43,7 @@ pub fn sample_albedo(
     let far = res
         .parts
         .iter()
-        .map(|p| 20.0 * p.texel_size as f32)
+        .map(|p| 20.0 * p.part.texel_size as f32)
         .fold(0.5f32, f32::max);
     let texels = std::sync::OnceLock::new();
     points
@@ -83,7 +55,7 @@ pub fn sample_albedo(
                 let o = sp.object as usize;
                 return Ok(AlbedoSample {
                     rho: scene.objects[o].material.brdf_at(sp.uv).rho_d,
-                    stderr: stderr_at(&res.stderr[o], res.parts[o].resolution(), sp.uv),
+                    stderr: stderr_at(&res.parts[o].stderr, res.parts[o].resolution(), sp.uv),
                 });
             }
             // the nearest covered texel (the index is built at the first miss)
@@ -117,7 +89,7 @@ impl TexelIndex {
         let mut points = Vec::new();
         let mut items = Vec::new();
         for (i, part) in res.parts.iter().enumerate() {
-            for t in &part.cache.texels {
+            for t in &part.part.cache.texels {
                 points.push(t.position.to_array());
                 items.push((i, t.index as usize));
             }
@@ -138,7 +110,7 @@ impl TexelIndex {
             .tree
             .nearest_one::<kiddo::SquaredEuclidean>(&p.to_array());
         let (i, k) = self.items[hit.item as usize];
-        (hit.distance, res.rho[i][k], res.stderr[i][k])
+        (hit.distance, res.parts[i].rho[k], res.parts[i].stderr[k])
     }
 }
 

@@ -21,7 +21,7 @@ use crate::fill::dilate;
 use crate::parts::{build_parts_with, Part};
 use crate::result::SolveResult;
 use crate::solver::{solve, Progress};
-use crate::truth::{albedo_at_texels, scene_with_albedo, Truth};
+use crate::truth::{albedo_at_texels, Truth};
 use crate::{ReflectError, SolveOptions};
 use igi_brdf::Basis;
 use std::collections::HashMap;
@@ -40,7 +40,11 @@ const MIN_COARSE_RESOLUTION: u32 = 16;
 /// side), or `None` when they would not have at most a quarter of the fine atlases' covered
 /// texels (no gain), or when the solve has fewer than two iterations or any part is a prepared
 /// site's (whose atlases are its own).
-pub fn coarse_parts(fine: &[Part], opts: &SolveOptions) -> Result<Option<Vec<Part>>, ReflectError> {
+pub fn coarse_parts(
+    fine: &[impl AsRef<Part>],
+    opts: &SolveOptions,
+) -> Result<Option<Vec<Part>>, ReflectError> {
+    let fine: Vec<&Part> = fine.iter().map(AsRef::as_ref).collect();
     if opts.max_iterations < 2 || fine.is_empty() || fine.iter().any(|p| p.stored.is_some()) {
         return Ok(None);
     }
@@ -64,8 +68,9 @@ pub fn coarse_parts(fine: &[Part], opts: &SolveOptions) -> Result<Option<Vec<Par
             max: r,
         })
     })?;
-    let count = |ps: &[Part]| ps.iter().map(|p| p.cache.texels.len()).sum::<usize>() as f64;
-    Ok((count(&coarse) <= MAX_COARSE_SHARE * count(fine)).then_some(coarse))
+    let count = |ps: &[&Part]| ps.iter().map(|p| p.cache.texels.len()).sum::<usize>() as f64;
+    let coarse_refs: Vec<&Part> = coarse.iter().collect();
+    Ok((count(&coarse_refs) <= MAX_COARSE_SHARE * count(&fine)).then_some(coarse))
 }
 
 /// What the coarse stage reads besides its parts.
@@ -108,36 +113,37 @@ pub fn solve_coarse_first(
 /// texels and dilated into its gutters, and `coarse`'s iteration records (marked coarse) and
 /// convergence.
 pub fn refine(coarse: &SolveResult, mut fine: SolveResult) -> Result<SolveResult, ReflectError> {
-    let scene = scene_with_albedo(&coarse.parts, &coarse.rho)?;
-    for (pi, p) in fine.parts.iter().enumerate() {
+    let scene = coarse.albedo_scene()?;
+    for pr in &mut fine.parts {
+        let p = &pr.part;
         let r = p.resolution();
         let mut known = vec![false; r * r];
         let values = albedo_at_texels(p, &scene);
         for (t, v) in p.cache.texels.iter().zip(values) {
             if let Some(v) = v.filter(|v| v.is_finite()) {
-                fine.rho[pi][t.index as usize] = v;
+                pr.rho[t.index as usize] = v;
                 known[t.index as usize] = true;
             }
         }
         let gutter: Vec<bool> = p.coverage.pixels.iter().map(|c| c[0] > 0.0).collect();
-        dilate(&mut fine.rho[pi], &mut known, &gutter, r, 4);
+        dilate(&mut pr.rho, &mut known, &gutter, r, 4);
     }
     fine.report.iterations = coarse.report.iterations.clone();
     for r in &mut fine.report.iterations {
         r.coarse = true;
     }
     fine.report.converged = coarse.report.converged;
-    fine.changed.iter_mut().for_each(|c| *c = true);
+    fine.set_changed(true);
     Ok(fine)
 }
 
-/// The mean albedo over the covered texels of `parts` in `rho` (a check of [`refine`]).
+/// The mean albedo over the covered texels of `parts` (a check of [`refine`]).
 #[cfg(test)]
-fn mean_albedo(parts: &[Part], rho: &[Vec<glam::Vec3>]) -> glam::Vec3 {
+fn mean_albedo(parts: &[crate::result::PartResult]) -> glam::Vec3 {
     let (mut sum, mut n) = (glam::Vec3::ZERO, 0usize);
-    for (p, r) in parts.iter().zip(rho) {
-        for t in &p.cache.texels {
-            sum += r[t.index as usize];
+    for p in parts {
+        for t in &p.part.cache.texels {
+            sum += p.rho[t.index as usize];
             n += 1;
         }
     }
@@ -184,7 +190,7 @@ mod tests {
         let coarse = coarse_parts(&fine, &opts).unwrap().unwrap();
         let f = |p: Vec3| Vec3::new(0.3 + 0.1 * p.x, 0.5, 0.2 + 0.05 * p.y);
         let mut c = SolveResult::fresh(coarse, vec!["a".into()], &opts);
-        c.rho[0] = crate::truth::truth_atlas(&c.parts[0], f);
+        c.parts[0].rho = crate::truth::truth_atlas(&c.parts[0].part, f);
         c.report.iterations.push(crate::record::IterationRecord {
             iteration: 1,
             spp: 16,
@@ -208,15 +214,15 @@ mod tests {
         let fresh = SolveResult::fresh(fine, vec!["a".into()], &opts);
         let r = refine(&c, fresh).unwrap();
         let mut worst = 0.0f32;
-        for t in &r.parts[0].cache.texels {
-            let e = (r.rho[0][t.index as usize] - f(t.position))
+        for t in &r.parts[0].part.cache.texels {
+            let e = (r.parts[0].rho[t.index as usize] - f(t.position))
                 .abs()
                 .max_element();
             worst = worst.max(e);
         }
         // texels within half a coarse texel of the square's edge read the dilated border
         assert!(worst < 0.01, "largest error {worst}");
-        let m = mean_albedo(&r.parts, &r.rho);
+        let m = mean_albedo(&r.parts);
         assert!(
             (m - Vec3::new(0.3, 0.5, 0.2)).abs().max_element() < 2e-3,
             "{m}"

@@ -28,6 +28,7 @@
 use crate::parts::Part;
 use crate::photo::Photo;
 use crate::record::Obs;
+use crate::result::{Albedos, PartResult};
 use glam::{Vec2, Vec3};
 use igi_imaging::HdrImage;
 use igi_render::{Scene, Texture};
@@ -43,8 +44,9 @@ pub(crate) struct Footprint<'a> {
     /// Part index of each scene object (`None`: an object whose UVs are not a solved atlas).
     pub object_part: &'a [Option<usize>],
     pub photos: &'a [Photo],
-    pub parts: &'a [Part],
-    pub rho: &'a [Vec<Vec3>],
+    pub parts: &'a [PartResult],
+    /// The albedo atlases the scene shows.
+    pub albedo: Albedos<'a>,
 }
 
 /// One ray's hit of a traced pixel: part and UV, or `None` (missed, or an unmapped object).
@@ -177,7 +179,7 @@ impl Footprint<'_> {
         let mut atlases: Vec<Option<RadianceAtlas>> = self.parts.iter().map(|_| None).collect();
         for o in obs.iter().filter(|o| o.photo as usize == j) {
             let (pi, i) = (o.part as usize, o.atlas as usize);
-            let a = atlases[pi].get_or_insert_with(|| RadianceAtlas::new(&self.parts[pi]));
+            let a = atlases[pi].get_or_insert_with(|| RadianceAtlas::new(&self.parts[pi].part));
             a.values[i] = o.shading * rho[pi][i];
             a.shading[i] = igi_brdf::luminance(o.shading);
             a.known[i] = true;
@@ -185,7 +187,7 @@ impl Footprint<'_> {
         self.parts
             .iter()
             .zip(atlases)
-            .map(|(p, a)| a.map(|a| a.grown(p)))
+            .map(|(p, a)| a.map(|a| a.grown(&p.part)))
             .collect()
     }
 
@@ -193,20 +195,20 @@ impl Footprint<'_> {
     /// albedo atlases (texels without proposals keep theirs), for the parts the observations
     /// fall on (empty for the others).
     fn mean_albedo(&self, obs: &[Obs], proposals: &[Vec3]) -> Vec<Vec<Vec3>> {
-        let mut sum: Vec<Vec<(Vec3, f32)>> = self.rho.iter().map(|_| Vec::new()).collect();
+        let mut sum: Vec<Vec<(Vec3, f32)>> = self.parts.iter().map(|_| Vec::new()).collect();
         for (o, p) in obs.iter().zip(proposals) {
             let part = &mut sum[o.part as usize];
             if part.is_empty() {
-                *part = vec![(Vec3::ZERO, 0.0); self.rho[o.part as usize].len()];
+                *part = vec![(Vec3::ZERO, 0.0); self.albedo.rho(o.part as usize).len()];
             }
             let s = &mut part[o.atlas as usize];
             s.0 += *p * o.weight;
             s.1 += o.weight;
         }
-        self.rho
-            .iter()
-            .zip(sum)
-            .map(|(r, s)| {
+        sum.into_iter()
+            .enumerate()
+            .map(|(i, s)| {
+                let r = self.albedo.rho(i);
                 s.into_iter()
                     .zip(r)
                     .map(|((v, w), old)| if w > 0.0 { v / w } else { *old })
@@ -397,13 +399,17 @@ mod tests {
             camera,
             lighting,
         }];
-        let rho0: Vec<Vec<Vec3>> = vec![vec![Vec3::splat(0.5); truth[0].len()]];
+        let opts = crate::record::SolveOptions {
+            initial_albedo: [0.5; 3],
+            ..Default::default()
+        };
+        let state = crate::result::SolveResult::fresh(parts.clone(), vec![], &opts);
         let footprint = Footprint {
             scene: &scene,
             object_part: &[Some(0)],
             photos: &photos,
-            parts: &parts,
-            rho: &rho0,
+            parts: &state.parts,
+            albedo: Albedos::Current(&state.parts),
         };
         let errors: Vec<f32> = [0, 1, 4]
             .iter()

@@ -25,7 +25,6 @@ use crate::solver::{
 use crate::ReflectError;
 use glam::Vec3;
 use igi_files::run::ProcessUsage;
-use igi_imaging::{write_exr, HdrImage};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -120,7 +119,7 @@ impl Checkpoint {
     ) -> Result<Checkpoint, ReflectError> {
         let c = Self::load_solving(result, inputs, opts, &|name| name == group)?;
         let g = c.plan.group(group)?;
-        if g.parts.iter().all(|&i| !c.state.weight_sum[i].is_empty()) {
+        if g.parts.iter().all(|&i| c.state.parts[i].has_statistics()) {
             return Ok(c);
         }
         Self::load(result, inputs, opts)
@@ -227,65 +226,36 @@ fn write_task(
 ) -> Result<(), ReflectError> {
     std::fs::create_dir_all(dir).map_err(|e| ReflectError::io(dir, "create folder", e))?;
     for &i in parts {
-        write_atlases(state, i, dir)?;
+        state.parts[i].write_atlases(dir)?;
         done.parts.push(state.report.parts[i].clone());
     }
     let json = serde_json::to_string_pretty(&done).expect("task report serialises");
     Ok(igi_files::write_text_atomic(&dir.join("done.json"), &json)?)
 }
 
-/// Writes part `i`'s albedo, weight, observation and standard-error atlases into `dir`.
-fn write_atlases(state: &SolveResult, i: usize, dir: &Path) -> Result<(), ReflectError> {
-    let r = state.parts[i].resolution();
-    let name = &state.parts[i].name;
-    let img = |f: &dyn Fn(usize) -> [f32; 3]| {
-        let mut im = HdrImage::new(r, r);
-        for (k, px) in im.pixels.iter_mut().enumerate() {
-            *px = f(k);
-        }
-        im
-    };
-    write_exr(
-        &dir.join(format!("{name}_rho_d.exr")),
-        &img(&|k| state.rho[i][k].to_array()),
-    )?;
-    write_exr(
-        &dir.join(format!("{name}_weight.exr")),
-        &img(&|k| [state.weight_sum[i][k]; 3]),
-    )?;
-    write_exr(
-        &dir.join(format!("{name}_observations.exr")),
-        &img(&|k| [state.observations[i][k] as f32; 3]),
-    )?;
-    write_exr(
-        &dir.join(format!("{name}_stderr.exr")),
-        &img(&|k| state.stderr[i][k].to_array()),
-    )?;
-    Ok(())
-}
-
 /// Reads part `i`'s atlases from a task folder into the state.
 fn read_atlases(state: &mut SolveResult, i: usize, dir: &Path) -> Result<(), ReflectError> {
-    let r = state.parts[i].resolution();
-    let name = state.parts[i].name.clone();
+    let p = &mut state.parts[i];
+    let r = p.resolution();
+    let name = p.name().to_string();
     let read = |what: &str| crate::result::read_atlas(dir, &name, what, r);
-    state.rho[i] = read("rho_d")?
+    p.rho = read("rho_d")?
         .pixels
         .iter()
         .map(|p| Vec3::from_array(*p))
         .collect();
-    state.weight_sum[i] = read("weight")?.pixels.iter().map(|p| p[0]).collect();
-    state.observations[i] = read("observations")?
+    p.weight_sum = read("weight")?.pixels.iter().map(|px| px[0]).collect();
+    p.observations = read("observations")?
         .pixels
         .iter()
-        .map(|p| p[0] as u32)
+        .map(|px| px[0] as u32)
         .collect();
-    let p = dir.join(format!("{name}_stderr.exr"));
-    if !p.exists() {
-        return Err(ReflectError::file(&p, "missing (a task writes it)"));
+    let se = dir.join(format!("{name}_stderr.exr"));
+    if !se.exists() {
+        return Err(ReflectError::file(&se, "missing (a task writes it)"));
     }
-    state.stderr[i] = crate::result::read_stderr(dir, &name, r)?;
-    state.changed[i] = true;
+    p.stderr = crate::result::read_stderr(dir, &name, r)?;
+    p.changed = true;
     Ok(())
 }
 
@@ -330,7 +300,8 @@ pub fn merge(
         for (&i, summary) in g.parts.iter().zip(&done.parts) {
             read_atlases(&mut state, i, dir)?;
             state.report.parts[i] = summary.clone();
-            state.lobes[i] = part_lobes(&state.parts[i], &state.rho[i], inputs.basis);
+            let p = &mut state.parts[i];
+            p.lobes = part_lobes(&p.part, &p.rho, inputs.basis);
         }
         acc.add(&done.sums);
         acc.done.push(done.group.clone());

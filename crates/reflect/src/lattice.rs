@@ -36,10 +36,14 @@ pub(crate) struct Corner {
 impl Lattice {
     /// The lattice of spacing `step` over the group's texels, given as (part, texel) in group
     /// order.
-    pub fn new(parts: &[Part], texels: impl Iterator<Item = (u32, u32)>, step: u32) -> Lattice {
+    pub fn new(
+        parts: &[impl AsRef<Part>],
+        texels: impl Iterator<Item = (u32, u32)>,
+        step: u32,
+    ) -> Lattice {
         let mut number: Vec<Vec<u32>> = parts.iter().map(|_| Vec::new()).collect();
         for (gi, (part, texel)) in texels.enumerate() {
-            let p = &parts[part as usize];
+            let p = parts[part as usize].as_ref();
             let map = &mut number[part as usize];
             if map.is_empty() {
                 *map = vec![u32::MAX; p.resolution() * p.resolution()];
@@ -53,16 +57,21 @@ impl Lattice {
     }
 
     /// Whether the texel is traced: on the lattice (every texel when the step is 1).
-    pub fn traced(&self, parts: &[Part], part: u32, texel: u32) -> bool {
+    pub fn traced(&self, parts: &[impl AsRef<Part>], part: u32, texel: u32) -> bool {
         let (x, y) = self.xy(parts, part, texel);
         x % self.step == 0 && y % self.step == 0
     }
 
     /// The lattice corners around a texel off the lattice, with their weights (only those
     /// with a positive weight), or `None` when one of them is not a texel of the group.
-    pub fn corners(&self, parts: &[Part], part: u32, texel: u32) -> Option<Vec<Corner>> {
+    pub fn corners(
+        &self,
+        parts: &[impl AsRef<Part>],
+        part: u32,
+        texel: u32,
+    ) -> Option<Vec<Corner>> {
         let (x, y) = self.xy(parts, part, texel);
-        let r = parts[part as usize].resolution() as i64;
+        let r = parts[part as usize].as_ref().resolution() as i64;
         let (x0, y0) = (x - x % self.step, y - y % self.step);
         let (fx, fy) = (
             (x - x0) as f32 / self.step as f32,
@@ -92,8 +101,8 @@ impl Lattice {
         Some(out)
     }
 
-    fn xy(&self, parts: &[Part], part: u32, texel: u32) -> (i64, i64) {
-        let p = &parts[part as usize];
+    fn xy(&self, parts: &[impl AsRef<Part>], part: u32, texel: u32) -> (i64, i64) {
+        let p = parts[part as usize].as_ref();
         let r = p.resolution() as i64;
         let i = p.cache.texels[texel as usize].index as i64;
         (i % r, i / r)

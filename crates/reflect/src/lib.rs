@@ -50,7 +50,7 @@ pub mod weights;
 pub use error::ReflectError;
 pub use parts::{Part, TexelCache};
 pub use photo::Photo;
-pub use result::{load_result_scene, SolveResult, UNKNOWN_STDERR};
+pub use result::{load_result_scene, PartResult, SolveResult, UNKNOWN_STDERR};
 pub use solver::{
     solve, solve_in_memory, IterationRecord, Progress, Schedule, SolveOptions, SolveReport,
 };

@@ -78,6 +78,12 @@ impl Part {
     }
 }
 
+impl AsRef<Part> for Part {
+    fn as_ref(&self) -> &Part {
+        self
+    }
+}
+
 /// The name of a stored part: `I_J_K` for a voxel, `terrain` for the terrain.
 pub fn stored_part_name(voxel: Option<VoxelId>) -> String {
     match voxel {

@@ -1,5 +1,7 @@
-//! The result folder of a solve: writing it, resuming from it, re-lighting it (export and
-//! sampling read it in `igi-export`).
+//! The result of a solve, in memory and as a folder: writing it, resuming from it, re-lighting
+//! it (export and sampling read it in `igi-export`). In memory a [`SolveResult`] holds one
+//! [`PartResult`] per part (its geometry, albedo atlas, weights, observation counts, standard
+//! errors, lobes and whether it changed since the last checkpoint), the report and the basis.
 //!
 //! ```text
 //! RESULT_DIR/
@@ -49,60 +51,153 @@ pub const STAGED: &str = "staged";
 /// from before `NAME_stderr.exr`): negative, never NaN.
 pub const UNKNOWN_STDERR: Vec3 = Vec3::splat(-1.0);
 
-/// The state and result of a solve.
+/// The state and result of a solve: one [`PartResult`] per part, the report, and the basis the
+/// lobes are inferred with.
 pub struct SolveResult {
-    pub parts: Vec<Part>,
-    /// Per part, per atlas texel (`row * res + column`): the diffuse albedo.
-    pub rho: Vec<Vec<Vec3>>,
-    pub weight_sum: Vec<Vec<f32>>,
-    pub observations: Vec<Vec<u32>>,
-    /// Per part, per atlas texel: the standard error of `rho` per channel, or
-    /// [`UNKNOWN_STDERR`] (docs/SOLVER.md derives it from the spread of the weighted proposals
-    /// and the Monte-Carlo noise of the rendered radiance).
-    pub stderr: Vec<Vec<Vec3>>,
-    /// Lobes per part (empty without a BRDF basis).
-    pub lobes: Vec<Vec<Lobe>>,
+    pub parts: Vec<PartResult>,
     pub report: SolveReport,
-    /// Parts whose albedo changed since the last [`write_state`](Self::write_state) (only
-    /// those are rewritten; all after [`fresh`](Self::fresh), none after [`load`](Self::load)).
-    pub changed: Vec<bool>,
     /// The BRDF basis the solve infers lobes with (set by `solve`); with it, `write_state`
     /// writes per-texel lobe maps inferred from each texel's albedo.
     pub basis: Option<igi_brdf::Basis>,
+}
+
+/// One part of a solve: its geometry and atlas, and what the solve knows of each texel (atlas
+/// index `row * res + column`).
+pub struct PartResult {
+    pub part: Part,
+    /// The diffuse albedo per texel.
+    pub rho: Vec<Vec3>,
+    /// The sum of the observation weights per texel (empty in a part loaded without its
+    /// statistics: a cluster task loads only its own parts' statistics).
+    pub weight_sum: Vec<f32>,
+    /// The number of photographs that contributed per texel (empty as `weight_sum` is).
+    pub observations: Vec<u32>,
+    /// The standard error of `rho` per texel and channel, or [`UNKNOWN_STDERR`] (docs/SOLVER.md
+    /// derives it from the spread of the weighted proposals and the Monte-Carlo noise of the
+    /// rendered radiance; empty as `weight_sum` is).
+    pub stderr: Vec<Vec3>,
+    /// The part's lobes (empty without a BRDF basis).
+    pub lobes: Vec<Lobe>,
+    /// Whether the albedo changed since the last [`write_state`](SolveResult::write_state)
+    /// (only changed parts are rewritten; all after [`fresh`](SolveResult::fresh), none after
+    /// [`load`](SolveResult::load)).
+    pub changed: bool,
+}
+
+impl PartResult {
+    /// A part not solved yet: every texel at `albedo`, unseen, with an unknown standard error.
+    pub fn fresh(part: Part, albedo: Vec3) -> PartResult {
+        let n = part.resolution() * part.resolution();
+        PartResult {
+            part,
+            rho: vec![albedo; n],
+            weight_sum: vec![0.0; n],
+            observations: vec![0; n],
+            stderr: vec![UNKNOWN_STDERR; n],
+            lobes: Vec::new(),
+            changed: true,
+        }
+    }
+
+    /// The part's name.
+    pub fn name(&self) -> &str {
+        &self.part.name
+    }
+
+    /// The part's atlas resolution (texels per side).
+    pub fn resolution(&self) -> usize {
+        self.part.resolution()
+    }
+
+    /// Whether the part holds its weights, observation counts and standard errors (a cluster
+    /// task loads the other parts without them).
+    pub fn has_statistics(&self) -> bool {
+        self.weight_sum.len() == self.rho.len()
+    }
+
+    /// Writes the part's albedo, weight, observation and standard-error atlases into `dir`
+    /// (`NAME_rho_d.exr`, `NAME_weight.exr`, `NAME_observations.exr`, `NAME_stderr.exr`).
+    pub(crate) fn write_atlases(&self, dir: &Path) -> Result<(), ReflectError> {
+        let name = self.name();
+        assert!(
+            self.has_statistics(),
+            "part {name}: loaded without its statistics (load_solving), it cannot be written"
+        );
+        let r = self.resolution();
+        let img = |f: &dyn Fn(usize) -> [f32; 3]| {
+            let mut im = HdrImage::new(r, r);
+            for (k, px) in im.pixels.iter_mut().enumerate() {
+                *px = f(k);
+            }
+            im
+        };
+        let rho = img(&|k| self.rho[k].to_array());
+        write_exr(&dir.join(format!("{name}_rho_d.exr")), &rho)?;
+        let weight = img(&|k| [self.weight_sum[k]; 3]);
+        write_exr(&dir.join(format!("{name}_weight.exr")), &weight)?;
+        let counts = img(&|k| [self.observations[k] as f32; 3]);
+        write_exr(&dir.join(format!("{name}_observations.exr")), &counts)?;
+        let stderr = img(&|k| self.stderr[k].to_array());
+        write_exr(&dir.join(format!("{name}_stderr.exr")), &stderr)?;
+        Ok(())
+    }
+}
+
+impl AsRef<Part> for PartResult {
+    fn as_ref(&self) -> &Part {
+        &self.part
+    }
+}
+
+/// Every part's albedo atlas and lobes at the start of a Jacobi iteration.
+pub(crate) type Snapshot = Vec<(Vec<Vec3>, Vec<Lobe>)>;
+
+/// The albedo atlases and lobes a group's scene shows: those of a [`Snapshot`], or the
+/// current ones.
+#[derive(Clone, Copy)]
+pub(crate) enum Albedos<'a> {
+    Snapshot(&'a Snapshot),
+    Current(&'a [PartResult]),
+}
+
+impl Albedos<'_> {
+    /// The albedo atlas of part `i`.
+    pub(crate) fn rho(&self, i: usize) -> &[Vec3] {
+        match self {
+            Albedos::Snapshot(s) => &s[i].0,
+            Albedos::Current(p) => &p[i].rho,
+        }
+    }
+
+    /// The lobes of part `i`.
+    pub(crate) fn lobes(&self, i: usize) -> &[Lobe] {
+        match self {
+            Albedos::Snapshot(s) => &s[i].1,
+            Albedos::Current(p) => &p[i].lobes,
+        }
+    }
+
+    /// Every part's albedo atlas and lobes, copied (the snapshot of a Jacobi iteration).
+    pub(crate) fn snapshot(parts: &[PartResult]) -> Snapshot {
+        parts
+            .iter()
+            .map(|p| (p.rho.clone(), p.lobes.clone()))
+            .collect()
+    }
 }
 
 impl SolveResult {
     /// A fresh state: every texel at the initial albedo.
     pub fn fresh(parts: Vec<Part>, photo_ids: Vec<String>, opts: &SolveOptions) -> SolveResult {
         let init = Vec3::from_array(opts.initial_albedo);
-        let rho = parts
-            .iter()
-            .map(|p| vec![init; p.resolution() * p.resolution()])
-            .collect();
-        let weight_sum = parts
-            .iter()
-            .map(|p| vec![0.0; p.resolution() * p.resolution()])
-            .collect();
-        let observations = parts
-            .iter()
-            .map(|p| vec![0; p.resolution() * p.resolution()])
-            .collect();
-        let stderr = parts
-            .iter()
-            .map(|p| vec![UNKNOWN_STDERR; p.resolution() * p.resolution()])
-            .collect();
-        let lobes = parts.iter().map(|_| Vec::new()).collect();
-        let changed = vec![true; parts.len()];
         let site = parts
             .iter()
             .find_map(|p| p.stored.as_ref().map(|s| s.site.clone()));
         SolveResult {
-            parts,
-            rho,
-            weight_sum,
-            observations,
-            stderr,
-            lobes,
+            parts: parts
+                .into_iter()
+                .map(|p| PartResult::fresh(p, init))
+                .collect(),
             report: SolveReport {
                 options: opts.clone(),
                 photos: photo_ids,
@@ -113,16 +208,25 @@ impl SolveResult {
                 pending: None,
                 lighting: None,
             },
-            changed,
             basis: None,
         }
+    }
+
+    /// Marks every part changed (`true`: the next checkpoint rewrites them all) or unchanged.
+    pub fn set_changed(&mut self, changed: bool) {
+        self.parts.iter_mut().for_each(|p| p.changed = changed);
+    }
+
+    /// The scene of the parts with their current albedo atlases (and no lobes).
+    pub fn albedo_scene(&self) -> Result<igi_render::Scene, ReflectError> {
+        scene_of_atlases(self.parts.iter().map(|p| (&p.part, p.rho.as_slice())))
     }
 
     /// Writes the parts' geometry and texel caches (once, at the start of a solve).
     pub fn write_geometry(&self, dir: &Path) -> Result<(), ReflectError> {
         let pdir = dir.join("parts");
         std::fs::create_dir_all(&pdir).map_err(|e| ReflectError::io(&pdir, "create folder", e))?;
-        for p in &self.parts {
+        for p in self.parts.iter().map(|p| &p.part) {
             if p.stored.is_none() {
                 write_ply(&pdir.join(format!("{}.ply", p.name)), &p.mesh)?;
             }
@@ -158,46 +262,17 @@ impl SolveResult {
     /// `report.json` into the staging folder `sdir`.
     fn stage(&self, sdir: &Path) -> Result<(), ReflectError> {
         let pdir = sdir.join("parts");
-        let store = match self.parts.iter().find_map(|p| p.stored.as_ref()) {
+        let store = match self.parts.iter().find_map(|p| p.part.stored.as_ref()) {
             Some(s) => Some(igi_geometry::SiteStore::open(&s.site)?),
             None => None,
         };
         let mut scene = SceneFile::default();
-        for (i, p) in self.parts.iter().enumerate() {
-            let r = p.resolution();
-            let img = |f: &dyn Fn(usize) -> [f32; 3]| {
-                let mut im = HdrImage::new(r, r);
-                for (k, px) in im.pixels.iter_mut().enumerate() {
-                    *px = f(k);
-                }
-                im
-            };
-            if self.changed.get(i).copied().unwrap_or(true) {
-                assert_eq!(
-                    self.weight_sum[i].len(),
-                    r * r,
-                    "part {}: loaded without its statistics (load_solving), it cannot be written",
-                    p.name
-                );
-                write_exr(
-                    &pdir.join(format!("{}_rho_d.exr", p.name)),
-                    &img(&|k| self.rho[i][k].to_array()),
-                )?;
-                write_exr(
-                    &pdir.join(format!("{}_weight.exr", p.name)),
-                    &img(&|k| [self.weight_sum[i][k]; 3]),
-                )?;
-                write_exr(
-                    &pdir.join(format!("{}_observations.exr", p.name)),
-                    &img(&|k| [self.observations[i][k] as f32; 3]),
-                )?;
-                write_exr(
-                    &pdir.join(format!("{}_stderr.exr", p.name)),
-                    &img(&|k| self.stderr[i][k].to_array()),
-                )?;
-                if !self.lobes[i].is_empty() {
-                    let json =
-                        serde_json::to_string_pretty(&self.lobes[i]).expect("lobes serialise");
+        for (i, pr) in self.parts.iter().enumerate() {
+            let p = &pr.part;
+            if pr.changed {
+                pr.write_atlases(&pdir)?;
+                if !pr.lobes.is_empty() {
+                    let json = serde_json::to_string_pretty(&pr.lobes).expect("lobes serialise");
                     write_text(&pdir.join(format!("{}_lobes.json", p.name)), &json)?;
                 }
                 if let Some(map) = self.lobe_map(i) {
@@ -304,52 +379,29 @@ impl SolveResult {
         let report: SolveReport =
             serde_json::from_str(&text).map_err(|e| ReflectError::json(&rp, "solve report", e))?;
         let pdir = dir.join("parts");
-        let mut parts = Vec::new();
-        let (mut rho, mut weight_sum, mut observations, mut stderr, mut lobes) =
-            (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
-        for s in &report.parts {
-            let p = StoredPart::read(&pdir, s, solving(&s.name))?;
-            rho.push(p.rho);
-            weight_sum.push(p.weight_sum);
-            observations.push(p.observations);
-            stderr.push(p.stderr);
-            lobes.push(p.lobes);
-            parts.push(p.part);
-        }
-        let changed = vec![false; parts.len()];
+        let parts = report
+            .parts
+            .iter()
+            .map(|s| PartResult::read(&pdir, s, solving(&s.name)))
+            .collect::<Result<_, _>>()?;
         Ok(SolveResult {
             parts,
-            rho,
-            weight_sum,
-            observations,
-            stderr,
-            lobes,
             report,
-            changed,
             basis: None,
         })
     }
 }
 
-/// One part of a result folder as read back from `parts/`.
-struct StoredPart {
-    part: Part,
-    rho: Vec<Vec3>,
-    weight_sum: Vec<f32>,
-    observations: Vec<u32>,
-    stderr: Vec<Vec3>,
-    lobes: Vec<Lobe>,
-}
-
-impl StoredPart {
+impl PartResult {
     /// Reads the part `s` of the report from the result's `parts/` folder `pdir`: its geometry
     /// ([`read_part`]), albedo, lobes and, when `solving`, its weight, observation and
     /// standard-error atlases (otherwise empty); every atlas must have the coverage's size.
+    /// Unchanged: it is what the folder holds.
     fn read(
         pdir: &Path,
         s: &crate::record::PartSummary,
         solving: bool,
-    ) -> Result<StoredPart, ReflectError> {
+    ) -> Result<PartResult, ReflectError> {
         let name = &s.name;
         let part = read_part(pdir, s)?;
         let r = part.resolution();
@@ -365,7 +417,7 @@ impl StoredPart {
         } else {
             (Vec::new(), Vec::new(), Vec::new())
         };
-        Ok(StoredPart {
+        Ok(PartResult {
             rho: atlas("rho_d")?
                 .pixels
                 .iter()
@@ -376,6 +428,7 @@ impl StoredPart {
             stderr,
             lobes: read_lobes(&pdir.join(format!("{name}_lobes.json")))?,
             part,
+            changed: false,
         })
     }
 }
@@ -469,7 +522,7 @@ impl SolveResult {
         maps: &str,
         per_texel: usize,
     ) -> ObjectEntry {
-        let name = &self.parts[i].name;
+        let name = self.parts[i].name();
         let lobe_maps: Vec<LobeMapEntry> = (0..per_texel)
             .map(|k| LobeMapEntry {
                 rho: format!("{maps}{name}_lobe{k}_rho.exr").into(),
@@ -479,7 +532,8 @@ impl SolveResult {
         let lobes = if per_texel > 0 {
             Vec::new()
         } else {
-            self.lobes[i]
+            self.parts[i]
+                .lobes
                 .iter()
                 .map(|l| LobeEntry {
                     rho: f32_decimals(l.rho.to_array()),
@@ -502,7 +556,8 @@ impl SolveResult {
     pub fn lobe_map(&self, i: usize) -> Option<igi_render::LobeMap> {
         let basis = self.basis.as_ref()?;
         let r = self.parts[i].resolution();
-        let per: Vec<Vec<Lobe>> = self.rho[i]
+        let per: Vec<Vec<Lobe>> = self.parts[i]
+            .rho
             .iter()
             .map(|rho| basis.infer(*rho).lobes)
             .collect();
@@ -527,6 +582,32 @@ impl SolveResult {
             lobes,
         })
     }
+}
+
+/// The scene of parts, each with its albedo atlas (and no lobes).
+pub(crate) fn scene_of_atlases<'a>(
+    atlases: impl Iterator<Item = (&'a Part, &'a [Vec3])>,
+) -> Result<igi_render::Scene, ReflectError> {
+    let objects = atlases
+        .map(|(p, rho)| {
+            let r = p.resolution();
+            let albedo = igi_render::Albedo::Texture(igi_render::Texture {
+                width: r,
+                height: r,
+                texels: rho.to_vec(),
+            });
+            Ok((
+                p.name.clone(),
+                p.full_mesh()?.into_owned(),
+                igi_render::Material {
+                    lobe_map: None,
+                    albedo,
+                    lobes: Vec::new(),
+                },
+            ))
+        })
+        .collect::<Result<_, ReflectError>>()?;
+    Ok(igi_render::Scene::new(objects)?)
 }
 
 pub(crate) fn write_text(path: &Path, text: &str) -> Result<(), ReflectError> {
@@ -568,32 +649,35 @@ mod tests {
         let meshes = vec![("a".into(), square(0.0)), ("b".into(), square(3.0))];
         let parts = build_parts(meshes, 16).unwrap();
         let mut state = SolveResult::fresh(parts, vec!["p".into()], &SolveOptions::default());
-        for (i, rho) in state.rho.iter_mut().enumerate() {
-            rho.iter_mut()
+        for (i, p) in state.parts.iter_mut().enumerate() {
+            p.rho
+                .iter_mut()
                 .enumerate()
                 .for_each(|(k, v)| *v = Vec3::splat((i * 256 + k) as f32 / 600.0));
         }
-        state.weight_sum[0] = vec![1.5; 256];
-        state.observations[0] = vec![3; 256];
+        state.parts[0].weight_sum = vec![1.5; 256];
+        state.parts[0].observations = vec![3; 256];
         state.report.parts = state
             .parts
             .iter()
-            .map(crate::record::PartSummary::unsolved)
+            .map(|p| crate::record::PartSummary::unsolved(&p.part))
             .collect();
         state.write_geometry(dir.path()).unwrap();
         state.write_state(dir.path()).unwrap();
         let full = SolveResult::load(dir.path()).unwrap();
         let light = SolveResult::load_solving(dir.path(), &|name| name == "a").unwrap();
-        assert_eq!(light.rho, full.rho);
-        assert_eq!(light.lobes, full.lobes);
-        assert_eq!(light.weight_sum[0], full.weight_sum[0]);
-        assert_eq!(light.observations[0], vec![3; 256]);
-        assert_eq!(light.stderr[0], full.stderr[0]);
-        assert!(light.weight_sum[1].is_empty() && light.observations[1].is_empty());
-        assert!(light.stderr[1].is_empty() && full.stderr[1].len() == 256);
         for (l, f) in light.parts.iter().zip(&full.parts) {
-            assert_eq!(l.cache.texels.len(), f.cache.texels.len());
-            assert_eq!(l.coverage.pixels, f.coverage.pixels);
+            assert_eq!(l.rho, f.rho);
+            assert_eq!(l.lobes, f.lobes);
+            assert_eq!(l.part.cache.texels.len(), f.part.cache.texels.len());
+            assert_eq!(l.part.coverage.pixels, f.part.coverage.pixels);
         }
+        let (l, f) = (&light.parts, &full.parts);
+        assert_eq!(l[0].weight_sum, f[0].weight_sum);
+        assert_eq!(l[0].observations, vec![3; 256]);
+        assert_eq!(l[0].stderr, f[0].stderr);
+        assert!(l[0].has_statistics() && f[1].has_statistics());
+        assert!(l[1].weight_sum.is_empty() && l[1].observations.is_empty());
+        assert!(l[1].stderr.is_empty() && f[1].stderr.len() == 256);
     }
 }

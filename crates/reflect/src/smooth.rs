@@ -27,7 +27,7 @@ pub const MAX_DISTANCE_TEXELS: f64 = 2.5;
 pub const MIN_NORMAL_DOT: f32 = 0.95;
 
 /// Smooths the shading of `obs` (see the module overview).
-pub(crate) fn smooth_shading(obs: &mut [Obs], parts: &[Part]) {
+pub(crate) fn smooth_shading(obs: &mut [Obs], parts: &[impl AsRef<Part>]) {
     let smoothed: Vec<Option<(Vec3, usize)>> = {
         let index = NeighbourIndex::new(obs);
         (0..obs.len())
@@ -58,9 +58,9 @@ impl NeighbourIndex {
 
     /// The mean shading over observation `k`'s admissible neighbourhood and how many were
     /// averaged, or `None` when it keeps its own.
-    fn smoothed(&self, obs: &[Obs], parts: &[Part], k: usize) -> Option<(Vec3, usize)> {
+    fn smoothed(&self, obs: &[Obs], parts: &[impl AsRef<Part>], k: usize) -> Option<(Vec3, usize)> {
         let o = &obs[k];
-        let part = &parts[o.part as usize];
+        let part = parts[o.part as usize].as_ref();
         let r = part.resolution() as i64;
         let me = &part.cache.texels[o.texel as usize];
         let reach = (MAX_DISTANCE_TEXELS * part.texel_size) as f32;

@@ -10,7 +10,7 @@ use crate::record::Obs;
 pub use crate::record::{
     IterationRecord, PartSummary, Pending, Schedule, SolveOptions, SolveReport,
 };
-use crate::result::{SolveResult, UNKNOWN_STDERR};
+use crate::result::{Albedos, PartResult, Snapshot, SolveResult, UNKNOWN_STDERR};
 use crate::weights::{combine, Combined, Proposal};
 use crate::ReflectError;
 use glam::{DVec2, Vec2, Vec3};
@@ -36,15 +36,18 @@ pub fn selects(sel: &str, part: &str) -> bool {
 }
 
 /// Every name in the part selection must select a part ([`selects`]).
-pub fn check_selection(parts: &[Part], opts: &SolveOptions) -> Result<(), ReflectError> {
+pub fn check_selection(
+    parts: &[impl AsRef<Part>],
+    opts: &SolveOptions,
+) -> Result<(), ReflectError> {
+    let names: Vec<&str> = parts.iter().map(|p| p.as_ref().name.as_str()).collect();
     for s in opts.parts.iter().flatten() {
-        if !parts.iter().any(|p| selects(s, &p.name)) {
-            let names: Vec<&str> = parts.iter().map(|p| p.name.as_str()).take(12).collect();
+        if !names.iter().any(|n| selects(s, n)) {
             return Err(ReflectError::UnknownPart {
                 name: s.clone(),
                 known: format!(
                     "{}{}",
-                    names.join(", "),
+                    names[..names.len().min(12)].join(", "),
                     if parts.len() > 12 { ", ..." } else { "" }
                 ),
             });
@@ -95,15 +98,6 @@ enum GroupLoad {
     Terrain,
 }
 
-/// Every part's albedo atlases and lobes at the start of a Jacobi iteration.
-pub(crate) type Snapshot = (Vec<Vec<Vec3>>, Vec<Vec<Lobe>>);
-
-/// Every part's albedo atlas and lobes, as a group's scene shows them.
-struct Albedos<'a> {
-    rho: &'a [Vec<Vec3>],
-    lobes: &'a [Vec<Lobe>],
-}
-
 /// The scene of a group: every part with its current albedo atlas (one atlas serves every level
 /// of a stored part) and lobes, in part order.
 fn group_scene(
@@ -117,12 +111,12 @@ fn group_scene(
         let tex = Texture {
             width: r,
             height: r,
-            texels: albedo.rho[i].clone(),
+            texels: albedo.rho(i).to_vec(),
         };
         Material {
             lobe_map: None,
             albedo: Albedo::Texture(tex),
-            lobes: albedo.lobes[i].clone(),
+            lobes: albedo.lobes(i).to_vec(),
         }
     };
     let mut object_part = Vec::new();
@@ -133,7 +127,7 @@ fn group_scene(
             .enumerate()
             .map(|(i, p)| {
                 object_part.push(Some(i));
-                (p.name.clone(), p.mesh.clone(), material(i))
+                (p.name().to_string(), p.part.mesh.clone(), material(i))
             })
             .collect(),
         (load, Some(store)) => {
@@ -147,7 +141,7 @@ fn group_scene(
                 let i = state
                     .parts
                     .iter()
-                    .position(|p| p.name == name)
+                    .position(|p| p.name() == name)
                     .ok_or_else(|| ReflectError::UnknownVoxel(name.clone()))?;
                 object_part.push(Some(i));
                 objects.push((name, lp.mesh, material(i)));
@@ -183,10 +177,11 @@ pub(crate) fn part_lobes(part: &Part, rho: &[Vec3], basis: Option<&Basis>) -> Ve
 /// The groups of a solve: one per solved stored part (voxels, then the terrain), or one holding
 /// every solved in-memory part.
 fn make_groups(
-    parts: &[Part],
+    parts: &[PartResult],
     solved: &[bool],
     schedule: Schedule,
 ) -> Result<Vec<Group>, ReflectError> {
+    let parts: Vec<&Part> = parts.iter().map(|p| &p.part).collect();
     let stored = parts.iter().filter(|p| p.stored.is_some()).count();
     if stored == 0 {
         let ids: Vec<usize> = (0..parts.len()).filter(|&i| solved[i]).collect();
@@ -279,19 +274,16 @@ pub(crate) fn plan(
         .map(|p| {
             opts.parts
                 .as_ref()
-                .is_none_or(|sel| sel.iter().any(|s| selects(s, &p.name)))
+                .is_none_or(|sel| sel.iter().any(|s| selects(s, p.name())))
         })
         .collect();
     let groups = make_groups(&start.parts, &solved, opts.schedule)?;
     start.basis = inputs.basis.cloned();
     // kept current: the parts a group updates get new lobes right after it
-    start.lobes = start
-        .parts
-        .iter()
-        .zip(&start.rho)
-        .map(|(p, r)| part_lobes(p, r, inputs.basis))
-        .collect();
-    let store = match start.parts.iter().find_map(|p| p.stored.as_ref()) {
+    for p in &mut start.parts {
+        p.lobes = part_lobes(&p.part, &p.rho, inputs.basis);
+    }
+    let store = match start.parts.iter().find_map(|p| p.part.stored.as_ref()) {
         Some(s) => Some(igi_geometry::SiteStore::open(&s.site)?),
         None => None,
     };
@@ -304,9 +296,9 @@ pub(crate) fn plan(
                 .report
                 .parts
                 .iter()
-                .find(|s| s.name == p.name)
+                .find(|s| s.name == p.name())
                 .cloned()
-                .unwrap_or_else(|| PartSummary::unsolved(p))
+                .unwrap_or_else(|| PartSummary::unsolved(&p.part))
         })
         .collect();
     start.report.parts = summaries;
@@ -359,7 +351,7 @@ pub fn solve(
             cumulative,
         )?;
         checkpoint(&start)?;
-        start.changed.iter_mut().for_each(|c| *c = false);
+        start.set_changed(false);
         if done {
             break;
         }
@@ -390,8 +382,7 @@ fn solve_iteration(
     let total = texels_of(start, &todo) * inputs.photos.len() as u64;
     progress.begin(&format!("iteration {}", k + 1), total);
     // Jacobi: every group of this iteration sees the albedo of the previous one
-    let snapshot =
-        (opts.schedule == Schedule::Jacobi).then(|| (start.rho.clone(), start.lobes.clone()));
+    let snapshot = (opts.schedule == Schedule::Jacobi).then(|| Albedos::snapshot(&start.parts));
     for g in todo {
         let sums = solve_group(start, g, plan, snapshot.as_ref(), inputs, opts, k, progress)?;
         acc.add(&sums);
@@ -400,7 +391,7 @@ fn solve_iteration(
             acc.wall_s = already_in_iteration + ti.elapsed().as_secs_f64();
             start.report.pending = Some(acc.clone());
             checkpoint(start)?;
-            start.changed.iter_mut().for_each(|c| *c = false);
+            start.set_changed(false);
         }
     }
     progress.finish();
@@ -441,7 +432,7 @@ fn texels_of(start: &SolveResult, groups: &[&Group]) -> u64 {
         .map(|g| {
             g.parts
                 .iter()
-                .map(|&i| start.parts[i].cache.texels.len() as u64)
+                .map(|&i| start.parts[i].part.cache.texels.len() as u64)
                 .sum::<u64>()
         })
         .sum::<u64>()
@@ -495,13 +486,9 @@ pub(crate) fn solve_group(
 ) -> Result<Pending, ReflectError> {
     let spp = spp_of(opts, &start.report.iterations, k);
     let albedo = match snapshot {
-        Some((rho, lobes)) => Albedos { rho, lobes },
-        None => Albedos {
-            rho: &start.rho,
-            lobes: &start.lobes,
-        },
+        Some(s) => Albedos::Snapshot(s),
+        None => Albedos::Current(&start.parts),
     };
-    let shown_rho = albedo.rho;
     let (scene, triangles, object_part) = group_scene(start, g, plan.store.as_ref(), albedo)?;
     for &i in &g.parts {
         start.report.parts[i].scene_triangles = triangles;
@@ -509,7 +496,7 @@ pub(crate) fn solve_group(
     // texel streams are numbered across groups so no two texels share one
     let offset: u64 = start.parts[..g.parts[0]]
         .iter()
-        .map(|p| p.cache.texels.len() as u64)
+        .map(|p| p.part.cache.texels.len() as u64)
         .sum();
     let texels = group_texels(start, g);
     // the fine iteration after a coarse stage reads its shading from a lattice
@@ -544,14 +531,15 @@ pub(crate) fn solve_group(
         object_part: &object_part,
         photos: inputs.photos,
         parts: &start.parts,
-        rho: shown_rho,
+        albedo,
     };
     footprint.deblur(&mut obs, opts.deblur);
     drop(scene);
     let mut sums = Pending::default();
     update_parts(start, &g.parts, &obs, opts, &mut sums);
     for &i in &g.parts {
-        start.lobes[i] = part_lobes(&start.parts[i], &start.rho[i], inputs.basis);
+        let p = &mut start.parts[i];
+        p.lobes = part_lobes(&p.part, &p.rho, inputs.basis);
     }
     Ok(sums)
 }
@@ -561,7 +549,7 @@ fn group_texels(start: &SolveResult, g: &Group) -> Vec<TexelRef> {
     g.parts
         .iter()
         .flat_map(|&i| {
-            let p = &start.parts[i];
+            let p = &start.parts[i].part;
             p.cache
                 .texels
                 .iter()
@@ -673,7 +661,7 @@ fn update_parts(
     let mut per_texel: Vec<Vec<Vec<Proposal>>> = start.parts.iter().map(|_| Vec::new()).collect();
     let mut any_clean: Vec<Vec<bool>> = start.parts.iter().map(|_| Vec::new()).collect();
     for &pi in group {
-        let n = start.parts[pi].cache.texels.len();
+        let n = start.parts[pi].part.cache.texels.len();
         per_texel[pi] = vec![Vec::new(); n];
         any_clean[pi] = vec![false; n];
     }
@@ -705,13 +693,14 @@ fn update_part(
     opts: &SolveOptions,
     acc: &mut Pending,
 ) {
-    let p = &start.parts[pi];
+    let pr = &mut start.parts[pi];
+    let p = &pr.part;
     let res = p.resolution();
     let mut seen = vec![false; res * res];
     let covered: Vec<bool> = p.coverage.pixels.iter().map(|c| c[0] == 1.0).collect();
     let gutter: Vec<bool> = p.coverage.pixels.iter().map(|c| c[0] > 0.0).collect();
     let (mut nseen_p, mut twice) = (0usize, 0usize);
-    let mut new_rho = start.rho[pi].clone();
+    let mut new_rho = pr.rho.clone();
     for (ti, t) in p.cache.texels.iter().enumerate() {
         let i = t.index as usize;
         let props = &per_texel[ti];
@@ -721,7 +710,7 @@ fn update_part(
         } else {
             None
         };
-        start.observations[pi][i] = if combined.is_some() {
+        pr.observations[i] = if combined.is_some() {
             props.iter().filter(|p| p.weight > 0.0).count() as u32
         } else {
             0
@@ -729,32 +718,31 @@ fn update_part(
         match combined {
             Some(c) => {
                 let v = c.value;
-                acc.delta += (v - start.rho[pi][i]).abs().max_element() as f64;
-                let (noise2, systematic2, mc2) =
-                    change_against_noise(start.rho[pi][i], start.stderr[pi][i], &c);
+                acc.delta += (v - pr.rho[i]).abs().max_element() as f64;
+                let (noise2, systematic2, mc2) = change_against_noise(pr.rho[i], pr.stderr[i], &c);
                 acc.noise2 += noise2;
                 acc.systematic2 += systematic2;
                 acc.mc2 += mc2;
                 acc.seen_texels += 1;
                 nseen_p += 1;
-                if start.observations[pi][i] >= 2 {
+                if pr.observations[i] >= 2 {
                     twice += 1;
                 }
                 new_rho[i] = v;
-                start.weight_sum[pi][i] = c.weight;
-                start.stderr[pi][i] = c.stderr;
+                pr.weight_sum[i] = c.weight;
+                pr.stderr[i] = c.stderr;
                 seen[i] = true;
             }
             None => {
-                start.weight_sum[pi][i] = 0.0;
-                start.stderr[pi][i] = UNKNOWN_STDERR;
+                pr.weight_sum[i] = 0.0;
+                pr.stderr[i] = UNKNOWN_STDERR;
             }
         }
     }
     let fallback = Vec3::from_array(opts.initial_albedo);
     let filled = fill_unseen(&mut new_rho, &seen, &covered, &gutter, res, fallback, 8);
-    start.rho[pi] = new_rho;
-    start.changed[pi] = true;
+    pr.rho = new_rho;
+    pr.changed = true;
     let s = &mut start.report.parts[pi];
     s.seen_texels = nseen_p;
     s.seen_twice_texels = twice;
@@ -859,7 +847,8 @@ impl ShadowEdges {
                 if !g {
                     return Vec::new();
                 }
-                p.cache
+                p.part
+                    .cache
                     .texels
                     .par_iter()
                     .map(|t| {
@@ -883,7 +872,7 @@ impl ShadowEdges {
                 }
                 let r = p.resolution();
                 let mut m = vec![u32::MAX; r * r];
-                for (k, t) in p.cache.texels.iter().enumerate() {
+                for (k, t) in p.part.cache.texels.iter().enumerate() {
                     m[t.index as usize] = k as u32;
                 }
                 m
@@ -894,14 +883,14 @@ impl ShadowEdges {
 
     /// Whether texel `t` lies on a shadow edge: a 4-neighbour in the atlas sees the sun
     /// differently.
-    fn at(&self, parts: &[Part], t: &TexelRef) -> bool {
+    fn at(&self, parts: &[PartResult], t: &TexelRef) -> bool {
         let (pi, vis, map) = (
             t.part as usize,
             &self.visible[t.part as usize],
             &self.texel_of[t.part as usize],
         );
         let r = parts[pi].resolution() as i64;
-        let idx = parts[pi].cache.texels[t.texel as usize].index as i64;
+        let idx = parts[pi].part.cache.texels[t.texel as usize].index as i64;
         let (x, y) = (idx % r, idx / r);
         let me = vis[t.texel as usize];
         [(-1, 0), (1, 0), (0, -1), (0, 1)].iter().any(|&(dx, dy)| {
@@ -1007,7 +996,7 @@ impl PhotoPass<'_> {
     ) -> Option<(Vec3, Vec3)> {
         let c = raw[n as usize].as_ref().filter(|c| c.traced && c.clean)?;
         let ct = &self.texels[n as usize];
-        let texel_size = self.state.parts[t.part as usize].texel_size;
+        let texel_size = self.state.parts[t.part as usize].part.texel_size;
         let same_light = shadow.as_ref().is_none_or(|s| {
             let v = &s.visible[t.part as usize];
             v[t.texel as usize] == s.visible[ct.part as usize][ct.texel as usize]
@@ -1026,8 +1015,8 @@ impl PhotoPass<'_> {
 
     /// The current albedo of texel `t`.
     fn rho(&self, t: &TexelRef) -> Vec3 {
-        let part = &self.state.parts[t.part as usize];
-        self.state.rho[t.part as usize][part.cache.texels[t.texel as usize].index as usize]
+        let p = &self.state.parts[t.part as usize];
+        p.rho[p.part.cache.texels[t.texel as usize].index as usize]
     }
 
     /// Geometric tests and the radiance estimate of texel `t` (number `gi` in the group):
@@ -1103,7 +1092,7 @@ impl PhotoPass<'_> {
     /// pixel's depth over the focal length divided by sqrt(cos) (the geometric mean of its two
     /// sides on the surface).
     fn deblur_gain(&self, t: &TexelRef, cos: f32) -> f32 {
-        let texel = self.state.parts[t.part as usize].texel_size;
+        let texel = self.state.parts[t.part as usize].part.texel_size;
         match point_footprint(&self.photo.camera, t.position.as_dvec3()) {
             Some(f) => ((texel * (cos as f64).sqrt() / f).min(1.0).powi(2)) as f32,
             None => 0.0,
@@ -1152,7 +1141,7 @@ impl PhotoPass<'_> {
             rho_d: rho_eval,
             lobes: inferred
                 .as_deref()
-                .unwrap_or(&self.state.lobes[t.part as usize]),
+                .unwrap_or(&self.state.parts[t.part as usize].lobes),
         };
         let sp = SurfacePoint {
             position: t.position,
@@ -1246,7 +1235,7 @@ impl PhotoPass<'_> {
         }));
         // rendered radiance with the current albedo (linear in the first vertex's albedo)
         let current = l * (rho / rho_eval);
-        let part = &self.state.parts[t.part as usize];
+        let part = &self.state.parts[t.part as usize].part;
         Obs {
             part: t.part,
             texel: t.texel,

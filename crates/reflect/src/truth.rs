@@ -21,7 +21,7 @@ use crate::result::SolveResult;
 use crate::ReflectError;
 use glam::{DVec3, Vec2, Vec3};
 use igi_render::sampling::Rng;
-use igi_render::{Albedo, Material, Scene, Texture};
+use igi_render::{Scene, Texture};
 use rayon::prelude::*;
 
 /// Random points of the true surface [`truth_from_scene`] draws (fewer on a smaller surface: at
@@ -43,29 +43,12 @@ pub fn truth_atlas(part: &Part, f: impl Fn(Vec3) -> Vec3) -> Vec<Vec3> {
 }
 
 /// The scene of the parts with the given albedo atlases (and no lobes).
-pub fn scene_with_albedo(parts: &[Part], albedo: &[Vec<Vec3>]) -> Result<Scene, ReflectError> {
-    let objects = parts
-        .iter()
-        .zip(albedo)
-        .map(|(p, a)| {
-            let r = p.resolution();
-            let tex = Texture {
-                width: r,
-                height: r,
-                texels: a.clone(),
-            };
-            Ok((
-                p.name.clone(),
-                p.full_mesh()?.into_owned(),
-                Material {
-                    lobe_map: None,
-                    albedo: Albedo::Texture(tex),
-                    lobes: Vec::new(),
-                },
-            ))
-        })
-        .collect::<Result<_, ReflectError>>()?;
-    Ok(Scene::new(objects)?)
+pub fn scene_with_albedo(
+    parts: &[impl AsRef<Part>],
+    albedo: &[Vec<Vec3>],
+) -> Result<Scene, ReflectError> {
+    let atlases = albedo.iter().map(Vec::as_slice);
+    crate::result::scene_of_atlases(parts.iter().map(AsRef::as_ref).zip(atlases))
 }
 
 /// Ground truth for a solve over the same geometry.
@@ -105,9 +88,12 @@ impl Truth {
 /// [`SURFACE_POINTS`] area-uniform points of the truth scene's surface (seeded, the same every
 /// run), each located on the part a short ray along its normal meets. Parts of a prepared site,
 /// whose meshes stay on disk, get no surface points.
-pub fn truth_from_scene(parts: &[Part], truth: &Scene) -> Truth {
+pub fn truth_from_scene(parts: &[impl AsRef<Part>], truth: &Scene) -> Truth {
     Truth {
-        texels: parts.iter().map(|p| albedo_at_texels(p, truth)).collect(),
+        texels: parts
+            .iter()
+            .map(|p| albedo_at_texels(p.as_ref(), truth))
+            .collect(),
         points: surface_points(parts, truth, SURFACE_POINTS, 1),
     }
 }
@@ -135,11 +121,12 @@ pub(crate) fn albedo_at_texels(p: &Part, truth: &Scene) -> Vec<Option<Vec3>> {
 /// About `count` area-uniform points of `truth`'s surface located on `parts` (triangle by
 /// triangle: `area * density` points, the fraction drawn at random; stream per triangle).
 pub(crate) fn surface_points(
-    parts: &[Part],
+    parts: &[impl AsRef<Part>],
     truth: &Scene,
     count: usize,
     seed: u64,
 ) -> Vec<TruthPoint> {
+    let parts: Vec<&Part> = parts.iter().map(AsRef::as_ref).collect();
     if parts.is_empty() || parts.iter().any(|p| p.mesh.indices.is_empty()) {
         return Vec::new();
     }
@@ -147,7 +134,7 @@ pub(crate) fn surface_points(
         .iter()
         .map(|p| vec![Vec3::ZERO; p.resolution().pow(2)])
         .collect();
-    let Ok(site) = scene_with_albedo(parts, &zeros) else {
+    let Ok(site) = scene_with_albedo(&parts, &zeros) else {
         return Vec::new();
     };
     let finest = parts
@@ -182,7 +169,7 @@ pub(crate) fn surface_points(
                     let w = 1.0 - u - v;
                     let x = p[0] * w + p[1] * u + p[2] * v;
                     let rho = o.material.brdf_at(uv[0] * w + uv[1] * u + uv[2] * v).rho_d;
-                    locate(&site, parts, x, normal, eps, rho)
+                    locate(&site, &parts, x, normal, eps, rho)
                 })
                 .collect::<Vec<_>>()
         }));
@@ -200,7 +187,7 @@ fn triangle(o: &igi_render::Object, t: &[u32; 3]) -> ([Vec3; 3], [Vec2; 3], f32)
 /// The part, UV and texel of the solved surface at `x` (true albedo `rho`).
 fn locate(
     site: &Scene,
-    parts: &[Part],
+    parts: &[&Part],
     x: Vec3,
     normal: Vec3,
     eps: f32,
@@ -228,13 +215,13 @@ pub fn texel_error(
         if !solved[pi] {
             continue;
         }
-        for (ti, t) in p.cache.texels.iter().enumerate() {
+        for (ti, t) in p.part.cache.texels.iter().enumerate() {
             let i = t.index as usize;
-            if state.observations[pi][i] < 2 {
+            if p.observations[i] < 2 {
                 continue;
             }
             if let Some(Some(gt)) = truth.texels.get(pi).and_then(|v| v.get(ti)) {
-                errors.push(state.rho[pi][i] - *gt);
+                errors.push(p.rho[i] - *gt);
             }
         }
     }
@@ -254,11 +241,10 @@ pub fn surface_error(
     let textures: Vec<Texture> = state
         .parts
         .iter()
-        .zip(&state.rho)
-        .map(|(p, rho)| Texture {
+        .map(|p| Texture {
             width: p.resolution(),
             height: p.resolution(),
-            texels: rho.clone(),
+            texels: p.rho.clone(),
         })
         .collect();
     let errors: Vec<Vec3> = truth
@@ -266,7 +252,7 @@ pub fn surface_error(
         .iter()
         .filter(|q| {
             let pi = q.part as usize;
-            solved.get(pi) == Some(&true) && state.observations[pi][q.texel as usize] >= 2
+            solved.get(pi) == Some(&true) && state.parts[pi].observations[q.texel as usize] >= 2
         })
         .map(|q| textures[q.part as usize].lookup(q.uv) - q.rho)
         .collect();
@@ -308,18 +294,18 @@ pub struct ZScores {
 pub fn z_scores(state: &SolveResult, truth: &Truth) -> Option<ZScores> {
     let mut z = Vec::new();
     for (pi, p) in state.parts.iter().enumerate() {
-        for (ti, t) in p.cache.texels.iter().enumerate() {
+        for (ti, t) in p.part.cache.texels.iter().enumerate() {
             let i = t.index as usize;
             let (Some(Some(gt)), true) = (
                 truth.texels.get(pi).and_then(|v| v.get(ti)),
-                state.observations[pi][i] >= 2,
+                p.observations[i] >= 2,
             ) else {
                 continue;
             };
-            let se = state.stderr[pi][i];
+            let se = p.stderr[i];
             for ch in 0..3 {
                 if se[ch] > 0.0 {
-                    z.push(((state.rho[pi][i][ch] - gt[ch]) as f64 / se[ch] as f64).abs());
+                    z.push(((p.rho[i][ch] - gt[ch]) as f64 / se[ch] as f64).abs());
                 }
             }
         }
@@ -363,8 +349,8 @@ mod tests {
         let scene = scene_with_albedo(&parts, &flat).unwrap();
         let truth = truth_from_scene(&parts, &scene);
         let mut state = SolveResult::fresh(parts, vec!["a".into()], &SolveOptions::default());
-        state.rho[0] = (0..32 * 32).map(|i| value(i % 32, i / 32)).collect();
-        state.observations[0] = vec![2; 32 * 32];
+        state.parts[0].rho = (0..32 * 32).map(|i| value(i % 32, i / 32)).collect();
+        state.parts[0].observations = vec![2; 32 * 32];
         (state, truth)
     }
 
@@ -401,7 +387,7 @@ mod tests {
     fn points_on_texels_seen_once_or_unsolved_parts_do_not_count() {
         let (mut state, truth) =
             plane_and_result(|x, _| Vec3::splat(if x < 16 { 0.6 } else { 0.5 }));
-        state.observations[0] = (0..32 * 32)
+        state.parts[0].observations = (0..32 * 32)
             .map(|i| if i % 32 < 16 { 1 } else { 2 })
             .collect();
         let surface = surface_error(&state, &truth, &[true]).0.unwrap();

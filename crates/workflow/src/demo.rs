@@ -32,7 +32,7 @@ use igi_imaging::{write_exr, write_png_tonemapped, HdrImage};
 use igi_reflect::parts::build_parts;
 use igi_reflect::result::SolveResult;
 use igi_reflect::solver::{Progress, SolveOptions, Truth};
-use igi_reflect::truth::{scene_with_albedo, truth_atlas};
+use igi_reflect::truth::truth_atlas;
 use igi_render::sky::{clear_sky, overcast_sky, sun_direction};
 use igi_render::{compare_images, difference_image, render_image, Comparison, RenderOptions};
 use igi_synth::survey::{albedo_pattern, write_survey, LightingSpec, ShotSpec};
@@ -491,7 +491,7 @@ fn relight_held_out(
         stratified: false,
         adaptive: false,
     };
-    let recovered = scene_with_albedo(&solved.result.parts, &solved.result.rho)?;
+    let recovered = solved.result.albedo_scene()?;
     let relit = render_image(&recovered, &lighting, &cam, &ropts, &|_| {})?;
     let reference_opts = RenderOptions {
         seed: opts.seed ^ 0x1234,
@@ -525,20 +525,20 @@ fn write_albedo_pictures(
     result: &SolveResult,
     truth: &Truth,
 ) -> Result<(), WorkflowError> {
-    for (i, p) in result.parts.iter().enumerate() {
+    for (p, truth) in result.parts.iter().zip(&truth.texels) {
         let r = p.resolution();
         let mut side = HdrImage::new(2 * r + 4, r);
-        for (t, v) in p.cache.texels.iter().zip(&truth.texels[i]) {
+        for (t, v) in p.part.cache.texels.iter().zip(truth) {
             let k = t.index as usize;
             side.set(k % r, k / r, v.unwrap_or(Vec3::ZERO).to_array());
         }
         for y in 0..r {
             for x in 0..r {
-                side.set(x + r + 4, y, result.rho[i][y * r + x].to_array());
+                side.set(x + r + 4, y, p.rho[y * r + x].to_array());
             }
         }
         write_png_tonemapped(
-            &pictures.join(format!("albedo-{}-truth-vs-recovered.png", p.name)),
+            &pictures.join(format!("albedo-{}-truth-vs-recovered.png", p.name())),
             &side,
             1.0,
         )?;

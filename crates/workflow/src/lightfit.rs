@@ -286,10 +286,7 @@ pub struct LightingRecord {
 
 /// The scene a fit renders: the parts with the current albedo.
 pub fn scene_of(state: &SolveResult) -> Result<Scene, WorkflowError> {
-    Ok(igi_reflect::truth::scene_with_albedo(
-        &state.parts,
-        &state.rho,
-    )?)
+    Ok(state.albedo_scene()?)
 }
 
 /// The photograph's pixels the fit uses: valid, and seeing the site (a pixel-centre ray hits
@@ -644,10 +641,10 @@ pub fn reference_ratio(state: &SolveResult, r: &ReferenceTarget) -> Option<f64> 
     let n = DVec3::from_array(r.normal).normalize_or_zero();
     let mut sum = DVec3::ZERO;
     let mut count = 0usize;
-    for (pi, part) in state.parts.iter().enumerate() {
-        for t in &part.cache.texels {
+    for part in &state.parts {
+        for t in &part.part.cache.texels {
             let i = t.index as usize;
-            if state.observations[pi][i] == 0 {
+            if part.observations[i] == 0 {
                 continue;
             }
             let p = t.position.as_dvec3() - c;
@@ -658,7 +655,7 @@ pub fn reference_ratio(state: &SolveResult, r: &ReferenceTarget) -> Option<f64> 
             if t.normal.as_dvec3().dot(n) < 0.9 {
                 continue;
             }
-            sum += state.rho[pi][i].as_dvec3();
+            sum += part.rho[i].as_dvec3();
             count += 1;
         }
     }
@@ -699,9 +696,12 @@ pub fn apply_gauge(
         return (1.0, ratios);
     }
     let g = gauge as f32;
-    for (rho, se) in state.rho.iter_mut().zip(state.stderr.iter_mut()) {
-        rho.iter_mut().for_each(|v| *v /= g);
-        se.iter_mut().filter(|v| v.x >= 0.0).for_each(|v| *v /= g);
+    for p in &mut state.parts {
+        p.rho.iter_mut().for_each(|v| *v /= g);
+        p.stderr
+            .iter_mut()
+            .filter(|v| v.x >= 0.0)
+            .for_each(|v| *v /= g);
     }
     for f in fits.iter_mut() {
         for p in [&mut f.params, &mut f.stderr] {
@@ -757,7 +757,7 @@ pub fn iterate(
                 .map_err(|err| WorkflowError::Arguments(format!("lighting record: {err}")))?,
         );
         // the albedo moved with the gauge
-        state.changed.iter_mut().for_each(|c| *c = true);
+        state.set_changed(true);
         state.write_state(out)?;
         if converged {
             break;

@@ -175,7 +175,13 @@ fn a_prepared_site_is_solved_voxel_by_voxel_with_the_multiresolution_load_and_re
     let b = killed_and_resumed(fresh(&out_b), &out_b, &photos, &truth, &opts, voxels);
     assert_eq!(b.report.iterations.len(), 2);
     let mut worst = 0.0f32;
-    for (x, y) in a.rho.iter().flatten().zip(b.rho.iter().flatten()) {
+    let rho = |r: &SolveResult| {
+        r.parts
+            .iter()
+            .flat_map(|p| p.rho.clone())
+            .collect::<Vec<_>>()
+    };
+    for (x, y) in rho(&a).iter().zip(&rho(&b)) {
         worst = worst.max((*x - *y).abs().max_element());
     }
     assert!(
@@ -233,9 +239,9 @@ fn check_uninterrupted(a: &SolveResult, store: &SiteStore, voxels: usize) {
         "{seen_parts} of {voxels} voxels seen"
     );
     assert!(a
-        .rho
+        .parts
         .iter()
-        .flatten()
+        .flat_map(|p| &p.rho)
         .all(|v| v.is_finite() && v.min_element() >= 0.0 && v.max_element() <= 1.0));
 }
 
@@ -493,9 +499,10 @@ fn a_skipped_group_keeps_its_albedo_and_blocks_convergence() {
     let after = std::fs::read(out.join(format!("parts/{skipped}_rho_d.exr"))).unwrap();
     assert_eq!(before, after, "the skipped group keeps its albedo");
     let other = &names[0];
-    let i = r.parts.iter().position(|p| &p.name == other).unwrap();
+    let i = r.parts.iter().position(|p| p.name() == other).unwrap();
     assert!(
-        r.rho[i]
+        r.parts[i]
+            .rho
             .iter()
             .any(|v| (*v - Vec3::splat(0.5)).abs().max_element() > 0.01),
         "the solved groups changed"

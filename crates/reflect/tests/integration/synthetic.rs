@@ -158,7 +158,13 @@ fn resume_for_two_more(
 ) -> SolveResult {
     let resumed = SolveResult::load(out).unwrap();
     assert_eq!(resumed.report.iterations.len(), 1);
-    for (a, b) in resumed.rho.iter().flatten().zip(first.rho.iter().flatten()) {
+    let rho = |r: &SolveResult| {
+        r.parts
+            .iter()
+            .flat_map(|p| p.rho.clone())
+            .collect::<Vec<_>>()
+    };
+    for (a, b) in rho(&resumed).iter().zip(&rho(first)) {
         assert!(
             (*a - *b).abs().max_element() < 1e-3,
             "EXR round trip of the state: {a} vs {b}"
@@ -208,9 +214,9 @@ fn check_final_iteration(done: &SolveResult) {
         "error does not grow: {mae0:?} -> {mae:?}"
     );
     assert!(done
-        .rho
+        .parts
         .iter()
-        .flatten()
+        .flat_map(|p| &p.rho)
         .all(|v| v.is_finite() && v.min_element() >= 0.0 && v.max_element() <= 1.0));
     for p in &done.report.parts {
         assert!(p.seen_texels > 0, "{} seen", p.name);
@@ -223,15 +229,17 @@ fn check_result_folder(out: &std::path::Path, done: &SolveResult) {
     // the standard errors round-trip through the result folder; a result written before they
     // existed (no NAME_stderr.exr) loads with every standard error unknown
     let back = SolveResult::load(out).unwrap();
-    assert_eq!(back.stderr, done.stderr);
+    for (b, d) in back.parts.iter().zip(&done.parts) {
+        assert_eq!(b.stderr, d.stderr);
+    }
     for p in &done.parts {
-        std::fs::remove_file(out.join(format!("parts/{}_stderr.exr", p.name))).unwrap();
+        std::fs::remove_file(out.join(format!("parts/{}_stderr.exr", p.name()))).unwrap();
     }
     let old = SolveResult::load(out).unwrap();
     assert!(old
-        .stderr
+        .parts
         .iter()
-        .flatten()
+        .flat_map(|p| &p.stderr)
         .all(|s| *s == igi_reflect::UNKNOWN_STDERR));
     // the result folder re-renders as a scene
     let scene_file = igi_reflect::load_result_scene(out).unwrap();
@@ -245,12 +253,12 @@ fn check_result_folder(out: &std::path::Path, done: &SolveResult) {
 /// the plain standard deviation is printed too, but a texel seen by two photos has a spread
 /// estimate with one degree of freedom, whose z follows a heavy-tailed t distribution).
 fn check_z_scores(state: &SolveResult, truth: &igi_reflect::solver::Truth) {
-    for (pi, p) in state.parts.iter().enumerate() {
-        for t in &p.cache.texels {
+    for p in &state.parts {
+        for t in &p.part.cache.texels {
             let i = t.index as usize;
-            if state.observations[pi][i] >= 2 {
+            if p.observations[i] >= 2 {
                 assert!(
-                    state.stderr[pi][i].min_element() >= 0.0,
+                    p.stderr[i].min_element() >= 0.0,
                     "seen twice but no standard error"
                 );
             }
@@ -464,13 +472,14 @@ fn glossy_photos(truth_scene: &igi_render::Scene) -> Vec<igi_reflect::Photo> {
 
 /// Per-texel lobe maps: written, and the lobes of each texel are the basis's for its albedo.
 fn check_lobe_maps(done: &SolveResult, out: &std::path::Path, basis: &igi_brdf::Basis) {
-    for (i, p) in done.parts.iter().enumerate() {
+    for p in &done.parts {
+        let name = p.name();
         let rho =
-            igi_imaging::read_image(&out.join(format!("parts/{}_lobe0_rho.exr", p.name))).unwrap();
-        let shape = igi_imaging::read_image(&out.join(format!("parts/{}_lobe0_shape.exr", p.name)))
-            .unwrap();
-        for t in p.cache.texels.iter().step_by(7) {
-            let want = basis.infer(done.rho[i][t.index as usize]).lobes[0];
+            igi_imaging::read_image(&out.join(format!("parts/{name}_lobe0_rho.exr"))).unwrap();
+        let shape =
+            igi_imaging::read_image(&out.join(format!("parts/{name}_lobe0_shape.exr"))).unwrap();
+        for t in p.part.cache.texels.iter().step_by(7) {
+            let want = basis.infer(p.rho[t.index as usize]).lobes[0];
             let k = t.index as usize;
             assert!(
                 (Vec3::from_array(rho.pixels[k]) - want.rho)
@@ -517,10 +526,13 @@ fn check_checkpoint_transactions(state: &mut SolveResult, tmp: &std::path::Path)
     let out = tmp.join("transactions");
     std::fs::create_dir_all(&out).unwrap();
     state.write_geometry(&out).unwrap();
-    let changed = std::mem::replace(&mut state.changed, vec![true; state.parts.len()]);
+    let changed: Vec<bool> = state.parts.iter().map(|p| p.changed).collect();
+    state.set_changed(true);
     state.write_state(&out).unwrap();
-    state.changed = changed;
-    let name = &state.parts[0].name;
+    for (p, c) in state.parts.iter_mut().zip(changed) {
+        p.changed = c;
+    }
+    let name = state.parts[0].name();
     let rho_file = format!("{name}_rho_d.exr");
     let staged = out.join("staged");
     let grey = |v: f32| {
@@ -536,7 +548,7 @@ fn check_checkpoint_transactions(state: &mut SolveResult, tmp: &std::path::Path)
     assert!(!staged.exists());
     let back = SolveResult::load(&out).unwrap();
     assert_eq!(
-        back.rho[0][0], state.rho[0][0],
+        back.parts[0].rho[0], state.parts[0].rho[0],
         "the previous checkpoint is kept"
     );
     // killed after the commit point, with the atlas already moved and the report not yet
@@ -560,7 +572,8 @@ fn check_checkpoint_transactions(state: &mut SolveResult, tmp: &std::path::Path)
         fwd.report.converged, report.converged,
         "the staged report is in place"
     );
-    assert!(fwd.rho[0]
+    assert!(fwd.parts[0]
+        .rho
         .iter()
         .all(|v| (*v - glam::Vec3::splat(0.25)).abs().max_element() < 1e-6));
 }

@@ -60,14 +60,14 @@ fn pairs(state: &SolveResult) -> Vec<([f32; 3], [f32; 3])> {
         .0;
     let truth = truth_from_scene(&state.parts, &scene);
     let mut out = Vec::new();
-    for (pi, part) in state.parts.iter().enumerate() {
-        for (k, t) in part.cache.texels.iter().enumerate() {
+    for (part, truth) in state.parts.iter().zip(&truth.texels) {
+        for (k, t) in part.part.cache.texels.iter().enumerate() {
             let i = t.index as usize;
-            if state.observations[pi][i] < 2 {
+            if part.observations[i] < 2 {
                 continue;
             }
-            if let Some(rho) = truth.texels[pi][k] {
-                out.push((state.rho[pi][i].to_array(), rho.to_array()));
+            if let Some(rho) = truth[k] {
+                out.push((part.rho[i].to_array(), rho.to_array()));
             }
         }
     }
