@@ -252,7 +252,7 @@ fn read_atlases(state: &mut SolveResult, i: usize, dir: &Path) -> Result<(), Ref
         .collect();
     let se = dir.join(format!("{name}_stderr.exr"));
     if !se.exists() {
-        return Err(ReflectError::file(&se, "missing (a task writes it)"));
+        return Err(ReflectError::MissingTaskFile(se));
     }
     p.stderr = crate::result::read_stderr(dir, &name, r)?;
     p.changed = true;

@@ -6,9 +6,26 @@ use std::path::PathBuf;
 /// Errors of the inverse solver.
 #[derive(Debug, thiserror::Error)]
 pub enum ReflectError {
-    /// A file or folder that is missing or malformed (the message says which).
-    #[error("{path}: {msg}")]
-    File { path: PathBuf, msg: String },
+    /// An atlas image whose size is not its part's.
+    #[error("{path}: is {width}x{height}, expected {expected}x{expected}")]
+    AtlasSize {
+        path: PathBuf,
+        width: usize,
+        height: usize,
+        expected: usize,
+    },
+    /// A prepared site without a terrain where its terrain part was asked for.
+    #[error("{0}: the prepared site has no terrain")]
+    NoTerrain(PathBuf),
+    /// A result folder whose last checkpoint was staged but not moved into place.
+    #[error("{0}: a solve was killed while committing a checkpoint; run the same `igi solve` again to finish it")]
+    UnfinishedCheckpoint(PathBuf),
+    /// A folder that is not a solve result (no `scene.toml` and `report.json`).
+    #[error("{0}: not a solve result folder (no scene.toml and report.json)")]
+    NotAResult(PathBuf),
+    /// A file a cluster task writes that its folder does not hold.
+    #[error("{0}: missing (a task writes it)")]
+    MissingTaskFile(PathBuf),
     /// A file or folder the solver could not read, write, create, move or remove.
     #[error("{path}: cannot {action}: {source}")]
     Io {
@@ -144,13 +161,6 @@ impl ReflectError {
             path: path.into(),
             what,
             source,
-        }
-    }
-
-    pub(crate) fn file(path: impl Into<PathBuf>, msg: impl Into<String>) -> Self {
-        ReflectError::File {
-            path: path.into(),
-            msg: msg.into(),
         }
     }
 }

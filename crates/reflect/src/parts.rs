@@ -37,7 +37,7 @@ impl StoredPart {
             Some(v) => Ok(store.voxel_folder(v)?),
             None => store
                 .terrain_folder()
-                .ok_or_else(|| ReflectError::file(&self.site, "the prepared site has no terrain")),
+                .ok_or_else(|| ReflectError::NoTerrain(self.site.clone())),
         }
     }
 }
@@ -119,10 +119,12 @@ pub fn prepared_parts(store: &SiteStore) -> Result<Vec<Part>, ReflectError> {
                 (&coverage, "coverage.exr"),
             ] {
                 if im.width != res || im.height != res {
-                    return Err(ReflectError::file(
-                        folder.join(f),
-                        format!("is {}x{}, expected {res}x{res}", im.width, im.height),
-                    ));
+                    return Err(ReflectError::AtlasSize {
+                        path: folder.join(f),
+                        width: im.width,
+                        height: im.height,
+                        expected: res,
+                    });
                 }
             }
             let texels = TexelCache::covered_texels(&pos, &nrm, &coverage);

@@ -369,10 +369,7 @@ impl SolveResult {
         solving: &dyn Fn(&str) -> bool,
     ) -> Result<SolveResult, ReflectError> {
         if dir.join(STAGED).join("report.json").is_file() {
-            return Err(ReflectError::file(
-                dir,
-                "a solve was killed while committing a checkpoint; run the same `igi solve` again to finish it",
-            ));
+            return Err(ReflectError::UnfinishedCheckpoint(dir.to_path_buf()));
         }
         let rp = dir.join("report.json");
         let text = std::fs::read_to_string(&rp).map_err(|e| ReflectError::io(&rp, "read", e))?;
@@ -471,10 +468,12 @@ pub(crate) fn read_atlas(
     let path = pdir.join(format!("{name}_{what}.exr"));
     let im = read_image(&path)?;
     if im.width != r || im.height != r {
-        return Err(ReflectError::file(
-            &path,
-            format!("is {}x{}, expected {r}x{r}", im.width, im.height),
-        ));
+        return Err(ReflectError::AtlasSize {
+            path,
+            width: im.width,
+            height: im.height,
+            expected: r,
+        });
     }
     Ok(im)
 }
@@ -618,10 +617,7 @@ pub(crate) fn write_text(path: &Path, text: &str) -> Result<(), ReflectError> {
 pub fn load_result_scene(dir: &Path) -> Result<PathBuf, ReflectError> {
     let p = dir.join("scene.toml");
     if !p.is_file() || !dir.join("report.json").is_file() {
-        return Err(ReflectError::file(
-            dir,
-            "not a solve result folder (no scene.toml and report.json)",
-        ));
+        return Err(ReflectError::NotAResult(dir.to_path_buf()));
     }
     Ok(p)
 }
@@ -679,5 +675,33 @@ mod tests {
         assert!(l[0].has_statistics() && f[1].has_statistics());
         assert!(l[1].weight_sum.is_empty() && l[1].observations.is_empty());
         assert!(l[1].stderr.is_empty() && f[1].stderr.len() == 256);
+    }
+
+    /// A folder that is not a result, and an atlas of the wrong size, are refused with typed
+    /// errors naming the file.
+    #[test]
+    fn a_wrong_atlas_or_folder_is_a_typed_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let e = load_result_scene(dir.path()).unwrap_err();
+        assert!(
+            matches!(&e, ReflectError::NotAResult(p) if p == dir.path()),
+            "{e}"
+        );
+        let parts = build_parts(vec![("a".into(), square(0.0))], 16).unwrap();
+        let mut state = SolveResult::fresh(parts, vec!["p".into()], &SolveOptions::default());
+        state.report.parts = vec![crate::record::PartSummary::unsolved(&state.parts[0].part)];
+        state.write_geometry(dir.path()).unwrap();
+        state.write_state(dir.path()).unwrap();
+        let weight = dir.path().join("parts/a_weight.exr");
+        write_exr(&weight, &HdrImage::new(8, 8)).unwrap();
+        match SolveResult::load(dir.path()) {
+            Err(ReflectError::AtlasSize {
+                path,
+                width: 8,
+                height: 8,
+                expected: 16,
+            }) => assert_eq!(path, weight),
+            other => panic!("{:?}", other.err()),
+        }
     }
 }
