@@ -591,8 +591,9 @@ fn a_prepared_site_and_its_3d_tiles_open_in_a_real_browser() {
             .args(["--format", "gltf", "-o"])
             .arg(&out),
     );
-    for (dir, label, tileset) in [(&res, "prepared result", "/igi/tiles/tileset.json")] {
-        let served = serve(dir, "0", &[]);
+    {
+        let (label, tileset) = ("prepared result", "/igi/tiles/tileset.json");
+        let served = serve(&res, "0", &[]);
         let scene = http(&served.1, "GET /igi/scene.json HTTP/1.0\r\n\r\n");
         assert!(scene.contains("\"kind\": \"tiles\""), "{scene}");
         assert!(

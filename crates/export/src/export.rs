@@ -444,7 +444,7 @@ fn tiles_of(
     let mut set = crate::tiles::TilesetBuilder::open(res, result_dir)?;
     for i in 0..res.parts.len() {
         let g = parts_gltf(res, result_dir, &|k| k == i)?;
-        let glbs = set.add(&res.parts[i], g.as_glb_part(0))?;
+        let glbs = set.add(&res.parts[i].part, g.as_glb_part(0))?;
         on_part(i, &g.textures[0], glbs)?;
         set.keep(g);
     }

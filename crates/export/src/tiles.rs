@@ -53,7 +53,7 @@ pub fn tile_file(name: &str, level: usize) -> String {
 /// Whether `res` exports as 3D Tiles: its parts come from a prepared site, or one GLB of it
 /// would pass [`GLB_MAX_BYTES`] ([`single_glb_estimate`]).
 pub fn needs_tiles(res: &SolveResult) -> bool {
-    res.parts.iter().any(|p| p.stored.is_some()) || single_glb_estimate(res) > GLB_MAX_BYTES
+    res.parts.iter().any(|p| p.part.stored.is_some()) || single_glb_estimate(res) > GLB_MAX_BYTES
 }
 
 /// Whether the result folder `result_dir` exports as 3D Tiles ([`needs_tiles`]).
@@ -69,7 +69,10 @@ pub fn single_glb_estimate(res: &SolveResult) -> u64 {
         .iter()
         .map(|p| {
             let r = p.resolution() as u64;
-            32 * p.mesh.positions.len() as u64 + 12 * p.mesh.indices.len() as u64 + 4 * r * r + 4096
+            32 * p.part.mesh.positions.len() as u64
+                + 12 * p.part.mesh.indices.len() as u64
+                + 4 * r * r
+                + 4096
         })
         .sum()
 }
@@ -143,7 +146,7 @@ pub(crate) struct TilesetBuilder {
 impl TilesetBuilder {
     /// Opens the prepared site of `res`'s parts, if they come from one.
     pub(crate) fn open(res: &SolveResult, result_dir: &Path) -> Result<Self, ExportError> {
-        let store = match res.parts.iter().find_map(|p| p.stored.as_ref()) {
+        let store = match res.parts.iter().find_map(|p| p.part.stored.as_ref()) {
             Some(s) => Some(SiteStore::open(&s.site)?),
             None => None,
         };
