@@ -604,10 +604,23 @@ fn a_prepared_site_and_its_3d_tiles_open_in_a_real_browser() {
         assert_eq!(status(&set), 200, "{label}: {set}");
         assert!(set.contains("\"version\": \"1.1\""), "{label}: {set}");
         let fixed = format!("{}?width=1024&height=768", served.1);
-        let mut browser = chromium_command(&fixed, &[]).spawn().unwrap();
-        let said = page_says(&served, |l| l.starts_with("page: title=igi"), 180);
-        let _ = browser.kill();
-        let _ = browser.wait();
+        // a browser that never reached the page (not one line from it in 180 s: seen about
+        // once in three runs on a loaded 2-core machine, cause not found, docs/VIEW.md) gets
+        // one more launch; a page that reports and fails is not retried
+        let mut said = Vec::new();
+        for attempt in 0..2 {
+            let mut browser = chromium_command(&fixed, &[]).spawn().unwrap();
+            said = page_says(&served, |l| l.starts_with("page: title=igi"), 180);
+            let _ = browser.kill();
+            let _ = browser.wait();
+            if !said.is_empty() {
+                break;
+            }
+            println!(
+                "{label}: launch {} of chromium never reached the page",
+                attempt + 1
+            );
+        }
         assert!(
             said.iter().any(|l| l == "page: title=igi: ready"),
             "{label}: the page never became ready: {said:?}"
