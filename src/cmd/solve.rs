@@ -263,7 +263,9 @@ pub struct ExportArgs {
     /// root node, base colour the albedo as an embedded 8-bit sRGB PNG, the lobes approximated
     /// by roughness and KHR_materials_specular fitted by least squares (the fit's relative RMS
     /// error printed; retroreflective lobes folded in), the exact lobes in the material's
-    /// extras (docs/EXPORT.md).
+    /// extras (docs/EXPORT.md). A prepared site's result, or one whose single GLB would pass
+    /// 2 GiB, is written as 3D Tiles 1.1 instead: NAME_levelL.glb per part and level and a
+    /// tileset.json.
     #[arg(long)]
     pub format: ExportFormat,
     /// Output folder: new, empty, or an earlier `igi export` (its export.json lists its files),
