@@ -73,24 +73,7 @@ impl Site {
             e => ViewError::Export(e),
         })?;
         let (parts, stderr_png) = match &glb.result {
-            Some(r) => (
-                r.materials
-                    .iter()
-                    .enumerate()
-                    .map(|(k, (name, lobes, fit))| {
-                        serde_json::json!({
-                            "name": name,
-                            "lobes": lobes,
-                            "roughness": fit.roughness,
-                            "specular": fit.specular,
-                            "specular_color": fit.specular_color,
-                            "fit_rel_rms": fit.rel_rms,
-                            "stderr": format!("/igi/stderr/{k}.png"),
-                        })
-                    })
-                    .collect(),
-                r.stderr_png.clone(),
-            ),
+            Some(r) => (parts_json(&r.materials), r.stderr_png.clone()),
             None => (Vec::new(), Vec::new()),
         };
         let scene_json = serde_json::json!({
@@ -154,22 +137,7 @@ impl Site {
             return Ok(None);
         }
         let (set, mut files) = igi_export::result_tiles(root)?;
-        let parts = set
-            .materials
-            .iter()
-            .enumerate()
-            .map(|(k, (name, lobes, fit))| {
-                serde_json::json!({
-                    "name": name,
-                    "lobes": lobes,
-                    "roughness": fit.roughness,
-                    "specular": fit.specular,
-                    "specular_color": fit.specular_color,
-                    "fit_rel_rms": fit.rel_rms,
-                    "stderr": format!("/igi/stderr/{k}.png"),
-                })
-            })
-            .collect();
+        let parts = parts_json(&set.materials);
         let summary = vec![format!(
             "{} parts, {} tiles",
             set.materials.len(),
@@ -365,6 +333,26 @@ fn percent_decode(s: &str) -> Option<String> {
         }
     }
     String::from_utf8(out).ok()
+}
+
+/// The page's description of each part's material: its glTF fit of the lobes and the route of
+/// its standard-error picture.
+fn parts_json(materials: &[(String, usize, igi_export::GltfFit)]) -> Vec<serde_json::Value> {
+    materials
+        .iter()
+        .enumerate()
+        .map(|(k, (name, lobes, fit))| {
+            serde_json::json!({
+                "name": name,
+                "lobes": lobes,
+                "roughness": fit.roughness,
+                "specular": fit.specular,
+                "specular_color": fit.specular_color,
+                "fit_rel_rms": fit.rel_rms,
+                "stderr": format!("/igi/stderr/{k}.png"),
+            })
+        })
+        .collect()
 }
 
 #[cfg(test)]
