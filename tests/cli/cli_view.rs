@@ -270,7 +270,8 @@ fn bad_folders_and_busy_ports_are_refused() {
         !out.status.success()
             && err.contains("not a result folder")
             && err.contains("an opacity-hull folder")
-            && err.contains("nor a surface-light-field folder"),
+            && err.contains("a surface-light-field folder")
+            && err.contains("nor a 3D Tiles export"),
         "{err}"
     );
     assert!(
@@ -520,18 +521,27 @@ fn the_demo_result_frame_time_at_1024x768() {
     let served = serve(&demo.join("result"), "0", &[]);
     let fixed = format!("{}?width=1024&height=768", served.1);
     let unlimited = ["--disable-gpu-vsync", "--disable-frame-rate-limit"];
-    let mut browser = chromium_command(&fixed, &unlimited).spawn().unwrap();
     let frames = std::cell::Cell::new(0);
-    let said = page_says(
-        &served,
-        |l| {
-            frames.set(frames.get() + l.starts_with("page: frame_ms=") as usize);
-            frames.get() == 5
-        },
-        180,
-    );
-    let _ = browser.kill();
-    let _ = browser.wait();
+    let mut said = Vec::new();
+    // a launch that never reaches the page (no line from it at all: seen under CI load,
+    // docs/VIEW.md) gets one more; a page that reports and fails is not retried
+    for attempt in 0..2 {
+        let mut browser = chromium_command(&fixed, &unlimited).spawn().unwrap();
+        said = page_says(
+            &served,
+            |l| {
+                frames.set(frames.get() + l.starts_with("page: frame_ms=") as usize);
+                frames.get() == 5
+            },
+            180,
+        );
+        let _ = browser.kill();
+        let _ = browser.wait();
+        if !said.is_empty() {
+            break;
+        }
+        println!("launch {} of chromium never reached the page", attempt + 1);
+    }
     assert!(
         said.iter().any(|l| l == "page: title=igi: ready"),
         "the page never became ready: {said:?}"

@@ -337,7 +337,7 @@ fn too_many_voxels(grid: &VoxelGrid, area: f64, span: u64) -> GeometryError {
     let size = grid.size;
     GeometryError::TooLarge {
         what: format!(
-            "a {size} m voxel over {area:.3} m^2 of surface (so far) gives about {:.3e} voxels, one triangle spanning {span} (limit {MAX_VOXELS})",
+            "a {size} m voxel over {area:.3} m^2 of surface (so far) gives about {:.3e} voxels, one triangle spanning {span} (limit {MAX_VOXELS}): choose a larger --voxel",
             area / (size * size)
         ),
     }

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 #[derive(Debug, thiserror::Error)]
 pub enum ViewError {
     /// The folder is not one igi view shows.
-    #[error("{}: not a result folder of `igi solve` (report.json and parts/), an opacity-hull folder of `igi hull build` (hull.json and surfels.ply) a surface-light-field folder of `igi slf build` (header.json and mesh.ply) nor a 3D Tiles export of `igi export --format gltf` (tileset.json); igi view shows these", dir.display())]
+    #[error("{}: not a result folder of `igi solve` (report.json and parts/), an opacity-hull folder of `igi hull build` (hull.json and surfels.ply), a surface-light-field folder of `igi slf build` (header.json and mesh.ply) nor a 3D Tiles export of `igi export --format gltf` (tileset.json); igi view shows these", dir.display())]
     NotViewable { dir: PathBuf },
     /// The folder cannot be read.
     #[error("{}: {source}", dir.display())]
