@@ -72,7 +72,15 @@ pub fn camera_toward(dir: Vec3, dist: f64, size: u32) -> Camera {
     cam
 }
 
-pub fn make(n_views: usize, held_out_dirs: &[Vec3], size: u32, spp: u32, truth_spp: u32) -> Synth {
+/// The bunny photographed from `n_views` directions at `spp` samples a pixel (the capture's
+/// seeds count up from `capture_seed`) and from `held_out_dirs` at `truth_spp` (seeds from 9000).
+pub fn make(
+    n_views: usize,
+    held_out_dirs: &[Vec3],
+    size: u32,
+    (spp, capture_seed): (u32, u64),
+    truth_spp: u32,
+) -> Synth {
     let mut mesh = bunny();
     mesh.uvs = None;
     let atlas = build_atlas(
@@ -128,7 +136,7 @@ pub fn make(n_views: usize, held_out_dirs: &[Vec3], size: u32, spp: u32, truth_s
             .collect()
     };
     let view_dirs = sphere_dirs(n_views, 0.0);
-    let views = shoot(&view_dirs, spp, 1000);
+    let views = shoot(&view_dirs, spp, capture_seed);
     let held_out = shoot(held_out_dirs, truth_spp, 9000);
     Synth {
         atlas,
