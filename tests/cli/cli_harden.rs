@@ -1012,24 +1012,7 @@ fn photo_pixels_beyond_the_lighting_radiance_limit_are_refused_naming_the_photo(
     let survey = d.path().join("survey");
     copy_dir(&fixture("survey"), &survey);
     // v00 1e20 times too bright (it solved to "residual NaN%" and a report of nulls)
-    let photo = survey.join("photos/v00-sunny.exr");
-    let img = exr::prelude::read_first_rgba_layer_from_file(
-        &photo,
-        |size, _| (size.width(), vec![[0f32; 3]; size.area()]),
-        |(w, px), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
-            px[pos.y() * *w + pos.x()] = [r, g, b];
-        },
-    )
-    .unwrap();
-    let size = img.layer_data.size;
-    let (w, px) = &img.layer_data.channel_data.pixels;
-    let brightest = px.iter().flatten().fold(0f32, |m, &c| m.max(c));
-    assert!(brightest > 1e-5, "the photo is not black");
-    exr::prelude::write_rgb_file(&photo, size.width(), size.height(), |x, y| {
-        let p = px[y * *w + x];
-        (p[0] * 1e20, p[1] * 1e20, p[2] * 1e20)
-    })
-    .unwrap();
+    scale_exr(&survey.join("photos/v00-sunny.exr"), 1e20);
     let out = d.path().join("res");
     let o = igi().run(&solve_args(s(&survey), s(&out), &[]));
     let e = stderr(&o);
@@ -1041,6 +1024,106 @@ fn photo_pixels_beyond_the_lighting_radiance_limit_are_refused_naming_the_photo(
         "{e}"
     );
     assert!(!out.join("report.json").exists(), "no result");
+}
+
+/// Multiplies every pixel of the RGB EXR at `path` by `k` (the photo must not be black).
+fn scale_exr(path: &Path, k: f32) {
+    let img = exr::prelude::read_first_rgba_layer_from_file(
+        path,
+        |size, _| (size.width(), vec![[0f32; 3]; size.area()]),
+        |(w, px), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+            px[pos.y() * *w + pos.x()] = [r, g, b];
+        },
+    )
+    .unwrap();
+    let size = img.layer_data.size;
+    let (w, px) = &img.layer_data.channel_data.pixels;
+    let brightest = px.iter().flatten().fold(0f32, |m, &c| m.max(c));
+    assert!(brightest > 1e-5, "the photo is not black");
+    exr::prelude::write_rgb_file(path, size.width(), size.height(), |x, y| {
+        let p = px[y * *w + x];
+        (p[0] * k, p[1] * k, p[2] * k)
+    })
+    .unwrap();
+}
+
+/// A photo 1e10 times brighter than its lighting can light anything solved to "residual 100%"
+/// without a word: now a warning names the photo, its file and its lighting file, with the
+/// ratio; the fixture's own photos (Mitsuba renders under their lighting) get none, and 1e4
+/// times too bright (3 decades over the warning's margin) is caught as well.
+#[test]
+fn a_photo_far_brighter_than_its_lighting_is_warned_about_naming_it() {
+    let d = tempfile::tempdir().unwrap();
+    let survey = d.path().join("survey");
+    copy_dir(&fixture("survey"), &survey);
+    let warned = |o: &std::process::Output| stderr(o).contains("check the photo's exposure");
+    let plain = igi().run(&solve_args(s(&survey), s(&d.path().join("a")), &[]));
+    assert!(
+        plain.status.success() && !warned(&plain),
+        "{}",
+        stderr(&plain)
+    );
+    for k in [1e4f32, 1e10] {
+        let dir = d.path().join(format!("s{k}"));
+        copy_dir(&fixture("survey"), &dir);
+        scale_exr(&dir.join("photos/v01-lowsun.exr"), k);
+        let o = igi().run(&solve_args(
+            s(&dir),
+            s(&d.path().join(format!("r{k}"))),
+            &[],
+        ));
+        let e = stderr(&o);
+        assert!(o.status.success(), "{e}");
+        let line = e.lines().find(|l| l.contains("check the photo's exposure"));
+        let line = line.unwrap_or_else(|| panic!("no warning at {k}x: {e}"));
+        assert!(
+            line.contains("photo `v01-lowsun`")
+                && line.contains("v01-lowsun.exr")
+                && line.contains("lowsun.toml")
+                && !e.contains("photo `v00-sunny`"),
+            "{line}"
+        );
+    }
+}
+
+/// `solve --atlas 16384` reached 20 GB: the atlases are estimated before any work (192 bytes a
+/// texel, measured; docs/RELIABILITY.md) and refused above the limit naming `--atlas`, nothing
+/// written; the limit follows `IGI_MAX_MEMORY`, which lets `--atlas 512` (151 MiB of atlases)
+/// through at 256M and refuses it at 128M.
+#[test]
+fn a_solve_whose_atlases_cannot_fit_is_refused_before_any_work() {
+    let d = tempfile::tempdir().unwrap();
+    let survey = s(&fixture("survey")).to_string();
+    let at = |res: &str, limit: Option<&str>, out: &Path| {
+        let args: Vec<&str> = solve_args(&survey, s(out), &[])
+            .into_iter()
+            .map(|a| if a == "32" { res } else { a })
+            .collect();
+        match limit {
+            Some(l) => igi().with_env("IGI_MAX_MEMORY", l).run(&args),
+            None => igi().run(&args),
+        }
+    };
+    let out = d.path().join("res");
+    let o = at("16384", None, &out);
+    let e = stderr(&o);
+    assert!(
+        o.status.code() == Some(1)
+            && e.contains("--atlas 16384")
+            && e.contains("144.0 GiB")
+            && e.contains("IGI_MAX_MEMORY"),
+        "{e}"
+    );
+    assert!(!out.exists(), "nothing written");
+    let low = at("512", Some("128M"), &d.path().join("low"));
+    assert!(
+        low.status.code() == Some(1) && stderr(&low).contains("--atlas 512"),
+        "{}",
+        stderr(&low)
+    );
+    assert!(!d.path().join("low").exists(), "nothing written");
+    let ok = at("512", Some("256M"), &d.path().join("ok"));
+    assert!(ok.status.success(), "{}", stderr(&ok));
 }
 
 /// A rig of 6 views of a sphere of radius 0.3 (exact masks, flat photos) in `dir`.

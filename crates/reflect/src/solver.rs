@@ -22,6 +22,20 @@ use rayon::prelude::*;
 
 use std::time::Instant;
 
+/// Bytes a solve of survey meshes holds per atlas texel besides its observations: the part's
+/// texel cache, coverage and result arrays, and one photograph's pass (its raw observations,
+/// the lattice, the shadow edges). Measured as peak resident memory of the fixture survey at
+/// `--atlas 1024` and `2048` with one photograph: 197 bytes a texel between the two; each
+/// further photograph adds its observations ([`Obs`], 96 bytes, and a proposal, 28 bytes, per
+/// texel it sees: about 50 bytes a texel per photograph on the fixture) (docs/RELIABILITY.md).
+pub const BYTES_PER_TEXEL: u128 = 192;
+
+/// The memory estimate of a solve's atlases of `texels` texels in all ([`BYTES_PER_TEXEL`]
+/// each), which a solve refuses before any work above the memory limit.
+pub fn atlas_memory(texels: u128) -> u128 {
+    texels * BYTES_PER_TEXEL
+}
+
 /// Whether selection entry `sel` selects part `part`: the part's name, or the name of the mesh
 /// `--atlas auto` cut it from (its pieces are named `sel-K`, `sel-K-L`, ...).
 pub fn selects(sel: &str, part: &str) -> bool {

@@ -349,6 +349,30 @@ impl Lighting {
         Ok(())
     }
 
+    /// The largest luminance a photograph lit by this light can plausibly show over most of
+    /// its pixels: the brighter of a white Lambertian surface facing every light at once
+    /// (the irradiance of the whole sphere of sky plus the sun, over pi: no surface receives
+    /// more) and the brightest direction of the sky itself (a photograph may show sky). Only a
+    /// mirror-like highlight or the sun's disk is brighter, never a photograph's median.
+    pub fn brightest_plausible(&self) -> f32 {
+        let mut irradiance = 0.0f64;
+        let mut sky_max = 0.0f32;
+        if let Some(e) = &self.environment {
+            for row in 0..e.h {
+                let omega = f64::from(igi_imaging::latlong::pixel_solid_angle(row, e.w, e.h));
+                for col in 0..e.w {
+                    let l = luminance(e.texel(row, col));
+                    irradiance += f64::from(l) * omega;
+                    sky_max = sky_max.max(l);
+                }
+            }
+        }
+        if let Some(s) = &self.sun {
+            irradiance += f64::from(luminance(s.radiance)) * f64::from(s.solid_angle);
+        }
+        ((irradiance / std::f64::consts::PI) as f32).max(sky_max)
+    }
+
     /// What may not mean what the user wants, for stderr and reports: a sun below the horizon
     /// (it lights nothing above the ground plane), an environment that is black everywhere.
     pub fn warnings(&self) -> Vec<String> {
@@ -409,6 +433,30 @@ mod tests {
             }
         }
         img
+    }
+
+    /// A uniform sky of luminance L: the whole sphere's irradiance 4 pi L over pi is 4 L (the
+    /// pixel solid angles sum to 4 pi); a sun of luminance Ls and disk Omega adds Ls Omega / pi;
+    /// a sky brighter than that bound somewhere sets it by itself.
+    #[test]
+    fn the_brightest_plausible_radiance_is_the_analytic_bound() {
+        let sky = Lighting::uniform(Vec3::splat(2.0));
+        assert!((sky.brightest_plausible() / 8.0 - 1.0).abs() < 1e-4);
+        let sun = Sun::new(Vec3::new(0.3, 0.2, 1.0), Vec3::splat(1e5), 0.53).unwrap();
+        let want = 8.0 + 1e5 * sun.solid_angle() / PI;
+        let both = Lighting {
+            environment: sky.environment.clone(),
+            sun: Some(sun),
+        };
+        assert!((both.brightest_plausible() / want - 1.0).abs() < 1e-4);
+        let mut map = HdrImage::new(64, 32);
+        map.set(10, 5, [1e6, 1e6, 1e6]);
+        let spot = Lighting {
+            environment: Some(Environment::from_image(&map, 1.0).unwrap()),
+            sun: None,
+        };
+        assert!((spot.brightest_plausible() / 1e6 - 1.0).abs() < 1e-5);
+        assert_eq!(Lighting::default().brightest_plausible(), 0.0);
     }
 
     #[test]

@@ -78,6 +78,14 @@ impl SolveJob {
             None => None,
         };
         let options = atlas_options(request, store.as_ref());
+        if let (AtlasRequest::Fixed(r), None) = (request.atlas, &store) {
+            let texels = (r as u128).pow(2) * survey.meshes.len() as u128;
+            let what = format!(
+                "the atlases of {} meshes at {r} texels a side (--atlas {r})",
+                survey.meshes.len()
+            );
+            check_atlas_memory(&what, texels)?;
+        }
         let session = SolveSession::check(
             &request.output,
             &survey,
@@ -184,6 +192,15 @@ impl SolveJob {
             self.options.atlas_auto,
             &cameras,
         )?;
+        if let Some(auto) = self.options.atlas_auto.filter(|_| self.store.is_none()) {
+            let texels = parts.iter().map(|p| (p.resolution() as u128).pow(2)).sum();
+            let what = format!(
+                "the atlases --atlas auto chose for {} parts (at most {} texels a side, --atlas-max)",
+                parts.len(),
+                auto.max
+            );
+            check_atlas_memory(&what, texels)?;
+        }
         let ids = photos.iter().map(|p| p.id.clone()).collect();
         self.session.start(parts, ids, &self.options)
     }
@@ -258,6 +275,19 @@ impl StartedSolve {
 pub struct CoarseStage {
     pub parts: Vec<igi_reflect::Part>,
     pub truth: Option<Truth>,
+}
+
+/// Refuses atlases of `texels` texels whose memory estimate
+/// ([`igi_reflect::solver::atlas_memory`], before the observations) is above the limit
+/// (`IGI_MAX_MEMORY`, 8 GiB by default); a prepared site's atlases were sized by `igi prepare`
+/// under its own `--max-memory` and are not checked again.
+fn check_atlas_memory(what: &str, texels: u128) -> Result<(), WorkflowError> {
+    let what = format!(
+        "{what}: {texels} texels at {} bytes each before the observations",
+        igi_reflect::solver::BYTES_PER_TEXEL
+    );
+    igi_files::check_alloc_default(&what, igi_reflect::solver::atlas_memory(texels))?;
+    Ok(())
 }
 
 /// The request's options with its atlas: a prepared site's own resolution, else `atlas`.

@@ -10,6 +10,10 @@ use igi_reflect::{Photo, Progress};
 use igi_render::Lighting;
 use std::path::{Path, PathBuf};
 
+/// How many times brighter than its lighting's plausible brightest a photograph's median may
+/// be before igi warns (the bound is already generous: 4 times a uniform sky's white surface).
+pub const TOO_BRIGHT: f32 = 10.0;
+
 /// Where a photograph's lighting comes from.
 #[derive(Clone, Debug, PartialEq)]
 pub enum LightingSource {
@@ -482,12 +486,47 @@ impl PhotoSpec {
                 sky.lighting(&crate::lightfit::SkyParams::default())?
             }
         };
+        if !matches!(self.lighting, LightingSource::Estimated(_)) {
+            self.warn_if_too_bright(&image, &lighting);
+        }
         Ok(Photo {
             id: self.id.clone(),
             image,
             camera,
             lighting,
         })
+    }
+
+    /// A photograph whose median luminance is more than [`TOO_BRIGHT`] times the brightest its
+    /// lighting can plausibly show ([`Lighting::brightest_plausible`]) is in other units or
+    /// exposure than its lighting, or lit by another light: the solve would only report a
+    /// residual near 100 %, so it is said first (a warning naming the photo and the light's
+    /// source; issue 36). Estimated light is fitted to the photographs and is not checked.
+    fn warn_if_too_bright(&self, image: &HdrImage, lighting: &Lighting) {
+        let bound = lighting.brightest_plausible();
+        let mut lum: Vec<f32> = image
+            .pixels
+            .iter()
+            .map(|p| igi_imaging::color::luminance(*p))
+            .collect();
+        if lum.is_empty() || bound <= 0.0 {
+            return;
+        }
+        let mid = lum.len() / 2;
+        let median = *lum.select_nth_unstable_by(mid, f32::total_cmp).1;
+        if median > TOO_BRIGHT * bound {
+            let light = match &self.lighting {
+                LightingSource::File(f) => f.display().to_string(),
+                LightingSource::Probe { image, .. } => format!("the probe {}", image.display()),
+                LightingSource::Estimated(_) => "the estimated sky".into(),
+            };
+            tracing::warn!(
+                "photo `{}` ({}): its median luminance {median:.3e} is {:.1e} times the brightest a white surface or the sky under its lighting ({light}) can show ({bound:.3e}): check the photo's exposure and units against the lighting's",
+                self.id,
+                self.image.display(),
+                median / bound
+            );
+        }
     }
 
     /// A sun wholly below the horizon (its disk under the ground plane) lights nothing: an
