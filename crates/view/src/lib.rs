@@ -106,6 +106,7 @@ impl Viewer {
     /// Answer requests until the process ends; `on_event` hears what the page says.
     pub fn serve(self, on_event: &mut dyn FnMut(ViewEvent)) {
         for request in self.server.incoming_requests() {
+            tracing::debug!("{} {}", request.method(), request.url());
             let reply = respond(&self.site, request.method().as_str(), request.url());
             if let Some(text) = &reply.event {
                 on_event(ViewEvent::Page(text));
@@ -126,8 +127,12 @@ impl Viewer {
                 Some(len),
                 None,
             );
+            let url = request.url().to_string();
             // a client that went away is not the server's problem
-            let _ = request.respond(response);
+            match request.respond(response) {
+                Ok(()) => tracing::debug!("answered {url}: {} ({len} bytes)", reply.status),
+                Err(e) => tracing::debug!("answering {url}: {e}"),
+            }
         }
     }
 }
