@@ -1126,6 +1126,38 @@ fn a_solve_whose_atlases_cannot_fit_is_refused_before_any_work() {
     assert!(ok.status.success(), "{}", stderr(&ok));
 }
 
+/// A prepare refused for charts that do not fit its atlas left `run.json` and `voxels/`, which
+/// then refused the corrected retry (another `--atlas`): the folder it created is removed, and
+/// the retry into the same path succeeds.
+#[test]
+fn a_refused_prepare_leaves_nothing_to_block_the_corrected_retry() {
+    let d = tempfile::tempdir().unwrap();
+    let mesh = fixture("survey").join("geometry/block.ply");
+    let out = d.path().join("site.igi");
+    let prepare = |atlas: &str| {
+        igi().run(&[
+            "prepare",
+            s(&mesh),
+            "--atlas",
+            atlas,
+            "--voxel",
+            "100",
+            "-o",
+            s(&out),
+        ])
+    };
+    let o = prepare("8");
+    let e = stderr(&o);
+    assert!(
+        o.status.code() == Some(1) && e.contains("do not fit a 8x8 atlas"),
+        "{e}"
+    );
+    assert!(!out.exists(), "the refused prepare left {}", out.display());
+    let o = prepare("64");
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(out.join("manifest.json").is_file());
+}
+
 /// A rig of 6 views of a sphere of radius 0.3 (exact masks, flat photos) in `dir`.
 fn sphere_rig(dir: &Path) -> PathBuf {
     use glam::DVec3;

@@ -370,15 +370,36 @@ pub fn prepare_run(
     }
     check_prepare_output(out, run, opts, terrain.is_some())?;
     check_resources(&site, terrain.as_ref(), opts)?;
+    let fresh = !out.exists();
     let _lock = open_site(out, run, opts, terrain.is_some())?;
-    let (lo, hi) = site.bounds().expect("validated mesh has vertices");
-    let bounds = combined_bounds([lo, hi], terrain.as_ref());
-    let parts: Vec<(VoxelId, TriMesh)> = partition(&site, &opts.grid).into_iter().collect();
-    drop(site);
-    let part =
-        |(v, m): (VoxelId, TriMesh)| process_part(out, &voxel_dir(v), Some(v), m, opts).map(Some);
-    let (voxels, terrain) = process_parts(out, parts, &part, terrain, opts, progress)?;
-    finish_site(out, source, opts, bounds, repair, voxels, terrain)
+    removed_on_error(out, fresh, || {
+        let (lo, hi) = site.bounds().expect("validated mesh has vertices");
+        let bounds = combined_bounds([lo, hi], terrain.as_ref());
+        let parts: Vec<(VoxelId, TriMesh)> = partition(&site, &opts.grid).into_iter().collect();
+        drop(site);
+        let part = |(v, m): (VoxelId, TriMesh)| {
+            process_part(out, &voxel_dir(v), Some(v), m, opts).map(Some)
+        };
+        let (voxels, terrain) = process_parts(out, parts, &part, terrain, opts, progress)?;
+        finish_site(out, source, opts, bounds, repair, voxels, terrain)
+    })
+}
+
+/// The work of a prepare on its site folder `out`: when this run created the folder
+/// (`fresh`) and the work fails (charts that do not fit the atlas, a voxel that cannot be
+/// written), the folder is removed, so that a refused prepare leaves nothing to block the
+/// corrected retry (issue 36); a folder that held an earlier run keeps what that run and this
+/// one finished, for a resume.
+fn removed_on_error<T>(
+    out: &Path,
+    fresh: bool,
+    work: impl FnOnce() -> Result<T, GeometryError>,
+) -> Result<T, GeometryError> {
+    let result = work();
+    if result.is_err() && fresh {
+        let _ = std::fs::remove_dir_all(out);
+    }
+    result
 }
 
 /// [`prepare_run`] of a site streamed from its mesh file through per-voxel spill files
@@ -403,7 +424,23 @@ pub fn prepare_streamed(
     }
     check_prepare_output(out, run, opts, terrain.is_some())?;
     check_streamed_resources(site.stats(), terrain.is_some(), opts)?;
+    let fresh = !out.exists();
     let _lock = open_site(out, run, opts, terrain.is_some())?;
+    removed_on_error(out, fresh, || {
+        streamed_parts(site, terrain, repair, out, source, opts, progress)
+    })
+}
+
+/// [`prepare_streamed`]'s work in its opened site folder.
+fn streamed_parts(
+    site: &SiteSpill,
+    terrain: Option<TriMesh>,
+    repair: RepairReport,
+    out: &Path,
+    source: &str,
+    opts: &PrepareOptions,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<Manifest, GeometryError> {
     let bounds = combined_bounds(site.stats().bounds, terrain.as_ref());
     let part = |v: VoxelId| -> Result<Option<PartEntry>, GeometryError> {
         let dir = voxel_dir(v);
