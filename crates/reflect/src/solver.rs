@@ -26,7 +26,7 @@ use std::time::Instant;
 /// texel cache, coverage and result arrays, and one photograph's pass (its raw observations,
 /// the lattice, the shadow edges). Measured as peak resident memory of the fixture survey at
 /// `--atlas 1024` and `2048` with one photograph: 197 bytes a texel between the two; each
-/// further photograph adds its observations ([`Obs`], 96 bytes, and a proposal, 28 bytes, per
+/// further photograph adds its observations (`Obs`, 96 bytes, and a proposal, 28 bytes, per
 /// texel it sees: about 50 bytes a texel per photograph on the fixture) (docs/RELIABILITY.md).
 pub const BYTES_PER_TEXEL: u128 = 192;
 
