@@ -142,9 +142,9 @@ fn chromium_command(url: &str, extra: &[&str]) -> Command {
 
 /// Opens `url` of `served` in headless chromium (with `extra` flags) and returns the page's
 /// messages until `until` holds for one or `secs` pass. A launch from which not one message
-/// arrives (seen under CI load, cause not found: docs/VIEW.md) is killed, the end of its
-/// verbose log printed, and the browser launched again (three launches at most); a page that
-/// reports and then stops has what chromium and the server logged printed, and is not retried.
+/// arrives is killed, the end of its verbose log and what the server logged printed, and the
+/// browser launched again (three launches at most; docs/VIEW.md); a page that reports and
+/// then stops has what chromium and the server logged printed, and is not retried.
 fn open_page(
     served: &Served,
     url: &str,
@@ -198,10 +198,13 @@ fn open_page(
             break;
         }
         let tail: Vec<&str> = text.lines().rev().take(25).collect();
+        let other = served.3.borrow();
+        let from = other.len().saturating_sub(60);
         println!(
-            "launch {} of chromium never reached {url} in {secs} s (exited by itself: {exited:?}); the end of its log:\n{}",
+            "launch {} of chromium never reached {url} in {secs} s (exited by itself: {exited:?}); the end of its log:\n{}\nthe server logged:\n{}",
             attempt + 1,
-            tail.into_iter().rev().collect::<Vec<_>>().join("\n")
+            tail.into_iter().rev().collect::<Vec<_>>().join("\n"),
+            other[from..].join("\n")
         );
     }
     said

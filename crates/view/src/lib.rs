@@ -18,7 +18,8 @@
 //!   time), handed to the caller ([`ViewEvent::Page`]; `igi view` prints `page: ...` on
 //!   standard error), so scripts and tests learn when the page is ready.
 //!
-//! Only GET and HEAD are answered (405 otherwise). Everything is checked before the server
+//! Every answer closes its connection (`Connection: close`: see `answer` for why). Only GET
+//! and HEAD are answered (405 otherwise). Everything is checked before the server
 //! starts: the folder must be a result, hull or light-field folder, and the port free.
 
 mod error;
@@ -112,27 +113,120 @@ impl Viewer {
                 on_event(ViewEvent::Page(text));
             }
             let head = request.method() == &tiny_http::Method::Head;
-            let header = |k: &str, v: &str| {
-                tiny_http::Header::from_bytes(k.as_bytes(), v.as_bytes()).expect("ASCII header")
-            };
-            let len = reply.body.len();
-            let body = if head { Vec::new() } else { reply.body };
-            let response = tiny_http::Response::new(
-                tiny_http::StatusCode(reply.status),
-                vec![
-                    header("Content-Type", reply.content_type),
-                    header("Cache-Control", "no-store"),
-                ],
-                std::io::Cursor::new(body),
-                Some(len),
-                None,
-            );
             let url = request.url().to_string();
             // a client that went away is not the server's problem
-            match request.respond(response) {
-                Ok(()) => tracing::debug!("answered {url}: {} ({len} bytes)", reply.status),
+            match answer(request, &reply, head) {
+                Ok(()) => tracing::debug!(
+                    "answered {url}: {} ({} bytes)",
+                    reply.status,
+                    reply.body.len()
+                ),
                 Err(e) => tracing::debug!("answering {url}: {e}"),
             }
+        }
+    }
+}
+
+/// Writes `reply` to `request`'s connection and asks the client to close it
+/// (`Connection: close`, which tiny_http's `Response` cannot send).
+///
+/// tiny_http gives each connection a pool thread for the connection's whole life, and its pool
+/// can count a thread it has already woken as idle: a connection accepted in that moment waits
+/// in the pool's queue, unread, until another connection ends. A browser keeps its
+/// connections open for minutes, so under load a page stalled with a request unread in the
+/// socket (docs/VIEW.md). Closing after every answer frees the thread at once.
+fn answer(request: tiny_http::Request, reply: &Reply, head: bool) -> std::io::Result<()> {
+    use std::io::Write;
+    let code = tiny_http::StatusCode(reply.status);
+    let mut w = request.into_writer();
+    write!(
+        w,
+        "HTTP/1.1 {} {}\r\nContent-Type: {}\r\nContent-Length: {}\r\nCache-Control: no-store\r\nConnection: close\r\n\r\n",
+        reply.status,
+        code.default_reason_phrase(),
+        reply.content_type,
+        reply.body.len()
+    )?;
+    if !head {
+        w.write_all(&reply.body)?;
+    }
+    w.flush()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::io::{BufRead, BufReader, Read, Write};
+    use std::net::TcpStream;
+    use std::time::Duration;
+
+    /// One answer read as a browser reads it: the status, whether the server asked to close
+    /// the connection, and the body (by its length).
+    fn read_answer(stream: &mut BufReader<TcpStream>) -> (u16, bool, Vec<u8>) {
+        let mut line = String::new();
+        stream.read_line(&mut line).unwrap();
+        let status = line.split(' ').nth(1).unwrap().parse().unwrap();
+        let (mut len, mut close) = (0, false);
+        loop {
+            let mut h = String::new();
+            stream.read_line(&mut h).unwrap();
+            let h = h.trim_end().to_ascii_lowercase();
+            if h.is_empty() {
+                break;
+            }
+            if let Some(v) = h.strip_prefix("content-length:") {
+                len = v.trim().parse().unwrap();
+            }
+            close |= h == "connection: close";
+        }
+        let mut body = vec![0; len];
+        stream.read_exact(&mut body).unwrap();
+        (status, close, body)
+    }
+
+    /// A browser opens several keep-alive connections at once (chromium: six per host) and
+    /// keeps each open until the server says otherwise: every one is answered, and every
+    /// answer asks the client to close, so that no connection holds one of tiny_http's pool
+    /// threads while another waits unread ([`answer`]).
+    #[test]
+    fn many_connections_opened_at_once_are_all_answered() {
+        let dir = tempfile::tempdir().unwrap();
+        let viewer = Viewer {
+            server: tiny_http::Server::http("127.0.0.1:0").unwrap(),
+            site: route::tests::site(dir.path()),
+        };
+        let addr = viewer
+            .url()
+            .trim_start_matches("http://")
+            .trim_end_matches('/')
+            .to_string();
+        std::thread::spawn(move || viewer.serve(&mut |_| {}));
+        for round in 0..20 {
+            let mut open: Vec<BufReader<TcpStream>> = (0..12)
+                .map(|_| {
+                    let s = TcpStream::connect(&addr).unwrap();
+                    s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+                    BufReader::new(s)
+                })
+                .collect();
+            for s in &mut open {
+                s.get_mut()
+                    .write_all(b"GET /igi/scene.json HTTP/1.1\r\nHost: x\r\n\r\n")
+                    .unwrap();
+            }
+            let mut kept = Vec::new();
+            for (k, mut s) in open.into_iter().enumerate() {
+                let (status, close, body) = read_answer(&mut s);
+                assert_eq!(
+                    (status, close, body.as_slice()),
+                    (200, true, &b"{}"[..]),
+                    "round {round}, connection {k}"
+                );
+                if !close {
+                    kept.push(s); // as a browser does: the connection stays open for reuse
+                }
+            }
+            drop(kept);
         }
     }
 }

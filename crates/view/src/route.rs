@@ -356,10 +356,10 @@ fn parts_json(materials: &[(String, usize, igi_export::GltfFit)]) -> Vec<serde_j
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    fn site(root: &Path) -> Site {
+    pub(crate) fn site(root: &Path) -> Site {
         Site {
             root: root.canonicalize().unwrap(),
             scene_json: b"{}".to_vec(),
