@@ -210,6 +210,17 @@ fn open_page(
     said
 }
 
+/// Opens `url` of `served` until the page's title settles (`igi: ...`), asserts that it is
+/// `igi: ready` (naming `label`), and returns what the page said.
+fn open_until_ready(served: &Served, url: &str, label: &str) -> Vec<String> {
+    let said = open_page(served, url, &[], |l| l.starts_with("page: title=igi"), 180);
+    assert!(
+        said.iter().any(|l| l == "page: title=igi: ready"),
+        "{label}: the page never became ready: {said:?}"
+    );
+    said
+}
+
 #[test]
 fn a_result_opens_in_a_real_browser() {
     let tmp = tempfile::tempdir().unwrap();
@@ -400,17 +411,7 @@ fn lobes_measurement_and_the_sky_of_a_date_in_a_real_browser() {
         "{}?width=1024&height=768&mode=lobes&measure=412,600,612,560&time={time}",
         served.1
     );
-    let said = open_page(
-        &served,
-        &url,
-        &[],
-        |l| l.starts_with("page: title=igi"),
-        180,
-    );
-    assert!(
-        said.iter().any(|l| l == "page: title=igi: ready"),
-        "the page never became ready: {said:?}"
-    );
+    let said = open_until_ready(&served, &url, "page");
     assert!(said.iter().any(|l| l == "page: mode=lobes"), "{said:?}");
 
     // the lobes: as the export fitted them
@@ -545,17 +546,7 @@ fn a_hull_and_a_light_field_open_in_a_real_browser() {
         let scene = http(&served.1, "GET /igi/scene.json HTTP/1.0\r\n\r\n");
         assert!(scene.contains(&format!("\"kind\": \"{kind}\"")), "{scene}");
         let fixed = format!("{}?width=1024&height=768", served.1);
-        let said = open_page(
-            &served,
-            &fixed,
-            &[],
-            |l| l.starts_with("page: title=igi"),
-            180,
-        );
-        assert!(
-            said.iter().any(|l| l == "page: title=igi: ready"),
-            "{kind}: the page never became ready: {said:?}"
-        );
+        open_until_ready(&served, &fixed, kind);
         let shot = tmp.path().join(format!("{}.png", kind.replace(' ', "_")));
         let covered = covered_fraction(&served, &shot, keep);
         println!("{kind}: covers {covered:.3} of the frame");
@@ -671,17 +662,7 @@ fn a_prepared_site_and_its_3d_tiles_open_in_a_real_browser() {
         assert_eq!(status(&set), 200, "{label}: {set}");
         assert!(set.contains("\"version\": \"1.1\""), "{label}: {set}");
         let fixed = format!("{}?width=1024&height=768", served.1);
-        let said = open_page(
-            &served,
-            &fixed,
-            &[],
-            |l| l.starts_with("page: title=igi"),
-            180,
-        );
-        assert!(
-            said.iter().any(|l| l == "page: title=igi: ready"),
-            "{label}: the page never became ready: {said:?}"
-        );
+        let said = open_until_ready(&served, &fixed, label);
         assert!(
             said.iter().any(|l| *l == format!("page: tiles={parts}")),
             "{label}: the page did not load one leaf per part ({parts}): {said:?}"
