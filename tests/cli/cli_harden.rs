@@ -365,6 +365,39 @@ fn huge_camera_and_tiny_voxels_are_refused_before_allocating() {
         std::slice::from_ref(&cam),
     );
     assert!(t0.elapsed().as_secs_f64() < 10.0);
+
+    // within --max-memory (issue 36: the estimate ran about 4x low without the voxels' own
+    // bytes): the fixture's block at 2 cm gives 92 126 voxels, about 90 MiB at
+    // BYTES_PER_VOXEL, which 0.05 GiB beside the atlases cannot hold; the binning stops at
+    // the budget, and neither the site folder nor the spill files are left
+    let block = fixture("survey/geometry/block.ply");
+    let budget = |gib: f64| {
+        let opts = igi_geometry::PrepareOptions {
+            max_memory: (gib * (1u64 << 30) as f64) as u64,
+            ..Default::default()
+        };
+        igi_geometry::store::voxel_budget(&opts, false)
+    };
+    assert!(budget(0.05) < 92_126 && budget(0.5) > 92_126);
+    let t0 = std::time::Instant::now();
+    let o = igi().run(&[
+        "prepare",
+        s(&block),
+        "-o",
+        s(&site),
+        "--voxel",
+        "0.02",
+        "--max-memory",
+        "0.05",
+    ]);
+    assert_failed(
+        &o,
+        &format!("limit {}", budget(0.05)),
+        "within --max-memory",
+        d.path(),
+        std::slice::from_ref(&cam),
+    );
+    assert!(t0.elapsed().as_secs_f64() < 10.0);
 }
 
 #[test]

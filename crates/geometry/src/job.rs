@@ -67,7 +67,8 @@ pub fn prepare_file(
     let t0 = std::time::Instant::now();
     let folder = spill_folder(&req.output);
     remove_dead_spills(&folder);
-    let spill = SiteSpill::bin(&req.mesh, &opts.grid, &folder)?;
+    let budget = crate::store::voxel_budget(&opts, req.terrain.is_some());
+    let spill = SiteSpill::bin(&req.mesh, &opts.grid, budget, &folder)?;
     let stats = spill.stats();
     step(PrepareStep::Read {
         triangles: stats.triangles_in,

@@ -205,10 +205,33 @@ pub const MAX_ATLAS: u32 = 16384;
 /// Bytes a prepare may use by default (see [`PrepareOptions::max_memory`]).
 pub const DEFAULT_MAX_MEMORY: u64 = 8 << 30;
 
+/// Bytes a prepare holds per voxel of the site, beside the pieces and atlases being worked on
+/// (its bin, its manifest entry): the slope of the peak resident memory of `igi prepare` on
+/// the fixture's block at `--atlas 32` between 23 002 voxels (`--voxel 0.04`, 44.6 MB) and
+/// 92 126 voxels (`--voxel 0.02`, 114.0 MB) is 1 004 bytes per voxel (docs/RELIABILITY.md).
+pub const BYTES_PER_VOXEL: f64 = 1024.0;
+
+/// The bytes of the atlases a prepare works on at once: one atlas with its three caches per
+/// worker thread (and one for the terrain).
+fn atlas_bytes(opts: &PrepareOptions, has_terrain: bool) -> f64 {
+    let res = opts.atlas.resolution as f64;
+    let threads = rayon::current_num_threads() as f64 + f64::from(u8::from(has_terrain));
+    threads * res * res * 3.0 * 16.0
+}
+
+/// The most voxels a prepare with `opts` may make: [`MAX_VOXELS`], or fewer when their
+/// [`BYTES_PER_VOXEL`] beside the atlases would pass `opts.max_memory`. Binning a streamed
+/// site refuses as soon as it passes this, before the rest of the mesh is read.
+pub fn voxel_budget(opts: &PrepareOptions, has_terrain: bool) -> u64 {
+    let room = (opts.max_memory as f64 - atlas_bytes(opts, has_terrain)).max(0.0);
+    ((room / BYTES_PER_VOXEL) as u64).min(MAX_VOXELS)
+}
+
 /// Refuses, before any allocation, a prepare whose voxel count or memory would explode (a
 /// voxel edge far below the mesh's scale): non-empty voxels are estimated as the surface area
-/// over the voxel face, memory as the voxel pieces plus one atlas with
-/// its three caches per worker thread.
+/// over the voxel face (a lower bound: a triangle is binned into every voxel of its box),
+/// memory as the voxel pieces, [`BYTES_PER_VOXEL`] per voxel, and one atlas with its three
+/// caches per worker thread.
 fn check_resources(
     site: &TriMesh,
     terrain: Option<&TriMesh>,
@@ -217,12 +240,9 @@ fn check_resources(
     let size = opts.grid.size;
     let area = site.total_area();
     let voxels = area / (size * size);
-    let res = opts.atlas.resolution as f64;
-    let threads = rayon::current_num_threads() as f64 + f64::from(u8::from(terrain.is_some()));
     // a clipped piece: 3 indices, ~2 new vertices with position, normal and uv, per voxel crossed
     let pieces = (site.indices.len() as f64 + 4.0 * voxels) * 96.0;
-    let atlases = threads * res * res * 3.0 * 16.0;
-    let bytes = pieces + atlases;
+    let bytes = pieces + voxels * BYTES_PER_VOXEL + atlas_bytes(opts, terrain.is_some());
     if voxels > MAX_VOXELS as f64 || bytes > opts.max_memory as f64 {
         return Err(GeometryError::TooLarge {
             what: format!(
@@ -423,7 +443,12 @@ pub fn prepare_streamed(
         t.validate()?;
     }
     check_prepare_output(out, run, opts, terrain.is_some())?;
-    check_streamed_resources(site.stats(), terrain.is_some(), opts)?;
+    check_streamed_resources(
+        site.stats(),
+        site.voxel_ids().len(),
+        terrain.is_some(),
+        opts,
+    )?;
     let fresh = !out.exists();
     let _lock = open_site(out, run, opts, terrain.is_some())?;
     removed_on_error(out, fresh, || {
@@ -497,22 +522,22 @@ fn finish_site(
     Ok(manifest)
 }
 
-/// [`check_resources`] for a streamed site: the voxel count from the surface area, memory as
-/// the largest voxel's spill (read, and cut into pieces) plus an atlas with its caches, per
-/// worker thread. (The vertex table held while binning is already behind.)
+/// [`check_resources`] for a streamed site: the voxels its binning found, memory as the
+/// largest voxel's spill (read, and cut into pieces) plus an atlas with its caches, per worker
+/// thread, and [`BYTES_PER_VOXEL`] per voxel. (The vertex table held while binning is already
+/// behind.)
 fn check_streamed_resources(
     stats: &SpillStats,
+    voxels: usize,
     has_terrain: bool,
     opts: &PrepareOptions,
 ) -> Result<(), GeometryError> {
     let size = opts.grid.size;
-    let voxels = stats.area / (size * size);
-    let res = opts.atlas.resolution as f64;
+    let voxels = voxels as f64;
     let threads = rayon::current_num_threads() as f64 + f64::from(u8::from(has_terrain));
     let largest = stats.largest_voxel_triangles as f64;
     let pieces = threads * largest * (stats.record_bytes as f64 + 120.0 + 96.0);
-    let atlases = threads * res * res * 3.0 * 16.0;
-    let bytes = pieces + atlases;
+    let bytes = pieces + voxels * BYTES_PER_VOXEL + atlas_bytes(opts, has_terrain);
     if voxels > MAX_VOXELS as f64 || bytes > opts.max_memory as f64 {
         return Err(GeometryError::TooLarge {
             what: format!(

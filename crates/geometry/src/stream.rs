@@ -2,7 +2,9 @@
 //! voxel, not the site ([`crate::store::prepare_streamed`]).
 //!
 //! The mesh file is read once (twice when it has no vertex normals: a first pass sums the face
-//! normals); its vertex table stays in memory while the faces go past in chunks (binary and
+//! normals; once more when the lattice cells of its bounds could pass the voxels allowed: a
+//! pass counts the voxels and writes nothing, so that a lattice far too fine for the memory
+//! allowed is refused in seconds); its vertex table stays in memory while the faces go past in chunks (binary and
 //! ASCII PLY; an OBJ is read whole first), then is dropped. Each non-degenerate triangle is
 //! written, with its corners' source vertex index, position, normal (and colour), to the spill
 //! file of every voxel of its box of voxels ([`crate::voxel`]'s `cell_box`), in the mesh's
@@ -70,13 +72,30 @@ pub struct SpillStats {
     pub vertex_table_bytes: usize,
 }
 
+/// How a binning pass ended.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Pass {
+    Done,
+    /// The voxels must be counted first ([`count_voxels`]).
+    NeedsCount,
+    /// The mesh has no normals: they must be summed first ([`normals_pass`]).
+    NeedsNormals,
+}
+
 impl SiteSpill {
     /// Reads the mesh at `path` (`.ply` or `.obj`) in chunks and bins its triangles into spill
     /// files in the new folder `dir` (which must not exist; it is removed again on error and
     /// when the spill is dropped). The mesh is checked as [`crate::read_mesh`] checks it
-    /// (errors name the file). Refuses a lattice that would give more than
-    /// [`MAX_VOXELS`] voxels.
-    pub fn bin(path: &Path, grid: &VoxelGrid, dir: &Path) -> Result<SiteSpill, GeometryError> {
+    /// (errors name the file). A lattice that gives more than `max_voxels` voxels (at most
+    /// [`MAX_VOXELS`]; a prepare's is its [`crate::store::voxel_budget`]) is refused before
+    /// anything is written, by a pass that counts them when the lattice cells of the mesh's
+    /// bounds could pass the limit (and not otherwise).
+    pub fn bin(
+        path: &Path,
+        grid: &VoxelGrid,
+        max_voxels: u64,
+        dir: &Path,
+    ) -> Result<SiteSpill, GeometryError> {
         std::fs::create_dir(dir).map_err(|e| GeometryError::io(dir, e))?;
         let mut spill = SiteSpill {
             dir: dir.to_path_buf(),
@@ -85,38 +104,51 @@ impl SiteSpill {
             voxels: Vec::new(),
             stats: SpillStats::default(),
         };
-        if !spill.bin_pass(path, None)? {
-            let normals = normals_pass(path)?;
-            spill.stats.vertex_table_bytes = 12 * normals.len();
-            if !spill.bin_pass(path, Some(&normals))? {
-                unreachable!("normals are given");
+        let max_voxels = max_voxels.min(MAX_VOXELS);
+        let (mut normals, mut counted) = (None, false);
+        loop {
+            match spill.bin_pass(path, normals.as_deref(), max_voxels, counted)? {
+                Pass::Done => return Ok(spill),
+                Pass::NeedsCount => {
+                    count_voxels(path, grid, max_voxels)?;
+                    counted = true;
+                }
+                Pass::NeedsNormals => {
+                    let n = normals_pass(path)?;
+                    spill.stats.vertex_table_bytes = 12 * n.len();
+                    normals = Some(n);
+                }
             }
         }
-        Ok(spill)
     }
 
-    /// One pass over the mesh writing the spill files; false (nothing written) when the mesh
-    /// has no normals and none are given.
+    /// One pass over the mesh writing the spill files. It stops before writing anything when
+    /// the lattice cells of the mesh's bounds pass `max_voxels` and the voxels have not been
+    /// `counted` (the count's pass is needed only then), or when the mesh has no normals and
+    /// none are given.
     fn bin_pass(
         &mut self,
         path: &Path,
         normals: Option<&[[f32; 3]]>,
-    ) -> Result<bool, GeometryError> {
+        max_voxels: u64,
+        counted: bool,
+    ) -> Result<Pass, GeometryError> {
         let mut b = Binner {
             dir: &self.dir,
             grid: self.grid,
+            max_voxels,
+            stop: (!counted).then_some(Pass::NeedsCount),
             bins: HashMap::new(),
             buffered: 0,
             stats: std::mem::take(&mut self.stats),
             has_colors: false,
-            needs_normals: false,
             checked: false,
         };
         let mut sink = |mesh: &TriMesh, first: usize, chunk: &[[u32; 3]]| {
             b.chunk(path, mesh, normals, first, chunk)
         };
         let table = match read_chunked(path, &mut sink) {
-            Err(_) if b.needs_normals => return Ok(false),
+            Err(_) if b.stop.is_some() => return Ok(b.stop.expect("a stop")),
             r => r?,
         };
         b.flush_all()?;
@@ -145,7 +177,7 @@ impl SiteSpill {
         stats.record_bytes = record_bytes(self.has_colors);
         self.voxels = voxels;
         self.stats = stats;
-        Ok(true)
+        Ok(Pass::Done)
     }
 
     pub fn stats(&self) -> &SpillStats {
@@ -231,12 +263,16 @@ struct Bin {
 struct Binner<'a> {
     dir: &'a Path,
     grid: VoxelGrid,
+    /// The most voxels allowed.
+    max_voxels: u64,
+    /// Why the pass stopped at its first chunk, before writing anything: `NeedsCount` while
+    /// the voxels may pass `max_voxels` uncounted (cleared when the mesh's bounds cannot hold
+    /// that many), `NeedsNormals` for a mesh without normals.
+    stop: Option<Pass>,
     bins: HashMap<VoxelId, Bin>,
     buffered: usize,
     stats: SpillStats,
     has_colors: bool,
-    /// The mesh has no normals and none were given: the pass stops.
-    needs_normals: bool,
     /// The vertex table has been checked.
     checked: bool,
 }
@@ -254,9 +290,18 @@ impl Binner<'_> {
         let nv = mesh.positions.len();
         if !self.checked {
             check_vertex_table(path, mesh)?;
-            if mesh.normals.is_none() && normals.is_none() {
-                self.needs_normals = true;
-                return Err(GeometryError::Arguments("the mesh has no normals".into()));
+            let (lo, hi) = mesh.bounds().expect("checked: a vertex");
+            let cells: f64 = (0..3)
+                .map(|k| (self.grid.cell(k, hi[k]) as f64 - self.grid.cell(k, lo[k]) as f64) + 1.0)
+                .product();
+            if cells <= self.max_voxels as f64 {
+                self.stop = None;
+            }
+            if self.stop.is_none() && mesh.normals.is_none() && normals.is_none() {
+                self.stop = Some(Pass::NeedsNormals);
+            }
+            if self.stop.is_some() {
+                return Err(GeometryError::Arguments("the pass stops".into()));
             }
             self.has_colors = mesh.colors.is_some();
             self.checked = true;
@@ -273,11 +318,12 @@ impl Binner<'_> {
                 continue;
             }
             self.stats.area += area;
-            let voxels = self.stats.area / (self.grid.size * self.grid.size);
             let (lo, hi) = cell_box(&self.grid, p);
             let span: u64 = (0..3).map(|k| (hi[k] - lo[k]) as u64 + 1).product();
-            if voxels > MAX_VOXELS as f64 || span > MAX_VOXELS {
-                return Err(too_many_voxels(&self.grid, self.stats.area, span));
+            // a safety net: the voxels were counted, or the mesh's bounds cannot hold too many
+            if span > self.max_voxels {
+                let (grid, area) = (&self.grid, self.stats.area);
+                return Err(too_many_voxels(grid, area, span, span, self.max_voxels));
             }
             rec.clear();
             for &i in tri {
@@ -296,8 +342,9 @@ impl Binner<'_> {
                     }
                 }
             }
-            if self.bins.len() as u64 > MAX_VOXELS {
-                return Err(too_many_voxels(&self.grid, self.stats.area, span));
+            if self.bins.len() as u64 > self.max_voxels {
+                let (grid, area, found) = (&self.grid, self.stats.area, self.bins.len() as u64);
+                return Err(too_many_voxels(grid, area, found, span, self.max_voxels));
             }
         }
         Ok(())
@@ -332,15 +379,72 @@ impl Binner<'_> {
     }
 }
 
-/// The refusal of a lattice too fine for the surface.
-fn too_many_voxels(grid: &VoxelGrid, area: f64, span: u64) -> GeometryError {
+/// The refusal of a lattice too fine for the surface read so far: `area` m^2 of it gives at
+/// least `found` voxels (one triangle's box spanning `span`), more than `max_voxels`.
+fn too_many_voxels(
+    grid: &VoxelGrid,
+    area: f64,
+    found: u64,
+    span: u64,
+    max_voxels: u64,
+) -> GeometryError {
     let size = grid.size;
+    let limit = if max_voxels < MAX_VOXELS {
+        format!(
+            "limit {max_voxels}: {MAX_VOXELS} at most, and fewer within --max-memory at {} bytes each beside the atlases",
+            crate::store::BYTES_PER_VOXEL
+        )
+    } else {
+        format!("limit {MAX_VOXELS}")
+    };
     GeometryError::TooLarge {
         what: format!(
-            "a {size} m voxel over {area:.3} m^2 of surface (so far) gives about {:.3e} voxels, one triangle spanning {span} (limit {MAX_VOXELS}): choose a larger --voxel",
-            area / (size * size)
+            "a {size} m voxel over {area:.3} m^2 of surface (so far) gives at least {found} voxels (one triangle spanning {span}; {limit}): choose a larger --voxel"
         ),
     }
+}
+
+/// Counts the voxels binning will give the mesh at `path` (those of its non-degenerate
+/// triangles' boxes), in a pass that writes nothing, and refuses as soon as they pass
+/// `max_voxels`: a lattice far too fine is refused in seconds, before millions of spill files.
+fn count_voxels(path: &Path, grid: &VoxelGrid, max_voxels: u64) -> Result<u64, GeometryError> {
+    let mut seen: std::collections::HashSet<VoxelId> = Default::default();
+    let mut area = 0.0;
+    let mut checked = false;
+    let mut sink = |mesh: &TriMesh, first: usize, chunk: &[[u32; 3]]| {
+        if !checked {
+            check_vertex_table(path, mesh)?;
+            checked = true;
+        }
+        check_indices(chunk, first, mesh.positions.len()).map_err(|e| e.in_file(path))?;
+        for tri in chunk {
+            let p = tri.map(|i| mesh.positions[i as usize]);
+            let a = tri_area(p[0], p[1], p[2]);
+            if tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2] || !(a > 0.0) {
+                continue;
+            }
+            area += a;
+            let (lo, hi) = cell_box(grid, p);
+            let span: u64 = (0..3).map(|k| (hi[k] - lo[k]) as u64 + 1).product();
+            if span > max_voxels {
+                return Err(too_many_voxels(grid, area, span, span, max_voxels));
+            }
+            for a in lo[0]..=hi[0] {
+                for b in lo[1]..=hi[1] {
+                    for c in lo[2]..=hi[2] {
+                        seen.insert([a, b, c]);
+                    }
+                }
+            }
+            if seen.len() as u64 > max_voxels {
+                let found = seen.len() as u64;
+                return Err(too_many_voxels(grid, area, found, span, max_voxels));
+            }
+        }
+        Ok(())
+    };
+    read_chunked(path, &mut sink)?;
+    Ok(seen.len() as u64)
 }
 
 /// The vertex table's checks of [`TriMesh::validate`] (errors name the file).
@@ -589,6 +693,33 @@ mod tests {
         assert!(left.is_empty(), "{left:?}");
     }
 
+    /// The voxel limit is exact: a site binned within a limit of its own voxel count (which
+    /// the cells of its bounds pass, so the counting pass runs) gives the voxels it gives
+    /// without a limit; one voxel fewer is refused, naming the limit, before a file is written.
+    #[test]
+    fn the_voxel_limit_is_counted_exactly_before_anything_is_written() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (mesh, _) = site(colonnade_site(1, 1));
+        let path = tmp.path().join("site.ply");
+        crate::write_ply(&path, &mesh).unwrap();
+        let grid = VoxelGrid::new([0.0; 3], 0.5).unwrap();
+        let free = SiteSpill::bin(&path, &grid, MAX_VOXELS, &tmp.path().join("a")).unwrap();
+        let n = free.voxel_ids().len() as u64;
+        let (lo, hi) = mesh.bounds().unwrap();
+        let cells: i64 = (0..3)
+            .map(|k| (grid.cell(k, hi[k]) - grid.cell(k, lo[k]) + 1) as i64)
+            .product();
+        assert!(cells as u64 > n && n > 10, "{cells} cells, {n} voxels");
+        let exact = SiteSpill::bin(&path, &grid, n, &tmp.path().join("b")).unwrap();
+        assert_eq!(exact.voxel_ids(), free.voxel_ids());
+        let e = SiteSpill::bin(&path, &grid, n - 1, &tmp.path().join("c"))
+            .err()
+            .expect("refused")
+            .to_string();
+        assert!(e.contains(&format!("limit {}", n - 1)), "{e}");
+        assert!(!tmp.path().join("c").exists());
+    }
+
     #[test]
     fn the_largest_chunk_in_memory_does_not_grow_with_the_site() {
         // one colonnade against a 3 x 3 field of them 20 m apart, on 5 m voxels (20 m is four
@@ -600,8 +731,13 @@ mod tests {
             let (mesh, _) = site(colonnade_field(1, 6, g));
             let path = tmp.path().join(format!("field{g}.ply"));
             crate::write_ply(&path, &mesh).unwrap();
-            let spill =
-                SiteSpill::bin(&path, &grid, &tmp.path().join(format!("spill{g}"))).unwrap();
+            let spill = SiteSpill::bin(
+                &path,
+                &grid,
+                MAX_VOXELS,
+                &tmp.path().join(format!("spill{g}")),
+            )
+            .unwrap();
             stats.push(spill.stats().clone());
         }
         let (one, nine) = (&stats[0], &stats[1]);
