@@ -205,12 +205,6 @@ pub const MAX_ATLAS: u32 = 16384;
 /// Bytes a prepare may use by default (see [`PrepareOptions::max_memory`]).
 pub const DEFAULT_MAX_MEMORY: u64 = 8 << 30;
 
-/// Bytes a prepare holds per voxel of the site, beside the pieces and atlases being worked on
-/// (its bin, its manifest entry): the slope of the peak resident memory of `igi prepare` on
-/// the fixture's block at `--atlas 32` between 23 002 voxels (`--voxel 0.04`, 44.6 MB) and
-/// 92 126 voxels (`--voxel 0.02`, 114.0 MB) is 1 004 bytes per voxel (docs/RELIABILITY.md).
-pub const BYTES_PER_VOXEL: f64 = 1024.0;
-
 /// The bytes of the atlases a prepare works on at once: one atlas with its three caches per
 /// worker thread (and one for the terrain).
 fn atlas_bytes(opts: &PrepareOptions, has_terrain: bool) -> f64 {
@@ -255,7 +249,7 @@ fn check_resources(
     Ok(())
 }
 
-pub use crate::voxel::MAX_VOXELS;
+pub use crate::voxel::{BYTES_PER_VOXEL, MAX_VOXELS};
 
 fn voxel_dir(v: VoxelId) -> String {
     format!("voxels/{}_{}_{}", v[0], v[1], v[2])

@@ -22,7 +22,9 @@
 use crate::error::{GeometryError, MeshInvariant};
 use crate::mesh::{accumulate_face_normals, check_indices, finish_normals, tri_area, TriMesh};
 use crate::repair::{duplicates, repair_share, RepairReport};
-use crate::voxel::{cell_box, partition_voxel, VoxelGrid, VoxelId, CV, MAX_VOXELS};
+use crate::voxel::{
+    cell_box, partition_voxel, VoxelGrid, VoxelId, BYTES_PER_VOXEL, CV, MAX_VOXELS,
+};
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::io::Write;
@@ -392,7 +394,7 @@ fn too_many_voxels(
     let limit = if max_voxels < MAX_VOXELS {
         format!(
             "limit {max_voxels}: {MAX_VOXELS} at most, and fewer within --max-memory at {} bytes each beside the atlases",
-            crate::store::BYTES_PER_VOXEL
+            BYTES_PER_VOXEL
         )
     } else {
         format!("limit {MAX_VOXELS}")
