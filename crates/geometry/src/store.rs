@@ -223,7 +223,8 @@ pub fn voxel_budget(opts: &PrepareOptions, has_terrain: bool) -> u64 {
 
 /// Refuses, before any allocation, a prepare whose voxel count or memory would explode (a
 /// voxel edge far below the mesh's scale): non-empty voxels are estimated as the surface area
-/// over the voxel face (a lower bound: a triangle is binned into every voxel of its box),
+/// over the voxel face (no bound either way: a voxel can hold more than one face of surface,
+/// and a triangle is cut into every voxel it crosses),
 /// memory as the voxel pieces, [`BYTES_PER_VOXEL`] per voxel, and one atlas with its three
 /// caches per worker thread.
 fn check_resources(
