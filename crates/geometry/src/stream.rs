@@ -313,16 +313,13 @@ impl Binner<'_> {
         let mut rec = Vec::with_capacity(record_bytes(self.has_colors));
         self.stats.triangles_in += chunk.len();
         for tri in chunk {
-            let p = tri.map(|i| mesh.positions[i as usize]);
-            let area = tri_area(p[0], p[1], p[2]);
-            if tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2] || !(area > 0.0) {
+            let Some(cells) = TriangleCells::of(&self.grid, tri, &mesh.positions) else {
                 self.stats.degenerate_removed += 1;
                 continue;
-            }
-            self.stats.area += area;
-            let (lo, hi) = cell_box(&self.grid, p);
-            let span: u64 = (0..3).map(|k| (hi[k] - lo[k]) as u64 + 1).product();
+            };
+            self.stats.area += cells.area;
             // a safety net: the voxels were counted, or the mesh's bounds cannot hold too many
+            let span = cells.span;
             if span > self.max_voxels {
                 let (grid, area) = (&self.grid, self.stats.area);
                 return Err(too_many_voxels(grid, area, span, span, self.max_voxels));
@@ -337,12 +334,8 @@ impl Binner<'_> {
                     push_f32(&mut rec, &c[i]);
                 }
             }
-            for a in lo[0]..=hi[0] {
-                for b in lo[1]..=hi[1] {
-                    for c in lo[2]..=hi[2] {
-                        self.push([a, b, c], &rec)?;
-                    }
-                }
+            for v in cells.voxels() {
+                self.push(v, &rec)?;
             }
             if self.bins.len() as u64 > self.max_voxels {
                 let (grid, area, found) = (&self.grid, self.stats.area, self.bins.len() as u64);
@@ -409,7 +402,7 @@ fn too_many_voxels(
 /// Counts the voxels binning will give the mesh at `path` (those of its non-degenerate
 /// triangles' boxes), in a pass that writes nothing, and refuses as soon as they pass
 /// `max_voxels`: a lattice far too fine is refused in seconds, before millions of spill files.
-fn count_voxels(path: &Path, grid: &VoxelGrid, max_voxels: u64) -> Result<u64, GeometryError> {
+fn count_voxels(path: &Path, grid: &VoxelGrid, max_voxels: u64) -> Result<(), GeometryError> {
     let mut seen: std::collections::HashSet<VoxelId> = Default::default();
     let mut area = 0.0;
     let mut checked = false;
@@ -420,33 +413,57 @@ fn count_voxels(path: &Path, grid: &VoxelGrid, max_voxels: u64) -> Result<u64, G
         }
         check_indices(chunk, first, mesh.positions.len()).map_err(|e| e.in_file(path))?;
         for tri in chunk {
-            let p = tri.map(|i| mesh.positions[i as usize]);
-            let a = tri_area(p[0], p[1], p[2]);
-            if tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2] || !(a > 0.0) {
+            let Some(cells) = TriangleCells::of(grid, tri, &mesh.positions) else {
                 continue;
+            };
+            area += cells.area;
+            if cells.span > max_voxels {
+                return Err(too_many_voxels(
+                    grid, area, cells.span, cells.span, max_voxels,
+                ));
             }
-            area += a;
-            let (lo, hi) = cell_box(grid, p);
-            let span: u64 = (0..3).map(|k| (hi[k] - lo[k]) as u64 + 1).product();
-            if span > max_voxels {
-                return Err(too_many_voxels(grid, area, span, span, max_voxels));
-            }
-            for a in lo[0]..=hi[0] {
-                for b in lo[1]..=hi[1] {
-                    for c in lo[2]..=hi[2] {
-                        seen.insert([a, b, c]);
-                    }
-                }
-            }
+            seen.extend(cells.voxels());
             if seen.len() as u64 > max_voxels {
                 let found = seen.len() as u64;
-                return Err(too_many_voxels(grid, area, found, span, max_voxels));
+                return Err(too_many_voxels(grid, area, found, cells.span, max_voxels));
             }
         }
         Ok(())
     };
-    read_chunked(path, &mut sink)?;
-    Ok(seen.len() as u64)
+    read_chunked(path, &mut sink).map(|_| ())
+}
+
+/// A non-degenerate triangle's area and the box of voxels it spans, the one per-triangle step
+/// of the binner and of the voxel count.
+struct TriangleCells {
+    area: f64,
+    lo: VoxelId,
+    hi: VoxelId,
+    /// The voxels in the box.
+    span: u64,
+}
+
+impl TriangleCells {
+    /// Triangle `tri` (indices into `positions`, checked) on `grid`; `None` when it is
+    /// degenerate: a repeated index, or no area (NaN included).
+    fn of(grid: &VoxelGrid, tri: &[u32; 3], positions: &[[f32; 3]]) -> Option<TriangleCells> {
+        let p = tri.map(|i| positions[i as usize]);
+        let area = tri_area(p[0], p[1], p[2]);
+        if tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2] || !(area > 0.0) {
+            return None;
+        }
+        let (lo, hi) = cell_box(grid, p);
+        let span = (0..3).map(|k| (hi[k] - lo[k]) as u64 + 1).product();
+        Some(TriangleCells { area, lo, hi, span })
+    }
+
+    /// Every voxel of the box.
+    fn voxels(&self) -> impl Iterator<Item = VoxelId> {
+        let (lo, hi) = (self.lo, self.hi);
+        (lo[0]..=hi[0]).flat_map(move |a| {
+            (lo[1]..=hi[1]).flat_map(move |b| (lo[2]..=hi[2]).map(move |c| [a, b, c]))
+        })
+    }
 }
 
 /// The vertex table's checks of [`TriMesh::validate`] (errors name the file).
