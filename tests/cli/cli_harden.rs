@@ -1121,8 +1121,9 @@ fn a_photo_far_brighter_than_its_lighting_is_warned_about_naming_it() {
 
 /// `solve --atlas 16384` reached 20 GB: the atlases are estimated before any work (192 bytes a
 /// texel, measured; docs/RELIABILITY.md) and refused above the limit naming `--atlas`, nothing
-/// written; the limit follows `IGI_MAX_MEMORY`, which lets `--atlas 512` (151 MiB of atlases)
-/// through at 256M and refuses it at 128M.
+/// written; the limit follows `IGI_MAX_MEMORY`, which refuses `--atlas 512` (151 MiB of atlases)
+/// at 128M and lets it through at 512M (its observations take about 260 MB more, checked as they
+/// are gathered: the next test).
 #[test]
 fn a_solve_whose_atlases_cannot_fit_is_refused_before_any_work() {
     let d = tempfile::tempdir().unwrap();
@@ -1155,8 +1156,74 @@ fn a_solve_whose_atlases_cannot_fit_is_refused_before_any_work() {
         stderr(&low)
     );
     assert!(!d.path().join("low").exists(), "nothing written");
-    let ok = at("512", Some("256M"), &d.path().join("ok"));
+    let ok = at("512", Some("512M"), &d.path().join("ok"));
     assert!(ok.status.success(), "{}", stderr(&ok));
+}
+
+/// The observations a solve holds until its group is combined (`BYTES_PER_OBSERVATION` each,
+/// up to one per texel a photograph sees) are checked before each photograph is traced, beside
+/// the atlases. From an unbounded run of the fixture at `--atlas 512` (its texels and
+/// observations on record): a limit one byte short of the atlases and every observation of the
+/// iteration must stop the solve naming a photograph (the photographs before the last hold at
+/// least all but one photograph's worth); room for them and one photograph more must resume
+/// the stopped run to the unbounded run's result.
+#[test]
+fn a_solve_whose_observations_cannot_fit_stops_before_the_photograph_that_would_pass_it() {
+    use igi_reflect::solver::{atlas_memory, BYTES_PER_OBSERVATION};
+    let d = tempfile::tempdir().unwrap();
+    let survey = s(&fixture("survey")).to_string();
+    let at = |limit: u128, out: &Path| {
+        let args: Vec<&str> = solve_args(&survey, s(out), &[])
+            .into_iter()
+            .map(|a| if a == "32" { "512" } else { a })
+            .collect();
+        igi()
+            .with_env("IGI_MAX_MEMORY", &limit.to_string())
+            .run(&args)
+    };
+    let free = d.path().join("free");
+    let o = at(1 << 40, &free);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(free.join("report.json")).unwrap()).unwrap();
+    let sum = |key: &str| -> u128 {
+        let parts = report["parts"].as_array().unwrap();
+        parts.iter().map(|p| p[key].as_u64().unwrap() as u128).sum()
+    };
+    let atlas: u128 = report["parts"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| (p["resolution"].as_u64().unwrap() as u128).pow(2))
+        .sum();
+    let (covered, observations) = (
+        sum("covered_texels"),
+        report["iterations"][0]["observations"].as_u64().unwrap() as u128,
+    );
+    assert!(
+        observations > 2 * covered,
+        "{observations} {covered}: several photographs"
+    );
+    let held = |n: u128| atlas_memory(atlas) + n * BYTES_PER_OBSERVATION;
+    let short = d.path().join("short");
+    let o = at(held(observations) - 1, &short);
+    let e = stderr(&o);
+    assert!(
+        o.status.code() == Some(1)
+            && e.contains("'s observations (up to ")
+            && e.contains(&format!("{atlas} atlas texels"))
+            && e.contains("IGI_MAX_MEMORY"),
+        "{e}"
+    );
+    // the folder it started resumes under a higher limit (the limit is no setting of the run)
+    let o = at(held(observations + covered), &short);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let again: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(short.join("report.json")).unwrap()).unwrap();
+    assert_eq!(
+        report["parts"], again["parts"],
+        "the limit changes nothing else"
+    );
 }
 
 /// A prepare refused for charts that do not fit its atlas left `run.json` and `voxels/`, which

@@ -36,6 +36,29 @@ pub fn atlas_memory(texels: u128) -> u128 {
     texels * BYTES_PER_TEXEL
 }
 
+/// Bytes one observation holds until its group's albedo is combined: its record and its
+/// proposal.
+pub const BYTES_PER_OBSERVATION: u128 = (size_of::<Obs>() + size_of::<Proposal>()) as u128;
+
+/// Refuses, before photograph `photo` is traced, a group whose observations could pass
+/// `limit`: the `held` ones of the photographs before it and up to one per texel of the group
+/// (`texels`) from this one, beside the group's atlases of `atlas_texels` texels in all
+/// ([`atlas_memory`], which holds one photograph's pass).
+fn check_observation_memory(
+    atlas_texels: u128,
+    held: usize,
+    texels: usize,
+    photo: &str,
+    limit: u64,
+) -> Result<(), ReflectError> {
+    let bytes = atlas_memory(atlas_texels) + (held + texels) as u128 * BYTES_PER_OBSERVATION;
+    let what = format!(
+        "photograph {photo}'s observations (up to {texels}, beside {held} of the photographs before it, at {BYTES_PER_OBSERVATION} bytes each, and {atlas_texels} atlas texels at {BYTES_PER_TEXEL} bytes each)"
+    );
+    igi_files::check_alloc(&what, bytes, limit)?;
+    Ok(())
+}
+
 /// Whether selection entry `sel` selects part `part`: the part's name, or the name of the mesh
 /// `--atlas auto` cut it from (its pieces are named `sel-K`, `sel-K-L`, ...).
 pub fn selects(sel: &str, part: &str) -> bool {
@@ -521,7 +544,17 @@ pub(crate) fn solve_group(
         1
     };
     let mut obs: Vec<Obs> = Vec::new();
+    let limit = igi_files::max_alloc()?;
+    // a prepared site's other parts were sized by `igi prepare`: the group's atlases only
+    let atlas_texels: u128 = g
+        .parts
+        .iter()
+        .map(|&i| (start.parts[i].resolution() as u128).pow(2))
+        .sum();
     for (pi, photo) in inputs.photos.iter().enumerate() {
+        if pi > 0 {
+            check_observation_memory(atlas_texels, obs.len(), texels.len(), &photo.id, limit)?;
+        }
         let pass = PhotoPass {
             scene: &scene,
             photo,
@@ -1290,6 +1323,31 @@ mod tests {
         );
         let again: Pending = serde_json::from_str(&serde_json::to_string(&p).unwrap()).unwrap();
         assert_eq!(again.seen_texels, 4);
+    }
+
+    /// The observations' check: a photograph is refused exactly when the observations held
+    /// and one per texel of the group from it, beside the atlases, pass the limit; the message
+    /// names the photograph and the limit's variable.
+    #[test]
+    fn a_photograph_whose_observations_could_pass_the_limit_is_refused_before_it_is_traced() {
+        let (atlas, texels) = (1000u128, 300usize);
+        let at =
+            |held: usize| atlas_memory(atlas) + (held + texels) as u128 * BYTES_PER_OBSERVATION;
+        assert_eq!(
+            BYTES_PER_OBSERVATION,
+            96 + 28,
+            "docs/RELIABILITY.md says 124 bytes"
+        );
+        let limit = at(500) as u64;
+        assert!(check_observation_memory(atlas, 500, texels, "v03", limit).is_ok());
+        let e = check_observation_memory(atlas, 501, texels, "v03", limit).unwrap_err();
+        let m = e.to_string();
+        assert!(
+            m.contains("photograph v03's observations")
+                && m.contains(&format!("({} bytes)", limit + BYTES_PER_OBSERVATION as u64))
+                && m.contains("IGI_MAX_MEMORY"),
+            "{m}"
+        );
     }
 
     /// `finish_iteration` on an empty result after iteration `it` with mean change `delta`,
