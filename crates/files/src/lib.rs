@@ -6,6 +6,8 @@
 //! * [`atomic`]: atomic writes ([`write_atomic`], [`write_text_atomic`]: a temporary file in
 //!   the same folder, renamed into place, flushed first on shared file systems) and the
 //!   cleanup of killed writers' temporary files ([`remove_dead_temps`]).
+//! * [`disk`]: the disk space and file entries a run will write, checked before its work
+//!   ([`check_disk`]).
 //! * [`folder`]: output files and folders checked before the first byte of work
 //!   ([`check_output_folder`], [`check_output_file`], [`check_output_extension`], and
 //!   [`check_distinct`]: no two outputs, and no output and input, naming one file), and
@@ -21,12 +23,14 @@
 //!   in a folder whose manifest names the same command).
 
 pub mod atomic;
+pub mod disk;
 pub mod folder;
 pub mod host;
 pub mod memory;
 pub mod run;
 
 pub use atomic::{remove_dead_temps, write_atomic, write_text_atomic};
+pub use disk::{check_disk, DiskNeed};
 pub use folder::{
     check_distinct, check_output_extension, check_output_file, check_output_folder, Staging,
 };
@@ -74,6 +78,16 @@ pub enum FilesError {
     #[error("invalid input: {}: {what} must be a regular file (not a device, pipe or folder)", path.display())]
     NotAFile { path: PathBuf, what: String },
     /// `IGI_MAX_MEMORY` that is no byte count.
+    /// A run's output estimated beyond the free space of its file system (`disk`).
+    #[error("{}: {what} would need at least {entries} files and folders and {bytes} bytes ({}), but its file system has {} free and {} free file entries; free some space or choose another output folder", path.display(), crate::memory::show_bytes(*bytes as u128), crate::memory::show_bytes(*free_bytes as u128), if *free_entries == u64::MAX { "unlimited".to_string() } else { free_entries.to_string() })]
+    NoSpace {
+        path: PathBuf,
+        what: String,
+        entries: u64,
+        bytes: u64,
+        free_entries: u64,
+        free_bytes: u64,
+    },
     #[error("invalid input: IGI_MAX_MEMORY={0:?} is not a byte count (e.g. 16G)")]
     BadMemoryLimit(String),
     #[error("{}: output folder does not exist", path.display())]

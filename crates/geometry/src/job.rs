@@ -67,8 +67,8 @@ pub fn prepare_file(
     let t0 = std::time::Instant::now();
     let folder = spill_folder(&req.output);
     remove_dead_spills(&folder);
-    let budget = crate::store::voxel_budget(&opts, req.terrain.is_some());
-    let spill = SiteSpill::bin(&req.mesh, &opts.grid, budget, &folder)?;
+    let limit = crate::store::voxel_limit(&opts, req.terrain.is_some(), &req.output)?;
+    let spill = SiteSpill::bin(&req.mesh, &opts.grid, &limit, &folder)?;
     let stats = spill.stats();
     step(PrepareStep::Read {
         triangles: stats.triangles_in,

@@ -57,7 +57,7 @@ pub use store::{
     PrepareRun, SiteStore,
 };
 pub use stream::SiteSpill;
-pub use voxel::{VoxelGrid, VoxelId};
+pub use voxel::{VoxelGrid, VoxelId, VoxelLimit};
 
 use std::path::Path;
 

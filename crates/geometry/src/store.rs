@@ -23,7 +23,7 @@ use crate::levels::simplify;
 use crate::mesh::TriMesh;
 use crate::repair::RepairReport;
 use crate::stream::{SiteSpill, SpillStats};
-use crate::voxel::{partition, VoxelGrid, VoxelId};
+use crate::voxel::{partition, VoxelGrid, VoxelId, VoxelLimit};
 use igi_files::run::RUN_FILE;
 use igi_files::RunManifest;
 use rayon::prelude::*;
@@ -221,6 +221,60 @@ pub fn voxel_budget(opts: &PrepareOptions, has_terrain: bool) -> u64 {
     ((room / BYTES_PER_VOXEL) as u64).min(MAX_VOXELS)
 }
 
+/// The most voxels a prepare with `opts` into `out` may make: [`MAX_VOXELS`], fewer when their
+/// memory would pass `opts.max_memory` ([`voxel_budget`]), and fewer when the file system of
+/// `out` cannot hold their files: each voxel's spill file and its part folder
+/// ([`part_entries`]), every entry at least one block ([`igi_files::disk`]), with what an
+/// interrupted run already wrote there counted as free. Binning a streamed site refuses as
+/// soon as it passes this, before the spill files fill the disk.
+pub fn voxel_limit(
+    opts: &PrepareOptions,
+    has_terrain: bool,
+    out: &Path,
+) -> Result<VoxelLimit, GeometryError> {
+    let free = igi_files::disk::free_space(out)?;
+    Ok(voxel_limit_within(opts, has_terrain, out, free))
+}
+
+/// [`voxel_limit`] on a file system with `free` space.
+fn voxel_limit_within(
+    opts: &PrepareOptions,
+    has_terrain: bool,
+    out: &Path,
+    free: igi_files::disk::FreeSpace,
+) -> VoxelLimit {
+    let memory = voxel_budget(opts, has_terrain);
+    let limit = VoxelLimit::max().at_most(memory, || {
+        format!("fewer within --max-memory at {BYTES_PER_VOXEL} bytes each beside the atlases")
+    });
+    let (part, per) = (part_entries(opts), part_entries(opts) + 1);
+    let written = match std::fs::read_dir(out.join("voxels")) {
+        Ok(dir) => dir.count() as u64 * part,
+        Err(_) => 0,
+    };
+    let terrain = part * u64::from(has_terrain);
+    let entries = free.files.saturating_add(written).saturating_sub(terrain);
+    let bytes = (free.bytes / free.block)
+        .saturating_add(written)
+        .saturating_sub(terrain);
+    let disk = entries.min(bytes) / per;
+    limit.at_most(disk, || {
+        format!(
+            "fewer on the file system of {}: {per} files a voxel (its spill file and its part folder) of at least one {}-byte block each, beside {} free and {} free file entries",
+            out.display(),
+            free.block,
+            igi_files::memory::show_bytes(free.bytes as u128),
+            free.files,
+        )
+    })
+}
+
+/// Files and folders a part's folder holds: itself, the three atlas images, a mesh per level
+/// and `done.json`.
+fn part_entries(opts: &PrepareOptions) -> u64 {
+    5 + opts.levels.len() as u64
+}
+
 /// Refuses, before any allocation, a prepare whose voxel count or memory would explode (a
 /// voxel edge far below the mesh's scale): non-empty voxels are estimated as the surface area
 /// over the voxel face (no bound either way: a voxel can hold more than one face of surface,
@@ -385,13 +439,15 @@ pub fn prepare_run(
     }
     check_prepare_output(out, run, opts, terrain.is_some())?;
     check_resources(&site, terrain.as_ref(), opts)?;
+    let (lo, hi) = site.bounds().expect("validated mesh has vertices");
+    let bounds = combined_bounds([lo, hi], terrain.as_ref());
+    let parts: Vec<(VoxelId, TriMesh)> = partition(&site, &opts.grid).into_iter().collect();
+    drop(site);
+    let ids: Vec<VoxelId> = parts.iter().map(|(v, _)| *v).collect();
+    check_site_disk(out, &ids, terrain.is_some(), opts)?;
     let fresh = !out.exists();
     let _lock = open_site(out, run, opts, terrain.is_some())?;
     removed_on_error(out, fresh, || {
-        let (lo, hi) = site.bounds().expect("validated mesh has vertices");
-        let bounds = combined_bounds([lo, hi], terrain.as_ref());
-        let parts: Vec<(VoxelId, TriMesh)> = partition(&site, &opts.grid).into_iter().collect();
-        drop(site);
         let part = |(v, m): (VoxelId, TriMesh)| {
             process_part(out, &voxel_dir(v), Some(v), m, opts).map(Some)
         };
@@ -444,6 +500,7 @@ pub fn prepare_streamed(
         terrain.is_some(),
         opts,
     )?;
+    check_site_disk(out, &site.voxel_ids(), terrain.is_some(), opts)?;
     let fresh = !out.exists();
     let _lock = open_site(out, run, opts, terrain.is_some())?;
     removed_on_error(out, fresh, || {
@@ -544,6 +601,45 @@ fn check_streamed_resources(
         });
     }
     Ok(())
+}
+
+/// Refuses a prepare whose part folders not yet written cannot fit on the file system of
+/// `out`: each is a folder of the three atlas images, a mesh per level and `done.json`, every
+/// entry at least one block ([`igi_files::disk`]; on ext4 the block at `--voxel 0.05 --atlas 32`
+/// takes 32,791 bytes a voxel for these 8 blocks of 4 KiB, and more at larger atlases:
+/// docs/RELIABILITY.md). Folders an interrupted run finished are not counted again.
+fn check_site_disk(
+    out: &Path,
+    voxels: &[VoxelId],
+    has_terrain: bool,
+    opts: &PrepareOptions,
+) -> Result<(), GeometryError> {
+    let (need, what) = site_disk_need(out, voxels, has_terrain, opts);
+    Ok(igi_files::check_disk(out, &what, need)?)
+}
+
+/// What [`check_site_disk`] asks of the file system, and its words for it.
+fn site_disk_need(
+    out: &Path,
+    voxels: &[VoxelId],
+    has_terrain: bool,
+    opts: &PrepareOptions,
+) -> (igi_files::DiskNeed, String) {
+    let parts = voxels.len() + usize::from(has_terrain);
+    let written = match out.exists() {
+        true => voxels
+            .iter()
+            .filter(|&&v| out.join(voxel_dir(v)).exists())
+            .count(),
+        false => 0,
+    };
+    let todo = (parts - written) as u64;
+    let per = part_entries(opts);
+    let need = igi_files::DiskNeed {
+        entries: todo * per,
+        bytes: 0,
+    };
+    (need, format!("{todo} part folders of {per} files each"))
 }
 
 /// Bounds of the site (`site`) and the terrain together.
@@ -801,6 +897,102 @@ impl SiteStore {
 mod tests {
     use super::*;
     use std::collections::HashMap;
+
+    /// Files and folders under `dir`, recursively.
+    fn entries_under(dir: &Path) -> u64 {
+        std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| {
+                let e = e.unwrap();
+                1 + if e.file_type().unwrap().is_dir() {
+                    entries_under(&e.path())
+                } else {
+                    0
+                }
+            })
+            .sum()
+    }
+
+    /// The voxel limit on a small file system (20 MiB and 1999 file entries free, as a tmpfs
+    /// mounted with `size=20m,nr_inodes=2000`): 9 entries a voxel at three levels, so 222 voxels
+    /// (1999 / 9) where the blocks would allow 568 (5120 / 9); 2 TiB of blocks and unlimited
+    /// entries leave the memory budget in charge; an interrupted run's part folders count as
+    /// free; the terrain's folder is taken first.
+    #[test]
+    fn the_voxel_limit_follows_the_file_entries_and_blocks_the_output_has() {
+        let opts = PrepareOptions::default();
+        let small = igi_files::disk::FreeSpace {
+            bytes: 20 << 20,
+            files: 1999,
+            block: 4096,
+        };
+        let d = tempfile::tempdir().unwrap();
+        let out = d.path().join("site.igi");
+        let l = voxel_limit_within(&opts, false, &out, small);
+        assert_eq!(l.voxels, 1999 / 9);
+        assert!(
+            l.describe()
+                .contains("limit 222: 10000000 at most, and fewer on the file system of")
+                && l.why.contains("9 files a voxel")
+                && l.why.contains("1999 free file entries"),
+            "{}",
+            l.describe()
+        );
+        let blocks = igi_files::disk::FreeSpace {
+            files: u64::MAX,
+            ..small
+        };
+        assert_eq!(
+            voxel_limit_within(&opts, false, &out, blocks).voxels,
+            5120 / 9
+        );
+        assert_eq!(
+            voxel_limit_within(&opts, true, &out, blocks).voxels,
+            (5120 - 8) / 9
+        );
+        let roomy = igi_files::disk::FreeSpace {
+            bytes: 2 << 40,
+            files: u64::MAX,
+            block: 4096,
+        };
+        assert_eq!(
+            voxel_limit_within(&opts, false, &out, roomy).voxels,
+            voxel_budget(&opts, false)
+        );
+        for v in 0..10 {
+            std::fs::create_dir_all(out.join("voxels").join(format!("{v}_0_0"))).unwrap();
+        }
+        let resumed = voxel_limit_within(&opts, false, &out, small);
+        assert_eq!(resumed.voxels, (1999 + 10 * 8) / 9);
+    }
+
+    /// The disk check asks for the part folders a prepare writes, entry for entry (the bunny
+    /// over several voxels of 4.3 m), and for none of those an interrupted run finished.
+    #[test]
+    fn the_disk_check_counts_every_file_and_folder_a_prepare_writes() {
+        let site = bunny();
+        let opts = PrepareOptions {
+            atlas: AtlasOptions {
+                resolution: 128,
+                gutter: 2,
+            },
+            ..Default::default()
+        };
+        let ids: Vec<VoxelId> = partition(&site, &opts.grid).into_keys().collect();
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("site.igi");
+        let (need, what) = site_disk_need(&out, &ids, false, &opts);
+        let (site, rep) = crate::repair::repair(&site);
+        prepare(site, None, rep, &out, "bunny", &opts, &|_, _| {}).unwrap();
+        let written = entries_under(&out.join("voxels"));
+        assert_eq!((need.entries, need.bytes), (written, 0), "{what}");
+        assert!(ids.len() > 1 && what.starts_with(&format!("{} part folders", ids.len())));
+        let (again, _) = site_disk_need(&out, &ids, false, &opts);
+        assert_eq!(
+            again.entries, 0,
+            "a resume asks nothing for finished folders"
+        );
+    }
 
     fn bunny() -> TriMesh {
         let p = Path::new(concat!(

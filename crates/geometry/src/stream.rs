@@ -22,9 +22,7 @@
 use crate::error::{GeometryError, MeshInvariant};
 use crate::mesh::{accumulate_face_normals, check_indices, finish_normals, tri_area, TriMesh};
 use crate::repair::{duplicates, repair_share, RepairReport};
-use crate::voxel::{
-    cell_box, partition_voxel, VoxelGrid, VoxelId, BYTES_PER_VOXEL, CV, MAX_VOXELS,
-};
+use crate::voxel::{cell_box, partition_voxel, VoxelGrid, VoxelId, VoxelLimit, CV};
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::io::Write;
@@ -88,14 +86,14 @@ impl SiteSpill {
     /// Reads the mesh at `path` (`.ply` or `.obj`) in chunks and bins its triangles into spill
     /// files in the new folder `dir` (which must not exist; it is removed again on error and
     /// when the spill is dropped). The mesh is checked as [`crate::read_mesh`] checks it
-    /// (errors name the file). A lattice that gives more than `max_voxels` voxels (at most
-    /// [`MAX_VOXELS`]; a prepare's is its [`crate::store::voxel_budget`]) is refused before
-    /// anything is written, by a pass that counts them when the lattice cells of the mesh's
-    /// bounds could pass the limit (and not otherwise).
+    /// (errors name the file). A lattice that gives more voxels than `limit` allows (a
+    /// prepare's is its [`crate::store::voxel_limit`]) is refused before anything is written,
+    /// by a pass that counts them when the lattice cells of the mesh's bounds could pass the
+    /// limit (and not otherwise).
     pub fn bin(
         path: &Path,
         grid: &VoxelGrid,
-        max_voxels: u64,
+        limit: &VoxelLimit,
         dir: &Path,
     ) -> Result<SiteSpill, GeometryError> {
         std::fs::create_dir(dir).map_err(|e| GeometryError::io(dir, e))?;
@@ -106,13 +104,12 @@ impl SiteSpill {
             voxels: Vec::new(),
             stats: SpillStats::default(),
         };
-        let max_voxels = max_voxels.min(MAX_VOXELS);
         let (mut normals, mut counted) = (None, false);
         loop {
-            match spill.bin_pass(path, normals.as_deref(), max_voxels, counted)? {
+            match spill.bin_pass(path, normals.as_deref(), limit, counted)? {
                 Pass::Done => return Ok(spill),
                 Pass::NeedsCount => {
-                    count_voxels(path, grid, max_voxels)?;
+                    count_voxels(path, grid, limit)?;
                     counted = true;
                 }
                 Pass::NeedsNormals => {
@@ -125,20 +122,20 @@ impl SiteSpill {
     }
 
     /// One pass over the mesh writing the spill files. It stops before writing anything when
-    /// the lattice cells of the mesh's bounds pass `max_voxels` and the voxels have not been
+    /// the lattice cells of the mesh's bounds pass the `limit` and the voxels have not been
     /// `counted` (the count's pass is needed only then), or when the mesh has no normals and
     /// none are given.
     fn bin_pass(
         &mut self,
         path: &Path,
         normals: Option<&[[f32; 3]]>,
-        max_voxels: u64,
+        limit: &VoxelLimit,
         counted: bool,
     ) -> Result<Pass, GeometryError> {
         let mut b = Binner {
             dir: &self.dir,
             grid: self.grid,
-            max_voxels,
+            limit,
             stop: (!counted).then_some(Pass::NeedsCount),
             bins: HashMap::new(),
             buffered: 0,
@@ -266,9 +263,9 @@ struct Binner<'a> {
     dir: &'a Path,
     grid: VoxelGrid,
     /// The most voxels allowed.
-    max_voxels: u64,
+    limit: &'a VoxelLimit,
     /// Why the pass stopped at its first chunk, before writing anything: `NeedsCount` while
-    /// the voxels may pass `max_voxels` uncounted (cleared when the mesh's bounds cannot hold
+    /// the voxels may pass the limit uncounted (cleared when the mesh's bounds cannot hold
     /// that many), `NeedsNormals` for a mesh without normals.
     stop: Option<Pass>,
     bins: HashMap<VoxelId, Bin>,
@@ -296,7 +293,7 @@ impl Binner<'_> {
             let cells: f64 = (0..3)
                 .map(|k| (self.grid.cell(k, hi[k]) as f64 - self.grid.cell(k, lo[k]) as f64) + 1.0)
                 .product();
-            if cells <= self.max_voxels as f64 {
+            if cells <= self.limit.voxels as f64 {
                 self.stop = None;
             }
             if self.stop.is_none() && mesh.normals.is_none() && normals.is_none() {
@@ -320,9 +317,9 @@ impl Binner<'_> {
             self.stats.area += cells.area;
             // a safety net: the voxels were counted, or the mesh's bounds cannot hold too many
             let span = cells.span;
-            if span > self.max_voxels {
+            if span > self.limit.voxels {
                 let (grid, area) = (&self.grid, self.stats.area);
-                return Err(too_many_voxels(grid, area, span, span, self.max_voxels));
+                return Err(too_many_voxels(grid, area, span, span, self.limit));
             }
             rec.clear();
             for &i in tri {
@@ -337,9 +334,9 @@ impl Binner<'_> {
             for v in cells.voxels() {
                 self.push(v, &rec)?;
             }
-            if self.bins.len() as u64 > self.max_voxels {
+            if self.bins.len() as u64 > self.limit.voxels {
                 let (grid, area, found) = (&self.grid, self.stats.area, self.bins.len() as u64);
-                return Err(too_many_voxels(grid, area, found, span, self.max_voxels));
+                return Err(too_many_voxels(grid, area, found, span, self.limit));
             }
         }
         Ok(())
@@ -375,23 +372,15 @@ impl Binner<'_> {
 }
 
 /// The refusal of a lattice too fine for the surface read so far: `area` m^2 of it gives at
-/// least `found` voxels (one triangle's box spanning `span`), more than `max_voxels`.
+/// least `found` voxels (one triangle's box spanning `span`), more than `limit` allows.
 fn too_many_voxels(
     grid: &VoxelGrid,
     area: f64,
     found: u64,
     span: u64,
-    max_voxels: u64,
+    limit: &VoxelLimit,
 ) -> GeometryError {
-    let size = grid.size;
-    let limit = if max_voxels < MAX_VOXELS {
-        format!(
-            "limit {max_voxels}: {MAX_VOXELS} at most, and fewer within --max-memory at {} bytes each beside the atlases",
-            BYTES_PER_VOXEL
-        )
-    } else {
-        format!("limit {MAX_VOXELS}")
-    };
+    let (size, limit) = (grid.size, limit.describe());
     GeometryError::TooLarge {
         what: format!(
             "a {size} m voxel over {area:.3} m^2 of surface (so far) gives at least {found} voxels (one triangle spanning {span}; {limit}): choose a larger --voxel"
@@ -401,8 +390,8 @@ fn too_many_voxels(
 
 /// Counts the voxels binning will give the mesh at `path` (those of its non-degenerate
 /// triangles' boxes), in a pass that writes nothing, and refuses as soon as they pass
-/// `max_voxels`: a lattice far too fine is refused in seconds, before millions of spill files.
-fn count_voxels(path: &Path, grid: &VoxelGrid, max_voxels: u64) -> Result<(), GeometryError> {
+/// `limit`: a lattice far too fine is refused in seconds, before millions of spill files.
+fn count_voxels(path: &Path, grid: &VoxelGrid, limit: &VoxelLimit) -> Result<(), GeometryError> {
     let mut seen: std::collections::HashSet<VoxelId> = Default::default();
     let mut area = 0.0;
     let mut checked = false;
@@ -417,15 +406,13 @@ fn count_voxels(path: &Path, grid: &VoxelGrid, max_voxels: u64) -> Result<(), Ge
                 continue;
             };
             area += cells.area;
-            if cells.span > max_voxels {
-                return Err(too_many_voxels(
-                    grid, area, cells.span, cells.span, max_voxels,
-                ));
+            if cells.span > limit.voxels {
+                return Err(too_many_voxels(grid, area, cells.span, cells.span, limit));
             }
             seen.extend(cells.voxels());
-            if seen.len() as u64 > max_voxels {
+            if seen.len() as u64 > limit.voxels {
                 let found = seen.len() as u64;
-                return Err(too_many_voxels(grid, area, found, cells.span, max_voxels));
+                return Err(too_many_voxels(grid, area, found, cells.span, limit));
             }
         }
         Ok(())
@@ -722,16 +709,18 @@ mod tests {
         let path = tmp.path().join("site.ply");
         crate::write_ply(&path, &mesh).unwrap();
         let grid = VoxelGrid::new([0.0; 3], 0.5).unwrap();
-        let free = SiteSpill::bin(&path, &grid, MAX_VOXELS, &tmp.path().join("a")).unwrap();
+        let max = VoxelLimit::max();
+        let free = SiteSpill::bin(&path, &grid, &max, &tmp.path().join("a")).unwrap();
         let n = free.voxel_ids().len() as u64;
         let (lo, hi) = mesh.bounds().unwrap();
         let cells: i64 = (0..3)
             .map(|k| (grid.cell(k, hi[k]) - grid.cell(k, lo[k]) + 1) as i64)
             .product();
         assert!(cells as u64 > n && n > 10, "{cells} cells, {n} voxels");
-        let exact = SiteSpill::bin(&path, &grid, n, &tmp.path().join("b")).unwrap();
+        let limit = |n| VoxelLimit::max().at_most(n, || "the test's".into());
+        let exact = SiteSpill::bin(&path, &grid, &limit(n), &tmp.path().join("b")).unwrap();
         assert_eq!(exact.voxel_ids(), free.voxel_ids());
-        let e = SiteSpill::bin(&path, &grid, n - 1, &tmp.path().join("c"))
+        let e = SiteSpill::bin(&path, &grid, &limit(n - 1), &tmp.path().join("c"))
             .err()
             .expect("refused")
             .to_string();
@@ -753,7 +742,7 @@ mod tests {
             let spill = SiteSpill::bin(
                 &path,
                 &grid,
-                MAX_VOXELS,
+                &VoxelLimit::max(),
                 &tmp.path().join(format!("spill{g}")),
             )
             .unwrap();

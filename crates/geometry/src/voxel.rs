@@ -20,6 +20,43 @@ pub type VoxelId = [i32; 3];
 /// The most non-empty voxels a prepare accepts.
 pub const MAX_VOXELS: u64 = 10_000_000;
 
+/// The most non-empty voxels a run may make, and why: the words its refusal gives after
+/// `limit N: ` ([`MAX_VOXELS`], or fewer within the memory or the disk the run has).
+#[derive(Clone, Debug, PartialEq)]
+pub struct VoxelLimit {
+    pub voxels: u64,
+    pub why: String,
+}
+
+impl VoxelLimit {
+    /// [`MAX_VOXELS`] and nothing less.
+    pub fn max() -> VoxelLimit {
+        VoxelLimit {
+            voxels: MAX_VOXELS,
+            why: String::new(),
+        }
+    }
+
+    /// The lower of this limit and `voxels` (for the reason `why`).
+    pub fn at_most(self, voxels: u64, why: impl FnOnce() -> String) -> VoxelLimit {
+        match voxels < self.voxels {
+            true => VoxelLimit { voxels, why: why() },
+            false => self,
+        }
+    }
+
+    /// `limit N` with its reason, for messages.
+    pub fn describe(&self) -> String {
+        match self.voxels < MAX_VOXELS {
+            true => format!(
+                "limit {}: {MAX_VOXELS} at most, and {}",
+                self.voxels, self.why
+            ),
+            false => format!("limit {MAX_VOXELS}"),
+        }
+    }
+}
+
 /// Bytes a prepare holds per voxel of the site, beside the pieces and atlases being worked on
 /// (its bin, its manifest entry): the slope of the peak resident memory of `igi prepare` on
 /// the fixture's block at `--atlas 32` between 23 002 voxels (`--voxel 0.04`, 44.6 MB) and
