@@ -540,6 +540,7 @@ fn load_object(
     if let Some((li, l)) = lobes.iter().enumerate().find(|(_, l)| !lobe_is_valid(l)) {
         return Err(ctx.file_err(format!("lobe {li} {l:?} has invalid parameters")));
     }
+    check_energy(&ctx, &albedo, &lobes)?;
     let lobe_map = ctx.lobe_map(&o.lobe_maps)?;
     let material = Material {
         albedo,
@@ -547,6 +548,42 @@ fn load_object(
         lobe_map,
     };
     Ok((mesh_path.display().to_string(), mesh, material))
+}
+
+/// The brightest texel of `img` (its index and largest channel).
+fn brightest_texel(img: &HdrImage) -> (usize, f32) {
+    let top = |p: &[f32; 3]| p.iter().copied().fold(0.0f32, f32::max);
+    img.pixels
+        .iter()
+        .enumerate()
+        .map(|(i, p)| (i, top(p)))
+        .fold((0, 0.0), |a, b| if b.1 > a.1 { b } else { a })
+}
+
+/// Refuses an object whose constant lobes, beside its largest diffuse albedo, reflect more
+/// light than they receive at some view angle (the directional albedo of the Lafortune BRDF
+/// above 1 in a channel, with [`igi_brdf::Lafortune::is_energy_conserving`]'s 1 % for its
+/// estimate). Per-texel lobe maps are the solver's, inferred from each texel's albedo.
+fn check_energy(ctx: &ObjectContext, albedo: &Albedo, lobes: &[Lobe]) -> Result<(), RenderError> {
+    if lobes.is_empty() {
+        return Ok(());
+    }
+    let rho_d = match albedo {
+        Albedo::Constant(c) => *c,
+        Albedo::Texture(t) => t.texels.iter().fold(Vec3::ZERO, |a, &b| a.max(b)),
+    };
+    let brdf = igi_brdf::Lafortune {
+        rho_d,
+        lobes: lobes.to_vec(),
+    };
+    if brdf.is_energy_conserving() {
+        return Ok(());
+    }
+    let a = brdf.max_albedo();
+    Err(ctx.file_err(format!(
+        "its lobes with its albedo reflect up to {:.3} {:.3} {:.3} (r, g, b) of the light they receive at some view angle: more than 1 (lower the lobes' rho, or the albedo)",
+        a.x, a.y, a.z
+    )))
 }
 
 /// Object `k` of scene file `path`, for reading what it names and for its errors.
@@ -606,6 +643,15 @@ impl ObjectContext<'_> {
                     return Err(self.file_err(format!(
                         "albedo texture {} has negative or non-finite texels",
                         tp.display()
+                    )));
+                }
+                let (i, top) = brightest_texel(&img);
+                if top > 1.0 {
+                    return Err(self.file_err(format!(
+                        "albedo texture {} has texels above 1 (the largest, {top}, at column {} row {}): a diffuse albedo is at most 1 in each channel (a linear texture; was it saved as radiance, or scaled?)",
+                        tp.display(),
+                        i % img.width,
+                        i / img.width
                     )));
                 }
                 Ok(Albedo::Texture(Texture::from_image(&img)))
@@ -870,6 +916,34 @@ lobes = [ { rho = [0.1, 0.1, 0.1], cxy = -0.9, cz = 1.0, n = 30.0 } ]
             e.contains("scene.toml") && e.contains("object ") && e.contains("at most 1"),
             "{e}"
         );
+        // a texture that holds radiance, or was scaled: 1.5 at column 1, row 0
+        tex.set(1, 0, [0.2, 1.5, 0.2]);
+        igi_imaging::write_exr(&dir.path().join("geometry/hot.exr"), &tex).unwrap();
+        std::fs::write(
+            &p,
+            "[[object]]\nmesh = \"geometry/ground.ply\"\nalbedo = \"geometry/hot.exr\"\n",
+        )
+        .unwrap();
+        let e = Scene::load(&p).err().unwrap().to_string();
+        assert!(
+            e.contains("hot.exr") && e.contains("above 1") && e.contains("1.5, at column 1 row 0"),
+            "{e}"
+        );
+        // lobes that reflect more than they receive: a Lambertian 0.5 and a mirror-like lobe of
+        // rho 5 and n 10 (its directional albedo about rho * 2 pi / (n + 2), 2.6 near normal)
+        let lobes = |rho: f64| {
+            format!(
+                "[[object]]\nmesh = \"geometry/ground.ply\"\nalbedo = [0.5, 0.5, 0.5]\nlobes = [ {{ rho = [{rho}, {rho}, {rho}], cxy = -1.0, cz = 1.0, n = 10.0 }} ]\n"
+            )
+        };
+        std::fs::write(&p, lobes(5.0)).unwrap();
+        let e = Scene::load(&p).err().unwrap().to_string();
+        assert!(
+            e.contains("scene.toml") && e.contains("object 0") && e.contains("more than 1"),
+            "{e}"
+        );
+        std::fs::write(&p, lobes(0.2)).unwrap();
+        assert!(Scene::load(&p).is_ok(), "a conserving lobe loads");
         std::fs::write(&p, "lighting = 3\n").unwrap();
         let e = Scene::load(&p).err().unwrap().to_string();
         assert!(
