@@ -243,10 +243,7 @@ fn voxel_limit_within(
     out: &Path,
     free: igi_files::disk::FreeSpace,
 ) -> VoxelLimit {
-    let memory = voxel_budget(opts, has_terrain);
-    let limit = VoxelLimit::max().at_most(memory, || {
-        format!("fewer within --max-memory at {BYTES_PER_VOXEL} bytes each beside the atlases")
-    });
+    let limit = memory_limit(opts, has_terrain);
     let (part, per) = (part_entries(opts), part_entries(opts) + 1);
     let written = match std::fs::read_dir(out.join("voxels")) {
         Ok(dir) => dir.count() as u64 * part,
@@ -269,33 +266,40 @@ fn voxel_limit_within(
     })
 }
 
+/// [`MAX_VOXELS`], or fewer within `opts.max_memory` ([`voxel_budget`]).
+fn memory_limit(opts: &PrepareOptions, has_terrain: bool) -> VoxelLimit {
+    VoxelLimit::max().at_most(voxel_budget(opts, has_terrain), || {
+        format!("fewer within --max-memory at {BYTES_PER_VOXEL} bytes each beside the atlases")
+    })
+}
+
 /// Files and folders a part's folder holds: itself, the three atlas images, a mesh per level
 /// and `done.json`.
 fn part_entries(opts: &PrepareOptions) -> u64 {
     5 + opts.levels.len() as u64
 }
 
-/// Refuses, before any allocation, a prepare whose voxel count or memory would explode (a
-/// voxel edge far below the mesh's scale): non-empty voxels are estimated as the surface area
-/// over the voxel face (no bound either way: a voxel can hold more than one face of surface,
-/// and a triangle is cut into every voxel it crosses),
-/// memory as the voxel pieces, [`BYTES_PER_VOXEL`] per voxel, and one atlas with its three
-/// caches per worker thread.
+/// Refuses, before any allocation, a prepare of a mesh in memory whose voxel count or memory
+/// would explode (a voxel edge far below the mesh's scale): the voxels of the triangles' boxes
+/// are counted (at least those the partition gives; refused as soon as they pass
+/// [`memory_limit`]), memory estimated as the voxel pieces, [`BYTES_PER_VOXEL`] per voxel, and
+/// one atlas with its three caches per worker thread.
 fn check_resources(
     site: &TriMesh,
     terrain: Option<&TriMesh>,
     opts: &PrepareOptions,
 ) -> Result<(), GeometryError> {
-    let size = opts.grid.size;
-    let area = site.total_area();
-    let voxels = area / (size * size);
+    let limit = memory_limit(opts, terrain.is_some());
+    let voxels = crate::stream::count_mesh_voxels(site, &opts.grid, &limit)? as f64;
     // a clipped piece: 3 indices, ~2 new vertices with position, normal and uv, per voxel crossed
     let pieces = (site.indices.len() as f64 + 4.0 * voxels) * 96.0;
     let bytes = pieces + voxels * BYTES_PER_VOXEL + atlas_bytes(opts, terrain.is_some());
-    if voxels > MAX_VOXELS as f64 || bytes > opts.max_memory as f64 {
+    if bytes > opts.max_memory as f64 {
         return Err(GeometryError::TooLarge {
             what: format!(
-                "a {size} m voxel over {area:.3} m^2 of surface gives about {voxels:.3e} voxels (limit {MAX_VOXELS}) and needs about {:.1} GiB (limit {:.1} GiB, see --max-memory)",
+                "a {} m voxel over {:.3} m^2 of surface gives {voxels} voxels and needs about {:.1} GiB (limit {:.1} GiB, see --max-memory)",
+                opts.grid.size,
+                site.total_area(),
                 bytes / (1u64 << 30) as f64,
                 opts.max_memory as f64 / (1u64 << 30) as f64
             ),
@@ -911,6 +915,36 @@ mod tests {
                 }
             })
             .sum()
+    }
+
+    /// The in-memory prepare counts its voxels as the streamed one does: at least the voxels
+    /// the partition gives (the area-over-face estimate it replaced was no bound), exactly
+    /// refused one below its count, and a prepare whose memory limit is below it is refused
+    /// before anything is written.
+    #[test]
+    fn the_in_memory_voxel_count_bounds_the_partition_and_is_refused_exactly() {
+        let site = bunny();
+        let grid = VoxelGrid::new([0.0; 3], 0.5).unwrap();
+        let n = crate::stream::count_mesh_voxels(&site, &grid, &VoxelLimit::max()).unwrap();
+        let parts = partition(&site, &grid).len() as u64;
+        let estimate = site.total_area() / 0.25;
+        eprintln!("boxes {n}, partition {parts}, area over face {estimate:.1}");
+        assert!(n >= parts && parts > 100, "{n} {parts}");
+        let below = VoxelLimit::max().at_most(n - 1, || "the test's".into());
+        let e = crate::stream::count_mesh_voxels(&site, &grid, &below).unwrap_err();
+        assert!(e.to_string().contains(&format!("limit {}", n - 1)), "{e}");
+        let opts = PrepareOptions {
+            grid,
+            max_memory: (atlas_bytes(&PrepareOptions::default(), false) + 100.0 * BYTES_PER_VOXEL)
+                as u64,
+            ..Default::default()
+        };
+        let d = tempfile::tempdir().unwrap();
+        let out = d.path().join("site.igi");
+        let (site, rep) = crate::repair::repair(&site);
+        let e = prepare(site, None, rep, &out, "bunny", &opts, &|_, _| {}).unwrap_err();
+        assert!(e.to_string().contains("--max-memory"), "{e}");
+        assert!(!out.exists());
     }
 
     /// The voxel limit on a small file system (20 MiB and 1999 file entries free, as a tmpfs

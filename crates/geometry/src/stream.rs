@@ -392,8 +392,7 @@ fn too_many_voxels(
 /// triangles' boxes), in a pass that writes nothing, and refuses as soon as they pass
 /// `limit`: a lattice far too fine is refused in seconds, before millions of spill files.
 fn count_voxels(path: &Path, grid: &VoxelGrid, limit: &VoxelLimit) -> Result<(), GeometryError> {
-    let mut seen: std::collections::HashSet<VoxelId> = Default::default();
-    let mut area = 0.0;
+    let mut count = VoxelCount::new(grid, limit);
     let mut checked = false;
     let mut sink = |mesh: &TriMesh, first: usize, chunk: &[[u32; 3]]| {
         if !checked {
@@ -401,23 +400,66 @@ fn count_voxels(path: &Path, grid: &VoxelGrid, limit: &VoxelLimit) -> Result<(),
             checked = true;
         }
         check_indices(chunk, first, mesh.positions.len()).map_err(|e| e.in_file(path))?;
-        for tri in chunk {
-            let Some(cells) = TriangleCells::of(grid, tri, &mesh.positions) else {
-                continue;
-            };
-            area += cells.area;
-            if cells.span > limit.voxels {
-                return Err(too_many_voxels(grid, area, cells.span, cells.span, limit));
-            }
-            seen.extend(cells.voxels());
-            if seen.len() as u64 > limit.voxels {
-                let found = seen.len() as u64;
-                return Err(too_many_voxels(grid, area, found, cells.span, limit));
-            }
-        }
-        Ok(())
+        chunk
+            .iter()
+            .try_for_each(|tri| count.add(tri, &mesh.positions))
     };
     read_chunked(path, &mut sink).map(|_| ())
+}
+
+/// [`count_voxels`] of a mesh in memory (checked): the voxels of its non-degenerate triangles'
+/// boxes, at least those [`crate::voxel::partition`] gives it, refused as soon as they pass
+/// `limit`.
+pub(crate) fn count_mesh_voxels(
+    mesh: &TriMesh,
+    grid: &VoxelGrid,
+    limit: &VoxelLimit,
+) -> Result<u64, GeometryError> {
+    let mut count = VoxelCount::new(grid, limit);
+    for tri in &mesh.indices {
+        count.add(tri, &mesh.positions)?;
+    }
+    Ok(count.seen.len() as u64)
+}
+
+/// The voxels of the triangles' boxes seen so far, and their area.
+struct VoxelCount<'a> {
+    grid: &'a VoxelGrid,
+    limit: &'a VoxelLimit,
+    seen: std::collections::HashSet<VoxelId>,
+    area: f64,
+}
+
+impl<'a> VoxelCount<'a> {
+    fn new(grid: &'a VoxelGrid, limit: &'a VoxelLimit) -> Self {
+        let seen = Default::default();
+        VoxelCount {
+            grid,
+            limit,
+            seen,
+            area: 0.0,
+        }
+    }
+
+    /// Adds triangle `tri`'s box (a degenerate one adds nothing); refuses past the limit.
+    fn add(&mut self, tri: &[u32; 3], positions: &[[f32; 3]]) -> Result<(), GeometryError> {
+        let (grid, limit) = (self.grid, self.limit);
+        let Some(cells) = TriangleCells::of(grid, tri, positions) else {
+            return Ok(());
+        };
+        self.area += cells.area;
+        if cells.span > limit.voxels {
+            return Err(too_many_voxels(
+                grid, self.area, cells.span, cells.span, limit,
+            ));
+        }
+        self.seen.extend(cells.voxels());
+        let found = self.seen.len() as u64;
+        if found > limit.voxels {
+            return Err(too_many_voxels(grid, self.area, found, cells.span, limit));
+        }
+        Ok(())
+    }
 }
 
 /// A non-degenerate triangle's area and the box of voxels it spans, the one per-triangle step
