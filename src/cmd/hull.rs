@@ -31,7 +31,7 @@ pub struct BuildArgs {
     #[arg(short, long)]
     pub output: PathBuf,
     /// Carving cells per axis of the bounding box (at least 256).
-    #[arg(long, default_value_t = 256)]
+    #[arg(long, default_value_t = 256, value_parser = crate::cmd::values::hull_resolution)]
     pub resolution: usize,
     /// Depth in pixels of the band along the frame's edge, wherever a view's silhouette runs
     /// into the edge, whose background is weak evidence: the object goes on outside the frame,

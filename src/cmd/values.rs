@@ -91,3 +91,14 @@ mod tests {
         assert!(cone_deg("-1").is_err() && cone_deg("181").is_err());
     }
 }
+
+/// A hull's carving cells per axis of the bounding box: at least 256.
+pub fn hull_resolution(s: &str) -> Result<usize, String> {
+    match s.trim().parse::<usize>() {
+        Ok(v) if v >= 256 => Ok(v),
+        Ok(v) => Err(format!(
+            "{v} must be at least 256 (cells per axis of the bounding box)"
+        )),
+        Err(_) => Err(format!("{s:?} is not a whole number")),
+    }
+}

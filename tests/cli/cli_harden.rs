@@ -1488,6 +1488,12 @@ fn nonsense_numbers_are_refused_naming_the_option() {
             "--deblur",
             "1000000",
         ),
+        // it said "coarser than bbox/256" where --help says at least 256
+        (
+            vec!["hull", "build", "rig.toml", "-o", o, "--resolution", "100"],
+            "--resolution",
+            "at least 256",
+        ),
         (
             vec!["solve", survey, "-o", o, "--tolerance", "nan"],
             "--tolerance",

@@ -72,7 +72,7 @@ pub enum HullError {
     #[error("invalid argument: relighting needs at least one light direction")]
     NoLights,
     /// A build resolution coarser than the bounding box over 256.
-    #[error("invalid argument: resolution {0} is coarser than bbox/256")]
+    #[error("invalid argument: resolution {0}: a hull is carved from at least 256 cells per axis of the bounding box")]
     CoarseResolution(usize),
     /// A rig with more views than a hull is carved from.
     #[error("{}: {views} views; a hull is carved from at most {max} (Matusik et al.'s rig had 216)", rig.display())]
