@@ -46,10 +46,12 @@ pub enum ImportCmd {
     /// of the model's sparse 3D points against --mesh: each point paired with its closest
     /// point on the mesh (a kiddo k-d tree of surface samples, then the exact closest point on
     /// their triangles), the closest --icp-keep fraction kept, the similarity (scale
-    /// included) refitted by Umeyama's method until it settles. Refused when the refinement
-    /// would turn the points by more than 5 degrees, change the scale by more than 10% or
-    /// move them by more than 0.2 of their spread, or when it does not lower the kept
-    /// points' RMS distance to the mesh. alignment.json keeps both similarities.
+    /// included) moved by point-to-plane steps (the small rotation, scale and translation
+    /// minimising the kept pairs' distances along the mesh's normals) until it settles.
+    /// Refused when the refinement would turn the points by more than 5 degrees, change the
+    /// scale by more than 10% or move them by more than 0.2 of their spread, or when it does
+    /// not lower the kept points' RMS distance to the mesh. alignment.json keeps both
+    /// similarities.
     ///
     /// Nothing is written unless every check passes.
     Colmap(ColmapArgs),

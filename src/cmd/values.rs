@@ -73,6 +73,17 @@ pub fn cone_deg(s: &str) -> Result<f64, String> {
     }
 }
 
+/// A hull's carving cells per axis of the bounding box: at least 256.
+pub fn hull_resolution(s: &str) -> Result<usize, String> {
+    match s.trim().parse::<usize>() {
+        Ok(v) if v >= 256 => Ok(v),
+        Ok(v) => Err(format!(
+            "{v} must be at least 256 (cells per axis of the bounding box)"
+        )),
+        Err(_) => Err(format!("{s:?} is not a whole number")),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -89,16 +100,7 @@ mod tests {
         assert!(share("0").is_err() && share("1.5").is_err() && share("1").is_ok());
         assert!(incidence_deg("200").is_err() && incidence_deg("0").is_err());
         assert!(cone_deg("-1").is_err() && cone_deg("181").is_err());
-    }
-}
-
-/// A hull's carving cells per axis of the bounding box: at least 256.
-pub fn hull_resolution(s: &str) -> Result<usize, String> {
-    match s.trim().parse::<usize>() {
-        Ok(v) if v >= 256 => Ok(v),
-        Ok(v) => Err(format!(
-            "{v} must be at least 256 (cells per axis of the bounding box)"
-        )),
-        Err(_) => Err(format!("{s:?} is not a whole number")),
+        assert!(hull_resolution("255").is_err() && hull_resolution("-256").is_err());
+        assert_eq!(hull_resolution("256"), Ok(256));
     }
 }

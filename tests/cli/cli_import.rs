@@ -604,8 +604,8 @@ fn an_imported_noisy_colmap_survey_solves_within_ten_percent_of_the_true_cameras
     errs_icp.sort_by(f64::total_cmp);
     let median_icp = errs_icp[errs_icp.len() / 2];
     eprintln!(
-        "--icp: {} of {} points kept, RMS to the mesh {before:.4} -> {after:.4} m, correction {:.4} deg, scale x{:.5}; cameras against the truth: median {median_icp:.3} px (without ICP {median:.3})",
-        icp["kept"], icp["points"], icp["turn_deg"].as_f64().unwrap(), 1.0 + icp["scale_change"].as_f64().unwrap()
+        "--icp: {} of {} points kept, RMS to the mesh {before:.4} -> {after:.6} m in {} iterations, correction {:.4} deg, scale x{:.5}; cameras against the truth: median {median_icp:.3} px (without ICP {median:.3})",
+        icp["kept"], icp["points"], icp["iterations"], icp["turn_deg"].as_f64().unwrap(), 1.0 + icp["scale_change"].as_f64().unwrap()
     );
     assert!(after < before && after < 0.01, "{icp}");
     assert!(median_icp < 0.3, "{median_icp} px");

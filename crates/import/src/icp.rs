@@ -8,9 +8,12 @@
 //! * Each iteration pairs every point with its closest surface point, keeps the
 //!   [`IcpOptions::keep`] fraction of pairs with the smallest distances (trimmed ICP,
 //!   Chetverikov et al. 2002: outliers and points the scan does not cover are left out), and
-//!   refits the whole similarity from the original points to those closest points by Umeyama's
-//!   method; it stops when the kept pairs' RMS distance changes by less than 1e-9 of the
-//!   mesh's size, or after [`IcpOptions::max_iterations`].
+//!   moves the similarity by the linearised point-to-plane step (Chen and Medioni 1992, with
+//!   scale): the small rotation, scale and translation that minimise the kept pairs' squared
+//!   distances along their triangles' normals. Point-to-point steps (Umeyama to the closest
+//!   points) slide along flat walls and converged linearly: the unit test's misalignment took
+//!   all 100 iterations (0.0109 deg left); point-to-plane takes 16 (0.0086 deg). It stops when
+//!   no kept point moves by 1e-9 of the mesh's size, or after [`IcpOptions::max_iterations`].
 //! * The refinement is a correction of an alignment that is already close: it is refused when
 //!   it would turn the points by more than [`MAX_TURN_DEG`] degrees, scale them by more than
 //!   [`MAX_SCALE_CHANGE`], or move their centroid by more than [`MAX_SHIFT`] of their spread
@@ -22,7 +25,7 @@ use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use serde::Serialize;
 use std::num::NonZeroUsize;
 
-use crate::align::{umeyama, Similarity};
+use crate::align::Similarity;
 pub use crate::error::IcpError;
 
 /// Samples of the mesh looked at per closest-point query.
@@ -177,8 +180,14 @@ impl Surface {
 
     /// The closest point of the surface to `p` (module docs) and its distance.
     pub fn closest(&self, p: DVec3) -> (DVec3, f64) {
+        let (q, d, _) = self.closest_with_normal(p);
+        (q, d)
+    }
+
+    /// [`Surface::closest`] with the unit normal of the triangle it lies on.
+    pub fn closest_with_normal(&self, p: DVec3) -> (DVec3, f64, DVec3) {
         let k = NonZeroUsize::new(NEIGHBOURS).unwrap_or(NonZeroUsize::MIN);
-        let mut best = (p, f64::INFINITY);
+        let mut best = (p, f64::INFINITY, DVec3::Z);
         let mut seen: Vec<u32> = Vec::with_capacity(NEIGHBOURS);
         for nn in self.tree.nearest_n::<SquaredEuclidean>(&p.to_array(), k) {
             let t = self.owner[nn.item as usize];
@@ -186,10 +195,11 @@ impl Surface {
                 continue;
             }
             seen.push(t);
-            let q = closest_on_triangle(p, &self.tris[t as usize]);
+            let tri = &self.tris[t as usize];
+            let q = closest_on_triangle(p, tri);
             let d = q.distance(p);
             if d < best.1 {
-                best = (q, d);
+                best = (q, d, (tri[1] - tri[0]).cross(tri[2] - tri[0]).normalize());
             }
         }
         best
@@ -231,24 +241,63 @@ pub fn closest_on_triangle(p: DVec3, t: &[DVec3; 3]) -> DVec3 {
 }
 
 /// The kept pairs (indices of the `keep` fraction closest) and their RMS distance.
-fn trimmed(
-    points: &[DVec3],
-    s: &Similarity,
-    surface: &Surface,
-    keep: usize,
-) -> (Vec<(usize, DVec3)>, f64) {
-    let mut pairs: Vec<(usize, DVec3, f64)> = points
+fn trimmed(points: &[DVec3], s: &Similarity, surface: &Surface, keep: usize) -> (Vec<Pair>, f64) {
+    let mut pairs: Vec<(Pair, f64)> = points
         .iter()
         .enumerate()
         .map(|(i, p)| {
-            let (q, d) = surface.closest(s.apply(*p));
-            (i, q, d)
+            let (q, d, n) = surface.closest_with_normal(s.apply(*p));
+            (Pair { i, q, n }, d)
         })
         .collect();
-    pairs.sort_by(|a, b| a.2.total_cmp(&b.2).then(a.0.cmp(&b.0)));
+    pairs.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.i.cmp(&b.0.i)));
     pairs.truncate(keep);
-    let rms = (pairs.iter().map(|p| p.2 * p.2).sum::<f64>() / keep as f64).sqrt();
-    (pairs.into_iter().map(|(i, q, _)| (i, q)).collect(), rms)
+    let rms = (pairs.iter().map(|p| p.1 * p.1).sum::<f64>() / keep as f64).sqrt();
+    (pairs.into_iter().map(|(p, _)| p).collect(), rms)
+}
+
+/// A point (its index) paired with its closest surface point and that point's normal.
+struct Pair {
+    i: usize,
+    q: DVec3,
+    n: DVec3,
+}
+
+/// One point-to-plane step (Chen and Medioni 1992, with scale): the small similarity about the
+/// moved points' centroid (rotation `w`, relative scale `sigma`, translation `t`) that
+/// minimises the kept pairs' squared distances along their normals, linearised, applied to
+/// `s`. Directions the pairs' normals leave free (a plane's own slide) keep `s`'s.
+fn plane_step(points: &[DVec3], s: &Similarity, pairs: &[Pair]) -> Option<Similarity> {
+    let moved: Vec<DVec3> = pairs.iter().map(|p| s.apply(points[p.i])).collect();
+    let c = moved.iter().copied().sum::<DVec3>() / moved.len() as f64;
+    let spread = (moved.iter().map(|p| p.distance_squared(c)).sum::<f64>() / moved.len() as f64)
+        .sqrt()
+        .max(1e-12);
+    // unknowns scaled by the spread so that the seven columns are alike
+    let mut ata = nalgebra::SMatrix::<f64, 7, 7>::zeros();
+    let mut atb = nalgebra::SVector::<f64, 7>::zeros();
+    for (p, pair) in moved.iter().zip(pairs) {
+        let r = (*p - c) / spread;
+        let (n, rxn) = (pair.n, r.cross(pair.n));
+        let a = nalgebra::SVector::<f64, 7>::from([rxn.x, rxn.y, rxn.z, n.x, n.y, n.z, r.dot(n)]);
+        let b = (pair.q - *p).dot(n) / spread;
+        ata += a * a.transpose();
+        atb += a * b;
+    }
+    // a tiny ridge: unconstrained directions stay where they are
+    let ridge = 1e-9 * ata.trace().max(1e-300);
+    ata += nalgebra::SMatrix::<f64, 7, 7>::identity() * ridge;
+    let x = ata.cholesky()?.solve(&atb);
+    let w = DVec3::new(x[0], x[1], x[2]);
+    let (t, sigma) = (DVec3::new(x[3], x[4], x[5]) * spread, x[6]);
+    let rot = glam::DMat3::from_quat(glam::DQuat::from_scaled_axis(w));
+    let k = 1.0 + sigma;
+    let next = Similarity {
+        scale: k * s.scale,
+        rotation: rot * s.rotation,
+        translation: k * (rot * (s.translation - c)) + c + t,
+    };
+    (next.scale.is_finite() && next.scale > 0.0 && next.translation.is_finite()).then_some(next)
 }
 
 /// Refines: the similarity that best moves `points` (scan frame, already aligned) onto
@@ -271,14 +320,16 @@ pub fn icp(points: &[DVec3], surface: &Surface, opts: &IcpOptions) -> Result<Icp
     let mut iterations = 0;
     for _ in 0..opts.max_iterations {
         iterations += 1;
-        let src: Vec<DVec3> = pairs.iter().map(|(i, _)| points[*i]).collect();
-        let dst: Vec<DVec3> = pairs.iter().map(|(_, q)| *q).collect();
-        s = umeyama(&src, &dst).ok_or(IcpError::Degenerate)?;
+        let next_s = plane_step(points, &s, &pairs).ok_or(IcpError::Degenerate)?;
+        let motion = pairs
+            .iter()
+            .map(|p| next_s.apply(points[p.i]).distance(s.apply(points[p.i])))
+            .fold(0.0, f64::max);
+        s = next_s;
         let (next, next_rms) = trimmed(points, &s, surface, keep);
         pairs = next;
-        let change = (rms - next_rms).abs();
         rms = next_rms;
-        if change < 1e-9 * surface.size {
+        if motion < 1e-9 * surface.size {
             break;
         }
     }

@@ -149,7 +149,10 @@ fn trimmed_icp_recovers_a_known_small_misalignment_despite_noise_and_outliers() 
         1.0 + r.scale_change,
         r.shift_m
     );
-    assert!(rot_err < 0.02, "rotation off by {rot_err} deg");
+    // point-to-plane steps converge in 16 iterations here; point-to-point pairs slid along
+    // the walls for all 100 and ended at 0.0109 deg
+    assert!(r.iterations < 30, "{} iterations", r.iterations);
+    assert!(rot_err < 0.01, "rotation off by {rot_err} deg");
     assert!(scale_err < 5e-4, "scale off by {scale_err}");
     assert!(worst < 0.005, "worst point {worst} m");
     assert!(r.rms_after_m < 0.004 && r.rms_before_m > 0.03, "{r:?}");
