@@ -76,9 +76,10 @@ pub struct ColmapArgs {
     /// times and the site's location, before `igi solve`).
     #[arg(long)]
     pub lighting: Option<PathBuf>,
-    /// The site's mesh (the scan, PLY or OBJ) the survey names.
-    #[arg(long)]
-    pub mesh: PathBuf,
+    /// The site's mesh (the scan, PLY or OBJ) the survey names; repeat it for a scan in several
+    /// meshes (the survey's `meshes`; --icp matches the points against all of them).
+    #[arg(long, required = true)]
+    pub mesh: Vec<PathBuf>,
     /// Metres: the control points' inlier threshold and largest accepted RMS residual
     /// (default: 5% of the control points' spread).
     #[arg(long)]
@@ -128,7 +129,7 @@ fn run_colmap(a: ColmapArgs) -> anyhow::Result<()> {
         images: a.images,
         control: a.control,
         lighting: a.lighting,
-        mesh: a.mesh,
+        meshes: a.mesh,
         output: a.output,
         align: AlignOptions {
             max_residual: a.max_residual,

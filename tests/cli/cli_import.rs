@@ -7,7 +7,7 @@ use igi_formats::ControlObservation;
 use igi_import::model::{matrix_to_quat, CameraModel, ColmapCamera, ColmapImage};
 use igi_import::ColmapModel;
 use igi_testkit::{assert_failed, s, Cli};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 fn igi() -> Cli {
     Cli::new(env!("CARGO_BIN_EXE_igi"))
@@ -609,6 +609,30 @@ fn an_imported_noisy_colmap_survey_solves_within_ten_percent_of_the_true_cameras
     );
     assert!(after < before && after < 0.01, "{icp}");
     assert!(median_icp < 0.3, "{median_icp} px");
+    // the same scan as its three meshes (`--mesh` repeated): the same refinement, and a survey
+    // that names all three
+    let out_three = dir.join("imported_three");
+    let meshes: Vec<PathBuf> = ["ground", "block", "wall"]
+        .iter()
+        .map(|m| fixture.join(format!("geometry/{m}.ply")))
+        .collect();
+    let mut a_three: Vec<&str> = a_icp.clone();
+    a_three[8] = s(&meshes[0]);
+    a_three[10] = s(&out_three);
+    for m in &meshes[1..] {
+        a_three.extend(["--mesh", s(m)]);
+    }
+    let three: serde_json::Value = serde_json::from_slice(&igi().ok(&a_three).stdout).unwrap();
+    for key in ["iterations", "kept", "turn_deg", "scale_change", "shift_m"] {
+        assert_eq!(three["icp"][key], icp[key], "{key}");
+    }
+    let named = std::fs::read_to_string(out_three.join("survey.toml")).unwrap();
+    assert!(
+        named.contains("meshes = [")
+            && named.matches(".ply\"").count() == 3
+            && named.contains("block.ply"),
+        "{named}"
+    );
     // the fixture's survey with the imported cameras (its photos, meshes, lightings as they are)
     let text = std::fs::read_to_string(fixture.join("survey.toml")).unwrap();
     let fx = fixture.display().to_string();

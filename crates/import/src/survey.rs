@@ -37,12 +37,12 @@ pub struct ColmapImport {
     pub control: Option<PathBuf>,
     /// A lighting file given to every photo.
     pub lighting: Option<PathBuf>,
-    /// The site's mesh (the scan).
-    pub mesh: PathBuf,
+    /// The site's meshes (the scan; one or more, as a survey's `meshes`).
+    pub meshes: Vec<PathBuf>,
     /// The survey folder to write (absent or empty).
     pub output: PathBuf,
     pub align: AlignOptions,
-    /// Refine the control-point alignment by ICP of the sparse points against `mesh`
+    /// Refine the control-point alignment by ICP of the sparse points against `meshes`
     /// (COLMAP models with `--control` only).
     pub icp: Option<IcpOptions>,
 }
@@ -293,8 +293,11 @@ pub fn import_colmap(job: &ColmapImport) -> Result<ImportReport, ImportError> {
             "the model has no registered (posed) image",
         ));
     }
-    if !job.mesh.is_file() {
-        return Err(input_error(&job.mesh, "site mesh not found (--mesh)"));
+    if job.meshes.is_empty() {
+        return Err(input_error(&job.output, "no site mesh given (--mesh)"));
+    }
+    if let Some(m) = job.meshes.iter().find(|m| !m.is_file()) {
+        return Err(input_error(m, "site mesh not found (--mesh)"));
     }
     if let Some(l) = &job.lighting {
         LightingFile::read(l)?;
@@ -344,9 +347,12 @@ fn refine(
             "the model has no sparse 3D points for --icp (COLMAP's points3D)",
         ));
     }
-    let mesh = igi_geometry::read_mesh(&job.mesh)?;
+    let mut mesh = igi_geometry::TriMesh::default();
+    for m in &job.meshes {
+        mesh.append(&igi_geometry::read_mesh(m)?);
+    }
     let err = |source| ImportError::Icp {
-        mesh: job.mesh.clone(),
+        mesh: job.meshes[0].clone(),
         source,
     };
     let surface = Surface::new(&mesh.positions, &mesh.indices, opts.spacing).map_err(err)?;
@@ -479,9 +485,20 @@ fn survey_file(job: &ColmapImport, photos: &[Photo]) -> Result<SurveyFile, Impor
             })
         })
         .collect::<Result<Vec<_>, ImportError>>()?;
-    let site = SiteSection {
-        mesh: Some(rel(&job.mesh)?),
-        ..SiteSection::default()
+    let meshes = job
+        .meshes
+        .iter()
+        .map(|m| rel(m))
+        .collect::<Result<Vec<_>, _>>()?;
+    let site = match meshes.as_slice() {
+        [one] => SiteSection {
+            mesh: Some(one.clone()),
+            ..SiteSection::default()
+        },
+        _ => SiteSection {
+            meshes,
+            ..SiteSection::default()
+        },
     };
     Ok(SurveyFile {
         site,

@@ -602,7 +602,7 @@ fn import_inputs(root: &Path) -> ColmapImport {
         images,
         control: Some(control),
         lighting: None,
-        mesh: root.join("site.ply"),
+        meshes: vec![root.join("site.ply")],
         output: root.join("survey"),
         align: AlignOptions::default(),
         icp: None,
@@ -660,7 +660,7 @@ fn a_failed_import_writes_nothing() {
     );
     assert!(!job.output.exists());
     let no_mesh = ColmapImport {
-        mesh: dir.path().join("none.ply"),
+        meshes: vec![dir.path().join("none.ply")],
         ..job.clone()
     };
     assert!(import_colmap(&no_mesh)

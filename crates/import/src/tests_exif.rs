@@ -161,7 +161,7 @@ fn job(root: &Path, photos: &[(&str, &str)]) -> ColmapImport {
         images,
         control: None,
         lighting: None,
-        mesh: root.join("site.ply"),
+        meshes: vec![root.join("site.ply")],
         output: root.join("survey"),
         align: AlignOptions::default(),
         icp: None,

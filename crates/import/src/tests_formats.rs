@@ -264,7 +264,7 @@ fn job(root: &Path, format: ModelFormat, model: &Path) -> ColmapImport {
         images: root.join("photos"),
         control: None,
         lighting: None,
-        mesh: root.join("site.ply"),
+        meshes: vec![root.join("site.ply")],
         output: root.join("survey"),
         align: AlignOptions::default(),
         icp: None,
