@@ -223,10 +223,11 @@ pub fn voxel_budget(opts: &PrepareOptions, has_terrain: bool) -> u64 {
 
 /// The most voxels a prepare with `opts` into `out` may make: [`MAX_VOXELS`], fewer when their
 /// memory would pass `opts.max_memory` ([`voxel_budget`]), and fewer when the file system of
-/// `out` cannot hold their files: each voxel's spill file and its part folder
-/// ([`part_entries`]), every entry at least one block ([`igi_files::disk`]), with what an
-/// interrupted run already wrote there counted as free. Binning a streamed site refuses as
-/// soon as it passes this, before the spill files fill the disk.
+/// `out` cannot hold their files: each voxel's spill file and its part folder (itself, the
+/// atlas images, a mesh per level and `done.json`), every entry at least one block
+/// ([`igi_files::disk`]), with what an interrupted run already wrote there counted as free.
+/// Binning a streamed site refuses as soon as it passes this, before the spill files fill the
+/// disk.
 pub fn voxel_limit(
     opts: &PrepareOptions,
     has_terrain: bool,
