@@ -307,8 +307,12 @@ fn setup_scene(fx: &Path, work: &Path) -> Result<Vec<Vec<u8>>, String> {
     for f in ["ground.ply", "wall.ply", "colonnade.ply", "lighting.toml"] {
         write(&dir.join(f), &read(&fx.join("outdoor").join(f))?)?;
     }
-    igi_imaging::write_exr(&dir.join("wall_albedo.exr"), &small_image(4, 4, false))
-        .map_err(|e| e.to_string())?;
+    // an albedo texture: every texel in [0, 1] (the scene reader refuses more)
+    let mut albedo = small_image(4, 4, false);
+    for p in &mut albedo.pixels {
+        *p = p.map(|c| c / (1.0 + c));
+    }
+    igi_imaging::write_exr(&dir.join("wall_albedo.exr"), &albedo).map_err(|e| e.to_string())?;
     Ok(vec![read(&fx.join("outdoor/scene.toml"))?])
 }
 
