@@ -666,9 +666,16 @@ pub fn reference_ratio(state: &SolveResult, r: &ReferenceTarget) -> Option<f64> 
     })
 }
 
+/// An albedo divided by the gauge `g`, kept at most 1 as the solver keeps it (a gauge below 1
+/// would lift a texel solved at 1 above it, which no scene may hold).
+fn regauged(rho: Vec3, g: f32) -> Vec3 {
+    (rho / g).min(Vec3::ONE)
+}
+
 /// Fixes the global scale: with references, the albedo is divided (and the light scales
 /// multiplied) by the mean solved-over-known ratio of the seen targets; without, by the factor
-/// that makes the mean sun scale of the photos with sun 1. Returns (gauge, ratios).
+/// that makes the mean sun scale of the photos with sun 1 ([`regauged`]: the albedo stays at
+/// most 1). Returns (gauge, ratios).
 pub fn apply_gauge(
     state: &mut SolveResult,
     fits: &mut [PhotoFit],
@@ -697,7 +704,7 @@ pub fn apply_gauge(
     }
     let g = gauge as f32;
     for p in &mut state.parts {
-        p.rho.iter_mut().for_each(|v| *v /= g);
+        p.rho.iter_mut().for_each(|v| *v = regauged(*v, g));
         p.stderr
             .iter_mut()
             .filter(|v| v.x >= 0.0)
@@ -944,6 +951,19 @@ mod tests {
         let (x2, sse2, _) = nnls(&ata, &atb2, btb2, 0b111);
         assert!(x2.iter().all(|&v| v >= 0.0), "{x2:?}");
         assert!(sse2 > 0.0 && sse2 <= btb2);
+    }
+
+    /// A gauge below 1 lifts the albedo, at most to 1 (a texel the solver clamped at 1 stays
+    /// a valid albedo for `igi render`); above 1 it only lowers it.
+    #[test]
+    fn the_gauge_keeps_the_albedo_at_most_one() {
+        let v = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
+        assert_eq!(
+            regauged(v(1.0, 0.5, 0.2), 0.98),
+            v(1.0, 0.5 / 0.98, 0.2 / 0.98)
+        );
+        assert_eq!(regauged(v(0.9, 0.6, 0.0), 0.5), v(1.0, 1.0, 0.0));
+        assert_eq!(regauged(v(1.0, 0.5, 0.2), 2.0), v(0.5, 0.25, 0.1));
     }
 
     #[test]
