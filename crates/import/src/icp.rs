@@ -178,14 +178,9 @@ impl Surface {
         })
     }
 
-    /// The closest point of the surface to `p` (module docs) and its distance.
-    pub fn closest(&self, p: DVec3) -> (DVec3, f64) {
-        let (q, d, _) = self.closest_with_normal(p);
-        (q, d)
-    }
-
-    /// [`Surface::closest`] with the unit normal of the triangle it lies on.
-    pub fn closest_with_normal(&self, p: DVec3) -> (DVec3, f64, DVec3) {
+    /// The closest point of the surface to `p` (module docs), its distance and the unit
+    /// normal of the triangle it lies on.
+    pub fn closest(&self, p: DVec3) -> (DVec3, f64, DVec3) {
         let k = NonZeroUsize::new(NEIGHBOURS).unwrap_or(NonZeroUsize::MIN);
         let mut best = (p, f64::INFINITY, DVec3::Z);
         let mut seen: Vec<u32> = Vec::with_capacity(NEIGHBOURS);
@@ -246,7 +241,7 @@ fn trimmed(points: &[DVec3], s: &Similarity, surface: &Surface, keep: usize) -> 
         .iter()
         .enumerate()
         .map(|(i, p)| {
-            let (q, d, n) = surface.closest_with_normal(s.apply(*p));
+            let (q, d, n) = surface.closest(s.apply(*p));
             (Pair { i, q, n }, d)
         })
         .collect();
