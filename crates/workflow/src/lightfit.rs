@@ -674,7 +674,7 @@ fn regauged(rho: Vec3, g: f32) -> Vec3 {
 
 /// Fixes the global scale: with references, the albedo is divided (and the light scales
 /// multiplied) by the mean solved-over-known ratio of the seen targets; without, by the factor
-/// that makes the mean sun scale of the photos with sun 1 ([`regauged`]: the albedo stays at
+/// that makes the mean sun scale of the photos with sun 1 (`regauged`: the albedo stays at
 /// most 1). Returns (gauge, ratios).
 pub fn apply_gauge(
     state: &mut SolveResult,
