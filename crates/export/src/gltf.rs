@@ -86,26 +86,8 @@ pub fn lobes_json(lobes: &[Lobe]) -> Value {
 
 /// The albedo atlas as 8-bit sRGB PNG bytes (clipped to [0, 1]; NaN as 0).
 pub fn albedo_png(path: &Path, img: &HdrImage) -> Result<Vec<u8>, ExportError> {
-    use image::ImageEncoder;
-    let buf: Vec<u8> = img
-        .pixels
-        .iter()
-        .flatten()
-        .map(|&c| {
-            let v = if c.is_finite() { c } else { 0.0 };
-            (igi_imaging::io::linear_to_srgb(v) * 255.0 + 0.5) as u8
-        })
-        .collect();
-    let mut png = Vec::new();
-    image::codecs::png::PngEncoder::new(&mut png)
-        .write_image(
-            &buf,
-            img.width as u32,
-            img.height as u32,
-            image::ExtendedColorType::Rgb8,
-        )
-        .map_err(|e| ExportError::file(path, format!("cannot encode the albedo PNG: {e}")))?;
-    Ok(png)
+    igi_imaging::png_tonemapped(path, img, 1.0)
+        .map_err(|e| ExportError::file(path, format!("cannot encode the albedo PNG: {e}")))
 }
 
 /// The binary chunk and the JSON lists being built.

@@ -395,11 +395,21 @@ pub fn write_png_tonemapped(
     img: &HdrImage,
     exposure: f32,
 ) -> Result<(), ImagingError> {
-    check_dims(path, img)?;
+    let png = png_tonemapped(path, img, exposure)?;
+    igi_files::write_atomic(path, |tmp| {
+        std::fs::write(tmp, &png).map_err(|e| ImagingError::io(path, e))
+    })
+}
+
+/// The bytes of [`write_png_tonemapped`]'s PNG (pixel * `exposure`, clipped to [0, 1],
+/// sRGB-encoded, NaN and infinities as 0), made in memory; `name` names the picture in errors.
+pub fn png_tonemapped(name: &Path, img: &HdrImage, exposure: f32) -> Result<Vec<u8>, ImagingError> {
+    use ::image::ImageEncoder;
+    check_dims(name, img)?;
     if !exposure.is_finite() {
         return Err(ImagingError::InvalidInput(format!(
             "{}: exposure {exposure} is not finite",
-            path.display()
+            name.display()
         )));
     }
     let mut buf = Vec::with_capacity(img.pixels.len() * 3);
@@ -409,17 +419,37 @@ pub fn write_png_tonemapped(
             buf.push((linear_to_srgb(v) * 255.0 + 0.5) as u8);
         }
     }
-    igi_files::write_atomic(path, |tmp| {
-        ::image::save_buffer_with_format(
-            tmp,
+    let mut png = Vec::new();
+    ::image::codecs::png::PngEncoder::new(&mut png)
+        .write_image(
             &buf,
             img.width as u32,
             img.height as u32,
             ::image::ExtendedColorType::Rgb8,
-            ::image::ImageFormat::Png,
         )
-        .map_err(|e| ImagingError::encode_failed(path, e))
-    })
+        .map_err(|e| ImagingError::encode_failed(name, e))?;
+    Ok(png)
+}
+
+/// The exposure that puts the median luminance of the valid pixels at 0.18 (1 for an image
+/// with none, or a median that is 0 or not finite): pictures of linear radiance for people.
+pub fn auto_exposure(img: &HdrImage) -> f32 {
+    let mut l: Vec<f64> = img
+        .pixels
+        .iter()
+        .zip(&img.valid)
+        .filter(|(_, v)| **v)
+        .map(|(p, _)| crate::color::luminance_f64(p.map(f64::from)))
+        .collect();
+    if l.is_empty() {
+        return 1.0;
+    }
+    let m = crate::color::median_in_place(&mut l);
+    if m > 0.0 && m.is_finite() {
+        (0.18 / m) as f32
+    } else {
+        1.0
+    }
 }
 
 #[cfg(test)]

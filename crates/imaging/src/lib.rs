@@ -4,8 +4,9 @@
 //!
 //! * [`HdrImage`]: linear `f32` RGB image with a validity mask (row 0 at the top).
 //! * [`io`]: [`read_image`] (EXR, Radiance HDR, PNG/JPEG/TIFF; headers checked against the
-//!   pixel limit before decoding), [`write_exr`], [`write_hdr`], [`write_png_tonemapped`], the
-//!   sRGB transfer functions.
+//!   pixel limit before decoding), [`write_exr`], [`write_hdr`], [`write_png_tonemapped`] (its
+//!   bytes in memory: [`png_tonemapped`]; an exposure for people: [`auto_exposure`]), the sRGB
+//!   transfer functions.
 //! * [`photo`]: photographs as cameras write them made linear ([`photo::read_photo`]: 8-bit
 //!   through a Debevec-Malik camera response or sRGB, 16-bit linear, clipped pixels masked and
 //!   counted; [`photo::read_response_csv`]).
@@ -52,6 +53,7 @@ pub mod raw;
 pub use error::{CompareError, FileSizes, HdrError, ImagingError};
 pub use image::HdrImage;
 pub use io::{
-    read_exr_alpha, read_image, write_exr, write_exr_rgba, write_hdr, write_png_tonemapped,
+    auto_exposure, png_tonemapped, read_exr_alpha, read_image, write_exr, write_exr_rgba,
+    write_hdr, write_png_tonemapped,
 };
 pub use mask::Mask;

@@ -3,12 +3,11 @@
 //! diagnostics (docs/PROBE.md, "Outputs"). Every file is written atomically.
 
 use crate::envmap::hemisphere_pixel;
-use crate::pipeline::luminance;
 use crate::{ProbeError, ProbeResult};
 use igi_files::write_text_atomic;
 use igi_formats::lighting::{EnvironmentSection, LightingFile, SunSection};
 use igi_formats::TomlFile;
-use igi_imaging::{write_exr, write_png_tonemapped, HdrImage, ImagingError};
+use igi_imaging::{auto_exposure, write_exr, write_png_tonemapped, HdrImage, ImagingError};
 use std::path::{Path, PathBuf};
 
 /// `out`'s sibling `STEM_suffix` (the lighting file `sky.toml` has `sky_sky.exr` beside it).
@@ -18,27 +17,6 @@ pub fn sibling(out: &Path, suffix: &str) -> PathBuf {
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_else(|| "lighting".into());
     out.with_file_name(format!("{stem}_{suffix}"))
-}
-
-/// Exposure that puts the median valid luminance at 0.18 (1 for an image with none).
-pub fn auto_exposure(img: &HdrImage) -> f32 {
-    let mut l: Vec<f64> = img
-        .pixels
-        .iter()
-        .zip(&img.valid)
-        .filter(|(_, v)| **v)
-        .map(|(p, _)| luminance(*p))
-        .collect();
-    if l.is_empty() {
-        return 1.0;
-    }
-    l.sort_by(|a, b| a.total_cmp(b));
-    let m = l[l.len() / 2];
-    if m > 0.0 && m.is_finite() {
-        (0.18 / m) as f32
-    } else {
-        1.0
-    }
 }
 
 /// Tone-mapped picture; invalid (masked) pixels in dark magenta, and a red ring of radius 9 px

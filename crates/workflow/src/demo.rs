@@ -400,7 +400,7 @@ fn write_photo_pictures(
         let img =
             igi_imaging::read_image(&survey_dir.join("photos").join(format!("{}.exr", s.id)))?;
         let e = if auto {
-            igi_probe::outputs::auto_exposure(&img)
+            igi_imaging::auto_exposure(&img)
         } else {
             1.0
         };

@@ -5,9 +5,9 @@
 //! photograph's median luminance at 0.18, as `igi probe`'s pictures); the sky has its own.
 
 use glam::Vec3;
+use igi_imaging::auto_exposure;
 use igi_imaging::latlong::direction_to_pixel;
 use igi_imaging::HdrImage;
-use igi_probe::outputs::auto_exposure;
 
 /// Black columns between the panels.
 const GAP: usize = 4;

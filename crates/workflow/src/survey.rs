@@ -454,23 +454,7 @@ impl PhotoSpec {
     /// Loads the image, camera and lighting; the image must match the camera's size and hold
     /// only finite, non-negative radiance (saturated pixels stay marked invalid).
     pub fn load(&self) -> Result<Photo, WorkflowError> {
-        let linear = self.read_linear()?;
-        let mut image = linear.image;
-        let camera = Camera::load(&self.camera)?;
-        self.check_image(&image, &camera)?;
-        if let Some(path) = &self.radiometry {
-            self.apply_radiometry(path, &mut image)?;
-        }
-        if self.exposure != 1.0 {
-            let scale = (1.0 / self.exposure) as f32;
-            image
-                .pixels
-                .iter_mut()
-                .for_each(|p| *p = p.map(|c| c * scale));
-        }
-        if self.radiometry.is_some() || self.exposure != 1.0 {
-            self.check_pixels(&image, " after the radiometry and exposure")?;
-        }
+        let (image, camera) = self.load_image()?;
         let lighting = match &self.lighting {
             LightingSource::File(f) => {
                 let l = Lighting::load(f)?;
@@ -495,6 +479,29 @@ impl PhotoSpec {
             camera,
             lighting,
         })
+    }
+
+    /// The image on the survey's radiometric scale (made linear, the camera radiometry
+    /// applied, divided by its exposure) and its camera, checked as [`PhotoSpec::load`] checks
+    /// them; without its lighting.
+    pub fn load_image(&self) -> Result<(HdrImage, Camera), WorkflowError> {
+        let mut image = self.read_linear()?.image;
+        let camera = Camera::load(&self.camera)?;
+        self.check_image(&image, &camera)?;
+        if let Some(path) = &self.radiometry {
+            self.apply_radiometry(path, &mut image)?;
+        }
+        if self.exposure != 1.0 {
+            let scale = (1.0 / self.exposure) as f32;
+            image
+                .pixels
+                .iter_mut()
+                .for_each(|p| *p = p.map(|c| c * scale));
+        }
+        if self.radiometry.is_some() || self.exposure != 1.0 {
+            self.check_pixels(&image, " after the radiometry and exposure")?;
+        }
+        Ok((image, camera))
     }
 
     /// A photograph whose median luminance is more than [`TOO_BRIGHT`] times the brightest its
