@@ -17,14 +17,21 @@ pub struct ViewArgs {
     /// that is in use is an error; 0: any free port).
     #[arg(long)]
     pub port: Option<u16>,
-    /// The survey folder (or its survey.toml) whose `[site]` places the sun and sky the page
-    /// computes for a date and time (igi-sky, as `igi sky --survey`).
-    #[arg(long, conflicts_with = "site")]
+    /// The survey folder (or its survey.toml): the page overlays its photographs from their
+    /// capture cameras (the panel's `photograph`), and its `[site]`, when it gives a latitude
+    /// and longitude, places the sun and sky the page computes for a date and time (igi-sky,
+    /// as `igi sky --survey`).
+    #[arg(long)]
     pub survey: Option<PathBuf>,
     /// The site directly, for the page's date and time: `LAT,LON[,NORTH_DEG]` (as `igi sky
-    /// --site`).
+    /// --site`; it overrides the survey's `[site]`).
     #[arg(long, value_parser = crate::cmd::sky::parse_site, allow_hyphen_values = true)]
     pub site: Option<(f64, f64, f64)>,
+    /// Camera files (contract JSON) the page may look through, as it looks through a
+    /// photograph's camera (the panel's `photograph` lists them after the survey's photos).
+    /// Repeatable.
+    #[arg(long = "camera")]
+    pub cameras: Vec<PathBuf>,
     /// Open the page in the desktop's browser (xdg-open).
     #[arg(long)]
     pub open: bool,
@@ -38,17 +45,15 @@ pub fn run(a: ViewArgs, _ctx: &Ctx) -> anyhow::Result<()> {
         dir: a.dir,
         lightings: a.lightings,
         port: a.port,
-        sky_place: match (a.survey, a.site) {
-            (Some(path), _) => Some(igi_sky::job::Place::Survey { path }),
-            (None, Some((latitude_deg, longitude_deg, north_deg))) => {
-                Some(igi_sky::job::Place::Site {
-                    latitude_deg,
-                    longitude_deg,
-                    north_deg,
-                })
+        sky_place: a.site.map(|(latitude_deg, longitude_deg, north_deg)| {
+            igi_sky::job::Place::Site {
+                latitude_deg,
+                longitude_deg,
+                north_deg,
             }
-            (None, None) => None,
-        },
+        }),
+        survey: a.survey,
+        cameras: a.cameras,
     };
     igi_view::serve(&req, &mut |event| match event {
         ViewEvent::Ready(url) => {

@@ -673,3 +673,246 @@ fn a_prepared_site_and_its_3d_tiles_open_in_a_real_browser() {
         assert!(covered > 0.1, "{label} covers {covered:.3} of the frame");
     }
 }
+
+/// The survey's photographs from their capture cameras (`igi view --survey`): looking through
+/// the fixture's photo 1, two canvas points picked on the site are surface points that the
+/// photo's camera file projects back onto those very pixels (the page's camera is the capture
+/// camera: pose, K, principal point), and with the overlay opaque the screenshot is the
+/// photograph's picture in place (nearer it than shifted by one pixel any way).
+#[test]
+fn the_photographs_overlay_from_their_capture_cameras_in_a_real_browser() {
+    let tmp = tempfile::tempdir().unwrap();
+    let res = quick_result(tmp.path());
+    let survey = Path::new(env!("CARGO_MANIFEST_DIR")).join("datasets/fixtures/survey");
+    let served = serve_with(&res, "0", &[], &["--survey", survey.to_str().unwrap()]);
+    let (x1, y1, x2, y2) = (100.0, 420.0, 500.0, 330.0);
+    let url = format!(
+        "{}?width=640&height=480&photo=1&mode=albedo&measure={x1},{y1},{x2},{y2}",
+        served.1
+    );
+    let said = open_until_ready(&served, &url, "photo page");
+    let shown = said
+        .iter()
+        .find(|l| l.starts_with("page: photo="))
+        .unwrap_or_else(|| panic!("the page showed no photo: {said:?}"));
+    let f = fields(shown);
+    assert_eq!(
+        (
+            f["photo"].as_str(),
+            f["width"].as_str(),
+            f["height"].as_str()
+        ),
+        ("v01-lowsun", "640", "480"),
+        "{shown}"
+    );
+    let scale: f64 = f["scale"].parse().unwrap();
+    assert_eq!(scale, 4.0);
+    let m = said
+        .iter()
+        .find(|l| l.starts_with("page: measure="))
+        .unwrap_or_else(|| panic!("the page measured nothing: {said:?}"));
+    let f = fields(m);
+    let cam = igi_camera::Camera::load(&survey.join("cameras/v01-lowsun.json")).unwrap();
+    for (key, x, y) in [("a", x1, y1), ("b", x2, y2)] {
+        let p: Vec<f64> = f[key].split(',').map(|v| v.parse().unwrap()).collect();
+        let uv = cam
+            .project(glam::DVec3::new(p[0], p[1], p[2]))
+            .unwrap_or_else(|| panic!("{key} = {p:?} is behind the camera"));
+        let want = glam::DVec2::new(x / scale - 0.5, y / scale - 0.5);
+        let err = (uv - want).length();
+        println!(
+            "canvas ({x}, {y}): {key} = {p:?} projects to {uv} (clicked {want}): {err:.2e} px"
+        );
+        assert!(err < 0.01, "{key}: {uv} against {want}");
+    }
+
+    // with the overlay opaque, the canvas shows the photo's picture (the 640 x 480 canvas
+    // averaged back to 160 x 120), in place to a fraction of a pixel
+    let shot = tmp.path().join("photo.png");
+    let arg = format!("--screenshot={}", shot.display());
+    let shot_url = format!(
+        "{}?width=640&height=480&photo=1&overlay=1&panel=0",
+        served.1
+    );
+    let status = chromium_command(&shot_url, &[&arg, "--virtual-time-budget=200000"])
+        .status()
+        .unwrap();
+    assert!(shot.exists(), "no screenshot ({status})");
+    if let Some(to) = std::env::var_os("IGI_VIEW_SCREENSHOT_PHOTO") {
+        std::fs::copy(&shot, to).unwrap();
+    }
+    let shot = image::open(&shot).unwrap().to_rgb8();
+    let png = http_bytes(&served.1, "GET /igi/photo/1.png HTTP/1.0\r\n\r\n");
+    let photo = image::load_from_memory(&png).unwrap().to_rgb8();
+    assert_eq!(photo.dimensions(), (cam.width, cam.height));
+    let shown = |x: u32, y: u32, c: usize| {
+        let mut s = 0.0;
+        for dy in 0..4 {
+            for dx in 0..4 {
+                s += shot.get_pixel(4 * x + dx, 4 * y + dy).0[c] as f64;
+            }
+        }
+        s / 16.0
+    };
+    let mad = |sx: i32, sy: i32| {
+        let (mut sum, mut n) = (0.0, 0);
+        for y in 2..cam.height - 2 {
+            for x in 2..cam.width - 2 {
+                let q = photo.get_pixel((x as i32 + sx) as u32, (y as i32 + sy) as u32);
+                for c in 0..3 {
+                    sum += (shown(x, y, c) - q.0[c] as f64).abs();
+                    n += 1;
+                }
+            }
+        }
+        sum / n as f64
+    };
+    let here = mad(0, 0);
+    let shifted = [(1, 0), (-1, 0), (0, 1), (0, -1)].map(|(sx, sy)| mad(sx, sy));
+    println!("overlay against the photo: mean abs difference {here:.2} (of 255); shifted one pixel {shifted:.2?}");
+    assert!(here < 4.0, "{here}");
+    for s in shifted {
+        assert!(here < 0.5 * s, "{here} against {s} shifted");
+    }
+}
+
+/// A light field whose colour depends on the view (PFA with two prototypes: a highlight about
+/// the reflected +Z and a flat grey, weighted by each point's height) on the sphere of
+/// `sphere_light_field`, saved through `igi_lightfield::store`.
+fn glossy_sphere_light_field(tmp: &Path) -> PathBuf {
+    use igi_geometry::atlas::{build_atlas, AtlasOptions};
+    use igi_lightfield::{field::Coding, Octahedron, Pfa, SurfaceLightField};
+    let mesh = igi_geometry::procedural::uv_sphere(16, 32, 0.5);
+    let atlas = build_atlas(
+        &mesh,
+        AtlasOptions {
+            resolution: 64,
+            gutter: 1,
+        },
+    )
+    .unwrap();
+    let (mut texels, mut median, mut coefficients) = (vec![], vec![], vec![]);
+    for (t, c) in atlas.coverage.pixels.iter().enumerate() {
+        if c[0] == 1.0 {
+            let p = glam::Vec3::from(atlas.position.pixels[t]);
+            texels.push(t as u32);
+            median.push(glam::Vec3::new(
+                0.2 + 0.3 * (p.x + 0.5),
+                0.3,
+                0.25 + 0.2 * p.y,
+            ));
+            let a = (p.z + 0.5).clamp(0.0, 1.0);
+            coefficients.push(vec![a, 1.0 - a]);
+        }
+    }
+    let oct = Octahedron::new(3);
+    let highlight = (0..oct.len())
+        .map(|v| glam::Vec3::new(1.0, 0.9, 0.7) * oct.direction(v).z.max(0.0).powi(4))
+        .collect();
+    let grey = vec![glam::Vec3::splat(-0.05); oct.len()];
+    let n = texels.len();
+    let field = SurfaceLightField::new(
+        oct,
+        64,
+        texels,
+        median,
+        vec![glam::Vec3::Z; n],
+        Coding::Pfa(Pfa {
+            prototypes: vec![highlight, grey],
+            coefficients,
+            energy_history: vec![],
+        }),
+    );
+    let dir = tmp.join("glossy_slf");
+    igi_lightfield::store::save(&dir, &field, &atlas.mesh, serde_json::json!({})).unwrap();
+    dir
+}
+
+/// A light field's view-dependent colour in the page: looking through a camera
+/// (`igi view SLF --camera CAM.json`, `?photo=0`), the page's pixels are `igi slf render`'s
+/// through that camera (times the page's scale, as 8-bit sRGB) over the sphere's inside
+/// pixels, and far nearer them than the median texture alone (`?mode=albedo`).
+#[test]
+fn a_light_field_shows_its_view_dependent_colour_in_a_real_browser() {
+    let tmp = tempfile::tempdir().unwrap();
+    let slf = glossy_sphere_light_field(tmp.path());
+    let cam = igi_camera::Camera::look_at(
+        glam::DVec3::new(0.6, -1.5, 0.9),
+        glam::DVec3::ZERO,
+        640,
+        480,
+        40.0,
+    )
+    .unwrap();
+    let cam_file = tmp.path().join("cam.json");
+    cam.save(&cam_file).unwrap();
+    let truth = tmp.path().join("truth.exr");
+    run_ok(
+        igi()
+            .args(["slf", "render"])
+            .arg(&slf)
+            .arg("--camera")
+            .arg(&cam_file)
+            .arg("-o")
+            .arg(&truth),
+    );
+    let truth_rgb = igi_imaging::read_image(&truth).unwrap();
+    let alpha = igi_imaging::io::read_exr_alpha(&truth).unwrap().unwrap();
+    let served = serve_with(&slf, "0", &[], &["--camera", cam_file.to_str().unwrap()]);
+    let scene: serde_json::Value = serde_json::from_slice(&http_bytes(
+        &served.1,
+        "GET /igi/scene.json HTTP/1.0\r\n\r\n",
+    ))
+    .unwrap();
+    let scale = scene["slf"]["scale"].as_f64().unwrap() as f32;
+    assert_eq!(scene["slf"]["coding"], "pfa");
+    let shot = |mode: &str, name: &str| {
+        let path = tmp.path().join(name);
+        let arg = format!("--screenshot={}", path.display());
+        let url = format!(
+            "{}?width=640&height=480&photo=0&panel=0&mode={mode}",
+            served.1
+        );
+        let status = chromium_command(&url, &[&arg, "--virtual-time-budget=200000"])
+            .status()
+            .unwrap();
+        assert!(path.exists(), "no screenshot ({status})");
+        image::open(&path).unwrap().to_rgb8()
+    };
+    let (w, h) = (640usize, 480usize);
+    let inside = |x: usize, y: usize| {
+        x > 0
+            && y > 0
+            && x + 1 < w
+            && y + 1 < h
+            && (0..9).all(|k| alpha[(y + k / 3 - 1) * w + x + k % 3 - 1] == 1.0)
+    };
+    let error = |img: &image::RgbImage| {
+        let (mut sum, mut n) = (0.0f64, 0usize);
+        for y in 0..h {
+            for x in 0..w {
+                if !inside(x, y) {
+                    continue;
+                }
+                let t = truth_rgb.pixels[y * w + x];
+                let p = img.get_pixel(x as u32, y as u32).0;
+                for c in 0..3 {
+                    let want = igi_imaging::io::linear_to_srgb(t[c] * scale) * 255.0;
+                    sum += ((p[c] as f64) - want as f64).powi(2);
+                    n += 1;
+                }
+            }
+        }
+        assert!(n > 3 * 20_000, "{n} values inside the sphere");
+        10.0 * (255.0f64 * 255.0 / (sum / n as f64)).log10()
+    };
+    let view_dependent = shot("shaded", "vd.png");
+    if let Some(to) = std::env::var_os("IGI_VIEW_SCREENSHOT_SLF_VD") {
+        view_dependent.save(to).unwrap();
+    }
+    let psnr = error(&view_dependent);
+    let median = error(&shot("albedo", "median.png"));
+    println!("the page against igi slf render: {psnr:.1} dB view-dependent, {median:.1} dB the median texture alone");
+    assert!(psnr > 35.0, "{psnr} dB");
+    assert!(psnr > median + 6.0, "{psnr} dB against {median} dB");
+}

@@ -19,6 +19,12 @@ pub enum ViewError {
     /// A lighting file given with `--lighting` cannot light the page.
     #[error(transparent)]
     Lighting(#[from] igi_formats::lighting::LightingLoadError),
+    /// The survey given with `--survey` (its photographs, their cameras) cannot be read.
+    #[error(transparent)]
+    Survey(Box<igi_workflow::WorkflowError>),
+    /// A camera file given with `--camera` cannot be read (the error names the file).
+    #[error(transparent)]
+    Camera(#[from] igi_camera::CameraError),
     /// The port could not be bound (in use, or not permitted).
     #[error("cannot listen on 127.0.0.1:{port}: {reason}")]
     Bind { port: u16, reason: String },

@@ -24,7 +24,9 @@
 
 mod error;
 pub mod light;
+pub mod photo;
 mod route;
+pub mod slf;
 
 pub use error::ViewError;
 pub use route::{respond, sky_light, Reply};
@@ -40,9 +42,16 @@ pub struct ViewRequest {
     /// The port on 127.0.0.1: `None` tries [`DEFAULT_PORT`], then any free port; a port asked
     /// for that is in use is an error (0: any free port).
     pub port: Option<u16>,
-    /// The site whose sun and sky at a date and time the page may ask for (`/igi/sky`):
-    /// a survey's `[site]` or a place given directly, as for `igi sky`.
+    /// A place given directly (as `igi sky --site`) whose sun and sky at a date and time the
+    /// page may ask for (`/igi/sky`).
     pub sky_place: Option<igi_sky::job::Place>,
+    /// A survey folder (or its `survey.toml`): its photographs are overlaid from their capture
+    /// cameras, and its `[site]`, when it has a location, places the sun and sky of a date and
+    /// time (unless `sky_place` is given).
+    pub survey: Option<PathBuf>,
+    /// Camera files the page may look through (as it looks through a photograph's camera,
+    /// without a picture).
+    pub cameras: Vec<PathBuf>,
 }
 
 /// The port tried first when none is asked for.
@@ -79,7 +88,24 @@ impl Viewer {
             .iter()
             .map(|p| light::page_light(p))
             .collect::<Result<Vec<_>, _>>()?;
-        let site = route::Site::open(&req.dir, &lights, req.sky_place.clone())?;
+        let photos = match &req.survey {
+            Some(s) => Some(photo::PagePhotos::open(s)?),
+            None => None,
+        };
+        let sky_place = req.sky_place.clone().or_else(|| {
+            let survey = req.survey.as_ref()?;
+            let has_location = photos.as_ref()?.has_location();
+            has_location.then(|| igi_sky::job::Place::Survey {
+                path: survey.clone(),
+            })
+        });
+        let extras = route::Extras {
+            lights,
+            sky_place,
+            photos,
+            cameras: photo::cameras_json(&req.cameras)?,
+        };
+        let site = route::Site::open(&req.dir, extras)?;
         let bind = |port: u16| {
             tiny_http::Server::http(("127.0.0.1", port)).map_err(|e| ViewError::Bind {
                 port,

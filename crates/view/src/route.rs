@@ -34,6 +34,35 @@ impl Reply {
     }
 }
 
+/// What the page is offered besides the folder.
+#[derive(Default)]
+pub struct Extras {
+    /// Lighting files (`--lighting`), as the page lights with them.
+    pub lights: Vec<crate::light::PageLight>,
+    /// Where the sun and sky of a date and time are computed (`/igi/sky?time=...`).
+    pub sky_place: Option<igi_sky::job::Place>,
+    /// The survey's photographs, overlaid from their capture cameras (`/igi/photo/K.png`).
+    pub photos: Option<crate::photo::PagePhotos>,
+    /// Cameras to look through (`--camera`), as [`crate::photo::cameras_json`] gives them.
+    pub cameras: serde_json::Value,
+}
+
+impl Extras {
+    /// The fields of `scene.json` that say what the extras offer.
+    fn add_to(&self, scene: &mut serde_json::Value) {
+        scene["lightings"] = serde_json::to_value(&self.lights).expect("JSON");
+        scene["sky"] = self.sky_place.is_some().into();
+        scene["photos"] = self
+            .photos
+            .as_ref()
+            .map_or_else(|| serde_json::json!([]), |p| p.json());
+        scene["cameras"] = match &self.cameras {
+            serde_json::Value::Null => serde_json::json!([]),
+            c => c.clone(),
+        };
+    }
+}
+
 /// The served folder and what the page loads from it.
 pub struct Site {
     /// The folder, canonical.
@@ -45,17 +74,15 @@ pub struct Site {
     /// A prepared site's 3D Tiles, made in memory (`/igi/tiles/NAME`: `tileset.json` and the
     /// GLBs it names); empty otherwise.
     tiles: Vec<(String, Vec<u8>)>,
-    /// Where the sun and sky of a date and time are computed (`/igi/sky?time=...`).
-    sky_place: Option<igi_sky::job::Place>,
+    /// A light field's tables for its view-dependent colour (`/igi/slf.bin`, `slf`); empty
+    /// otherwise.
+    slf_bin: Vec<u8>,
+    extras: Extras,
 }
 
 impl Site {
     /// Check that `dir` is a result, hull or light-field folder and make its glTF scene.
-    pub fn open(
-        dir: &Path,
-        lights: &[crate::light::PageLight],
-        sky_place: Option<igi_sky::job::Place>,
-    ) -> Result<Site, ViewError> {
+    pub fn open(dir: &Path, extras: Extras) -> Result<Site, ViewError> {
         let root = dir.canonicalize().map_err(|source| ViewError::Folder {
             dir: dir.to_path_buf(),
             source,
@@ -63,8 +90,8 @@ impl Site {
         let name = root
             .file_name()
             .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
-        if let Some(site) = Site::tiled(&root, &name, lights, &sky_place)? {
-            return Ok(Site { sky_place, ..site });
+        if let Some(site) = Site::tiled(&root, &name, &extras)? {
+            return Ok(Site { extras, ..site });
         }
         let glb = igi_export::folder_glb(&root).map_err(|e| match e {
             igi_export::ExportError::NotExportable { .. } => ViewError::NotViewable {
@@ -76,47 +103,51 @@ impl Site {
             Some(r) => (parts_json(&r.materials), r.stderr_png.clone()),
             None => (Vec::new(), Vec::new()),
         };
-        let scene_json = serde_json::json!({
+        let mut scene_json = serde_json::json!({
             "kind": glb.kind.name(),
             "name": name,
             "scene": "/igi/scene.glb",
             "summary": glb.summary,
-            "lightings": lights,
             "parts": parts,
             "stderr_white": igi_export::STDERR_PICTURE_MAX,
-            "sky": sky_place.is_some(),
         });
+        extras.add_to(&mut scene_json);
+        let mut slf_bin = Vec::new();
+        if glb.kind == igi_export::FolderKind::LightField {
+            let (field, _) = igi_lightfield::store::load(&root)
+                .map_err(|e| ViewError::Export(igi_export::ExportError::from(Box::new(e))))?;
+            let (_, scale) = igi_export::folders::median_texture(&field);
+            let page = crate::slf::page_field(&field, scale);
+            scene_json["slf"] = page.json;
+            scene_json["slf"]["url"] = "/igi/slf.bin".into();
+            slf_bin = page.bin;
+        }
         Ok(Site {
             root,
             scene_json: serde_json::to_vec_pretty(&scene_json).expect("JSON"),
             scene_glb: glb.bytes,
             stderr_png,
             tiles: Vec::new(),
-            sky_place,
+            slf_bin,
+            extras,
         })
     }
 
     /// A folder shown as 3D Tiles: an export of `igi export --format gltf` holding
     /// `tileset.json` (its files served under `/files/`), or a result of a prepared site (its
     /// tiles made in memory as `igi export` writes them, served under `/igi/tiles/`).
-    fn tiled(
-        root: &Path,
-        name: &str,
-        lights: &[crate::light::PageLight],
-        sky_place: &Option<igi_sky::job::Place>,
-    ) -> Result<Option<Site>, ViewError> {
+    fn tiled(root: &Path, name: &str, extras: &Extras) -> Result<Option<Site>, ViewError> {
         let scene = |tileset: &str, summary: Vec<String>, parts: Vec<serde_json::Value>| {
-            serde_json::to_vec_pretty(&serde_json::json!({
+            let mut v = serde_json::json!({
                 "kind": "tiles",
                 "name": name,
                 "tileset": tileset,
                 "summary": summary,
-                "lightings": lights,
                 "parts": parts,
                 "stderr_white": igi_export::STDERR_PICTURE_MAX,
-                "sky": sky_place.is_some(),
-            }))
-            .expect("JSON")
+            });
+            extras.add_to(&mut v);
+            serde_json::to_vec_pretty(&v).expect("JSON")
         };
         let site = |scene_json, stderr_png, tiles| Site {
             root: root.to_path_buf(),
@@ -124,7 +155,8 @@ impl Site {
             scene_glb: Vec::new(),
             stderr_png,
             tiles,
-            sky_place: None,
+            slf_bin: Vec::new(),
+            extras: Extras::default(),
         };
         if root.join(igi_export::tiles::TILESET).is_file() {
             let summary = vec!["3D Tiles export".to_string()];
@@ -231,7 +263,7 @@ pub fn respond(site: &Site, method: &str, url: &str) -> Reply {
         };
     }
     if path == "/igi/sky" {
-        let Some(place) = &site.sky_place else {
+        let Some(place) = &site.extras.sky_place else {
             return Reply::error(
                 404,
                 "no site: start igi view with --survey or --site for the sky of a date and time",
@@ -246,6 +278,17 @@ pub fn respond(site: &Site, method: &str, url: &str) -> Reply {
         return match sky_light(place, &time) {
             Ok(v) => Reply::ok("application/json", serde_json::to_vec(&v).expect("JSON")),
             Err(e) => Reply::error(400, &e),
+        };
+    }
+    if let Some(k) = path
+        .strip_prefix("/igi/photo/")
+        .and_then(|f| f.strip_suffix(".png"))
+    {
+        let photos = site.extras.photos.as_ref();
+        return match k.parse::<usize>().ok().and_then(|k| photos?.png(k)) {
+            Some(Ok(png)) => Reply::ok("image/png", png),
+            Some(Err(e)) => Reply::error(500, &e),
+            None => Reply::error(404, "not found (igi view --survey offers the photographs)"),
         };
     }
     if let Some(k) = path
@@ -267,6 +310,9 @@ pub fn respond(site: &Site, method: &str, url: &str) -> Reply {
         "/" | "/index.html" => Reply::ok("text/html; charset=utf-8", PAGE.as_bytes().to_vec()),
         "/igi/scene.json" => Reply::ok("application/json", site.scene_json.clone()),
         "/igi/scene.glb" => Reply::ok("model/gltf-binary", site.scene_glb.clone()),
+        "/igi/slf.bin" if !site.slf_bin.is_empty() => {
+            Reply::ok("application/octet-stream", site.slf_bin.clone())
+        }
         _ => {
             if let Some((_, js)) = THREE.iter().find(|(p, _)| *p == path) {
                 let kind = if path.ends_with(".js") {
@@ -366,7 +412,8 @@ pub(crate) mod tests {
             scene_glb: b"glTF".to_vec(),
             stderr_png: vec![b"png".to_vec()],
             tiles: vec![("a_level0.glb".into(), b"glTF".to_vec())],
-            sky_place: None,
+            slf_bin: Vec::new(),
+            extras: Extras::default(),
         }
     }
 
@@ -418,6 +465,8 @@ pub(crate) mod tests {
         assert_eq!((tile.status, tile.content_type), (200, "model/gltf-binary"));
         assert_eq!(respond(&s, "GET", "/igi/tiles/b_level0.glb").status, 404);
         assert_eq!(respond(&s, "GET", "/igi/sky?time=x").status, 404);
+        assert_eq!(respond(&s, "GET", "/igi/photo/0.png").status, 404);
+        assert_eq!(respond(&s, "GET", "/igi/slf.bin").status, 404);
         let told = respond(&s, "GET", "/igi/event?title=igi%3A%20ready");
         assert_eq!(told.event.as_deref(), Some("title=igi: ready"));
     }
