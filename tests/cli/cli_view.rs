@@ -661,17 +661,89 @@ fn a_prepared_site_and_its_3d_tiles_open_in_a_real_browser() {
         let set = http(&served.1, &format!("GET {tileset} HTTP/1.0\r\n\r\n"));
         assert_eq!(status(&set), 200, "{label}: {set}");
         assert!(set.contains("\"version\": \"1.1\""), "{label}: {set}");
-        let fixed = format!("{}?width=1024&height=768", served.1);
-        let said = open_until_ready(&served, &fixed, label);
-        assert!(
-            said.iter().any(|l| *l == format!("page: tiles={parts}")),
-            "{label}: the page did not load one leaf per part ({parts}): {said:?}"
-        );
+        let set: serde_json::Value = serde_json::from_slice(&http_bytes(
+            &served.1,
+            &format!("GET {tileset} HTTP/1.0\r\n\r\n"),
+        ))
+        .unwrap();
+        // never refined; 16 px (the default) refines the terrain; 0.008 px some voxels (their
+        // coarsest levels err by hundredths of a pixel here); 0 every part to level 0
+        for max_sse in [1e9, 16.0, 0.008, 0.0] {
+            let fixed = format!("{}?width=1024&height=768&sse={max_sse}", served.1);
+            let said = open_until_ready(&served, &fixed, label);
+            let told = said
+                .iter()
+                .find(|l| l.starts_with("page: tiles="))
+                .unwrap_or_else(|| panic!("{label}: no tiles shown: {said:?}"));
+            let f = fields(told);
+            assert_eq!(f["tiles"], parts.to_string(), "{label}: one tile per part");
+            let shown = chosen_levels(&set, &f, max_sse);
+            println!("{label}, at most {max_sse} px: levels shown {shown:?}");
+        }
         let shot = tmp.path().join(format!("{}.png", label.replace(' ', "_")));
         let covered = covered_fraction(&served, &shot, keep);
-        println!("{label}: {parts} leaves, covers {covered:.3} of the frame");
+        println!("{label}: {parts} parts, covers {covered:.3} of the frame");
         assert!(covered > 0.1, "{label} covers {covered:.3} of the frame");
     }
+}
+
+/// The levels the page shows (`levels=K:SSE;...`, one per part in the tileset's order) are
+/// the coarsest whose screen-space error is at most `max_sse` pixels, else level 0, as the
+/// test computes it from the tileset (each level's box and geometricError) and the camera the
+/// page reports (`camera=X,Y,Z` in igi's frame, `per_unit`: pixels per unit at distance 1);
+/// returns the levels' numbers, 0 the finest.
+fn chosen_levels(
+    set: &serde_json::Value,
+    told: &std::collections::HashMap<String, String>,
+    max_sse: f64,
+) -> Vec<usize> {
+    let cam: Vec<f64> = told["camera"]
+        .split(',')
+        .map(|v| v.parse().unwrap())
+        .collect();
+    let per_unit: f64 = told["per_unit"].parse().unwrap();
+    let shown: Vec<(usize, f64)> = told["levels"]
+        .split(';')
+        .map(|l| {
+            let (k, sse) = l.split_once(':').unwrap();
+            (k.parse().unwrap(), sse.parse().unwrap())
+        })
+        .collect();
+    let chains = set["root"]["children"].as_array().unwrap();
+    assert_eq!(shown.len(), chains.len());
+    let mut numbers = Vec::new();
+    for (chain, (k, page_sse)) in chains.iter().zip(&shown) {
+        let mut sse = Vec::new();
+        let mut t = Some(chain);
+        while let Some(tile) = t {
+            let b: Vec<f64> = tile["boundingVolume"]["box"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|v| v.as_f64().unwrap())
+                .collect();
+            let r = [3, 6, 9]
+                .map(|i| b[i] * b[i] + b[i + 1] * b[i + 1] + b[i + 2] * b[i + 2])
+                .iter()
+                .sum::<f64>()
+                .sqrt();
+            let d = ((0..3).map(|i| (cam[i] - b[i]).powi(2)).sum::<f64>().sqrt() - r).max(1e-9);
+            sse.push(tile["geometricError"].as_f64().unwrap() * per_unit / d);
+            t = tile["children"].as_array().and_then(|c| c.first());
+        }
+        let want = sse
+            .iter()
+            .position(|&s| s <= max_sse)
+            .unwrap_or(sse.len() - 1);
+        assert_eq!(*k, want, "levels' errors {sse:?} px, at most {max_sse}");
+        assert!(
+            (page_sse - sse[want]).abs() <= 1e-4 * sse[want].max(1.0),
+            "{page_sse} against {}",
+            sse[want]
+        );
+        numbers.push(sse.len() - 1 - want);
+    }
+    numbers
 }
 
 /// The survey's photographs from their capture cameras (`igi view --survey`): looking through
