@@ -367,6 +367,39 @@ fn bad_folders_and_busy_ports_are_refused() {
         out.stdout.is_empty(),
         "a URL was printed for a refused lighting"
     );
+    // a survey whose photo's camera is broken, and a camera file that is not one
+    let survey = tmp.path().join("survey");
+    std::fs::create_dir_all(survey.join("cameras")).unwrap();
+    let fixture = Path::new(env!("CARGO_MANIFEST_DIR")).join("datasets/fixtures/survey");
+    std::fs::write(
+        survey.join("survey.toml"),
+        format!(
+            "[site]\nmesh = {:?}\n\n[[photo]]\nid = \"a\"\nimage = {:?}\ncamera = \"cameras/a.json\"\nlighting = {:?}\n",
+            fixture.join("geometry/ground.ply"),
+            fixture.join("photos/v00-sunny.exr"),
+            fixture.join("lighting/sunny.toml"),
+        ),
+    )
+    .unwrap();
+    std::fs::write(survey.join("cameras/a.json"), "{\"width\": 160}").unwrap();
+    for (flag, path) in [
+        ("--survey", survey.clone()),
+        ("--camera", survey.join("cameras/a.json")),
+    ] {
+        let out = igi()
+            .arg("view")
+            .arg(&res)
+            .arg(flag)
+            .arg(&path)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && err.contains("a.json"),
+            "{flag}: {err}"
+        );
+        assert!(out.stdout.is_empty(), "{flag}: a URL was printed");
+    }
     let busy = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
     let port = busy.local_addr().unwrap().port().to_string();
     let out = igi()
@@ -987,4 +1020,97 @@ fn a_light_field_shows_its_view_dependent_colour_in_a_real_browser() {
     println!("the page against igi slf render: {psnr:.1} dB view-dependent, {median:.1} dB the median texture alone");
     assert!(psnr > 35.0, "{psnr} dB");
     assert!(psnr > median + 6.0, "{psnr} dB against {median} dB");
+}
+
+/// The page's render of a flat textured part under a sun against igi's own direct-light render
+/// (issue 35, "numeric checks"): the fixture's result seen from above its ground (no other
+/// part in view, the sun at the zenith so nothing shades it), lit by a lighting file of a sun
+/// alone (`--lighting`, `?lighting=0`) and looked through the same camera (`--camera`,
+/// `?photo=0`). The page scales its light so that a white surface facing up reads 0.8, so
+/// igi's radiance L = albedo E / pi is expected there as L pi 0.8 / luminance(E), E the sun's
+/// irradiance (its radiance times its disk's solid angle), as 8-bit sRGB. The axes, the
+/// texture's V flip, sRGB and the light's scale all have to be right.
+#[test]
+fn a_flat_part_under_a_sun_matches_igi_render_in_a_real_browser() {
+    let tmp = tempfile::tempdir().unwrap();
+    let res = quick_result(tmp.path());
+    let radiance = [20000.0f64, 19000.0, 17000.0];
+    let light = tmp.path().join("sun.toml");
+    std::fs::write(
+        &light,
+        format!(
+            "[sun]\ndirection = [0.0, 0.0, 1.0]\nradiance = {radiance:?}\nangular_diameter_deg = 0.53\n"
+        ),
+    )
+    .unwrap();
+    let cam = igi_camera::Camera::look_at(
+        glam::DVec3::new(0.0, -4.3, 6.0),
+        glam::DVec3::new(0.0, -4.0, 0.0),
+        640,
+        480,
+        40.0,
+    )
+    .unwrap();
+    let cam_file = tmp.path().join("down.json");
+    cam.save(&cam_file).unwrap();
+    let truth = tmp.path().join("direct.exr");
+    run_ok(
+        igi()
+            .arg("render")
+            .arg(&res)
+            .arg("--lighting")
+            .arg(&light)
+            .arg("--camera")
+            .arg(&cam_file)
+            .args(["--spp", "16", "--indirect", "0", "--stratified", "-q", "-o"])
+            .arg(&truth),
+    );
+    let truth = igi_imaging::read_image(&truth).unwrap();
+    let half = (0.53f64 / 2.0).to_radians();
+    let solid_angle = 2.0 * std::f64::consts::PI * (1.0 - half.cos());
+    let e = radiance.map(|r| r * solid_angle);
+    let k = std::f64::consts::PI * 0.8 / (0.2126 * e[0] + 0.7152 * e[1] + 0.0722 * e[2]);
+
+    let served = serve_with(
+        &res,
+        "0",
+        std::slice::from_ref(&light),
+        &["--camera", cam_file.to_str().unwrap()],
+    );
+    let shot = tmp.path().join("page.png");
+    let arg = format!("--screenshot={}", shot.display());
+    let url = format!(
+        "{}?width=640&height=480&photo=0&panel=0&lighting=0",
+        served.1
+    );
+    let status = chromium_command(&url, &[&arg, "--virtual-time-budget=200000"])
+        .status()
+        .unwrap();
+    assert!(shot.exists(), "no screenshot ({status})");
+    if let Some(to) = std::env::var_os("IGI_VIEW_SCREENSHOT_SUN") {
+        std::fs::copy(&shot, to).unwrap();
+    }
+    let page = image::open(&shot).unwrap().to_rgb8();
+    // PSNR of the page against igi's render, that render read upside down when `flip`
+    let psnr = |flip: bool| {
+        let (mut sum, mut n) = (0.0f64, 0usize);
+        for y in 0..480usize {
+            for x in 0..640usize {
+                let t = truth.pixels[if flip { 479 - y } else { y } * 640 + x];
+                let p = page.get_pixel(x as u32, y as u32).0;
+                for c in 0..3 {
+                    let want = igi_imaging::io::linear_to_srgb((t[c] as f64 * k) as f32) * 255.0;
+                    sum += (p[c] as f64 - want as f64).powi(2);
+                    n += 1;
+                }
+            }
+        }
+        10.0 * (255.0f64 * 255.0 / (sum / n as f64)).log10()
+    };
+    let (here, flipped) = (psnr(false), psnr(true));
+    println!(
+        "the page against igi render (direct light, x {k:.4e}): {here:.1} dB (against it upside down: {flipped:.1} dB)"
+    );
+    assert!(here > 35.0, "{here} dB");
+    assert!(here > flipped + 10.0, "{here} dB, upside down {flipped} dB");
 }
