@@ -1114,3 +1114,29 @@ fn a_flat_part_under_a_sun_matches_igi_render_in_a_real_browser() {
     assert!(here > 35.0, "{here} dB");
     assert!(here > flipped + 10.0, "{here} dB, upside down {flipped} dB");
 }
+
+/// Flying (`?nav=fly`, three.js's FlyControls): W held for 2 s (`?fly=KeyW:2`, in steps of
+/// 0.1 s) moves the camera straight ahead by its speed times 2 s, and S back.
+#[test]
+fn the_page_flies_in_a_real_browser() {
+    let tmp = tempfile::tempdir().unwrap();
+    let res = quick_result(tmp.path());
+    let served = serve(&res, "0", &[]);
+    for (key, ahead) in [("KeyW", 1.0), ("KeyS", -1.0)] {
+        let url = format!("{}?width=640&height=480&nav=fly&fly={key}:2", served.1);
+        let said = open_until_ready(&served, &url, key);
+        let told = said
+            .iter()
+            .find(|l| l.starts_with("page: fly="))
+            .unwrap_or_else(|| panic!("{key}: the page did not fly: {said:?}"));
+        let f = fields(told);
+        let num = |k: &str| f[k].parse::<f64>().unwrap();
+        let (moved, forward, speed) = (num("moved"), num("forward"), num("speed"));
+        println!("{key} for 2 s: moved {moved} (speed {speed} a second), along the view {forward}");
+        assert!(
+            speed > 0.0 && ((moved / (2.0 * speed)) - 1.0).abs() < 1e-5,
+            "{told}"
+        );
+        assert!((forward - ahead).abs() < 1e-6, "{told}");
+    }
+}

@@ -237,6 +237,10 @@ const THREE: &[(&str, &str)] = &[
         include_str!("../assets/three/addons/controls/OrbitControls.js"),
     ),
     (
+        "/three/addons/controls/FlyControls.js",
+        include_str!("../assets/three/addons/controls/FlyControls.js"),
+    ),
+    (
         "/three/addons/loaders/GLTFLoader.js",
         include_str!("../assets/three/addons/loaders/GLTFLoader.js"),
     ),
