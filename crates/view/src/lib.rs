@@ -3,7 +3,8 @@
 //! `igi view DIR`: a local web viewer of a solve result, opacity-hull or surface-light-field
 //! folder. A small HTTP server
 //! (`tiny_http`) on 127.0.0.1 serves
-//! * `/`: the page (embedded: `assets/index.html`), which orbits the site, lights it with a sun
+//! * `/`: the page (embedded: `assets/index.html`), which orbits or flies through the site,
+//!   looks through capture cameras, refines a tileset's levels, lights it with a sun
 //!   whose direction the user sets, and shows the albedo lit or alone; its title becomes
 //!   `igi: ready` once the first frame is drawn, `igi: error: ...` if anything fails;
 //! * `/three/...`: three.js r170, vendored and embedded (`assets/three`, MIT licence kept);
@@ -12,6 +13,10 @@
 //!   writes); `/igi/stderr/K.png` (part K's standard-error picture);
 //! * `/igi/sky?time=RFC3339`: the sun and sky of the site (`--survey` or `--site`) at that
 //!   time, as `igi sky` writes them (igi-sky), in the page's terms ([`light::PageLight`]);
+//! * `/igi/photo/K.png`: photo K of the survey (`--survey`), as the page overlays it from its
+//!   capture camera ([`photo`]); cameras to look through come in `scene.json`;
+//! * `/igi/slf.bin`: a light field's tables for the page's shader of its view-dependent
+//!   colour ([`slf`]);
 //! * `/files/PATH`: the served folder's own files, and nothing outside it (`..`, absolute
 //!   paths and links that leave the folder are refused);
 //! * `/igi/event?...`: what the page tells the server (its title as it changes, its frame
