@@ -118,11 +118,10 @@ fn chromium() -> PathBuf {
     path
 }
 
-fn chromium_command(url: &str, extra: &[&str]) -> Command {
-    // a profile of its own, so browsers of tests running side by side never share one
-    static NEXT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
-    let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-    let profile = std::env::temp_dir().join(format!("igi-chromium-{}-{n}", std::process::id()));
+/// Headless chromium on `url` with `extra` flags and its own profile in `profile` (so that
+/// browsers of tests running side by side never share one; the caller's temporary folder,
+/// removed after the browser has gone).
+fn chromium_command(url: &str, extra: &[&str], profile: &Path) -> Command {
     let mut c = Command::new(chromium());
     c.arg(format!("--user-data-dir={}", profile.display()));
     c.args([
@@ -164,7 +163,8 @@ fn open_page(
                 .unwrap_or("")
                 .trim_end_matches('/')
         ));
-        let mut browser = chromium_command(url, extra)
+        let profile = tempfile::tempdir().unwrap();
+        let mut browser = chromium_command(url, extra, profile.path())
             .args(["--enable-logging=stderr", "--v=1"])
             .stderr(std::fs::File::create(&log).unwrap())
             .spawn()
@@ -636,9 +636,14 @@ fn the_demo_result_frame_time_at_1024x768() {
 /// fraction of the frame that is not the page's sky colour.
 fn covered_fraction(served: &Served, shot: &Path, keep: &str) -> f64 {
     let arg = format!("--screenshot={}", shot.display());
-    let status = chromium_command(&served.1, &[&arg, "--virtual-time-budget=200000"])
-        .status()
-        .unwrap();
+    let profile = tempfile::tempdir().unwrap();
+    let status = chromium_command(
+        &served.1,
+        &[&arg, "--virtual-time-budget=200000"],
+        profile.path(),
+    )
+    .status()
+    .unwrap();
     assert!(shot.exists(), "no screenshot ({status})");
     let img = image::open(shot).unwrap().to_rgb8();
     assert_eq!(img.dimensions(), (1024, 768));
@@ -839,9 +844,14 @@ fn the_photographs_overlay_from_their_capture_cameras_in_a_real_browser() {
         "{}?width=640&height=480&photo=1&overlay=1&panel=0",
         served.1
     );
-    let status = chromium_command(&shot_url, &[&arg, "--virtual-time-budget=200000"])
-        .status()
-        .unwrap();
+    let profile = tempfile::tempdir().unwrap();
+    let status = chromium_command(
+        &shot_url,
+        &[&arg, "--virtual-time-budget=200000"],
+        profile.path(),
+    )
+    .status()
+    .unwrap();
     assert!(shot.exists(), "no screenshot ({status})");
     if let Some(to) = std::env::var_os("IGI_VIEW_SCREENSHOT_PHOTO") {
         std::fs::copy(&shot, to).unwrap();
@@ -978,9 +988,14 @@ fn a_light_field_shows_its_view_dependent_colour_in_a_real_browser() {
             "{}?width=640&height=480&photo=0&panel=0&mode={mode}",
             served.1
         );
-        let status = chromium_command(&url, &[&arg, "--virtual-time-budget=200000"])
-            .status()
-            .unwrap();
+        let profile = tempfile::tempdir().unwrap();
+        let status = chromium_command(
+            &url,
+            &[&arg, "--virtual-time-budget=200000"],
+            profile.path(),
+        )
+        .status()
+        .unwrap();
         assert!(path.exists(), "no screenshot ({status})");
         image::open(&path).unwrap().to_rgb8()
     };
@@ -1083,9 +1098,14 @@ fn a_flat_part_under_a_sun_matches_igi_render_in_a_real_browser() {
         "{}?width=640&height=480&photo=0&panel=0&lighting=0",
         served.1
     );
-    let status = chromium_command(&url, &[&arg, "--virtual-time-budget=200000"])
-        .status()
-        .unwrap();
+    let profile = tempfile::tempdir().unwrap();
+    let status = chromium_command(
+        &url,
+        &[&arg, "--virtual-time-budget=200000"],
+        profile.path(),
+    )
+    .status()
+    .unwrap();
     assert!(shot.exists(), "no screenshot ({status})");
     if let Some(to) = std::env::var_os("IGI_VIEW_SCREENSHOT_SUN") {
         std::fs::copy(&shot, to).unwrap();
