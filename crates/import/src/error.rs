@@ -60,9 +60,10 @@ pub enum ImportError {
     #[error(transparent)]
     Geometry(#[from] igi_geometry::GeometryError),
     /// The ICP refinement against the mesh (`--icp`) cannot be made.
-    #[error("{}: ICP of the model's sparse points: {source}", mesh.display())]
+    #[error("{}: ICP of the model's sparse points: {source}", meshes.iter().map(|m| m.display().to_string()).collect::<Vec<_>>().join(", "))]
     Icp {
-        mesh: PathBuf,
+        /// The meshes matched against (`--mesh`, all of them).
+        meshes: Vec<PathBuf>,
         #[source]
         source: IcpError,
     },

@@ -352,7 +352,7 @@ fn refine(
         mesh.append(&igi_geometry::read_mesh(m)?);
     }
     let err = |source| ImportError::Icp {
-        mesh: job.meshes[0].clone(),
+        meshes: job.meshes.clone(),
         source,
     };
     let surface = Surface::new(&mesh.positions, &mesh.indices, opts.spacing).map_err(err)?;
