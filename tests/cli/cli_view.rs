@@ -635,26 +635,28 @@ fn the_demo_result_frame_time_at_1024x768() {
 /// Headless chromium's screenshot of `served` at 1024 x 768 (kept at `$keep` when set): the
 /// fraction of the frame that is not the page's sky colour.
 fn covered_fraction(served: &Served, shot: &Path, keep: &str) -> f64 {
-    let arg = format!("--screenshot={}", shot.display());
-    let profile = tempfile::tempdir().unwrap();
-    let status = chromium_command(
-        &served.1,
-        &[&arg, "--virtual-time-budget=200000"],
-        profile.path(),
-    )
-    .status()
-    .unwrap();
-    assert!(shot.exists(), "no screenshot ({status})");
-    let img = image::open(shot).unwrap().to_rgb8();
+    let img = screenshot(&served.1, shot, keep);
     assert_eq!(img.dimensions(), (1024, 768));
     let sky = [0x87i32, 0xa9, 0xc9];
-    if let Some(to) = std::env::var_os(keep) {
-        std::fs::copy(shot, to).unwrap();
-    }
     img.pixels()
         .filter(|p| p.0.iter().zip(sky).any(|(&a, b)| (a as i32 - b).abs() > 24))
         .count() as f64
         / (img.width() * img.height()) as f64
+}
+
+/// Headless chromium's screenshot of `url` (its window 1024 x 768) into `shot`, copied to
+/// `$keep` when that is set.
+fn screenshot(url: &str, shot: &Path, keep: &str) -> image::RgbImage {
+    let arg = format!("--screenshot={}", shot.display());
+    let profile = tempfile::tempdir().unwrap();
+    let status = chromium_command(url, &[&arg, "--virtual-time-budget=200000"], profile.path())
+        .status()
+        .unwrap();
+    assert!(shot.exists(), "no screenshot of {url} ({status})");
+    if let Some(to) = std::env::var_os(keep) {
+        std::fs::copy(shot, to).unwrap();
+    }
+    image::open(shot).unwrap().to_rgb8()
 }
 
 /// A prepared site opens as 3D Tiles (issue 35, "a prepared site (with its tileset) opens in
@@ -838,25 +840,15 @@ fn the_photographs_overlay_from_their_capture_cameras_in_a_real_browser() {
 
     // with the overlay opaque, the canvas shows the photo's picture (the 640 x 480 canvas
     // averaged back to 160 x 120), in place to a fraction of a pixel
-    let shot = tmp.path().join("photo.png");
-    let arg = format!("--screenshot={}", shot.display());
     let shot_url = format!(
         "{}?width=640&height=480&photo=1&overlay=1&panel=0",
         served.1
     );
-    let profile = tempfile::tempdir().unwrap();
-    let status = chromium_command(
+    let shot = screenshot(
         &shot_url,
-        &[&arg, "--virtual-time-budget=200000"],
-        profile.path(),
-    )
-    .status()
-    .unwrap();
-    assert!(shot.exists(), "no screenshot ({status})");
-    if let Some(to) = std::env::var_os("IGI_VIEW_SCREENSHOT_PHOTO") {
-        std::fs::copy(&shot, to).unwrap();
-    }
-    let shot = image::open(&shot).unwrap().to_rgb8();
+        &tmp.path().join("photo.png"),
+        "IGI_VIEW_SCREENSHOT_PHOTO",
+    );
     let png = http_bytes(&served.1, "GET /igi/photo/1.png HTTP/1.0\r\n\r\n");
     let photo = image::load_from_memory(&png).unwrap().to_rgb8();
     assert_eq!(photo.dimensions(), (cam.width, cam.height));
@@ -981,23 +973,12 @@ fn a_light_field_shows_its_view_dependent_colour_in_a_real_browser() {
     .unwrap();
     let scale = scene["slf"]["scale"].as_f64().unwrap() as f32;
     assert_eq!(scene["slf"]["coding"], "pfa");
-    let shot = |mode: &str, name: &str| {
-        let path = tmp.path().join(name);
-        let arg = format!("--screenshot={}", path.display());
+    let shot = |mode: &str, keep: &str| {
         let url = format!(
             "{}?width=640&height=480&photo=0&panel=0&mode={mode}",
             served.1
         );
-        let profile = tempfile::tempdir().unwrap();
-        let status = chromium_command(
-            &url,
-            &[&arg, "--virtual-time-budget=200000"],
-            profile.path(),
-        )
-        .status()
-        .unwrap();
-        assert!(path.exists(), "no screenshot ({status})");
-        image::open(&path).unwrap().to_rgb8()
+        screenshot(&url, &tmp.path().join(format!("{mode}.png")), keep)
     };
     let (w, h) = (640usize, 480usize);
     let inside = |x: usize, y: usize| {
@@ -1026,12 +1007,8 @@ fn a_light_field_shows_its_view_dependent_colour_in_a_real_browser() {
         assert!(n > 3 * 20_000, "{n} values inside the sphere");
         10.0 * (255.0f64 * 255.0 / (sum / n as f64)).log10()
     };
-    let view_dependent = shot("shaded", "vd.png");
-    if let Some(to) = std::env::var_os("IGI_VIEW_SCREENSHOT_SLF_VD") {
-        view_dependent.save(to).unwrap();
-    }
-    let psnr = error(&view_dependent);
-    let median = error(&shot("albedo", "median.png"));
+    let psnr = error(&shot("shaded", "IGI_VIEW_SCREENSHOT_SLF_VD"));
+    let median = error(&shot("albedo", "IGI_VIEW_SCREENSHOT_SLF_MEDIAN"));
     println!("the page against igi slf render: {psnr:.1} dB view-dependent, {median:.1} dB the median texture alone");
     assert!(psnr > 35.0, "{psnr} dB");
     assert!(psnr > median + 6.0, "{psnr} dB against {median} dB");
@@ -1092,25 +1069,15 @@ fn a_flat_part_under_a_sun_matches_igi_render_in_a_real_browser() {
         std::slice::from_ref(&light),
         &["--camera", cam_file.to_str().unwrap()],
     );
-    let shot = tmp.path().join("page.png");
-    let arg = format!("--screenshot={}", shot.display());
     let url = format!(
         "{}?width=640&height=480&photo=0&panel=0&lighting=0",
         served.1
     );
-    let profile = tempfile::tempdir().unwrap();
-    let status = chromium_command(
+    let page = screenshot(
         &url,
-        &[&arg, "--virtual-time-budget=200000"],
-        profile.path(),
-    )
-    .status()
-    .unwrap();
-    assert!(shot.exists(), "no screenshot ({status})");
-    if let Some(to) = std::env::var_os("IGI_VIEW_SCREENSHOT_SUN") {
-        std::fs::copy(&shot, to).unwrap();
-    }
-    let page = image::open(&shot).unwrap().to_rgb8();
+        &tmp.path().join("page.png"),
+        "IGI_VIEW_SCREENSHOT_SUN",
+    );
     // PSNR of the page against igi's render, that render read upside down when `flip`
     let psnr = |flip: bool| {
         let (mut sum, mut n) = (0.0f64, 0usize);
