@@ -268,6 +268,9 @@ pub struct FolderGlb {
     pub bytes: Vec<u8>,
     /// For a result, the GLB and its fits ([`ResultGlb`]); `None` otherwise.
     pub result: Option<ResultGlb>,
+    /// For a light field, the field as loaded and its median texture's scale (its 99th
+    /// percentile to 1, [`crate::folders::median_texture`]); `None` otherwise.
+    pub light_field: Option<(igi_lightfield::SurfaceLightField, f32)>,
     /// What the GLB holds, for a summary (`part wall`, `12000 surfels`, ...).
     pub summary: Vec<String>,
 }
@@ -288,6 +291,7 @@ pub fn folder_glb(dir: &Path) -> Result<FolderGlb, ExportError> {
                     .map(|m| format!("part {}", m.0))
                     .collect(),
                 result: Some(r),
+                light_field: None,
             })
         }
         crate::FolderKind::Hull => {
@@ -296,15 +300,17 @@ pub fn folder_glb(dir: &Path) -> Result<FolderGlb, ExportError> {
                 kind,
                 bytes,
                 result: None,
+                light_field: None,
                 summary,
             })
         }
         crate::FolderKind::LightField => {
-            let (bytes, summary) = crate::folders::light_field_glb(dir)?;
+            let (bytes, summary, field) = crate::folders::light_field_glb(dir)?;
             Ok(FolderGlb {
                 kind,
                 bytes,
                 result: None,
+                light_field: Some(field),
                 summary,
             })
         }

@@ -163,7 +163,15 @@ pub fn median_texture(field: &igi_lightfield::SurfaceLightField) -> (HdrImage, f
     (img, scale)
 }
 
-pub(crate) fn light_field_glb(dir: &Path) -> Result<(Vec<u8>, Vec<String>), ExportError> {
+/// The light field of `dir` as GLB bytes, its summary, and the field with its median
+/// texture's scale.
+pub(crate) type LightFieldGlb = (
+    Vec<u8>,
+    Vec<String>,
+    (igi_lightfield::SurfaceLightField, f32),
+);
+
+pub(crate) fn light_field_glb(dir: &Path) -> Result<LightFieldGlb, ExportError> {
     let (field, mesh) = igi_lightfield::store::load(dir).map_err(Box::new)?;
     let (texture, scale) = median_texture(&field);
     let items = [crate::gltf::GlbItem::Unlit {
@@ -174,7 +182,7 @@ pub(crate) fn light_field_glb(dir: &Path) -> Result<(Vec<u8>, Vec<String>), Expo
             "median": "the median of each grid point's lumisphere (radiance) times median_scale, as 8-bit sRGB",
             "median_scale": scale,
             "coding": field.coding.name(),
-            "view_dependent": "the lumispheres (header.json, the coding's files) stay in the folder: igi slf render draws them",
+            "view_dependent": "the lumispheres (header.json, the coding's files) stay in the folder: igi slf render and igi view draw them",
         }),
     }];
     let asset = json!({
@@ -194,5 +202,5 @@ pub(crate) fn light_field_glb(dir: &Path) -> Result<(Vec<u8>, Vec<String>), Expo
         mesh.indices.len(),
         field.coding.name()
     )];
-    Ok((bytes, summary))
+    Ok((bytes, summary, (field, scale)))
 }

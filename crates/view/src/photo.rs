@@ -114,21 +114,20 @@ pub fn cameras_json(files: &[std::path::PathBuf]) -> Result<serde_json::Value, V
 /// The PNG of one photograph (the module's overview says how it is made).
 fn picture(spec: &PhotoSpec) -> Result<Vec<u8>, String> {
     let (image, camera) = spec.load_image().map_err(|e| e.to_string())?;
-    let image = if camera.intrinsics.dist.is_zero() {
+    let mut image = if camera.intrinsics.dist.is_zero() {
         image
     } else {
         igi_camera::camera::undistort_image(&image, &camera)
             .map_err(|e| format!("{}: {e}", spec.image.display()))?
             .0
     };
-    let mut shown = image.clone();
-    for (p, v) in shown.pixels.iter_mut().zip(&image.valid) {
+    let exposure = igi_imaging::auto_exposure(&image);
+    for (p, v) in image.pixels.iter_mut().zip(&image.valid) {
         if !*v {
             *p = [0.0; 3];
         }
     }
-    igi_imaging::png_tonemapped(&spec.image, &shown, igi_imaging::auto_exposure(&image))
-        .map_err(|e| e.to_string())
+    igi_imaging::png_tonemapped(&spec.image, &image, exposure).map_err(|e| e.to_string())
 }
 
 #[cfg(test)]

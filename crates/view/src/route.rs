@@ -113,11 +113,8 @@ impl Site {
         });
         extras.add_to(&mut scene_json);
         let mut slf_bin = Vec::new();
-        if glb.kind == igi_export::FolderKind::LightField {
-            let (field, _) = igi_lightfield::store::load(&root)
-                .map_err(|e| ViewError::Export(igi_export::ExportError::from(Box::new(e))))?;
-            let (_, scale) = igi_export::folders::median_texture(&field);
-            let page = crate::slf::page_field(&field, scale);
+        if let Some((field, scale)) = &glb.light_field {
+            let page = crate::slf::page_field(field, *scale);
             scene_json["slf"] = page.json;
             scene_json["slf"]["url"] = "/igi/slf.bin".into();
             slf_bin = page.bin;
