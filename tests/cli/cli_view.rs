@@ -213,7 +213,31 @@ fn open_page(
 /// Opens `url` of `served` until the page's title settles (`igi: ...`), asserts that it is
 /// `igi: ready` (naming `label`), and returns what the page said.
 fn open_until_ready(served: &Served, url: &str, label: &str) -> Vec<String> {
-    let said = open_page(served, url, &[], |l| l.starts_with("page: title=igi"), 180);
+    open_until_told(served, url, label, &[])
+}
+
+/// [`open_until_ready`], waiting also for a message starting with each of `also`: the page
+/// sends each message in a request of its own, so they may reach the server in any order (a
+/// measurement made in the first frame can arrive after the title that frame set).
+fn open_until_told(served: &Served, url: &str, label: &str, also: &[&str]) -> Vec<String> {
+    let seen = std::cell::RefCell::new(vec![false; also.len() + 1]);
+    let said = open_page(
+        served,
+        url,
+        &[],
+        |l| {
+            let mut seen = seen.borrow_mut();
+            if l.starts_with("page: title=igi: error") {
+                return true;
+            }
+            seen[0] |= l == "page: title=igi: ready";
+            for (k, prefix) in also.iter().enumerate() {
+                seen[k + 1] |= l.starts_with(&format!("page: {prefix}"));
+            }
+            seen.iter().all(|s| *s)
+        },
+        180,
+    );
     assert!(
         said.iter().any(|l| l == "page: title=igi: ready"),
         "{label}: the page never became ready: {said:?}"
@@ -444,7 +468,12 @@ fn lobes_measurement_and_the_sky_of_a_date_in_a_real_browser() {
         "{}?width=1024&height=768&mode=lobes&measure=412,600,612,560&time={time}",
         served.1
     );
-    let said = open_until_ready(&served, &url, "page");
+    let said = open_until_told(
+        &served,
+        &url,
+        "page",
+        &["mode=", "lobes=", "measure=", "sky="],
+    );
     assert!(said.iter().any(|l| l == "page: mode=lobes"), "{said:?}");
 
     // the lobes: as the export fitted them
@@ -710,7 +739,7 @@ fn a_prepared_site_and_its_3d_tiles_open_in_a_real_browser() {
         // coarsest levels err by hundredths of a pixel here); 0 every part to level 0
         for max_sse in [1e9, 16.0, 0.008, 0.0] {
             let fixed = format!("{}?width=1024&height=768&sse={max_sse}", served.1);
-            let said = open_until_ready(&served, &fixed, label);
+            let said = open_until_told(&served, &fixed, label, &["tiles="]);
             let told = said
                 .iter()
                 .find(|l| l.starts_with("page: tiles="))
@@ -802,7 +831,7 @@ fn the_photographs_overlay_from_their_capture_cameras_in_a_real_browser() {
         "{}?width=640&height=480&photo=1&mode=albedo&measure={x1},{y1},{x2},{y2}",
         served.1
     );
-    let said = open_until_ready(&served, &url, "photo page");
+    let said = open_until_told(&served, &url, "photo page", &["photo=", "measure="]);
     let shown = said
         .iter()
         .find(|l| l.starts_with("page: photo="))
@@ -1111,7 +1140,7 @@ fn the_page_flies_in_a_real_browser() {
     let served = serve(&res, "0", &[]);
     for (key, ahead) in [("KeyW", 1.0), ("KeyS", -1.0)] {
         let url = format!("{}?width=640&height=480&nav=fly&fly={key}:2", served.1);
-        let said = open_until_ready(&served, &url, key);
+        let said = open_until_told(&served, &url, key, &["fly="]);
         let told = said
             .iter()
             .find(|l| l.starts_with("page: fly="))
