@@ -16,6 +16,9 @@
 //!   lit by the SPA sun and a Hosek-Wilkie / CIE overcast sky whose scales and turbidity are
 //!   fitted to the photographs, alternating with the albedo solve; the global scale from
 //!   `[[reference]]` targets.
+//! - [`lightbasis`]: the fit's light transport, traced once per solve: each texel's
+//!   hemisphere rays (the sky bin each leaves through, or the texel it lands on), each
+//!   photo's sun visibility and what its pixels see, so that a round of the fit traces no ray.
 //! - [`lightfit_picture`]: the picture of a photo whose light was estimated (photograph,
 //!   re-rendering, fitted sky).
 //! - [`session`]: the resume rule of a result folder: the run manifest (`run.json`), the
@@ -30,6 +33,7 @@
 
 pub mod demo;
 mod error;
+pub mod lightbasis;
 pub mod lightfit;
 pub mod lightfit_picture;
 pub mod render;

@@ -14,10 +14,13 @@
 //! sky of unit zenith radiance, and `sun_colour` a per-channel factor of mean 1 (haze and the
 //! sun's spectrum through the atmosphere redden it beyond what the model's turbidity says),
 //! white unless [`FitOptions::tie_sun_colour`] is off (free, it trades against the turbidity
-//! and the sky and costs blue albedo accuracy). With the albedo fixed, a photograph is linear
-//! in the unknowns (the sun's scale, per channel when untied, the sky's, the overcast sky's): each photo's scene (the current albedo) is path-traced under each basis light once
-//! (the sun as a white disk of unit radiance, then coloured per turbidity; the clear sky per
-//! turbidity; the overcast sky), and the scales are the non-negative weighted least-squares
+//! and the sky and costs blue albedo accuracy). With the albedo fixed, a photograph is
+//! linear in the unknowns (the sun's scale, per channel when untied, the sky's, the overcast
+//! sky's): each photo's radiance under each basis light (the sun as a white disk of unit
+//! radiance, then coloured per turbidity; the clear sky per turbidity; the overcast sky) comes
+//! from the light transport traced once per solve ([`crate::lightbasis`]: per texel, where its
+//! hemisphere rays go; per photo, its sun's visibility and what its pixels see), so a round
+//! traces no ray, and the scales are the non-negative weighted least-squares
 //! fit of the photograph's pixels that see the site, with relative weights (each pixel's
 //! residual divided by its value), either of a sunny sky (sun and clear sky) or of an overcast
 //! one (clear and overcast sky, no sun), whichever fits better (with all five free the two
@@ -31,16 +34,16 @@
 //! so that the mean sun scale of the photos with sun is 1 (the model's clear-sky sun), and the
 //! result says that its albedo is known only up to one scale.
 
+use crate::lightbasis::{sky_bins, PhotoTexels, SunDisk, Transport};
 use crate::WorkflowError;
 use glam::{DVec3, Vec3};
-use igi_camera::Camera;
 use igi_formats::lighting::{EnvironmentSection, LightingFile};
 use igi_formats::survey::ReferenceTarget;
 use igi_formats::{PhotoTime, TomlFile};
 use igi_imaging::HdrImage;
 use igi_reflect::SolveResult;
 use igi_render::lighting::{Environment, Sun};
-use igi_render::{render_image, Lighting, RenderOptions, Scene};
+use igi_render::{Lighting, Scene, Texture};
 use igi_sky::{sun_direction, sun_position, CieOvercast, Refraction, Sky, SunPosition};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -219,11 +222,9 @@ type Mat = [[f64; N]; N];
 /// How the scales are fitted.
 #[derive(Clone, Debug)]
 pub struct FitOptions {
-    /// Samples per pixel of each basis render (stratified).
-    pub spp: u32,
-    /// Indirect bounces of the basis renders (the solve's).
+    /// Indirect bounces of the light transport (the solve's).
     pub indirect: u32,
-    /// The turbidities tried (each costs one render of the clear sky per photo).
+    /// The turbidities tried.
     pub turbidities: Vec<f64>,
     /// Fit an added CIE overcast sky.
     pub overcast: bool,
@@ -232,13 +233,13 @@ pub struct FitOptions {
     /// the Mitsuba survey comes within 1.15x, 1.13x, 1.23x of the true-lighting solve's error
     /// (r, g, b), against 1.32x, 1.25x, 2.08x free (docs/SKY.md).
     pub tie_sun_colour: bool,
+    /// Seeds the light transport's rays ([`crate::lightbasis`]).
     pub seed: u64,
 }
 
 impl Default for FitOptions {
     fn default() -> Self {
         FitOptions {
-            spp: 32,
             indirect: 2,
             turbidities: vec![2.0, 3.0, 4.5],
             overcast: true,
@@ -289,82 +290,138 @@ pub fn scene_of(state: &SolveResult) -> Result<Scene, WorkflowError> {
     Ok(state.albedo_scene()?)
 }
 
-/// The photograph's pixels the fit uses: valid, and seeing the site (a pixel-centre ray hits
-/// the scene).
-fn site_pixels(scene: &Scene, image: &HdrImage, camera: &Camera) -> Vec<usize> {
-    (0..image.pixels.len())
-        .filter(|&i| {
-            if !image.valid[i] {
-                return false;
-            }
-            let (x, y) = ((i % image.width) as f64, (i / image.width) as f64);
-            let (o, d) = camera.pixel_ray(x, y);
-            scene.intersect(o.as_vec3(), d.as_vec3()).is_some()
-        })
-        .collect()
+/// The light transport a round of the fit reads, traced once (on the first round, and again
+/// only when the parts change, as between a coarse and a fine stage): the site's texels'
+/// hemisphere rays, and per estimated photo what its pixels see and the sun's visibility at
+/// every texel ([`crate::lightbasis`]).
+struct Bases {
+    /// The parts' names and atlas resolutions the bases were traced for.
+    key: Vec<(String, usize)>,
+    transport: Transport,
+    /// Per photo (the photos' order), for a photo whose light is estimated.
+    photos: Vec<Option<PhotoBasis>>,
 }
 
-fn render(
-    scene: &Scene,
-    lighting: &Lighting,
-    camera: &Camera,
-    opts: &FitOptions,
-    salt: u64,
-) -> Result<HdrImage, WorkflowError> {
-    let ro = RenderOptions {
-        spp: opts.spp,
-        seed: opts.seed.wrapping_mul(1_000_003).wrapping_add(salt),
-        indirect: opts.indirect,
-        russian_roulette: false,
-        stratified: true,
-        adaptive: false,
-    };
-    Ok(render_image(scene, lighting, camera, &ro, &|_| {})
-        .map_err(|e| WorkflowError::Rendering {
-            path: Path::new("(lighting estimation)").to_path_buf(),
-            source: Box::new(e),
-        })?
-        .mean)
+/// One estimated photo's bases.
+struct PhotoBasis {
+    texels: PhotoTexels,
+    /// The direct irradiance at every texel of the photo's sun as a white disk of unit
+    /// radiance.
+    sun: Vec<f32>,
+}
+
+impl Bases {
+    /// The bases of `state`'s parts: `current` when traced for the same parts, else traced
+    /// now.
+    fn update(
+        current: Option<Bases>,
+        state: &SolveResult,
+        photos: &[igi_reflect::Photo],
+        sky: &[Option<SkyPhoto>],
+        opts: &FitOptions,
+    ) -> Result<Bases, WorkflowError> {
+        let key: Vec<(String, usize)> = state
+            .parts
+            .iter()
+            .map(|p| (p.part.name.clone(), p.resolution()))
+            .collect();
+        if let Some(b) = current.filter(|b| b.key == key) {
+            return Ok(b);
+        }
+        let t0 = std::time::Instant::now();
+        let scene = scene_of(state)?;
+        let transport = Transport::new(state, &scene, opts.seed);
+        let diameter = 2.0 * igi_sky::SUN_ANGULAR_RADIUS_DEG;
+        let photos = photos
+            .iter()
+            .zip(sky)
+            .enumerate()
+            .map(|(i, (photo, s))| {
+                s.as_ref().map(|s| {
+                    let sun = SunDisk::new(Vec3::from_array(s.sun.map(|x| x as f32)), diameter);
+                    let seed = opts.seed.wrapping_add(1 + 2 * i as u64);
+                    PhotoBasis {
+                        texels: transport.photo(&scene, &photo.camera, &photo.image, &sun, seed),
+                        sun: transport.sun(&scene, &sun, seed.wrapping_add(1)),
+                    }
+                })
+            })
+            .collect();
+        tracing::info!(
+            "lighting estimation: light transport of {} texels traced in {:.1} s ({:.1} MB, {:.2} % of the rays dark)",
+            transport.len(),
+            t0.elapsed().as_secs_f64(),
+            transport.bytes() as f64 / 1e6,
+            100.0 * transport.dark_fraction()
+        );
+        Ok(Bases {
+            key,
+            transport,
+            photos,
+        })
+    }
+}
+
+/// A light of the fit's model in one round: the irradiance it gives every texel on the
+/// current albedo (direct and bounced), and its sky bins.
+struct Basis {
+    irradiance: Vec<Vec3>,
+    bins: Vec<Vec3>,
+}
+
+impl Basis {
+    /// A sky map's basis.
+    fn sky(t: &Transport, map: &HdrImage, rho: &[Vec3], bounces: u32) -> Basis {
+        let bins = sky_bins(map);
+        Basis {
+            irradiance: t.bounced(t.sky(&bins), rho, bounces),
+            bins,
+        }
+    }
+
+    /// The radiance of every pixel of a photo under this light (`atlases` the parts'
+    /// albedo).
+    fn pixels(&self, t: &Transport, px: &PhotoTexels, atlases: &[Texture]) -> Vec<Vec3> {
+        t.radiance(px, atlases, &self.irradiance, &self.bins)
+    }
 }
 
 /// One photo's fit and the photo re-rendered under it.
 pub struct Fitted {
     pub fit: PhotoFit,
-    /// The scene of the fit re-rendered through the photo's camera under the fitted sky: the
-    /// fitted combination of the basis renders (light transport is linear in the light), so
-    /// over the site's pixels its relative residual against the photograph is the fit's.
+    /// The photograph re-rendered under the fitted sky from the bases: the fitted combination
+    /// of the basis images (light transport is linear in the light), so over the site's pixels
+    /// its relative residual against the photograph is the fit's.
     pub render: HdrImage,
 }
 
-/// Fits one photo's sky to its photograph with the albedo of `scene` fixed.
-pub fn fit_photo(
-    scene: &Scene,
+/// What one photo's fit reads: the transport, the photo's bases, the current albedo (of every
+/// texel, and as the parts' atlases) and the overcast sky's basis of the round.
+struct FitInputs<'a> {
+    transport: &'a Transport,
+    photo: &'a PhotoBasis,
+    rho: &'a [Vec3],
+    atlases: &'a [Texture],
+    overcast: Option<&'a Basis>,
+}
+
+/// Fits one photo's sky to its photograph with the albedo fixed.
+fn fit_photo(
+    inp: &FitInputs,
     id: &str,
     image: &HdrImage,
-    camera: &Camera,
     sky: &SkyPhoto,
     opts: &FitOptions,
-    index: u64,
 ) -> Result<Fitted, WorkflowError> {
-    let pixels = site_pixels(scene, image, camera);
-    let sun_dir = Vec3::from_array(sky.sun.map(|x| x as f32));
-    let diameter = 2.0 * igi_sky::SUN_ANGULAR_RADIUS_DEG as f32;
-    let white_sun = Lighting {
-        environment: None,
-        sun: Some(Sun::new(sun_dir, Vec3::ONE, diameter)?),
-    };
-    let r_sun = render(scene, &white_sun, camera, opts, index * 64)?;
-    let (w, h) = (MAP_WIDTH, MAP_WIDTH / 2);
-    let r_ovc = if opts.overcast {
-        let map = CieOvercast::new([1.0; 3])?.latlong(w, h)?;
-        let l = Lighting {
-            environment: Some(Environment::from_image(&map, 1.0)?),
-            sun: None,
-        };
-        Some(render(scene, &l, camera, opts, index * 64 + 1)?)
-    } else {
-        None
-    };
+    let (tr, px, rho) = (inp.transport, &inp.photo.texels, inp.rho);
+    let pixels = &px.site;
+    let sun_e = tr.bounced(
+        inp.photo.sun.iter().map(|&v| Vec3::splat(v)).collect(),
+        rho,
+        opts.indirect,
+    );
+    let r_sun = tr.sun_radiance(px, inp.atlases, &sun_e, &inp.photo.sun);
+    let r_ovc = inp.overcast.map(|b| b.pixels(tr, px, inp.atlases));
     let obs: Vec<[f64; 3]> = pixels
         .iter()
         .map(|&i| image.pixels[i].map(|c| c as f64))
@@ -372,17 +429,14 @@ pub fn fit_photo(
     let mean =
         obs.iter().map(|p| p.iter().sum::<f64>()).sum::<f64>() / (3 * obs.len().max(1)) as f64;
     let floor = (0.05 * mean).max(1e-12);
+    let (w, h) = (MAP_WIDTH, MAP_WIDTH / 2);
     let mut best: Option<Candidate> = None;
     let mut curve = Vec::new();
-    for (k, &t) in opts.turbidities.iter().enumerate() {
+    for &t in &opts.turbidities {
         let clear = sky.clear_sky(t)?;
         let sun_rad = clear.sun_disk().radiance;
-        let map = clear.latlong(w, h)?;
-        let l = Lighting {
-            environment: Some(Environment::from_image(&map, 1.0)?),
-            sun: None,
-        };
-        let r_sky = render(scene, &l, camera, opts, index * 64 + 2 + k as u64)?;
+        let r_sky =
+            Basis::sky(tr, &clear.latlong(w, h)?, rho, opts.indirect).pixels(tr, px, inp.atlases);
         // normal equations over pixels and channels, relative weights
         let nb = if r_ovc.is_some() { 5 } else { 4 };
         let mut ata = [[0.0f64; N]; N];
@@ -394,9 +448,9 @@ pub fn fit_photo(
                 let wt = 1.0 / b.max(floor).powi(2);
                 let mut a = [0.0; N];
                 let k = if opts.tie_sun_colour { 0 } else { c };
-                a[k] = r_sun.pixels[i][c] as f64 * sun_rad[c];
-                a[3] = r_sky.pixels[i][c] as f64;
-                a[4] = r_ovc.as_ref().map_or(0.0, |r| r.pixels[i][c] as f64);
+                a[k] = r_sun[i][c] as f64 * sun_rad[c];
+                a[3] = r_sky[i][c] as f64;
+                a[4] = r_ovc.as_ref().map_or(0.0, |r| r[i][c] as f64);
                 for p in 0..nb {
                     atb[p] += wt * a[p] * b;
                     for q in 0..nb {
@@ -484,10 +538,9 @@ pub fn fit_photo(
     let mut model = HdrImage::new(image.width, image.height);
     for (i, m) in model.pixels.iter_mut().enumerate() {
         for (c, v) in m.iter_mut().enumerate() {
-            let o = r_ovc.as_ref().map_or(0.0, |r| r.pixels[i][c] as f64);
-            *v = (x[c] * sun_rad[c] * r_sun.pixels[i][c] as f64
-                + x[3] * r_sky.pixels[i][c] as f64
-                + x[4] * o) as f32;
+            let o = r_ovc.as_ref().map_or(0.0, |r| r[i][c] as f64);
+            *v = (x[c] * sun_rad[c] * r_sun[i][c] as f64 + x[3] * r_sky[i][c] as f64 + x[4] * o)
+                as f32;
         }
     }
     let fit = PhotoFit {
@@ -526,8 +579,8 @@ struct Candidate {
     cov: Mat,
     /// Residuals (pixels x channels).
     n: usize,
-    /// The clear sky's basis render at this turbidity.
-    r_sky: HdrImage,
+    /// The clear sky's basis image at this turbidity.
+    r_sky: Vec<Vec3>,
     /// The Hosek-Wilkie sun disk's radiance at this turbidity.
     sun_rad: [f64; 3],
 }
@@ -745,6 +798,7 @@ pub fn iterate(
 ) -> Result<SolveResult, WorkflowError> {
     restore_lighting(&state, photos, e.sky)?;
     let out = e.output;
+    let mut bases = None;
     for k in state.report.iterations.len() as u32..e.options.max_iterations {
         let opts = igi_reflect::SolveOptions {
             max_iterations: k + 1,
@@ -757,7 +811,7 @@ pub fn iterate(
             break;
         }
         let converged = state.report.converged;
-        let (record, renders) = estimate_round(&mut state, photos, e, k + 1)?;
+        let (record, renders) = estimate_round(&mut state, photos, e, k + 1, &mut bases)?;
         write_lighting_files(out, photos, e.sky, &record, &renders)?;
         state.report.lighting = Some(
             serde_json::to_value(&record)
@@ -801,30 +855,40 @@ fn estimate_round(
     photos: &mut [igi_reflect::Photo],
     e: &Estimation,
     round: u32,
+    bases: &mut Option<Bases>,
 ) -> Result<(LightingRecord, Vec<(String, HdrImage)>), WorkflowError> {
     let t0 = std::time::Instant::now();
-    let scene = scene_of(state)?;
     let fo = FitOptions {
         indirect: e.options.indirect,
         ..FitOptions::default()
     };
+    let b = Bases::update(bases.take(), state, photos, e.sky, &fo)?;
+    let rho = b.transport.albedo(state);
+    let atlases = Transport::atlases(state);
+    let overcast = if fo.overcast {
+        let (w, h) = (MAP_WIDTH, MAP_WIDTH / 2);
+        let map = CieOvercast::new([1.0; 3])?.latlong(w, h)?;
+        Some(Basis::sky(&b.transport, &map, &rho, fo.indirect))
+    } else {
+        None
+    };
     let mut fits = Vec::new();
     let mut renders = Vec::new();
-    for (i, (photo, s)) in photos.iter().zip(e.sky).enumerate() {
-        if let Some(s) = s {
-            let f = fit_photo(
-                &scene,
-                &photo.id,
-                &photo.image,
-                &photo.camera,
-                s,
-                &fo,
-                i as u64 + 1000 * round as u64,
-            )?;
+    for ((photo, s), pb) in photos.iter().zip(e.sky).zip(&b.photos) {
+        if let (Some(s), Some(pb)) = (s, pb) {
+            let inputs = FitInputs {
+                transport: &b.transport,
+                photo: pb,
+                rho: &rho,
+                atlases: &atlases,
+                overcast: overcast.as_ref(),
+            };
+            let f = fit_photo(&inputs, &photo.id, &photo.image, s, &fo)?;
             fits.push(f.fit);
             renders.push((photo.id.clone(), f.render));
         }
     }
+    *bases = Some(b);
     let (gauge, reference_ratio) = apply_gauge(state, &mut fits, e.references);
     for (photo, s) in photos.iter_mut().zip(e.sky) {
         if let (Some(s), Some(f)) = (s, fits.iter().find(|f| f.photo == photo.id)) {
