@@ -297,19 +297,25 @@ impl SurveyPaths<'_> {
                 survey_response: survey_response.clone(),
             },
         };
+        let lighting = self.lighting(p)?;
+        // checked with the survey file; an estimated photo's may come from its EXIF
+        let time = match (p.photo_time(), &lighting) {
+            (Some(t), _) => t.ok(),
+            (None, LightingSource::Estimated(sky)) => Some(sky.time),
+            (None, _) => None,
+        };
         Ok(PhotoSpec {
             id: p.id.clone(),
             image: self.existing(&p.image, &format!("photo `{}` image", p.id))?,
             camera: self.existing(&p.camera, &format!("photo `{}` camera", p.id))?,
-            lighting: self.lighting(p)?,
+            lighting,
             radiometry: match &p.radiometry {
                 Some(r) => Some(radiometry_file(
                     self.existing(r, &format!("photo `{}` radiometry file", p.id))?,
                 )?),
                 None => default_radiometry.clone(),
             },
-            // checked with the survey file
-            time: p.photo_time().and_then(Result::ok),
+            time,
             exposure: p.exposure.unwrap_or(1.0),
             transfer,
         })
@@ -350,11 +356,15 @@ impl SurveyPaths<'_> {
         p: &igi_formats::survey::PhotoEntry,
     ) -> Result<LightingSource, WorkflowError> {
         let id = &p.id;
-        let Some(time) = p.photo_time().and_then(Result::ok) else {
+        let time = match p.photo_time() {
+            Some(t) => t.ok(),
+            None => self.exif_time(p)?,
+        };
+        let Some(time) = time else {
             return Err(WorkflowError::file(
                 self.file,
                 format!(
-                    "photo `{id}` has no `lighting`, no [photo.probe] and no `time`: give it a lighting file, a probe capture, or the time it was taken (RFC 3339 with its UTC offset) so that its light can be estimated"
+                    "photo `{id}` has no `lighting`, no [photo.probe] and no `time`, and its image carries no EXIF time (DateTimeOriginal with OffsetTimeOriginal, or the GPS date and time): give it a lighting file, a probe capture, or the time it was taken (RFC 3339 with its UTC offset) so that its light can be estimated"
                 ),
             ));
         };
@@ -379,6 +389,41 @@ impl SurveyPaths<'_> {
                     "photo `{id}`: at its `time` {} the sun stands {:.2} deg below the horizon at the site; the estimated sky (Hosek-Wilkie) needs the sun up: give this photo a lighting file",
                     p.time.as_deref().unwrap_or(""),
                     -elevation
+                ),
+            )),
+        }
+    }
+}
+
+impl SurveyPaths<'_> {
+    /// A photo's time from its image's EXIF (FORMATS.md, "Site location and photo time"):
+    /// `DateTimeOriginal` with `OffsetTimeOriginal`, else the GPS date and time (UTC); `None`
+    /// when the image has no EXIF or no time in it. A local time without its offset (the
+    /// instant unknown: nothing is guessed) or a malformed one is refused, naming the image.
+    fn exif_time(
+        &self,
+        p: &igi_formats::survey::PhotoEntry,
+    ) -> Result<Option<igi_formats::PhotoTime>, WorkflowError> {
+        use igi_formats::TimeProblem;
+        let image = self.existing(&p.image, &format!("photo `{}` image", p.id))?;
+        let exif = match igi_imaging::exif::read_exif(&image) {
+            Ok(e) => e,
+            Err(igi_imaging::ImagingError::NoExif { .. }) => return Ok(None),
+            Err(e) => {
+                return Err(WorkflowError::file(
+                    &image,
+                    format!("its EXIF cannot be read: {e}"),
+                ))
+            }
+        };
+        match igi_formats::PhotoTime::from_photo_exif(&exif) {
+            Ok(t) => Ok(Some(t)),
+            Err(TimeProblem::NoExifTime | TimeProblem::Blank) => Ok(None),
+            Err(e) => Err(WorkflowError::file(
+                &image,
+                format!(
+                    "photo `{}` has no `time`, and its EXIF time cannot be used: {e}",
+                    p.id
                 ),
             )),
         }

@@ -404,3 +404,46 @@ fn bad_input_for_estimated_light_is_refused_naming_the_file_and_key() {
         "{e}"
     );
 }
+
+/// A photo without `time` takes the one its image's EXIF holds (FORMATS.md: DateTimeOriginal
+/// with OffsetTimeOriginal, or the GPS time); a local EXIF time without its offset is refused,
+/// naming the image (real JPEGs of ../shared/data: a Sony ILCE-6400 that writes the offset, an
+/// iPhone 7 that does not).
+#[test]
+fn a_photo_without_time_takes_the_time_of_its_exif() {
+    let sony = igi_testkit::shared_data("mirror_ball_ldr/olapietka_sony_a6400").join("raw1.jpg");
+    let iphone =
+        igi_testkit::shared_data("mirror_ball_ldr/uiuc_cs445_kagrawal_iphone7").join("ball_10.JPG");
+    let tmp = tempfile::tempdir().unwrap();
+    let with_image = |image: &Path| {
+        let image = image.display().to_string();
+        move |t: String| {
+            let root = fixture().canonicalize().unwrap();
+            t.replacen("time = \"2026-06-21T08:30:00+02:00\"\n", "", 1)
+                .replace(
+                    &format!("\"{}/photos/t0830.exr\"", root.display()),
+                    &format!("{image:?}"),
+                )
+        }
+    };
+    let survey = Survey::load(&edited_survey(tmp.path(), with_image(&sony))).unwrap();
+    let exif = igi_imaging::exif::read_exif(&sony).unwrap();
+    let want = igi_formats::PhotoTime::from_photo_exif(&exif).unwrap();
+    let sky = survey.estimated_photos()[0].clone().expect("estimated");
+    assert_eq!(sky.time, want);
+    assert_eq!(survey.photos[0].time, Some(want));
+    println!(
+        "t0830 with the Sony's raw1.jpg: time {} from its EXIF ({:?} {:?}), sun elevation {:.2} deg",
+        want.to_rfc3339(),
+        exif.date_time_original,
+        exif.offset_time_original,
+        sky.position.elevation_deg()
+    );
+    let e = Survey::load(&edited_survey(tmp.path(), with_image(&iphone)))
+        .expect_err("no offset: refused")
+        .to_string();
+    assert!(
+        e.contains(&iphone.display().to_string()) && e.contains("offset") && e.contains("t0830"),
+        "{e}"
+    );
+}
