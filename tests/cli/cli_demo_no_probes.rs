@@ -116,8 +116,22 @@ fn demo_without_probes_estimates_each_photos_light() {
             "{id}: the re-rendering's residual {rms} against the fit's {reported}"
         );
     }
+    // photos taken at one time share their sky (three at 11:00, two at 19:45, three
+    // overcast at 15:00), each with its own residual
+    let mut times: Vec<&str> = photos.iter().map(|p| p["time"].as_str().unwrap()).collect();
+    times.dedup();
+    assert_eq!(times.len(), 3, "{times:?}");
+    for t in times {
+        let same: Vec<&serde_json::Value> = photos.iter().filter(|p| p["time"] == t).collect();
+        assert!(same.len() >= 2, "{t}");
+        for p in &same[1..] {
+            assert_eq!(p["fitted"], same[0]["fitted"], "{t}");
+            assert_eq!(p["stderr"], same[0]["stderr"], "{t}");
+        }
+    }
     // the albedo, its scale fixed without a target by a mean sun scale of 1
     let mae = d["albedo_mae"].as_array().expect("the albedo error");
+    println!("albedo MAE {mae:?}");
     assert!(
         mae.iter().all(|m| m.as_f64().unwrap() < BOUND_MAE),
         "albedo MAE {mae:?}"

@@ -27,6 +27,8 @@
 //! smooth domes trade against each other). The turbidity is the grid value with the smallest residual
 //! ([`FitOptions::turbidities`]). Uncertainties are the least-squares standard errors (the
 //! residual variance times the inverse normal matrix), which treat pixels as independent.
+//! The parameters are the photo time's: photos taken at the same instant share one sky,
+//! fitted to all their pixels at once.
 //!
 //! The global scale: the product of albedo and light is fixed by the photographs, one factor
 //! is not. With `[[reference]]` targets (discs of known diffuse albedo) the albedo over the
@@ -395,178 +397,219 @@ pub struct Fitted {
     pub render: HdrImage,
 }
 
-/// What one photo's fit reads: the transport, the photo's bases, the current albedo (of every
-/// texel, and as the parts' atlases) and the overcast sky's basis of the round.
-struct FitInputs<'a> {
+/// What a round's fits read: the transport, the current albedo (of every texel, and as the
+/// parts' atlases) and the overcast sky's basis of the round.
+struct RoundInputs<'a> {
     transport: &'a Transport,
-    photo: &'a PhotoBasis,
     rho: &'a [Vec3],
     atlases: &'a [Texture],
     overcast: Option<&'a Basis>,
 }
 
-/// Fits one photo's sky to its photograph with the albedo fixed.
-fn fit_photo(
-    inp: &FitInputs,
-    id: &str,
-    image: &HdrImage,
+/// One photo of a group prepared for the fit: its pixels that see the site with their
+/// values, the weights' floor, and its radiance under the sun and the overcast sky.
+struct PhotoData<'a> {
+    id: &'a str,
+    image: &'a HdrImage,
+    texels: &'a PhotoTexels,
+    obs: Vec<[f64; 3]>,
+    /// Relative weights divide a residual by its pixel's value, at least this (5 % of the
+    /// mean).
+    floor: f64,
+    r_sun: Vec<Vec3>,
+    r_ovc: Option<Vec<Vec3>>,
+}
+
+impl<'a> PhotoData<'a> {
+    fn new(
+        r: &RoundInputs,
+        id: &'a str,
+        image: &'a HdrImage,
+        basis: &'a PhotoBasis,
+        bounces: u32,
+    ) -> PhotoData<'a> {
+        let (tr, px) = (r.transport, &basis.texels);
+        let sun_direct: Vec<Vec3> = basis.sun.iter().map(|&v| Vec3::splat(v)).collect();
+        let sun_e = tr.bounced(sun_direct, r.rho, bounces);
+        let obs: Vec<[f64; 3]> = px
+            .site
+            .iter()
+            .map(|&i| image.pixels[i].map(|c| c as f64))
+            .collect();
+        let mean =
+            obs.iter().map(|p| p.iter().sum::<f64>()).sum::<f64>() / (3 * obs.len().max(1)) as f64;
+        PhotoData {
+            id,
+            image,
+            texels: px,
+            obs,
+            floor: (0.05 * mean).max(1e-12),
+            r_sun: tr.sun_radiance(px, r.atlases, &sun_e, &basis.sun),
+            r_ovc: r.overcast.map(|b| b.pixels(tr, px, r.atlases)),
+        }
+    }
+
+    /// The normal equations of the photo's pixels and channels (relative weights) with the
+    /// clear sky's image `r_sky` and the sun disk's radiance `sun_rad`.
+    fn normal(&self, r_sky: &[Vec3], sun_rad: [f64; 3], tie_sun_colour: bool) -> Normal {
+        let mut n = Normal::default();
+        for (j, &i) in self.texels.site.iter().enumerate() {
+            for c in 0..3 {
+                let b = self.obs[j][c];
+                let wt = 1.0 / b.max(self.floor).powi(2);
+                let mut a = [0.0; N];
+                a[if tie_sun_colour { 0 } else { c }] = self.r_sun[i][c] as f64 * sun_rad[c];
+                a[3] = r_sky[i][c] as f64;
+                a[4] = self.r_ovc.as_ref().map_or(0.0, |r| r[i][c] as f64);
+                for p in 0..N {
+                    n.atb[p] += wt * a[p] * b;
+                    for q in 0..N {
+                        n.ata[p][q] += wt * a[p] * a[q];
+                    }
+                }
+                n.btb += wt * b * b;
+            }
+        }
+        n.rows = 3 * self.texels.site.len();
+        n
+    }
+
+    /// The photograph re-rendered under the scales `x` (the sun's per channel).
+    fn model(&self, x: &[f64; N], sun_rad: [f64; 3], r_sky: &[Vec3]) -> HdrImage {
+        let mut model = HdrImage::new(self.image.width, self.image.height);
+        for (i, m) in model.pixels.iter_mut().enumerate() {
+            for (c, v) in m.iter_mut().enumerate() {
+                let o = self.r_ovc.as_ref().map_or(0.0, |r| r[i][c] as f64);
+                *v = (x[c] * sun_rad[c] * self.r_sun[i][c] as f64
+                    + x[3] * r_sky[i][c] as f64
+                    + x[4] * o) as f32;
+            }
+        }
+        model
+    }
+}
+
+/// Weighted normal equations: `A^T W A`, `A^T W b`, `b^T W b`, and the rows summed.
+#[derive(Clone, Debug, Default)]
+struct Normal {
+    ata: Mat,
+    atb: [f64; N],
+    btb: f64,
+    rows: usize,
+}
+
+impl Normal {
+    fn add(&mut self, o: &Normal) {
+        for p in 0..N {
+            self.atb[p] += o.atb[p];
+            for q in 0..N {
+                self.ata[p][q] += o.ata[p][q];
+            }
+        }
+        self.btb += o.btb;
+        self.rows += o.rows;
+    }
+
+    /// The weighted sum of squared residuals at `x`.
+    fn sse(&self, x: &[f64; N]) -> f64 {
+        let quad: f64 = (0..N)
+            .map(|p| x[p] * (0..N).map(|q| self.ata[p][q] * x[q]).sum::<f64>())
+            .sum();
+        let lin: f64 = (0..N).map(|p| x[p] * self.atb[p]).sum();
+        (self.btb - 2.0 * lin + quad).max(0.0)
+    }
+}
+
+/// Fits the sky shared by a group of photos taken at one time (`sky`) with the albedo fixed:
+/// their pixels' normal equations summed, per turbidity of the grid.
+fn fit_group(
+    r: &RoundInputs,
+    group: &[PhotoData],
     sky: &SkyPhoto,
     opts: &FitOptions,
-) -> Result<Fitted, WorkflowError> {
-    let (tr, px, rho) = (inp.transport, &inp.photo.texels, inp.rho);
-    let pixels = &px.site;
-    let sun_e = tr.bounced(
-        inp.photo.sun.iter().map(|&v| Vec3::splat(v)).collect(),
-        rho,
-        opts.indirect,
-    );
-    let r_sun = tr.sun_radiance(px, inp.atlases, &sun_e, &inp.photo.sun);
-    let r_ovc = inp.overcast.map(|b| b.pixels(tr, px, inp.atlases));
-    let obs: Vec<[f64; 3]> = pixels
-        .iter()
-        .map(|&i| image.pixels[i].map(|c| c as f64))
-        .collect();
-    let mean =
-        obs.iter().map(|p| p.iter().sum::<f64>()).sum::<f64>() / (3 * obs.len().max(1)) as f64;
-    let floor = (0.05 * mean).max(1e-12);
+) -> Result<Vec<Fitted>, WorkflowError> {
     let (w, h) = (MAP_WIDTH, MAP_WIDTH / 2);
+    let overcast = r.overcast.is_some();
     let mut best: Option<Candidate> = None;
     let mut curve = Vec::new();
     for &t in &opts.turbidities {
         let clear = sky.clear_sky(t)?;
         let sun_rad = clear.sun_disk().radiance;
-        let r_sky =
-            Basis::sky(tr, &clear.latlong(w, h)?, rho, opts.indirect).pixels(tr, px, inp.atlases);
-        // normal equations over pixels and channels, relative weights
-        let nb = if r_ovc.is_some() { 5 } else { 4 };
-        let mut ata = [[0.0f64; N]; N];
-        let mut atb = [0.0f64; N];
-        let mut btb = 0.0;
-        for (j, &i) in pixels.iter().enumerate() {
-            for c in 0..3 {
-                let b = obs[j][c];
-                let wt = 1.0 / b.max(floor).powi(2);
-                let mut a = [0.0; N];
-                let k = if opts.tie_sun_colour { 0 } else { c };
-                a[k] = r_sun[i][c] as f64 * sun_rad[c];
-                a[3] = r_sky[i][c] as f64;
-                a[4] = r_ovc.as_ref().map_or(0.0, |r| r[i][c] as f64);
-                for p in 0..nb {
-                    atb[p] += wt * a[p] * b;
-                    for q in 0..nb {
-                        ata[p][q] += wt * a[p] * a[q];
-                    }
-                }
-                btb += wt * b * b;
-            }
-        }
-        // a sunny sky (sun and clear sky) or an overcast one (clear and overcast skies, no
-        // sun): both domes with a sun confound the two smooth skies
-        let sunny = nnls(
-            &ata,
-            &atb,
-            btb,
-            if opts.tie_sun_colour {
-                0b01001
-            } else {
-                0b01111
-            },
-        );
-        let (x, sse, active) = if nb == 5 {
-            let overcast = nnls(&ata, &atb, btb, 0b11000);
-            if overcast.1 < sunny.1 {
-                overcast
-            } else {
-                sunny
-            }
-        } else {
-            sunny
-        };
+        let basis = Basis::sky(r.transport, &clear.latlong(w, h)?, r.rho, opts.indirect);
+        let r_sky: Vec<Vec<Vec3>> = group
+            .iter()
+            .map(|d| basis.pixels(r.transport, d.texels, r.atlases))
+            .collect();
+        let normals: Vec<Normal> = group
+            .iter()
+            .zip(&r_sky)
+            .map(|(d, rs)| d.normal(rs, sun_rad, opts.tie_sun_colour))
+            .collect();
+        let mut all = Normal::default();
+        normals.iter().for_each(|n| all.add(n));
+        let (x, sse, active) = solve_sky(&all, overcast, opts.tie_sun_colour);
         curve.push((t, sse));
-        let n = 3 * pixels.len();
         if best.as_ref().is_none_or(|b| sse < b.sse) {
             best = Some(Candidate {
                 turbidity: t,
                 sse,
                 x,
-                cov: covariance(&ata, &active),
-                n,
+                cov: covariance(&all.ata, &active),
+                rows: all.rows,
+                normals,
                 r_sky,
                 sun_rad,
             });
         }
     }
-    let Candidate {
-        turbidity: t,
-        sse,
-        x,
-        cov,
-        n,
-        r_sky,
-        sun_rad,
-    } = best.ok_or_else(|| {
+    let best = best.ok_or_else(|| {
         WorkflowError::Arguments("lighting estimation: no turbidity to try".into())
     })?;
-    let dof = n.saturating_sub(3).max(1) as f64;
-    let s2 = sse / dof;
-    let se = |k: usize| (s2 * cov[k][k]).max(0.0).sqrt();
-    let (x, cov) = if opts.tie_sun_colour {
-        let mut x = x;
-        let mut cov = cov;
-        x[1] = x[0];
-        x[2] = x[0];
-        // the three channels are one unknown
-        let row = cov[0];
-        cov[1..3].fill(row);
-        for r in cov.iter_mut() {
-            r[1] = r[0];
-            r[2] = r[0];
-        }
-        (x, cov)
-    } else {
-        (x, cov)
-    };
-    let sun = (x[0] + x[1] + x[2]) / 3.0;
-    let sun_var: f64 = (0..3)
-        .flat_map(|p| (0..3).map(move |q| (p, q)))
-        .map(|(p, q)| cov[p][q])
-        .sum::<f64>()
-        / 9.0;
-    let colour = |c: usize| if sun > 0.0 { x[c] / sun } else { 1.0 };
-    let colour_se = |c: usize| if sun > 0.0 { se(c) / sun } else { 0.0 };
-    let t_se = turbidity_stderr(&curve, t, s2);
-    let mut model = HdrImage::new(image.width, image.height);
-    for (i, m) in model.pixels.iter_mut().enumerate() {
-        for (c, v) in m.iter_mut().enumerate() {
-            let o = r_ovc.as_ref().map_or(0.0, |r| r[i][c] as f64);
-            *v = (x[c] * sun_rad[c] * r_sun[i][c] as f64 + x[3] * r_sky[i][c] as f64 + x[4] * o)
-                as f32;
-        }
+    let t_se = turbidity_stderr(&curve, best.turbidity, best.s2());
+    let (params, stderr) = best.params(t_se, opts.tie_sun_colour);
+    Ok(group
+        .iter()
+        .enumerate()
+        .map(|(k, d)| {
+            let x = params_vector(&params);
+            let fit = PhotoFit {
+                photo: d.id.to_string(),
+                time: sky.time.to_rfc3339(),
+                sun_azimuth_deg: sky.position.azimuth_deg,
+                sun_elevation_deg: sky.position.elevation_deg(),
+                sun_direction: sky.sun,
+                params,
+                stderr,
+                pixels: d.texels.site.len(),
+                relative_rms: (best.normals[k].sse(&x) / best.normals[k].rows.max(1) as f64).sqrt(),
+            };
+            let render = d.model(&x, best.sun_rad, &best.r_sky[k]);
+            Fitted { fit, render }
+        })
+        .collect())
+}
+
+/// The non-negative fit of the sky's scales: a sunny sky (sun and clear sky) or an overcast
+/// one (clear and overcast skies, no sun), whichever fits better (both domes with a sun
+/// confound the two smooth skies). The scales, the residual and the active set.
+fn solve_sky(n: &Normal, overcast: bool, tie_sun_colour: bool) -> ([f64; N], f64, Vec<usize>) {
+    let sunny_set = if tie_sun_colour { 0b01001 } else { 0b01111 };
+    let sunny = nnls(&n.ata, &n.atb, n.btb, sunny_set);
+    if !overcast {
+        return sunny;
     }
-    let fit = PhotoFit {
-        photo: id.to_string(),
-        time: sky.time.to_rfc3339(),
-        sun_azimuth_deg: sky.position.azimuth_deg,
-        sun_elevation_deg: sky.position.elevation_deg(),
-        sun_direction: sky.sun,
-        params: SkyParams {
-            turbidity: t,
-            sun_scale: sun,
-            sun_colour: [colour(0), colour(1), colour(2)],
-            sky_scale: x[3],
-            overcast_scale: x[4],
-        },
-        stderr: SkyParams {
-            turbidity: t_se,
-            sun_scale: (s2 * sun_var).max(0.0).sqrt(),
-            sun_colour: [colour_se(0), colour_se(1), colour_se(2)],
-            sky_scale: se(3),
-            overcast_scale: se(4),
-        },
-        pixels: pixels.len(),
-        relative_rms: (sse / n.max(1) as f64).sqrt(),
-    };
-    Ok(Fitted { fit, render: model })
+    let cloudy = nnls(&n.ata, &n.atb, n.btb, 0b11000);
+    if cloudy.1 < sunny.1 {
+        cloudy
+    } else {
+        sunny
+    }
+}
+
+/// The scales of `p` as the fit's unknowns (the sun's per channel).
+fn params_vector(p: &SkyParams) -> [f64; N] {
+    let s = |c: usize| p.sun_scale * p.sun_colour[c];
+    [s(0), s(1), s(2), p.sky_scale, p.overcast_scale]
 }
 
 /// The best fit so far over the turbidity grid.
@@ -578,11 +621,60 @@ struct Candidate {
     /// Inverse normal matrix on the active set.
     cov: Mat,
     /// Residuals (pixels x channels).
-    n: usize,
-    /// The clear sky's basis image at this turbidity.
-    r_sky: Vec<Vec3>,
+    rows: usize,
+    /// Per photo of the group: its normal equations and its clear sky's image.
+    normals: Vec<Normal>,
+    r_sky: Vec<Vec<Vec3>>,
     /// The Hosek-Wilkie sun disk's radiance at this turbidity.
     sun_rad: [f64; 3],
+}
+
+impl Candidate {
+    /// The residual variance.
+    fn s2(&self) -> f64 {
+        self.sse / self.rows.saturating_sub(3).max(1) as f64
+    }
+
+    /// The fitted parameters and their standard errors (the turbidity's `t_se`).
+    fn params(&self, t_se: f64, tie_sun_colour: bool) -> (SkyParams, SkyParams) {
+        let s2 = self.s2();
+        let (mut x, mut cov) = (self.x, self.cov);
+        if tie_sun_colour {
+            // the three channels are one unknown
+            x[1] = x[0];
+            x[2] = x[0];
+            let row = cov[0];
+            cov[1..3].fill(row);
+            for r in cov.iter_mut() {
+                r[1] = r[0];
+                r[2] = r[0];
+            }
+        }
+        let se = |k: usize| (s2 * cov[k][k]).max(0.0).sqrt();
+        let sun = (x[0] + x[1] + x[2]) / 3.0;
+        let sun_var: f64 = (0..3)
+            .flat_map(|p| (0..3).map(move |q| (p, q)))
+            .map(|(p, q)| cov[p][q])
+            .sum::<f64>()
+            / 9.0;
+        let colour = |c: usize| if sun > 0.0 { x[c] / sun } else { 1.0 };
+        let colour_se = |c: usize| if sun > 0.0 { se(c) / sun } else { 0.0 };
+        let params = SkyParams {
+            turbidity: self.turbidity,
+            sun_scale: sun,
+            sun_colour: [colour(0), colour(1), colour(2)],
+            sky_scale: x[3],
+            overcast_scale: x[4],
+        };
+        let stderr = SkyParams {
+            turbidity: t_se,
+            sun_scale: (s2 * sun_var).max(0.0).sqrt(),
+            sun_colour: [colour_se(0), colour_se(1), colour_se(2)],
+            sky_scale: se(3),
+            overcast_scale: se(4),
+        };
+        (params, stderr)
+    }
 }
 
 /// The standard error of the turbidity from a parabola through the residuals at the grid
@@ -872,22 +964,34 @@ fn estimate_round(
     } else {
         None
     };
+    let inputs = RoundInputs {
+        transport: &b.transport,
+        rho: &rho,
+        atlases: &atlases,
+        overcast: overcast.as_ref(),
+    };
     let mut fits = Vec::new();
     let mut renders = Vec::new();
-    for ((photo, s), pb) in photos.iter().zip(e.sky).zip(&b.photos) {
-        if let (Some(s), Some(pb)) = (s, pb) {
-            let inputs = FitInputs {
-                transport: &b.transport,
-                photo: pb,
-                rho: &rho,
-                atlases: &atlases,
-                overcast: overcast.as_ref(),
-            };
-            let f = fit_photo(&inputs, &photo.id, &photo.image, s, &fo)?;
+    for group in time_groups(e.sky) {
+        let data: Vec<PhotoData> = group
+            .iter()
+            .filter_map(|&i| {
+                let pb = b.photos[i].as_ref()?;
+                let p = &photos[i];
+                Some(PhotoData::new(&inputs, &p.id, &p.image, pb, fo.indirect))
+            })
+            .collect();
+        let Some(sky) = e.sky[group[0]].as_ref() else {
+            continue;
+        };
+        for f in fit_group(&inputs, &data, sky, &fo)? {
+            renders.push((f.fit.photo.clone(), f.render));
             fits.push(f.fit);
-            renders.push((photo.id.clone(), f.render));
         }
     }
+    // in the photos' order
+    let order = |id: &str| photos.iter().position(|p| p.id == id);
+    fits.sort_by_key(|f| order(&f.photo));
     *bases = Some(b);
     let (gauge, reference_ratio) = apply_gauge(state, &mut fits, e.references);
     for (photo, s) in photos.iter_mut().zip(e.sky) {
@@ -929,6 +1033,28 @@ fn estimate_round(
         },
         renders,
     ))
+}
+
+/// The estimated photos grouped by their time (the same instant: they share one sky), each
+/// group in the photos' order, the groups in the order of their first photo.
+fn time_groups(sky: &[Option<SkyPhoto>]) -> Vec<Vec<usize>> {
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    for (i, s) in sky.iter().enumerate() {
+        let Some(s) = s else { continue };
+        let instant = |k: usize| {
+            sky[k]
+                .as_ref()
+                .map(|o| (o.time.unix_seconds(), o.time.nanos()))
+        };
+        match groups
+            .iter_mut()
+            .find(|g| instant(g[0]) == Some((s.time.unix_seconds(), s.time.nanos())))
+        {
+            Some(g) => g.push(i),
+            None => groups.push(vec![i]),
+        }
+    }
+    groups
 }
 
 /// Each estimated photo's lighting as a contract lighting file `RESULT/lighting/ID.toml`
