@@ -1160,6 +1160,38 @@ fn a_solve_whose_atlases_cannot_fit_is_refused_before_any_work() {
     assert!(ok.status.success(), "{}", stderr(&ok));
 }
 
+/// A survey whose light is estimated needs the lighting fit's light transport besides the
+/// atlases (docs/SKY.md, "The bases, traced once": 1 KiB a texel, and up to 16 entries a pixel
+/// of each estimated photograph). It is estimated before any work with the atlases: the
+/// Mitsuba sunsky survey at `--atlas 64` (12,288 texels, 2.4 MB of atlases; six 200 x 150
+/// photographs, about 74 MB of transport at most) is refused at 20M naming the light transport,
+/// nothing written, and solves one iteration at 200M.
+#[test]
+fn a_solve_whose_light_transport_cannot_fit_is_refused_before_any_work() {
+    let d = tempfile::tempdir().unwrap();
+    let survey =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("datasets/fixtures/sunsky_survey/survey.toml");
+    let at = |limit: &str, out: &Path| {
+        let args: Vec<&str> = solve_args(s(&survey), s(out), &[])
+            .into_iter()
+            .map(|a| if a == "32" { "64" } else { a })
+            .collect();
+        igi().with_env("IGI_MAX_MEMORY", limit).run(&args)
+    };
+    let low = d.path().join("low");
+    let o = at("20M", &low);
+    let e = stderr(&o);
+    assert!(
+        o.status.code() == Some(1)
+            && e.contains("light transport of up to 12288 texels and 6 photographs")
+            && e.contains("IGI_MAX_MEMORY"),
+        "{e}"
+    );
+    assert!(!low.exists(), "nothing written");
+    let ok = at("200M", &d.path().join("ok"));
+    assert!(ok.status.success(), "{}", stderr(&ok));
+}
+
 /// The observations a solve holds until its group is combined (`BYTES_PER_OBSERVATION` each,
 /// up to one per texel a photograph sees) are checked before each photograph is traced, beside
 /// the atlases. From an unbounded run of the fixture at `--atlas 512` (its texels and

@@ -48,6 +48,20 @@ const SKY: u32 = 1 << 31;
 /// A ray that lands where no covered texel is near (it carries no light).
 const DARK: u32 = SKY - 1;
 
+/// The most bytes the transport of `texels` covered texels and the bases of estimated photos
+/// of `photo_pixels` pixels each can hold: each texel's rays, origin, normal and lookup entry;
+/// per photo, its sun at every texel and up to [`PIXEL_RAYS`] entries a pixel (fewer where
+/// rays meet the same texel).
+pub fn memory(texels: u128, photo_pixels: &[u128]) -> u128 {
+    let per_texel = (4 * RAYS + 36) as u128;
+    let per_pixel = (PIXEL_RAYS * size_of::<Seen>() + 4 + size_of::<usize>()) as u128;
+    texels * per_texel
+        + photo_pixels
+            .iter()
+            .map(|&n| 4 * texels + n * per_pixel)
+            .sum::<u128>()
+}
+
 /// The site's texels and where their hemisphere rays go.
 pub struct Transport {
     /// Per part: atlas index -> texel number (`u32::MAX` where the texel is not covered).

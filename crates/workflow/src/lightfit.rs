@@ -330,6 +330,7 @@ impl Bases {
         if let Some(b) = current.filter(|b| b.key == key) {
             return Ok(b);
         }
+        check_memory(state, photos, sky)?;
         let t0 = std::time::Instant::now();
         let scene = scene_of(state)?;
         let transport = Transport::new(state, &scene, opts.seed);
@@ -362,6 +363,32 @@ impl Bases {
             photos,
         })
     }
+}
+
+/// Refuses bases whose memory ([`crate::lightbasis::memory`]) is above the limit
+/// (`IGI_MAX_MEMORY`, 8 GiB by default), before they are traced.
+fn check_memory(
+    state: &SolveResult,
+    photos: &[igi_reflect::Photo],
+    sky: &[Option<SkyPhoto>],
+) -> Result<(), WorkflowError> {
+    let texels: u128 = state
+        .parts
+        .iter()
+        .map(|p| p.part.cache.texels.len() as u128)
+        .sum();
+    let pixels: Vec<u128> = photos
+        .iter()
+        .zip(sky)
+        .filter(|(_, s)| s.is_some())
+        .map(|(p, _)| p.image.pixels.len() as u128)
+        .collect();
+    let what = format!(
+        "the lighting estimation's light transport of {texels} texels and {} photographs",
+        pixels.len()
+    );
+    igi_files::check_alloc_default(&what, crate::lightbasis::memory(texels, &pixels))?;
+    Ok(())
 }
 
 /// A light of the fit's model in one round: the irradiance it gives every texel on the

@@ -85,6 +85,7 @@ impl SolveJob {
                 survey.meshes.len()
             );
             check_atlas_memory(&what, texels)?;
+            check_light_transport_memory(&survey, texels)?;
         }
         let session = SolveSession::check(
             &request.output,
@@ -275,6 +276,31 @@ impl StartedSolve {
 pub struct CoarseStage {
     pub parts: Vec<igi_reflect::Part>,
     pub truth: Option<Truth>,
+}
+
+/// Refuses, before any work, the light transport of a survey with estimated light
+/// ([`crate::lightbasis::memory`]) when it could pass the limit on atlases of at most
+/// `texels` texels.
+fn check_light_transport_memory(survey: &Survey, texels: u128) -> Result<(), WorkflowError> {
+    let pixels = survey
+        .photos
+        .iter()
+        .zip(survey.estimated_photos())
+        .filter(|(_, s)| s.is_some())
+        .map(|(p, _)| {
+            let c = igi_camera::Camera::load(&p.camera)?;
+            Ok(c.width as u128 * c.height as u128)
+        })
+        .collect::<Result<Vec<u128>, WorkflowError>>()?;
+    if pixels.is_empty() {
+        return Ok(());
+    }
+    let what = format!(
+        "the lighting estimation's light transport of up to {texels} texels and {} photographs",
+        pixels.len()
+    );
+    igi_files::check_alloc_default(&what, crate::lightbasis::memory(texels, &pixels))?;
+    Ok(())
 }
 
 /// Refuses atlases of `texels` texels whose memory estimate
