@@ -22,7 +22,8 @@ pub struct DemoArgs {
     /// light (SPA sun, Hosek-Wilkie and CIE overcast skies fitted with the albedo,
     /// docs/SKY.md), and the report compares it with the true skies. Each estimated photo's
     /// lighting file and picture (photograph, re-rendering, fitted sky) are in
-    /// result/lighting/.
+    /// result/lighting/. Up to 10 iterations (each with a lighting round) instead of 3: the
+    /// solve goes on while the fitted light still moves.
     #[arg(long)]
     pub no_probes: bool,
     /// Print demo.json on stdout.
@@ -50,6 +51,9 @@ pub fn run(a: DemoArgs, ctx: &Ctx) -> anyhow::Result<()> {
         opts.atlas_auto_max = Some(512);
     }
     opts.estimate_light = a.no_probes;
+    if a.no_probes && !a.quick {
+        opts.iterations = igi_workflow::demo::NO_PROBES_ITERATIONS;
+    }
     let bar = Bar(ctx.progress(1, "demo"));
     let quiet = ctx.quiet;
     let report = run_demo(&a.output, &opts, &bar, &|s| {

@@ -556,6 +556,12 @@ fn copy_file(from: &Path, to: &Path) -> Result<(), WorkflowError> {
 /// The site of the probe-less demo: Paris (WGS84 degrees); north is +Y (the default).
 pub const SITE: (f64, f64) = (48.85, 2.35);
 
+/// Most iterations of the probe-less demo at its default size (`igi demo --no-probes`), each
+/// followed by a lighting round: the light starts from the model's clear sky over a grey
+/// albedo and takes more rounds to settle than the albedo alone (docs/SKY.md, "The demo
+/// without probes").
+pub const NO_PROBES_ITERATIONS: u32 = 10;
+
 /// One true sky of the probe-less demo: at `time` (21 June 2026, Paris summer time), the
 /// Hosek-Wilkie sun and clear sky of `turbidity` (ground albedo
 /// [`crate::lightfit::GROUND_ALBEDO`]) times `sun_scale` and `sky_scale`, plus a CIE overcast

@@ -906,7 +906,9 @@ pub struct Estimation<'a> {
 }
 
 /// Iterates to the end with photos whose light is estimated: each albedo iteration is followed
-/// by a round of the lighting fit, and the photos' lighting is replaced by the fitted one;
+/// by a round of the lighting fit, and the photos' lighting is replaced by the fitted one; the
+/// solve is converged when the albedo is and the round moved no photo's light by more than
+/// [`LIGHT_TOLERANCE`];
 /// a checkpoint after each step, the lighting files in `RESULT/lighting/`, the record in
 /// `report.json` (`lighting`). A resumed result's photos get the lighting its report recorded.
 pub fn iterate(
@@ -930,20 +932,57 @@ pub fn iterate(
             break;
         }
         let converged = state.report.converged;
+        let before = recorded(&state);
         let (record, renders) = estimate_round(&mut state, photos, e, k + 1, &mut bases)?;
+        let moved = before.map_or(f64::INFINITY, |b| light_change(&b, &record));
         write_lighting_files(out, photos, e.sky, &record, &renders)?;
         state.report.lighting = Some(
             serde_json::to_value(&record)
                 .map_err(|err| WorkflowError::Arguments(format!("lighting record: {err}")))?,
         );
-        // the albedo moved with the gauge
+        // the albedo moved with the gauge; while the light moves, the albedo under it is not
+        // converged
         state.set_changed(true);
+        state.report.converged = converged && moved <= LIGHT_TOLERANCE;
         state.write_state(out)?;
-        if converged {
+        if state.report.converged {
             break;
         }
     }
     Ok(state)
+}
+
+/// The largest change of a photo's light between two rounds below which the light is settled:
+/// the summed change of its sun, sky and overcast scales over their sum (any change of
+/// turbidity counts as unsettled).
+pub const LIGHT_TOLERANCE: f64 = 0.01;
+
+/// The lighting record of the result's report, if any.
+fn recorded(state: &SolveResult) -> Option<LightingRecord> {
+    serde_json::from_value(state.report.lighting.clone()?).ok()
+}
+
+/// How far the light moved between two rounds' records: the largest over the photos of the
+/// summed change of the sun, sky and overcast scales over their sum before (infinite for a
+/// photo whose turbidity changed or that one record lacks).
+fn light_change(before: &LightingRecord, after: &LightingRecord) -> f64 {
+    after
+        .photos
+        .iter()
+        .map(|a| {
+            let Some(b) = before.photos.iter().find(|b| b.photo == a.photo) else {
+                return f64::INFINITY;
+            };
+            let (p, q) = (&b.params, &a.params);
+            if p.turbidity != q.turbidity {
+                return f64::INFINITY;
+            }
+            let d = (p.sun_scale - q.sun_scale).abs()
+                + (p.sky_scale - q.sky_scale).abs()
+                + (p.overcast_scale - q.overcast_scale).abs();
+            d / (p.sun_scale + p.sky_scale + p.overcast_scale).max(1e-12)
+        })
+        .fold(0.0, f64::max)
 }
 
 /// A resumed solve's photos get the lighting its report recorded.
