@@ -1222,6 +1222,76 @@ mod tests {
         assert_eq!(regauged(v(1.0, 0.5, 0.2), 2.0), v(0.5, 0.25, 0.1));
     }
 
+    /// Photos taken at the same instant share a group, whatever their UTC offset; photos
+    /// without estimated light belong to none.
+    #[test]
+    fn photos_are_grouped_by_their_instant() {
+        let site = SiteLocation {
+            latitude_deg: 48.85,
+            longitude_deg: 2.35,
+            north: [0.0, 1.0, 0.0],
+        };
+        let at = |t: &str| {
+            let time = PhotoTime::parse_rfc3339(t).unwrap();
+            Some(SkyPhoto::new(time, site).unwrap().unwrap())
+        };
+        let sky = [
+            at("2026-06-21T11:00:00+02:00"),
+            at("2026-06-21T15:00:00+02:00"),
+            at("2026-06-21T09:00:00Z"),
+            None,
+            at("2026-06-21T15:00:00+02:00"),
+            at("2026-06-21T15:00:01+02:00"),
+        ];
+        assert_eq!(time_groups(&sky), vec![vec![0, 2], vec![1, 4], vec![5]]);
+    }
+
+    /// The light's change between rounds: the summed change of the scales over their sum
+    /// before, the largest over the photos; a new turbidity or a photo one round lacks is
+    /// unsettled.
+    #[test]
+    fn the_light_change_between_rounds() {
+        let fit = |id: &str, t: f64, sun: f64, sky: f64, ovc: f64| PhotoFit {
+            photo: id.into(),
+            time: String::new(),
+            sun_azimuth_deg: 0.0,
+            sun_elevation_deg: 0.0,
+            sun_direction: [0.0, 0.0, 1.0],
+            params: SkyParams {
+                turbidity: t,
+                sun_scale: sun,
+                sky_scale: sky,
+                overcast_scale: ovc,
+                ..SkyParams::default()
+            },
+            stderr: SkyParams::default(),
+            pixels: 1,
+            relative_rms: 0.0,
+        };
+        let rec = |photos| LightingRecord {
+            photos,
+            ..LightingRecord::default()
+        };
+        let before = rec(vec![
+            fit("a", 3.0, 1.0, 1.0, 0.0),
+            fit("b", 2.0, 0.0, 0.0, 2.0),
+        ]);
+        let after = rec(vec![
+            fit("a", 3.0, 1.01, 0.98, 0.0),
+            fit("b", 2.0, 0.0, 0.0, 2.01),
+        ]);
+        // a: (0.01 + 0.02) / 2; b: 0.01 / 2
+        assert!((light_change(&before, &after) - 0.015).abs() < 1e-12);
+        let turned = rec(vec![
+            fit("a", 4.5, 1.0, 1.0, 0.0),
+            fit("b", 2.0, 0.0, 0.0, 2.0),
+        ]);
+        assert_eq!(light_change(&before, &turned), f64::INFINITY);
+        let new = rec(vec![fit("c", 3.0, 1.0, 1.0, 0.0)]);
+        assert_eq!(light_change(&before, &new), f64::INFINITY);
+        assert_eq!(light_change(&before, &before), 0.0);
+    }
+
     #[test]
     fn turbidity_stderr_of_a_parabola() {
         // sse = 10 + (T - 3)^2 * 4, s2 = 2: d2 = 8, se = sqrt(2 * 2 / 8)
