@@ -267,7 +267,8 @@ impl Transport {
         first
     }
 
-    /// The direct irradiance at every texel of `sun` (see [`SunDisk::irradiance`]).
+    /// The direct irradiance at every texel of `sun`: [`SUN_RAYS`] stratified rays over the
+    /// disk, each counted with its cosine where it is not blocked, times its solid angle.
     pub fn sun(&self, scene: &Scene, sun: &SunDisk, seed: u64) -> Vec<f32> {
         (0..self.len())
             .into_par_iter()
