@@ -217,6 +217,18 @@ impl SolveResult {
         self.parts.iter_mut().for_each(|p| p.changed = changed);
     }
 
+    /// The parts' current albedo atlases as textures (as a render reads them).
+    pub fn albedo_textures(&self) -> Vec<igi_render::Texture> {
+        self.parts
+            .iter()
+            .map(|p| igi_render::Texture {
+                width: p.resolution(),
+                height: p.resolution(),
+                texels: p.rho.clone(),
+            })
+            .collect()
+    }
+
     /// The scene of the parts with their current albedo atlases (and no lobes).
     pub fn albedo_scene(&self) -> Result<igi_render::Scene, ReflectError> {
         scene_of_atlases(self.parts.iter().map(|p| (&p.part, p.rho.as_slice())))

@@ -21,7 +21,7 @@ use crate::result::SolveResult;
 use crate::ReflectError;
 use glam::{DVec3, Vec2, Vec3};
 use igi_render::sampling::Rng;
-use igi_render::{Scene, Texture};
+use igi_render::Scene;
 use rayon::prelude::*;
 
 /// Random points of the true surface [`truth_from_scene`] draws (fewer on a smaller surface: at
@@ -238,15 +238,7 @@ pub fn surface_error(
     if truth.points.is_empty() {
         return (None, None);
     }
-    let textures: Vec<Texture> = state
-        .parts
-        .iter()
-        .map(|p| Texture {
-            width: p.resolution(),
-            height: p.resolution(),
-            texels: p.rho.clone(),
-        })
-        .collect();
+    let textures = state.albedo_textures();
     let errors: Vec<Vec3> = truth
         .points
         .iter()

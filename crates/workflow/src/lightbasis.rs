@@ -193,19 +193,6 @@ impl Transport {
         n as f64 / self.rays.len().max(1) as f64
     }
 
-    /// The parts' current albedo atlases, as a render reads them.
-    pub fn atlases(state: &SolveResult) -> Vec<Texture> {
-        state
-            .parts
-            .iter()
-            .map(|p| Texture {
-                width: p.resolution(),
-                height: p.resolution(),
-                texels: p.rho.clone(),
-            })
-            .collect()
-    }
-
     /// The current albedo of every texel.
     pub fn albedo(&self, state: &SolveResult) -> Vec<Vec3> {
         self.texel
@@ -675,7 +662,7 @@ mod tests {
         .unwrap();
         let image = HdrImage::new(40, 30);
         let px = t.photo(&scene, &cam, &image, &sun, 5);
-        let atlases = Transport::atlases(&state);
+        let atlases = state.albedo_textures();
         let sky = t.radiance(&px, &atlases, &direct, &bins);
         let sun_e: Vec<Vec3> = t
             .sun(&scene, &sun, 3)
@@ -797,7 +784,7 @@ mod tests {
             &rho,
             2,
         );
-        let atlases = Transport::atlases(&state);
+        let atlases = state.albedo_textures();
         let model: Vec<Vec3> = t
             .radiance(&px, &atlases, &sky_e, &bins)
             .into_iter()

@@ -1022,7 +1022,7 @@ fn estimate_round(
     };
     let b = Bases::update(bases.take(), state, photos, e.sky, &fo)?;
     let rho = b.transport.albedo(state);
-    let atlases = Transport::atlases(state);
+    let atlases = state.albedo_textures();
     let overcast = if fo.overcast {
         let (w, h) = (MAP_WIDTH, MAP_WIDTH / 2);
         let map = CieOvercast::new([1.0; 3])?.latlong(w, h)?;
