@@ -115,6 +115,12 @@ pub struct PhotoEntry {
     /// ISO / 100 / f-number^2, `igi_imaging::exif::PhotoExif::exposure`). Positive; 1 if absent.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub exposure: Option<f64>,
+    /// The camera body that took the photo (an igi extension, docs/FORMATS.md Part 2; from
+    /// EXIF: make, model and serial number). Photos of one body share its radiometric
+    /// calibration; where light is estimated, each body but the first gets one exposure
+    /// factor fitted (docs/SKY.md). Absent: the survey's one unnamed body.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub body: Option<String>,
     /// The camera radiometry applied to this photo (overrides `[radiometry]`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub radiometry: Option<PathBuf>,
@@ -387,6 +393,7 @@ mod tests {
             time: None,
             lighting: Some(format!("lighting/{lighting}.toml").into()),
             exposure: None,
+            body: None,
             radiometry: None,
             response: None,
             transfer: None,

@@ -3,7 +3,8 @@
 //! [`read_exif`] reads, through `kamadak-exif`, the fields igi uses from a JPEG, TIFF, PNG,
 //! WebP or HEIF container: `DateTimeOriginal` and `OffsetTimeOriginal` (the local time and its
 //! UTC offset), `GPSDateStamp` and `GPSTimeStamp` (UTC), `ExposureTime`, `FNumber` and the ISO
-//! speed (`PhotographicSensitivity`). Text fields are kept as written (EXIF's padding of NULs and
+//! speed (`PhotographicSensitivity`), and the camera body (`Make`, `Model`,
+//! `BodySerialNumber`). Text fields are kept as written (EXIF's padding of NULs and
 //! spaces trimmed); `igi_formats::time` turns them into an instant. [`PhotoExif::exposure`]
 //! puts photographs taken at different settings on one radiometric scale.
 
@@ -26,6 +27,9 @@ pub struct PhotoExif {
     pub f_number: Option<f64>,
     /// `PhotographicSensitivity` (ISO speed).
     pub iso: Option<f64>,
+    /// The camera body: `Make`, `Model` and `#BodySerialNumber`, those present, joined by
+    /// spaces.
+    pub body: Option<String>,
 }
 
 impl PhotoExif {
@@ -60,7 +64,25 @@ pub fn read_exif(path: &Path) -> Result<PhotoExif, ImagingError> {
         exposure_time_s: number(Tag::ExposureTime)?,
         f_number: number(Tag::FNumber)?,
         iso: number(Tag::PhotographicSensitivity)?,
+        body: body(&ex),
     })
+}
+
+/// `Make`, `Model` and `#BodySerialNumber`, those present, joined by spaces (the model often
+/// repeats the make: then once); `None` when none is.
+fn body(ex: &Exif) -> Option<String> {
+    let make = text(ex, Tag::Make);
+    let model = text(ex, Tag::Model).map(|m| match &make {
+        Some(k) if m.starts_with(k.as_str()) => m[k.len()..].trim().to_string(),
+        _ => m,
+    });
+    let serial = text(ex, Tag::BodySerialNumber).map(|s| format!("#{s}"));
+    let parts: Vec<String> = [make, model, serial]
+        .into_iter()
+        .flatten()
+        .filter(|s| !s.is_empty())
+        .collect();
+    (!parts.is_empty()).then(|| parts.join(" "))
 }
 
 /// An ASCII field, its padding trimmed; `None` when absent or blank.

@@ -95,6 +95,8 @@ struct Photo {
 struct PhotoExifInfo {
     time: Option<String>,
     exposure: Option<f64>,
+    /// The camera body (EXIF make, model, serial).
+    body: Option<String>,
     notes: Vec<String>,
 }
 
@@ -127,6 +129,7 @@ fn photo_exif(image: &Path) -> Result<PhotoExifInfo, ImportError> {
         }
     }
     out.exposure = exif.exposure();
+    out.body = exif.body.clone();
     match out.exposure {
         None => out.notes.push("no EXIF ExposureTime: no exposure".into()),
         Some(_) => {
@@ -481,6 +484,7 @@ fn survey_file(job: &ColmapImport, photos: &[Photo]) -> Result<SurveyFile, Impor
                 lighting: lighting.clone(),
                 time: p.exif.time.clone(),
                 exposure: p.exif.exposure,
+                body: p.exif.body.clone(),
                 ..PhotoEntry::default()
             })
         })

@@ -228,6 +228,21 @@ fn time_and_exposure_come_from_the_exif_of_real_jpegs() {
     }
     // the Sony's four carry their offset (+02:00), the iPhone's two do not
     assert_eq!((times, r.times, r.exposures), (4, 4, 6));
+    // each camera's photos name one body, from its make and model (CATALOGUE.md: a Sony
+    // ILCE-6400, an iPhone 7), and the two bodies differ
+    let body = |k: usize| survey.photo[k].body.clone().unwrap_or_default();
+    eprintln!("bodies: {:?} / {:?}", body(0), body(4));
+    assert!((1..4).all(|k| body(k) == body(0)) && body(5) == body(4));
+    assert!(
+        body(0).contains("SONY") && body(0).contains("ILCE-6400"),
+        "{}",
+        body(0)
+    );
+    assert!(
+        body(4).contains("Apple") && body(4).contains("iPhone 7"),
+        "{}",
+        body(4)
+    );
     // raw1 (0.1 s) against raw3 (0.00625 s) at the same f/5.6, ISO 1600: 16 times
     let e = |k: usize| survey.photo[k].exposure.unwrap();
     assert!((e(1) / e(3) - 16.0).abs() < 1e-12);

@@ -28,7 +28,8 @@
 //! ([`FitOptions::turbidities`]). Uncertainties are the least-squares standard errors (the
 //! residual variance times the inverse normal matrix), which treat pixels as independent.
 //! The parameters are the photo time's: photos taken at the same instant share one sky,
-//! fitted to all their pixels at once.
+//! fitted to all their pixels at once. Each camera body but the first (`[[photo]] body`) has
+//! one exposure factor, fitted in turn with the skies (`PhotoFit::body_exposure`).
 //!
 //! The global scale: the product of albedo and light is fixed by the photographs, one factor
 //! is not. With `[[reference]]` targets (discs of known diffuse albedo) the albedo over the
@@ -267,6 +268,28 @@ pub struct PhotoFit {
     pub pixels: usize,
     /// RMS of the relative residual at the fit.
     pub relative_rms: f64,
+    /// The fitted exposure factor of the photo's camera body (1 for the first body): the
+    /// photograph is `body_exposure` times the site under `params` (docs/SKY.md, "Camera
+    /// bodies").
+    #[serde(default = "one")]
+    pub body_exposure: f64,
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+impl PhotoFit {
+    /// The light as the photograph saw it: the fitted sky times its body's exposure factor.
+    pub fn seen(&self) -> SkyParams {
+        let k = self.body_exposure;
+        SkyParams {
+            sun_scale: self.params.sun_scale * k,
+            sky_scale: self.params.sky_scale * k,
+            overcast_scale: self.params.overcast_scale * k,
+            ..self.params
+        }
+    }
 }
 
 /// The record of the estimation in `report.json` (`lighting`).
@@ -436,6 +459,8 @@ struct RoundInputs<'a> {
 /// One photo of a group prepared for the fit: its pixels that see the site with their
 /// values, the weights' floor, and its radiance under the sun and the overcast sky.
 struct PhotoData<'a> {
+    /// Its body's exposure factor, which its pixels were divided by.
+    exposure: f64,
     id: &'a str,
     image: &'a HdrImage,
     texels: &'a PhotoTexels,
@@ -448,12 +473,15 @@ struct PhotoData<'a> {
 }
 
 impl<'a> PhotoData<'a> {
+    /// The photo's data with its pixels divided by its body's exposure factor `exposure` (on
+    /// the first body's scale).
     fn new(
         r: &RoundInputs,
         id: &'a str,
         image: &'a HdrImage,
         basis: &'a PhotoBasis,
         bounces: u32,
+        exposure: f64,
     ) -> PhotoData<'a> {
         let (tr, px) = (r.transport, &basis.texels);
         let sun_direct: Vec<Vec3> = basis.sun.iter().map(|&v| Vec3::splat(v)).collect();
@@ -461,11 +489,12 @@ impl<'a> PhotoData<'a> {
         let obs: Vec<[f64; 3]> = px
             .site
             .iter()
-            .map(|&i| image.pixels[i].map(|c| c as f64))
+            .map(|&i| image.pixels[i].map(|c| c as f64 / exposure))
             .collect();
         let mean =
             obs.iter().map(|p| p.iter().sum::<f64>()).sum::<f64>() / (3 * obs.len().max(1)) as f64;
         PhotoData {
+            exposure,
             id,
             image,
             texels: px,
@@ -501,15 +530,17 @@ impl<'a> PhotoData<'a> {
         n
     }
 
-    /// The photograph re-rendered under the scales `x` (the sun's per channel).
+    /// The photograph re-rendered under the scales `x` (the sun's per channel), in the
+    /// photograph's own units (times its body's exposure factor).
     fn model(&self, x: &[f64; N], sun_rad: [f64; 3], r_sky: &[Vec3]) -> HdrImage {
         let mut model = HdrImage::new(self.image.width, self.image.height);
         for (i, m) in model.pixels.iter_mut().enumerate() {
             for (c, v) in m.iter_mut().enumerate() {
                 let o = self.r_ovc.as_ref().map_or(0.0, |r| r[i][c] as f64);
-                *v = (x[c] * sun_rad[c] * self.r_sun[i][c] as f64
-                    + x[3] * r_sky[i][c] as f64
-                    + x[4] * o) as f32;
+                *v = (self.exposure
+                    * (x[c] * sun_rad[c] * self.r_sun[i][c] as f64
+                        + x[3] * r_sky[i][c] as f64
+                        + x[4] * o)) as f32;
             }
         }
         model
@@ -609,6 +640,7 @@ fn fit_group(
                 stderr,
                 pixels: d.texels.site.len(),
                 relative_rms: (best.normals[k].sse(&x) / best.normals[k].rows.max(1) as f64).sqrt(),
+                body_exposure: d.exposure,
             };
             let render = d.model(&x, best.sun_rad, &best.r_sky[k]);
             Fitted { fit, render }
@@ -896,6 +928,8 @@ pub fn apply_gauge(
 pub struct Estimation<'a> {
     /// Per photo (the photos' order): the sun and site of a photo whose light is estimated.
     pub sky: &'a [Option<SkyPhoto>],
+    /// Per photo: the camera body that took it (photos of one body share an exposure factor).
+    pub bodies: &'a [Option<String>],
     /// The survey's `[[reference]]` targets.
     pub references: &'a [ReferenceTarget],
     pub basis: Option<&'a igi_brdf::Basis>,
@@ -999,7 +1033,7 @@ fn restore_lighting(
     };
     for (photo, sky) in photos.iter_mut().zip(sky) {
         if let (Some(sky), Some(f)) = (sky, record.photos.iter().find(|f| f.photo == photo.id)) {
-            photo.lighting = sky.lighting(&f.params)?;
+            photo.lighting = sky.lighting(&f.seen())?;
         }
     }
     Ok(())
@@ -1014,7 +1048,7 @@ fn estimate_round(
     e: &Estimation,
     round: u32,
     bases: &mut Option<Bases>,
-) -> Result<(LightingRecord, Vec<(String, HdrImage)>), WorkflowError> {
+) -> Result<(LightingRecord, Renders), WorkflowError> {
     let t0 = std::time::Instant::now();
     let fo = FitOptions {
         indirect: e.options.indirect,
@@ -1036,24 +1070,13 @@ fn estimate_round(
         atlases: &atlases,
         overcast: overcast.as_ref(),
     };
-    let mut fits = Vec::new();
-    let mut renders = Vec::new();
-    for group in time_groups(e.sky) {
-        let data: Vec<PhotoData> = group
-            .iter()
-            .filter_map(|&i| {
-                let pb = b.photos[i].as_ref()?;
-                let p = &photos[i];
-                Some(PhotoData::new(&inputs, &p.id, &p.image, pb, fo.indirect))
-            })
-            .collect();
-        let Some(sky) = e.sky[group[0]].as_ref() else {
-            continue;
-        };
-        for f in fit_group(&inputs, &data, sky, &fo)? {
-            renders.push((f.fit.photo.clone(), f.render));
-            fits.push(f.fit);
-        }
+    let bodies = Bodies::new(e.bodies, e.sky, recorded(state).as_ref(), photos);
+    let passes = if bodies.count() > 1 { BODY_PASSES } else { 1 };
+    let (mut fits, mut renders) = (Vec::new(), Vec::new());
+    let mut exposure = bodies.start.clone();
+    for _ in 0..passes {
+        (fits, renders) = fit_round(&inputs, &b, photos, e.sky, &bodies, &exposure, &fo)?;
+        exposure = bodies.refit(&exposure, photos, &b, &fits, &renders);
     }
     // in the photos' order
     let order = |id: &str| photos.iter().position(|p| p.id == id);
@@ -1062,7 +1085,7 @@ fn estimate_round(
     let (gauge, reference_ratio) = apply_gauge(state, &mut fits, e.references);
     for (photo, s) in photos.iter_mut().zip(e.sky) {
         if let (Some(s), Some(f)) = (s, fits.iter().find(|f| f.photo == photo.id)) {
-            photo.lighting = s.lighting(&f.params)?;
+            photo.lighting = s.lighting(&f.seen())?;
         }
     }
     for f in &fits {
@@ -1099,6 +1122,139 @@ fn estimate_round(
         },
         renders,
     ))
+}
+
+/// Each fitted photo's re-rendering, by photo id.
+type Renders = Vec<(String, HdrImage)>;
+
+/// Passes of the sky fit and the camera bodies' exposure factors per round when there are
+/// several bodies (each round starts from the last round's factors).
+const BODY_PASSES: usize = 3;
+
+/// Every time group's sky fitted once, each photo's pixels divided by its body's factor in
+/// `exposure`: the fits and the re-renderings (by photo id).
+fn fit_round(
+    inputs: &RoundInputs,
+    b: &Bases,
+    photos: &[igi_reflect::Photo],
+    sky: &[Option<SkyPhoto>],
+    bodies: &Bodies,
+    exposure: &[f64],
+    fo: &FitOptions,
+) -> Result<(Vec<PhotoFit>, Renders), WorkflowError> {
+    let (mut fits, mut renders) = (Vec::new(), Vec::new());
+    for group in time_groups(sky) {
+        let data: Vec<PhotoData> = group
+            .iter()
+            .filter_map(|&i| {
+                let pb = b.photos[i].as_ref()?;
+                let (p, k) = (&photos[i], exposure[bodies.of[i]]);
+                Some(PhotoData::new(inputs, &p.id, &p.image, pb, fo.indirect, k))
+            })
+            .collect();
+        let Some(s) = sky[group[0]].as_ref() else {
+            continue;
+        };
+        for f in fit_group(inputs, &data, s, fo)? {
+            renders.push((f.fit.photo.clone(), f.render));
+            fits.push(f.fit);
+        }
+    }
+    Ok((fits, renders))
+}
+
+/// The camera bodies of the estimated photos: the first body met is the reference (factor
+/// 1); each other body's exposure factor is fitted, photos of one time tying it to the others.
+struct Bodies {
+    /// Per photo: its body's index (0 for a photo whose light is not estimated).
+    of: Vec<usize>,
+    count: usize,
+    /// The factors the round starts from: the last round's, else 1.
+    start: Vec<f64>,
+}
+
+impl Bodies {
+    fn new(
+        bodies: &[Option<String>],
+        sky: &[Option<SkyPhoto>],
+        last: Option<&LightingRecord>,
+        photos: &[igi_reflect::Photo],
+    ) -> Bodies {
+        let mut names: Vec<Option<String>> = Vec::new();
+        let mut of = vec![0; sky.len()];
+        for (i, s) in sky.iter().enumerate() {
+            if s.is_none() {
+                continue;
+            }
+            let name = bodies.get(i).cloned().flatten();
+            of[i] = names.iter().position(|n| *n == name).unwrap_or_else(|| {
+                names.push(name);
+                names.len() - 1
+            });
+        }
+        let mut start = vec![1.0; names.len().max(1)];
+        for (i, p) in photos.iter().enumerate() {
+            let f = last.and_then(|r| r.photos.iter().find(|f| f.photo == p.id));
+            if let (Some(f), Some(_)) = (f, &sky[i]) {
+                start[of[i]] = f.body_exposure;
+            }
+        }
+        Bodies {
+            of,
+            count: names.len(),
+            start,
+        }
+    }
+
+    fn count(&self) -> usize {
+        self.count
+    }
+
+    /// Each body's factor but the reference's, refitted: the weighted least-squares scale
+    /// between its photos' pixels and their re-renderings on the reference's scale (the fit's
+    /// relative weights, over the pixels that see the site).
+    fn refit(
+        &self,
+        exposure: &[f64],
+        photos: &[igi_reflect::Photo],
+        bases: &Bases,
+        fits: &[PhotoFit],
+        renders: &[(String, HdrImage)],
+    ) -> Vec<f64> {
+        let mut num = vec![0.0f64; exposure.len()];
+        let mut den = vec![0.0f64; exposure.len()];
+        for (i, p) in photos.iter().enumerate() {
+            let (Some(f), Some((_, r)), Some(pb)) = (
+                fits.iter().find(|f| f.photo == p.id),
+                renders.iter().find(|r| r.0 == p.id),
+                &bases.photos[i],
+            ) else {
+                continue;
+            };
+            let body = self.of[i];
+            let site = &pb.texels.site;
+            let mean = site
+                .iter()
+                .map(|&j| p.image.pixels[j].iter().map(|&c| c as f64).sum::<f64>())
+                .sum::<f64>()
+                / (3 * site.len().max(1)) as f64;
+            for &j in site {
+                for c in 0..3 {
+                    let (obs, pred) = (p.image.pixels[j][c] as f64, r.pixels[j][c] as f64);
+                    let pred = pred / f.body_exposure;
+                    let w = 1.0 / obs.max(0.05 * mean).powi(2);
+                    num[body] += w * pred * obs;
+                    den[body] += w * pred * pred;
+                }
+            }
+        }
+        (0..exposure.len())
+            .map(|b| match b == 0 || den[b] <= 0.0 {
+                true => exposure[b],
+                false => num[b] / den[b],
+            })
+            .collect()
+    }
 }
 
 /// The estimated photos grouped by their time (the same instant: they share one sky), each

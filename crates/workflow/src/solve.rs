@@ -145,8 +145,10 @@ impl SolveJob {
             true => None,
             false => self.coarse_stage(&state)?,
         };
+        let bodies = self.survey.photos.iter().map(|p| p.body.clone()).collect();
         Ok(StartedSolve {
             sky,
+            bodies,
             references: self.survey.references.clone(),
             state,
             photos,
@@ -211,6 +213,8 @@ impl SolveJob {
 pub struct StartedSolve {
     /// Per photo (survey order): the sun and site of a photo whose light is estimated.
     pub sky: Vec<Option<crate::lightfit::SkyPhoto>>,
+    /// Per photo (survey order): the camera body that took it (`body = ...`).
+    pub bodies: Vec<Option<String>>,
     /// The survey's `[[reference]]` targets (they fix the scale of estimated light).
     pub references: Vec<igi_formats::survey::ReferenceTarget>,
     /// The result as it stands: fresh, or the checkpoint resumed.
@@ -251,6 +255,7 @@ impl StartedSolve {
         if self.sky.iter().any(Option::is_some) {
             let e = crate::lightfit::Estimation {
                 sky: &self.sky,
+                bodies: &self.bodies,
                 references: &self.references,
                 basis: self.basis.as_ref(),
                 truth: self.truth.as_ref(),

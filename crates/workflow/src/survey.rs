@@ -47,6 +47,8 @@ pub struct PhotoSpec {
     /// The photo's exposure on the survey's radiometric scale (`exposure = ...`, 1 if absent):
     /// its pixels are divided by it on load.
     pub exposure: f64,
+    /// The camera body that took it (`body = ...`; `None`: the survey's unnamed body).
+    pub body: Option<String>,
     /// How its stored values become linear (`response = ...`, `transfer = ...`, or the
     /// survey's `[radiometry] response = ...`).
     pub transfer: TransferSpec,
@@ -317,6 +319,7 @@ impl SurveyPaths<'_> {
             },
             time,
             exposure: p.exposure.unwrap_or(1.0),
+            body: p.body.clone(),
             transfer,
         })
     }

@@ -447,3 +447,60 @@ fn a_photo_without_time_takes_the_time_of_its_exif() {
         "{e}"
     );
 }
+
+/// A second camera body: t1030 photographed again from the same place at the same time by
+/// a body whose calibration gives 1.3 times the values (its pixels times 1.3, `body = "B"`).
+/// The fitted exposure factor of body B is 1.3 (the first body's is 1), and the albedo is as
+/// good as the survey's own; the same photo given no body (one calibration assumed) pulls the
+/// shared sky of 10:30 and the albedo away.
+#[test]
+fn a_second_camera_body_gets_its_exposure_factor() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mut image = igi_imaging::read_image(&fixture().join("photos/t1030.exr")).unwrap();
+    image
+        .pixels
+        .iter_mut()
+        .for_each(|p| p.iter_mut().for_each(|c| *c *= 1.3));
+    let b_image = tmp.path().join("t1030-b.exr");
+    igi_imaging::write_exr(&b_image, &image).unwrap();
+    let root = fixture().canonicalize().unwrap();
+    let with_b = |body: &str| {
+        let entry = format!(
+            "\n[[photo]]\nid = \"t1030-b\"\nimage = {:?}\ncamera = \"{}/cameras/t1030.json\"\ntime = \"2026-06-21T10:30:00+02:00\"\n{body}",
+            b_image.display().to_string(),
+            root.display()
+        );
+        move |t: String| {
+            let at = t.find("[[reference]]").unwrap_or(t.len());
+            format!("{}{entry}\n{}", &t[..at], &t[at..])
+        }
+    };
+    let run = |name: &str, body: &str| {
+        let dir = tmp.path().join(name);
+        std::fs::create_dir_all(&dir).unwrap();
+        let survey = edited_survey(&dir, with_b(body));
+        let state = solve(&survey, &dir.join("result"));
+        let rec = record(&state);
+        let factor = |id: &str| {
+            let f = rec.photos.iter().find(|f| f.photo == id).unwrap();
+            f.body_exposure
+        };
+        let m = mae(&pairs(&state), 1.0);
+        (factor("t1030-b"), factor("t0830"), m, rec)
+    };
+    let (k, k0, m, rec) = run("bodies", "body = \"B\"\n");
+    let (k1, _, m1, _) = run("one", "");
+    println!(
+        "second body: exposure factor {k:.4} (true 1.3; first body {k0}), albedo MAE {m:.4?}; as one body: factor {k1}, MAE {m1:.4?}"
+    );
+    assert!((k / 1.3 - 1.0).abs() < 0.01, "{k}");
+    assert_eq!(k0, 1.0);
+    assert_eq!(k1, 1.0);
+    let f = |id: &str| rec.photos.iter().find(|f| f.photo == id).unwrap().clone();
+    assert_eq!(f("t1030").params, f("t1030-b").params, "one sky at 10:30");
+    assert!(m.iter().all(|&e| e < 0.02), "{m:?}");
+    assert!(
+        m.iter().zip(&m1).all(|(a, b)| a < b),
+        "{m:?} against {m1:?}"
+    );
+}
