@@ -1423,6 +1423,7 @@ mod tests {
             stderr: SkyParams::default(),
             pixels: 1,
             relative_rms: 0.0,
+            body_exposure: 1.0,
         };
         let rec = |photos| LightingRecord {
             photos,
