@@ -73,6 +73,8 @@ pub struct Transport {
     normal: Vec<Vec3>,
     /// [`RAYS`] entries per texel: a texel number, `SKY | bin`, or `DARK`.
     rays: Vec<u32>,
+    /// How many texels were taken out of the lookups ([`Self::buried`]).
+    buried: usize,
 }
 
 /// What each pixel of one photograph sees, from [`PIXEL_RAYS`] sub-pixel rays: the texels
@@ -115,6 +117,7 @@ impl Transport {
             origin: Vec::new(),
             normal: Vec::new(),
             rays: Vec::new(),
+            buried: 0,
         };
         for (p, pr) in state.parts.iter().enumerate() {
             let cache = &pr.part.cache;
@@ -127,7 +130,7 @@ impl Transport {
             }
             t.number.push(map);
         }
-        t.bury(state, scene, seed ^ BURIED_SALT);
+        t.buried = t.bury(state, scene, seed ^ BURIED_SALT);
         let mut rays = vec![0u32; t.texel.len() * RAYS];
         rays.par_chunks_mut(RAYS).enumerate().for_each(|(g, out)| {
             let mut rng = Rng::new(seed, g as u64);
@@ -171,6 +174,11 @@ impl Transport {
             }
         }
         buried.iter().filter(|&&b| b).count()
+    }
+
+    /// How many texels lie under another surface and were taken out of the lookups.
+    pub fn buried(&self) -> usize {
+        self.buried
     }
 
     /// Number of texels.
@@ -728,6 +736,11 @@ mod tests {
             }
         }
         assert!(under > 30 && beside > 30, "{under} under, {beside} beside");
+        assert!(
+            t.buried() >= under && t.buried() < under + 40,
+            "{}",
+            t.buried()
+        );
         // the slab's own texels see the sky
         assert!(state.parts[1]
             .part

@@ -374,8 +374,9 @@ impl Bases {
             })
             .collect();
         tracing::info!(
-            "lighting estimation: light transport of {} texels traced in {:.1} s ({:.1} MB, {:.2} % of the rays dark)",
+            "lighting estimation: light transport of {} texels ({} under another surface) traced in {:.1} s ({:.1} MB, {:.2} % of the rays dark)",
             transport.len(),
+            transport.buried(),
             t0.elapsed().as_secs_f64(),
             transport.bytes() as f64 / 1e6,
             100.0 * transport.dark_fraction()
