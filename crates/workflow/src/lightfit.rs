@@ -968,7 +968,8 @@ pub fn iterate(
         }
         let converged = state.report.converged;
         let before = recorded(&state);
-        let (record, renders) = estimate_round(&mut state, photos, e, k + 1, &mut bases)?;
+        let (record, renders) =
+            estimate_round(&mut state, photos, e, k + 1, before.as_ref(), &mut bases)?;
         let moved = before.map_or(f64::INFINITY, |b| light_change(&b, &record));
         write_lighting_files(out, photos, e.sky, &record, &renders)?;
         state.report.lighting = Some(
@@ -1026,10 +1027,7 @@ fn restore_lighting(
     photos: &mut [igi_reflect::Photo],
     sky: &[Option<SkyPhoto>],
 ) -> Result<(), WorkflowError> {
-    let Some(v) = &state.report.lighting else {
-        return Ok(());
-    };
-    let Ok(record) = serde_json::from_value::<LightingRecord>(v.clone()) else {
+    let Some(record) = recorded(state) else {
         return Ok(());
     };
     for (photo, sky) in photos.iter_mut().zip(sky) {
@@ -1041,13 +1039,15 @@ fn restore_lighting(
 }
 
 /// One round of the lighting fit after albedo iteration `round`: every estimated photo's sky
-/// fitted with the albedo fixed, the global scale fixed, the photos' lighting replaced; the
-/// record and each fitted photo's re-rendering (by photo id).
+/// fitted with the albedo fixed, the global scale fixed, the photos' lighting replaced (the
+/// camera bodies' factors start from the `last` round's record); the record and each fitted
+/// photo's re-rendering (by photo id).
 fn estimate_round(
     state: &mut SolveResult,
     photos: &mut [igi_reflect::Photo],
     e: &Estimation,
     round: u32,
+    last: Option<&LightingRecord>,
     bases: &mut Option<Bases>,
 ) -> Result<(LightingRecord, Renders), WorkflowError> {
     let t0 = std::time::Instant::now();
@@ -1071,7 +1071,7 @@ fn estimate_round(
         atlases: &atlases,
         overcast: overcast.as_ref(),
     };
-    let bodies = Bodies::new(e.bodies, e.sky, recorded(state).as_ref(), photos);
+    let bodies = Bodies::new(e.bodies, e.sky, last, photos);
     let passes = if bodies.count() > 1 { BODY_PASSES } else { 1 };
     let (mut fits, mut renders) = (Vec::new(), Vec::new());
     let mut exposure = bodies.start.clone();
