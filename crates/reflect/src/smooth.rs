@@ -12,12 +12,13 @@
 //! is never averaged across). An observation outside that band keeps its own shading. The
 //! proposal, its Monte-Carlo variance (divided by the number averaged) and the residual follow.
 //!
-//! Deterministic: it reads only the observations, in their order.
+//! Deterministic: it reads only the observations, in their order, whatever the thread count.
 
 use crate::parts::Part;
 use crate::record::Obs;
 use glam::Vec3;
 use igi_brdf::luminance;
+use rayon::prelude::*;
 
 /// Largest ratio between a neighbour's shading luminance and the neighbourhood's median.
 pub const MAX_RATIO: f32 = 1.25;
@@ -26,72 +27,140 @@ pub const MAX_DISTANCE_TEXELS: f64 = 2.5;
 /// Smallest cosine between neighbours' normals.
 pub const MIN_NORMAL_DOT: f32 = 0.95;
 
-/// Smooths the shading of `obs` (see the module overview).
-pub(crate) fn smooth_shading(obs: &mut [Obs], parts: &[impl AsRef<Part>]) {
-    let smoothed: Vec<Option<(Vec3, usize)>> = {
-        let index = NeighbourIndex::new(obs);
-        (0..obs.len())
-            .map(|k| index.smoothed(obs, parts, k))
-            .collect()
-    };
-    for (o, s) in obs.iter_mut().zip(smoothed) {
-        if let Some((shading, n)) = s {
-            apply(o, shading, n);
+/// Smooths the shading of `obs` (see the module overview). The observations come photograph
+/// by photograph (each photograph's in one run, as the solver makes them); each run is
+/// smoothed on its own, its observations in parallel.
+pub(crate) fn smooth_shading<P: AsRef<Part> + Sync>(obs: &mut [Obs], parts: &[P]) {
+    let mut start = 0;
+    while start < obs.len() {
+        let photo = obs[start].photo;
+        let len = obs[start..]
+            .iter()
+            .position(|o| o.photo != photo)
+            .unwrap_or(obs.len() - start);
+        let run = &mut obs[start..start + len];
+        let smoothed: Vec<Option<(Vec3, usize)>> = {
+            let index = NeighbourIndex::new(run, parts, DENSE_SLOTS);
+            (0..run.len())
+                .into_par_iter()
+                .map(|k| index.smoothed(run, parts, k))
+                .collect()
+        };
+        for (o, s) in run.iter_mut().zip(smoothed) {
+            if let Some((shading, n)) = s {
+                apply(o, shading, n);
+            }
         }
+        start += len;
+        debug_assert!(obs[start..].iter().all(|o| o.photo != photo));
     }
 }
 
-/// Where each (photograph, part, atlas texel) observation sits in `obs`.
-struct NeighbourIndex {
-    slots: std::collections::HashMap<(u32, u32, u32), usize>,
+/// Where each (part, atlas texel) observation of one photograph sits in its run: a dense
+/// table over the atlases of the parts it sees when they hold at most [`DENSE_SLOTS`] slots
+/// per observation, else a sorted list.
+enum NeighbourIndex {
+    Dense {
+        /// Each part's first slot (`usize::MAX` for a part the photograph does not see).
+        base: Vec<usize>,
+        slots: Vec<u32>,
+    },
+    Sorted(Vec<(u64, u32)>),
 }
 
+/// The dense table's largest size in slots per observation (beyond it, a sorted list).
+const DENSE_SLOTS: usize = 16;
+
 impl NeighbourIndex {
-    fn new(obs: &[Obs]) -> NeighbourIndex {
-        let slots = obs
+    /// The index of one photograph's run, dense when it needs at most `dense_slots` slots per
+    /// observation.
+    fn new<P: AsRef<Part>>(obs: &[Obs], parts: &[P], dense_slots: usize) -> NeighbourIndex {
+        let mut base = vec![usize::MAX; parts.len()];
+        let mut total = 0;
+        for o in obs {
+            let b = &mut base[o.part as usize];
+            if *b == usize::MAX {
+                *b = total;
+                total += parts[o.part as usize].as_ref().resolution().pow(2);
+            }
+        }
+        if total <= dense_slots * obs.len() {
+            let mut slots = vec![u32::MAX; total];
+            for (k, o) in obs.iter().enumerate() {
+                slots[base[o.part as usize] + o.atlas as usize] = k as u32;
+            }
+            return NeighbourIndex::Dense { base, slots };
+        }
+        let mut keys: Vec<(u64, u32)> = obs
             .iter()
             .enumerate()
-            .map(|(k, o)| ((o.photo, o.part, o.atlas), k))
+            .map(|(k, o)| (key(o.part, o.atlas), k as u32))
             .collect();
-        NeighbourIndex { slots }
+        keys.sort_unstable();
+        NeighbourIndex::Sorted(keys)
+    }
+
+    /// The observation of texel `atlas` of `part` in the run, if any.
+    fn get(&self, part: u32, atlas: u32) -> Option<usize> {
+        match self {
+            NeighbourIndex::Dense { base, slots } => {
+                let k = slots[base[part as usize] + atlas as usize];
+                (k != u32::MAX).then_some(k as usize)
+            }
+            NeighbourIndex::Sorted(keys) => {
+                let i = keys
+                    .binary_search_by_key(&key(part, atlas), |&(k, _)| k)
+                    .ok()?;
+                Some(keys[i].1 as usize)
+            }
+        }
     }
 
     /// The mean shading over observation `k`'s admissible neighbourhood and how many were
     /// averaged, or `None` when it keeps its own.
-    fn smoothed(&self, obs: &[Obs], parts: &[impl AsRef<Part>], k: usize) -> Option<(Vec3, usize)> {
+    fn smoothed<P: AsRef<Part>>(
+        &self,
+        obs: &[Obs],
+        parts: &[P],
+        k: usize,
+    ) -> Option<(Vec3, usize)> {
         let o = &obs[k];
+        if o.shading.min_element() <= 0.0 {
+            return None;
+        }
         let part = parts[o.part as usize].as_ref();
         let r = part.resolution() as i64;
         let me = &part.cache.texels[o.texel as usize];
         let reach = (MAX_DISTANCE_TEXELS * part.texel_size) as f32;
         let (x, y) = ((o.atlas as i64) % r, (o.atlas as i64) / r);
-        let mut near: Vec<&Obs> = Vec::with_capacity(9);
-        for dy in -1..=1 {
-            for dx in -1..=1 {
-                let (nx, ny) = (x + dx, y + dy);
-                if nx < 0 || ny < 0 || nx >= r || ny >= r {
-                    continue;
-                }
-                let key = (o.photo, o.part, (ny * r + nx) as u32);
-                let Some(&j) = self.slots.get(&key) else {
-                    continue;
-                };
-                let n = &obs[j];
-                let t = &part.cache.texels[n.texel as usize];
-                if t.position.distance(me.position) <= reach
-                    && t.normal.dot(me.normal) >= MIN_NORMAL_DOT
-                    && n.shading.min_element() > 0.0
-                {
-                    near.push(n);
-                }
+        let mut near = [Vec3::ZERO; 9];
+        let mut n = 0;
+        for (nx, ny) in (-1..=1).flat_map(|dy| (-1..=1).map(move |dx| (x + dx, y + dy))) {
+            if nx < 0 || ny < 0 || nx >= r || ny >= r {
+                continue;
+            }
+            let Some(j) = self.get(o.part, (ny * r + nx) as u32) else {
+                continue;
+            };
+            let t = &part.cache.texels[obs[j].texel as usize];
+            if t.position.distance(me.position) <= reach
+                && t.normal.dot(me.normal) >= MIN_NORMAL_DOT
+                && obs[j].shading.min_element() > 0.0
+            {
+                near[n] = obs[j].shading;
+                n += 1;
             }
         }
-        if near.len() < 2 || o.shading.min_element() <= 0.0 {
+        if n < 2 {
             return None;
         }
-        let mut lums: Vec<f32> = near.iter().map(|n| luminance(n.shading)).collect();
-        let mid = lums.len() / 2;
-        let median = *lums.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1;
+        let mut lums = [0f32; 9];
+        for (l, s) in lums.iter_mut().zip(&near[..n]) {
+            *l = luminance(*s);
+        }
+        let median = *lums[..n]
+            .select_nth_unstable_by(n / 2, |a, b| a.total_cmp(b))
+            .1;
         let within = |s: Vec3| {
             let l = luminance(s);
             l <= MAX_RATIO * median && median <= MAX_RATIO * l
@@ -99,14 +168,17 @@ impl NeighbourIndex {
         if !within(o.shading) {
             return None;
         }
-        let chosen: Vec<Vec3> = near
+        let (sum, count) = near[..n]
             .iter()
-            .map(|n| n.shading)
-            .filter(|s| within(*s))
-            .collect();
-        let sum: Vec3 = chosen.iter().copied().sum();
-        Some((sum / chosen.len() as f32, chosen.len()))
+            .filter(|s| within(**s))
+            .fold((Vec3::ZERO, 0), |(sum, c), s| (sum + *s, c + 1));
+        Some((sum / count as f32, count))
     }
+}
+
+/// A (part, atlas texel) pair as one sortable key.
+fn key(part: u32, atlas: u32) -> u64 {
+    (u64::from(part) << 32) | u64::from(atlas)
 }
 
 /// Observation `o` with its shading replaced by `shading`, a mean over `n` texels.
@@ -210,5 +282,22 @@ mod tests {
             let rho = (o.residual.x + o.pixel.x) / o.shading.x;
             assert!((rho - 0.5).abs() < 1e-4, "{rho}");
         }
+        // the sorted index finds the same neighbours as the dense table
+        let (dense, sorted) = (
+            NeighbourIndex::new(&raw, &parts, DENSE_SLOTS),
+            NeighbourIndex::new(&raw, &parts, 0),
+        );
+        assert!(matches!(dense, NeighbourIndex::Dense { .. }));
+        assert!(matches!(sorted, NeighbourIndex::Sorted(_)));
+        let mut averaged = 0;
+        for k in 0..raw.len() {
+            let (a, b) = (
+                dense.smoothed(&raw, &parts, k),
+                sorted.smoothed(&raw, &parts, k),
+            );
+            assert_eq!(a, b, "observation {k}");
+            averaged += usize::from(a.is_some_and(|(_, n)| n == 9));
+        }
+        assert!(averaged > raw.len() / 2, "{averaged} of {}", raw.len());
     }
 }
