@@ -15,7 +15,7 @@ use crate::weights::{combine, Combined, Proposal};
 use crate::ReflectError;
 use glam::{DVec2, Vec2, Vec3};
 use igi_brdf::{luminance, Basis, LafortuneRef, Lobe};
-use igi_raycast::offset_origin;
+use igi_raycast::{offset_origin, RaySegment};
 use igi_render::sampling::{hash2, Rng};
 use igi_render::{Albedo, Material, PathTracer, RenderOptions, Scene, SurfacePoint, Texture};
 use rayon::prelude::*;
@@ -840,6 +840,8 @@ struct RawObservation {
     weight: f32,
     /// Neither at an occlusion boundary nor at a shadow edge.
     clean: bool,
+    /// At a shadow edge (so its shading stands for no other texel).
+    shadow_edge: bool,
     /// The evaluation albedo the radiance was rendered with.
     rho_eval: Vec3,
     /// The texel's projection (pixels).
@@ -1033,7 +1035,9 @@ impl PhotoPass<'_> {
     }
 
     /// The shading and its standard error per unit albedo of lattice texel number `n`, when
-    /// it can stand for texel `t`: traced, clean, in the same sunlight, the same surface.
+    /// it can stand for texel `t`: traced, not at a shadow edge, in the same sunlight, the same
+    /// surface. (An occlusion boundary in the photograph lowers the weight of a texel's pixel,
+    /// not the trust in its shading, which is traced at the texel itself.)
     fn stands_for(
         &self,
         raw: &[Option<RawObservation>],
@@ -1041,7 +1045,9 @@ impl PhotoPass<'_> {
         t: &TexelRef,
         shadow: &Option<ShadowEdges>,
     ) -> Option<(Vec3, Vec3)> {
-        let c = raw[n as usize].as_ref().filter(|c| c.traced && c.clean)?;
+        let c = raw[n as usize]
+            .as_ref()
+            .filter(|c| c.traced && !c.shadow_edge)?;
         let ct = &self.texels[n as usize];
         let texel_size = self.state.parts[t.part as usize].part.texel_size;
         let same_light = shadow.as_ref().is_none_or(|s| {
@@ -1108,7 +1114,8 @@ impl PhotoPass<'_> {
         } else {
             cos * rules.boundary_factor
         };
-        if shadow.as_ref().is_some_and(|s| s.at(&self.state.parts, t)) {
+        let shadow_edge = shadow.as_ref().is_some_and(|s| s.at(&self.state.parts, t));
+        if shadow_edge {
             weight *= rules.shadow_edge_factor;
             clean = false;
         }
@@ -1128,6 +1135,7 @@ impl PhotoPass<'_> {
             stderr,
             weight,
             clean,
+            shadow_edge,
             rho_eval,
             px: px.as_vec2(),
             deblur_gain: self.deblur_gain(t, cos),
@@ -1152,23 +1160,30 @@ impl PhotoPass<'_> {
     fn on_tangent_plane(&self, t: &TexelRef, n: Vec3, px: DVec2, dist: f32) -> bool {
         let (rules, cam) = (&self.opts.rules, &self.photo.camera);
         let o = rules.boundary_offset_px;
-        [(o, 0.0), (-o, 0.0), (0.0, o), (0.0, -o)]
-            .iter()
-            .all(|&(dx, dy)| {
-                let (ro, rd) = cam.pixel_ray(px.x + dx, px.y + dy);
-                let (ro, rd) = (ro.as_vec3(), rd.as_vec3());
-                let hit = self.scene.intersect(ro, rd);
-                let denom = n.dot(rd);
-                let t_plane = if denom.abs() > 1e-6 {
-                    n.dot(t.position - ro) / denom
-                } else {
-                    f32::INFINITY
-                };
-                hit.is_some_and(|h| {
-                    (h.t - t_plane).abs() <= rules.depth_tolerance * dist
-                        && h.ng.normalize_or_zero().dot(n).abs() >= rules.min_normal_agreement
-                })
+        // the four rays start at the camera a pixel apart: one coherent packet
+        let rays = [(o, 0.0), (-o, 0.0), (0.0, o), (0.0, -o)].map(|(dx, dy)| {
+            let (ro, rd) = cam.pixel_ray(px.x + dx, px.y + dy);
+            RaySegment {
+                origin: ro.as_vec3(),
+                dir: rd.as_vec3(),
+                tnear: 0.0,
+                tfar: f32::INFINITY,
+            }
+        });
+        let mut hits = [None; 4];
+        self.scene.rt().intersect_packet(&rays, true, &mut hits);
+        rays.iter().zip(&hits).all(|(r, hit)| {
+            let denom = n.dot(r.dir);
+            let t_plane = if denom.abs() > 1e-6 {
+                n.dot(t.position - r.origin) / denom
+            } else {
+                f32::INFINITY
+            };
+            hit.is_some_and(|h| {
+                (h.t - t_plane).abs() <= rules.depth_tolerance * dist
+                    && h.ng.normalize_or_zero().dot(n).abs() >= rules.min_normal_agreement
             })
+        })
     }
 
     /// The radiance leaving texel `t` toward the camera (direction `wo`, normal `n` facing
@@ -1252,6 +1267,7 @@ impl PhotoPass<'_> {
             stderr: se,
             weight,
             clean,
+            shadow_edge: _,
             rho_eval,
             px,
             deblur_gain,
