@@ -266,17 +266,98 @@ impl<'a> PathTracer<'a> {
         spp: u32,
         rng: &mut Rng,
     ) -> Estimate {
-        let first = self
-            .stratified
-            .then(|| FirstVertexSamples::new(spp as usize, rng));
         let mut acc = Accumulator::default();
         let mut rays = 0;
-        for j in 0..spp as usize {
-            let given = first.as_ref().map(|f| f.get(j));
-            let v = self.lo_from(sp, wo, first_brdf, given, rng, &mut rays);
-            acc.add(if v.is_finite() { v } else { Vec3::ZERO });
+        if self.stratified {
+            let first = FirstVertexSamples::new(spp as usize, rng);
+            let v = self.vertex(sp, wo, first_brdf);
+            for j0 in (0..spp as usize).step_by(PACKET) {
+                let n = (spp as usize - j0).min(PACKET);
+                let mut l = [Vec3::ZERO; PACKET];
+                self.first_vertex_packet(&v, &first, j0..j0 + n, rng, &mut rays, &mut l);
+                for v in &l[..n] {
+                    acc.add(if v.is_finite() { *v } else { Vec3::ZERO });
+                }
+            }
+        } else {
+            for _ in 0..spp {
+                let v = self.lo_from(sp, wo, first_brdf, None, rng, &mut rays);
+                acc.add(if v.is_finite() { v } else { Vec3::ZERO });
+            }
         }
         acc.estimate()
+    }
+
+    /// The samples `js` of [`Self::lo_estimate`] from their shared first vertex `v`, whose
+    /// numbers are all given: its sun, environment and BSDF rays go to Embree as packets (the
+    /// sun's coherent: one origin, one disk), the paths then go on one by one, in sample order
+    /// (so `rng` is drawn as [`Self::lo_from`] draws it). `out[i]` for sample `js.start + i`.
+    fn first_vertex_packet(
+        &self,
+        v: &Vertex<'_>,
+        first: &FirstVertexSamples,
+        js: std::ops::Range<usize>,
+        rng: &mut Rng,
+        rays: &mut u64,
+        out: &mut [Vec3],
+    ) {
+        let env = self
+            .lighting
+            .environment
+            .as_ref()
+            .filter(|e| e.is_nonzero());
+        let sun = self.lighting.sun.as_ref();
+        let samples = || js.clone().enumerate().map(|(i, j)| (i, first.get(j)));
+        if let Some(sun) = sun {
+            let mut shadow = ShadowRays::new();
+            for (i, f) in samples() {
+                shadow.push(i, v, Vec3::ONE, &sun.sample(f.sun));
+            }
+            shadow.trace(self.scene, true, out, rays);
+        }
+        if let Some(env) = env {
+            let mut shadow = ShadowRays::new();
+            for (i, f) in samples() {
+                if let Some(ls) = env.sample_monotone(f.env) {
+                    if ls.radiance != Vec3::ZERO {
+                        shadow.push(i, v, Vec3::ONE, &ls);
+                    }
+                }
+            }
+            shadow.trace(self.scene, false, out, rays);
+        }
+        let mut next = [NO_RAY; PACKET];
+        let mut path = [(0usize, Vec3::ZERO, 0f32); PACKET];
+        let mut m = 0;
+        for (i, f) in samples() {
+            let Some(bs) = v.brdf.sample(v.wo_l, f.select, f.bsdf) else {
+                continue;
+            };
+            let wi = v.frame.to_world(bs.wi);
+            if !(bs.pdf > 0.0) || wi.dot(v.ng) <= 0.0 || !wi.is_finite() {
+                continue;
+            }
+            let beta = bs.value * (bs.wi.z / bs.pdf);
+            if !beta.is_finite() || beta == Vec3::ZERO {
+                continue;
+            }
+            next[m] = ray_from(v.origin, wi);
+            path[m] = (i, beta, bs.pdf);
+            m += 1;
+        }
+        let mut hits = [None; PACKET];
+        self.scene.rt().intersect_packet(&next[..m], false, &mut hits);
+        *rays += m as u64;
+        for ((ray, &(i, beta, pdf)), hit) in next.iter().zip(&path).zip(&hits).take(m) {
+            match hit {
+                None => out[i] += beta * escaped_mis(sun, env, ray.dir, pdf),
+                Some(h) if self.max_vertices > 1 => {
+                    let sp = self.scene.surface_point(h);
+                    out[i] += self.lo_path(&sp, -ray.dir, beta, 2, None, None, rng, rays);
+                }
+                Some(_) => {}
+            }
+        }
     }
 
     /// Radiance arriving at `origin` along `-dir` (a camera ray). Rays that leave the scene
@@ -329,11 +410,29 @@ impl<'a> PathTracer<'a> {
         rng: &mut Rng,
         rays: &mut u64,
     ) -> Vec3 {
+        self.lo_path(sp, wo, Vec3::ONE, 1, first_brdf, first, rng, rays)
+    }
+
+    /// The radiance a path carries back from its vertex number `vertex` at `sp` (outgoing
+    /// direction `wo`, throughput `beta` so far): [`Self::lo_from`] from any vertex on.
+    /// `first_brdf` and `first` apply at vertex 1 only.
+    #[allow(clippy::too_many_arguments)]
+    fn lo_path(
+        &self,
+        sp: &SurfacePoint,
+        wo: Vec3,
+        beta: Vec3,
+        vertex: u32,
+        first_brdf: Option<LafortuneRef<'_>>,
+        first: Option<FirstVertex>,
+        rng: &mut Rng,
+        rays: &mut u64,
+    ) -> Vec3 {
         let mut l = Vec3::ZERO;
-        let mut beta = Vec3::ONE;
+        let mut beta = beta;
         let mut sp = *sp;
         let mut wo = wo;
-        let mut vertex = 1u32;
+        let mut vertex = vertex;
         let env = self
             .lighting
             .environment
