@@ -7,10 +7,12 @@
 //! light, not of the albedo's detail (the smoothing of `crate::smooth` rests on the same fact),
 //! so the fine iteration, whose albedo comes from the settled coarse stage, needs it only at the
 //! coarse stage's spacing. A texel takes the bilinear blend of the four lattice texels around it
-//! only when every corner with a weight stands for it: a traced estimate, not at an occlusion
-//! boundary or a shadow edge, in the same sunlight, a normal within [`MIN_NORMAL_DOT`] and at
-//! most [`reach`] away (one surface). Otherwise it is traced itself, so shadow edges, creases
-//! and chart borders keep their own estimates.
+//! only when every corner with a weight stands for it: a traced estimate, not at a shadow
+//! edge, in the same sunlight, a normal within [`MIN_NORMAL_DOT`] and at most [`reach`] away
+//! (one surface). Otherwise it is traced itself, so shadow edges, creases and chart borders
+//! keep their own estimates. A corner at an occlusion boundary of the photograph still stands
+//! for its neighbours: the boundary lowers the weight of its pixel, while its shading is traced
+//! at the texel itself like any other.
 
 use crate::parts::Part;
 use glam::Vec3;
