@@ -20,6 +20,7 @@ use igi_render::sampling::{hash2, Rng};
 use igi_render::{Albedo, Material, PathTracer, RenderOptions, Scene, SurfacePoint, Texture};
 use rayon::prelude::*;
 
+use std::sync::Arc;
 use std::time::Instant;
 
 /// Bytes a solve of survey meshes holds per atlas texel besides its observations: the part's
@@ -551,10 +552,12 @@ pub(crate) fn solve_group(
         .iter()
         .map(|&i| (start.parts[i].resolution() as u128).pow(2))
         .sum();
+    let mut suns = SunVisibility::new(&start.parts, &texels);
     for (pi, photo) in inputs.photos.iter().enumerate() {
         if pi > 0 {
             check_observation_memory(atlas_texels, obs.len(), texels.len(), &photo.id, limit)?;
         }
+        let shadow = suns.edges(&scene, &start.parts, photo);
         let pass = PhotoPass {
             scene: &scene,
             photo,
@@ -567,6 +570,7 @@ pub(crate) fn solve_group(
             iteration: k,
             spp,
             shading_step,
+            shadow,
         };
         obs.extend(pass.observe(progress));
     }
@@ -868,50 +872,36 @@ struct PhotoPass<'a> {
     /// Trace every `shading_step`-th texel per atlas row and column and read the rest from them
     /// (`crate::lattice`; 1: trace every texel).
     shading_step: u32,
+    /// The shadow edges under the photograph's sun (`None` without a sun).
+    shadow: Option<ShadowEdges>,
 }
 
 /// Texels whose sun visibility differs from an atlas neighbour's (the shadow-edge rule).
 struct ShadowEdges {
     /// Sun visibility per part and texel (empty for the parts outside the group).
-    visible: Vec<Vec<bool>>,
+    visible: Arc<Vec<Vec<bool>>>,
     /// Atlas index -> texel number per part, for neighbour lookups (empty outside the group).
-    texel_of: Vec<Vec<u32>>,
+    texel_of: Arc<Vec<Vec<u32>>>,
 }
 
-impl ShadowEdges {
-    /// Sun visibility of the texels of the group's parts in `scene` (`None` without a sun).
-    /// Only those parts: a texel's neighbours are in its own part, and tracing the whole site
-    /// for every group made a prepared site's solve grow with the square of its voxels.
-    fn new(pass: &PhotoPass) -> Option<ShadowEdges> {
-        let s = pass.photo.lighting.sun.as_ref()?;
-        let parts = &pass.state.parts;
+/// The sun visibility of a group's texels, traced once per sun direction: photographs taken
+/// under one lighting share it (the large survey's 32 photographs have 4 suns).
+struct SunVisibility {
+    in_group: Vec<bool>,
+    texel_of: Arc<Vec<Vec<u32>>>,
+    /// The latest suns traced, at most [`SUNS_KEPT`].
+    traced: Vec<(Vec3, Arc<Vec<Vec<bool>>>)>,
+}
+
+/// How many suns' visibility a group keeps (a byte per texel each).
+const SUNS_KEPT: usize = 8;
+
+impl SunVisibility {
+    fn new(parts: &[PartResult], texels: &[TexelRef]) -> SunVisibility {
         let mut in_group = vec![false; parts.len()];
-        for t in pass.texels {
+        for t in texels {
             in_group[t.part as usize] = true;
         }
-        let visible = parts
-            .iter()
-            .zip(&in_group)
-            .map(|(p, &g)| {
-                if !g {
-                    return Vec::new();
-                }
-                p.part
-                    .cache
-                    .texels
-                    .par_iter()
-                    .map(|t| {
-                        let n = if t.normal.dot(s.direction) < 0.0 {
-                            -t.normal
-                        } else {
-                            t.normal
-                        };
-                        let o = offset_origin(t.position, n);
-                        !pass.scene.occluded(o, s.direction, f32::INFINITY)
-                    })
-                    .collect()
-            })
-            .collect();
         let texel_of = parts
             .iter()
             .zip(&in_group)
@@ -927,9 +917,62 @@ impl ShadowEdges {
                 m
             })
             .collect();
-        Some(ShadowEdges { visible, texel_of })
+        SunVisibility {
+            in_group,
+            texel_of: Arc::new(texel_of),
+            traced: Vec::new(),
+        }
     }
 
+    /// The shadow edges under `photo`'s sun (`None` without one), traced in `scene` for the
+    /// group's parts only: a texel's neighbours are in its own part, and tracing the whole site
+    /// for every group made a prepared site's solve grow with the square of its voxels.
+    fn edges(&mut self, scene: &Scene, parts: &[PartResult], photo: &Photo) -> Option<ShadowEdges> {
+        let dir = photo.lighting.sun.as_ref()?.direction;
+        let visible = match self.traced.iter().find(|(d, _)| *d == dir) {
+            Some((_, v)) => v.clone(),
+            None => {
+                let v = Arc::new(self.trace(scene, parts, dir));
+                if self.traced.len() == SUNS_KEPT {
+                    self.traced.remove(0);
+                }
+                self.traced.push((dir, v.clone()));
+                v
+            }
+        };
+        Some(ShadowEdges {
+            visible,
+            texel_of: self.texel_of.clone(),
+        })
+    }
+
+    fn trace(&self, scene: &Scene, parts: &[PartResult], dir: Vec3) -> Vec<Vec<bool>> {
+        parts
+            .iter()
+            .zip(&self.in_group)
+            .map(|(p, &g)| {
+                if !g {
+                    return Vec::new();
+                }
+                p.part
+                    .cache
+                    .texels
+                    .par_iter()
+                    .map(|t| {
+                        let n = if t.normal.dot(dir) < 0.0 {
+                            -t.normal
+                        } else {
+                            t.normal
+                        };
+                        !scene.occluded(offset_origin(t.position, n), dir, f32::INFINITY)
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+}
+
+impl ShadowEdges {
     /// Whether texel `t` lies on a shadow edge: a 4-neighbour in the atlas sees the sun
     /// differently.
     fn at(&self, parts: &[PartResult], t: &TexelRef) -> bool {
@@ -956,7 +999,7 @@ impl ShadowEdges {
 impl PhotoPass<'_> {
     /// The observations of every texel of the group in this photograph.
     fn observe(&self, progress: &dyn Progress) -> Vec<Obs> {
-        let shadow = ShadowEdges::new(self);
+        let shadow = &self.shadow;
         let render_opts = RenderOptions {
             spp: self.spp,
             seed: self.opts.seed,
@@ -985,7 +1028,7 @@ impl PhotoPass<'_> {
                         let trace = lattice
                             .as_ref()
                             .is_none_or(|l| l.traced(parts, t.part, t.texel));
-                        self.observe_texel(t, (ci * chunk + j) as u64, &pt, &shadow, trace)
+                        self.observe_texel(t, (ci * chunk + j) as u64, &pt, shadow, trace)
                     })
                     .collect();
                 progress.advance(ch.len() as u64);
@@ -993,7 +1036,7 @@ impl PhotoPass<'_> {
             })
             .collect();
         let raw = match &lattice {
-            Some(l) => self.between_lattice(raw, l, &pt, &shadow),
+            Some(l) => self.between_lattice(raw, l, &pt, shadow),
             None => raw,
         };
         self.proposals(raw)
