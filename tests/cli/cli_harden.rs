@@ -1119,7 +1119,7 @@ fn a_photo_far_brighter_than_its_lighting_is_warned_about_naming_it() {
     }
 }
 
-/// `solve --atlas 16384` reached 20 GB: the atlases are estimated before any work (192 bytes a
+/// `solve --atlas 16384` reached 20 GB: the atlases are estimated before any work (195 bytes a
 /// texel, measured; docs/RELIABILITY.md) and refused above the limit naming `--atlas`, nothing
 /// written; the limit follows `IGI_MAX_MEMORY`, which refuses `--atlas 512` (151 MiB of atlases)
 /// at 128M and lets it through at 512M (its observations take about 260 MB more, checked as they
@@ -1139,12 +1139,15 @@ fn a_solve_whose_atlases_cannot_fit_is_refused_before_any_work() {
         }
     };
     let out = d.path().join("res");
+    // three meshes of 16384^2 texels at the solver's bytes a texel
+    let gib =
+        (3 * 16384u128.pow(2) * igi_reflect::solver::BYTES_PER_TEXEL) as f64 / (1u64 << 30) as f64;
     let o = at("16384", None, &out);
     let e = stderr(&o);
     assert!(
         o.status.code() == Some(1)
             && e.contains("--atlas 16384")
-            && e.contains("144.0 GiB")
+            && e.contains(&format!("{gib:.1} GiB"))
             && e.contains("IGI_MAX_MEMORY"),
         "{e}"
     );

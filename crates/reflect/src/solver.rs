@@ -28,8 +28,9 @@ use std::time::Instant;
 /// the lattice, the shadow edges). Measured as peak resident memory of the fixture survey at
 /// `--atlas 1024` and `2048` with one photograph: 197 bytes a texel between the two; each
 /// further photograph adds its observations (`Obs`, 96 bytes, and a proposal, 28 bytes, per
-/// texel it sees: about 50 bytes a texel per photograph on the fixture) (docs/RELIABILITY.md).
-pub const BYTES_PER_TEXEL: u128 = 192;
+/// texel it sees: about 50 bytes a texel per photograph on the fixture) (docs/RELIABILITY.md);
+/// plus a byte a texel for each further sun whose visibility a group keeps ([`SUNS_KEPT`]).
+pub const BYTES_PER_TEXEL: u128 = 192 + SUNS_KEPT as u128 - 1;
 
 /// The memory estimate of a solve's atlases of `texels` texels in all ([`BYTES_PER_TEXEL`]
 /// each), which a solve refuses before any work above the memory limit.
@@ -885,7 +886,7 @@ struct ShadowEdges {
 }
 
 /// The sun visibility of a group's texels, traced once per sun direction: photographs taken
-/// under one lighting share it (the large survey's 32 photographs have 4 suns).
+/// under one lighting share it (the large survey's 32 photographs have 3 suns).
 struct SunVisibility {
     in_group: Vec<bool>,
     texel_of: Arc<Vec<Vec<u32>>>,
@@ -894,7 +895,7 @@ struct SunVisibility {
 }
 
 /// How many suns' visibility a group keeps (a byte per texel each).
-const SUNS_KEPT: usize = 8;
+const SUNS_KEPT: usize = 4;
 
 impl SunVisibility {
     fn new(parts: &[PartResult], texels: &[TexelRef]) -> SunVisibility {

@@ -346,7 +346,9 @@ impl<'a> PathTracer<'a> {
             m += 1;
         }
         let mut hits = [None; PACKET];
-        self.scene.rt().intersect_packet(&next[..m], false, &mut hits);
+        self.scene
+            .rt()
+            .intersect_packet(&next[..m], false, &mut hits);
         *rays += m as u64;
         for ((ray, &(i, beta, pdf)), hit) in next.iter().zip(&path).zip(&hits).take(m) {
             match hit {
