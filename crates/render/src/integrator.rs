@@ -301,12 +301,7 @@ impl<'a> PathTracer<'a> {
         rays: &mut u64,
         out: &mut [Vec3],
     ) {
-        let env = self
-            .lighting
-            .environment
-            .as_ref()
-            .filter(|e| e.is_nonzero());
-        let sun = self.lighting.sun.as_ref();
+        let (sun, env) = self.lights();
         let samples = || js.clone().enumerate().map(|(i, j)| (i, first.get(j)));
         if let Some(sun) = sun {
             let mut shadow = ShadowRays::new();
@@ -435,12 +430,7 @@ impl<'a> PathTracer<'a> {
         let mut sp = *sp;
         let mut wo = wo;
         let mut vertex = vertex;
-        let env = self
-            .lighting
-            .environment
-            .as_ref()
-            .filter(|e| e.is_nonzero());
-        let sun = self.lighting.sun.as_ref();
+        let (sun, env) = self.lights();
         loop {
             let brdf_override = if vertex == 1 { first_brdf } else { None };
             let v = self.vertex(&sp, wo, brdf_override);
@@ -512,12 +502,7 @@ impl<'a> PathTracer<'a> {
         out: &mut [Vec3],
     ) {
         let rt = self.scene.rt();
-        let env = self
-            .lighting
-            .environment
-            .as_ref()
-            .filter(|e| e.is_nonzero());
-        let sun = self.lighting.sun.as_ref();
+        let (sun, env) = self.lights();
         let mut hits = [None; PACKET];
         rt.intersect_packet(cam, true, &mut hits);
         *rays += cam.len() as u64;
@@ -639,6 +624,17 @@ impl<'a> PathTracer<'a> {
             }
             vertex += 1;
         }
+    }
+
+    /// The sun and the environment, the latter only when it is not black.
+    #[inline]
+    fn lights(&self) -> (Option<&Sun>, Option<&Environment>) {
+        let env = self
+            .lighting
+            .environment
+            .as_ref()
+            .filter(|e| e.is_nonzero());
+        (self.lighting.sun.as_ref(), env)
     }
 
     /// The shading context of a path vertex: two-sided surfaces have their normals oriented
