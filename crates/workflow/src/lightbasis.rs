@@ -223,10 +223,11 @@ impl Transport {
     }
 
     /// The texel that stands for a hit at `uv` of part `part` (`from`: the hit, off the
-    /// surface on the ray's side): the covered texel whose square holds `uv`, else the nearest
-    /// covered one in its 3 x 3, then 5 x 5 window, the first whose centre the hit sees (a
-    /// texel beside a wall's foot may have its centre under the wall, in the dark); the first
-    /// covered one when the hit sees none; `DARK` when none is covered.
+    /// surface on the ray's side): of the covered texels in rings around the one whose square
+    /// holds `uv` (that one, then the ring of its 3 x 3 window, then of its 5 x 5 window, each
+    /// ring in row order, not by distance), the first whose centre the hit sees (a texel beside
+    /// a wall's foot may have its centre under the wall, in the dark); the first covered one
+    /// when the hit sees none; `DARK` when none is covered.
     fn texel_at_hit(&self, scene: &Scene, part: usize, uv: Vec2, from: Vec3) -> u32 {
         let Some(map) = self.number.get(part) else {
             return DARK;
