@@ -61,8 +61,9 @@ impl HdrImage {
         if x < 0.0 || y < 0.0 || x > (self.width - 1) as f32 || y > (self.height - 1) as f32 {
             return None;
         }
-        let x0 = (x.floor() as usize).min(self.width - 1);
-        let y0 = (y.floor() as usize).min(self.height - 1);
+        // x, y >= 0 here: truncation is floor, without a libm call
+        let x0 = (x as usize).min(self.width - 1);
+        let y0 = (y as usize).min(self.height - 1);
         let fx = x - x0 as f32;
         let fy = y - y0 as f32;
         let mut out = [0.0f32; 3];

@@ -895,7 +895,7 @@ struct SunVisibility {
 }
 
 /// How many suns' visibility a group keeps (a byte per texel each).
-const SUNS_KEPT: usize = 4;
+pub const SUNS_KEPT: usize = 4;
 
 impl SunVisibility {
     fn new(parts: &[PartResult], texels: &[TexelRef]) -> SunVisibility {

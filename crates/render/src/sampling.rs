@@ -94,10 +94,11 @@ fn radical_inverse_2(i: u32) -> f32 {
     (i.reverse_bits() >> 8) as f32 * (1.0 / 16_777_216.0)
 }
 
-/// `x` modulo 1, kept below 1.
+/// `x` in [0, 2) (a point plus a shift, both in [0, 1)) modulo 1, kept below 1.
 #[inline]
 fn wrap_unit(x: f32) -> f32 {
-    let f = x - x.floor();
+    debug_assert!((0.0..2.0).contains(&x), "{x}");
+    let f = if x >= 1.0 { x - 1.0 } else { x };
     if f < 1.0 {
         f
     } else {
