@@ -1,6 +1,7 @@
 //! The path tracer: next-event estimation toward the sun and the environment with MIS (power
 //! heuristic) against BSDF sampling, `K` indirect bounces after direct lighting, optional
-//! Russian roulette, rayon over tiles / query points, one PCG stream per pixel or query.
+//! Russian roulette, rayon over rows / query points, one PCG stream per pixel (per group of
+//! pixels that share packets, when a pixel has fewer samples than a packet) or query.
 //!
 //! Path length convention (Mitsuba's `max_depth = K + 2`): the camera ray hits vertex x1; each
 //! of x1 .. x_{K+1} gets direct light (a sun sample, an environment sample, and the BSDF-sampled
@@ -824,55 +825,77 @@ fn render_pixel(
     y: usize,
     counts: &mut Counts,
 ) -> (Estimate, u64) {
-    let mut rng = Rng::new(opts.seed, (y * camera.width() as usize + x) as u64);
-    let mut acc = Accumulator::default();
-    let spp = spp as usize;
-    let (mut rays, mut bad) = (0u64, 0u64);
-    let strata = opts.stratified.then(|| {
-        let jitter = shifted_hammersley(spp, &mut rng);
-        (jitter, FirstVertexSamples::new(spp, &mut rng))
-    });
-    let mut j0 = 0;
-    while j0 < spp {
-        let len = (spp - j0).min(PACKET);
+    let rays_before = counts.rays;
+    let e = render_pixels(pt, camera, opts, y, &[(x, spp)], counts)[0];
+    (e, counts.rays - rays_before)
+}
+
+/// The estimates of neighbouring pixels `(x, spp)` of row `y`, their samples traced together
+/// in full packets of [`PACKET`] (a 4-spp pixel alone fills half of one), on the stream of the
+/// first pixel: each pixel's strata are drawn in pixel order, then its jitters and paths
+/// packet by packet. One pixel alone is [`render_pixel`]. Rays and samples go to `counts`.
+fn render_pixels(
+    pt: &PathTracer,
+    camera: &PixelRays,
+    opts: &RenderOptions,
+    y: usize,
+    pixels: &[(usize, u32)],
+    counts: &mut Counts,
+) -> Vec<Estimate> {
+    let mut rng = Rng::new(
+        opts.seed,
+        (y * camera.width() as usize + pixels[0].0) as u64,
+    );
+    let strata: Vec<_> = pixels
+        .iter()
+        .map(|&(_, spp)| {
+            opts.stratified.then(|| {
+                let jitter = shifted_hammersley(spp as usize, &mut rng);
+                (jitter, FirstVertexSamples::new(spp as usize, &mut rng))
+            })
+        })
+        .collect();
+    let mut accs = vec![Accumulator::default(); pixels.len()];
+    let mut samples = pixels
+        .iter()
+        .enumerate()
+        .flat_map(|(k, &(_, spp))| (0..spp as usize).map(move |j| (k, j)))
+        .peekable();
+    while samples.peek().is_some() {
         let mut cam = [NO_RAY; PACKET];
         let mut first = [None; PACKET];
-        let mut valid = [false; PACKET];
-        let mut n = 0;
-        for j in j0..j0 + len {
-            let (jitter, f) = match &strata {
+        // each sample of the packet: its pixel, and its lane when its camera ray is valid
+        let mut slots = [(0usize, None::<usize>); PACKET];
+        let (mut n, mut len) = (0, 0);
+        for (k, j) in samples.by_ref().take(PACKET) {
+            let (jitter, f) = match &strata[k] {
                 Some((jitter, first)) => (jitter[j], Some(first.get(j))),
                 None => (rng.uniform2(), None),
             };
-            let (o, d) = camera.ray(x as f32 - 0.5 + jitter.x, y as f32 - 0.5 + jitter.y);
+            let x = pixels[k].0 as f32;
+            let (o, d) = camera.ray(x - 0.5 + jitter.x, y as f32 - 0.5 + jitter.y);
+            slots[len] = (k, None);
             if o.is_finite() && d.is_finite() && d != Vec3::ZERO {
                 cam[n] = ray_from(o, d);
                 first[n] = f;
-                valid[j - j0] = true;
+                slots[len].1 = Some(n);
                 n += 1;
             }
+            len += 1;
         }
         let mut li = [Vec3::ZERO; PACKET];
-        pt.li_packet(&cam[..n], &first[..n], &mut rng, &mut rays, &mut li);
-        let mut traced = li[..n].iter();
-        for &ok in &valid[..len] {
-            let mut v = if ok {
-                *traced.next().unwrap_or(&Vec3::ZERO)
-            } else {
-                Vec3::ZERO
-            };
+        pt.li_packet(&cam[..n], &first[..n], &mut rng, &mut counts.rays, &mut li);
+        for &(k, lane) in &slots[..len] {
+            let mut v = lane.map_or(Vec3::ZERO, |i| li[i]);
             if !v.is_finite() {
-                bad += 1;
+                counts.bad += 1;
                 v = Vec3::ZERO;
             }
-            acc.add(v);
+            accs[k].add(v);
         }
-        j0 += len;
     }
-    counts.rays += rays;
-    counts.bad += bad;
-    counts.samples += spp as u64;
-    (acc.estimate(), rays)
+    counts.samples += pixels.iter().map(|&(_, spp)| spp as u64).sum::<u64>();
+    accs.iter().map(Accumulator::estimate).collect()
 }
 
 /// What an adaptive render's pilot ([`crate::adaptive`]) measures, on the stream
@@ -1024,11 +1047,16 @@ fn trace_image(
             let mut mean_row = Vec::with_capacity(w);
             let mut se_row = Vec::with_capacity(w);
             let mut row_counts = Counts::default();
-            for x in 0..w {
-                let spp = counts.map_or(opts.spp, |c| c[y * w + x]);
-                let (e, _) = render_pixel(pt, &rays, opts, spp, x, y, &mut row_counts);
-                mean_row.push(e.mean.to_array());
-                se_row.push(e.stderr.to_array());
+            // pixels of fewer samples than a packet share packets
+            let group = (PACKET / opts.spp.max(1) as usize).max(1);
+            let pixels: Vec<(usize, u32)> = (0..w)
+                .map(|x| (x, counts.map_or(opts.spp, |c| c[y * w + x])))
+                .collect();
+            for g in pixels.chunks(group) {
+                for e in render_pixels(pt, &rays, opts, y, g, &mut row_counts) {
+                    mean_row.push(e.mean.to_array());
+                    se_row.push(e.stderr.to_array());
+                }
             }
             row_counts.flush(stats);
             progress(1);
