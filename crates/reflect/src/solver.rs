@@ -889,7 +889,8 @@ struct ShadowEdges {
 /// under one lighting share it (the large survey's 32 photographs have 3 suns).
 struct SunVisibility {
     in_group: Vec<bool>,
-    texel_of: Arc<Vec<Vec<u32>>>,
+    /// [`ShadowEdges::texel_of`], made for the first sun (never without one).
+    texel_of: Option<Arc<Vec<Vec<u32>>>>,
     /// The latest suns traced, at most [`SUNS_KEPT`].
     traced: Vec<(Vec3, Arc<Vec<Vec<bool>>>)>,
 }
@@ -903,9 +904,18 @@ impl SunVisibility {
         for t in texels {
             in_group[t.part as usize] = true;
         }
-        let texel_of = parts
+        SunVisibility {
+            in_group,
+            texel_of: None,
+            traced: Vec::new(),
+        }
+    }
+
+    /// Atlas index -> texel number for each part of the group.
+    fn atlas_texels(&self, parts: &[PartResult]) -> Vec<Vec<u32>> {
+        parts
             .iter()
-            .zip(&in_group)
+            .zip(&self.in_group)
             .map(|(p, &g)| {
                 if !g {
                     return Vec::new();
@@ -917,12 +927,7 @@ impl SunVisibility {
                 }
                 m
             })
-            .collect();
-        SunVisibility {
-            in_group,
-            texel_of: Arc::new(texel_of),
-            traced: Vec::new(),
-        }
+            .collect()
     }
 
     /// The shadow edges under `photo`'s sun (`None` without one), traced in `scene` for the
@@ -941,10 +946,14 @@ impl SunVisibility {
                 v
             }
         };
-        Some(ShadowEdges {
-            visible,
-            texel_of: self.texel_of.clone(),
-        })
+        let texel_of = match &self.texel_of {
+            Some(m) => m.clone(),
+            None => {
+                let m = Arc::new(self.atlas_texels(parts));
+                self.texel_of.insert(m).clone()
+            }
+        };
+        Some(ShadowEdges { visible, texel_of })
     }
 
     fn trace(&self, scene: &Scene, parts: &[PartResult], dir: Vec3) -> Vec<Vec<bool>> {
