@@ -6,8 +6,9 @@
 #         bindings with libclang), Slurm and munge (tests/cli/cli_cluster.rs runs a one-node
 #         loopback cluster, scripts/slurm-loopback.sh), Debian's chromium (tests/cli/cli_view.rs
 #         opens `igi view` headless, WebGL through SwiftShader), Mitsuba 3.9.1 (the gloss test
-#         of crates/lightfield renders its 20 MB capture with datasets/mitsuba/slf_gloss.py
-#         rather than committing it), everything the test command builds and runs
+#         of crates/lightfield renders its 20 MB capture with datasets/mitsuba/slf_gloss.py,
+#         the straws test of crates/opacity-hull its 141 MB one with hull_straws.py, rather
+#         than committing them), everything the test command builds and runs
 #   mitsuba: what regenerating the reference data of datasets/mitsuba/ needs (never igi
 #         itself): Mitsuba 3.9.1 for python3 and Debian's libllvm19 for its llvm_ad_rgb
 #         variant (the scripts find libLLVM-19.so with `dpkg -L libllvm19`)

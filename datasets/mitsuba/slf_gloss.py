@@ -67,10 +67,10 @@ def read_ply_ascii(path):
     return pos, np.array(faces, dtype=np.int64)
 
 
-def bunny():
-    """bun_zipper_res3 as crates/lightfield/tests/integration/common does it: centred, 1 unit
+def bunny(path=BUNNY):
+    """bun_zipper_res3 (or the mesh at `path`) as crates/lightfield/tests/integration/common does it: centred, 1 unit
     tall (its Y extent), Y up -> Z up, (x, y, z) -> (x, -z, y); area-weighted vertex normals."""
-    pos, tris = read_ply_ascii(BUNNY)
+    pos, tris = read_ply_ascii(path)
     lo, hi = pos.min(0), pos.max(0)
     c, s = (lo + hi) / 2, 1.0 / (hi[1] - lo[1])
     p = (pos - c) * s

@@ -85,15 +85,22 @@ fn pixel_of(view: &View, p: DVec3) -> Option<(usize, usize)> {
 /// Band views that carve a cell whatever the views that see it as object.
 pub const BAND_AGREEMENT: usize = 2;
 
-/// Carve the cells that [`carve`] kept where the views that see the cell as background inside
-/// their frame bands ([`View::is_band_background`]) are at least one, and at least
-/// [`BAND_AGREEMENT`] or as many as the views that see it inside their silhouettes; such a cell
-/// records the first of them.
-/// Frame-band evidence is weak, not absent: where the object runs out of the frame, a surface
-/// in shadow can read like the backdrop in one view (the dino's foot, which the other views see
-/// as object: kept); where the band is the only view of a cell, or the band views outnumber
-/// the object views, the cell is empty space the band would otherwise leave as phantom volume
-/// (thin parts running out of every frame). Returns the cells carved.
+/// Marker for a cell carved because no view sees it as object (see [`carve_band_votes`]).
+pub const UNSEEN: ViewIndex = KEPT - 1;
+
+/// Weigh the evidence [`carve`] left aside, for the cells it kept:
+/// - Frame-band background ([`View::is_band_background`]) is weak evidence, not absent: where
+///   the object runs out of the frame, a surface in shadow can read like the backdrop in one
+///   view (the dino's foot, which the other views see as object: kept). A cell is carved when
+///   the views that see it as band background are at least one, and at least
+///   [`BAND_AGREEMENT`] or as many as the views that see it inside their silhouettes; it
+///   records the first of them.
+/// - A cell that no view sees inside its silhouette has nothing for it: outside every frame,
+///   or only in bands and invalid mattes. It is carved and records [`UNSEEN`]. Without this,
+///   space beside thin parts that run out of the frames, and space outside every input frame
+///   that a new view sees, would stay as phantom volume.
+///
+/// Returns the cells carved.
 pub fn carve_band_votes(grid: &CellGrid, views: &[&View], carver: &mut [ViewIndex]) -> usize {
     let dims = grid.dims;
     carver
@@ -122,6 +129,10 @@ pub fn carve_band_votes(grid: &CellGrid, views: &[&View], carver: &mut [ViewInde
             match first {
                 Some(v) if background >= object.min(BAND_AGREEMENT) => {
                     *c = v as ViewIndex;
+                    1
+                }
+                _ if object == 0 => {
+                    *c = UNSEEN;
                     1
                 }
                 _ => 0,
@@ -307,9 +318,13 @@ fn carve_range(
     }
 }
 
-/// Cells kept after the first `k` views: those whose first carving view is `>= k`.
+/// Cells kept after the first `k` views: those whose first carving view is `>= k` (a cell no
+/// view sees as object, [`UNSEEN`], is never volume).
 pub fn volume_after(carver: &[ViewIndex], k: usize) -> usize {
-    carver.iter().filter(|&&v| v as usize >= k).count()
+    carver
+        .iter()
+        .filter(|&&v| v != UNSEEN && v as usize >= k)
+        .count()
 }
 
 /// Per cell, the bit set of every view that carves its centre (direct test, no early out):

@@ -1,7 +1,9 @@
 //! The visual hull of a set of views: carving, the surface mesh, reprojection checks, and the
 //! volume against the number of views.
 
-use crate::carve::{carve, carve_band_votes, carve_sets, CellGrid, ViewIndex, KEPT, MAX_VIEWS};
+use crate::carve::{
+    carve, carve_band_votes, carve_sets, CellGrid, ViewIndex, KEPT, MAX_VIEWS, UNSEEN,
+};
 use crate::raster::{iou_over, rasterize_depth, uncovered_fraction};
 use crate::views::View;
 use crate::HullError;
@@ -15,7 +17,8 @@ use std::path::Path;
 #[derive(Clone, Debug)]
 pub struct VisualHull {
     pub grid: CellGrid,
-    /// Per cell, the index (into the views given) of the first view that carves it, or [`KEPT`].
+    /// Per cell, the index (into the views given) of the first view that carves it, [`KEPT`],
+    /// or [`UNSEEN`] (carved because no view sees it as object).
     pub carver: Vec<ViewIndex>,
     pub mesh: TriMesh,
 }
@@ -56,14 +59,15 @@ pub fn carve_hull(
     }
     let grid = CellGrid::new(min, max, resolution);
     let mut carver = carve(&grid, views);
-    if std::env::var_os("IGI_NO_VOTES").is_none() {
-        carve_band_votes(&grid, views, &mut carver);
-    }
+    carve_band_votes(&grid, views, &mut carver);
     if !carver.contains(&KEPT) {
-        let last = carver.iter().copied().max().unwrap_or(0) as usize;
+        let last = carver.iter().copied().filter(|&v| v != UNSEEN).max();
         return Err(HullError::CarvedEmpty {
             rig: rig.to_path_buf(),
-            view: views[last].id.clone(),
+            view: last.map_or_else(
+                || "none (no view sees any cell of the box as object)".to_string(),
+                |v| views[v as usize].id.clone(),
+            ),
         });
     }
     let mesh = occupancy_mesh(&grid, &carver)?;

@@ -4,6 +4,8 @@
 //!   checkout). A test that needs it **fails** with the reason when it is missing; it never
 //!   passes silently.
 //! - [`Cli`]: runs the `igi` binary (`Cli::new(env!("CARGO_BIN_EXE_igi"))`) with `--quiet`.
+//! - [`mitsuba_capture`]: a capture that a `datasets/mitsuba` script renders into the target
+//!   folder, once per version of the script.
 //! - [`assert_failed`]: a command failed, its stderr names the file and the problem, and the
 //!   folder holds nothing it should not (no half-written output, no temporary file).
 
@@ -37,6 +39,50 @@ pub fn fixture(rel: &str) -> PathBuf {
     let p = repo_root().join("datasets/fixtures").join(rel);
     assert!(p.exists(), "fixture missing: {}", p.display());
     p
+}
+
+/// The folder a Mitsuba 3 script of `datasets/mitsuba` writes a capture into: `$ENV_VAR` when
+/// set (a capture the script wrote), else `target/NAME`, rendered by `python3 SCRIPT --out` when
+/// missing or made by another version of the script (its hash is kept in `script.stamp`, written
+/// after the script succeeds). Without Python's `mitsuba` it panics and says so. Call it once per
+/// test binary (from a `OnceLock`): two renders into one folder would collide.
+pub fn mitsuba_capture(script: &str, name: &str, env_var: &str) -> PathBuf {
+    if let Some(d) = std::env::var_os(env_var) {
+        return PathBuf::from(d);
+    }
+    let root = repo_root();
+    let text = std::fs::read(root.join(script))
+        .unwrap_or_else(|e| panic!("reading the capture script {script}: {e}"));
+    let stamp = format!("{:016x}", fnv1a(&text));
+    let target = std::env::var_os("CARGO_TARGET_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| root.join("target"));
+    let dir = target.join(name);
+    let done = dir.join("script.stamp");
+    if std::fs::read_to_string(&done).ok().as_deref() == Some(stamp.as_str()) {
+        return dir;
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    let out = Command::new("python3")
+        .arg(root.join(script))
+        .arg("--out")
+        .arg(&dir)
+        .output()
+        .unwrap_or_else(|e| panic!("running python3 {script} (needs Python 3 and the mitsuba package, `bash scripts/deps.sh mitsuba`): {e}"));
+    assert!(
+        out.status.success(),
+        "python3 {script} failed (it needs the mitsuba package: `bash scripts/deps.sh mitsuba`):\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    std::fs::write(&done, &stamp).unwrap_or_else(|e| panic!("writing {}: {e}", done.display()));
+    dir
+}
+
+/// FNV-1a, 64 bits: a script's version stamp.
+fn fnv1a(b: &[u8]) -> u64 {
+    b.iter().fold(0xcbf29ce484222325u64, |h, x| {
+        (h ^ *x as u64).wrapping_mul(0x100000001b3)
+    })
 }
 
 /// The `igi` binary of the test run.

@@ -11,51 +11,14 @@ use igi_lightfield::{
     prepare_rig, BuildOptions, GridOptions, Method, RenderSlfOptions, RigPrepared,
 };
 use std::path::PathBuf;
-use std::process::Command;
 use std::sync::OnceLock;
 
 const SCRIPT: &str = "datasets/mitsuba/slf_gloss.py";
 
-fn target_dir() -> PathBuf {
-    std::env::var_os("CARGO_TARGET_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| igi_testkit::repo_root().join("target"))
-}
-
 /// The capture folder: `$IGI_SLF_GLOSS_DIR` when set (a capture the script wrote), else the
 /// target folder's, rendered by the script when missing or made by another version of it.
 fn capture() -> PathBuf {
-    if let Some(d) = std::env::var_os("IGI_SLF_GLOSS_DIR") {
-        return PathBuf::from(d);
-    }
-    let root = igi_testkit::repo_root();
-    let script = std::fs::read(root.join(SCRIPT)).expect("the capture script");
-    let stamp = format!("{:016x}", fnv1a(&script));
-    let dir = target_dir().join("slf_gloss");
-    let done = dir.join("script.stamp");
-    if std::fs::read_to_string(&done).ok().as_deref() == Some(stamp.as_str()) {
-        return dir;
-    }
-    let _ = std::fs::remove_dir_all(&dir);
-    let out = Command::new("python3")
-        .arg(root.join(SCRIPT))
-        .arg("--out")
-        .arg(&dir)
-        .output()
-        .unwrap_or_else(|e| panic!("running python3 {SCRIPT} (needs Python 3 and the mitsuba package, `bash scripts/deps.sh mitsuba`): {e}"));
-    assert!(
-        out.status.success(),
-        "python3 {SCRIPT} failed (it needs the mitsuba package: `bash scripts/deps.sh mitsuba`):\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    std::fs::write(&done, &stamp).unwrap();
-    dir
-}
-
-fn fnv1a(b: &[u8]) -> u64 {
-    b.iter().fold(0xcbf29ce484222325u64, |h, x| {
-        (h ^ *x as u64).wrapping_mul(0x100000001b3)
-    })
+    igi_testkit::mitsuba_capture(SCRIPT, "slf_gloss", "IGI_SLF_GLOSS_DIR")
 }
 
 struct Gloss {

@@ -3,6 +3,7 @@
 //! binary instead of one per file.
 
 mod middlebury;
+mod mitsuba_straws;
 mod paper_rig;
 mod relight;
 mod synthetic_matting;

@@ -9,7 +9,7 @@ use glam::DVec3;
 use igi_camera::Camera;
 use igi_imaging::{HdrImage, Mask};
 use igi_opacity_hull::backdrop::Matte;
-use igi_opacity_hull::carve::{carve, carve_band_votes, CellGrid, KEPT};
+use igi_opacity_hull::carve::{carve, carve_band_votes, CellGrid, KEPT, UNSEEN};
 use igi_opacity_hull::hull::carve_hull;
 use igi_opacity_hull::raster::{iou_over, rasterize_depth};
 use igi_opacity_hull::views::{without_frame_band, View};
@@ -166,12 +166,38 @@ fn thin_parts_leaving_the_frame_leave_no_phantom_volume() {
     let band_alone = phantom_cells(&grid, &carver, &refs);
     let agreed = carve_band_votes(&grid, &refs, &mut carver);
     let with_agreement = phantom_cells(&grid, &carver, &refs);
+    // What no view sees inside its silhouette is carved (outside every frame, above the frames'
+    // tops), and nothing kept lacks such a view.
+    let unseen = carver.iter().filter(|&&c| c == UNSEEN).count();
+    assert!(
+        unseen > 0,
+        "no cell was carved for want of a view seeing it"
+    );
+    let unsupported = (0..grid.len())
+        .filter(|&i| carver[i] == KEPT)
+        .filter(|&i| {
+            let d = grid.dims;
+            let p = grid.center([i % d[0], (i / d[0]) % d[1], i / (d[0] * d[1])]);
+            !refs.iter().any(|v| {
+                v.camera.project(p).is_some_and(|q| {
+                    let (x, y) = (q.x.round(), q.y.round());
+                    x >= 0.0
+                        && y >= 0.0
+                        && x < 320.0
+                        && y < 240.0
+                        && v.silhouette.get(x as usize, y as usize)
+                })
+            })
+        })
+        .count();
+    assert_eq!(unsupported, 0, "kept cells that no view sees as object");
     let unbanded = capture(0);
     let refs0: Vec<&View> = unbanded.iter().collect();
     let no_band = phantom_cells(&grid, &carve(&grid, &refs0), &refs0);
     println!(
         "phantom cells: band alone {band_alone}, band with votes {with_agreement} \
-         ({agreed} carved by the band votes), no band {no_band}"
+         ({agreed} carved by the votes, {unseen} of them seen as object by no view), \
+         no band {no_band}"
     );
     assert!(
         band_alone > 20 * no_band.max(1),
