@@ -26,6 +26,11 @@ use igi_imaging::{read_image, HdrImage};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+/// The surfels' splat radius, in the largest edge of a carving cell. The paper's one cell
+/// widened every thin part and every rim by about a pixel; 0.7 is the smallest that keeps the
+/// dino's surfaces closed (0.6 opens holes; docs/OPACITY_HULL.md, "Splat radius").
+pub const SPLAT_RADIUS: f64 = 0.7;
+
 /// Build options.
 #[derive(Clone, Copy, Debug)]
 pub struct BuildOptions {
@@ -145,7 +150,7 @@ pub fn build(
     lap(&mut t.carve_s);
     progress(Stage::Surfels);
     let cell = hull.grid.cell_size().max_element();
-    let surfels = make_surfels(&hull.mesh, cell as f32, 1.5 * cell, &views);
+    let surfels = make_surfels(&hull.mesh, (SPLAT_RADIUS * cell) as f32, 1.5 * cell, &views);
     lap(&mut t.surfels_s);
     progress(Stage::Reproject);
     let reps: Vec<Reprojection> = views.iter().map(|v| reproject(&hull.mesh, v)).collect();

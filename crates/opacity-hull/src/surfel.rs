@@ -1,5 +1,6 @@
 //! Surfels by resampling the hull: the vertices of the hull's surface mesh (spaced about one
-//! carving cell apart) with their normals, a splat radius of one cell, per-view visibility
+//! carving cell apart) with their normals, a splat radius (the build's
+//! [`crate::build::SPLAT_RADIUS`] cells), per-view visibility
 //! (facing the camera, inside the frame, not behind the hull in the view's depth buffer) and
 //! per-view opacity (the view's matte at the surfel's projection, Matusik et al. 2002 Sec. 4).
 
