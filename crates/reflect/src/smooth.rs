@@ -29,11 +29,17 @@ pub const MIN_NORMAL_DOT: f32 = 0.95;
 
 /// Smooths the shading of `obs` (see the module overview). The observations come photograph
 /// by photograph (each photograph's in one run, as the solver makes them); each run is
-/// smoothed on its own, its observations in parallel.
+/// smoothed on its own, its observations in parallel. A photograph whose observations come
+/// in two runs is a programming error (its runs would be smoothed apart): it panics.
 pub(crate) fn smooth_shading<P: AsRef<Part> + Sync>(obs: &mut [Obs], parts: &[P]) {
     let mut start = 0;
+    let mut done = std::collections::BTreeSet::new();
     while start < obs.len() {
         let photo = obs[start].photo;
+        assert!(
+            done.insert(photo),
+            "smooth_shading: photograph {photo}'s observations are not contiguous"
+        );
         let len = obs[start..]
             .iter()
             .position(|o| o.photo != photo)
@@ -52,7 +58,6 @@ pub(crate) fn smooth_shading<P: AsRef<Part> + Sync>(obs: &mut [Obs], parts: &[P]
             }
         }
         start += len;
-        debug_assert!(obs[start..].iter().all(|o| o.photo != photo));
     }
 }
 
@@ -282,6 +287,14 @@ mod tests {
             let rho = (o.residual.x + o.pixel.x) / o.shading.x;
             assert!((rho - 0.5).abs() < 1e-4, "{rho}");
         }
+        // a photograph's observations in two runs are refused, not smoothed apart
+        let mut split = before.clone();
+        let n = split.len();
+        split[n / 3..2 * n / 3].iter_mut().for_each(|o| o.photo = 1);
+        let refused = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            smooth_shading(&mut split, &parts)
+        }));
+        assert!(refused.is_err(), "photograph 0 in two runs was smoothed");
         // the sorted index finds the same neighbours as the dense table
         let (dense, sorted) = (
             NeighbourIndex::new(&raw, &parts, DENSE_SLOTS),
