@@ -12,6 +12,14 @@
 //! nearest depth per pixel, a second pass averages, with weights `1 - (d / r)^2`, the surfels
 //! within a depth tolerance of it. Both passes are sums and minima, so the image does not depend
 //! on the order of the surfels. Output: RGB premultiplied by alpha, and alpha.
+//!
+//! Coverage: each surfel stands for an area of the hull ([`Surfels::area`]); its kernel, scaled
+//! to sum to that area's projection in pixels over the pixel centres it reaches, adds the share
+//! of each pixel it covers. Where nothing lies behind the nearest surface, a pixel whose shares
+//! sum below [`FULL_COVER`] is covered only in part: the alpha is scaled by the sum over
+//! [`FULL_COVER`]. So a splat reaching past the hull's rim, or past a thin part, adds a little
+//! of itself there, not its whole alpha. Where a farther surface lies behind (an edge inside the
+//! silhouette), the pixel stays covered: one layer cannot show what is behind it.
 
 use crate::surfel::Surfels;
 use glam::{DVec3, Vec3};
@@ -149,7 +157,15 @@ struct Splat {
     r: f32,
     color: Vec3,
     alpha: f32,
+    /// The surfel's projected area over its kernel's integral (`pi r^2 / 2` pixels): a pixel's
+    /// sum of kernel weight times `cover` is the share of it the surface covers.
+    cover: f32,
 }
+
+/// The summed coverage at which a pixel counts as fully covered. Inside a surface the sums
+/// scatter about 1 (the dino: 10 % of pixels below 0.76, 10 % above 1.35), so a pixel is
+/// partly covered only well below that (docs/OPACITY_HULL.md, "Splat coverage").
+pub const FULL_COVER: f32 = 0.5;
 
 /// Render the model from `camera`: (premultiplied colour, alpha).
 pub fn render(model: &HullModel, camera: &Camera, opts: RenderOptions) -> (HdrImage, Vec<f32>) {
@@ -185,6 +201,14 @@ pub fn render(model: &HullModel, camera: &Camera, opts: RenderOptions) -> (HdrIm
                 alpha += s.opacity[i * nv + v] * wt as f32;
             }
             let r = (s.radius[i] * fx / z as f32).max(opts.min_radius_px);
+            let cover = match s.area.get(i) {
+                Some(&a) => {
+                    let cos = n.dot((target - p).normalize()).abs() as f32;
+                    let px_per_m = fx / z as f32;
+                    a * cos * px_per_m * px_per_m / kernel_sum(px.x as f32, px.y as f32, r)
+                }
+                None => f32::INFINITY,
+            };
             Some(Splat {
                 x: px.x as f32,
                 y: px.y as f32,
@@ -192,6 +216,7 @@ pub fn render(model: &HullModel, camera: &Camera, opts: RenderOptions) -> (HdrIm
                 r,
                 color,
                 alpha,
+                cover,
             })
         })
         .collect();
@@ -202,6 +227,24 @@ pub fn render(model: &HullModel, camera: &Camera, opts: RenderOptions) -> (HdrIm
         opts.depth_tolerance,
         &s.radius,
     )
+}
+
+/// The splat kernel `1 - (d / r)^2 + 1e-3` summed over the pixel centres within `r` of
+/// (x, y) (as the band passes weigh them, the image's edges aside), at least the kernel's
+/// integral's share of one pixel.
+fn kernel_sum(x: f32, y: f32, r: f32) -> f32 {
+    let r = r.min(32.0);
+    let mut sum = 0.0;
+    for py in (y - r).ceil() as i64..=(y + r).floor() as i64 {
+        let dy2 = (py as f32 - y).powi(2);
+        for px in (x - r).ceil() as i64..=(x + r).floor() as i64 {
+            let d2 = (px as f32 - x).powi(2) + dy2;
+            if d2 <= r * r {
+                sum += 1.0 - d2 / (r * r) + 1e-3;
+            }
+        }
+    }
+    sum.max(1e-3)
 }
 
 fn footprint(sp: &Splat, w: usize, h: usize) -> Option<(usize, usize, usize, usize)> {
@@ -278,9 +321,12 @@ impl Splatter<'_> {
         self.cover(ids, y_start, y_end, |_, j, sp, _| {
             zbuf[j] = zbuf[j].min(sp.z)
         });
-        let mut acc = vec![[0.0f32; 5]; alpha.len()];
+        let mut acc = vec![[0.0f32; 6]; alpha.len()];
+        // pixels with a surface behind the nearest: their coverage is not partial
+        let mut behind = vec![false; alpha.len()];
         self.cover(ids, y_start, y_end, |i, j, sp, d2| {
             if sp.z > zbuf[j] + self.tol * self.radius[i] {
+                behind[j] = true;
                 return;
             }
             let k = 1.0 - d2 / (sp.r * sp.r) + 1e-3;
@@ -290,10 +336,16 @@ impl Splatter<'_> {
             a[2] += k * sp.color.z;
             a[3] += k * sp.alpha;
             a[4] += k;
+            a[5] += k * sp.cover;
         });
         for (j, a) in acc.iter().enumerate() {
             if a[4] > 0.0 {
-                let al = (a[3] / a[4]).clamp(0.0, 1.0);
+                let cover = if behind[j] {
+                    1.0
+                } else {
+                    (a[5] / FULL_COVER).min(1.0)
+                };
+                let al = (a[3] / a[4]).clamp(0.0, 1.0) * cover;
                 alpha[j] = al;
                 pixels[j] = [a[0] / a[4] * al, a[1] / a[4] * al, a[2] / a[4] * al];
             }

@@ -19,6 +19,10 @@ pub struct Surfels {
     pub positions: Vec<[f32; 3]>,
     pub normals: Vec<[f32; 3]>,
     pub radius: Vec<f32>,
+    /// The surface area each surfel stands for (m^2: a third of the areas of its triangles),
+    /// from which a splat's coverage of a pixel follows; empty in a hull folder written before
+    /// it was kept (its splats then cover every pixel they touch).
+    pub area: Vec<f32>,
     /// Number of views.
     pub views: usize,
     /// `visible[s * views + v]`.
@@ -54,6 +58,9 @@ impl Surfels {
                 })
                 .collect();
             properties.push((format!("vis{w}"), vals));
+        }
+        if self.area.len() == n {
+            properties.push(("area".to_string(), self.area.clone()));
         }
         for v in 0..self.views {
             properties.push((
@@ -94,6 +101,7 @@ impl Surfels {
             positions: c.positions.clone(),
             normals: c.normals.clone()?,
             radius: c.radii.clone()?,
+            area: c.property("area").map(<[f32]>::to_vec).unwrap_or_default(),
             views,
             visible,
             opacity,
@@ -142,6 +150,7 @@ pub fn make_surfels(mesh: &TriMesh, radius: f32, depth_tolerance: f64, views: &[
         positions: mesh.positions.clone(),
         normals,
         radius: vec![radius; n],
+        area: vertex_areas(mesh),
         views: nv,
         visible,
         opacity,
@@ -161,6 +170,19 @@ fn farthest_around(depth: &crate::raster::DepthBuffer, x: f64, y: f64) -> f32 {
         }
     }
     far
+}
+
+/// A third of the areas of each vertex's triangles.
+fn vertex_areas(mesh: &TriMesh) -> Vec<f32> {
+    let mut area = vec![0.0f64; mesh.positions.len()];
+    let p = |i: u32| glam::Vec3::from_array(mesh.positions[i as usize]).as_dvec3();
+    for t in &mesh.indices {
+        let a = (p(t[1]) - p(t[0])).cross(p(t[2]) - p(t[0])).length() / 6.0;
+        for &i in t {
+            area[i as usize] += a;
+        }
+    }
+    area.into_iter().map(|a| a as f32).collect()
 }
 
 fn visibility(
