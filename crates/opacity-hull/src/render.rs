@@ -443,4 +443,59 @@ mod tests {
             assert_eq!(&out[..n], &all[..], "case {case}");
         }
     }
+
+    /// A square of surfels facing the camera, 40 x 40 on a 1 mm grid, each standing for 1 mm^2:
+    /// inside, every pixel is covered; over the image the alphas sum to the square's projected
+    /// area within 3 % (without the areas, the splats reaching past the rim add a ring).
+    #[test]
+    fn coverage_sums_to_the_projected_area() {
+        let mut cam = Camera::pinhole(64, 64, 500.0, 500.0, 31.5, 31.5);
+        cam.pose =
+            igi_camera::WorldToCamera::look_at(DVec3::new(0.0, 0.0, 1.0), DVec3::ZERO, DVec3::Y)
+                .unwrap();
+        let n = 40;
+        let step = 1e-3f32;
+        let positions: Vec<[f32; 3]> = (0..n * n)
+            .map(|i| {
+                let (x, y) = ((i % n) as f32 + 0.5, (i / n) as f32 + 0.5);
+                [
+                    (x - n as f32 / 2.0) * step,
+                    (y - n as f32 / 2.0) * step,
+                    0.0,
+                ]
+            })
+            .collect();
+        let k = positions.len();
+        let mut model = HullModel {
+            surfels: Surfels {
+                positions,
+                normals: vec![[0.0, 0.0, 1.0]; k],
+                radius: vec![0.7 * step; k],
+                area: vec![step * step; k],
+                views: 1,
+                visible: vec![true; k],
+                opacity: vec![1.0; k],
+            },
+            centres: vec![DVec3::new(0.0, 0.0, 1.0)],
+            colors: vec![[0.5, 0.5, 0.5]; k],
+        };
+        let (_, alpha) = render(&model, &cam, RenderOptions::default());
+        // the square is 40 mm at 1 m and 500 px per unit: 20 x 20 pixels, centred
+        let projected = (n as f32 * step * 500.0).powi(2);
+        let sum: f32 = alpha.iter().sum();
+        assert!(
+            (sum / projected - 1.0).abs() < 0.03,
+            "{sum} against {projected}"
+        );
+        for y in 24..40 {
+            for x in 24..40 {
+                assert_eq!(alpha[y * 64 + x], 1.0, "({x}, {y})");
+            }
+        }
+        model.surfels.area.clear();
+        let (_, alpha) = render(&model, &cam, RenderOptions::default());
+        let sum_old: f32 = alpha.iter().sum();
+        eprintln!("alpha sums: {sum} with the areas, {sum_old} without, {projected} projected");
+        assert!(sum_old > 1.05 * projected, "{sum_old} against {projected}");
+    }
 }
