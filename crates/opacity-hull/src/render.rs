@@ -157,8 +157,9 @@ struct Splat {
     r: f32,
     color: Vec3,
     alpha: f32,
-    /// The surfel's projected area over its kernel's integral (`pi r^2 / 2` pixels): a pixel's
-    /// sum of kernel weight times `cover` is the share of it the surface covers.
+    /// The surfel's projected area (pixels) over its kernel's sum over the pixel centres it
+    /// reaches ([`kernel_sum`]): a pixel's sum of kernel weight times `cover` is the share of it
+    /// the surface covers.
     cover: f32,
 }
 
@@ -229,9 +230,14 @@ pub fn render(model: &HullModel, camera: &Camera, opts: RenderOptions) -> (HdrIm
     )
 }
 
-/// The splat kernel `1 - (d / r)^2 + 1e-3` summed over the pixel centres within `r` of
-/// (x, y) (as the band passes weigh them, the image's edges aside), at least the kernel's
-/// integral's share of one pixel.
+/// A splat's weight at squared distance `d2` from its centre (within its radius `r`).
+#[inline]
+fn kernel(d2: f32, r: f32) -> f32 {
+    1.0 - d2 / (r * r) + 1e-3
+}
+
+/// [`kernel`] summed over the pixel centres within `r` of (x, y), as the band passes weigh
+/// them (the image's edges aside).
 fn kernel_sum(x: f32, y: f32, r: f32) -> f32 {
     let r = r.min(32.0);
     let mut sum = 0.0;
@@ -240,7 +246,7 @@ fn kernel_sum(x: f32, y: f32, r: f32) -> f32 {
         for px in (x - r).ceil() as i64..=(x + r).floor() as i64 {
             let d2 = (px as f32 - x).powi(2) + dy2;
             if d2 <= r * r {
-                sum += 1.0 - d2 / (r * r) + 1e-3;
+                sum += kernel(d2, r);
             }
         }
     }
@@ -329,7 +335,7 @@ impl Splatter<'_> {
                 behind[j] = true;
                 return;
             }
-            let k = 1.0 - d2 / (sp.r * sp.r) + 1e-3;
+            let k = kernel(d2, sp.r);
             let a = &mut acc[j];
             a[0] += k * sp.color.x;
             a[1] += k * sp.color.y;

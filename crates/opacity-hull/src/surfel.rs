@@ -175,9 +175,8 @@ fn farthest_around(depth: &crate::raster::DepthBuffer, x: f64, y: f64) -> f32 {
 /// A third of the areas of each vertex's triangles.
 fn vertex_areas(mesh: &TriMesh) -> Vec<f32> {
     let mut area = vec![0.0f64; mesh.positions.len()];
-    let p = |i: u32| glam::Vec3::from_array(mesh.positions[i as usize]).as_dvec3();
-    for t in &mesh.indices {
-        let a = (p(t[1]) - p(t[0])).cross(p(t[2]) - p(t[0])).length() / 6.0;
+    for (k, t) in mesh.indices.iter().enumerate() {
+        let a = mesh.triangle_area(k) / 3.0;
         for &i in t {
             area[i as usize] += a;
         }
