@@ -1,10 +1,13 @@
 //! From photographs to a surface light field: grid points from the atlas, data lumispheres,
 //! reparameterisation, then one of the fits.
 
-use crate::data::{gather_with_hits, pixel_hits, reparameterise, GatherReport, GridPoint, View};
+use crate::data::{
+    angle_gain, gather_with_hits, observation_median, pixel_hits, reparameterise, GatherReport,
+    GridPoint, View,
+};
 use crate::field::{Coding, SurfaceLightField};
 use crate::fit::{fair_pointwise, DataLumisphere, FitOptions};
-use crate::lumisphere::Octahedron;
+use crate::lumisphere::{AngleGain, Octahedron};
 use crate::pfa::{fit_pfa, PfaOptions};
 use crate::quantize::{fit_fq, FqOptions};
 use crate::LightFieldError;
@@ -102,6 +105,8 @@ pub struct Prepared {
     pub texels: Vec<u32>,
     pub normals: Vec<Vec3>,
     pub medians: Vec<Vec3>,
+    /// The view-angle gain the samples are divided by (the fields multiply it back).
+    pub gain: AngleGain,
     pub data: Vec<DataLumisphere>,
     pub report: GatherReport,
 }
@@ -124,11 +129,14 @@ impl Prepared {
         let (texels, points) = grid_points(atlas);
         let (obs, report) = gather_with_hits(scene, &points, views, hits);
         let oct = Octahedron::new(level);
-        let (medians, data): (Vec<Vec3>, Vec<DataLumisphere>) = obs
-            .iter()
+        let medians: Vec<Vec3> = obs.par_iter().map(observation_median).collect();
+        let gain = angle_gain(&obs, &points, &medians);
+        let data: Vec<DataLumisphere> = obs
+            .par_iter()
             .zip(&points)
-            .map(|(o, p)| reparameterise(&oct, o, p.normal))
-            .unzip();
+            .zip(&medians)
+            .map(|((o, p), m)| reparameterise(&oct, o, p.normal, *m, &gain))
+            .collect();
         let normals = points.iter().map(|p| p.normal).collect();
         Prepared {
             oct,
@@ -136,6 +144,7 @@ impl Prepared {
             texels,
             normals,
             medians,
+            gain,
             data,
             report,
         }
@@ -186,7 +195,8 @@ impl Prepared {
             self.medians.clone(),
             self.normals.clone(),
             coding,
-        ))
+        )
+        .with_gain(self.gain.clone()))
     }
 }
 

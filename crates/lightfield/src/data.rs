@@ -5,10 +5,10 @@
 //! masked or clipped pixels never contribute). Pixels off the mesh, and those whose footprint
 //! may straddle its silhouette against the background, are invalid too: a ray cast of every
 //! pixel centre must hit the mesh, and so must those of its 8 neighbours. Then the
-//! reparameterisation of Eqs. 9-10.
+//! reparameterisation of Eqs. 9-10, with the view-angle gain taken out.
 
 use crate::fit::{DataLumisphere, Sample};
-use crate::lumisphere::{median_rgb, reflect_about_normal, Octahedron};
+use crate::lumisphere::{median_rgb, reflect_about_normal, AngleGain, Octahedron};
 use glam::Vec3;
 use igi_camera::Camera;
 use igi_imaging::HdrImage;
@@ -177,21 +177,36 @@ fn observe(scene: &RtScene, p: &GridPoint, views: &[View]) -> (Observations, Vec
     (out, footprint)
 }
 
-/// Eqs. 9-10: the per-point median colour, and the samples with the median removed and their
-/// directions reflected about the normal, located on the lumisphere.
+/// Eq. 9's median: the per-channel median of a point's observed colours.
+pub fn observation_median(obs: &Observations) -> Vec3 {
+    let colours: Vec<Vec3> = obs.iter().map(|(c, _)| *c).collect();
+    median_rgb(&colours)
+}
+
+/// The view-angle gain of a capture ([`AngleGain::estimate`]) from every point's observations,
+/// normal and median.
+pub fn angle_gain(obs: &[Observations], points: &[GridPoint], medians: &[Vec3]) -> AngleGain {
+    AngleGain::estimate(obs.iter().zip(points).zip(medians).flat_map(|((o, p), m)| {
+        o.iter()
+            .map(move |(c, w)| (w.dot(p.normal), (*c - *m).length_squared()))
+    }))
+}
+
+/// Eqs. 9-10: the samples with the point's median removed, divided by the view-angle gain at
+/// their n . w, and their directions reflected about the normal, located on the lumisphere.
 pub fn reparameterise(
     oct: &Octahedron,
     obs: &Observations,
     normal: Vec3,
-) -> (Vec3, DataLumisphere) {
-    let colours: Vec<Vec3> = obs.iter().map(|(c, _)| *c).collect();
-    let median = median_rgb(&colours);
+    median: Vec3,
+    gain: &AngleGain,
+) -> DataLumisphere {
     let samples = obs
         .iter()
         .map(|(c, w)| Sample {
             bary: oct.locate(reflect_about_normal(*w, normal)),
-            colour: *c - median,
+            colour: (*c - median) / gain.at(w.dot(normal)),
         })
         .collect();
-    (median, DataLumisphere { samples })
+    DataLumisphere { samples }
 }

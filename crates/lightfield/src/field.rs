@@ -4,7 +4,7 @@
 //! output values; a rotated or deformed mesh with the same texture coordinates, whose new
 //! normals reflect the view directions).
 
-use crate::lumisphere::{eval_bary, reflect_about_normal, Bary, Octahedron};
+use crate::lumisphere::{eval_bary, reflect_about_normal, AngleGain, Bary, Octahedron};
 use crate::pfa::Pfa;
 use crate::quantize::Codebook;
 use crate::LightFieldError;
@@ -50,6 +50,8 @@ pub struct SurfaceLightField {
     pub median: Vec<Vec3>,
     pub normal: Vec<Vec3>,
     pub coding: Coding,
+    /// The view-angle gain each lumisphere value is multiplied by (at n . w of the view).
+    pub gain: AngleGain,
     /// Grid point of every atlas texel (gutters take a neighbouring point; `u32::MAX`: none).
     point_of_texel: Vec<u32>,
 }
@@ -98,11 +100,19 @@ impl SurfaceLightField {
             median,
             normal,
             coding,
+            gain: AngleGain::default(),
             point_of_texel,
         }
     }
 
-    /// The lumisphere value (median removed) of point `p` in reflected direction `r`.
+    /// The field with this view-angle gain (the one its lumispheres were fitted under).
+    pub fn with_gain(mut self, gain: AngleGain) -> Self {
+        self.gain = gain;
+        self
+    }
+
+    /// The lumisphere value (median removed, before the view-angle gain) of point `p` in
+    /// reflected direction `r`.
     pub fn lumisphere_value(&self, p: usize, r: Vec3) -> Vec3 {
         self.lumisphere_value_at(p, &self.oct.locate(r))
     }
@@ -124,7 +134,8 @@ impl SurfaceLightField {
 
     /// The outgoing colour at texture coordinate `uv` toward unit direction `w` with surface
     /// normal `n`: the bilinear blend of the four nearest texels' grid points (each its median
-    /// plus its lumisphere at the one reflected direction), over the covered texels among them;
+    /// plus its lumisphere at the one reflected direction times the view-angle gain at n . w),
+    /// over the covered texels among them;
     /// the nearest texel's point (gutters included) where none is covered, `None` where that
     /// has none either.
     pub fn radiance_at(&self, uv: Vec2, w: Vec3, n: Vec3) -> Option<Vec3> {
@@ -135,6 +146,7 @@ impl SurfaceLightField {
         let (x0, y0) = (x.floor(), y.floor());
         let (fx, fy) = (x - x0, y - y0);
         let b = self.oct.locate(reflect_about_normal(w, n));
+        let g = self.gain.at(n.dot(w));
         let (mut sum, mut wsum) = (Vec3::ZERO, 0.0f32);
         for (dy, wy) in [(0, 1.0 - fy), (1, fy)] {
             for (dx, wx) in [(0, 1.0 - fx), (1, fx)] {
@@ -151,7 +163,7 @@ impl SurfaceLightField {
                     continue;
                 }
                 let p = p as usize;
-                sum += (self.median[p] + self.lumisphere_value_at(p, &b)) * wt;
+                sum += (self.median[p] + self.lumisphere_value_at(p, &b) * g) * wt;
                 wsum += wt;
             }
         }
@@ -164,7 +176,8 @@ impl SurfaceLightField {
 
     /// The outgoing colour of point `p` toward unit direction `w` with surface normal `n`.
     pub fn radiance(&self, p: usize, w: Vec3, n: Vec3) -> Vec3 {
-        (self.median[p] + self.lumisphere_value(p, reflect_about_normal(w, n))).max(Vec3::ZERO)
+        let l = self.lumisphere_value(p, reflect_about_normal(w, n));
+        (self.median[p] + l * self.gain.at(n.dot(w))).max(Vec3::ZERO)
     }
 
     /// The grid point at a texture coordinate (nearest texel), if any.

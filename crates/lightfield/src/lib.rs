@@ -36,11 +36,12 @@ pub mod store;
 pub use build::{grid_points, BuildOptions, Method, Prepared};
 pub use capture::{build_from_rig, prepare_rig, GridOptions, RigBuild, RigPrepared};
 pub use data::{
-    gather, gather_with_hits, pixel_hits, reparameterise, GatherReport, GridPoint, View,
+    angle_gain, gather, gather_with_hits, observation_median, pixel_hits, reparameterise,
+    GatherReport, GridPoint, View,
 };
 pub use field::{Coding, FieldRenderer, RenderSlfOptions, SurfaceLightField};
 pub use fit::{fair_pointwise, DataLumisphere, FitOptions};
-pub use lumisphere::Octahedron;
+pub use lumisphere::{AngleGain, Octahedron};
 pub use pfa::{fit_pfa, Pfa, PfaOptions};
 pub use quantize::{fit_fq, Codebook, FqOptions};
 

@@ -1,7 +1,8 @@
 //! The lumisphere domain: the s-times 4-to-1 subdivided octahedron `|x| + |y| + |z| = 1`
 //! (s = 3: 4 * 8^2 + 2 = 258 vertices), the map h from unit directions onto it (Eq. 3), the
-//! barycentric weights of a direction in its triangle, the umbrella Laplacian over its vertices
-//! and the reparameterisation of Eqs. 9-10 (median removal, reflection about the normal).
+//! barycentric weights of a direction in its triangle, the umbrella Laplacian over its vertices,
+//! the reparameterisation of Eqs. 9-10 (median removal, reflection about the normal) and the
+//! view-angle gain that takes out what the reflected parameterisation cannot express.
 //!
 //! Vertices are the integer points (X, Y, Z) with |X| + |Y| + |Z| = n = 2^s; the octahedron
 //! point of a vertex is (X, Y, Z) / n. A lumisphere is one RGB value per vertex, linear inside
@@ -96,6 +97,74 @@ pub fn median_rgb(colours: &[Vec3]) -> Vec3 {
     }
     Vec3::from_array(out)
 }
+
+/// Knots of an estimated [`AngleGain`], at n . w = 0, 0.1, ..., 1.
+pub const GAIN_KNOTS: usize = 11;
+
+/// The view-angle gain h(n . w): how much larger a surface's view-dependent colour (its samples
+/// with the median removed) is at a given angle between the normal and the view. Fresnel
+/// reflection grows toward grazing views, and so does the (1 - F) loss of the diffuse part, so
+/// a point's lumisphere carries a factor of n . w = n . r that depends on its own normal: two
+/// points of one material seeing the same sky in the same reflected direction r differ by it.
+/// No subspace of functions of r alone holds that (PFA's prototypes, FQ's codewords; pointwise
+/// fairing suffers less, but its thin-plate extrapolation does too). The samples are divided by
+/// h before a fit and the lumisphere is multiplied by it when rendering (docs/LIGHTFIELD.md,
+/// "Gloss under a small bright light"). Piecewise linear in n . w over its knots (evenly spaced
+/// on [0, 1]); no knots: 1 everywhere (folders of earlier builds).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct AngleGain {
+    pub knots: Vec<f32>,
+}
+
+impl AngleGain {
+    /// h at n . w = `c` (clamped to [0, 1]).
+    pub fn at(&self, c: f32) -> f32 {
+        let k = &self.knots;
+        if k.len() < 2 {
+            return k.first().copied().unwrap_or(1.0);
+        }
+        let x = c.clamp(0.0, 1.0) * (k.len() - 1) as f32;
+        let i = (x as usize).min(k.len() - 2);
+        let f = x - i as f32;
+        k[i] * (1.0 - f) + k[i + 1] * f
+    }
+
+    /// The gain of a capture from its samples, each (n . w, squared length of the colour minus
+    /// the point's median): at each of [`GAIN_KNOTS`] knots the RMS of the samples weighted by
+    /// their linear-interpolation weight to it, the whole scaled to RMS 1 over the samples.
+    /// A knot with under [`GAIN_MIN_SAMPLES`] samples' weight takes its nearest such knot's
+    /// value, no knot's value falls below 1 % of the largest, and samples with nothing
+    /// view-dependent (all zero) give no gain (1 everywhere).
+    pub fn estimate(samples: impl Iterator<Item = (f32, f32)>) -> AngleGain {
+        let k = GAIN_KNOTS;
+        let (mut sum, mut weight) = (vec![0.0f64; k], vec![0.0f64; k]);
+        for (c, r2) in samples.filter(|(c, r2)| c.is_finite() && r2.is_finite()) {
+            let x = c.clamp(0.0, 1.0) * (k - 1) as f32;
+            let i = (x as usize).min(k - 2);
+            let f = (x - i as f32) as f64;
+            for (j, w) in [(i, 1.0 - f), (i + 1, f)] {
+                sum[j] += w * r2 as f64;
+                weight[j] += w;
+            }
+        }
+        let total: f64 = sum.iter().sum::<f64>() / weight.iter().sum::<f64>().max(1e-300);
+        let populated: Vec<usize> = (0..k).filter(|&j| weight[j] >= GAIN_MIN_SAMPLES).collect();
+        if !(total > 0.0) || populated.is_empty() {
+            return AngleGain::default();
+        }
+        let rms = |j: usize| (sum[j] / weight[j] / total).sqrt() as f32;
+        let knots: Vec<f32> = (0..k)
+            .map(|j| rms(*populated.iter().min_by_key(|&&p| p.abs_diff(j)).unwrap()))
+            .collect();
+        let floor = 0.01 * knots.iter().fold(0.0f32, |a, b| a.max(*b));
+        AngleGain {
+            knots: knots.into_iter().map(|v| v.max(floor)).collect(),
+        }
+    }
+}
+
+/// The samples' weight a knot of [`AngleGain::estimate`] needs to stand on its own.
+pub const GAIN_MIN_SAMPLES: f64 = 100.0;
 
 impl Octahedron {
     /// The s-times subdivided octahedron (s <= 6).
@@ -406,5 +475,63 @@ mod tests {
         assert_eq!(m, Vec3::new(2.0, 5.0, 0.0));
         assert_eq!(median_rgb(&[Vec3::ONE, Vec3::splat(3.0)]), Vec3::splat(2.0));
         assert_eq!(median_rgb(&[]), Vec3::ZERO);
+    }
+
+    #[test]
+    fn the_angle_gain_recovers_a_known_falloff() {
+        // samples whose view-dependent part is h(c) = 1 + 4 (1 - c)^3 times a fixed pattern
+        let h = |c: f32| 1.0 + 4.0 * (1.0 - c).powi(3);
+        let samples: Vec<(f32, f32)> = (0..20_000)
+            .map(|i| {
+                let c = (i % 1000) as f32 / 999.0;
+                let pattern = [0.5f32, 1.0, 1.5][i % 3];
+                (c, (h(c) * pattern).powi(2))
+            })
+            .collect();
+        let g = AngleGain::estimate(samples.iter().copied());
+        assert_eq!(g.knots.len(), GAIN_KNOTS);
+        // up to one overall scale, the knots follow h: within 2 % inside; the tent of the
+        // end knot c = 0 has only one side, where h falls steeply (5 at 0, 3.9 at 0.1), so its
+        // RMS is 7 % low there
+        let scale = g.at(1.0) / h(1.0);
+        for j in 0..GAIN_KNOTS {
+            let c = j as f32 / (GAIN_KNOTS - 1) as f32;
+            let want = h(c) * scale;
+            let tol = if j == 0 { 0.1 } else { 0.02 };
+            assert!(
+                (g.at(c) - want).abs() < tol * want,
+                "c {c}: {} against {want}",
+                g.at(c)
+            );
+        }
+        // RMS 1 over the samples
+        let rms2: f32 =
+            samples.iter().map(|(c, _)| g.at(*c).powi(2)).sum::<f32>() / samples.len() as f32;
+        assert!((rms2 - 1.0).abs() < 0.05, "{rms2}");
+        // interpolation between knots, and clamping outside [0, 1]
+        let mid = 0.5 * (g.knots[3] + g.knots[4]);
+        assert!((g.at(0.35) - mid).abs() < 1e-5);
+        assert_eq!(g.at(-1.0), g.knots[0]);
+        assert_eq!(g.at(2.0), g.knots[GAIN_KNOTS - 1]);
+    }
+
+    #[test]
+    fn the_angle_gain_without_view_dependence_is_one_and_sparse_knots_borrow() {
+        let flat = AngleGain::estimate((0..500).map(|i| (i as f32 / 499.0, 0.0)));
+        assert_eq!(flat, AngleGain::default());
+        assert_eq!(flat.at(0.3), 1.0);
+        assert_eq!(AngleGain::estimate(std::iter::empty()).at(0.7), 1.0);
+        // samples only near c = 1 (a frontal capture): the knots below borrow the nearest
+        // populated knot's value, and NaN samples are ignored
+        let frontal = AngleGain::estimate(
+            (0..1000)
+                .map(|i| (0.95 + 0.05 * (i as f32 / 999.0), 0.04))
+                .chain([(f32::NAN, 1.0), (0.5, f32::NAN)]),
+        );
+        assert!(
+            frontal.knots.iter().all(|k| (k - 1.0).abs() < 1e-4),
+            "{:?}",
+            frontal.knots
+        );
     }
 }

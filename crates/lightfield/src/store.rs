@@ -8,7 +8,7 @@
 //! is never half-written.
 
 use crate::field::{Coding, SurfaceLightField};
-use crate::lumisphere::Octahedron;
+use crate::lumisphere::{AngleGain, Octahedron};
 use crate::pfa::Pfa;
 use crate::quantize::Codebook;
 use crate::LightFieldError;
@@ -42,6 +42,10 @@ pub struct Header {
     /// headers of earlier builds, which stored them as f32).
     #[serde(default)]
     pub vectors: VectorEncoding,
+    /// The view-angle gain's knots (`AngleGain`: at n . w evenly spaced on [0, 1]); absent in
+    /// the headers of earlier builds (no gain: 1 everywhere).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub angle_gain: Vec<f32>,
 }
 
 /// The encoding of the lumispheres of `prototypes.bin` and `codebook.bin`.
@@ -232,6 +236,7 @@ fn encode(f: &SurfaceLightField) -> (Header, Vec<(String, Vec<u8>)>) {
         lumisphere_offset: 0.0,
         lumisphere_scale: 0.0,
         vectors: VectorEncoding::Rgb8,
+        angle_gain: f.gain.knots.clone(),
     };
     encode_coding(&f.coding, &mut h, &mut files);
     (h, files)
@@ -341,7 +346,11 @@ pub fn load(dir: &Path) -> Result<(SurfaceLightField, TriMesh), LightFieldError>
     };
     let mesh = igi_geometry::read_mesh(&dir.join("mesh.ply"))?;
     Ok((
-        SurfaceLightField::new(oct, h.resolution, texels, median, normal, coding),
+        SurfaceLightField::new(oct, h.resolution, texels, median, normal, coding).with_gain(
+            AngleGain {
+                knots: h.angle_gain.clone(),
+            },
+        ),
         mesh,
     ))
 }
@@ -359,6 +368,15 @@ fn read_header(hp: &Path) -> Result<Header, LightFieldError> {
             msg: format!(
                 "not an igi-slf version 1 header (format {:?}, version {}, level {})",
                 h.format, h.version, h.level
+            ),
+        });
+    }
+    if h.angle_gain.len() == 1 || h.angle_gain.iter().any(|g| !(g.is_finite() && *g > 0.0)) {
+        return Err(LightFieldError::Format {
+            path: hp.to_path_buf(),
+            msg: format!(
+                "angle_gain must be absent or at least 2 positive finite knots, not {:?}",
+                h.angle_gain
             ),
         });
     }
@@ -526,6 +544,35 @@ mod tests {
             let err = max_difference(&stored_vectors(&f), &stored_vectors(&loaded));
             assert!(err <= 0.5 * scale / 255.0 + 1e-5, "{name}: {err}");
             assert!(err > 0.0, "{name}: RGB8 cannot hold these values exactly");
+        }
+    }
+
+    /// The view-angle gain is kept exactly; a folder without one (earlier builds) loads with
+    /// none, and a header with a bad one is refused by name.
+    #[test]
+    fn the_angle_gain_round_trips_and_a_bad_one_is_refused() {
+        let gain = AngleGain {
+            knots: vec![4.5, 3.0, 1.25, 1.0],
+        };
+        let f = field(Coding::MedianOnly).with_gain(gain.clone());
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("slf");
+        save(&out, &f, &mesh(), serde_json::json!({})).unwrap();
+        assert_eq!(load(&out).unwrap().0.gain, gain);
+        let hp = out.join("header.json");
+        let mut header: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&hp).unwrap()).unwrap();
+        header.as_object_mut().unwrap().remove("angle_gain");
+        std::fs::write(&hp, header.to_string()).unwrap();
+        assert_eq!(load(&out).unwrap().0.gain, AngleGain::default());
+        for bad in [serde_json::json!([1.0]), serde_json::json!([1.0, -2.0])] {
+            header["angle_gain"] = bad;
+            std::fs::write(&hp, header.to_string()).unwrap();
+            let err = load(&out).unwrap_err().to_string();
+            assert!(
+                err.contains("header.json") && err.contains("angle_gain"),
+                "{err}"
+            );
         }
     }
 

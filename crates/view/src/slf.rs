@@ -15,7 +15,9 @@
 //!   lumisphere's number and its weight;
 //! * `lumispheres`: per lumisphere its value (RGB, median removed) at each vertex;
 //! * `keys`: the octahedron's vertex of each lattice key `((x + n) (2n + 1) + y + n) 2 + (z < 0)`
-//!   (or -1).
+//!   (or -1);
+//! * `gain`: the view-angle gain's knots (`AngleGain`, `gainKnots` of them, evenly spaced in
+//!   n . w on [0, 1]; none: 1), which multiply the lumisphere terms.
 
 use glam::Vec2;
 use igi_lightfield::field::Coding;
@@ -53,6 +55,8 @@ pub fn page_field(field: &SurfaceLightField, scale: f32) -> PageField {
     }
     let keys = data.len();
     data.extend(key_table(field).into_iter().map(|v| [v, 0.0, 0.0, 0.0]));
+    let gain = data.len();
+    data.extend(field.gain.knots.iter().map(|g| [*g, 0.0, 0.0, 0.0]));
     let json = serde_json::json!({
         "resolution": field.resolution,
         "n": field.oct.n,
@@ -64,6 +68,8 @@ pub fn page_field(field: &SurfaceLightField, scale: f32) -> PageField {
         "points": points,
         "lumispheres": lumi,
         "keys": keys,
+        "gain": gain,
+        "gainKnots": field.gain.knots.len(),
         "size": data.len(),
     });
     let bin = data
@@ -151,7 +157,10 @@ mod tests {
             median,
             vec![Vec3::Z; texels.len()],
             Coding::Pfa(pfa),
-        );
+        )
+        .with_gain(igi_lightfield::AngleGain {
+            knots: vec![3.0, 1.5, 1.0],
+        });
         let page = page_field(&field, 2.0);
         let data: Vec<f32> = page
             .bin
@@ -217,6 +226,17 @@ mod tests {
                 [1.0, 0.0, 0.0]
             }
         };
+        let gain = {
+            let (g0, k) = (j("gain"), j("gainKnots"));
+            let x = n.dot(w).clamp(0.0, 1.0) * (k.max(2) - 1) as f32;
+            let i = (x.floor() as usize).min(k.max(2) - 2);
+            let f = x - i as f32;
+            match k {
+                0 => 1.0,
+                1 => texel(g0)[0],
+                _ => texel(g0 + i)[0] * (1.0 - f) + texel(g0 + i + 1)[0] * f,
+            }
+        };
         let point = |p: usize| {
             let at = j("points") + p * (1 + terms);
             let m = texel(at);
@@ -226,7 +246,7 @@ mod tests {
                 let l = tw[0] as usize;
                 for k in 0..3 {
                     let v = texel(j("lumispheres") + l * nv + vs[k]);
-                    c += Vec3::new(v[0], v[1], v[2]) * ws[k] * tw[1];
+                    c += Vec3::new(v[0], v[1], v[2]) * ws[k] * tw[1] * gain;
                 }
             }
             c
