@@ -1,5 +1,5 @@
 //! The covered texels of an atlas (texel centres that lie on the surface, with their world
-//! position and normal) and the dilation that grows known texel values into neighbouring texels
+//! position and normal), the atlas-sized table that numbers a list of texels, and the dilation that grows known texel values into neighbouring texels
 //! (hole filling, atlas gutters). Shared by the inverse solver and the surface light field.
 
 use glam::{Vec2, Vec3};
@@ -52,6 +52,31 @@ impl TexelCache {
         Vec2::new(
             (x as f32 + 0.5) / r as f32,
             1.0 - (y as f32 + 0.5) / r as f32,
+        )
+    }
+}
+
+/// An atlas-sized table (`resolution` x `resolution`, row-major like [`Texel::index`]) holding
+/// each entry's number at its atlas index and `u32::MAX` elsewhere: from a texel's place in the
+/// atlas back to its place in a list (a cache's texels, a solve group, a field's grid points).
+/// A later entry at the same index wins.
+pub fn number_table(resolution: usize, entries: impl IntoIterator<Item = (u32, u32)>) -> Vec<u32> {
+    let mut table = vec![u32::MAX; resolution * resolution];
+    for (index, number) in entries {
+        table[index as usize] = number;
+    }
+    table
+}
+
+impl TexelCache {
+    /// [`number_table`] of the cache's texels: atlas index -> position in `texels`.
+    pub fn numbers(&self) -> Vec<u32> {
+        number_table(
+            self.resolution,
+            self.texels
+                .iter()
+                .enumerate()
+                .map(|(k, t)| (t.index, k as u32)),
         )
     }
 }
@@ -224,5 +249,28 @@ mod tests {
             texels: t,
         };
         assert_eq!(cache.uv(3), Vec2::new(0.75, 0.25));
+    }
+
+    #[test]
+    fn the_number_table_finds_each_texel_in_its_list() {
+        let cache = TexelCache {
+            resolution: 3,
+            texels: [7u32, 0, 4]
+                .iter()
+                .map(|&index| Texel {
+                    index,
+                    position: Vec3::ZERO,
+                    normal: Vec3::Z,
+                })
+                .collect(),
+        };
+        let m = cache.numbers();
+        assert_eq!(m.len(), 9);
+        assert_eq!((m[7], m[0], m[4]), (0, 1, 2));
+        assert_eq!(m.iter().filter(|&&v| v == u32::MAX).count(), 6);
+        assert_eq!(
+            number_table(2, [(3, 5), (3, 9)]),
+            vec![u32::MAX, u32::MAX, u32::MAX, 9]
+        );
     }
 }

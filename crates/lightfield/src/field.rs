@@ -342,10 +342,7 @@ fn render_attributes(mesh: &TriMesh) -> Result<(&[[f32; 2]], Vec<Vec3>), LightFi
 
 /// Grid point per atlas texel, grown four rings into the gutters (first known 4-neighbour).
 fn texel_map(res: usize, texels: &[u32]) -> Vec<u32> {
-    let mut map = vec![u32::MAX; res * res];
-    for (p, t) in texels.iter().enumerate() {
-        map[*t as usize] = p as u32;
-    }
+    let mut map = igi_geometry::texels::number_table(res, texels.iter().copied().zip(0..));
     for _ in 0..4 {
         let prev = map.clone();
         for y in 0..res {

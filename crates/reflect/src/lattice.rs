@@ -16,6 +16,7 @@
 
 use crate::parts::Part;
 use glam::Vec3;
+use igi_geometry::texels::number_table;
 
 /// Smallest cosine between a texel's normal and a corner's it borrows from (8 degrees).
 pub const MIN_NORMAL_DOT: f32 = 0.99;
@@ -43,15 +44,22 @@ impl Lattice {
         texels: impl Iterator<Item = (u32, u32)>,
         step: u32,
     ) -> Lattice {
-        let mut number: Vec<Vec<u32>> = parts.iter().map(|_| Vec::new()).collect();
+        let mut entries: Vec<Vec<(u32, u32)>> = parts.iter().map(|_| Vec::new()).collect();
         for (gi, (part, texel)) in texels.enumerate() {
-            let p = parts[part as usize].as_ref();
-            let map = &mut number[part as usize];
-            if map.is_empty() {
-                *map = vec![u32::MAX; p.resolution() * p.resolution()];
-            }
-            map[p.cache.texels[texel as usize].index as usize] = gi as u32;
+            let index = parts[part as usize].as_ref().cache.texels[texel as usize].index;
+            entries[part as usize].push((index, gi as u32));
         }
+        let number = parts
+            .iter()
+            .zip(entries)
+            .map(|(p, e)| {
+                if e.is_empty() {
+                    Vec::new()
+                } else {
+                    number_table(p.as_ref().resolution(), e)
+                }
+            })
+            .collect();
         Lattice {
             step: step.max(1) as i64,
             number,

@@ -920,12 +920,7 @@ impl SunVisibility {
                 if !g {
                     return Vec::new();
                 }
-                let r = p.resolution();
-                let mut m = vec![u32::MAX; r * r];
-                for (k, t) in p.part.cache.texels.iter().enumerate() {
-                    m[t.index as usize] = k as u32;
-                }
-                m
+                p.part.cache.numbers()
             })
             .collect()
     }

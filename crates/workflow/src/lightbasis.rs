@@ -18,7 +18,7 @@
 use glam::{Vec2, Vec3};
 use igi_brdf::Frame;
 use igi_camera::Camera;
-use igi_geometry::texels::texel_at;
+use igi_geometry::texels::{number_table, texel_at};
 use igi_imaging::latlong::direction_to_uv;
 use igi_imaging::HdrImage;
 use igi_raycast::offset_origin;
@@ -121,14 +121,16 @@ impl Transport {
         };
         for (p, pr) in state.parts.iter().enumerate() {
             let cache = &pr.part.cache;
-            let mut map = vec![u32::MAX; cache.resolution * cache.resolution];
+            let first = t.texel.len() as u32;
+            t.number.push(number_table(
+                cache.resolution,
+                (first..).zip(&cache.texels).map(|(k, x)| (x.index, k)),
+            ));
             for x in &cache.texels {
-                map[x.index as usize] = t.texel.len() as u32;
                 t.texel.push((p as u32, x.index));
                 t.origin.push(offset_origin(x.position, x.normal));
                 t.normal.push(x.normal);
             }
-            t.number.push(map);
         }
         t.buried = t.bury(state, scene, seed ^ BURIED_SALT);
         let mut rays = vec![0u32; t.texel.len() * RAYS];
