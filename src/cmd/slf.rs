@@ -154,6 +154,12 @@ fn build(a: BuildArgs, ctx: &Ctx) -> anyhow::Result<()> {
         r.seconds,
         req.output.display()
     );
+    if let (Some(grazing), Some(head_on)) = (r.angle_gain.first(), r.angle_gain.last()) {
+        println!(
+            "view-angle gain: the view-dependent colour is {:.2} times as large at grazing views as head-on (n . w = 0 against 1)",
+            grazing / head_on
+        );
+    }
     Ok(())
 }
 

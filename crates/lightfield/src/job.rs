@@ -45,6 +45,8 @@ pub struct BuildOutcome {
     pub median_pixel_footprint: f64,
     /// Seconds from the first stage to the stored folder's report.
     pub seconds: f64,
+    /// The view-angle gain's knots (`AngleGain`, stored in `header.json`; empty: none).
+    pub angle_gain: Vec<f32>,
 }
 
 /// Checks the request, reads the rig and the mesh, builds the field and stores it (with a
@@ -87,6 +89,7 @@ pub fn build_file(
         texel_size: built.atlas.texel_size,
         median_pixel_footprint: built.report.median_pixel_footprint,
         seconds,
+        angle_gain: built.field.gain.knots.clone(),
     })
 }
 
