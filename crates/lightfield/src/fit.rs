@@ -2,7 +2,7 @@
 //! pointwise fairing (Eqs. 5-8), function quantization (Eqs. 11-12) and principal function
 //! analysis (Eqs. 13-14). Every fit minimises E_lambda against the data samples themselves
 //! (never against faired lumispheres); the samples are already reparameterised (median removed,
-//! directions reflected about the normal, Eqs. 9-10).
+//! divided by the view-angle gain, directions reflected about the normal, Eqs. 9-10).
 //!
 //! Sums over points are taken in fixed chunks whose partial sums are added in order, so results
 //! are the same bytes whatever the rayon thread count.
@@ -12,7 +12,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 /// One reparameterised observation of a grid point: where its reflected direction falls on the
-/// lumisphere and its colour minus the point's median.
+/// lumisphere and its colour minus the point's median, over the view-angle gain at its n . w.
 #[derive(Clone, Copy, Debug)]
 pub struct Sample {
     pub bary: Bary,
