@@ -674,18 +674,30 @@ fn covered_fraction(served: &Served, shot: &Path, keep: &str) -> f64 {
 }
 
 /// Headless chromium's screenshot of `url` (its window 1024 x 768) into `shot`, copied to
-/// `$keep` when that is set.
+/// `$keep` when that is set. On a loaded machine chromium sometimes takes the shot before the
+/// page has drawn anything (one colour, the page's background, every pixel: seen in 1 launch
+/// of 4 beside four busy loops); such a launch is repeated, three launches at most, and what
+/// the page then draws is measured by the caller as before.
 fn screenshot(url: &str, shot: &Path, keep: &str) -> image::RgbImage {
     let arg = format!("--screenshot={}", shot.display());
-    let profile = tempfile::tempdir().unwrap();
-    let status = chromium_command(url, &[&arg, "--virtual-time-budget=200000"], profile.path())
-        .status()
-        .unwrap();
-    assert!(shot.exists(), "no screenshot of {url} ({status})");
-    if let Some(to) = std::env::var_os(keep) {
-        std::fs::copy(shot, to).unwrap();
+    for launch in 1..=3 {
+        let profile = tempfile::tempdir().unwrap();
+        let _ = std::fs::remove_file(shot);
+        let status = chromium_command(url, &[&arg, "--virtual-time-budget=200000"], profile.path())
+            .status()
+            .unwrap();
+        assert!(shot.exists(), "no screenshot of {url} ({status})");
+        if let Some(to) = std::env::var_os(keep) {
+            std::fs::copy(shot, to).unwrap();
+        }
+        let img = image::open(shot).unwrap().to_rgb8();
+        let first = *img.get_pixel(0, 0);
+        if img.pixels().any(|p| *p != first) {
+            return img;
+        }
+        println!("screenshot {launch} of {url}: one colour {first:?}, the page had not drawn");
     }
-    image::open(shot).unwrap().to_rgb8()
+    panic!("three screenshots of {url} showed nothing drawn");
 }
 
 /// A prepared site opens as 3D Tiles (issue 35, "a prepared site (with its tileset) opens in
