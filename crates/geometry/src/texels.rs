@@ -1,6 +1,6 @@
 //! The covered texels of an atlas (texel centres that lie on the surface, with their world
-//! position and normal), the atlas-sized table that numbers a list of texels, and the dilation that grows known texel values into neighbouring texels
-//! (hole filling, atlas gutters). Shared by the inverse solver and the surface light field.
+//! position and normal), the atlas-sized table that numbers a list of texels, and the dilation
+//! that grows known texel values into neighbouring texels (hole filling, atlas gutters). Shared by the inverse solver and the surface light field.
 
 use glam::{Vec2, Vec3};
 use igi_imaging::HdrImage;
@@ -54,6 +54,17 @@ impl TexelCache {
             1.0 - (y as f32 + 0.5) / r as f32,
         )
     }
+
+    /// [`number_table`] of the cache's texels: atlas index -> position in `texels`.
+    pub fn numbers(&self) -> Vec<u32> {
+        number_table(
+            self.resolution,
+            self.texels
+                .iter()
+                .enumerate()
+                .map(|(k, t)| (t.index, k as u32)),
+        )
+    }
 }
 
 /// An atlas-sized table (`resolution` x `resolution`, row-major like [`Texel::index`]) holding
@@ -66,19 +77,6 @@ pub fn number_table(resolution: usize, entries: impl IntoIterator<Item = (u32, u
         table[index as usize] = number;
     }
     table
-}
-
-impl TexelCache {
-    /// [`number_table`] of the cache's texels: atlas index -> position in `texels`.
-    pub fn numbers(&self) -> Vec<u32> {
-        number_table(
-            self.resolution,
-            self.texels
-                .iter()
-                .enumerate()
-                .map(|(k, t)| (t.index, k as u32)),
-        )
-    }
 }
 
 /// Index (`row * width + column`) of the texel of a `width` x `height` texture whose square

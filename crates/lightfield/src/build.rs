@@ -188,15 +188,19 @@ impl Prepared {
                 Coding::Quantized(fit_fq(&self.oct, &self.data, &fo))
             }
         };
-        Ok(SurfaceLightField::new(
+        let field = SurfaceLightField::new(
             self.oct.clone(),
             self.resolution,
             self.texels.clone(),
             self.medians.clone(),
             self.normals.clone(),
             coding,
-        )
-        .with_gain(self.gain.clone()))
+        );
+        // the median alone has no lumisphere for the gain to scale
+        Ok(match method {
+            Method::MedianOnly => field,
+            _ => field.with_gain(self.gain.clone()),
+        })
     }
 }
 
