@@ -28,9 +28,11 @@ fn without(rig: &str, view: &str) -> String {
 /// its default (PFA q = 2, atlas 256, the raw 810,844-triangle hull simplified to 16,384
 /// triangles by the texel budget); the photo's maximum as the peak. Measured 15.62 dB over
 /// 110,313 pixels on 2026-11-27 (dev build), 16.04 dB on 2026-11-29 before the view-angle gain
-/// (the hulls of the opacity-hull work of 2026-11-28) and 16.06 dB with it; the goal (18.76 dB, 3 dB over
-/// the projected atlas's 15.76 dB) is not met: the hull, not the atlas, limits it
-/// (docs/LIGHTFIELD.md, "Real data").
+/// (the hulls of the opacity-hull work of 2026-11-28), 16.06 dB with it, and 15.66 dB on the
+/// hull whose surface follows the mattes' contours (docs/OPACITY_HULL.md, "Sub-cell surface").
+/// The simplification and unwrapping alone spread it by about 1 dB (docs/LIGHTFIELD.md). The
+/// issue's goal (18.76 dB, 3 dB over the projected atlas's 15.76 dB) is not met: the hull, not
+/// the atlas, limits it (docs/LIGHTFIELD.md, "Real data").
 #[test]
 fn dino_leave_one_out_with_the_default_atlas() {
     let t = tempfile::tempdir().unwrap();

@@ -37,7 +37,8 @@ impl VisualHull {
 }
 
 /// Carve the hull of `views` in the box with `resolution` cells per axis and extract its
-/// surface (marching cubes on the occupancy, iso 0.5, closed at the box faces). `rig` names the
+/// surface (marching cubes on the occupancy, iso 0.5, closed at the box faces; each vertex
+/// placed between its two centres by the mattes' contours). `rig` names the
 /// capture in errors: when carving leaves nothing the error names the view that removed the
 /// last cells.
 pub fn carve_hull(
@@ -70,12 +71,18 @@ pub fn carve_hull(
             ),
         });
     }
-    let mesh = occupancy_mesh(&grid, &carver)?;
+    let mesh = occupancy_mesh(&grid, &carver, views)?;
     Ok(VisualHull { grid, carver, mesh })
 }
 
-/// Marching cubes on the kept cells (1 inside, 0 outside) padded with one empty layer.
-fn occupancy_mesh(grid: &CellGrid, carver: &[ViewIndex]) -> Result<TriMesh, HullError> {
+/// Marching cubes on the kept cells (1 inside, 0 outside) padded with one empty layer, its
+/// vertices then placed between the centres by the mattes' contours
+/// ([`crate::contour::place_vertices`]).
+fn occupancy_mesh(
+    grid: &CellGrid,
+    carver: &[ViewIndex],
+    views: &[&View],
+) -> Result<TriMesh, HullError> {
     let [nx, ny, nz] = grid.dims;
     let d = [nx + 2, ny + 2, nz + 2];
     let mut values = vec![0.0f32; d[0] * d[1] * d[2]];
@@ -96,7 +103,9 @@ fn occupancy_mesh(grid: &CellGrid, carver: &[ViewIndex]) -> Result<TriMesh, Hull
         origin: origin.as_vec3().to_array(),
         spacing: cs.as_vec3().to_array(),
     };
-    Ok(marching_cubes(&g, 0.5)?)
+    let mut mesh = marching_cubes(&g, 0.5)?;
+    crate::contour::place_vertices(&mut mesh, grid, carver, views);
+    Ok(mesh)
 }
 
 /// How well the hull reproduces one view's silhouette.

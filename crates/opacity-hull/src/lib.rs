@@ -9,10 +9,13 @@
 //! * [`views`]: a rig's views loaded with their mattes and carving silhouettes (alpha > 0.05;
 //!   invalid and out-of-frame pixels unknown).
 //! * [`carve`]: octree carving of a cell grid over the bounding box.
+//! * [`contour`]: where the hull's surface lies between a kept and a carved cell centre: the
+//!   signed distance to the mattes' alpha-0.5 contours.
 //! * [`hull`]: the visual hull (carving + marching cubes), reprojection IoU, leave-one-out,
 //!   volume against the number of views (Fig. 12).
 //! * [`raster`]: triangle rasterisation into a camera (coverage and depth).
-//! * [`surfel`]: surfels by resampling the hull, with per-view visibility and opacity.
+//! * [`surfel`]: surfels on the hull's vertices, their radii by the vertices' spacing, with
+//!   per-view visibility and opacity.
 //! * [`render`]: unstructured-lumigraph weights (Eq. 4) and order-independent surfel splatting
 //!   to RGBA.
 //! * [`reflectance`]: the surface reflectance field: light images kept in the 8 x 8 blocks the
@@ -33,6 +36,7 @@ mod error;
 pub mod backdrop;
 pub mod build;
 pub mod carve;
+pub mod contour;
 pub mod hull;
 pub mod job;
 pub mod lightweights;

@@ -109,7 +109,8 @@ impl Surfels {
     }
 }
 
-/// Surfels on the vertices of `mesh` with splat radius `radius`; `depth_tolerance` is how far
+/// Surfels on the vertices of `mesh` with splat radius `radius` (grown where the vertices lie
+/// sparser: [`spacing_radii`]); `depth_tolerance` is how far
 /// (metres, along the camera axis) a surfel may lie behind the depth buffer (the farthest of the
 /// pixel centres around its projection) and still count as visible.
 pub fn make_surfels(mesh: &TriMesh, radius: f32, depth_tolerance: f64, views: &[View]) -> Surfels {
@@ -146,15 +147,33 @@ pub fn make_surfels(mesh: &TriMesh, radius: f32, depth_tolerance: f64, views: &[
             opacity[s * nv + v] = a;
         }
     }
+    let area = vertex_areas(mesh);
+    let radius = spacing_radii(&area, radius);
     Surfels {
         positions: mesh.positions.clone(),
         normals,
-        radius: vec![radius; n],
-        area: vertex_areas(mesh),
+        radius,
+        area,
         views: nv,
         visible,
         opacity,
     }
+}
+
+/// Each surfel's splat radius: `radius` where the vertices lie as densely as the median one,
+/// grown with the square root of the area a surfel stands for where they lie sparser (up to
+/// twice), so that the splats still meet. The vertices placed by the mattes' contours
+/// ([`crate::contour`]) are spaced less evenly than the half-way points of the cell edges.
+fn spacing_radii(area: &[f32], radius: f32) -> Vec<f32> {
+    let mut sorted = area.to_vec();
+    sorted.sort_by(f32::total_cmp);
+    let Some(&median) = sorted.get(sorted.len() / 2) else {
+        return Vec::new();
+    };
+    let median = median.max(f32::MIN_POSITIVE);
+    area.iter()
+        .map(|a| radius * (a / median).sqrt().clamp(1.0, 2.0))
+        .collect()
 }
 
 /// The largest depth at the (up to four) pixel centres around image point (x, y). A point of
@@ -215,4 +234,18 @@ fn visibility(
         0.0
     };
     (true, a)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Vertices as dense as the median keep the radius; sparser ones grow with the square root
+    /// of their area, up to twice; denser ones never shrink.
+    #[test]
+    fn sparse_vertices_get_larger_splats() {
+        let r = spacing_radii(&[0.25, 1.0, 1.0, 1.0, 2.25, 100.0], 0.5);
+        assert_eq!(r, vec![0.5, 0.5, 0.5, 0.5, 0.75, 1.0]);
+        assert!(spacing_radii(&[], 0.5).is_empty());
+    }
 }
