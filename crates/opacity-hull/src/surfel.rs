@@ -110,7 +110,7 @@ impl Surfels {
 }
 
 /// Surfels on the vertices of `mesh` with splat radius `radius` (grown where the vertices lie
-/// sparser: [`spacing_radii`]); `depth_tolerance` is how far
+/// sparser, `spacing_radii`); `depth_tolerance` is how far
 /// (metres, along the camera axis) a surfel may lie behind the depth buffer (the farthest of the
 /// pixel centres around its projection) and still count as visible.
 pub fn make_surfels(mesh: &TriMesh, radius: f32, depth_tolerance: f64, views: &[View]) -> Surfels {
