@@ -60,6 +60,11 @@ impl CellGrid {
         self.min + (DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64) + 0.5) * self.cell_size()
     }
 
+    /// The lower corner of cell (i, j, k) (cell `dims` gives the box's upper corner).
+    pub fn corner(&self, c: [usize; 3]) -> DVec3 {
+        self.min + DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64) * self.cell_size()
+    }
+
     /// Flat index of cell (i, j, k) (x fastest).
     pub fn index(&self, c: [usize; 3]) -> usize {
         c[0] + self.dims[0] * (c[1] + self.dims[1] * c[2])
@@ -100,82 +105,225 @@ pub const UNSEEN: ViewIndex = KEPT - 1;
 ///   space beside thin parts that run out of the frames, and space outside every input frame
 ///   that a new view sees, would stay as phantom volume.
 ///
+/// Boxes of cells are decided at once where no view sees any of the box on band background and
+/// some view sees all of it inside its silhouette (every cell keeps); otherwise the box is split
+/// in eight, down to single cells.
+///
 /// Returns the cells carved.
 pub fn carve_band_votes(grid: &CellGrid, views: &[&View], carver: &mut [ViewIndex]) -> usize {
-    let dims = grid.dims;
-    carver
-        .par_iter_mut()
-        .enumerate()
-        .filter(|(_, c)| **c == KEPT)
-        .map(|(i, c)| {
-            let cell = [
-                i % dims[0],
-                (i / dims[0]) % dims[1],
-                i / (dims[0] * dims[1]),
-            ];
-            let p = grid.center(cell);
-            let (mut first, mut background, mut object) = (None, 0usize, 0usize);
-            for (v, view) in views.iter().enumerate() {
-                let Some((x, y)) = pixel_of(view, p) else {
-                    continue;
-                };
-                if view.is_band_background(x, y) {
-                    first = first.or(Some(v));
-                    background += 1;
-                } else if view.silhouette.get(x, y) {
-                    object += 1;
-                }
-            }
-            match first {
-                Some(v) if background >= object.min(BAND_AGREEMENT) => {
-                    *c = v as ViewIndex;
-                    1
-                }
-                _ if object == 0 => {
-                    *c = UNSEEN;
-                    1
-                }
-                _ => 0,
-            }
+    let tables: Vec<VoteTable> = views.iter().map(|v| VoteTable::new(v)).collect();
+    let carver_ref: &[ViewIndex] = carver;
+    let changes: Vec<(usize, ViewIndex)> = blocks(grid)
+        .into_par_iter()
+        .flat_map_iter(|(lo, hi)| {
+            let mut out = Vec::new();
+            vote_range(grid, &tables, carver_ref, lo, hi, &mut out);
+            out
         })
-        .sum()
+        .collect();
+    for &(i, v) in &changes {
+        carver[i] = v;
+    }
+    changes.len()
 }
 
-/// Summed-area table of a view's known-background pixels.
+/// The band vote of the cell centred at `p`: the first band view that carves it, [`UNSEEN`]
+/// when no view sees it as object, `None` when it stays (see [`carve_band_votes`]).
+fn cell_vote(tables: &[VoteTable], p: DVec3) -> Option<ViewIndex> {
+    let (mut first, mut background, mut object) = (None, 0usize, 0usize);
+    for (v, t) in tables.iter().enumerate() {
+        let Some((x, y)) = pixel_of(t.view, p) else {
+            continue;
+        };
+        if t.view.is_band_background(x, y) {
+            first = first.or(Some(v));
+            background += 1;
+        } else if t.view.silhouette.get(x, y) {
+            object += 1;
+        }
+    }
+    match first {
+        Some(v) if background >= object.min(BAND_AGREEMENT) => Some(v as ViewIndex),
+        _ if object == 0 => Some(UNSEEN),
+        _ => None,
+    }
+}
+
+/// Records in `out` the band votes of the kept cells in [lo, hi) that are carved.
+fn vote_range(
+    grid: &CellGrid,
+    tables: &[VoteTable],
+    carver: &[ViewIndex],
+    lo: [usize; 3],
+    hi: [usize; 3],
+    out: &mut Vec<(usize, ViewIndex)>,
+) {
+    if (0..3).all(|a| hi[a] - lo[a] == 1) {
+        let i = grid.index(lo);
+        if carver[i] == KEPT {
+            if let Some(v) = cell_vote(tables, grid.center(lo)) {
+                out.push((i, v));
+            }
+        }
+        return;
+    }
+    let (blo, bhi) = (grid.corner(lo), grid.corner(hi));
+    let keeps = || {
+        let rects: Option<Vec<[i64; 4]>> = tables
+            .iter()
+            .map(|t| projected_rect(t.view, blo, bhi))
+            .collect();
+        rects.is_some_and(|r| {
+            let zip = || tables.iter().zip(&r);
+            zip().all(|(t, r)| t.band.count(r).0 == 0)
+                && zip().any(|(t, r)| t.object.count(r) == (area(r), true))
+        })
+    };
+    if keeps() {
+        return;
+    }
+    for (clo, chi) in octants(lo, hi) {
+        vote_range(grid, tables, carver, clo, chi, out);
+    }
+}
+
+/// A view's band-background and object (silhouette, not band background) pixel counts.
+struct VoteTable<'a> {
+    view: &'a View,
+    band: PixelCount,
+    object: PixelCount,
+}
+
+impl<'a> VoteTable<'a> {
+    fn new(view: &'a View) -> Self {
+        let (w, h) = (view.silhouette.width, view.silhouette.height);
+        VoteTable {
+            view,
+            band: PixelCount::new(w, h, |x, y| view.is_band_background(x, y)),
+            object: PixelCount::new(w, h, |x, y| {
+                view.silhouette.get(x, y) && !view.is_band_background(x, y)
+            }),
+        }
+    }
+}
+
+/// Summed-area table of one class of a view's pixels: the count over any rectangle at once.
+struct PixelCount {
+    width: usize,
+    height: usize,
+    /// (w + 1) x (h + 1) prefix sums.
+    sums: Vec<u32>,
+}
+
+impl PixelCount {
+    fn new(width: usize, height: usize, class: impl Fn(usize, usize) -> bool) -> Self {
+        let mut sums = vec![0u32; (width + 1) * (height + 1)];
+        for y in 0..height {
+            let mut row = 0u32;
+            for x in 0..width {
+                row += class(x, y) as u32;
+                sums[(y + 1) * (width + 1) + x + 1] = sums[y * (width + 1) + x + 1] + row;
+            }
+        }
+        PixelCount {
+            width,
+            height,
+            sums,
+        }
+    }
+
+    /// Pixels of the class in the inclusive rectangle `[x0, y0, x1, y1]` (clipped to the frame),
+    /// and whether the rectangle lies inside the frame.
+    fn count(&self, r: &[i64; 4]) -> (u64, bool) {
+        let (w, h) = (self.width as i64, self.height as i64);
+        let inside = r[0] >= 0 && r[1] >= 0 && r[2] < w && r[3] < h;
+        let (x0, y0, x1, y1) = (r[0].max(0), r[1].max(0), r[2].min(w - 1), r[3].min(h - 1));
+        if x0 > x1 || y0 > y1 {
+            return (0, inside);
+        }
+        let s = |x: i64, y: i64| self.sums[(y * (w + 1) + x) as usize] as i64;
+        let n = s(x1 + 1, y1 + 1) - s(x0, y1 + 1) - s(x1 + 1, y0) + s(x0, y0);
+        (n as u64, inside)
+    }
+}
+
+/// Pixels in the inclusive rectangle `[x0, y0, x1, y1]`.
+fn area(r: &[i64; 4]) -> u64 {
+    ((r[2] - r[0] + 1) * (r[3] - r[1] + 1)) as u64
+}
+
+/// The pixel rectangle (inclusive, padded by two pixels) that holds the projection of the box
+/// [lo, hi] in `view`: the bounds of its eight projected corners. `None` when a corner lies
+/// behind the camera or the bounds are not finite.
+fn projected_rect(view: &View, lo: DVec3, hi: DVec3) -> Option<[i64; 4]> {
+    let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
+    for c in 0..8 {
+        let p = DVec3::new(
+            if c & 1 == 0 { lo.x } else { hi.x },
+            if c & 2 == 0 { lo.y } else { hi.y },
+            if c & 4 == 0 { lo.z } else { hi.z },
+        );
+        if !(view.camera.pose.apply(p).z > 1e-9) {
+            return None;
+        }
+        let px = view.camera.project(p)?;
+        x0 = x0.min(px.x);
+        y0 = y0.min(px.y);
+        x1 = x1.max(px.x);
+        y1 = y1.max(px.y);
+    }
+    let pad = 2.0;
+    let r = [x0 - pad, y0 - pad, x1 + pad, y1 + pad];
+    if r.iter().any(|v| !v.is_finite() || v.abs() > 1e7) {
+        return None;
+    }
+    Some([
+        r[0].floor() as i64,
+        r[1].floor() as i64,
+        r[2].ceil() as i64,
+        r[3].ceil() as i64,
+    ])
+}
+
+/// The octree's first level: blocks of 16 cells a side (the last ones clipped), for rayon.
+fn blocks(grid: &CellGrid) -> Vec<([usize; 3], [usize; 3])> {
+    let block = 16usize;
+    let nb = grid.dims.map(|d| d.div_ceil(block));
+    (0..nb[2])
+        .flat_map(|k| (0..nb[1]).flat_map(move |j| (0..nb[0]).map(move |i| [i, j, k])))
+        .map(|b| {
+            let lo = [0, 1, 2].map(|a| b[a] * block);
+            let hi = [0, 1, 2].map(|a| ((b[a] + 1) * block).min(grid.dims[a]));
+            (lo, hi)
+        })
+        .collect()
+}
+
+/// The (up to) eight non-empty octants of the box [lo, hi).
+fn octants(lo: [usize; 3], hi: [usize; 3]) -> impl Iterator<Item = ([usize; 3], [usize; 3])> {
+    let mid = [0, 1, 2].map(|a| (lo[a] + hi[a]).div_ceil(2));
+    (0..8)
+        .map(move |oct| {
+            let clo = [0, 1, 2].map(|a| if oct >> a & 1 == 0 { lo[a] } else { mid[a] });
+            let chi = [0, 1, 2].map(|a| if oct >> a & 1 == 0 { mid[a] } else { hi[a] });
+            (clo, chi)
+        })
+        .filter(|(clo, chi)| (0..3).all(|a| clo[a] < chi[a]))
+}
+
+/// Known-background pixel counts of a view, for carving.
 struct ViewTable<'a> {
     view: &'a View,
-    /// (w + 1) x (h + 1) prefix sums of known background.
-    bg: Vec<u32>,
+    bg: PixelCount,
 }
 
 impl<'a> ViewTable<'a> {
     fn new(view: &'a View) -> Self {
         let (w, h) = (view.silhouette.width, view.silhouette.height);
-        let mut bg = vec![0u32; (w + 1) * (h + 1)];
-        for y in 0..h {
-            let mut row = 0u32;
-            for x in 0..w {
-                row += view.is_background(x, y) as u32;
-                bg[(y + 1) * (w + 1) + x + 1] = bg[y * (w + 1) + x + 1] + row;
-            }
+        ViewTable {
+            view,
+            bg: PixelCount::new(w, h, |x, y| view.is_background(x, y)),
         }
-        ViewTable { view, bg }
-    }
-
-    /// Known-background pixels in the inclusive rectangle [x0, x1] x [y0, y1] (clipped).
-    fn count(&self, x0: i64, y0: i64, x1: i64, y1: i64) -> (u64, bool) {
-        let (w, h) = (
-            self.view.silhouette.width as i64,
-            self.view.silhouette.height as i64,
-        );
-        let inside = x0 >= 0 && y0 >= 0 && x1 < w && y1 < h;
-        let (x0, y0, x1, y1) = (x0.max(0), y0.max(0), x1.min(w - 1), y1.min(h - 1));
-        if x0 > x1 || y0 > y1 {
-            return (0, inside);
-        }
-        let s = |x: i64, y: i64| self.bg[(y * (w + 1) + x) as usize] as i64;
-        let n = s(x1 + 1, y1 + 1) - s(x0, y1 + 1) - s(x1 + 1, y0) + s(x0, y0);
-        (n as u64, inside)
     }
 
     /// Does this view carve the cell centred at `p`?
@@ -185,39 +333,11 @@ impl<'a> ViewTable<'a> {
 
     /// Decision for a box: Some(true) = all carved, Some(false) = none carved, None = mixed.
     fn classify_box(&self, lo: DVec3, hi: DVec3) -> Option<bool> {
-        let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
-        for c in 0..8 {
-            let p = DVec3::new(
-                if c & 1 == 0 { lo.x } else { hi.x },
-                if c & 2 == 0 { lo.y } else { hi.y },
-                if c & 4 == 0 { lo.z } else { hi.z },
-            );
-            let pc = self.view.camera.pose.apply(p);
-            if !(pc.z > 1e-9) {
-                return None;
-            }
-            let px = self.view.camera.project(p)?;
-            x0 = x0.min(px.x);
-            y0 = y0.min(px.y);
-            x1 = x1.max(px.x);
-            y1 = y1.max(px.y);
-        }
-        let pad = 2.0;
-        let r = [x0 - pad, y0 - pad, x1 + pad, y1 + pad];
-        if r.iter().any(|v| !v.is_finite() || v.abs() > 1e7) {
-            return None;
-        }
-        let (rx0, ry0, rx1, ry1) = (
-            r[0].floor() as i64,
-            r[1].floor() as i64,
-            r[2].ceil() as i64,
-            r[3].ceil() as i64,
-        );
-        let (n, inside) = self.count(rx0, ry0, rx1, ry1);
-        let area = ((rx1 - rx0 + 1) * (ry1 - ry0 + 1)) as u64;
+        let r = projected_rect(self.view, lo, hi)?;
+        let (n, inside) = self.bg.count(&r);
         if n == 0 {
             Some(false)
-        } else if inside && n == area {
+        } else if inside && n == area(&r) {
             Some(true)
         } else {
             None
@@ -230,16 +350,9 @@ impl<'a> ViewTable<'a> {
 pub fn carve(grid: &CellGrid, views: &[&View]) -> Vec<ViewIndex> {
     assert!(views.len() <= MAX_VIEWS, "at most {MAX_VIEWS} views");
     let tables: Vec<ViewTable> = views.iter().map(|v| ViewTable::new(v)).collect();
-    let block = 16usize;
-    let nb = grid.dims.map(|d| d.div_ceil(block));
-    let blocks: Vec<[usize; 3]> = (0..nb[2])
-        .flat_map(|k| (0..nb[1]).flat_map(move |j| (0..nb[0]).map(move |i| [i, j, k])))
-        .collect();
-    let results: Vec<([usize; 3], [usize; 3], Vec<ViewIndex>)> = blocks
-        .par_iter()
-        .map(|b| {
-            let lo = [0, 1, 2].map(|a| b[a] * block);
-            let hi = [0, 1, 2].map(|a| ((b[a] + 1) * block).min(grid.dims[a]));
+    let results: Vec<([usize; 3], [usize; 3], Vec<ViewIndex>)> = blocks(grid)
+        .into_par_iter()
+        .map(|(lo, hi)| {
             let size = [0, 1, 2].map(|a| hi[a] - lo[a]);
             let mut local = vec![KEPT; size[0] * size[1] * size[2]];
             carve_range(
@@ -279,8 +392,6 @@ fn carve_range(
     first: usize,
     set: &mut dyn FnMut([usize; 3], ViewIndex),
 ) {
-    let cs = grid.cell_size();
-    let corner = |c: [usize; 3]| grid.min + DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64) * cs;
     let single = (0..3).all(|a| hi[a] - lo[a] == 1);
     if single {
         let p = grid.center(lo);
@@ -289,7 +400,7 @@ fn carve_range(
         }
         return;
     }
-    let (blo, bhi) = (corner(lo), corner(hi));
+    let (blo, bhi) = (grid.corner(lo), grid.corner(hi));
     for v in first..tables.len() {
         match tables[v].classify_box(blo, bhi) {
             Some(false) => continue,
@@ -304,13 +415,8 @@ fn carve_range(
                 return;
             }
             None => {
-                let mid = [0, 1, 2].map(|a| (lo[a] + hi[a]).div_ceil(2));
-                for oct in 0..8 {
-                    let clo = [0, 1, 2].map(|a| if oct >> a & 1 == 0 { lo[a] } else { mid[a] });
-                    let chi = [0, 1, 2].map(|a| if oct >> a & 1 == 0 { mid[a] } else { hi[a] });
-                    if (0..3).all(|a| clo[a] < chi[a]) {
-                        carve_range(grid, tables, clo, chi, v, set);
-                    }
+                for (clo, chi) in octants(lo, hi) {
+                    carve_range(grid, tables, clo, chi, v, set);
                 }
                 return;
             }

@@ -58,6 +58,21 @@ fn dino_hull_reprojects_onto_every_silhouette() {
     assert!(mean >= 0.98, "mean IoU {mean}");
 }
 
+/// The dino's foot runs out of the frames (band votes keep it): the votes by boxes carve what
+/// the rule cell by cell carves.
+#[test]
+fn dino_band_votes_by_boxes_equal_the_votes_cell_by_cell() {
+    let (_dir, rig, views) = dino();
+    let refs: Vec<&View> = views.iter().collect();
+    let (min, max) = bbox(&rig);
+    for resolution in [64, 96] {
+        let voted = crate::thin_parts::assert_votes_by_boxes_equal_votes_by_cells(
+            &refs, min, max, resolution,
+        );
+        assert!(voted > 10, "the dino exercises the votes: {voted}");
+    }
+}
+
 #[test]
 fn dino_leave_one_out() {
     let (_d, rig, views) = dino();

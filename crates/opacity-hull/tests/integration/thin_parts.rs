@@ -235,3 +235,75 @@ fn thin_parts_leaving_the_frame_leave_no_phantom_volume() {
         ious.push((iou, iou_over(&cover0, &truth, &all)));
     }
 }
+
+/// The band votes decide whole boxes at once where no view sees any of a box on band
+/// background and some view sees all of it as object. Checks that they carve what the rule
+/// written out cell by cell carves, at `resolution` cells per axis; returns the cells carved by
+/// the votes.
+pub fn assert_votes_by_boxes_equal_votes_by_cells(
+    views: &[&View],
+    min: DVec3,
+    max: DVec3,
+    resolution: usize,
+) -> usize {
+    let grid = CellGrid::new(min, max, resolution);
+    let carved = carve(&grid, views);
+    let mut by_boxes = carved.clone();
+    let n = carve_band_votes(&grid, views, &mut by_boxes);
+    let d = grid.dims;
+    let by_cells: Vec<u16> = (0..grid.len())
+        .map(|i| {
+            if carved[i] != KEPT {
+                return carved[i];
+            }
+            let p = grid.center([i % d[0], (i / d[0]) % d[1], i / (d[0] * d[1])]);
+            let (mut first, mut band, mut object) = (None, 0, 0);
+            for (k, v) in views.iter().enumerate() {
+                let Some(q) = v.camera.project(p) else {
+                    continue;
+                };
+                let (w, h) = (v.silhouette.width, v.silhouette.height);
+                let (x, y) = (q.x.round(), q.y.round());
+                if x < 0.0 || y < 0.0 || x >= w as f64 || y >= h as f64 {
+                    continue;
+                }
+                let i = y as usize * w + x as usize;
+                if v.known.data[i] && !v.carves.data[i] && !v.silhouette.data[i] {
+                    first = first.or(Some(k as u16));
+                    band += 1;
+                } else if v.silhouette.data[i] {
+                    object += 1;
+                }
+            }
+            match first {
+                Some(k) if band >= object.min(2) => k,
+                _ if object == 0 => UNSEEN,
+                _ => KEPT,
+            }
+        })
+        .collect();
+    let differ = (0..grid.len())
+        .filter(|&i| by_boxes[i] != by_cells[i])
+        .count();
+    let voted = (0..grid.len())
+        .filter(|&i| carved[i] == KEPT && by_cells[i] != KEPT)
+        .count();
+    println!("{resolution} cells a side: {voted} cells carved by the votes, {differ} differ");
+    assert_eq!(n, voted);
+    assert_eq!(differ, 0, "cells the votes by boxes decide otherwise");
+    voted
+}
+
+#[test]
+fn band_votes_by_boxes_equal_the_votes_cell_by_cell() {
+    // with the band and without (then only the cells no view sees as object are voted out)
+    for band in [30, 0] {
+        let views = capture(band);
+        let refs: Vec<&View> = views.iter().collect();
+        for resolution in [48, 64] {
+            let voted =
+                assert_votes_by_boxes_equal_votes_by_cells(&refs, BOX_MIN, BOX_MAX, resolution);
+            assert!(voted > 100, "the capture exercises the votes: {voted}");
+        }
+    }
+}
