@@ -158,7 +158,7 @@ pub fn marching_cubes(grid: &Grid, iso: f32) -> Result<TriMesh, GeometryError> {
             }
         }
     }
-    mesh.normals = Some(vertex_normals(&mesh));
+    mesh.compute_vertex_normals();
     Ok(mesh)
 }
 
@@ -207,20 +207,6 @@ fn edge_point(g: &Grid, a: usize, b: usize, iso: f32) -> [f32; 3] {
     };
     let (pa, pb) = (pos(a), pos(b));
     [0, 1, 2].map(|k| pa[k] + t * (pb[k] - pa[k]))
-}
-
-fn vertex_normals(mesh: &TriMesh) -> Vec<[f32; 3]> {
-    let mut n = vec![glam::Vec3::ZERO; mesh.positions.len()];
-    for t in &mesh.indices {
-        let p = t.map(|i| glam::Vec3::from_array(mesh.positions[i as usize]));
-        let f = (p[1] - p[0]).cross(p[2] - p[0]);
-        for &i in t {
-            n[i as usize] += f;
-        }
-    }
-    n.into_iter()
-        .map(|v| v.try_normalize().unwrap_or(glam::Vec3::Z).to_array())
-        .collect()
 }
 
 #[cfg(test)]

@@ -1,16 +1,16 @@
 //! Where between two cell centres the hull's surface lies: signed distances to the mattes'
 //! half-coverage contours.
 //!
-//! Carving decides which cells are kept; marching cubes on that binary occupancy puts every
-//! surface vertex half-way between a kept and a carved centre, anywhere within half a cell of
-//! the silhouettes' edges (RMS 0.26 cell on a sphere; 0.09 once placed here, test
-//! `the_hull_surface_follows_the_mattes_contours`). [`place_vertices`] then moves each vertex
-//! along its cell edge: both cells get the signed distance (metres, positive inside) of their
-//! centres to the nearest view's matte contour at alpha 0.5, the edge of the object in a
-//! box-filtered photograph: the smallest over the views that see the centre on pixels that may
-//! carve (known, outside the frame band: the band is weak evidence, weighed by votes), each
-//! view's distance in pixels times the pixel's size at the centre's depth. As marching-cubes
-//! values `0.5 + 0.5 * d / cell` (clamped) they put the vertex where the distance crosses zero.
+//! Carving decides which cells are kept; marching cubes on that binary occupancy would put
+//! every surface vertex half-way between a kept and a carved centre, anywhere within half a
+//! cell of the silhouettes' edges (RMS 0.26 cell on a sphere; 0.09 as placed here, test
+//! `the_hull_surface_follows_the_mattes_contours`). [`occupancy_values`] gives each cell next
+//! to the surface the signed distance (metres, positive inside) of its centre to the nearest
+//! view's matte contour at alpha 0.5, the edge of the object in a box-filtered photograph: the
+//! smallest over the views that see the centre on pixels that may carve (known, outside the
+//! frame band: the band is weak evidence, weighed by votes), each view's distance in pixels
+//! times the pixel's size at the centre's depth. As marching-cubes values `0.5 + 0.5 * d /
+//! cell` (clamped) they put each vertex where the distance crosses zero along its cell edge.
 //! Kept cells stay above 0.5 and carved ones below, so the carving's topology is untouched: a
 //! thin part whose matte never reaches 0.5 (a straw under a pixel wide) keeps its cells, and
 //! its surface is drawn in toward the kept centres.
@@ -26,7 +26,7 @@
 use crate::carve::{CellGrid, ViewIndex, KEPT};
 use crate::views::View;
 use glam::DVec3;
-use igi_geometry::TriMesh;
+use igi_imaging::HdrImage;
 use rayon::prelude::*;
 
 /// How far (pixels) around a pixel its contour distance is looked for; farther is [`REACH`].
@@ -37,21 +37,21 @@ pub const REACH: i64 = 3;
 const MARGIN: f32 = 0.05;
 
 /// Per pixel of `view`, its signed distance in pixels to the matte's alpha-0.5 contour
-/// (positive inside, within +-[`REACH`]). Pixels that do not carve (invalid matte, the frame
-/// band) give no evidence.
-pub fn contour_distance(view: &View) -> Vec<f32> {
+/// (positive inside, within +-[`REACH`]), in every channel of an image that is valid where the
+/// pixel carves: invalid matte pixels and the frame band give no evidence.
+pub fn contour_distance(view: &View) -> HdrImage {
     let m = &view.matte;
     let (w, h) = (m.width as i64, m.height as i64);
     let alpha = |x: i64, y: i64| {
         let i = (y * w + x) as usize;
         view.carves.data[i].then(|| m.alpha[i])
     };
-    (0..w * h)
+    let pixels = (0..w * h)
         .into_par_iter()
         .map(|i| {
             let (x, y) = (i % w, i / w);
             let Some(a) = alpha(x, y) else {
-                return REACH as f32;
+                return [REACH as f32; 3];
             };
             let inside = a > 0.5;
             let sign = if inside { 1.0 } else { -1.0 };
@@ -70,55 +70,36 @@ pub fn contour_distance(view: &View) -> Vec<f32> {
                     }
                 }
             }
-            sign * best.max(0.0)
+            [sign * best.max(0.0); 3]
         })
-        .collect()
+        .collect();
+    HdrImage {
+        width: m.width,
+        height: m.height,
+        pixels,
+        valid: view.carves.data.clone(),
+    }
 }
 
 /// The signed distance (metres) of `p` to the nearest contour over `views` (with their
 /// [`contour_distance`] images), or `None` when no view sees it on pixels that carve.
-fn cell_distance(p: DVec3, views: &[&View], dist: &[Vec<f32>]) -> Option<f64> {
-    let mut best: Option<f64> = None;
-    for (v, d) in views.iter().zip(dist) {
-        let Some(px) = v.camera.project(p) else {
-            continue;
-        };
-        let (w, h) = (v.matte.width, v.matte.height);
-        let (x0, y0) = (px.x.floor(), px.y.floor());
-        if x0 < 0.0 || y0 < 0.0 || x0 + 1.0 >= w as f64 || y0 + 1.0 >= h as f64 {
-            continue;
-        }
-        let (fx, fy) = (px.x - x0, px.y - y0);
-        let i = y0 as usize * w + x0 as usize;
-        let taps = [i, i + 1, i + w, i + w + 1];
-        if taps.iter().any(|&t| !v.carves.data[t]) {
-            continue;
-        }
-        let [a, b, c, e] = taps.map(|t| d[t] as f64);
-        let pixels = (a * (1.0 - fx) + b * fx) * (1.0 - fy) + (c * (1.0 - fx) + e * fx) * fy;
-        let metres_per_pixel = v.camera.pose.apply(p).z / v.camera.intrinsics.fx;
-        let m = pixels * metres_per_pixel;
-        best = Some(best.map_or(m, |b| b.min(m)));
-    }
-    best
+fn cell_distance(p: DVec3, views: &[&View], dist: &[HdrImage]) -> Option<f64> {
+    let metres = |(v, d): (&&View, &HdrImage)| {
+        let px = v.camera.project(p)?;
+        let pixels = d.bilinear(px.x as f32, px.y as f32)?[0] as f64;
+        Some(pixels * v.camera.pose.apply(p).z / v.camera.intrinsics.fx)
+    };
+    views.iter().zip(dist).filter_map(metres).reduce(f64::min)
 }
 
-/// The marching-cubes value of cell `c` (`None`: the empty layer around the box): 1 inside, 0
-/// outside, or from its contour distance `d`, `0.5 + 0.5 * d / cell`, kept at least [`MARGIN`]
-/// on its own side of 0.5.
-fn cell_value(
-    c: Option<[usize; 3]>,
-    grid: &CellGrid,
-    carver: &[ViewIndex],
-    views: &[&View],
-    dist: &[Vec<f32>],
-) -> f32 {
-    let Some(c) = c else { return 0.0 };
-    let kept = carver[grid.index(c)] == KEPT;
-    let Some(d) = cell_distance(grid.center(c), views, dist) else {
+/// The marching-cubes value of a cell on the surface (a neighbour of the other class) from
+/// the contour distance `d` of its centre, `0.5 + 0.5 * d / cell`, kept at least [`MARGIN`] on
+/// its own side of 0.5; 1 or 0 when no view sees it on pixels that carve.
+fn surface_value(d: Option<f64>, kept: bool, cell: f64) -> f32 {
+    let Some(d) = d else {
         return if kept { 1.0 } else { 0.0 };
     };
-    let v = (0.5 + 0.5 * d / grid.cell_size().max_element()).clamp(0.0, 1.0) as f32;
+    let v = (0.5 + 0.5 * d / cell).clamp(0.0, 1.0) as f32;
     if kept {
         v.max(0.5 + MARGIN)
     } else {
@@ -126,53 +107,51 @@ fn cell_value(
     }
 }
 
-/// The axis and the two cells (`None` for the empty layer around the box) of the cell edge
-/// whose midpoint is `p`, a vertex of marching cubes on the binary occupancy (cell centres at
-/// the grid's nodes, one empty layer around).
-fn edge_cells(p: [f32; 3], grid: &CellGrid) -> (usize, [Option<[usize; 3]>; 2]) {
-    let cs = grid.cell_size();
-    // node coordinates of the padded grid: the centre of cell i at i + 1
-    let f = [0, 1, 2].map(|k| (p[k] as f64 - grid.min[k]) / cs[k] + 0.5);
-    let off = |k: usize| (f[k] - f[k].round()).abs();
-    let axis = (0..3)
-        .max_by(|&a, &b| off(a).total_cmp(&off(b)))
-        .unwrap_or(0);
-    let cell = |step: f64| {
-        let mut c = [0usize; 3];
-        for (k, slot) in c.iter_mut().enumerate() {
-            let node = if k == axis {
-                f[k].floor() + step
-            } else {
-                f[k].round()
-            };
-            if node < 1.0 || node > grid.dims[k] as f64 {
-                return None;
-            }
-            *slot = node as usize - 1;
-        }
-        Some(c)
+/// The values for marching cubes at 0.5 on the kept cells, padded with one empty layer (the
+/// padded grid's node `n` is the centre of cell `n - 1`): 1 inside and 0 outside, and on the
+/// surface (a cell with a 6-neighbour of the other class) `0.5 + 0.5 * d / cell` from its centre's
+/// contour distance `d`, kept at least 0.05 on its own side of 0.5, so that each vertex lands
+/// where the contour distance crosses zero between the two centres.
+pub fn occupancy_values(
+    grid: &CellGrid,
+    carver: &[ViewIndex],
+    views: &[&View],
+) -> (Vec<f32>, [usize; 3]) {
+    let dims = grid.dims;
+    let padded = dims.map(|n| n + 2);
+    let dist: Vec<HdrImage> = views.iter().map(|v| contour_distance(v)).collect();
+    let cell = grid.cell_size().max_element();
+    let kept = |c: [i64; 3]| {
+        (0..3).all(|k| c[k] >= 0 && c[k] < dims[k] as i64)
+            && carver[grid.index(c.map(|x| x as usize))] == KEPT
     };
-    (axis, [cell(0.0), cell(1.0)])
-}
-
-/// Moves every vertex of `mesh` (marching cubes on the kept cells: each vertex half-way along a
-/// cell edge) to where its edge's contour distance crosses zero, and recomputes the normals.
-pub fn place_vertices(mesh: &mut TriMesh, grid: &CellGrid, carver: &[ViewIndex], views: &[&View]) {
-    let dist: Vec<Vec<f32>> = views.iter().map(|v| contour_distance(v)).collect();
-    mesh.positions.par_iter_mut().for_each(|p| {
-        let (axis, [a, b]) = edge_cells(*p, grid);
-        let (va, vb) = (
-            cell_value(a, grid, carver, views, &dist),
-            cell_value(b, grid, carver, views, &dist),
-        );
-        if (va > 0.5) == (vb > 0.5) {
-            return; // not a crossing edge (cannot happen for marching-cubes vertices)
-        }
-        let t = ((0.5 - va) / (vb - va)).clamp(0.0, 1.0) as f64 - 0.5;
-        p[axis] += (t * grid.cell_size()[axis]) as f32;
-    });
-    mesh.normals = None;
-    mesh.compute_vertex_normals();
+    let values = (0..padded.iter().product::<usize>())
+        .into_par_iter()
+        .map(|i| {
+            let n = [
+                i % padded[0],
+                i / padded[0] % padded[1],
+                i / (padded[0] * padded[1]),
+            ];
+            let c = n.map(|x| x as i64 - 1);
+            let inside = kept(c);
+            let surface = (0..6).any(|s| {
+                let mut q = c;
+                q[s / 2] += if s % 2 == 0 { -1 } else { 1 };
+                kept(q) != inside
+            });
+            let outer = (0..3).any(|k| c[k] < 0 || c[k] >= dims[k] as i64);
+            match (surface && !outer, inside) {
+                (false, true) => 1.0,
+                (false, false) => 0.0,
+                (true, _) => {
+                    let centre = grid.center(c.map(|x| x as usize));
+                    surface_value(cell_distance(centre, views, &dist), inside, cell)
+                }
+            }
+        })
+        .collect();
+    (values, padded)
 }
 
 #[cfg(test)]
@@ -181,7 +160,7 @@ mod tests {
     use crate::backdrop::Matte;
     use crate::hull::carve_hull;
     use igi_camera::Camera;
-    use igi_imaging::{HdrImage, Mask};
+    use igi_imaging::Mask;
     use std::path::Path;
 
     /// A view of `camera` whose matte is `alpha` (every pixel known, silhouette at 0.05).
@@ -230,7 +209,7 @@ mod tests {
             (0..w * h).map(|i| ramp(i as usize % 24)).collect(),
         ));
         for x in 8..=13 {
-            let got = d[4 * 24 + x];
+            let got = d.pixels[4 * 24 + x][0];
             assert!((got - (10.3 - x as f32)).abs() < 1e-5, "x {x}: {got}");
         }
         let step = |x: usize| if x <= 9 { 1.0 } else { 0.0 };
@@ -240,12 +219,12 @@ mod tests {
         ));
         for (x, want) in [(7, 2.5), (8, 1.5), (9, 0.5), (10, -0.5), (11, -1.5)] {
             assert!(
-                (d[4 * 24 + x] - want).abs() < 1e-6,
+                (d.pixels[4 * 24 + x][0] - want).abs() < 1e-6,
                 "x {x}: {}",
-                d[4 * 24 + x]
+                d.pixels[4 * 24 + x][0]
             );
         }
-        assert_eq!(d[4 * 24 + 20], -(REACH as f32), "beyond reach");
+        assert_eq!(d.pixels[4 * 24 + 20][0], -(REACH as f32), "beyond reach");
     }
 
     /// A sphere of radius 5 cm seen by 3 x 24 cameras at 64 x 48 pixels, each matte its exact

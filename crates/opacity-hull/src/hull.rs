@@ -75,37 +75,23 @@ pub fn carve_hull(
     Ok(VisualHull { grid, carver, mesh })
 }
 
-/// Marching cubes on the kept cells (1 inside, 0 outside) padded with one empty layer, its
-/// vertices then placed between the centres by the mattes' contours
-/// ([`crate::contour::place_vertices`]).
+/// Marching cubes on the kept cells padded with one empty layer, its vertices placed between
+/// the centres by the mattes' contours ([`crate::contour::occupancy_values`]).
 fn occupancy_mesh(
     grid: &CellGrid,
     carver: &[ViewIndex],
     views: &[&View],
 ) -> Result<TriMesh, HullError> {
-    let [nx, ny, nz] = grid.dims;
-    let d = [nx + 2, ny + 2, nz + 2];
-    let mut values = vec![0.0f32; d[0] * d[1] * d[2]];
-    for k in 0..nz {
-        for j in 0..ny {
-            for i in 0..nx {
-                if carver[grid.index([i, j, k])] == KEPT {
-                    values[(i + 1) + d[0] * ((j + 1) + d[1] * (k + 1))] = 1.0;
-                }
-            }
-        }
-    }
+    let (values, dims) = crate::contour::occupancy_values(grid, carver, views);
     let cs = grid.cell_size();
     let origin = grid.min - cs * 0.5;
     let g = Grid {
         values: &values,
-        dims: d,
+        dims,
         origin: origin.as_vec3().to_array(),
         spacing: cs.as_vec3().to_array(),
     };
-    let mut mesh = marching_cubes(&g, 0.5)?;
-    crate::contour::place_vertices(&mut mesh, grid, carver, views);
-    Ok(mesh)
+    Ok(marching_cubes(&g, 0.5)?)
 }
 
 /// How well the hull reproduces one view's silhouette.
