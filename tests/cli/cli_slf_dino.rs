@@ -29,7 +29,8 @@ fn without(rig: &str, view: &str) -> String {
 /// triangles by the texel budget); the photo's maximum as the peak. Measured 15.62 dB over
 /// 110,313 pixels on 2026-11-27 (dev build), 16.04 dB on 2026-11-29 before the view-angle gain
 /// (the hulls of the opacity-hull work of 2026-11-28), 16.06 dB with it, and 15.66 dB on the
-/// hull whose surface follows the mattes' contours (docs/OPACITY_HULL.md, "Sub-cell surface").
+/// hull whose surface follows the mattes' contours (docs/OPACITY_HULL.md, "Sub-cell surface"),
+/// 15.65 dB once that surface's values are computed once a cell (2026-11-29, thirtieth session).
 /// PFA's training draw alone spreads it by up to 1 dB (seeds 0-4: 15.63-15.81 dB here,
 /// docs/LIGHTFIELD.md). The
 /// issue's goal (18.76 dB, 3 dB over the projected atlas's 15.76 dB) is not met: the hull, not
