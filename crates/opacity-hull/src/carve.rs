@@ -82,9 +82,11 @@ impl CellGrid {
 /// The pixel nearest the projection of `p` in `view`, when it lies in front and inside the frame.
 fn pixel_of(view: &View, p: DVec3) -> Option<(usize, usize)> {
     let px = view.camera.project(p)?;
-    let (x, y) = (px.x.round(), px.y.round());
     let (w, h) = (view.silhouette.width as f64, view.silhouette.height as f64);
-    (x >= 0.0 && y >= 0.0 && x < w && y < h).then_some((x as usize, y as usize))
+    // the frame is (-0.5, w - 0.5) x (-0.5, h - 0.5) (a pixel's nearest centre rounds half up);
+    // inside it x + 0.5 > 0, so truncation rounds, without a libm call
+    let inside = px.x > -0.5 && px.y > -0.5 && px.x < w - 0.5 && px.y < h - 0.5;
+    inside.then(|| ((px.x + 0.5) as usize, (px.y + 0.5) as usize))
 }
 
 /// Band views that carve a cell whatever the views that see it as object.
