@@ -86,7 +86,7 @@ fn pixel_of(view: &View, p: DVec3) -> Option<(usize, usize)> {
     // the frame is (-0.5, w - 0.5) x (-0.5, h - 0.5) (a pixel's nearest centre rounds half up);
     // inside it x + 0.5 > 0, so truncation rounds, without a libm call
     let inside = px.x > -0.5 && px.y > -0.5 && px.x < w - 0.5 && px.y < h - 0.5;
-    inside.then(|| ((px.x + 0.5) as usize, (px.y + 0.5) as usize))
+    inside.then_some(((px.x + 0.5) as usize, (px.y + 0.5) as usize))
 }
 
 /// Band views that carve a cell whatever the views that see it as object.
@@ -198,12 +198,11 @@ struct VoteTable<'a> {
 
 impl<'a> VoteTable<'a> {
     fn new(view: &'a View) -> Self {
-        let (w, h) = (view.silhouette.width, view.silhouette.height);
         VoteTable {
             view,
-            band: PixelCount::new(w, h, |x, y| view.is_band_background(x, y)),
-            object: PixelCount::new(w, h, |x, y| {
-                view.silhouette.get(x, y) && !view.is_band_background(x, y)
+            band: PixelCount::of(view, View::is_band_background),
+            object: PixelCount::of(view, |v, x, y| {
+                v.silhouette.get(x, y) && !v.is_band_background(x, y)
             }),
         }
     }
@@ -218,12 +217,14 @@ struct PixelCount {
 }
 
 impl PixelCount {
-    fn new(width: usize, height: usize, class: impl Fn(usize, usize) -> bool) -> Self {
+    /// The table of the pixels of `view` for which `class(view, x, y)` holds.
+    fn of(view: &View, class: impl Fn(&View, usize, usize) -> bool) -> Self {
+        let (width, height) = (view.silhouette.width, view.silhouette.height);
         let mut sums = vec![0u32; (width + 1) * (height + 1)];
         for y in 0..height {
             let mut row = 0u32;
             for x in 0..width {
-                row += class(x, y) as u32;
+                row += class(view, x, y) as u32;
                 sums[(y + 1) * (width + 1) + x + 1] = sums[y * (width + 1) + x + 1] + row;
             }
         }
@@ -321,10 +322,9 @@ struct ViewTable<'a> {
 
 impl<'a> ViewTable<'a> {
     fn new(view: &'a View) -> Self {
-        let (w, h) = (view.silhouette.width, view.silhouette.height);
         ViewTable {
             view,
-            bg: PixelCount::new(w, h, |x, y| view.is_background(x, y)),
+            bg: PixelCount::of(view, View::is_background),
         }
     }
 
