@@ -141,14 +141,11 @@ pub fn occupancy_values(
                 kept(q) != inside
             });
             let outer = (0..3).any(|k| c[k] < 0 || c[k] >= dims[k] as i64);
-            match (surface && !outer, inside) {
-                (false, true) => 1.0,
-                (false, false) => 0.0,
-                (true, _) => {
-                    let centre = grid.center(c.map(|x| x as usize));
-                    surface_value(cell_distance(centre, views, &dist), inside, cell)
-                }
+            if outer || !surface {
+                return if inside { 1.0 } else { 0.0 };
             }
+            let centre = grid.center(c.map(|x| x as usize));
+            surface_value(cell_distance(centre, views, &dist), inside, cell)
         })
         .collect();
     (values, padded)
