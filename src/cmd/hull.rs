@@ -30,7 +30,8 @@ pub struct BuildArgs {
     /// Output folder (must not exist, or be empty).
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Carving cells per axis of the bounding box (at least 256).
+    /// Carving cells per axis of the bounding box (at least 256; 8 bytes a cell of memory,
+    /// refused before any work above IGI_MAX_MEMORY, 8 GiB by default: at most 1024).
     #[arg(long, default_value_t = 256, value_parser = crate::cmd::values::hull_resolution)]
     pub resolution: usize,
     /// Depth in pixels of the band along the frame's edge, wherever a view's silhouette runs

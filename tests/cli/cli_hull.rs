@@ -137,6 +137,37 @@ fn fewer_than_two_views() {
     build_fails(&rig, t.path(), "rig.toml", "at least 2");
 }
 
+/// A carving grid beyond the memory limit is refused before any image is read or the output
+/// folder is made: 1024^3 cells at 8 bytes (8.0 GiB) under `IGI_MAX_MEMORY=4G`, and the
+/// default 256^3 (128 MiB) under 64M.
+#[test]
+fn a_carving_grid_beyond_the_memory_limit_is_refused_before_any_work() {
+    let t = tempfile::tempdir().unwrap();
+    let rig = make_rig(&t.path().join("cap"), 3, &|_, _| {});
+    let out = t.path().join("hull");
+    for (limit, resolution, bytes) in [
+        ("4G", "1024", "8.0 GiB (8589934592 bytes)"),
+        ("64M", "256", "0.1 GiB (134217728 bytes)"),
+    ] {
+        let t0 = std::time::Instant::now();
+        let o = igi().with_env("IGI_MAX_MEMORY", limit).run(&[
+            "hull",
+            "build",
+            s(&rig),
+            "--resolution",
+            resolution,
+            "-o",
+            s(&out),
+        ]);
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{e}");
+        let what = format!("carving grid of {resolution}^3 cells (--resolution {resolution}");
+        assert!(e.contains(&what) && e.contains(bytes), "{e}");
+        assert!(t0.elapsed().as_secs_f64() < 5.0, "refused at once: {e}");
+        assert!(!out.exists(), "nothing written");
+    }
+}
+
 #[test]
 fn image_size_differs_from_its_camera() {
     let t = tempfile::tempdir().unwrap();

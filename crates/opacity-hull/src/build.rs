@@ -127,6 +127,7 @@ pub fn build(
             max: crate::carve::MAX_VIEWS,
         });
     }
+    crate::hull::check_carving_memory(opts.resolution)?;
     // the output claimed and checked before any work (staging of this process, the lock)
     let staging = igi_files::Staging::begin(out)?;
     check_output(out)?;

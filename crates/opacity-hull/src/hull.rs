@@ -36,6 +36,23 @@ impl VisualHull {
     }
 }
 
+/// Bytes a carving cell holds at the build's peak: its first carving view and that view's
+/// per-block copy (2 + 2), then its marching-cubes value (4) beside the first (measured: the
+/// dino's `igi hull build` peaks at 281 MB at 256 cells a side and 1.21 GB at 512, 7.9 bytes
+/// a cell more).
+pub const BYTES_PER_CELL: u128 = 8;
+
+/// Refuses, before any work, a carving of `resolution` cells a side whose grid would need more
+/// memory than the limit (`IGI_MAX_MEMORY`, 8 GiB by default; [`BYTES_PER_CELL`] a cell).
+pub fn check_carving_memory(resolution: usize) -> Result<(), HullError> {
+    let cells = (resolution as u128).pow(3);
+    let what = format!(
+        "the carving grid of {resolution}^3 cells (--resolution {resolution}, {BYTES_PER_CELL} bytes a cell)"
+    );
+    igi_files::check_alloc_default(&what, cells * BYTES_PER_CELL)?;
+    Ok(())
+}
+
 /// Carve the hull of `views` in the box with `resolution` cells per axis and extract its
 /// surface (marching cubes on the occupancy, iso 0.5, closed at the box faces; each vertex
 /// placed between its two centres by the mattes' contours). `rig` names the
@@ -58,6 +75,7 @@ pub fn carve_hull(
             max: MAX_VIEWS,
         });
     }
+    check_carving_memory(resolution)?;
     let grid = CellGrid::new(min, max, resolution);
     let mut carver = carve(&grid, views);
     carve_band_votes(&grid, views, &mut carver);
