@@ -117,9 +117,15 @@ pub struct Intrinsics {
 }
 
 impl Intrinsics {
-    /// Normalised (undistorted) point -> pixel.
+    /// Normalised (undistorted) point -> pixel (a lens without distortion skips the
+    /// polynomial, whose value would be `xn` itself).
+    #[inline]
     pub fn to_pixel(&self, xn: DVec2) -> DVec2 {
-        let d = self.dist.distort(xn);
+        let d = if self.dist.is_zero() {
+            xn
+        } else {
+            self.dist.distort(xn)
+        };
         DVec2::new(self.fx * d.x + self.cx, self.fy * d.y + self.cy)
     }
 
@@ -518,6 +524,7 @@ impl Camera {
     }
 
     /// Pixel coordinates of a world point (distortion applied); `None` behind the camera.
+    #[inline]
     pub fn project(&self, p_world: DVec3) -> Option<DVec2> {
         let pc = self.pose.apply(p_world);
         if !(pc.z > 0.0) {
