@@ -23,6 +23,7 @@ use igi_camera::Camera;
 use igi_formats::lighting::LightingRadiance;
 use igi_geometry::TriMesh;
 use igi_imaging::{read_image, HdrImage};
+use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -154,7 +155,7 @@ pub fn build(
     let surfels = make_surfels(&hull.mesh, (SPLAT_RADIUS * cell) as f32, 1.5 * cell, &views);
     lap(&mut t.surfels_s);
     progress(Stage::Reproject);
-    let reps: Vec<Reprojection> = views.iter().map(|v| reproject(&hull.mesh, v)).collect();
+    let reps: Vec<Reprojection> = views.par_iter().map(|v| reproject(&hull.mesh, v)).collect();
     lap(&mut t.reproject_s);
     if rig.views.iter().any(|v| !v.lights.is_empty()) {
         progress(Stage::Reflectance);
