@@ -165,12 +165,8 @@ pub fn make_surfels(mesh: &TriMesh, radius: f32, depth_tolerance: f64, views: &[
 /// twice), so that the splats still meet. The vertices placed by the mattes' contours
 /// ([`crate::contour`]) are spaced less evenly than the half-way points of the cell edges.
 fn spacing_radii(area: &[f32], radius: f32) -> Vec<f32> {
-    let mut sorted = area.to_vec();
-    sorted.sort_by(f32::total_cmp);
-    let Some(&median) = sorted.get(sorted.len() / 2) else {
-        return Vec::new();
-    };
-    let median = median.max(f32::MIN_POSITIVE);
+    let mut wide: Vec<f64> = area.iter().map(|&a| a as f64).collect();
+    let median = (igi_imaging::color::median_in_place(&mut wide) as f32).max(f32::MIN_POSITIVE);
     area.iter()
         .map(|a| radius * (a / median).sqrt().clamp(1.0, 2.0))
         .collect()

@@ -148,8 +148,9 @@ fn mitsuba_straws_new_views_colour_within_0_15() {
 }
 
 /// Not met (2026-11-29), with the defaults: IoU 0.943 0.851 0.916 0.935, alpha MAE 0.091 0.103
-/// 0.099 0.076 (0.936 0.849 0.900 0.924 and 0.094 0.105 0.106 0.081 before the sub-cell surface) (with the splat radius of one cell and no partial coverage, before: IoU
-/// 0.77-0.84, alpha MAE 0.16-0.19).
+/// 0.099 0.076. Before the sub-cell surface: 0.936 0.849 0.900 0.924 and 0.094 0.105 0.106
+/// 0.081; with the splat radius of one cell and no partial coverage, before that: IoU
+/// 0.77-0.84, alpha MAE 0.16-0.19.
 /// The render covers pixels that the truth does not (and misses almost none): see
 /// docs/OPACITY_HULL.md, "The capture, rendered by Mitsuba 3".
 #[test]
