@@ -5,7 +5,8 @@
 //! board JSON and BRDF sample CSV, and the photogrammetry imports of `igi import colmap`:
 //! COLMAP sparse models (text and binary, the three files of a model as one input split at
 //! a marker line), Metashape's camera XML, nerfstudio's `transforms.json`, a photo's EXIF
-//! (time and exposure) and ground control points (the CSV, then the alignment).
+//! (time and exposure) and ground control points (the CSV, then the alignment); and the stored
+//! surface light field that `igi slf render` reads (its header and arrays, then a render).
 //!
 //! cargo-fuzz needs libFuzzer's compiler instrumentation (a nightly toolchain); this workspace
 //! builds on stable only, so this crate is a self-contained mutational fuzzer instead: each
@@ -171,6 +172,7 @@ pub fn targets() -> Vec<Target> {
         }),
         t("exif", "in.jpg", setup_exif, run_exif),
         t("control", "control/points.csv", setup_control, run_control),
+        t("slf", "slf/bundle.bin", setup_slf, run_slf),
     ]
 }
 
@@ -600,7 +602,121 @@ fn setup_control(fx: &Path, work: &Path) -> Result<Vec<Vec<u8>>, String> {
     Ok(vec![rows.into_bytes()])
 }
 
-const TOKENS: [&[u8]; 26] = [
+/// The files of a stored surface light field, in the order of an `slf` bundle (a coding's
+/// files that another coding does not have are empty parts).
+const SLF_FILES: [&str; 9] = [
+    "header.json",
+    "texels.bin",
+    "normals.bin",
+    "median.bin",
+    "lumispheres.bin",
+    "prototypes.bin",
+    "coefficients.bin",
+    "codebook.bin",
+    "indices.bin",
+];
+
+/// A stored surface light field from a bundle of [`SLF_FILES`] beside its mesh, loaded as `igi
+/// slf render` loads it and rendered through a camera above the mesh. A render with a value
+/// that is not finite is a failure (a panic, so the fuzzer keeps the input).
+fn run_slf(p: &Path) -> Result<(), String> {
+    let data = read(p)?;
+    let dir = p.with_file_name("field");
+    let parts = split_bundle(&data);
+    for (i, name) in SLF_FILES.iter().enumerate() {
+        match parts.get(i) {
+            Some(b) => write(&dir.join(name), b)?,
+            None => {
+                let _ = std::fs::remove_file(dir.join(name));
+            }
+        }
+    }
+    let (field, mesh) = igi_lightfield::store::load(&dir).map_err(|e| format!("{e:#}"))?;
+    let camera = slf_camera()?;
+    let (image, alpha) = field
+        .render(&mesh, &camera, &Default::default())
+        .map_err(|e| e.to_string())?;
+    let bad = image
+        .pixels
+        .iter()
+        .flatten()
+        .chain(&alpha)
+        .find(|v| !v.is_finite());
+    assert!(bad.is_none(), "the render holds {bad:?}");
+    Ok(())
+}
+
+/// A camera 2 units above the fuzz field's triangle, looking down at it at a slant.
+fn slf_camera() -> Result<igi_camera::Camera, String> {
+    let (eye, at) = (
+        glam::DVec3::new(0.3, -0.6, 2.0),
+        glam::DVec3::new(0.3, 0.3, 0.0),
+    );
+    igi_camera::Camera::look_at(eye, at, 16, 16, 60.0).map_err(|e| e.to_string())
+}
+
+/// Fields of three points on a 4 x 4 atlas of one triangle, one a coding, saved by
+/// `igi_lightfield::store::save`; the seeds are their files as bundles.
+fn setup_slf(_fx: &Path, work: &Path) -> Result<Vec<Vec<u8>>, String> {
+    use igi_lightfield::{Codebook, Coding, Octahedron, Pfa, SurfaceLightField};
+    let n = Octahedron::new(1).len();
+    let lumispheres = |count: usize| -> Vec<Vec<glam::Vec3>> {
+        (0..count)
+            .map(|k| {
+                (0..n)
+                    .map(|i| glam::Vec3::new(0.1 * k as f32, -0.2 + 0.01 * i as f32, 0.3))
+                    .collect()
+            })
+            .collect()
+    };
+    let codings = [
+        Coding::MedianOnly,
+        Coding::Faired(lumispheres(3)),
+        Coding::Pfa(Pfa {
+            prototypes: lumispheres(3),
+            coefficients: vec![vec![0.2, 0.3, 0.5]; 3],
+            energy_history: Vec::new(),
+        }),
+        Coding::Quantized(Codebook {
+            codewords: lumispheres(2),
+            index: vec![0, 1, 1],
+        }),
+    ];
+    let mesh = igi_geometry::TriMesh {
+        positions: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+        uvs: Some(vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]),
+        indices: vec![[0, 1, 2]],
+        ..Default::default()
+    };
+    std::fs::create_dir_all(work.join("slf")).map_err(|e| e.to_string())?;
+    let mut seeds = Vec::new();
+    for (k, coding) in codings.into_iter().enumerate() {
+        let field = SurfaceLightField::new(
+            Octahedron::new(1),
+            4,
+            vec![0, 5, 15],
+            vec![glam::Vec3::new(0.2, 0.3, 0.4); 3],
+            vec![glam::Vec3::Z; 3],
+            coding,
+        )
+        .with_gain(igi_lightfield::AngleGain {
+            knots: vec![2.0, 1.5, 1.0],
+        });
+        let dir = work.join(format!("slf/seed{k}"));
+        igi_lightfield::store::save(&dir, &field, &mesh, serde_json::Value::Null)
+            .map_err(|e| e.to_string())?;
+        let parts: Vec<Vec<u8>> = SLF_FILES
+            .iter()
+            .map(|f| std::fs::read(dir.join(f)).unwrap_or_default())
+            .collect();
+        seeds.push(bundle(&parts));
+    }
+    let mesh_ply = read(&work.join("slf/seed0/mesh.ply"))?;
+    write(&work.join("slf/field/mesh.ply"), &mesh_ply)?;
+    Ok(seeds)
+}
+
+const TOKENS: [&[u8]; 29] = [
     b"0",
     b"-1",
     b"1e30",
@@ -611,6 +727,9 @@ const TOKENS: [&[u8]; 26] = [
     b"-inf",
     b"4294967296",
     b"18446744073709551616",
+    b"18446744073709551615",
+    b"4611686018427387904",
+    b"9223372036854775807",
     b"2147483647",
     b"1e-45",
     b"\"\"",
@@ -628,6 +747,9 @@ const TOKENS: [&[u8]; 26] = [
     "\u{feff}".as_bytes(),
     b"1e308",
 ];
+
+/// The leading [`TOKENS`] that are numbers (what [`replace_number`] puts in a number's place).
+const NUMBER_TOKENS: usize = 15;
 
 const WORDS: [u32; 7] = [0, 1, 0x7fff_ffff, 0x8000_0000, 0xffff_ffff, 1 << 30, 65536];
 
@@ -696,7 +818,7 @@ fn replace_number(rng: &mut Pcg64, data: &mut Vec<u8>) {
     {
         e += 1;
     }
-    let t = TOKENS[rng.gen_range(0..12)];
+    let t = TOKENS[rng.gen_range(0..NUMBER_TOKENS)];
     data.splice(s..e, t.iter().copied());
 }
 

@@ -288,16 +288,30 @@ fn rgb8_lumispheres(l: &[Vec<Vec3>], h: &mut Header) -> Vec<u8> {
         .collect()
 }
 
-fn read(dir: &Path, name: &str, want: usize) -> Result<Vec<u8>, LightFieldError> {
+/// The file `name` of `dir`, which must hold `want` bytes (a `u128`, so that a header's counts
+/// cannot overflow the product).
+fn read(dir: &Path, name: &str, want: u128) -> Result<Vec<u8>, LightFieldError> {
     let p = dir.join(name);
     let b = std::fs::read(&p).map_err(io_err(&p))?;
-    if b.len() != want {
+    if b.len() as u128 != want {
         return Err(LightFieldError::Format {
             path: p,
             msg: format!("{} bytes, expected {want}", b.len()),
         });
     }
     Ok(b)
+}
+
+/// [`vec3s`] of file `name` of `dir`, every component finite.
+fn finite_vec3s(dir: &Path, name: &str, b: &[u8]) -> Result<Vec<Vec3>, LightFieldError> {
+    let v = vec3s(b);
+    match v.iter().position(|x| !x.is_finite()) {
+        None => Ok(v),
+        Some(i) => Err(LightFieldError::Format {
+            path: dir.join(name),
+            msg: format!("value {i} is {} (not finite)", v[i]),
+        }),
+    }
 }
 
 fn vec3s(b: &[u8]) -> Vec<Vec3> {
@@ -313,7 +327,7 @@ pub fn load(dir: &Path) -> Result<(SurfaceLightField, TriMesh), LightFieldError>
     let hp = dir.join("header.json");
     let h = read_header(&hp)?;
     let oct = Octahedron::new(h.level);
-    let (p, n) = (h.points, oct.len());
+    let (p, n) = (h.points as u128, oct.len());
     let texels: Vec<u32> = read(dir, "texels.bin", 4 * p)?
         .chunks(4)
         .map(|c| u32::from_le_bytes(c.try_into().unwrap()))
@@ -327,7 +341,7 @@ pub fn load(dir: &Path) -> Result<(SurfaceLightField, TriMesh), LightFieldError>
             msg: format!("texel {t} outside the {0} x {0} atlas", h.resolution),
         });
     }
-    let normal = vec3s(&read(dir, "normals.bin", 12 * p)?);
+    let normal = finite_vec3s(dir, "normals.bin", &read(dir, "normals.bin", 12 * p)?)?;
     let median = read(dir, "median.bin", 3 * p)?
         .chunks(3)
         .map(|c| Vec3::from_array([0, 1, 2].map(|k| dq8(c[k], 0.0, h.median_scale))))
@@ -380,7 +394,70 @@ fn read_header(hp: &Path) -> Result<Header, LightFieldError> {
             ),
         });
     }
+    check_counts(&h).map_err(|msg| LightFieldError::Format {
+        path: hp.to_path_buf(),
+        msg,
+    })?;
+    igi_files::check_alloc_default(
+        &format!(
+            "the texel lookup of {} (resolution {})",
+            hp.display(),
+            h.resolution
+        ),
+        (h.resolution as u128).saturating_pow(2).saturating_mul(8),
+    )?;
     Ok(h)
+}
+
+/// The largest stored value a field may hold (a median, a lumisphere value, their sum times
+/// the view-angle gain): far above any radiance, far below `f32::MAX`, so that rendering
+/// cannot overflow.
+const LARGEST_VALUE: f32 = 1e30;
+
+/// The largest knot of the header's view-angle gain (1 without one).
+fn largest_gain(h: &Header) -> f32 {
+    h.angle_gain.iter().copied().fold(1.0f32, f32::max)
+}
+
+/// What the header's counts and scales must be for its arrays to mean a field: an atlas with
+/// room for its points, one coding's counts, scales whose values stay finite when rendered.
+fn check_counts(h: &Header) -> Result<(), String> {
+    if h.resolution == 0 || h.points as u128 > (h.resolution as u128).saturating_pow(2) {
+        return Err(format!(
+            "{} points do not fit a {} x {} atlas",
+            h.points, h.resolution, h.resolution
+        ));
+    }
+    match h.method.as_str() {
+        "pfa" if !(1..=u32::MAX as usize).contains(&h.q) => {
+            return Err(format!("PFA needs q in 1..={} (got {})", u32::MAX, h.q))
+        }
+        "fq" if !(1..=u32::MAX as usize).contains(&h.codewords) => {
+            return Err(format!(
+                "a codebook needs 1..={} codewords (got {})",
+                u32::MAX,
+                h.codewords
+            ))
+        }
+        _ => {}
+    }
+    for (name, scale) in [
+        ("median_scale", h.median_scale),
+        ("lumisphere_scale", h.lumisphere_scale),
+    ] {
+        if !(scale >= 0.0) {
+            return Err(format!("{name} {scale} is not a scale (at least 0)"));
+        }
+    }
+    let gain = largest_gain(h);
+    let largest = (h.median_scale + h.lumisphere_offset.abs() + h.lumisphere_scale) * gain;
+    if !(largest <= LARGEST_VALUE) {
+        return Err(format!(
+            "its values reach {largest:e} (median_scale + |lumisphere_offset| + lumisphere_scale, \
+             times the largest angle_gain {gain}), above {LARGEST_VALUE:e}"
+        ));
+    }
+    Ok(())
 }
 
 /// The faired lumispheres of `h.points` points with `n` directions each.
@@ -399,8 +476,18 @@ fn read_lumispheres(
     count: usize,
 ) -> Result<Vec<Vec<Vec3>>, LightFieldError> {
     let values: Vec<Vec3> = match encoding {
-        VectorEncoding::F32 => vec3s(&read(dir, name, 12 * n * count)?),
-        VectorEncoding::Rgb8 => read(dir, name, 3 * n * count)?
+        VectorEncoding::F32 => {
+            let values = finite_vec3s(dir, name, &read(dir, name, 12 * (n * count) as u128)?)?;
+            let limit = LARGEST_VALUE / largest_gain(h);
+            if let Some(v) = values.iter().find(|v| !(v.abs().max_element() <= limit)) {
+                return Err(LightFieldError::Format {
+                    path: dir.join(name),
+                    msg: format!("lumisphere value {v} beyond +-{limit:e} (the gain times it would overflow)"),
+                });
+            }
+            values
+        }
+        VectorEncoding::Rgb8 => read(dir, name, 3 * (n * count) as u128)?
             .chunks(3)
             .map(|c| {
                 Vec3::from_array(
@@ -416,7 +503,7 @@ fn read_lumispheres(
 fn read_pfa(dir: &Path, h: &Header, n: usize) -> Result<Coding, LightFieldError> {
     let k = h.q + 1;
     let protos = read_lumispheres(dir, "prototypes.bin", h, h.vectors, n, k)?;
-    let coefficients = read(dir, "coefficients.bin", k * h.points)?
+    let coefficients = read(dir, "coefficients.bin", (k * h.points) as u128)?
         .chunks(k)
         .map(|c| {
             let s: f32 = c.iter().map(|b| *b as f32).sum::<f32>().max(1.0);
@@ -435,7 +522,11 @@ fn read_quantized(dir: &Path, h: &Header, n: usize) -> Result<Coding, LightField
     let k = h.codewords;
     let codewords = read_lumispheres(dir, "codebook.bin", h, h.vectors, n, k)?;
     let wide = k > 1 << 16;
-    let b = read(dir, "indices.bin", (if wide { 4 } else { 2 }) * h.points)?;
+    let b = read(
+        dir,
+        "indices.bin",
+        (if wide { 4 } else { 2 }) * h.points as u128,
+    )?;
     let index: Vec<u32> = if wide {
         b.chunks(4)
             .map(|c| u32::from_le_bytes(c.try_into().unwrap()))
@@ -574,6 +665,77 @@ mod tests {
                 "{err}"
             );
         }
+    }
+
+    /// Headers whose counts overflowed the byte counts (a panic in a debug build, a wrong
+    /// "expected" size in a release one), asked for an atlas lookup beyond memory, or scaled
+    /// values past f32, and a non-finite normal: each refused, naming the file and the field.
+    #[test]
+    fn headers_that_cannot_mean_a_field_are_refused_naming_the_field() {
+        let n = Octahedron::new(1).len();
+        let f = field(Coding::Pfa(Pfa {
+            prototypes: lumispheres(3, n),
+            coefficients: vec![vec![0.2, 0.3, 0.5]; 3],
+            energy_history: Vec::new(),
+        }));
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("slf");
+        save(&out, &f, &mesh(), serde_json::json!({})).unwrap();
+        let hp = out.join("header.json");
+        let good = std::fs::read_to_string(&hp).unwrap();
+        let header: serde_json::Value = serde_json::from_str(&good).unwrap();
+        use serde_json::json;
+        for (key, value, says) in [
+            (
+                "points",
+                json!(1u64 << 62),
+                "points do not fit a 4 x 4 atlas",
+            ),
+            ("points", json!(17), "points do not fit a 4 x 4 atlas"),
+            ("resolution", json!(0), "do not fit a 0 x 0 atlas"),
+            ("resolution", json!(u64::MAX), "the texel lookup"),
+            ("resolution", json!(1u64 << 16), "IGI_MAX_MEMORY"),
+            ("q", json!(u64::MAX), "PFA needs q"),
+            ("q", json!(0), "PFA needs q"),
+            (
+                "median_scale",
+                json!(-1.0),
+                "median_scale -1 is not a scale",
+            ),
+            ("lumisphere_scale", json!(3e38), "its values reach"),
+            ("angle_gain", json!([1e37, 1.0]), "largest angle_gain"),
+        ] {
+            let mut h = header.clone();
+            h[key] = value;
+            std::fs::write(&hp, h.to_string()).unwrap();
+            let err = with_sources(load(&out).unwrap_err());
+            assert!(
+                err.contains("header.json") && err.contains(says),
+                "{key}: {err}"
+            );
+        }
+        std::fs::write(&hp, &good).unwrap();
+        assert!(load(&out).is_ok());
+        let np = out.join("normals.bin");
+        let mut normals = std::fs::read(&np).unwrap();
+        normals[12..16].copy_from_slice(&f32::NAN.to_le_bytes());
+        std::fs::write(&np, normals).unwrap();
+        let err = load(&out).unwrap_err().to_string();
+        assert!(
+            err.contains("normals.bin") && err.contains("value 1"),
+            "{err}"
+        );
+    }
+
+    /// An error and its sources, as the command line prints them.
+    fn with_sources(e: LightFieldError) -> String {
+        let mut text = e.to_string();
+        let mut source = std::error::Error::source(&e);
+        while let Some(s) = source {
+            text += &format!(": {s}");
+            source = s.source();
+        }
+        text
     }
 
     /// A folder of an earlier build (f32 codebook, no `vectors` in the header) still loads,
