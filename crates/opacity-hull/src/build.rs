@@ -21,7 +21,7 @@ use glam::DVec3;
 use igi_camera::rig::Rig;
 use igi_camera::Camera;
 use igi_formats::lighting::LightingRadiance;
-use igi_geometry::TriMesh;
+use igi_geometry::{PointCloud, TriMesh};
 use igi_imaging::{read_image, HdrImage};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -327,6 +327,7 @@ fn open_hull(dir: &Path) -> Result<OpenHull, HullError> {
         msg: e.to_string(),
     })?;
     let cloud = igi_geometry::read_points_ply(&dir.join("surfels.ply"))?;
+    check_folder(&manifest, &cloud, dir)?;
     let nv = manifest.views.len();
     let surfels = Surfels::from_cloud(&cloud, nv).ok_or_else(|| HullError::HullFolder {
         path: dir.join("surfels.ply"),
@@ -339,6 +340,48 @@ fn open_hull(dir: &Path) -> Result<OpenHull, HullError> {
         surfels,
         rig,
     })
+}
+
+/// What `hull.json` and `surfels.ply` must hold for a render to mean the capture: at least one
+/// view, each once, and exactly that many opacity columns; opacities in [0, 1] and positive
+/// splat radii (the finite values `read_points_ply` already checked).
+fn check_folder(manifest: &Manifest, cloud: &PointCloud, dir: &Path) -> Result<(), HullError> {
+    let bad = |file: &str, msg: String| HullError::HullFolder {
+        path: dir.join(file),
+        msg,
+    };
+    let nv = manifest.views.len();
+    if nv == 0 {
+        return Err(bad("hull.json", "lists no views".into()));
+    }
+    let mut seen = std::collections::HashSet::new();
+    if let Some(v) = manifest.views.iter().find(|v| !seen.insert(v.as_str())) {
+        return Err(bad("hull.json", format!("lists view {v:?} twice")));
+    }
+    if cloud.property(&format!("alpha_v{nv}")).is_some() {
+        let msg = format!("holds the opacities of more views than the {nv} of hull.json");
+        return Err(bad("surfels.ply", msg));
+    }
+    for v in 0..nv {
+        let Some(a) = cloud.property(&format!("alpha_v{v}")) else {
+            continue; // Surfels::from_cloud names the missing column
+        };
+        if let Some(s) = a.iter().position(|a| !(0.0..=1.0).contains(a)) {
+            let msg = format!(
+                "alpha_v{v} of point {s} is {}, not an opacity in [0, 1]",
+                a[s]
+            );
+            return Err(bad("surfels.ply", msg));
+        }
+    }
+    if let Some(s) = cloud.radii.iter().flatten().position(|r| !(*r > 0.0)) {
+        let r = cloud.radii.as_ref().map_or(0.0, |r| r[s]);
+        return Err(bad(
+            "surfels.ply",
+            format!("radius of point {s} is {r}, not positive"),
+        ));
+    }
+    Ok(())
 }
 
 impl OpenHull {
@@ -448,4 +491,78 @@ pub fn load_relit_model(dir: &Path, light: &LightingRadiance) -> Result<HullMode
         let weights = light_weights(light, &f.directions)?;
         Ok((cam, Some(f.relight(&weights))))
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn manifest(views: &[&str]) -> Manifest {
+        Manifest {
+            rig: PathBuf::from("rig.toml"),
+            views: views.iter().map(|v| v.to_string()).collect(),
+            bbox_min: [0.0; 3],
+            bbox_max: [1.0; 3],
+            resolution: 256,
+            surfels: 2,
+        }
+    }
+
+    /// Two surfels with the opacities of two views.
+    fn cloud() -> PointCloud {
+        let column = |name: &str, v: [f32; 2]| (name.to_string(), v.to_vec());
+        PointCloud {
+            positions: vec![[0.0; 3], [1.0, 0.0, 0.0]],
+            normals: Some(vec![[0.0, 0.0, 1.0]; 2]),
+            radii: Some(vec![0.01, 0.02]),
+            properties: vec![
+                column("vis0", [3.0, 1.0]),
+                column("alpha_v0", [1.0, 0.0]),
+                column("alpha_v1", [0.5, 1.0]),
+            ],
+            ..Default::default()
+        }
+    }
+
+    /// A hull folder whose manifest and surfels disagree, or whose opacities and radii cannot
+    /// be a hull's, is refused naming the file (each rendered before, some as an empty image).
+    #[test]
+    fn a_hull_folder_that_cannot_mean_the_capture_is_refused_naming_the_file() {
+        let dir = Path::new("h");
+        assert!(check_folder(&manifest(&["a", "b"]), &cloud(), dir).is_ok());
+        let mut wide_alpha = cloud();
+        wide_alpha.properties[2].1[0] = 1.5;
+        let mut no_radius = cloud();
+        no_radius.radii = Some(vec![0.01, 0.0]);
+        for (m, c, file, says) in [
+            (manifest(&[]), cloud(), "hull.json", "lists no views"),
+            (
+                manifest(&["a", "a"]),
+                cloud(),
+                "hull.json",
+                "lists view \"a\" twice",
+            ),
+            (
+                manifest(&["a"]),
+                cloud(),
+                "surfels.ply",
+                "more views than the 1",
+            ),
+            (
+                manifest(&["a", "b"]),
+                wide_alpha,
+                "surfels.ply",
+                "alpha_v1 of point 0 is 1.5",
+            ),
+            (
+                manifest(&["a", "b"]),
+                no_radius,
+                "surfels.ply",
+                "radius of point 1 is 0",
+            ),
+        ] {
+            let err = check_folder(&m, &c, dir).unwrap_err().to_string();
+            assert!(err.contains(file) && err.contains(says), "{err}");
+        }
+    }
 }
