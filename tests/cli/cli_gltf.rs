@@ -1050,3 +1050,39 @@ fn a_prepared_site_exports_as_3d_tiles() {
     eprintln!("3D Tiles: {vertices} vertices, the largest (|(q - c) . a| / |a|^2 - 1) {worst:.3e} (<= 0 inside)");
     assert!(worst <= 1e-9, "a vertex outside its tile's box by {worst}");
 }
+
+/// A result whose report lists no parts, a part twice or a part named with a path separator
+/// (whose files would lie outside `parts/`) is refused naming the report, nothing written; the
+/// same folder with its own report exports.
+#[test]
+fn a_result_report_whose_parts_cannot_be_read_is_refused_naming_it() {
+    let tmp = tempfile::tempdir().unwrap();
+    let res = quick_result(tmp.path());
+    let rp = res.join("report.json");
+    let good = std::fs::read_to_string(&rp).unwrap();
+    let report: serde_json::Value = serde_json::from_str(&good).unwrap();
+    type Edit = fn(&mut serde_json::Value);
+    let edits: [(&str, Edit); 3] = [
+        ("the result holds no parts", |r| {
+            r["parts"] = serde_json::json!([])
+        }),
+        ("two site meshes are both named `ground`", |r| {
+            r["parts"][1] = r["parts"][0].clone()
+        }),
+        ("`../../ground` cannot name a part", |r| {
+            r["parts"][0]["name"] = "../../ground".into()
+        }),
+    ];
+    for (k, (says, edit)) in edits.iter().enumerate() {
+        let mut r = report.clone();
+        edit(&mut r);
+        std::fs::write(&rp, r.to_string()).unwrap();
+        let out = tmp.path().join(format!("out{k}"));
+        let o = export(&res, "gltf", &out);
+        refused(&o, &format!("report.json: invalid input: {says}"));
+        assert!(!out.exists());
+    }
+    std::fs::write(&rp, good).unwrap();
+    let o = export(&res, "gltf", &tmp.path().join("ok"));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}

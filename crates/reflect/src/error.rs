@@ -44,6 +44,14 @@ pub enum ReflectError {
         #[source]
         source: serde_json::Error,
     },
+    /// A result's report whose parts cannot be read: none, or names that repeat or cannot name
+    /// files.
+    #[error("{}: {source}", path.display())]
+    ReportParts {
+        path: PathBuf,
+        #[source]
+        source: Box<ReflectError>,
+    },
     /// Input that cannot be used (kept for callers' own checks, e.g. a checkpoint callback).
     #[error("invalid input: {0}")]
     Invalid(String),

@@ -84,6 +84,15 @@ pub struct PartResult {
     pub changed: bool,
 }
 
+/// A report's parts as a result must hold them: at least one, each named once by a name that
+/// can name its files (a name with a path separator would reach outside `parts/`).
+fn check_report_parts(report: &SolveReport) -> Result<(), ReflectError> {
+    if report.parts.is_empty() {
+        return Err(ReflectError::Invalid("the result holds no parts".into()));
+    }
+    crate::atlas_size::check_names(report.parts.iter().map(|p| p.name.as_str()))
+}
+
 impl PartResult {
     /// A part not solved yet: every texel at `albedo`, unseen, with an unknown standard error.
     pub fn fresh(part: Part, albedo: Vec3) -> PartResult {
@@ -387,6 +396,10 @@ impl SolveResult {
         let text = std::fs::read_to_string(&rp).map_err(|e| ReflectError::io(&rp, "read", e))?;
         let report: SolveReport =
             serde_json::from_str(&text).map_err(|e| ReflectError::json(&rp, "solve report", e))?;
+        check_report_parts(&report).map_err(|e| ReflectError::ReportParts {
+            path: rp.clone(),
+            source: Box::new(e),
+        })?;
         let pdir = dir.join("parts");
         let parts = report
             .parts
