@@ -616,6 +616,16 @@ pub fn read_fields(hull_dir: &Path) -> Result<Option<Vec<ViewField>>, HullError>
             ),
         ));
     }
+    for v in &header.views {
+        let d = v.directions.iter().find(|d| {
+            let d = glam::DVec3::from_array(**d);
+            !(d.is_finite() && d.length() > 1e-12)
+        });
+        if let Some(d) = d {
+            let msg = format!("view {:?}: light direction {d:?} is not a direction", v.id);
+            return Err(bad(&hpath, msg));
+        }
+    }
     let mut fields = Vec::with_capacity(header.views.len());
     for v in &header.views {
         let path = dir.join(&v.file);
@@ -674,7 +684,8 @@ fn decode(bytes: &[u8], v: &ViewHeader) -> Result<ViewField, String> {
             v.blocks
         ));
     }
-    let mut blocks = Vec::with_capacity(nb);
+    // a block takes at least its 12-byte head: no more capacity than the bytes can hold
+    let mut blocks = Vec::with_capacity(nb.min(bytes.len() / 12));
     for _ in 0..nb {
         let (bx, by, rank) = (r.u32()?, r.u32()?, r.u32()?);
         let (bw, bh) = block_dims(w, h, bx, by);
@@ -842,5 +853,25 @@ mod tests {
         let e = read_fields(dir.path()).unwrap_err().to_string();
         assert!(e.contains("v0.bin") && e.contains("truncated"), "{e}");
         assert!(read_fields(&dir.path().join("none")).unwrap().is_none());
+        // a file and header that both claim 2^32 - 1 blocks: truncated, not an allocation of
+        // 275 GB; a light direction that is none is refused naming the header
+        let hp = dir.path().join(FOLDER).join(HEADER);
+        let good = std::fs::read_to_string(&hp).unwrap();
+        let mut h: serde_json::Value = serde_json::from_str(&good).unwrap();
+        h["views"][0]["blocks"] = u32::MAX.into();
+        std::fs::write(&hp, h.to_string()).unwrap();
+        let mut many = bytes.clone();
+        many[20..24].copy_from_slice(&u32::MAX.to_le_bytes());
+        std::fs::write(&bin, many).unwrap();
+        let e = read_fields(dir.path()).unwrap_err().to_string();
+        assert!(e.contains("v0.bin") && e.contains("truncated"), "{e}");
+        let mut h: serde_json::Value = serde_json::from_str(&good).unwrap();
+        h["views"][0]["directions"][1] = serde_json::json!([0.0, 0.0, 0.0]);
+        std::fs::write(&hp, h.to_string()).unwrap();
+        let e = read_fields(dir.path()).unwrap_err().to_string();
+        assert!(
+            e.contains(HEADER) && e.contains("is not a direction"),
+            "{e}"
+        );
     }
 }
