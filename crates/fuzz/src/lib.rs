@@ -5,8 +5,9 @@
 //! board JSON and BRDF sample CSV, and the photogrammetry imports of `igi import colmap`:
 //! COLMAP sparse models (text and binary, the three files of a model as one input split at
 //! a marker line), Metashape's camera XML, nerfstudio's `transforms.json`, a photo's EXIF
-//! (time and exposure) and ground control points (the CSV, then the alignment); and the stored
-//! surface light field that `igi slf render` reads (its header and arrays, then a render).
+//! (time and exposure) and ground control points (the CSV, then the alignment); and the folders
+//! that `igi slf render` and `igi hull render` read back (a stored surface light field's header
+//! and arrays, a hull's manifest and surfels; each then rendered).
 //!
 //! cargo-fuzz needs libFuzzer's compiler instrumentation (a nightly toolchain); this workspace
 //! builds on stable only, so this crate is a self-contained mutational fuzzer instead: each
@@ -173,6 +174,7 @@ pub fn targets() -> Vec<Target> {
         t("exif", "in.jpg", setup_exif, run_exif),
         t("control", "control/points.csv", setup_control, run_control),
         t("slf", "slf/bundle.bin", setup_slf, run_slf),
+        t("hull", "hull/bundle.bin", setup_hull, run_hull),
     ]
 }
 
@@ -714,6 +716,83 @@ fn setup_slf(_fx: &Path, work: &Path) -> Result<Vec<Vec<u8>>, String> {
     let mesh_ply = read(&work.join("slf/seed0/mesh.ply"))?;
     write(&work.join("slf/field/mesh.ply"), &mesh_ply)?;
     Ok(seeds)
+}
+
+/// A hull folder from a bundle of its `hull.json` and `surfels.ply` (the rig it names, with two
+/// views, stays as set up), loaded as `igi hull render` loads it and rendered through the first
+/// view's camera. A render with a value that is not finite is a failure (a panic).
+fn run_hull(p: &Path) -> Result<(), String> {
+    let data = read(p)?;
+    let dir = p.with_file_name("folder");
+    let parts = split_bundle(&data);
+    for (i, name) in ["hull.json", "surfels.ply"].iter().enumerate() {
+        match parts.get(i) {
+            Some(b) => write(&dir.join(name), b)?,
+            None => {
+                let _ = std::fs::remove_file(dir.join(name));
+            }
+        }
+    }
+    let model = igi_opacity_hull::build::load_model(&dir).map_err(|e| e.to_string())?;
+    let camera =
+        igi_camera::Camera::load(&p.with_file_name("rig/v0.json")).map_err(|e| e.to_string())?;
+    let (image, alpha) = igi_opacity_hull::render::render(&model, &camera, Default::default());
+    let bad = image
+        .pixels
+        .iter()
+        .flatten()
+        .chain(&alpha)
+        .find(|v| !v.is_finite());
+    assert!(bad.is_none(), "the render holds {bad:?}");
+    Ok(())
+}
+
+/// A rig of two 16 x 16 views around the origin and a hull of 48 surfels on a sphere of radius
+/// 0.5 seen by both; the seed is the folder's `hull.json` and `surfels.ply` as a bundle.
+fn setup_hull(_fx: &Path, work: &Path) -> Result<Vec<Vec<u8>>, String> {
+    let rig = work.join("hull/rig");
+    std::fs::create_dir_all(&rig).map_err(|e| e.to_string())?;
+    let mut toml = String::from("[object]\nbbox_min = [-1, -1, -1]\nbbox_max = [1, 1, 1]\n");
+    for (v, eye) in [[0.0, -3.0, 1.0], [3.0, 0.0, 1.0]].iter().enumerate() {
+        let eye = glam::DVec3::from_array(*eye);
+        let cam = igi_camera::Camera::look_at(eye, glam::DVec3::ZERO, 16, 16, 40.0)
+            .map_err(|e| e.to_string())?;
+        cam.save(&rig.join(format!("v{v}.json")))
+            .map_err(|e| e.to_string())?;
+        igi_imaging::write_exr(&rig.join(format!("v{v}.exr")), &small_image(16, 16, false))
+            .map_err(|e| e.to_string())?;
+        toml += &format!("[[view]]\nid = \"v{v}\"\ncamera = \"v{v}.json\"\nphoto = \"v{v}.exr\"\n");
+    }
+    write(&rig.join("rig.toml"), toml.as_bytes())?;
+    let n = 48;
+    let normals: Vec<[f32; 3]> = (0..n)
+        .map(|i| {
+            let (z, phi) = (1.0 - (2 * i + 1) as f32 / n as f32, 2.4 * i as f32);
+            let r = (1.0 - z * z).sqrt();
+            [r * phi.cos(), r * phi.sin(), z]
+        })
+        .collect();
+    let surfels = igi_opacity_hull::surfel::Surfels {
+        positions: normals.iter().map(|d| d.map(|x| 0.5 * x)).collect(),
+        normals: normals.clone(),
+        radius: vec![0.08; n],
+        area: vec![0.02; n],
+        views: 2,
+        visible: vec![true; 2 * n],
+        opacity: (0..2 * n).map(|k| (k % 5) as f32 / 4.0).collect(),
+    };
+    let ply = work.join("hull/seed.ply");
+    igi_geometry::write_points_ply(&ply, &surfels.to_cloud()).map_err(|e| e.to_string())?;
+    let manifest = igi_opacity_hull::build::Manifest {
+        rig: rig.join("rig.toml"),
+        views: vec!["v0".into(), "v1".into()],
+        bbox_min: [-1.0; 3],
+        bbox_max: [1.0; 3],
+        resolution: 256,
+        surfels: n,
+    };
+    let json = serde_json::to_vec_pretty(&manifest).map_err(|e| e.to_string())?;
+    Ok(vec![bundle(&[json, read(&ply)?])])
 }
 
 const TOKENS: [&[u8]; 29] = [
