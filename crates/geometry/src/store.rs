@@ -760,6 +760,27 @@ pub struct LoadedPart {
     pub mesh: TriMesh,
 }
 
+/// What a site's manifest must hold for its parts to be read: at least one level, and every
+/// part's folder inside the site (a relative path without `..`).
+fn check_manifest(m: &Manifest) -> Result<(), String> {
+    if m.levels.is_empty() {
+        return Err("lists no levels".into());
+    }
+    let inside = |dir: &str| {
+        let p = Path::new(dir);
+        !dir.is_empty()
+            && p.components()
+                .all(|c| matches!(c, std::path::Component::Normal(_)))
+    };
+    match m.voxels.iter().chain(&m.terrain).find(|e| !inside(&e.dir)) {
+        Some(e) => Err(format!(
+            "part folder {:?} is not a folder inside the site",
+            e.dir
+        )),
+        None => Ok(()),
+    }
+}
+
 /// A prepared site on disk.
 pub struct SiteStore {
     dir: PathBuf,
@@ -783,6 +804,7 @@ impl SiteStore {
                 format!("unknown site format `{}`", manifest.format),
             ));
         }
+        check_manifest(&manifest).map_err(|msg| GeometryError::format(&path, msg))?;
         Ok(SiteStore {
             dir: dir.to_path_buf(),
             manifest,
@@ -1424,6 +1446,34 @@ mod tests {
         );
         // the stylobate sits on the voxel plane z = 0: its faces lie in or above it, never below
         assert!(man.voxel_range[0][2] >= 0, "{:?}", man.voxel_range);
+        // a manifest that lists no levels (loading took `levels.len() - 1`: a panic or a wrapped
+        // level), or a part folder outside the site, is refused naming manifest.json
+        let mp = out.join("manifest.json");
+        let good: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&mp).unwrap()).unwrap();
+        type Edit = fn(&mut serde_json::Value);
+        let edits: [(Edit, &str); 4] = [
+            (|m| m["levels"] = serde_json::json!([]), "lists no levels"),
+            (
+                |m| m["voxels"][0]["dir"] = "../elsewhere".into(),
+                "\"../elsewhere\" is not",
+            ),
+            (
+                |m| m["terrain"]["dir"] = "/tmp".into(),
+                "\"/tmp\" is not a folder inside",
+            ),
+            (
+                |m| m["voxels"][1]["dir"] = "".into(),
+                "\"\" is not a folder inside",
+            ),
+        ];
+        for (edit, says) in edits {
+            let mut m = good.clone();
+            edit(&mut m);
+            std::fs::write(&mp, m.to_string()).unwrap();
+            let err = SiteStore::open(&out).err().unwrap().to_string();
+            assert!(err.contains("manifest.json") && err.contains(says), "{err}");
+        }
     }
 
     #[test]
