@@ -373,11 +373,21 @@ fn split_bundle(data: &[u8]) -> Vec<&[u8]> {
 /// A COLMAP sparse folder from a bundle of its files (`ext`: `txt` or `bin`), read whole and
 /// turned into contract cameras as `igi import colmap` does.
 fn run_colmap(p: &Path, ext: &str) -> Result<(), String> {
-    let data = read(p)?;
     let dir = p.with_extension("d");
-    let parts = split_bundle(&data);
-    for (i, name) in ["cameras", "images", "points3D"].iter().enumerate() {
-        let f = dir.join(format!("{name}.{ext}"));
+    let names = ["cameras", "images", "points3D"].map(|n| format!("{n}.{ext}"));
+    unbundle(&read(p)?, &dir, &names)?;
+    checked(igi_import::read_cameras(
+        igi_import::ModelFormat::Colmap,
+        &dir,
+    ))
+}
+
+/// Writes the parts of bundle `data` into `dir`, part i as `names[i]`; a name without a part
+/// is removed (left by an earlier execution).
+fn unbundle(data: &[u8], dir: &Path, names: &[impl AsRef<str>]) -> Result<(), String> {
+    let parts = split_bundle(data);
+    for (i, name) in names.iter().enumerate() {
+        let f = dir.join(name.as_ref());
         match parts.get(i) {
             Some(b) => write(&f, b)?,
             None => {
@@ -385,10 +395,18 @@ fn run_colmap(p: &Path, ext: &str) -> Result<(), String> {
             }
         }
     }
-    checked(igi_import::read_cameras(
-        igi_import::ModelFormat::Colmap,
-        &dir,
-    ))
+    Ok(())
+}
+
+/// Panics (a crash the fuzzer keeps) when a render holds a value that is not finite.
+fn assert_finite(image: &igi_imaging::HdrImage, alpha: &[f32]) {
+    let bad = image
+        .pixels
+        .iter()
+        .flatten()
+        .chain(alpha)
+        .find(|v| !v.is_finite());
+    assert!(bad.is_none(), "the render holds {bad:?}");
 }
 
 fn bundle(parts: &[Vec<u8>]) -> Vec<u8> {
@@ -622,29 +640,14 @@ const SLF_FILES: [&str; 9] = [
 /// slf render` loads it and rendered through a camera above the mesh. A render with a value
 /// that is not finite is a failure (a panic, so the fuzzer keeps the input).
 fn run_slf(p: &Path) -> Result<(), String> {
-    let data = read(p)?;
     let dir = p.with_file_name("field");
-    let parts = split_bundle(&data);
-    for (i, name) in SLF_FILES.iter().enumerate() {
-        match parts.get(i) {
-            Some(b) => write(&dir.join(name), b)?,
-            None => {
-                let _ = std::fs::remove_file(dir.join(name));
-            }
-        }
-    }
+    unbundle(&read(p)?, &dir, &SLF_FILES)?;
     let (field, mesh) = igi_lightfield::store::load(&dir).map_err(|e| format!("{e:#}"))?;
     let camera = slf_camera()?;
     let (image, alpha) = field
         .render(&mesh, &camera, &Default::default())
         .map_err(|e| e.to_string())?;
-    let bad = image
-        .pixels
-        .iter()
-        .flatten()
-        .chain(&alpha)
-        .find(|v| !v.is_finite());
-    assert!(bad.is_none(), "the render holds {bad:?}");
+    assert_finite(&image, &alpha);
     Ok(())
 }
 
@@ -722,28 +725,13 @@ fn setup_slf(_fx: &Path, work: &Path) -> Result<Vec<Vec<u8>>, String> {
 /// views, stays as set up), loaded as `igi hull render` loads it and rendered through the first
 /// view's camera. A render with a value that is not finite is a failure (a panic).
 fn run_hull(p: &Path) -> Result<(), String> {
-    let data = read(p)?;
     let dir = p.with_file_name("folder");
-    let parts = split_bundle(&data);
-    for (i, name) in ["hull.json", "surfels.ply"].iter().enumerate() {
-        match parts.get(i) {
-            Some(b) => write(&dir.join(name), b)?,
-            None => {
-                let _ = std::fs::remove_file(dir.join(name));
-            }
-        }
-    }
+    unbundle(&read(p)?, &dir, &["hull.json", "surfels.ply"])?;
     let model = igi_opacity_hull::build::load_model(&dir).map_err(|e| e.to_string())?;
     let camera =
         igi_camera::Camera::load(&p.with_file_name("rig/v0.json")).map_err(|e| e.to_string())?;
     let (image, alpha) = igi_opacity_hull::render::render(&model, &camera, Default::default());
-    let bad = image
-        .pixels
-        .iter()
-        .flatten()
-        .chain(&alpha)
-        .find(|v| !v.is_finite());
-    assert!(bad.is_none(), "the render holds {bad:?}");
+    assert_finite(&image, &alpha);
     Ok(())
 }
 
