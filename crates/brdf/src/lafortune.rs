@@ -70,6 +70,17 @@ pub struct BsdfSample {
 }
 
 impl Lobe {
+    /// Whether the parameters can be a lobe: finite, non-negative colour, finite coefficients
+    /// and a finite, non-negative exponent.
+    pub fn is_valid(&self) -> bool {
+        self.rho.is_finite()
+            && self.rho.min_element() >= 0.0
+            && self.cxy.is_finite()
+            && self.cz.is_finite()
+            && self.n.is_finite()
+            && self.n >= 0.0
+    }
+
     /// The lobe term `rho * max(0, Cxy (wi.x wo.x + wi.y wo.y) + Cz wi.z wo.z)^N`, finite for any input.
     #[inline]
     pub fn eval(&self, wi: Vec3, wo: Vec3) -> Vec3 {

@@ -509,7 +509,16 @@ fn read_lobes(lp: &Path) -> Result<Vec<Lobe>, ReflectError> {
         return Ok(Vec::new());
     }
     let t = std::fs::read_to_string(lp).map_err(|e| ReflectError::io(lp, "read", e))?;
-    serde_json::from_str(&t).map_err(|e| ReflectError::json(lp, "lobe list", e))
+    let lobes: Vec<Lobe> =
+        serde_json::from_str(&t).map_err(|e| ReflectError::json(lp, "lobe list", e))?;
+    match lobes.iter().position(|l| !l.is_valid()) {
+        Some(i) => Err(ReflectError::Invalid(format!(
+            "{}: lobe {i} {:?} has invalid parameters (a colour and exponent at least 0, every value finite)",
+            lp.display(),
+            lobes[i]
+        ))),
+        None => Ok(lobes),
+    }
 }
 
 /// A TOML basic string (quoted, with backslashes and quotes escaped).
@@ -704,6 +713,32 @@ mod tests {
 
     /// A folder that is not a result, and an atlas of the wrong size, are refused with typed
     /// errors naming the file.
+    /// A lobe list whose lobe has a negative exponent or colour is refused naming the file and
+    /// the lobe (the exporters and the renderer took it as it was); a valid list reads back.
+    #[test]
+    fn a_lobe_list_with_a_lobe_that_is_none_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let lp = dir.path().join("ground_lobes.json");
+        let lobe = |rho: f32, n: f32| Lobe {
+            rho: Vec3::splat(rho),
+            cxy: -1.0,
+            cz: 1.0,
+            n,
+        };
+        let good = vec![lobe(0.2, 30.0), lobe(0.1, 1e6)];
+        std::fs::write(&lp, serde_json::to_string(&good).unwrap()).unwrap();
+        assert_eq!(read_lobes(&lp).unwrap(), good);
+        for bad in [lobe(0.2, -1.0), lobe(-0.1, 30.0)] {
+            let list = vec![good[0], bad];
+            std::fs::write(&lp, serde_json::to_string(&list).unwrap()).unwrap();
+            let e = read_lobes(&lp).unwrap_err().to_string();
+            assert!(
+                e.contains("ground_lobes.json: lobe 1") && e.contains("invalid"),
+                "{e}"
+            );
+        }
+    }
+
     #[test]
     fn a_wrong_atlas_or_folder_is_a_typed_error() {
         let dir = tempfile::tempdir().unwrap();

@@ -118,7 +118,7 @@ impl LobeMap {
                     cz,
                     n,
                 };
-                if !lobe_is_valid(&lobe) {
+                if !lobe.is_valid() {
                     return Err(LobeMapError::Texel {
                         lobe: li,
                         texel: i,
@@ -177,15 +177,6 @@ pub enum LobeMapError {
 }
 
 /// Whether a lobe's parameters are usable: finite, `rho >= 0`, `n >= 0`.
-fn lobe_is_valid(l: &Lobe) -> bool {
-    l.rho.is_finite()
-        && l.rho.min_element() >= 0.0
-        && l.cxy.is_finite()
-        && l.cz.is_finite()
-        && l.n.is_finite()
-        && l.n >= 0.0
-}
-
 /// Material of an object: Lafortune with per-texel (or constant) `rho_d` and constant or
 /// per-texel lobes.
 #[derive(Clone, Debug)]
@@ -539,7 +530,7 @@ fn load_object(
             n: l.n as f32,
         })
         .collect();
-    if let Some((li, l)) = lobes.iter().enumerate().find(|(_, l)| !lobe_is_valid(l)) {
+    if let Some((li, l)) = lobes.iter().enumerate().find(|(_, l)| !l.is_valid()) {
         return Err(ctx.file_err(format!("lobe {li} {l:?} has invalid parameters")));
     }
     check_energy(&ctx, &albedo, &lobes)?;
