@@ -343,8 +343,8 @@ fn open_hull(dir: &Path) -> Result<OpenHull, HullError> {
 }
 
 /// What `hull.json` and `surfels.ply` must hold for a render to mean the capture: at least one
-/// view, each once, and exactly that many opacity columns; opacities in [0, 1] and positive
-/// splat radii (the finite values `read_points_ply` already checked).
+/// view, each once, and exactly that many opacity columns; opacities in [0, 1], positive splat
+/// radii and areas of at least 0 (the finite values `read_points_ply` already checked).
 fn check_folder(manifest: &Manifest, cloud: &PointCloud, dir: &Path) -> Result<(), HullError> {
     let bad = |file: &str, msg: String| HullError::HullFolder {
         path: dir.join(file),
@@ -380,6 +380,11 @@ fn check_folder(manifest: &Manifest, cloud: &PointCloud, dir: &Path) -> Result<(
             "surfels.ply",
             format!("radius of point {s} is {r}, not positive"),
         ));
+    }
+    let area = cloud.property("area").unwrap_or_default();
+    if let Some(s) = area.iter().position(|a| !(*a >= 0.0)) {
+        let msg = format!("area of point {s} is {}, not an area (at least 0)", area[s]);
+        return Err(bad("surfels.ply", msg));
     }
     Ok(())
 }
@@ -534,6 +539,10 @@ mod tests {
         wide_alpha.properties[2].1[0] = 1.5;
         let mut no_radius = cloud();
         no_radius.radii = Some(vec![0.01, 0.0]);
+        let mut negative_area = cloud();
+        negative_area
+            .properties
+            .push(("area".into(), vec![1e-4, -1e-4]));
         for (m, c, file, says) in [
             (manifest(&[]), cloud(), "hull.json", "lists no views"),
             (
@@ -559,6 +568,12 @@ mod tests {
                 no_radius,
                 "surfels.ply",
                 "radius of point 1 is 0",
+            ),
+            (
+                manifest(&["a", "b"]),
+                negative_area,
+                "surfels.ply",
+                "area of point 1 is -0.0001",
             ),
         ] {
             let err = check_folder(&m, &c, dir).unwrap_err().to_string();
