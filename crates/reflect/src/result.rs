@@ -711,8 +711,6 @@ mod tests {
         assert!(l[1].stderr.is_empty() && f[1].stderr.len() == 256);
     }
 
-    /// A folder that is not a result, and an atlas of the wrong size, are refused with typed
-    /// errors naming the file.
     /// A lobe list whose lobe has a negative exponent or colour is refused naming the file and
     /// the lobe (the exporters and the renderer took it as it was); a valid list reads back.
     #[test]
@@ -739,6 +737,8 @@ mod tests {
         }
     }
 
+    /// A folder that is not a result, and an atlas of the wrong size, are refused with typed
+    /// errors naming the file.
     #[test]
     fn a_wrong_atlas_or_folder_is_a_typed_error() {
         let dir = tempfile::tempdir().unwrap();

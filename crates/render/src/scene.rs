@@ -176,7 +176,6 @@ pub enum LobeMapError {
     },
 }
 
-/// Whether a lobe's parameters are usable: finite, `rho >= 0`, `n >= 0`.
 /// Material of an object: Lafortune with per-texel (or constant) `rho_d` and constant or
 /// per-texel lobes.
 #[derive(Clone, Debug)]
