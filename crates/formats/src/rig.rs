@@ -97,6 +97,12 @@ pub enum RigProblem {
     LightDirection { view: String, direction: [f64; 3] },
 }
 
+/// Whether `d` can give a light's direction once normalised: finite and not (near) zero.
+pub fn is_light_direction(d: [f64; 3]) -> bool {
+    let d = glam::DVec3::from_array(d);
+    d.is_finite() && d.length() >= 1e-12
+}
+
 impl RigFile {
     /// The rig in TOML `text`, checked ([`check`](Self::check)); no path is resolved.
     pub fn parse(text: &str) -> Result<RigFile, RigProblem> {
@@ -132,8 +138,7 @@ impl RigFile {
                 }
             }
             for l in &v.lights {
-                let d = glam::DVec3::from_array(l.direction);
-                if !d.is_finite() || d.length() < 1e-12 {
+                if !is_light_direction(l.direction) {
                     return Err(RigProblem::LightDirection {
                         view: view(),
                         direction: l.direction,

@@ -33,6 +33,7 @@ use crate::views::View;
 use crate::HullError;
 use glam::DVec3;
 use igi_camera::rig::{Rig, RigView};
+use igi_formats::rig::is_light_direction;
 use igi_imaging::{read_image, HdrImage};
 use nalgebra::DMatrix;
 use rayon::prelude::*;
@@ -617,11 +618,7 @@ pub fn read_fields(hull_dir: &Path) -> Result<Option<Vec<ViewField>>, HullError>
         ));
     }
     for v in &header.views {
-        let d = v.directions.iter().find(|d| {
-            let d = glam::DVec3::from_array(**d);
-            !(d.is_finite() && d.length() > 1e-12)
-        });
-        if let Some(d) = d {
+        if let Some(d) = v.directions.iter().find(|d| !is_light_direction(**d)) {
             let msg = format!("view {:?}: light direction {d:?} is not a direction", v.id);
             return Err(bad(&hpath, msg));
         }
