@@ -88,7 +88,8 @@ pub struct SolveArgs {
     /// exceed it, or whose far and near ends differ much, is cut into parts NAME-K;
     /// docs/SOLVER.md "Atlas resolution"), or a number gives every part that many texels per
     /// side (8 to 16384). With `auto`, the first iterations run on atlases three times coarser
-    /// and one more on the chosen atlases ends the solve (docs/SOLVER.md "Coarse to fine").
+    /// until their albedo settles, and one more on the chosen atlases ends the solve
+    /// (docs/SOLVER.md "Coarse to fine").
     /// A prepared site keeps its own atlases. The atlases' memory is estimated before any work
     /// (192 bytes a texel, before the observations) and refused above 8 GiB, or the
     /// environment's IGI_MAX_MEMORY (e.g. 32G) (docs/RELIABILITY.md).

@@ -12,7 +12,10 @@
 //! which average it out (docs/SOLVER.md, "Coarse to fine", measures it).
 //!
 //! The coarse stage runs up to `max_iterations - 1` iterations and ends by the solve's own
-//! rule; its records stay in the report (marked `coarse`), and the solver ends the run after
+//! rule, or, with adaptive samples, once it has settled: the level of samples would rise, or
+//! the next iteration's change is predicted within the Monte-Carlo noise (the bounces converge
+//! geometrically). Its end then counts as a rise, so the fine iteration takes the next level
+//! of samples as it did after a coarse iteration that rose. Its records stay in the report (marked `coarse`), and the solver ends the run after
 //! the first fine iteration that follows them (converged when the coarse stage was). It is not
 //! checkpointed: a run killed before the first fine iteration redoes it.
 
@@ -94,6 +97,7 @@ pub fn solve_coarse_first(
     let coarse_opts = SolveOptions {
         max_iterations: opts.max_iterations - 1,
         min_iterations: opts.min_iterations.min(opts.max_iterations - 1),
+        coarse_stage: true,
         ..opts.clone()
     };
     let start = SolveResult::fresh(coarse, fine.report.photos.clone(), &coarse_opts);

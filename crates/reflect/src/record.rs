@@ -100,6 +100,12 @@ pub struct SolveOptions {
     /// `true`, their meaning.
     #[serde(default = "yes")]
     pub lattice_shading: bool,
+    /// This solve is the coarse stage of a coarse-to-fine solve (set by `crate::coarse`, never
+    /// stored): with `adaptive_spp` it also ends once the next iteration's change is predicted
+    /// within the Monte-Carlo noise (`solver::coarse_settled`), since the fine iteration
+    /// traces the shading again anyway.
+    #[serde(skip)]
+    pub coarse_stage: bool,
 }
 
 fn yes() -> bool {
@@ -161,6 +167,7 @@ impl Default for SolveOptions {
             deblur: 0,
             smooth_shading: true,
             lattice_shading: true,
+            coarse_stage: false,
         }
     }
 }

@@ -490,13 +490,19 @@ fn spp_at(opts: &SolveOptions, level: usize) -> u32 {
 }
 
 /// The schedule level of iteration `k`: `k`, or with `adaptive_spp` the number of earlier
-/// iterations after which the level rose (a missing record counts as a rise).
+/// iterations after which the level rose (a missing record counts as a rise), the last of a
+/// coarse stage that ended settled ([`coarse_settled`]) among them.
 fn level(opts: &SolveOptions, done: &[IterationRecord], k: u32) -> usize {
     if !opts.adaptive_spp {
         return k as usize;
     }
+    let ends_settled_coarse_stage = |i: usize| {
+        done[i].coarse
+            && done.get(i + 1).is_none_or(|next| !next.coarse)
+            && coarse_settled(&done[..i], &done[i])
+    };
     (0..k as usize)
-        .filter(|&i| done.get(i).is_none_or(rises))
+        .filter(|&i| done.get(i).is_none_or(rises) || ends_settled_coarse_stage(i))
         .count()
 }
 
@@ -506,6 +512,27 @@ fn level(opts: &SolveOptions, done: &[IterationRecord], k: u32) -> usize {
 fn rises(r: &IterationRecord) -> bool {
     r.mc_noise_rho
         .is_none_or(|mc| r.systematic_change_rho <= mc)
+}
+
+/// Whether a coarse stage (`crate::coarse`) has settled with `rec`, the iteration after the
+/// records `before`: the level rises after it ([`rises`]), or the next iteration's change
+/// beyond the Monte-Carlo noise, predicted as a fixed-point iteration's (the last change
+/// times its ratio to the one before), is within that noise. The bounces converge
+/// geometrically, so on the large survey of docs/BENCHMARKS.md the second iteration predicts
+/// 0.0015 against a noise of 0.0052, and a third changed the albedo by nothing beyond it.
+fn coarse_settled(before: &[IterationRecord], rec: &IterationRecord) -> bool {
+    let predicted = match before.last() {
+        Some(prev) if prev.systematic_change_rho > 0.0 => {
+            let ratio = rec.systematic_change_rho / prev.systematic_change_rho;
+            if ratio <= 1.0 {
+                rec.systematic_change_rho * ratio
+            } else {
+                f32::INFINITY
+            }
+        }
+        _ => f32::INFINITY,
+    };
+    rises(rec) || rec.mc_noise_rho.is_some_and(|mc| predicted <= mc)
 }
 
 /// Solves one group in iteration `k` (counted from 0): traces its texels in every photograph
@@ -686,9 +713,13 @@ pub(crate) fn finish_iteration(
     // converged when the coarse stage was
     let after_coarse = start.report.iterations.last().is_some_and(|r| r.coarse);
     let converged = settled || (after_coarse && start.report.converged);
+    let coarse_done = opts.coarse_stage
+        && opts.adaptive_spp
+        && acc.iteration >= opts.min_iterations
+        && coarse_settled(&start.report.iterations, &rec);
     start.report.iterations.push(rec);
     start.report.converged = converged;
-    Ok(settled || after_coarse)
+    Ok(settled || after_coarse || coarse_done)
 }
 
 /// sqrt(a / b), or 0 when b is not positive.
@@ -1464,7 +1495,15 @@ mod tests {
             adaptive_spp: adaptive,
             ..SolveOptions::default()
         };
-        let mut r = SolveResult::fresh(Vec::new(), vec!["p".into()], &opts);
+        run_schedule(&opts, iterations).0
+    }
+
+    /// [`schedule`] under `opts`, and the result with its records.
+    fn run_schedule(
+        opts: &SolveOptions,
+        iterations: &[(f64, f64)],
+    ) -> (Vec<(u32, bool)>, SolveResult) {
+        let mut r = SolveResult::fresh(Vec::new(), vec!["p".into()], opts);
         let mut out = Vec::new();
         for (k, &(systematic, mc)) in iterations.iter().enumerate() {
             let acc = Pending {
@@ -1477,12 +1516,51 @@ mod tests {
                 mc2: 10.0 * mc * mc,
                 ..Pending::default()
             };
-            let done = finish_iteration(&mut r, &acc, &[], None, &opts, 1.0, 1.0).unwrap();
+            let done = finish_iteration(&mut r, &acc, &[], None, opts, 1.0, 1.0).unwrap();
             let rec = r.report.iterations.last().unwrap();
             assert!((rec.mc_noise_rho.unwrap() as f64 - mc).abs() < 1e-6);
             out.push((rec.spp, done));
         }
-        out
+        (out, r)
+    }
+
+    #[test]
+    fn a_coarse_stage_ends_once_its_next_change_is_predicted_within_the_noise() {
+        let coarse = SolveOptions {
+            tolerance: 0.0,
+            adaptive_spp: true,
+            coarse_stage: true,
+            ..SolveOptions::default()
+        };
+        // the large survey's coarse stage (docs/BENCHMARKS.md): 0.139, then 0.0144 against a
+        // noise of 0.0052 predicts 0.0015 next, so it ends after its second iteration
+        let survey = [(0.139, 0.0049), (0.0144, 0.0052)];
+        let (sched, mut r) = run_schedule(&coarse, &survey);
+        assert_eq!(sched, [(16, false), (16, true)]);
+        // a slower contraction goes on (0.05 after 0.1 predicts 0.025), and so does a growing
+        // change; a change within the noise ends it as the level would rise
+        let slow = [(0.1, 0.005), (0.05, 0.005), (0.02, 0.005), (0.004, 0.005)];
+        let sched_slow = run_schedule(&coarse, &slow).0;
+        assert_eq!(
+            sched_slow,
+            [(16, false), (16, false), (16, false), (16, true)]
+        );
+        let growing = [(0.01, 0.005), (0.02, 0.005)];
+        assert_eq!(
+            run_schedule(&coarse, &growing).0,
+            [(16, false), (16, false)]
+        );
+        // a solve on its own atlases does not stop on the prediction
+        assert_eq!(schedule(true, &survey), [(16, false), (16, false)]);
+        // the fine iteration after a stage that ended settled takes the next level of samples,
+        // as after a coarse iteration that rose; after one ended unsettled (by its iterations'
+        // limit) it keeps the level
+        for rec in &mut r.report.iterations {
+            rec.coarse = true;
+        }
+        assert_eq!(spp_of(&coarse, &r.report.iterations, 2), 64);
+        r.report.iterations.truncate(1);
+        assert_eq!(spp_of(&coarse, &r.report.iterations, 1), 16);
     }
 
     #[test]
