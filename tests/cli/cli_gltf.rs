@@ -1066,7 +1066,7 @@ fn a_result_report_whose_parts_cannot_be_read_is_refused_naming_it() {
         ("the result holds no parts", |r| {
             r["parts"] = serde_json::json!([])
         }),
-        ("two site meshes are both named `ground`", |r| {
+        ("two parts of the result are both named `ground`", |r| {
             r["parts"][1] = r["parts"][0].clone()
         }),
         ("`../../ground` cannot name a part", |r| {

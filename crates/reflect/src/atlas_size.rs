@@ -355,7 +355,7 @@ pub fn plan_parts(
     cameras: &[Camera],
     max: u32,
 ) -> Result<Vec<PlannedPart>, ReflectError> {
-    check_names(meshes.iter().map(|(n, _)| n.as_str()))?;
+    check_names(meshes.iter().map(|(n, _)| n.as_str()), "site meshes")?;
     let site: Vec<&TriMesh> = meshes.iter().map(|(_, m)| m).collect();
     let views = Views::new(cameras, &site)?;
     let mut out = Vec::new();
@@ -366,8 +366,10 @@ pub fn plan_parts(
         let resolved = resolve(&mesh, &views);
         plan_mesh(name, mesh, resolved, &views, max, 0, &mut out)?;
     }
-    check_names(out.iter().map(|p| p.name.as_str())).map_err(|e| ReflectError::PieceName {
-        source: Box::new(e),
+    check_names(out.iter().map(|p| p.name.as_str()), "parts").map_err(|e| {
+        ReflectError::PieceName {
+            source: Box::new(e),
+        }
     })?;
     Ok(out)
 }
@@ -412,15 +414,22 @@ fn plan_mesh(
     Ok(())
 }
 
-/// Refuses part names that repeat or cannot name files.
-pub(crate) fn check_names<'a>(names: impl Iterator<Item = &'a str>) -> Result<(), ReflectError> {
+/// Refuses part names that repeat or cannot name files; `what` names them in the message
+/// ("site meshes", "parts of the result").
+pub(crate) fn check_names<'a>(
+    names: impl Iterator<Item = &'a str>,
+    what: &'static str,
+) -> Result<(), ReflectError> {
     let mut seen = std::collections::HashSet::new();
     for a in names {
         if a.is_empty() || a.contains(['/', '\\']) {
             return Err(ReflectError::UnnamablePart(a.to_string()));
         }
         if !seen.insert(a) {
-            return Err(ReflectError::DuplicatePart(a.to_string()));
+            return Err(ReflectError::DuplicatePart {
+                what,
+                name: a.to_string(),
+            });
         }
     }
     Ok(())
@@ -765,6 +774,9 @@ mod tests {
         )
         .unwrap_err()
         .to_string();
-        assert!(twice.contains("both named `a`"), "{twice}");
+        assert!(
+            twice.contains("two site meshes are both named `a`"),
+            "{twice}"
+        );
     }
 }

@@ -64,9 +64,9 @@ pub enum ReflectError {
     /// A part name that cannot name files (empty, or with a path separator).
     #[error("invalid input: `{0}` cannot name a part")]
     UnnamablePart(String),
-    /// Two site meshes with the same name.
-    #[error("invalid input: two site meshes are both named `{0}`")]
-    DuplicatePart(String),
+    /// Two site meshes, or two parts of a result, with the same name (`what` says which).
+    #[error("invalid input: two {what} are both named `{name}`")]
+    DuplicatePart { what: &'static str, name: String },
     /// `--atlas auto` cut a piece whose name another mesh has.
     #[error("invalid input: {source}: a site mesh has the name `--atlas auto` gives a piece cut from another (NAME-K); rename the mesh")]
     PieceName {

@@ -211,7 +211,7 @@ pub fn build_parts_with(
     meshes: Vec<(String, TriMesh)>,
     choose: impl Fn(&str, &TriMesh) -> Result<AtlasChoice, ReflectError> + Sync,
 ) -> Result<Vec<Part>, ReflectError> {
-    crate::atlas_size::check_names(meshes.iter().map(|(n, _)| n.as_str()))?;
+    crate::atlas_size::check_names(meshes.iter().map(|(n, _)| n.as_str()), "site meshes")?;
     meshes
         .into_par_iter()
         .map(|(name, mut mesh)| {

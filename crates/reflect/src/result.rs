@@ -90,7 +90,10 @@ fn check_report_parts(report: &SolveReport) -> Result<(), ReflectError> {
     if report.parts.is_empty() {
         return Err(ReflectError::Invalid("the result holds no parts".into()));
     }
-    crate::atlas_size::check_names(report.parts.iter().map(|p| p.name.as_str()))
+    crate::atlas_size::check_names(
+        report.parts.iter().map(|p| p.name.as_str()),
+        "parts of the result",
+    )
 }
 
 impl PartResult {
