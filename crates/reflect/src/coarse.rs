@@ -15,9 +15,10 @@
 //! rule, or, with adaptive samples, once it has settled: the level of samples would rise, or
 //! the next iteration's change is predicted within the Monte-Carlo noise (the bounces converge
 //! geometrically). Its end then counts as a rise, so the fine iteration takes the next level
-//! of samples as it did after a coarse iteration that rose. Its records stay in the report (marked `coarse`), and the solver ends the run after
-//! the first fine iteration that follows them (converged when the coarse stage was). It is not
-//! checkpointed: a run killed before the first fine iteration redoes it.
+//! of samples as it did after a coarse iteration that rose. Its records stay in the report
+//! (marked `coarse`), and the solver ends the run after the first fine iteration that follows
+//! them (converged when the coarse stage was). It is not checkpointed: a run killed before the
+//! first fine iteration redoes it.
 
 use crate::atlas_size::AtlasChoice;
 use crate::fill::dilate;
