@@ -71,14 +71,16 @@ pub struct BsdfSample {
 
 impl Lobe {
     /// Whether the parameters can be a lobe: finite, non-negative colour, finite coefficients
-    /// and a finite, non-negative exponent.
+    /// and a finite, non-negative exponent (the rule of the materials file,
+    /// [`igi_formats::materials::Lobe::is_valid`]).
     pub fn is_valid(&self) -> bool {
-        self.rho.is_finite()
-            && self.rho.min_element() >= 0.0
-            && self.cxy.is_finite()
-            && self.cz.is_finite()
-            && self.n.is_finite()
-            && self.n >= 0.0
+        igi_formats::materials::Lobe {
+            rho: self.rho,
+            cxy: self.cxy,
+            cz: self.cz,
+            n: self.n,
+        }
+        .is_valid()
     }
 
     /// The lobe term `rho * max(0, Cxy (wi.x wo.x + wi.y wo.y) + Cz wi.z wo.z)^N`, finite for any input.

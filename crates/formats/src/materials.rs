@@ -18,6 +18,19 @@ pub struct Lobe {
     pub n: f32,
 }
 
+impl Lobe {
+    /// Whether the parameters can be a lobe: finite, non-negative colour, finite coefficients
+    /// and a finite, non-negative exponent (the one rule: `igi_brdf::Lobe::is_valid` asks it).
+    pub fn is_valid(&self) -> bool {
+        self.rho.is_finite()
+            && self.rho.min_element() >= 0.0
+            && self.cxy.is_finite()
+            && self.cz.is_finite()
+            && self.n.is_finite()
+            && self.n >= 0.0
+    }
+}
+
 /// Standard errors of one lobe, in the units of the fitted parameters (`cz` is fixed, so it
 /// has none).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -97,13 +110,7 @@ impl MaterialsFile {
                 });
             }
             for (index, l) in e.lobes.iter().enumerate() {
-                let ok = l.rho.is_finite()
-                    && l.rho.min_element() >= 0.0
-                    && l.cxy.is_finite()
-                    && l.cz.is_finite()
-                    && l.n.is_finite()
-                    && l.n >= 0.0;
-                if !ok {
+                if !l.is_valid() {
                     return Err(MaterialsProblem::Lobe {
                         name: name.clone(),
                         index,
