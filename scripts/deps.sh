@@ -8,7 +8,9 @@
 #         opens `igi view` headless, WebGL through SwiftShader), Mitsuba 3.9.1 (the gloss test
 #         of crates/lightfield renders its 20 MB capture with datasets/mitsuba/slf_gloss.py,
 #         the straws test of crates/opacity-hull its 141 MB one with hull_straws.py, rather
-#         than committing them), everything the test command builds and runs
+#         than committing them), a real camera RAW file (crates/imaging's test against
+#         LibRaw; fetched from PyPI into $IGI_DATA_DIR, default /opt/igi-data), everything the
+#         test command builds and runs
 #   mitsuba: what regenerating the reference data of datasets/mitsuba/ needs (never igi
 #         itself): Mitsuba 3.9.1 for python3 and Debian's libllvm19 for its llvm_ad_rgb
 #         variant (the scripts find libLLVM-19.so with `dpkg -L libllvm19`)
@@ -57,6 +59,31 @@ if [ "$profile" = mitsuba ] || [ "$profile" = test ]; then
       || python3 -m pip install -q --break-system-packages "mitsuba==3.9.1" numpy
   fi
   if [ "$profile" = mitsuba ]; then exit 0; fi
+fi
+if [ "$profile" = test ]; then
+  # a real camera RAW file for crates/imaging's test against LibRaw (datasets/raw_reference.py):
+  # a Sony ILCE-7RM3 ARW that the MIT-licensed PyPI package libraw-cffi 0.19.0 ships as a test
+  # file in its source distribution; kept under $IGI_DATA_DIR (default /opt/igi-data)
+  IGI_DATA="${IGI_DATA_DIR:-/opt/igi-data}"
+  ARW="$IGI_DATA/raw/_DSC2164.ARW"
+  ARW_SHA256=42ec55eef6047c1bfbd1fd05fdcae78993f3513814138eff4cbcf9498c57d4e6
+  if ! echo "$ARW_SHA256  $ARW" | sha256sum --check --status 2>/dev/null; then
+    echo "igi: fetching a camera RAW test file (libraw-cffi==0.19.0's source, PyPI) into $IGI_DATA/raw" >&2
+    fetch_dir="$(mktemp -d)"
+    python3 -m pip download -q --no-deps --no-binary :all: -d "$fetch_dir" "libraw-cffi==0.19.0" >&2
+    tar -xzf "$fetch_dir/libraw_cffi-0.19.0.tar.gz" -C "$fetch_dir" \
+      libraw_cffi-0.19.0/libraw_cffi/tests/_DSC2164.ARW libraw_cffi-0.19.0/COPYING
+    SUDO=""
+    if [ "$(id -u)" -ne 0 ] && [ ! -w "$(dirname "$IGI_DATA")" ]; then SUDO="sudo"; fi
+    $SUDO mkdir -p "$IGI_DATA/raw"
+    $SUDO cp "$fetch_dir/libraw_cffi-0.19.0/libraw_cffi/tests/_DSC2164.ARW" "$ARW"
+    $SUDO cp "$fetch_dir/libraw_cffi-0.19.0/COPYING" "$IGI_DATA/raw/COPYING.libraw-cffi"
+    rm -rf "$fetch_dir"
+    if ! echo "$ARW_SHA256  $ARW" | sha256sum --check --status; then
+      echo "igi: $ARW is not the expected file (SHA-256 differs)" >&2
+      exit 1
+    fi
+  fi
 fi
 if ! command -v cargo >/dev/null 2>&1; then
   echo "igi: cargo not found; install the Rust toolchain (rustup) first" >&2

@@ -49,6 +49,8 @@ pub mod merge;
 pub mod metrics;
 pub mod photo;
 pub mod raw;
+#[cfg(all(test, feature = "raw"))]
+mod tests_libraw;
 
 pub use error::{CompareError, FileSizes, HdrError, ImagingError};
 pub use image::HdrImage;

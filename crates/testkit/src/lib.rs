@@ -3,6 +3,8 @@
 //! - [`shared_data`]: a path into `../shared/data` (the real third-party data beside the
 //!   checkout). A test that needs it **fails** with the reason when it is missing; it never
 //!   passes silently.
+//! - [`fetched_data`]: a file `bash scripts/deps.sh test` fetched from a package registry (test
+//!   data no repository file holds); missing, the test fails and says how to fetch it.
 //! - [`Cli`]: runs the `igi` binary (`Cli::new(env!("CARGO_BIN_EXE_igi"))`) with `--quiet`.
 //! - [`mitsuba_capture`]: a capture that a `datasets/mitsuba` script renders into the target
 //!   folder, once per version of the script.
@@ -29,6 +31,23 @@ pub fn shared_data(rel: &str) -> PathBuf {
     assert!(
         p.exists(),
         "test data missing: {} (the real-data tests read ../shared/data beside the checkout; see shared/data/CATALOGUE.md)",
+        p.display()
+    );
+    p
+}
+
+/// The path of `rel` under the folder where `bash scripts/deps.sh test` puts the test data it
+/// fetches from package registries (`$IGI_DATA_DIR`, else `/opt/igi-data`); panics with the
+/// reason when it is missing, so a test that needs it can never pass without it.
+pub fn fetched_data(rel: &str) -> PathBuf {
+    let root = std::env::var_os("IGI_DATA_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from("/opt/igi-data"));
+    let p = root.join(rel);
+    assert!(
+        p.exists(),
+        "test data missing: {} (`bash scripts/deps.sh test` fetches it; set IGI_DATA_DIR to the \
+         folder where it put it if not /opt/igi-data)",
         p.display()
     );
     p
