@@ -43,7 +43,7 @@ pub struct IterationArgs {
     #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
     pub shading_smoothing: bool,
     /// In the fine iteration after the coarse stage of `--atlas auto`, path-trace the shading
-    /// at every third texel per atlas row and column and read the texels between bilinearly
+    /// at every fifth texel per atlas row and column and read the texels between bilinearly
     /// (never across a shadow edge, a crease, an occlusion boundary or a chart border;
     /// docs/SOLVER.md). `false`: trace every texel, the same error at several times the time.
     #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]

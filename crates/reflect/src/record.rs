@@ -93,7 +93,7 @@ pub struct SolveOptions {
     /// field existed read `false`, their meaning.
     #[serde(default)]
     pub smooth_shading: bool,
-    /// In the fine iteration after a coarse stage, trace the shading at every third texel per
+    /// In the fine iteration after a coarse stage, trace the shading at every fifth texel per
     /// atlas row and column only and read the rest bilinearly from them (`crate::lattice`; on
     /// by default). `false` traces every texel: the same error at several times the time
     /// (docs/SOLVER.md, "Coarse to fine"). Options files written before the field existed read

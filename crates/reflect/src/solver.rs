@@ -568,7 +568,7 @@ pub(crate) fn solve_group(
     // the fine iteration after a coarse stage reads its shading from a lattice
     let after_coarse = start.report.iterations.last().is_some_and(|r| r.coarse);
     let shading_step = if after_coarse && opts.lattice_shading {
-        crate::record::COARSE_FACTOR
+        crate::lattice::LATTICE_STEP
     } else {
         1
     };
