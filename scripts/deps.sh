@@ -16,6 +16,10 @@
 #         variant (the scripts find libLLVM-19.so with `dpkg -L libllvm19`)
 set -euo pipefail
 profile="${1:-test}"
+# Runs a command as root: directly when this is root, else through sudo.
+as_root() { if [ "$(id -u)" -eq 0 ]; then "$@"; else sudo "$@"; fi; }
+# Runs a command that writes under folder $1: as this user when it may write there, else as root.
+writing_under() { local dir="$1"; shift; if [ -w "$dir" ]; then "$@"; else as_root "$@"; fi; }
 pkgs=(libembree-dev pkg-config fonts-dejavu-core)
 case "$profile" in
   demo) ;;
@@ -30,10 +34,9 @@ for p in "${pkgs[@]}"; do
 done
 if ((${#missing[@]})); then
   echo "igi: installing system packages: ${missing[*]}" >&2
-  SUDO=""
-  if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
-  $SUDO apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >&2
+  as_root apt-get update -qq
+  as_root env DEBIAN_FRONTEND=noninteractive \
+    apt-get install -y -qq --no-install-recommends "${missing[@]}" >&2
 fi
 if [ "$profile" = test ]; then
   # the Khronos glTF-Validator of tests/cli/cli_gltf.rs (found there, or via IGI_GLTF_VALIDATOR)
@@ -41,10 +44,8 @@ if [ "$profile" = test ]; then
   IGI_NODE=/opt/igi-node
   if ! grep -q "\"version\": \"$GLTF_VALIDATOR_VERSION\"" "$IGI_NODE/node_modules/gltf-validator/package.json" 2>/dev/null; then
     echo "igi: installing gltf-validator@$GLTF_VALIDATOR_VERSION (npm) under $IGI_NODE" >&2
-    SUDO=""
-    if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
-    $SUDO mkdir -p "$IGI_NODE"
-    $SUDO npm install --prefix "$IGI_NODE" --no-audit --no-fund --silent "gltf-validator@$GLTF_VALIDATOR_VERSION" >&2
+    as_root mkdir -p "$IGI_NODE"
+    as_root npm install --prefix "$IGI_NODE" --no-audit --no-fund --silent "gltf-validator@$GLTF_VALIDATOR_VERSION" >&2
   fi
 fi
 if [ "$profile" = mitsuba ] || [ "$profile" = test ]; then
@@ -73,11 +74,10 @@ if [ "$profile" = test ]; then
     python3 -m pip download -q --no-deps --no-binary :all: -d "$fetch_dir" "libraw-cffi==0.19.0" >&2
     tar -xzf "$fetch_dir/libraw_cffi-0.19.0.tar.gz" -C "$fetch_dir" \
       libraw_cffi-0.19.0/libraw_cffi/tests/_DSC2164.ARW libraw_cffi-0.19.0/COPYING
-    SUDO=""
-    if [ "$(id -u)" -ne 0 ] && [ ! -w "$(dirname "$IGI_DATA")" ]; then SUDO="sudo"; fi
-    $SUDO mkdir -p "$IGI_DATA/raw"
-    $SUDO cp "$fetch_dir/libraw_cffi-0.19.0/libraw_cffi/tests/_DSC2164.ARW" "$ARW"
-    $SUDO cp "$fetch_dir/libraw_cffi-0.19.0/COPYING" "$IGI_DATA/raw/COPYING.libraw-cffi"
+    data_parent="$(dirname "$IGI_DATA")"
+    writing_under "$data_parent" mkdir -p "$IGI_DATA/raw"
+    writing_under "$data_parent" cp "$fetch_dir/libraw_cffi-0.19.0/libraw_cffi/tests/_DSC2164.ARW" "$ARW"
+    writing_under "$data_parent" cp "$fetch_dir/libraw_cffi-0.19.0/COPYING" "$IGI_DATA/raw/COPYING.libraw-cffi"
     rm -rf "$fetch_dir"
     if ! echo "$ARW_SHA256  $ARW" | sha256sum --check --status; then
       echo "igi: $ARW is not the expected file (SHA-256 differs)" >&2
