@@ -554,6 +554,8 @@ fn jpeg_head(b: &[u8]) -> Option<Vec<u8>> {
 fn setup_exif(fx: &Path, _work: &Path) -> Result<Vec<Vec<u8>>, String> {
     let tiff = exif_tiff();
     let mut seeds = vec![exif_jpeg(&tiff), tiff];
+    // a Canon CR3's ftyp and moov boxes, its EXIF in Canon's CMT blocks
+    seeds.push(read(&fx.join("raw/canon_r6_header.cr3"))?);
     let shared = fx.join("../../../shared/data/mirror_ball_ldr");
     for f in [
         "olapietka_sony_a6400/rec1.jpg",
