@@ -40,7 +40,8 @@ pub enum ImportCmd {
     /// Each photo's EXIF gives its survey `time` (DateTimeOriginal with OffsetTimeOriginal,
     /// else the GPS date and time, UTC; a time without a known offset is left out, not
     /// guessed) and `exposure` (ExposureTime x ISO/100 / FNumber^2; written only when every
-    /// photo has one). What was left out is listed per photo.
+    /// photo has one). What was left out is listed per photo, and so is a clock 10 minutes or
+    /// more off the photo's GPS stamp (the time stays the clock's: check its UTC offset).
     ///
     /// With --icp (COLMAP models, after --control), the alignment is refined by trimmed ICP
     /// of the model's sparse 3D points against --mesh: each point paired with its closest

@@ -17,6 +17,10 @@ use std::fmt;
 /// The largest UTC offset accepted, in seconds (±18:00, as ISO 8601 and most libraries bound it).
 pub const MAX_OFFSET_SECONDS: i32 = 18 * 3600;
 
+/// A photograph's clock and GPS stamp further apart than this are noted
+/// ([`PhotoTime::exif_clock_gps_note`]): the sun moves 2.5 degrees in 10 minutes.
+pub const CLOCK_GPS_NOTE_S: i64 = 600;
+
 /// An instant (UTC seconds since 1970-01-01T00:00:00Z plus nanoseconds) and the UTC offset it
 /// was written with. Two values are equal when both the instant and the offset are; compare
 /// [`PhotoTime::unix_seconds`] and [`PhotoTime::nanos`] for the instant alone.
@@ -385,6 +389,34 @@ impl PhotoTime {
         }
     }
 
+    /// How far a photograph's clock (`DateTimeOriginal` at `OffsetTimeOriginal`) runs ahead
+    /// of its GPS stamp, in seconds (negative: behind); `None` unless both are there and
+    /// readable. An hour usually means a wrong UTC offset (daylight saving time, a time zone
+    /// not set after travel), which [`Self::from_photo_exif`] cannot see: it takes the clock.
+    pub fn exif_clock_minus_gps_s(exif: &igi_imaging::exif::PhotoExif) -> Option<i64> {
+        let clock = PhotoTime::from_exif(
+            exif.date_time_original.as_deref()?,
+            Some(exif.offset_time_original.as_deref()?),
+        );
+        let gps = PhotoTime::from_exif(exif.gps_utc.as_deref()?, Some("+00:00"));
+        Some(clock.ok()?.unix_seconds - gps.ok()?.unix_seconds)
+    }
+
+    /// A note for a photograph whose clock and GPS stamp are [`CLOCK_GPS_NOTE_S`] or more
+    /// apart ([`Self::exif_clock_minus_gps_s`]): the time taken is the clock's.
+    pub fn exif_clock_gps_note(exif: &igi_imaging::exif::PhotoExif) -> Option<String> {
+        let gap = PhotoTime::exif_clock_minus_gps_s(exif)?;
+        (gap.abs() >= CLOCK_GPS_NOTE_S).then(|| {
+            let (m, s) = (gap.abs() / 60, gap.abs() % 60);
+            let side = if gap > 0 { "ahead of" } else { "behind" };
+            format!(
+                "its clock (with its UTC offset) is {m} min {s} s {side} its GPS time: the time \
+                 taken is the clock's; check the camera's UTC offset (daylight saving time?) or \
+                 give the photo a `time`"
+            )
+        })
+    }
+
     fn from_local(civil: &Civil, nanos: u32, offset_seconds: i32) -> PhotoTime {
         PhotoTime {
             unix_seconds: civil.seconds() - i64::from(offset_seconds),
@@ -724,6 +756,36 @@ mod tests {
         let e = PhotoTime::from_photo_exif(&none).unwrap_err();
         assert_eq!(e, TimeProblem::NoExifTime);
         assert!(e.to_string().contains("DateTimeOriginal"), "{e}");
+        // the Sony has no GPS stamp, the iPhone no offset: nothing to compare
+        assert_eq!(PhotoTime::exif_clock_minus_gps_s(&sony), None);
+        assert_eq!(PhotoTime::exif_clock_minus_gps_s(&gps), None);
+    }
+
+    /// The Canon EOS R6 CR3 of datasets/fixtures/raw: its clock says 20:24:47 at -08:00
+    /// (04:24:47 UTC on the next day), its GPS stamp 03:19:17 UTC, 65 min 30 s earlier; the
+    /// time taken is the clock's.
+    #[test]
+    fn a_clock_an_hour_off_its_gps_stamp_is_measured() {
+        use igi_imaging::exif::read_exif;
+        let canon = read_exif(&igi_testkit::fixture("raw/canon_r6_header.cr3")).unwrap();
+        assert_eq!(PhotoTime::exif_clock_minus_gps_s(&canon), Some(3930));
+        assert_eq!(
+            PhotoTime::from_photo_exif(&canon).unwrap().to_rfc3339_utc(),
+            "2025-09-07T04:24:47Z"
+        );
+        let behind = igi_imaging::exif::PhotoExif {
+            gps_utc: Some("2025:09:07 05:24:47".into()),
+            ..canon
+        };
+        assert_eq!(PhotoTime::exif_clock_minus_gps_s(&behind), Some(-3600));
+        let note = PhotoTime::exif_clock_gps_note(&behind).unwrap();
+        assert!(note.contains("60 min 0 s behind its GPS time"), "{note}");
+        let close = igi_imaging::exif::PhotoExif {
+            gps_utc: Some("2025:09:07 04:15:00".into()),
+            ..behind
+        };
+        assert_eq!(PhotoTime::exif_clock_minus_gps_s(&close), Some(587));
+        assert_eq!(PhotoTime::exif_clock_gps_note(&close), None);
     }
 
     #[test]

@@ -116,6 +116,9 @@ fn photo_exif(image: &Path) -> Result<PhotoExifInfo, ImportError> {
         }
         Err(e) => return Err(input_error(image, format!("its EXIF cannot be read: {e}"))),
     };
+    if let Some(note) = igi_formats::PhotoTime::exif_clock_gps_note(&exif) {
+        out.notes.push(note);
+    }
     match igi_formats::PhotoTime::from_photo_exif(&exif) {
         Ok(t) => out.time = Some(t.to_rfc3339()),
         Err(p @ (TimeProblem::UnknownOffset | TimeProblem::NoExifTime | TimeProblem::Blank)) => {
@@ -570,4 +573,25 @@ fn alignment_json(
         "points_note": "residuals of the control points' own fit (icp.control_points_only when --icp refined it)",
         "icp": icp,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The Canon CR3 of datasets/fixtures/raw: time, exposure and body from its EXIF, and a
+    /// note that its clock runs 65 min 30 s ahead of its GPS stamp.
+    #[test]
+    fn a_cr3_whose_clock_is_an_hour_off_its_gps_time_is_noted() {
+        let info = photo_exif(&igi_testkit::fixture("raw/canon_r6_header.cr3")).unwrap();
+        assert_eq!(info.time.as_deref(), Some("2025-09-06T20:24:47-08:00"));
+        let want = 0.01 * 256.0 / (2.8 * 2.8);
+        assert!((info.exposure.unwrap() - want).abs() < 1e-12, "{info:?}");
+        assert_eq!(info.body.as_deref(), Some("Canon EOS R6 #072021007989"));
+        assert_eq!(info.notes.len(), 1, "{info:?}");
+        assert!(
+            info.notes[0].contains("65 min 30 s ahead of its GPS time"),
+            "{info:?}"
+        );
+    }
 }

@@ -419,6 +419,9 @@ impl SurveyPaths<'_> {
                 ))
             }
         };
+        if let Some(note) = igi_formats::PhotoTime::exif_clock_gps_note(&exif) {
+            tracing::warn!("photo `{}` ({}): {note}", p.id, image.display());
+        }
         match igi_formats::PhotoTime::from_photo_exif(&exif) {
             Ok(t) => Ok(Some(t)),
             Err(TimeProblem::NoExifTime | TimeProblem::Blank) => Ok(None),
