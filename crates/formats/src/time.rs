@@ -17,7 +17,7 @@ use std::fmt;
 /// The largest UTC offset accepted, in seconds (±18:00, as ISO 8601 and most libraries bound it).
 pub const MAX_OFFSET_SECONDS: i32 = 18 * 3600;
 
-/// A photograph's clock and GPS stamp further apart than this are noted
+/// A photograph's clock and GPS stamp this far apart or further are noted
 /// ([`PhotoTime::exif_clock_gps_note`]): the sun moves 2.5 degrees in 10 minutes.
 pub const CLOCK_GPS_NOTE_S: i64 = 600;
 
