@@ -111,7 +111,7 @@ const MAX_MOOV: u64 = 64 << 20;
 /// A CR3's EXIF: `CMT1`, `CMT2` and `CMT4` of Canon's `uuid` box in `moov`, each a TIFF whose
 /// first IFD holds the primary, Exif and GPS fields.
 fn cr3_fields(r: &mut (impl Read + Seek)) -> Result<Fields, exif::Error> {
-    let moov = top_level_box(r, b"moov")?;
+    let moov = read_moov(r)?;
     let canon = boxes(&moov)
         .find(|(t, b)| t == b"uuid" && b.starts_with(&CANON_UUID))
         .ok_or(exif::Error::NotFound("a CR3 without Canon's uuid box"))?
@@ -143,8 +143,8 @@ fn cr3_fields(r: &mut (impl Read + Seek)) -> Result<Fields, exif::Error> {
     Ok(Fields(fields))
 }
 
-/// The payload of the first top-level box of type `kind`, the boxes before it skipped.
-fn top_level_box(r: &mut (impl Read + Seek), kind: &[u8; 4]) -> Result<Vec<u8>, exif::Error> {
+/// The payload of a CR3's top-level `moov` box, the boxes before it skipped (not read).
+fn read_moov(r: &mut (impl Read + Seek)) -> Result<Vec<u8>, exif::Error> {
     let bad = exif::Error::InvalidFormat;
     loop {
         let mut head = [0u8; 8];
@@ -162,7 +162,7 @@ fn top_level_box(r: &mut (impl Read + Seek), kind: &[u8; 4]) -> Result<Vec<u8>, 
         if size < header {
             return Err(bad("a CR3 box shorter than its header"));
         }
-        if &head[4..8] == kind {
+        if &head[4..8] == b"moov" {
             if size > MAX_MOOV {
                 return Err(bad("a CR3 moov box over 64 MiB"));
             }
