@@ -53,7 +53,9 @@ Usage:
 Deterministic for a given seed (byte-identical files). Write it outside the repository: about
 170 MB, the texture 100 MB. Here (2 cores shared with a Rust build, llvm_ad_rgb): inputs
 11-14 s, checks 21-43 s, 64 spp photos 2.5-4.6 s each (80-150 s for the 32; median relative
-standard error of a pixel 2-5 %), held-out 4 x 64 spp 9-19 s.
+standard error of a pixel 2-5 %), held-out 4 x 64 spp 9-19 s. At `--spp 256` (noise about a
+camera's at base ISO: median relative standard error 0.9-2.5 %) 30 s a photo, about 16 min for
+the 32 (docs/BENCHMARKS.md, "Photographs as noisy as a camera's").
 """
 
 import argparse
