@@ -773,8 +773,10 @@ fn setup_hull(_fx: &Path, work: &Path) -> Result<Vec<Vec<u8>>, String> {
     };
     let ply = work.join("hull/seed.ply");
     igi_geometry::write_points_ply(&ply, &surfels.to_cloud()).map_err(|e| e.to_string())?;
+    // relative to the folder `run_hull` unbundles into (hull/folder), as `igi hull build`
+    // writes it: the seed, and so every mutation, is the same in any work folder
     let manifest = igi_opacity_hull::build::Manifest {
-        rig: rig.join("rig.toml"),
+        rig: PathBuf::from("../rig/rig.toml"),
         views: vec!["v0".into(), "v1".into()],
         bbox_min: [-1.0; 3],
         bbox_max: [1.0; 3],

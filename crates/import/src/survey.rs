@@ -7,7 +7,7 @@
 //! sparse points against the mesh ([`crate::icp`]) before the cameras are moved.
 
 use std::collections::HashMap;
-use std::path::{Component, Path, PathBuf};
+use std::path::{Path, PathBuf};
 
 use igi_camera::Camera;
 use igi_formats::lighting::LightingFile;
@@ -463,18 +463,12 @@ fn survey_file(job: &ColmapImport, photos: &[Photo]) -> Result<SurveyFile, Impor
     // the folder made absolute, the file's own name kept: a photo that is a symlink stays
     // the name under --images, not its target
     let rel = |p: &Path| -> Result<PathBuf, ImportError> {
-        let (dir, name) = match (p.parent(), p.file_name()) {
-            (Some(d), Some(n)) if !d.as_os_str().is_empty() => (d, Some(n)),
-            (_, Some(n)) => (Path::new("."), Some(n)),
-            _ => (p, None),
-        };
-        let dir = std::fs::canonicalize(dir).map_err(|source| ImportError::Read {
+        let abs = igi_files::resolve_folder_of(p).map_err(|source| ImportError::Read {
             path: p.to_path_buf(),
             what: "an input",
             source,
         })?;
-        let abs = name.map_or(dir.clone(), |n| dir.join(n));
-        Ok(relative_to(&abs, &base).unwrap_or(abs))
+        Ok(igi_files::relative_to(&abs, &base).unwrap_or(abs))
     };
     let lighting = job.lighting.as_deref().map(rel).transpose()?;
     let photo = photos
@@ -512,23 +506,6 @@ fn survey_file(job: &ColmapImport, photos: &[Photo]) -> Result<SurveyFile, Impor
         photo,
         ..SurveyFile::default()
     })
-}
-
-/// `target` relative to `base` (both absolute), when they share more than the root.
-pub fn relative_to(target: &Path, base: &Path) -> Option<PathBuf> {
-    let (t, b): (Vec<Component>, Vec<Component>) =
-        (target.components().collect(), base.components().collect());
-    let common = t.iter().zip(&b).take_while(|(x, y)| x == y).count();
-    let shares = t[..common]
-        .iter()
-        .any(|c| matches!(c, Component::Normal(_)));
-    if !shares {
-        return None;
-    }
-    let mut out = PathBuf::new();
-    b[common..].iter().for_each(|_| out.push(".."));
-    t[common..].iter().for_each(|c| out.push(c));
-    Some(out)
 }
 
 fn alignment_json(

@@ -62,6 +62,8 @@ impl Default for BuildOptions {
 /// The manifest `hull.json`.
 #[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Manifest {
+    /// The rig file: relative to the hull folder, or absolute where the two share only the
+    /// root (older folders name it absolutely; both are read).
     pub rig: PathBuf,
     pub views: Vec<String>,
     pub bbox_min: [f64; 3],
@@ -173,7 +175,7 @@ pub fn build(
     );
     lap(&mut t.volume_s);
     progress(Stage::Write);
-    let manifest = hull_manifest(rig, &views, &opts, surfels.len())?;
+    let manifest = hull_manifest(rig, out, &views, &opts, surfels.len())?;
     let mut report = build_report(reps, &opts, &hull, surfels.len(), t);
     report.reflectance = field.as_ref().map(|f| f.1.clone());
     let write_start = Instant::now();
@@ -205,15 +207,19 @@ fn stored_report(report: &BuildReport) -> serde_json::Value {
     v
 }
 
-/// The folder's `hull.json`.
+/// The `hull.json` of the folder `out`. It names the rig relative to `out` when the two share
+/// more than the root, so a capture folder holding both can move as one.
 fn hull_manifest(
     rig: &Rig,
+    out: &Path,
     views: &[View],
     opts: &BuildOptions,
     surfels: usize,
 ) -> Result<Manifest, HullError> {
+    let resolved = |p: &Path| igi_files::resolve_folder_of(p).map_err(|e| HullError::io(p, e));
+    let (rig_path, out) = (resolved(&rig.path)?, resolved(out)?);
     Ok(Manifest {
-        rig: std::path::absolute(&rig.path).map_err(|e| HullError::io(&rig.path, e))?,
+        rig: igi_files::relative_to(&rig_path, &out).unwrap_or(rig_path),
         views: views.iter().map(|v| v.id.clone()).collect(),
         bbox_min: rig.object.bbox_min,
         bbox_max: rig.object.bbox_max,
@@ -333,7 +339,9 @@ fn open_hull(dir: &Path) -> Result<OpenHull, HullError> {
         path: dir.join("surfels.ply"),
         msg: format!("lacks the normals, radius, visibility or opacity properties of {nv} views"),
     })?;
-    let rig = Rig::load(&manifest.rig)?;
+    // a relative rig is relative to the hull folder (FORMATS.md); older folders name it
+    // absolutely
+    let rig = Rig::load(&dir.join(&manifest.rig))?;
     Ok(OpenHull {
         manifest_path: mpath,
         manifest,

@@ -4,7 +4,7 @@
 use glam::DVec3;
 use igi_camera::{Camera, Rig};
 use igi_imaging::Mask;
-use igi_opacity_hull::build::{build, BuildOptions};
+use igi_opacity_hull::build::{build, load_model, BuildOptions};
 use igi_opacity_hull::carve::MAX_VIEWS;
 use igi_opacity_hull::hull::volume_curves;
 use igi_opacity_hull::views::{load_views, MatteOptions, View};
@@ -119,4 +119,42 @@ fn a_rig_of_more_views_than_a_hull_takes_is_refused_before_any_work() {
         other => panic!("expected TooManyViews, got {other:?}"),
     }
     assert!(!out.exists());
+}
+
+/// A capture folder holding its rig and the hull built from it moves as one: `hull.json` names
+/// the rig relative to the hull folder, and the moved hull renders the same bytes. A folder
+/// naming its rig absolutely (as before) still loads.
+#[test]
+fn a_capture_folder_moved_as_one_still_renders() {
+    let dir = tempfile::tempdir().unwrap();
+    let capture = dir.path().join("capture");
+    std::fs::create_dir(&capture).unwrap();
+    let rig = sphere_rig(&capture, 2, 4, true);
+    let opts = BuildOptions {
+        volume_orders: 1,
+        volume_resolution: 16,
+        ..BuildOptions::default()
+    };
+    build(&rig, &capture.join("hull"), opts, &mut |_| {}).unwrap();
+    let manifest = |hull: &Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(hull.join("hull.json")).unwrap()).unwrap()
+    };
+    assert_eq!(manifest(&capture.join("hull"))["rig"], "../rig.toml");
+    let camera = Camera::look_at(DVec3::new(0.3, -0.2, 0.1), DVec3::ZERO, 32, 24, 30.0).unwrap();
+    let render = |hull: &Path| {
+        let model = load_model(hull).unwrap();
+        let (image, alpha) = igi_opacity_hull::render::render(&model, &camera, Default::default());
+        assert!(alpha.iter().any(|&a| a > 0.5), "the sphere is in view");
+        (image.pixels, alpha)
+    };
+    let before = render(&capture.join("hull"));
+    let moved = dir.path().join("elsewhere/capture");
+    std::fs::create_dir(dir.path().join("elsewhere")).unwrap();
+    std::fs::rename(&capture, &moved).unwrap();
+    assert_eq!(render(&moved.join("hull")), before);
+    // a manifest naming the rig by its absolute path, as folders written before did
+    let mut m = manifest(&moved.join("hull"));
+    m["rig"] = moved.join("rig.toml").to_str().unwrap().into();
+    std::fs::write(moved.join("hull/hull.json"), m.to_string()).unwrap();
+    assert_eq!(render(&moved.join("hull")), before);
 }
