@@ -17,9 +17,9 @@
 //!   so writers on several hosts of a shared file system never collide.
 //! * [`memory`]: every size-driven allocation estimated and refused above a limit before it
 //!   happens ([`check_alloc`], [`max_alloc`]: 8 GiB or `IGI_MAX_MEMORY`).
-//! * [`paths`]: how one output names another command's file ([`resolve_folder_of`],
-//!   [`relative_to`]: relative to its folder when they share more than the root), so folders
-//!   that belong together move together.
+//! * [`paths`]: how one output names another command's file ([`named_from`]: relative to its
+//!   folder when they share more than the root, through [`resolve_folder_of`] and
+//!   [`relative_to`]), so folders that belong together move together.
 //! * [`run`]: run manifests (`run.json`: input fingerprints and result-changing options, so a
 //!   resumed command never mixes two runs' work), the one-writer folder lock ([`FolderLock`])
 //!   and what `--restart` removes ([`remove_own`]: only the names the command writes, only
@@ -39,7 +39,7 @@ pub use folder::{
     check_distinct, check_output_extension, check_output_file, check_output_folder, Staging,
 };
 pub use memory::{check_alloc, check_alloc_default, check_input_file, max_alloc};
-pub use paths::{relative_to, resolve_folder_of};
+pub use paths::{named_from, relative_to, resolve_folder_of};
 pub use run::{remove_own, Fingerprint, FolderLock, FolderState, RunManifest, RUN_FILE};
 
 use std::path::PathBuf;

@@ -36,6 +36,15 @@ pub fn relative_to(target: &Path, base: &Path) -> Option<PathBuf> {
     Some(out)
 }
 
+/// How a file in `folder` names `target`: relative to `folder` when the two, resolved, share
+/// more than the root ([`relative_to`]), else `target` resolved and absolute. `folder` need
+/// not exist yet (an output about to be written); its parent must.
+pub fn named_from(target: &Path, folder: &Path) -> std::io::Result<PathBuf> {
+    let target = resolve_folder_of(target)?;
+    let folder = std::fs::canonicalize(folder).or_else(|_| resolve_folder_of(folder))?;
+    Ok(relative_to(&target, &folder).unwrap_or(target))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -79,5 +88,14 @@ mod tests {
             );
         }
         assert!(resolve_folder_of(&real.join("missing/x.toml")).is_err());
+        // named from a folder that exists, and from one about to be written
+        assert_eq!(
+            named_from(&via_dots, &real.join("a")).unwrap(),
+            Path::new("x.toml")
+        );
+        assert_eq!(
+            named_from(&real.join("a/x.toml"), &real.join("hull")).unwrap(),
+            Path::new("../a/x.toml")
+        );
     }
 }

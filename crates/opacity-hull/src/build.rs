@@ -216,10 +216,8 @@ fn hull_manifest(
     opts: &BuildOptions,
     surfels: usize,
 ) -> Result<Manifest, HullError> {
-    let resolved = |p: &Path| igi_files::resolve_folder_of(p).map_err(|e| HullError::io(p, e));
-    let (rig_path, out) = (resolved(&rig.path)?, resolved(out)?);
     Ok(Manifest {
-        rig: igi_files::relative_to(&rig_path, &out).unwrap_or(rig_path),
+        rig: igi_files::named_from(&rig.path, out).map_err(|e| HullError::io(&rig.path, e))?,
         views: views.iter().map(|v| v.id.clone()).collect(),
         bbox_min: rig.object.bbox_min,
         bbox_max: rig.object.bbox_max,

@@ -179,7 +179,8 @@ pub fn write_survey(
     let mut survey = SurveyFile {
         site: match &prepared {
             Some(site) => SiteSection {
-                prepared: Some(named_from(site, dir)),
+                // relative when they share more than the root: they move together
+                prepared: Some(igi_files::named_from(site, dir).unwrap_or(site.clone())),
                 ..SiteSection::default()
             },
             None => SiteSection::default(),
@@ -333,17 +334,5 @@ impl Shoot<'_> {
             exposure: None,
             ..PhotoEntry::default()
         })
-    }
-}
-
-/// `target` as a file in the folder `dir` names it: relative to `dir` when the two share more
-/// than the root (so the survey and its prepared site move together), else absolute.
-fn named_from(target: &Path, dir: &Path) -> PathBuf {
-    match (
-        igi_files::resolve_folder_of(target),
-        std::fs::canonicalize(dir),
-    ) {
-        (Ok(t), Ok(d)) => igi_files::relative_to(&t, &d).unwrap_or(t),
-        _ => target.to_path_buf(),
     }
 }
